@@ -1,0 +1,149 @@
+#!/usr/bin/env bash
+# The dbbcal benchmark (not a test; not run in CI). From the repository root:
+#
+#     bench/run.sh
+#
+# 1. builds the release binary;
+# 2. generates the benchmark campaigns into bench/out/ if missing (sim-bench*.toml: 12 bars at
+#    1 Hz for 7.5, 15 and 30 days = 7.8 / 15.6 / 31.1 M encoder rows) and the small sample one;
+# 3. checks on the sample campaign that bench/python_equivalent.py and dbbcal agree (1e-3 relative);
+# 4. measures wall time and peak RSS (/usr/bin/time -v) of, per campaign size:
+#      dbbcal ingest, dbbcal identify (= ingest + identify), bench/bare_scan.py (best of 3),
+#    and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
+#    PY_BARS bars, extrapolated to all 12 -- plus the --project-zeros variant on all bars;
+# 5. writes bench/results.md (bench/report.py).
+#
+# Knobs (environment):
+#   SIZES="quarter half full"  campaign sizes to time (full = sim-bench.toml)
+#   REPEAT=1                   dbbcal runs per measurement (the fastest is reported)
+#   PY_BARS=2                  bars of the dense Python run ("all" for every bar; ~4 min a bar on 2 cores)
+#   PY_FAST=1                  also run python_equivalent.py --project-zeros on all bars (0 to skip)
+#   SKIP_PYTHON=1              skip the Python equivalent
+#   WAIT_IDLE=1                before each measurement wait (up to 15 min) for the 1-min load < IDLE_LOAD
+#   IDLE_LOAD=0.7
+#   CARGO_TARGET_DIR           default $HOME/.cache/dbbcal-target
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/dbbcal-target}
+SIZES=${SIZES:-quarter half full}
+REPEAT=${REPEAT:-1}
+PY_BARS=${PY_BARS:-2}
+PY_FAST=${PY_FAST:-1}
+SKIP_PYTHON=${SKIP_PYTHON:-0}
+WAIT_IDLE=${WAIT_IDLE:-0}
+IDLE_LOAD=${IDLE_LOAD:-0.7}
+OUT=bench/out
+BIN=$CARGO_TARGET_DIR/release/dbbcal
+TSV=$OUT/measurements.tsv
+
+say() { printf '\n== %s\n' "$*" >&2; }
+
+# ------------------------------------------------------------------ tools
+if [ ! -x /usr/bin/time ]; then
+    say "installing GNU time"
+    SUDO=$([ "$(id -u)" = 0 ] && echo "" || echo sudo)
+    $SUDO apt-get install -y time >/dev/null || { $SUDO apt-get update >/dev/null && $SUDO apt-get install -y time >/dev/null; }
+fi
+if ! python3 -c 'import polars, scipy, numpy' 2>/dev/null; then
+    say "installing polars scipy numpy"
+    python3 -m pip install --quiet polars scipy numpy
+fi
+
+say "cargo build --release (CARGO_TARGET_DIR=$CARGO_TARGET_DIR)"
+cargo build --release
+
+mkdir -p "$OUT"
+
+# ------------------------------------------------------------------ campaigns
+config_of() {
+    case $1 in
+        full) echo bench/sim-bench.toml ;;
+        half) echo bench/sim-bench-half.toml ;;
+        quarter) echo bench/sim-bench-quarter.toml ;;
+        sample) echo pipelines/sim-sample.toml ;;
+        *) echo "unknown size $1" >&2; exit 2 ;;
+    esac
+}
+for size in sample $SIZES; do
+    dir=$OUT/campaign-$size
+    if [ ! -f "$dir/campaign.toml" ]; then
+        rm -rf "$dir"
+        say "generating $dir from $(config_of "$size")"
+        /usr/bin/time -f "simulate $size: %e s, peak %M KB" "$BIN" simulate --config "$(config_of "$size")" --out "$dir"
+    fi
+done
+
+# ------------------------------------------------------------------ measuring
+wait_idle() {
+    [ "$WAIT_IDLE" = 1 ] || return 0
+    local waited=0
+    while awk -v lim="$IDLE_LOAD" '{exit !($1 >= lim)}' /proc/loadavg && [ $waited -lt 900 ]; do
+        [ $waited = 0 ] && echo "   waiting for the load to fall below $IDLE_LOAD ($(cut -d' ' -f1-3 /proc/loadavg))" >&2
+        sleep 15
+        waited=$((waited + 15))
+    done
+}
+
+# measure LABEL SIZE CMD... : /usr/bin/time -v into $OUT/LABEL.time, output into $OUT/LABEL.log,
+# one line into $TSV (label, size, time file, load before, load after, exit code).
+measure() {
+    local label=$1 size=$2
+    shift 2
+    wait_idle
+    local before after status=0
+    before=$(cut -d' ' -f1 /proc/loadavg)
+    echo "   $label: $*" >&2
+    /usr/bin/time -v -o "$OUT/$label.time" "$@" >"$OUT/$label.log" 2>&1 || status=$?
+    after=$(cut -d' ' -f1 /proc/loadavg)
+    printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$label" "$size" "$OUT/$label.time" "$before" "$after" "$status" >>"$TSV"
+    echo "   -> exit $status, $(grep -E 'Elapsed|Maximum resident' "$OUT/$label.time" | sed 's/^\s*//' | tr '\n' ' ')" >&2
+}
+
+: >"$TSV"
+{
+    echo "nproc	$(nproc)"
+    echo "cpu	$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ //')"
+    echo "mem	$(awk '/MemTotal/ {printf "%.1f GB", $2/1048576}' /proc/meminfo)"
+    echo "kernel	$(uname -r)"
+    echo "rustc	$(rustc --version)"
+    echo "python	$(python3 -c 'import sys, polars, numpy, scipy; print(sys.version.split()[0], "polars", polars.__version__, "numpy", numpy.__version__, "scipy", scipy.__version__)')"
+    echo "dbbcal	$("$BIN" --version)"
+    echo "date	$(date -u +%Y-%m-%dT%H:%M:%SZ)"
+} >"$OUT/machine.tsv"
+
+say "correctness: python_equivalent.py vs dbbcal identify on the sample campaign"
+"$BIN" identify --campaign "$OUT/campaign-sample" --out "$OUT/res-sample-identify" || [ $? = 2 ]
+python3 bench/python_equivalent.py "$OUT/campaign-sample" --json "$OUT/py-sample.json" \
+    --compare "$OUT/res-sample-identify/summary.json" | tee "$OUT/check-sample.txt" || echo "   (estimates differ: see $OUT/check-sample.txt)" >&2
+
+for size in $SIZES; do
+    camp=$OUT/campaign-$size
+    say "timing $size ($camp)"
+    # The bare scan first: it also warms the page cache for everyone after it.
+    measure "bare-scan-$size" "$size" python3 bench/bare_scan.py "$camp" --repeat 3 --json "$OUT/bare-scan-$size.json"
+    for r in $(seq 1 "$REPEAT"); do
+        measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest"
+        measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify"
+    done
+done
+
+if [ "$SKIP_PYTHON" != 1 ]; then
+    camp=$OUT/campaign-full
+    bars=""
+    if [ "$PY_BARS" != all ]; then
+        bars=$(python3 -c "import tomllib,sys; m=tomllib.load(open('$camp/campaign.toml','rb')); print(','.join(b['id'] for b in m['bar'][:int(sys.argv[1])]))" "$PY_BARS")
+    fi
+    say "timing the Python equivalent (dense lstsq) on ${bars:-all bars}"
+    measure "python-dense-full" full python3 bench/python_equivalent.py "$camp" ${bars:+--bars "$bars"} \
+        --json "$OUT/py-dense-full.json" --compare "$OUT/res-full-identify/summary.json"
+    if [ "$PY_FAST" = 1 ]; then
+        say "timing the Python equivalent (--project-zeros) on all bars"
+        measure "python-fwl-full" full python3 bench/python_equivalent.py "$camp" --project-zeros \
+            --json "$OUT/py-fwl-full.json" --compare "$OUT/res-full-identify/summary.json"
+    fi
+fi
+
+say "writing bench/results.md"
+python3 bench/report.py --out-dir "$OUT" --results bench/results.md
+cat bench/results.md

@@ -1,0 +1,674 @@
+//! The campaign manifest (`campaign.toml`, see `shared/spec/campaign-format.md`) and its
+//! validated form.
+//!
+//! [`Manifest`] mirrors the TOML one to one (and is what `simulate` writes); [`Campaign`] is the
+//! validated, resolved form every later stage uses: mounts point at their plate length, times are
+//! integer nanoseconds since the Unix epoch (UTC), tilts are filled in from the plate.
+//! Validation lives in [`Campaign::from_manifest`]; every error names the key that is wrong.
+
+use serde::{Deserialize, Serialize};
+
+/// Nanoseconds since 1970-01-01T00:00:00Z.
+pub type TimeNs = i64;
+
+// ---------------------------------------------------------------- manifest, as written in TOML
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    pub campaign: CampaignSection,
+    pub plate: PlateSection,
+    #[serde(default)]
+    pub sensor: Vec<SensorDecl>,
+    #[serde(default)]
+    pub bar: Vec<BarDecl>,
+    #[serde(default)]
+    pub mount: Vec<MountDecl>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CampaignSection {
+    pub id: String,
+    pub reference_temperature_c: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlateSection {
+    pub material: String,
+    #[serde(default)]
+    pub cte_ppm_per_k: f64,
+    /// Plate tilt from horizontal, degrees; 0 when absent.
+    #[serde(default)]
+    pub tilt_deg: f64,
+    #[serde(default)]
+    pub length: Vec<PlateLength>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlateLength {
+    pub id: String,
+    pub mm: f64,
+    /// Standard uncertainty (k = 1) of the calibrated length, micrometres.
+    pub u_um: f64,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[serde(rename_all = "lowercase")]
+pub enum SensorKind {
+    Air,
+    Plate,
+    Bar,
+    Head,
+    Other,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SensorDecl {
+    pub id: String,
+    pub kind: SensorKind,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BarDecl {
+    pub id: String,
+    pub resolution_nm: f64,
+    pub fixed_length_mm: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<String>,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Purpose {
+    #[default]
+    Calibration,
+    Reference,
+    Check,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MountDecl {
+    pub bar: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub purpose: Option<Purpose>,
+    pub from: toml::value::Datetime,
+    pub to: toml::value::Datetime,
+}
+
+// ---------------------------------------------------------------- validated campaign
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Campaign {
+    pub id: String,
+    pub reference_temperature_c: f64,
+    pub plate: Plate,
+    pub sensors: Vec<Sensor>,
+    pub bars: Vec<Bar>,
+    /// Sorted by (bar, from_ns).
+    pub mounts: Vec<Mount>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plate {
+    pub material: String,
+    pub cte_ppm_per_k: f64,
+    pub tilt_deg: f64,
+    pub lengths: Vec<PlateLength>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sensor {
+    pub id: String,
+    pub kind: SensorKind,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bar {
+    pub id: String,
+    pub resolution_nm: f64,
+    /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel.
+    pub fixed_length_mm: f64,
+    /// The air sensor nearest the bar; `None` = mean of all air sensors.
+    pub sensor: Option<String>,
+}
+
+/// Where a bar sat during a mount.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Place {
+    /// On a plate socket pair of known centre distance.
+    Length(PlateLength),
+    /// On a target device: true distance unknown.
+    Device(String),
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mount {
+    pub bar: String,
+    pub place: Place,
+    /// Tilt from horizontal, degrees: the mount's, else the plate's.
+    pub tilt_deg: f64,
+    pub purpose: Purpose,
+    pub from_ns: TimeNs,
+    pub to_ns: TimeNs,
+}
+
+impl Campaign {
+    pub fn bar(&self, id: &str) -> Option<&Bar> {
+        self.bars.iter().find(|b| b.id == id)
+    }
+    pub fn sensor(&self, id: &str) -> Option<&Sensor> {
+        self.sensors.iter().find(|s| s.id == id)
+    }
+    pub fn mounts_of<'a>(&'a self, bar: &'a str) -> impl Iterator<Item = &'a Mount> + 'a {
+        self.mounts.iter().filter(move |m| m.bar == bar)
+    }
+    pub fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
+        self.sensors.iter().filter(|s| s.kind == SensorKind::Air)
+    }
+}
+
+// ---------------------------------------------------------------- validation
+
+/// A manifest that cannot be used. Every message is one line naming the file and the key.
+///
+/// Array indices in keys (`mount[3]`) count from 0 in file order, as in a TOML path.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CampaignError {
+    /// The text is not TOML, or does not have the manifest's shape (unknown or missing key).
+    #[error("{file}:{line}:{column}: {message}")]
+    Syntax { file: String, line: usize, column: usize, message: String },
+    /// Two entries of one table share an id.
+    #[error("{file}: {table}[{second}]: id \"{id}\" is already used by {table}[{first}]")]
+    DuplicateId { file: String, table: &'static str, id: String, first: usize, second: usize },
+    /// A reference to something the manifest does not declare.
+    #[error("{file}: {key}: {field} \"{value}\" is not {what} (known: {known})")]
+    Unknown {
+        file: String,
+        key: String,
+        field: &'static str,
+        value: String,
+        what: &'static str,
+        known: String,
+    },
+    /// Any other invalid value.
+    #[error("{file}: {key}: {problem}")]
+    Invalid { file: String, key: String, problem: String },
+}
+
+/// The file name used in messages when the caller does not give one.
+const MANIFEST_FILE: &str = "campaign.toml";
+
+impl Manifest {
+    /// Parses `campaign.toml` text; `file` is only used in error messages.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Manifest, CampaignError> {
+        toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+            CampaignError::Syntax {
+                file: file.to_string(),
+                line,
+                column,
+                message: one_line(e.message()),
+            }
+        })
+    }
+
+    /// The manifest as TOML text (what `simulate` writes).
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string(self)
+    }
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Converts a TOML datetime to nanoseconds since the epoch. A datetime without offset is UTC;
+/// a date or time alone is an error (the string says why).
+pub fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
+    let (Some(d), Some(t)) = (dt.date, dt.time) else {
+        return Err(format!("{dt} is not a date-time (need e.g. 2026-11-01T00:00:00Z)"));
+    };
+    let date = chrono::NaiveDate::from_ymd_opt(i32::from(d.year), u32::from(d.month), u32::from(d.day))
+        .ok_or_else(|| format!("{dt}: no such date"))?;
+    // Leap seconds (second = 60) are folded into the next second by chrono's nanosecond field.
+    let (second, extra_ns) = if t.second == 60 { (59, 1_000_000_000) } else { (t.second, 0) };
+    let time = chrono::NaiveTime::from_hms_nano_opt(
+        u32::from(t.hour),
+        u32::from(t.minute),
+        u32::from(second),
+        t.nanosecond + extra_ns,
+    )
+    .ok_or_else(|| format!("{dt}: no such time of day"))?;
+    let local_ns = date
+        .and_time(time)
+        .and_utc()
+        .timestamp_nanos_opt()
+        .ok_or_else(|| format!("{dt} is outside 1677..2262 (nanosecond range)"))?;
+    let offset_minutes = match dt.offset {
+        None | Some(toml::value::Offset::Z) => 0,
+        Some(toml::value::Offset::Custom { minutes }) => i64::from(minutes),
+    };
+    Ok(local_ns - offset_minutes * 60 * 1_000_000_000)
+}
+
+/// Converts nanoseconds since the epoch to a UTC TOML datetime (`...Z`), the inverse of
+/// [`toml_datetime_to_ns`].
+pub fn ns_to_toml_datetime(ns: TimeNs) -> toml::value::Datetime {
+    let t = chrono::DateTime::from_timestamp_nanos(ns);
+    use chrono::{Datelike, Timelike};
+    toml::value::Datetime {
+        date: Some(toml::value::Date {
+            // Years outside u16 cannot occur: i64 nanoseconds span 1677..2262.
+            year: u16::try_from(t.year()).unwrap_or(0),
+            month: t.month() as u8,
+            day: t.day() as u8,
+        }),
+        time: Some(toml::value::Time {
+            hour: t.hour() as u8,
+            minute: t.minute() as u8,
+            second: t.second() as u8,
+            nanosecond: t.nanosecond(),
+        }),
+        offset: Some(toml::value::Offset::Z),
+    }
+}
+
+impl Campaign {
+    /// Validates and resolves a manifest; messages name the file `campaign.toml`.
+    pub fn from_manifest(manifest: Manifest) -> Result<Campaign, CampaignError> {
+        Self::from_manifest_at(manifest, MANIFEST_FILE)
+    }
+
+    /// As [`Campaign::from_manifest`], naming `file` in messages.
+    pub fn from_manifest_at(manifest: Manifest, file: &str) -> Result<Campaign, CampaignError> {
+        let v = Validator { file };
+        v.campaign_section(&manifest.campaign)?;
+        v.plate(&manifest.plate)?;
+        v.sensors(&manifest.sensor)?;
+        v.bars(&manifest.bar, &manifest.sensor)?;
+        let mounts = v.mounts(&manifest)?;
+        Ok(Campaign {
+            id: manifest.campaign.id,
+            reference_temperature_c: manifest.campaign.reference_temperature_c,
+            plate: Plate {
+                material: manifest.plate.material,
+                cte_ppm_per_k: manifest.plate.cte_ppm_per_k,
+                tilt_deg: manifest.plate.tilt_deg,
+                lengths: manifest.plate.length,
+            },
+            sensors: manifest.sensor.into_iter().map(|s| Sensor { id: s.id, kind: s.kind }).collect(),
+            bars: manifest
+                .bar
+                .into_iter()
+                .map(|b| Bar {
+                    id: b.id,
+                    resolution_nm: b.resolution_nm,
+                    fixed_length_mm: b.fixed_length_mm,
+                    sensor: b.sensor,
+                })
+                .collect(),
+            mounts,
+        })
+    }
+}
+
+/// Checks of one manifest; holds the file name for messages.
+struct Validator<'a> {
+    file: &'a str,
+}
+
+impl Validator<'_> {
+    fn invalid(&self, key: impl Into<String>, problem: impl Into<String>) -> CampaignError {
+        CampaignError::Invalid { file: self.file.to_string(), key: key.into(), problem: problem.into() }
+    }
+
+    fn unknown(
+        &self,
+        key: String,
+        field: &'static str,
+        value: &str,
+        what: &'static str,
+        known: &[&str],
+    ) -> CampaignError {
+        CampaignError::Unknown {
+            file: self.file.to_string(),
+            key,
+            field,
+            value: value.to_string(),
+            what,
+            known: if known.is_empty() { "none".to_string() } else { known.join(", ") },
+        }
+    }
+
+    fn finite(&self, key: &str, name: &str, value: f64) -> Result<(), CampaignError> {
+        if value.is_finite() {
+            Ok(())
+        } else {
+            Err(self.invalid(key, format!("{name} = {value} is not a finite number")))
+        }
+    }
+
+    fn positive(&self, key: &str, name: &str, value: f64) -> Result<(), CampaignError> {
+        if value.is_finite() && value > 0.0 {
+            Ok(())
+        } else {
+            Err(self.invalid(key, format!("{name} = {value} must be a finite number > 0")))
+        }
+    }
+
+    fn unique_ids<'i>(
+        &self,
+        table: &'static str,
+        ids: impl Iterator<Item = &'i str>,
+    ) -> Result<(), CampaignError> {
+        let mut seen: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+        for (i, id) in ids.enumerate() {
+            if id.trim().is_empty() {
+                return Err(self.invalid(format!("{table}[{i}]"), "id is empty"));
+            }
+            if let Some(&first) = seen.get(id) {
+                return Err(CampaignError::DuplicateId {
+                    file: self.file.to_string(),
+                    table,
+                    id: id.to_string(),
+                    first,
+                    second: i,
+                });
+            }
+            seen.insert(id, i);
+        }
+        Ok(())
+    }
+
+    fn campaign_section(&self, c: &CampaignSection) -> Result<(), CampaignError> {
+        if c.id.trim().is_empty() {
+            return Err(self.invalid("campaign.id", "is empty"));
+        }
+        self.finite("campaign", "reference_temperature_c", c.reference_temperature_c)
+    }
+
+    fn plate(&self, p: &PlateSection) -> Result<(), CampaignError> {
+        self.finite("plate", "cte_ppm_per_k", p.cte_ppm_per_k)?;
+        self.finite("plate", "tilt_deg", p.tilt_deg)?;
+        self.unique_ids("plate.length", p.length.iter().map(|l| l.id.as_str()))?;
+        for (i, l) in p.length.iter().enumerate() {
+            let key = format!("plate.length[{i}] (\"{}\")", l.id);
+            self.positive(&key, "mm", l.mm)?;
+            if !(l.u_um.is_finite() && l.u_um >= 0.0) {
+                return Err(self.invalid(key, format!("u_um = {} must be a finite number >= 0", l.u_um)));
+            }
+        }
+        Ok(())
+    }
+
+    fn sensors(&self, sensors: &[SensorDecl]) -> Result<(), CampaignError> {
+        self.unique_ids("sensor", sensors.iter().map(|s| s.id.as_str()))
+    }
+
+    fn bars(&self, bars: &[BarDecl], sensors: &[SensorDecl]) -> Result<(), CampaignError> {
+        self.unique_ids("bar", bars.iter().map(|b| b.id.as_str()))?;
+        let sensor_ids: Vec<&str> = sensors.iter().map(|s| s.id.as_str()).collect();
+        for (i, b) in bars.iter().enumerate() {
+            let key = format!("bar[{i}] (\"{}\")", b.id);
+            self.positive(&key, "resolution_nm", b.resolution_nm)?;
+            self.positive(&key, "fixed_length_mm", b.fixed_length_mm)?;
+            if let Some(s) = &b.sensor {
+                if !sensor_ids.contains(&s.as_str()) {
+                    return Err(self.unknown(key, "sensor", s, "a declared sensor", &sensor_ids));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Resolves every mount, then sorts them by (bar, from) and checks for overlaps.
+    fn mounts(&self, m: &Manifest) -> Result<Vec<Mount>, CampaignError> {
+        let mut resolved: Vec<(usize, Mount)> = Vec::with_capacity(m.mount.len());
+        for (i, decl) in m.mount.iter().enumerate() {
+            resolved.push((i, self.mount(i, decl, m)?));
+        }
+        resolved.sort_by(|(ia, a), (ib, b)| {
+            (a.bar.as_str(), a.from_ns, *ia).cmp(&(b.bar.as_str(), b.from_ns, *ib))
+        });
+        for pair in resolved.windows(2) {
+            let ((ia, a), (ib, b)) = (&pair[0], &pair[1]);
+            if a.bar == b.bar && b.from_ns < a.to_ns {
+                return Err(self.invalid(
+                    format!("mount[{ib}] (bar \"{}\")", b.bar),
+                    format!(
+                        "interval {} .. {} overlaps mount[{ia}] ({} .. {})",
+                        m.mount[*ib].from, m.mount[*ib].to, m.mount[*ia].from, m.mount[*ia].to
+                    ),
+                ));
+            }
+        }
+        Ok(resolved.into_iter().map(|(_, mount)| mount).collect())
+    }
+
+    fn mount(&self, i: usize, d: &MountDecl, m: &Manifest) -> Result<Mount, CampaignError> {
+        let key = format!("mount[{i}] (bar \"{}\")", d.bar);
+        let bar_ids: Vec<&str> = m.bar.iter().map(|b| b.id.as_str()).collect();
+        let Some(bar) = m.bar.iter().find(|b| b.id == d.bar) else {
+            return Err(self.unknown(format!("mount[{i}]"), "bar", &d.bar, "a declared bar", &bar_ids));
+        };
+        let place = self.place(&key, d, bar, &m.plate)?;
+        let tilt_deg = d.tilt_deg.unwrap_or(m.plate.tilt_deg);
+        self.finite(&key, "tilt_deg", tilt_deg)?;
+        let from_ns = toml_datetime_to_ns(&d.from).map_err(|e| self.invalid(key.clone(), format!("from: {e}")))?;
+        let to_ns = toml_datetime_to_ns(&d.to).map_err(|e| self.invalid(key.clone(), format!("to: {e}")))?;
+        if from_ns >= to_ns {
+            return Err(self.invalid(key, format!("from = {} is not before to = {}", d.from, d.to)));
+        }
+        Ok(Mount {
+            bar: d.bar.clone(),
+            place,
+            tilt_deg,
+            purpose: d.purpose.unwrap_or_default(),
+            from_ns,
+            to_ns,
+        })
+    }
+
+    /// Exactly one of `length` / `device`; a length must exist and exceed the bar's fixed length.
+    fn place(&self, key: &str, d: &MountDecl, bar: &BarDecl, plate: &PlateSection) -> Result<Place, CampaignError> {
+        match (&d.length, &d.device) {
+            (Some(_), Some(_)) => Err(self.invalid(key, "gives both length and device (exactly one is allowed)")),
+            (None, None) => Err(self.invalid(key, "gives neither length nor device (exactly one is needed)")),
+            (None, Some(device)) if device.trim().is_empty() => Err(self.invalid(key, "device is empty")),
+            (None, Some(device)) => Ok(Place::Device(device.clone())),
+            (Some(length), None) => {
+                let Some(l) = plate.length.iter().find(|l| &l.id == length) else {
+                    let known: Vec<&str> = plate.length.iter().map(|l| l.id.as_str()).collect();
+                    return Err(self.unknown(key.to_string(), "length", length, "a plate length", &known));
+                };
+                if bar.fixed_length_mm > l.mm {
+                    return Err(self.invalid(
+                        key,
+                        format!(
+                            "bar fixed_length_mm = {} exceeds plate length \"{}\" = {} mm (scale travel would be negative)",
+                            bar.fixed_length_mm, l.id, l.mm
+                        ),
+                    ));
+                }
+                Ok(Place::Length(l.clone()))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[campaign]
+id = "lab"
+reference_temperature_c = 20.0
+
+[plate]
+material = "zerodur"
+tilt_deg = 60.0
+[[plate.length]]
+id = "min"
+mm = 250.0
+u_um = 0.15
+[[plate.length]]
+id = "max"
+mm = 400.0
+u_um = 0.2
+
+[[sensor]]
+id = "T1"
+kind = "air"
+
+[[bar]]
+id = "B02"
+resolution_nm = 5.0
+fixed_length_mm = 230.0
+[[bar]]
+id = "B01"
+resolution_nm = 5.0
+fixed_length_mm = 230.0
+sensor = "T1"
+
+[[mount]]
+bar = "B02"
+length = "max"
+from = 2026-11-02T00:00:00Z
+to = 2026-11-03T00:00:00Z
+[[mount]]
+bar = "B01"
+device = "hexapod-1"
+purpose = "check"
+tilt_deg = 10.0
+from = 2026-11-04T01:00:00+01:00
+to = 2026-11-06T00:00:00
+[[mount]]
+bar = "B01"
+length = "min"
+from = 2026-11-01T00:00:00Z
+to = 2026-11-04T00:00:00Z
+"#;
+
+    const DAY_NS: i64 = 86_400 * 1_000_000_000;
+    const NOV1: i64 = 1_793_491_200 * 1_000_000_000;
+
+    fn validate(text: &str) -> Result<Campaign, CampaignError> {
+        Campaign::from_manifest(Manifest::from_toml_str(text, "campaign.toml")?)
+    }
+
+    fn error(text: &str) -> String {
+        let msg = validate(text).expect_err("should fail").to_string();
+        assert!(!msg.contains('\n'), "not one line: {msg}");
+        msg
+    }
+
+    #[test]
+    fn resolves_sorts_and_fills_in() {
+        let c = validate(GOOD).expect("valid");
+        let order: Vec<(&str, i64)> = c.mounts.iter().map(|m| (m.bar.as_str(), m.from_ns)).collect();
+        // Sorted by (bar, from); +01:00 offset and local (= UTC) datetimes converted.
+        assert_eq!(order, vec![("B01", NOV1), ("B01", NOV1 + 3 * DAY_NS), ("B02", NOV1 + DAY_NS)]);
+        assert_eq!(c.mounts[1].to_ns, NOV1 + 5 * DAY_NS);
+        assert_eq!(c.mounts[0].tilt_deg, 60.0, "plate tilt when the mount has none");
+        assert_eq!(c.mounts[1].tilt_deg, 10.0);
+        assert_eq!(c.mounts[1].place, Place::Device("hexapod-1".into()));
+        assert_eq!(c.mounts[1].purpose, Purpose::Check);
+        assert_eq!(c.mounts[0].purpose, Purpose::Calibration);
+        assert!(matches!(&c.mounts[2].place, Place::Length(l) if l.id == "max" && l.mm == 400.0));
+        assert_eq!(c.bar("B01").and_then(|b| b.sensor.as_deref()), Some("T1"));
+    }
+
+    #[test]
+    fn manifest_round_trips_through_toml() {
+        let m = Manifest::from_toml_str(GOOD, "campaign.toml").expect("parse");
+        let text = m.to_toml_string().expect("serialise");
+        assert_eq!(Manifest::from_toml_str(&text, "x").expect("reparse"), m);
+    }
+
+    #[test]
+    fn time_conversion_round_trips() {
+        for ns in [0, NOV1, NOV1 + 123_456_789, -5_000_000_001] {
+            assert_eq!(toml_datetime_to_ns(&ns_to_toml_datetime(ns)), Ok(ns));
+        }
+    }
+
+    #[test]
+    fn syntax_errors_name_file_and_line() {
+        let msg = error(&GOOD.replace("resolution_nm = 5.0\nfixed_length_mm = 230.0\nsensor", "resolution = 5.0\nfixed_length_mm = 230.0\nsensor"));
+        assert!(msg.starts_with("campaign.toml:"), "{msg}");
+        assert!(msg.contains("resolution"), "{msg}");
+        let msg = error("[campaign\nid = 1");
+        assert!(msg.starts_with("campaign.toml:1:"), "{msg}");
+    }
+
+    #[test]
+    fn duplicate_ids_are_named() {
+        let msg = error(&GOOD.replace("id = \"B02\"", "id = \"B01\"").replace("bar = \"B02\"", "bar = \"B01\""));
+        assert!(msg.contains("campaign.toml: bar[1]: id \"B01\" is already used by bar[0]"), "{msg}");
+        let msg = error(&GOOD.replace("id = \"max\"", "id = \"min\""));
+        assert!(msg.contains("plate.length[1]: id \"min\" is already used by plate.length[0]"), "{msg}");
+        let msg = error(&format!("{GOOD}\n[[sensor]]\nid = \"T1\"\nkind = \"bar\"\n"));
+        assert!(msg.contains("sensor[1]: id \"T1\""), "{msg}");
+    }
+
+    #[test]
+    fn unknown_references_are_named() {
+        let msg = error(&GOOD.replace("length = \"max\"", "length = \"huge\""));
+        assert_eq!(msg, "campaign.toml: mount[0] (bar \"B02\"): length \"huge\" is not a plate length (known: min, max)");
+        let msg = error(&GOOD.replace("bar = \"B02\"", "bar = \"B03\""));
+        assert!(msg.contains("mount[0]: bar \"B03\" is not a declared bar (known: B02, B01)"), "{msg}");
+        let msg = error(&GOOD.replace("sensor = \"T1\"", "sensor = \"T7\""));
+        assert!(msg.contains("bar[1] (\"B01\"): sensor \"T7\" is not a declared sensor (known: T1)"), "{msg}");
+    }
+
+    #[test]
+    fn place_must_be_length_xor_device() {
+        let msg = error(&GOOD.replace("device = \"hexapod-1\"", "device = \"hexapod-1\"\nlength = \"min\""));
+        assert!(msg.contains("mount[1] (bar \"B01\"): gives both length and device"), "{msg}");
+        let msg = error(&GOOD.replace("device = \"hexapod-1\"\n", ""));
+        assert!(msg.contains("mount[1] (bar \"B01\"): gives neither length nor device"), "{msg}");
+    }
+
+    #[test]
+    fn bad_intervals_are_named() {
+        let msg = error(&GOOD.replace("to = 2026-11-03T00:00:00Z", "to = 2026-11-02T00:00:00Z"));
+        assert!(msg.contains("mount[0] (bar \"B02\"): from = 2026-11-02T00:00:00Z is not before to"), "{msg}");
+        // The device mount starts (01:00+01:00 = 00:00Z) when the plate mount ends: touching is
+        // fine. One hour earlier overlaps.
+        let msg = error(&GOOD.replace("from = 2026-11-04T01:00:00+01:00", "from = 2026-11-04T00:00:00+01:00"));
+        assert!(msg.contains("mount[1] (bar \"B01\"): interval") && msg.contains("overlaps mount[2]"), "{msg}");
+        let msg = error(&GOOD.replace("from = 2026-11-01T00:00:00Z", "from = 2026-11-01"));
+        assert!(msg.contains("mount[2] (bar \"B01\"): from: 2026-11-01 is not a date-time"), "{msg}");
+    }
+
+    #[test]
+    fn bad_numbers_are_named() {
+        let msg = error(&GOOD.replacen("resolution_nm = 5.0", "resolution_nm = 0.0", 1));
+        assert!(msg.contains("bar[0] (\"B02\"): resolution_nm = 0 must be a finite number > 0"), "{msg}");
+        let msg = error(&GOOD.replacen("fixed_length_mm = 230.0", "fixed_length_mm = -1.0", 1));
+        assert!(msg.contains("bar[0] (\"B02\"): fixed_length_mm = -1"), "{msg}");
+        let msg = error(&GOOD.replace("fixed_length_mm = 230.0\nsensor", "fixed_length_mm = 260.0\nsensor"));
+        assert!(msg.contains("mount[2] (bar \"B01\"): bar fixed_length_mm = 260 exceeds plate length \"min\" = 250 mm"), "{msg}");
+    }
+}

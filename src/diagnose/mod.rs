@@ -1,0 +1,262 @@
+//! Where the model fails, which physical effect is missing, and what adding it buys.
+//!
+//! Per bar: residual statistics ([`residual`]) and a ranking of every channel the campaign
+//! offers by how much of the residual its best first-order response explains. Over the fleet:
+//! every catalogue effect not in the model, plus a generic `lag:CHANNEL` term for the channels
+//! that explain the most, is added in turn and fitted; candidates are ranked by the fleet's
+//! ΔBIC with a likelihood-ratio test whose statistic is deflated by the extended model's residual
+//! correlation time (so autocorrelated residuals do not make everything "significant").
+//! [`forward_selection`] repeats that, adding the best significant candidate until none is left.
+//!
+//! Everything here is computation on plain data; the pipeline writes and draws the results.
+
+pub mod explain;
+pub mod residual;
+
+use rayon::prelude::*;
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+use crate::fit::{self, FitOptions};
+use crate::identify::{identify_from, BarModel};
+use crate::model::{channels, Effect, ThermalProblem, Transform, CATALOGUE};
+use crate::series::BarSeries;
+use residual::{residual_stats, ResidualStats};
+
+/// Significance level of one candidate before the Bonferroni correction over candidates.
+pub const ALPHA: f64 = 0.01;
+/// How many of the best-explaining channels get a generic `lag:` candidate.
+pub const CHANNEL_CANDIDATES: usize = 3;
+
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ChannelScore {
+    pub channel: String,
+    /// Fraction of the residual variance explained by the channel's best first-order response.
+    pub explained_fraction: f64,
+    /// Its time constant, s (NaN for impulse-free level channels that failed to fit).
+    pub tau_s: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BarDiagnosis {
+    pub bar: String,
+    pub effects: Vec<String>,
+    pub rms_um: f64,
+    pub whiteness_p: f64,
+    pub stats: ResidualStats,
+    /// Best first.
+    pub channels: Vec<ChannelScore>,
+}
+
+/// One candidate effect's result on one bar.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct CandidateOnBar {
+    pub bar: String,
+    pub rms_before_um: f64,
+    pub rms_after_um: f64,
+    pub delta_bic: f64,
+    pub p_value: f64,
+    pub significant: bool,
+    /// Why it could not be fitted on this bar, if so.
+    pub error: Option<String>,
+}
+
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Candidate {
+    /// Accepted verbatim by `--add-effect`.
+    pub effect: String,
+    pub rms_before_um: f64,
+    pub rms_after_um: f64,
+    pub delta_bic: f64,
+    pub p_value: f64,
+    pub bars_improved: usize,
+    pub significant: bool,
+    pub explanation: String,
+    pub per_bar: Vec<CandidateOnBar>,
+}
+
+/// Diagnose one bar's fit: residual statistics and the channel ranking.
+pub fn diagnose_bar(series: &BarSeries, model: &BarModel) -> BarDiagnosis {
+    let y: Vec<f64> = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
+    let stats = residual_stats(&y, &model.residuals_um, model.n_params);
+    let mut channels: Vec<ChannelScore> = channels::available(series)
+        .into_iter()
+        .filter_map(|ch| score_channel(series, &model.residuals_um, &ch))
+        .collect();
+    channels.sort_by(|a, b| b.explained_fraction.total_cmp(&a.explained_fraction).then_with(|| a.channel.cmp(&b.channel)));
+    BarDiagnosis { bar: model.bar.clone(), effects: model.effect_names(), rms_um: model.rms_um, whiteness_p: stats.whiteness_p, stats, channels }
+}
+
+/// Variance of the residual explained by the channel's best lag (zeros per segment refitted).
+fn score_channel(series: &BarSeries, residual: &[f64], channel: &str) -> Option<ChannelScore> {
+    let effect = Effect::Channel { transform: Transform::Lag, channel: channel.to_string(), tau0_s: None };
+    let problem = ThermalProblem::new(series, std::slice::from_ref(&effect)).ok()?.with_observations(residual.to_vec());
+    let rss0: f64 = residual.iter().map(|r| r * r).sum();
+    let fit = fit::fit(&problem, &problem.theta0(), &FitOptions::default()).ok()?;
+    let explained_fraction = if rss0 > 0.0 { (1.0 - fit.rss / rss0).max(0.0) } else { 0.0 };
+    let tau_s = fit.values.last().map_or(f64::NAN, |t| t.exp());
+    Some(ChannelScore { channel: channel.to_string(), explained_fraction, tau_s })
+}
+
+/// The candidate effects for a fleet whose model is `effects`: catalogue effects not yet in the
+/// model, and `lag:CH` for the channels that explain most of the residuals fleet-wide.
+pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<Effect> {
+    let mut out: Vec<Effect> = CATALOGUE.iter().filter_map(|n| Effect::parse(n).ok()).filter(|e| !effects.contains(e)).collect();
+    let mut totals: std::collections::BTreeMap<&str, f64> = Default::default();
+    for d in diagnoses {
+        for c in &d.channels {
+            *totals.entry(c.channel.as_str()).or_default() += c.explained_fraction;
+        }
+    }
+    let mut ranked: Vec<(&str, f64)> = totals.into_iter().collect();
+    ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(b.0)));
+    for (ch, _) in ranked.into_iter().take(CHANNEL_CANDIDATES) {
+        let e = Effect::Channel { transform: Transform::Lag, channel: ch.to_string(), tau0_s: None };
+        if !effects.contains(&e) {
+            out.push(e);
+        }
+    }
+    out
+}
+
+/// Fit every candidate on every bar; rank them best first.
+pub fn evaluate_candidates(bars: &[(&BarSeries, &BarModel)], candidates: &[Effect]) -> Vec<Candidate> {
+    let n_candidates = candidates.len().max(1);
+    let threshold = ALPHA / n_candidates as f64;
+    let mut out: Vec<Candidate> = candidates
+        .par_iter()
+        .map(|effect| {
+            let per_bar: Vec<CandidateOnBar> = bars.iter().map(|(s, m)| candidate_on_bar(s, m, effect, threshold)).collect();
+            summarise_candidate(effect, per_bar, threshold)
+        })
+        .collect();
+    out.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic).then_with(|| a.effect.cmp(&b.effect)));
+    out
+}
+
+fn candidate_on_bar(series: &BarSeries, base: &BarModel, effect: &Effect, threshold: f64) -> CandidateOnBar {
+    let mut effects = base.effects.clone();
+    effects.push(effect.clone());
+    let unfit = |error: String| CandidateOnBar {
+        bar: base.bar.clone(),
+        rms_before_um: base.rms_um,
+        rms_after_um: base.rms_um,
+        delta_bic: 0.0,
+        p_value: 1.0,
+        significant: false,
+        error: Some(error),
+    };
+    let extended = match identify_from(series, &effects, Some(base)) {
+        Ok(m) => m,
+        Err(e) => return unfit(e.to_string()),
+    };
+    let added = extended.n_params.saturating_sub(base.n_params).max(1);
+    let p_value = lr_p_value(base, &extended, added);
+    let delta_bic = extended.bic - base.bic;
+    CandidateOnBar {
+        bar: base.bar.clone(),
+        rms_before_um: base.rms_um,
+        rms_after_um: extended.rms_um,
+        delta_bic,
+        p_value,
+        significant: p_value < threshold && delta_bic < 0.0,
+        error: None,
+    }
+}
+
+/// Likelihood-ratio test of nested Gaussian fits, `LR = n ln(RSS0/RSS1)`, deflated by the
+/// extended model's residual correlation time (effective sample size `n / tau_int`).
+pub fn lr_p_value(base: &BarModel, extended: &BarModel, added_params: usize) -> f64 {
+    let n = base.n_samples as f64;
+    let rss0 = base.rms_um.powi(2) * n;
+    let rss1 = extended.rms_um.powi(2) * n;
+    if !(rss1 > 0.0) || rss1 >= rss0 {
+        return 1.0;
+    }
+    let tau_int = crate::fit::integrated_autocorrelation_time(&extended.residuals_um).max(1.0);
+    let lr = n * (rss0 / rss1).ln() / tau_int;
+    ChiSquared::new(added_params as f64).map(|d| 1.0 - d.cdf(lr)).unwrap_or(f64::NAN)
+}
+
+fn summarise_candidate(effect: &Effect, per_bar: Vec<CandidateOnBar>, threshold: f64) -> Candidate {
+    let fitted: Vec<&CandidateOnBar> = per_bar.iter().filter(|c| c.error.is_none()).collect();
+    let fleet_rms = |f: &dyn Fn(&CandidateOnBar) -> f64| {
+        if fitted.is_empty() {
+            return f64::NAN;
+        }
+        (fitted.iter().map(|c| f(c).powi(2)).sum::<f64>() / fitted.len() as f64).sqrt()
+    };
+    let rms_before_um = fleet_rms(&|c| c.rms_before_um);
+    let rms_after_um = fleet_rms(&|c| c.rms_after_um);
+    let delta_bic: f64 = fitted.iter().map(|c| c.delta_bic).sum();
+    // Fisher's method combines the bars' p-values into one fleet-wide test.
+    let p_value = if fitted.is_empty() {
+        1.0
+    } else {
+        let x2: f64 = fitted.iter().map(|c| -2.0 * c.p_value.max(1e-300).ln()).sum();
+        ChiSquared::new(2.0 * fitted.len() as f64).map(|d| 1.0 - d.cdf(x2)).unwrap_or(f64::NAN)
+    };
+    let bars_improved = fitted.iter().filter(|c| c.significant).count();
+    Candidate {
+        effect: effect.name(),
+        rms_before_um,
+        rms_after_um,
+        delta_bic,
+        p_value,
+        bars_improved,
+        significant: !fitted.is_empty() && p_value < threshold && delta_bic < 0.0 && bars_improved > 0,
+        explanation: explain::explain(effect),
+        per_bar,
+    }
+}
+
+/// One step of forward selection.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct LedgerStep {
+    /// `"base"` for the starting model, else the effect added at this step.
+    pub added: String,
+    pub effects: Vec<String>,
+    pub rms_um: Vec<(String, f64)>,
+    pub fleet_rms_um: f64,
+    pub delta_bic: f64,
+    pub p_value: f64,
+}
+
+/// Forward selection: add the best significant candidate (fleet-wide) until none is left or
+/// `max_steps` effects were added. Returns the ledger and the final models.
+pub fn forward_selection(series: &[&BarSeries], start: Vec<BarModel>, max_steps: usize) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let mut models = start;
+    let mut ledger = vec![ledger_step("base".into(), &models, f64::NAN, f64::NAN)];
+    for _ in 0..max_steps {
+        let diagnoses: Vec<BarDiagnosis> = series.par_iter().zip(models.par_iter()).map(|(s, m)| diagnose_bar(s, m)).collect();
+        let effects = models.first().map(|m| m.effects.clone()).unwrap_or_default();
+        let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
+        let candidates = evaluate_candidates(&pairs, &candidate_effects(&effects, &diagnoses));
+        let Some(best) = candidates.into_iter().find(|c| c.significant) else { break };
+        let Ok(effect) = Effect::parse(&best.effect) else { break };
+        let mut next_effects = effects.clone();
+        next_effects.push(effect);
+        let refit: Vec<Option<BarModel>> = series
+            .par_iter()
+            .zip(models.par_iter())
+            .map(|(s, m)| identify_from(s, &next_effects, Some(m)).ok())
+            .collect();
+        // A bar whose extended fit fails keeps its model (it is reported as not improved).
+        models = refit.into_iter().zip(models).map(|(new, old)| new.unwrap_or(old)).collect();
+        ledger.push(ledger_step(best.effect.clone(), &models, best.delta_bic, best.p_value));
+    }
+    (ledger, models)
+}
+
+fn ledger_step(added: String, models: &[BarModel], delta_bic: f64, p_value: f64) -> LedgerStep {
+    let n_total: usize = models.iter().map(|m| m.n_samples).sum();
+    let ss: f64 = models.iter().map(|m| m.rms_um.powi(2) * m.n_samples as f64).sum();
+    LedgerStep {
+        added,
+        effects: models.first().map(|m| m.effect_names()).unwrap_or_default(),
+        rms_um: models.iter().map(|m| (m.bar.clone(), m.rms_um)).collect(),
+        fleet_rms_um: if n_total > 0 { (ss / n_total as f64).sqrt() } else { f64::NAN },
+        delta_bic,
+        p_value,
+    }
+}

@@ -1,0 +1,214 @@
+//! Results → report specs. This module knows the results and what a metrologist wants to see
+//! in each figure; `report` knows the pixels.
+
+use std::path::Path;
+
+use crate::diagnose::{BarDiagnosis, LedgerStep};
+use crate::pipeline::{BarOutcome, RunPlan, RunResults, Stage};
+use crate::report::{self, NamedSeries, ReportError};
+
+/// Every figure the run's stages call for, into `dir`.
+pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<(), ReportError> {
+    for o in &results.bars {
+        report::render_bar_fit(&bar_fit(o), &dir.join(format!("bar-{}.png", file_safe(&o.model.bar))))?;
+    }
+    if !results.bars.is_empty() {
+        report::render_fleet(&fleet(results), &dir.join("fleet.png"))?;
+    }
+    if plan.runs(Stage::MatchStudy) {
+        if let Some(study) = &results.study {
+            report::render_heat_map(&heat_map(study), &dir.join("match-study.png"))?;
+        }
+    }
+    if let Some(d) = &results.diagnosis {
+        for (bd, o) in d.bars.iter().zip(&results.bars) {
+            report::render_residual_diagnostics(&residual_figure(bd, o), &dir.join(format!("diagnosis-{}.png", file_safe(&bd.bar))))?;
+        }
+        if d.ledger.len() > 1 {
+            report::render_ledger(&ledger(&d.ledger), &dir.join("ledger.png"))?;
+        }
+    }
+    if let Some(ba) = &results.before_after {
+        report::render_before_after(&before_after(ba), &dir.join("before-after.png"))?;
+    }
+    Ok(())
+}
+
+fn file_safe(s: &str) -> String {
+    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
+}
+
+fn params_line(o: &BarOutcome) -> String {
+    let p: Vec<String> = o
+        .model
+        .params
+        .iter()
+        .map(|p| if p.name.ends_with("_s") { format!("{} = {:.0} ± {:.0}", p.name, p.value, p.u) } else { format!("{} = {:.4} ± {:.4}", p.name, p.value, p.u) })
+        .collect();
+    format!("{}\nRMS {:.4} µm over {} samples (± are standard uncertainties, autocorrelation-consistent)", p.join("   "), o.model.rms_um, o.model.n_samples)
+}
+
+fn bar_fit(o: &BarOutcome) -> report::BarFitFigure {
+    let s = &o.series;
+    let idx = &s.fit_index;
+    let time_s: Vec<f64> = idx.iter().map(|&i| s.t_s[i]).collect();
+    let measured_um: Vec<f64> = idx.iter().map(|&i| s.y_um[i] - s.zero_segment[i].map_or(0.0, |z| o.model.zeros_um[z as usize])).collect();
+    let model_um: Vec<f64> = idx.iter().map(|&i| o.model.thermal_um[i]).collect();
+    let mut temperatures_c = vec![NamedSeries { name: "air seen by the bar".into(), x: time_s.clone(), y: idx.iter().map(|&i| s.air_c[i]).collect() }];
+    if let Some(plate) = &s.plate_sensor_id {
+        if let Some(c) = s.celsius.get(plate) {
+            temperatures_c.push(NamedSeries { name: format!("plate ({plate})"), x: time_s.clone(), y: idx.iter().map(|&i| c[i]).collect() });
+        }
+    }
+    let mut mount_boundaries_s: Vec<f64> = s.mounts.iter().flat_map(|m| [m.from_s, m.to_s]).collect();
+    mount_boundaries_s.sort_by(f64::total_cmp);
+    mount_boundaries_s.dedup();
+    report::BarFitFigure {
+        title: format!("Bar {} — measured thermal error vs model [{}]", o.model.bar, o.model.effect_names().join(" + ")),
+        subtitle: params_line(o),
+        time_s,
+        measured_um,
+        model_um,
+        temperatures_c,
+        mount_boundaries_s,
+    }
+}
+
+fn fleet(r: &RunResults) -> report::FleetFigure {
+    let bar_names: Vec<String> = r.bars.iter().map(|o| o.model.bar.clone()).collect();
+    let names: Vec<String> = r.bars.first().map(|o| o.model.params.iter().map(|p| p.name.clone()).collect()).unwrap_or_default();
+    let parameters = names
+        .iter()
+        .map(|name| {
+            let est: Vec<Option<&crate::identify::Estimate>> = r.bars.iter().map(|o| o.model.param(name)).collect();
+            report::ParameterPanel {
+                name: name.clone(),
+                unit: unit_of(name).into(),
+                values: est.iter().map(|e| e.map_or(f64::NAN, |e| e.value)).collect(),
+                u95: est.iter().map(|e| e.map_or(f64::NAN, |e| (e.ci95[1] - e.ci95[0]) / 2.0)).collect(),
+                fleet_mean: None,
+            }
+        })
+        .collect();
+    let reference = r.reference.as_ref().and_then(|rr| bar_names.iter().position(|b| *b == rr.choice.bar));
+    let mismatch_um = match &r.reference {
+        Some(rr) => bar_names.iter().map(|b| rr.mismatches.iter().find(|m| m.bar == *b).map_or(0.0, |m| m.max_abs_um)).collect(),
+        None => Vec::new(),
+    };
+    let subtitle = match &r.reference {
+        Some(rr) => format!(
+            "Reference: {} (nearest the fleet mean of alpha, beta, tau_R, tau_S scaled by the fleet spread). Mismatch = max |predicted difference| over this campaign's temperature history at {:.1} mm.",
+            rr.choice.bar, rr.distance_mm
+        ),
+        None => "No reference chosen (no bar with the base parameters).".into(),
+    };
+    report::FleetFigure {
+        title: format!("Fleet of campaign {} — thermal parameters and reference matching", r.campaign.id),
+        subtitle,
+        bar_names,
+        parameters,
+        reference,
+        mismatch_um,
+        mismatch_limit_um: r.reference.as_ref().map_or(1.0, |rr| rr.limit_um),
+    }
+}
+
+fn unit_of(name: &str) -> &'static str {
+    if name.ends_with("_ppm_per_k") {
+        "ppm/K"
+    } else if name.ends_with("_um_per_day") {
+        "µm/day"
+    } else if name.ends_with("_um") {
+        "µm"
+    } else if name.ends_with("_s") {
+        "s"
+    } else {
+        ""
+    }
+}
+
+fn heat_map(study: &crate::matching::MatchStudy) -> report::HeatMapFigure {
+    let row = |b: &str| study.bars.iter().position(|x| x == b);
+    report::HeatMapFigure {
+        title: "Reference-bar matching study — measured mismatch".into(),
+        subtitle: format!(
+            "Cell = max |measured drift(other) − measured drift(candidate)| over the times both were measured.\nNearest-the-mean pick {} (worst {:.3} µm); best candidate {} (worst {:.3} µm); excess {:.3} µm.",
+            study.nearest_mean,
+            row(&study.nearest_mean).map_or(f64::NAN, |i| study.worst_um[i]),
+            study.best,
+            row(&study.best).map_or(f64::NAN, |i| study.worst_um[i]),
+            study.excess_um
+        ),
+        row_labels: study.bars.clone(),
+        col_labels: study.bars.clone(),
+        row_axis_label: "candidate reference".into(),
+        col_axis_label: "other bar".into(),
+        values: study.matrix_um.clone(),
+        unit: "µm".into(),
+        highlights: vec![
+            report::MatrixHighlight { label: format!("nearest the fleet mean: {}", study.nearest_mean), row: row(&study.nearest_mean), col: None },
+            report::MatrixHighlight { label: format!("best on measured drifts: {}", study.best), row: row(&study.best), col: None },
+        ],
+    }
+}
+
+fn residual_figure(d: &BarDiagnosis, o: &BarOutcome) -> report::ResidualDiagnosticsFigure {
+    let dt = median_step(&o.series.t_s);
+    let top: Vec<&crate::diagnose::ChannelScore> = d.channels.iter().take(12).collect();
+    report::ResidualDiagnosticsFigure {
+        title: format!("Bar {} — where the model [{}] fails", d.bar, d.effects.join(" + ")),
+        subtitle: format!(
+            "RMS {:.4} µm, peak-to-valley {:.3} µm, fit {:.1} %, Ljung-Box p = {:.2e} ({} lags), residual correlation time {:.0} s",
+            d.stats.rms_um, d.stats.peak_to_valley_um, d.stats.fit_percent, d.whiteness_p, d.stats.ljung_box_lags, d.stats.correlation_time_samples * dt
+        ),
+        acf: d.stats.acf.clone(),
+        lag_step_s: dt,
+        n_samples: o.model.n_samples,
+        cpgram_freq_hz: d.stats.periodogram_freq_per_sample.iter().map(|f| f / dt).collect(),
+        cpgram: d.stats.cumulative_periodogram.clone(),
+        channels: top.iter().map(|c| c.channel.clone()).collect(),
+        explained_fraction: top.iter().map(|c| c.explained_fraction).collect(),
+    }
+}
+
+fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    if d.is_empty() {
+        return 1.0;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+fn ledger(steps: &[LedgerStep]) -> report::LedgerFigure {
+    let bars: Vec<String> = steps[0].rms_um.iter().map(|(b, _)| b.clone()).collect();
+    report::LedgerFigure {
+        title: "Forward selection — RMS residual as effects are added".into(),
+        subtitle: "Each step adds the candidate with the best fleet ΔBIC that is significant (likelihood-ratio test, Bonferroni over candidates).".into(),
+        steps: steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
+        bars: bars
+            .iter()
+            .map(|b| report::NamedValues {
+                name: b.clone(),
+                values: steps.iter().map(|s| s.rms_um.iter().find(|(x, _)| x == b).map_or(f64::NAN, |(_, v)| *v)).collect(),
+            })
+            .collect(),
+        fleet_rms_um: steps.iter().map(|s| s.fleet_rms_um).collect(),
+        noise_um: None,
+        log_y: true,
+    }
+}
+
+fn before_after(ba: &crate::pipeline::BeforeAfter) -> report::BeforeAfterFigure {
+    report::BeforeAfterFigure {
+        title: "RMS residual before and after adding effects".into(),
+        subtitle: format!("before: [{}]   after: [{}]", ba.before_effects.join(" + "), ba.after_effects.join(" + ")),
+        bar_names: ba.bars.iter().map(|b| b.bar.clone()).collect(),
+        before_um: ba.bars.iter().map(|b| b.rms_before_um).collect(),
+        after_um: ba.bars.iter().map(|b| b.rms_after_um).collect(),
+        fleet_before_um: Some(ba.fleet_rms_before_um),
+        fleet_after_um: Some(ba.fleet_rms_after_um),
+        before_label: "base model".into(),
+        after_label: "with added effects".into(),
+    }
+}

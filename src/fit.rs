@@ -1,0 +1,523 @@
+//! The one fitting engine: separable nonlinear least squares by variable projection.
+//!
+//! Every fit in dbbcal (thermal models, diagnostics candidates, NIST reference problems) is
+//! `y ≈ Φ(θ) c`: linear coefficients `c` (gains, zeros, drifts) and a few nonlinear parameters
+//! `θ` (time constants, usually as `ln tau`). A problem says how to evaluate the basis `Φ(θ)` and
+//! its derivatives ([`Separable`]); this module
+//! 1. starts `θ` by a coordinate-wise 1-D Brent search (argmin) of the variable-projection
+//!    residual (the linear part solved exactly at each trial), when the problem asks for it,
+//! 2. polishes with `varpro`'s Levenberg-Marquardt on the projected problem,
+//! 3. returns estimates with two covariances: the textbook `s² (JᵀJ)⁻¹` and a heteroscedasticity-
+//!    and-autocorrelation-consistent sandwich (batch-means HAC), because residuals of thermal fits
+//!    are strongly autocorrelated and the textbook errors are then far too small.
+//!
+//! Fit does no IO.
+
+use argmin::core::{CostFunction, Executor};
+use argmin::solver::brent::BrentOpt;
+use nalgebra::{DMatrix, DVector, Dyn, OMatrix, OVector};
+use varpro::model::SeparableNonlinearModel;
+use varpro::problem::SeparableProblemBuilder;
+use varpro::solvers::levmar::LevMarSolver;
+
+/// A separable least-squares problem `y ≈ Φ(θ) c`.
+pub trait Separable: Sync {
+    /// Observations `y`.
+    fn observations(&self) -> &[f64];
+    /// Names of the nonlinear parameters `θ`, in order.
+    fn nonlinear_names(&self) -> Vec<String>;
+    /// Names of the linear coefficients `c` (the columns of `Φ`), in order.
+    fn linear_names(&self) -> Vec<String>;
+    /// `Φ(θ)`, `n × m`.
+    fn basis(&self, theta: &[f64]) -> DMatrix<f64>;
+    /// `∂Φ/∂θ_k`, `n × m` (columns that do not depend on `θ_k` are zero).
+    fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64>;
+    /// Search interval for a coordinate-wise Brent start of `θ_k`, or `None` to start at the
+    /// given value as it is.
+    fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
+        None
+    }
+}
+
+/// Why a fit could not be done.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum FitError {
+    #[error("too few samples ({n}) for {p} parameters")]
+    TooFewSamples { n: usize, p: usize },
+    #[error("the basis is singular: {0} cannot be separated from the other terms with these data")]
+    Singular(String),
+    #[error("the solver did not converge ({0})")]
+    NoConvergence(String),
+    #[error("non-finite values in the data or the model")]
+    NonFinite,
+}
+
+/// Estimates of one fit, in the problem's parametrisation: linear coefficients first, then the
+/// nonlinear parameters.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    pub names: Vec<String>,
+    /// Linear coefficients then nonlinear parameters.
+    pub values: Vec<f64>,
+    pub n_linear: usize,
+    pub residuals: Vec<f64>,
+    pub rss: f64,
+    pub n_obs: usize,
+    /// `s² (JᵀJ)⁻¹`: valid only for white residuals.
+    pub cov_naive: DMatrix<f64>,
+    /// Batch-means HAC sandwich: honest under autocorrelated residuals.
+    pub cov_hac: DMatrix<f64>,
+    /// Batch length (samples) used by the HAC estimate.
+    pub hac_batch_len: usize,
+    /// Degrees of freedom of the HAC variance (number of batches − 1): intervals use Student's
+    /// t with this many degrees of freedom.
+    pub hac_dof: usize,
+    pub iterations: usize,
+}
+
+impl Fit {
+    pub fn n_params(&self) -> usize {
+        self.values.len()
+    }
+    pub fn dof(&self) -> usize {
+        self.n_obs.saturating_sub(self.n_params()).max(1)
+    }
+    pub fn rms(&self) -> f64 {
+        (self.rss / self.n_obs.max(1) as f64).sqrt()
+    }
+    pub fn se_naive(&self, i: usize) -> f64 {
+        self.cov_naive[(i, i)].max(0.0).sqrt()
+    }
+    pub fn se_hac(&self, i: usize) -> f64 {
+        self.cov_hac[(i, i)].max(0.0).sqrt()
+    }
+    /// Half-width factor of a 95 % interval from the HAC standard error: Student's t quantile
+    /// with [`Fit::hac_dof`] degrees of freedom.
+    pub fn t95(&self) -> f64 {
+        use statrs::distribution::{ContinuousCDF, StudentsT};
+        StudentsT::new(0.0, 1.0, self.hac_dof as f64).map(|t| t.inverse_cdf(0.975)).unwrap_or(1.96)
+    }
+
+    /// Gaussian log-likelihood at the ML variance `rss / n`.
+    pub fn log_likelihood(&self) -> f64 {
+        let n = self.n_obs as f64;
+        -0.5 * n * ((2.0 * std::f64::consts::PI * self.rss / n).ln() + 1.0)
+    }
+    /// Bayesian information criterion (`k` counts the noise variance too).
+    pub fn bic(&self) -> f64 {
+        let k = self.n_params() as f64 + 1.0;
+        -2.0 * self.log_likelihood() + k * (self.n_obs as f64).ln()
+    }
+    /// Correlation matrix of the HAC covariance.
+    pub fn correlation(&self) -> DMatrix<f64> {
+        let p = self.n_params();
+        DMatrix::from_fn(p, p, |i, j| {
+            let d = (self.cov_hac[(i, i)] * self.cov_hac[(j, j)]).sqrt();
+            if d > 0.0 {
+                self.cov_hac[(i, j)] / d
+            } else if i == j {
+                1.0
+            } else {
+                0.0
+            }
+        })
+    }
+}
+
+/// Options of the engine.
+#[derive(Debug, Clone, Copy)]
+pub struct FitOptions {
+    /// Run the coordinate-wise Brent start before Levenberg-Marquardt.
+    pub brent_start: bool,
+    /// Batch length for the HAC covariance; `None` chooses it from the residual autocorrelation.
+    pub hac_batch_len: Option<usize>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self { brent_start: true, hac_batch_len: None }
+    }
+}
+
+/// Fit `problem` from the nonlinear start `theta0`.
+pub fn fit<P: Separable>(problem: &P, theta0: &[f64], options: &FitOptions) -> Result<Fit, FitError> {
+    let y = problem.observations();
+    let n_lin = problem.linear_names().len();
+    let p = n_lin + theta0.len();
+    if y.len() <= p {
+        return Err(FitError::TooFewSamples { n: y.len(), p });
+    }
+    if y.iter().any(|v| !v.is_finite()) {
+        return Err(FitError::NonFinite);
+    }
+    let mut theta = theta0.to_vec();
+    if options.brent_start {
+        brent_start(problem, &mut theta);
+    }
+    let (theta, iterations) = if theta.is_empty() {
+        (theta, 0)
+    } else {
+        levenberg_marquardt(problem, &theta)?
+    };
+    let phi = problem.basis(&theta);
+    let coef = solve_linear(&phi, y).ok_or_else(|| singular_term(problem, &phi))?;
+    let residuals: Vec<f64> = (&phi * &coef).iter().zip(y).map(|(f, y)| y - f).collect();
+    let rss: f64 = residuals.iter().map(|r| r * r).sum();
+    if !rss.is_finite() {
+        return Err(FitError::NonFinite);
+    }
+    let jac = full_jacobian(problem, &theta, &phi, &coef);
+    let mut names = problem.linear_names();
+    names.extend(problem.nonlinear_names());
+    let mut values: Vec<f64> = coef.iter().copied().collect();
+    values.extend(&theta);
+    let (cov_naive, cov_hac, hac_batch_len) = covariances(&jac, &residuals, options.hac_batch_len)
+        .ok_or_else(|| FitError::Singular(names.join(", ")))?;
+    let hac_dof = n_batches(y.len(), hac_batch_len).saturating_sub(1).max(1);
+    Ok(Fit {
+        hac_dof,
+        names,
+        values,
+        n_linear: n_lin,
+        residuals,
+        rss,
+        n_obs: y.len(),
+        cov_naive,
+        cov_hac,
+        hac_batch_len,
+        iterations,
+    })
+}
+
+/// Residual sum of squares of the variable-projection functional at `theta`.
+pub fn projected_rss<P: Separable>(problem: &P, theta: &[f64]) -> f64 {
+    let phi = problem.basis(theta);
+    let y = problem.observations();
+    match solve_linear(&phi, y) {
+        Some(c) => (&phi * &c).iter().zip(y).map(|(f, y)| (y - f) * (y - f)).sum(),
+        None => f64::INFINITY,
+    }
+}
+
+/// Least-squares coefficients by a column-scaled QR; `None` when the basis is rank deficient.
+fn solve_linear(phi: &DMatrix<f64>, y: &[f64]) -> Option<DVector<f64>> {
+    let m = phi.ncols();
+    if m == 0 {
+        return Some(DVector::zeros(0));
+    }
+    let scale: Vec<f64> = (0..m).map(|j| phi.column(j).norm()).collect();
+    if scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        return None;
+    }
+    let mut scaled = phi.clone();
+    for (j, s) in scale.iter().enumerate() {
+        scaled.column_mut(j).unscale_mut(*s);
+    }
+    let qr = scaled.qr();
+    let r = qr.r();
+    let diag_max = (0..m).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+    if (0..m).any(|i| r[(i, i)].abs() <= 1e-11 * diag_max) {
+        return None;
+    }
+    let qty = qr.q().transpose() * DVector::from_column_slice(y);
+    let mut c = r.solve_upper_triangular(&qty)?;
+    for (j, s) in scale.iter().enumerate() {
+        c[j] /= s;
+    }
+    Some(c)
+}
+
+/// Name the first column that makes the basis singular, for a readable error.
+fn singular_term<P: Separable>(problem: &P, phi: &DMatrix<f64>) -> FitError {
+    let names = problem.linear_names();
+    for j in 1..=phi.ncols() {
+        let sub = phi.columns(0, j).into_owned();
+        if solve_linear(&sub, problem.observations()).is_none() {
+            return FitError::Singular(names[j - 1].clone());
+        }
+    }
+    FitError::Singular(names.join(", "))
+}
+
+/// One sweep of 1-D Brent searches of the projected RSS, one nonlinear parameter at a time.
+fn brent_start<P: Separable>(problem: &P, theta: &mut [f64]) {
+    for k in 0..theta.len() {
+        let Some((lo, hi)) = problem.start_search_interval(k) else { continue };
+        let cost = Profile1d { problem, theta: theta.to_vec(), k };
+        let best_now = projected_rss(problem, theta);
+        let solver = BrentOpt::new(lo, hi).set_tolerance(1e-4, 1e-6);
+        let result = Executor::new(cost, solver)
+            .configure(|state| state.param(theta[k].clamp(lo, hi)).max_iters(60))
+            .run();
+        if let Ok(res) = result {
+            let state = res.state();
+            if let Some(best) = state.best_param {
+                if state.best_cost < best_now {
+                    theta[k] = best;
+                }
+            }
+        }
+    }
+}
+
+/// The projected RSS as a function of one nonlinear parameter, the others held.
+struct Profile1d<'a, P> {
+    problem: &'a P,
+    theta: Vec<f64>,
+    k: usize,
+}
+
+impl<P: Separable> CostFunction for Profile1d<'_, P> {
+    type Param = f64;
+    type Output = f64;
+    fn cost(&self, x: &f64) -> Result<f64, argmin::core::Error> {
+        let mut theta = self.theta.clone();
+        theta[self.k] = *x;
+        Ok(projected_rss(self.problem, &theta))
+    }
+}
+
+/// Adapter from [`Separable`] to varpro's model trait.
+struct VarproModel<'a, P> {
+    problem: &'a P,
+    theta: DVector<f64>,
+}
+
+#[derive(Debug, thiserror::Error)]
+#[error("model evaluation failed")]
+struct ModelEvalError;
+
+impl<P: Separable> SeparableNonlinearModel for VarproModel<'_, P> {
+    type ScalarType = f64;
+    type Error = ModelEvalError;
+    fn parameter_count(&self) -> usize {
+        self.theta.len()
+    }
+    fn base_function_count(&self) -> usize {
+        self.problem.linear_names().len()
+    }
+    fn output_len(&self) -> usize {
+        self.problem.observations().len()
+    }
+    fn set_params(&mut self, parameters: OVector<f64, Dyn>) -> Result<(), Self::Error> {
+        self.theta = parameters;
+        Ok(())
+    }
+    fn params(&self) -> OVector<f64, Dyn> {
+        self.theta.clone()
+    }
+    fn eval(&self) -> Result<OMatrix<f64, Dyn, Dyn>, Self::Error> {
+        Ok(self.problem.basis(self.theta.as_slice()))
+    }
+    fn eval_partial_deriv(&self, k: usize) -> Result<OMatrix<f64, Dyn, Dyn>, Self::Error> {
+        Ok(self.problem.basis_derivative(self.theta.as_slice(), k))
+    }
+}
+
+fn levenberg_marquardt<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec<f64>, usize), FitError> {
+    let model = VarproModel { problem, theta: DVector::from_column_slice(theta0) };
+    let y = DVector::from_column_slice(problem.observations());
+    let separable = SeparableProblemBuilder::new(model)
+        .observations(y)
+        .build()
+        .map_err(|e| FitError::NoConvergence(e.to_string()))?;
+    let solver = LevMarSolver::with_solver(
+        levenberg_marquardt::LevenbergMarquardt::new()
+            .with_ftol(1e-12)
+            .with_xtol(1e-12)
+            .with_gtol(1e-14)
+            .with_patience(200),
+    );
+    let (result, ok) = match solver.solve(separable) {
+        Ok(r) => (r, true),
+        Err(r) => (r, false),
+    };
+    let theta: Vec<f64> = result.nonlinear_parameters().iter().copied().collect();
+    let evaluations = result.minimization_report.number_of_evaluations;
+    if !ok {
+        // Accept a stop on iteration limits only if it is no worse than the start.
+        let term = format!("{:?}", result.minimization_report.termination);
+        if !theta.iter().all(|t| t.is_finite()) || projected_rss(problem, &theta) > projected_rss(problem, theta0) {
+            return Err(FitError::NoConvergence(term));
+        }
+    }
+    Ok((theta, evaluations))
+}
+
+/// `J = [Φ | Σ_j c_j ∂φ_j/∂θ_k]`, the Jacobian of the model in all parameters.
+fn full_jacobian<P: Separable>(problem: &P, theta: &[f64], phi: &DMatrix<f64>, coef: &DVector<f64>) -> DMatrix<f64> {
+    let (n, m) = phi.shape();
+    let mut jac = DMatrix::zeros(n, m + theta.len());
+    jac.columns_mut(0, m).copy_from(phi);
+    for k in 0..theta.len() {
+        let d = problem.basis_derivative(theta, k);
+        jac.column_mut(m + k).copy_from(&(d * coef));
+    }
+    jac
+}
+
+/// Naive and batch-means HAC covariances from the Jacobian and residuals.
+///
+/// HAC: `(JᵀJ)⁻¹ (Σ_b G_b G_bᵀ) (JᵀJ)⁻¹` with `G_b = Σ_{i∈b} J_iᵀ r_i` summed over consecutive
+/// batches of length `L`: the scores of samples closer than `L` keep their correlation, batch
+/// sums are close to independent when `L` exceeds the residual correlation time.
+fn covariances(jac: &DMatrix<f64>, residuals: &[f64], batch_len: Option<usize>) -> Option<(DMatrix<f64>, DMatrix<f64>, usize)> {
+    let (n, p) = jac.shape();
+    let jtj = jac.tr_mul(jac);
+    let jtj_inv = jtj.clone().try_inverse().or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
+    let rss: f64 = residuals.iter().map(|r| r * r).sum();
+    let s2 = rss / (n.saturating_sub(p).max(1)) as f64;
+    let cov_naive = &jtj_inv * s2;
+    let batch = batch_len.unwrap_or_else(|| hac_batch_length(residuals)).clamp(1, n.max(1));
+    let mut meat = DMatrix::<f64>::zeros(p, p);
+    let mut start = 0;
+    while start < n {
+        let end = (start + batch).min(n);
+        let mut g = DVector::<f64>::zeros(p);
+        for i in start..end {
+            g.axpy(residuals[i], &jac.row(i).transpose(), 1.0);
+        }
+        meat.ger(1.0, &g, &g, 1.0);
+        start = end;
+    }
+    // Small-sample correction: n/(n-p).
+    meat *= n as f64 / (n.saturating_sub(p).max(1)) as f64;
+    let cov_hac = &jtj_inv * meat * &jtj_inv;
+    Some((cov_naive, cov_hac, batch))
+}
+
+fn n_batches(n: usize, batch_len: usize) -> usize {
+    n.div_ceil(batch_len.max(1))
+}
+
+/// Batch length for the HAC estimate: ten times the residuals' integrated autocorrelation time
+/// (at least `n^(1/3)`), and no more than `n / 20` so that about twenty batches remain.
+pub fn hac_batch_length(residuals: &[f64]) -> usize {
+    let n = residuals.len();
+    if n < 40 {
+        return 1;
+    }
+    let tau_int = integrated_autocorrelation_time(residuals);
+    let lower = (n as f64).cbrt();
+    let upper = (n / 20) as f64;
+    (10.0 * tau_int).max(lower).min(upper).max(1.0).round() as usize
+}
+
+/// Integrated autocorrelation time `1 + 2 Σ ρ_k`, summed until the ACF first drops below zero
+/// (Geyer's initial positive sequence, simplified), in samples.
+pub fn integrated_autocorrelation_time(x: &[f64]) -> f64 {
+    let acf = autocorrelation(x, x.len() / 2);
+    let mut tau = 1.0;
+    for rho in acf.iter().skip(1) {
+        if *rho <= 0.0 {
+            break;
+        }
+        tau += 2.0 * rho;
+    }
+    tau
+}
+
+/// Sample autocorrelation for lags `0..=max_lag` (biased estimator, FFT-based).
+pub fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
+    let n = x.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let len = (2 * n).next_power_of_two();
+    let mut planner = realfft::RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(len);
+    let inv = planner.plan_fft_inverse(len);
+    let mut buf = vec![0.0; len];
+    for (b, v) in buf.iter_mut().zip(x) {
+        *b = v - mean;
+    }
+    let mut spec = fwd.make_output_vec();
+    if fwd.process(&mut buf, &mut spec).is_err() {
+        return vec![1.0];
+    }
+    for c in spec.iter_mut() {
+        *c = realfft::num_complex::Complex::new(c.norm_sqr(), 0.0);
+    }
+    let mut out = inv.make_output_vec();
+    if inv.process(&mut spec, &mut out).is_err() {
+        return vec![1.0];
+    }
+    let c0 = out[0];
+    if c0 <= 0.0 {
+        return vec![1.0];
+    }
+    out.iter().take(max_lag.min(n - 1) + 1).map(|c| c / c0).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `y = b1 (1 - exp(-b2 x))` with `b2` nonlinear (NIST Misra1a / BoxBOD form).
+    struct Exponential {
+        x: Vec<f64>,
+        y: Vec<f64>,
+    }
+    impl Separable for Exponential {
+        fn observations(&self) -> &[f64] {
+            &self.y
+        }
+        fn nonlinear_names(&self) -> Vec<String> {
+            vec!["b2".into()]
+        }
+        fn linear_names(&self) -> Vec<String> {
+            vec!["b1".into()]
+        }
+        fn basis(&self, t: &[f64]) -> DMatrix<f64> {
+            DMatrix::from_iterator(self.x.len(), 1, self.x.iter().map(|x| 1.0 - (-t[0] * x).exp()))
+        }
+        fn basis_derivative(&self, t: &[f64], _k: usize) -> DMatrix<f64> {
+            DMatrix::from_iterator(self.x.len(), 1, self.x.iter().map(|x| x * (-t[0] * x).exp()))
+        }
+    }
+
+    #[test]
+    fn recovers_noise_free_exponential() {
+        let x: Vec<f64> = (0..50).map(|i| i as f64).collect();
+        let y = x.iter().map(|x| 3.0 * (1.0 - (-0.07 * x).exp())).collect();
+        let p = Exponential { x, y };
+        let f = fit(&p, &[0.2], &FitOptions { brent_start: false, hac_batch_len: None }).unwrap();
+        assert!((f.values[0] - 3.0).abs() < 1e-9, "{:?}", f.values);
+        assert!((f.values[1] - 0.07).abs() < 1e-11, "{:?}", f.values);
+    }
+
+    #[test]
+    fn acf_of_white_noise_is_small() {
+        let mut state = 12345u64;
+        let x: Vec<f64> = (0..4000)
+            .map(|_| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        let acf = autocorrelation(&x, 10);
+        assert!((acf[0] - 1.0).abs() < 1e-12);
+        assert!(acf[1..].iter().all(|r| r.abs() < 0.06), "{acf:?}");
+        assert!(integrated_autocorrelation_time(&x) < 1.2);
+    }
+
+    #[test]
+    fn acf_of_ar1_matches_phi() {
+        let mut state = 99u64;
+        let mut v = 0.0;
+        let x: Vec<f64> = (0..20000)
+            .map(|_| {
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let e = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                v = 0.9 * v + e;
+                v
+            })
+            .collect();
+        let acf = autocorrelation(&x, 3);
+        assert!((acf[1] - 0.9).abs() < 0.02, "{acf:?}");
+        // tau_int of AR(1) = (1+phi)/(1-phi) = 19
+        let tau = integrated_autocorrelation_time(&x);
+        assert!((tau - 19.0).abs() < 4.0, "{tau}");
+    }
+}

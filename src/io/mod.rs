@@ -1,0 +1,94 @@
+//! Everything that touches files and polars: reading a campaign directory into plain typed
+//! series ([`read_campaign`]), writing one ([`write_campaign`], used by `simulate` and the tests),
+//! and writing the pipeline's output tables ([`write_table`]).
+//!
+//! INVARIANT: this module is the only code in the crate that uses polars. Its public API speaks
+//! only in the crate's own types (`campaign`, `series`, [`Table`]), so a polars upgrade touches
+//! `src/io/` alone.
+
+mod inputs;
+mod read;
+mod table;
+mod write;
+
+#[cfg(test)]
+mod tests;
+
+use std::path::{Path, PathBuf};
+
+use crate::campaign::CampaignError;
+use crate::series::CampaignLogs;
+
+pub use table::{write_table, Column, Table};
+pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
+
+/// Why a campaign directory could not be read. Every message is one line naming the file (and
+/// column, id or key) that is wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum IngestError {
+    #[error("{}: no campaign.toml here (not a campaign directory?)", dir.display())]
+    MissingManifest { dir: PathBuf },
+    #[error("{}: cannot read: {message}", path.display())]
+    Io { path: PathBuf, message: String },
+    #[error(transparent)]
+    Manifest(#[from] CampaignError),
+    #[error("{}: no *.parquet files (the {table} table is required)", folder.display())]
+    MissingTable { folder: PathBuf, table: &'static str },
+    #[error("{}: not a valid parquet file: {reason}", path.display())]
+    NotParquet { path: PathBuf, reason: String },
+    #[error("{}: missing column `{column}` (found: {found})", path.display())]
+    MissingColumn { path: PathBuf, column: &'static str, found: String },
+    #[error("{}: column `{column}` has type {found}, expected {expected}", path.display())]
+    WrongType { path: PathBuf, column: &'static str, found: String, expected: &'static str },
+    #[error(
+        "{}: {rows} rows ({first} .. {last}) have {column} \"{id}\", which campaign.toml does not declare (known: {known})",
+        path.display()
+    )]
+    UnknownId {
+        path: PathBuf,
+        /// `bar` or `sensor`.
+        column: &'static str,
+        id: String,
+        rows: u64,
+        first: String,
+        last: String,
+        known: String,
+    },
+    #[error("{}: column `{column}` has {count} null values", path.display())]
+    Nulls { path: PathBuf, column: &'static str, count: u64 },
+    /// A polars failure that none of the checks above predicted (e.g. a corrupt data page).
+    #[error("{context}: {message}")]
+    Polars { context: String, message: String },
+}
+
+/// Reads a campaign directory (see `shared/spec/campaign-format.md`): the manifest, every
+/// `encoders/*.parquet` and `temperatures/*.parquet`, and `events/*.parquet` if present.
+///
+/// Files may be split in any way and rows may be in any order; the result is sorted by time.
+/// Each bar's log carries every sensor's temperature at the encoder times, found with a
+/// backward as-of join (the latest reading at or before the encoder time; encoder times before
+/// a sensor's first reading get that first reading). A sensor without any reading is absent
+/// from [`crate::series::BarLog::celsius`] rather than filled with NaN.
+pub fn read_campaign(dir: &Path) -> Result<CampaignLogs, IngestError> {
+    let campaign = read::read_manifest(dir)?;
+    let files = inputs::CampaignFiles::list(dir)?;
+    let tables = read::read_tables(&files, &campaign)?;
+    let inputs = inputs::hash_inputs(dir, &files.all())?;
+    Ok(CampaignLogs {
+        campaign,
+        inputs,
+        bars: tables.bars,
+        sensors: tables.sensors,
+        events: tables.events,
+    })
+}
+
+/// Flattens a (possibly multi-line) message to one line.
+pub(crate) fn one_line(s: impl std::fmt::Display) -> String {
+    s.to_string().split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// An RFC 3339 UTC rendering of nanoseconds since the epoch, for messages.
+pub(crate) fn format_ns(ns: i64) -> String {
+    chrono::DateTime::from_timestamp_nanos(ns).to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true)
+}

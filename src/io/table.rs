@@ -1,0 +1,89 @@
+//! A small generic table for the pipeline's outputs, written as parquet.
+
+use std::path::Path;
+
+use polars::prelude as pl;
+use polars::prelude::{IntoColumn, NamedFrom};
+
+use super::write::{write_parquet, WriteError};
+
+/// One output column: its values, all columns of a [`Table`] having the same length.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Column {
+    F64(Vec<f64>),
+    /// Nullable floats (`None` is written as a parquet null).
+    OptF64(Vec<Option<f64>>),
+    I64(Vec<i64>),
+    Str(Vec<String>),
+}
+
+impl Column {
+    pub fn len(&self) -> usize {
+        match self {
+            Column::F64(v) => v.len(),
+            Column::OptF64(v) => v.len(),
+            Column::I64(v) => v.len(),
+            Column::Str(v) => v.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn to_polars(&self, name: &str) -> pl::Column {
+        let name = pl::PlSmallStr::from(name);
+        match self {
+            Column::F64(v) => pl::Series::new(name, v.as_slice()).into_column(),
+            Column::OptF64(v) => pl::Series::new(name, v.as_slice()).into_column(),
+            Column::I64(v) => pl::Series::new(name, v.as_slice()).into_column(),
+            Column::Str(v) => pl::Series::new(name, v.as_slice()).into_column(),
+        }
+    }
+}
+
+/// Named columns, in output order.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Table {
+    pub columns: Vec<(String, Column)>,
+}
+
+impl Table {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Appends a column (builder style).
+    pub fn with(mut self, name: impl Into<String>, column: Column) -> Self {
+        self.columns.push((name.into(), column));
+        self
+    }
+
+    /// Rows of the table (of its first column; [`write_table`] checks they all agree).
+    pub fn height(&self) -> usize {
+        self.columns.first().map_or(0, |(_, c)| c.len())
+    }
+}
+
+/// Writes `table` as one parquet file. Same table, same bytes.
+pub fn write_table(path: &Path, table: &Table) -> Result<(), WriteError> {
+    let height = table.height();
+    let mut names = std::collections::BTreeSet::new();
+    for (name, column) in &table.columns {
+        if column.len() != height {
+            return Err(WriteError::RaggedTable {
+                path: path.to_path_buf(),
+                column: name.clone(),
+                rows: column.len(),
+                expected: height,
+            });
+        }
+        if !names.insert(name.as_str()) {
+            return Err(WriteError::DuplicateColumn { path: path.to_path_buf(), column: name.clone() });
+        }
+    }
+    let columns = table.columns.iter().map(|(name, c)| c.to_polars(name)).collect();
+    let mut df = pl::DataFrame::new(height, columns)
+        .map_err(|e| WriteError::Polars { path: path.to_path_buf(), message: super::one_line(e) })?;
+    write_parquet(path, &mut df)
+}

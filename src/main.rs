@@ -1,0 +1,144 @@
+//! The `dbbcal` command line: clap flags are parsed first, then turned into a validated
+//! [`RunPlan`] before any heavy IO; errors get their context here (anyhow) and one clear line.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::{Args, Parser, Subcommand};
+
+use dbbcal::pipeline::{RunPlan, Stage};
+use dbbcal::runner::{self, RunStatus};
+
+/// Exit codes: 0 all bars processed; 2 some bars failed (the others are done); 3 unusable input
+/// or configuration; 1 anything else (e.g. the output could not be written).
+const EXIT_SOME_BARS_FAILED: u8 = 2;
+const EXIT_UNUSABLE_INPUT: u8 = 3;
+const EXIT_OTHER: u8 = 1;
+
+#[derive(Parser)]
+#[command(name = "dbbcal", version, about = "Batch analysis of double-ballbar thermal campaigns", long_about = None,
+    after_help = "Examples:\n  dbbcal run pipelines/nightly.toml                      # the shipped sample -> reports/<campaign id>\n  dbbcal run pipelines/nightly.toml --campaign /data/lab-a-2026-11 --out /tmp/out\n  dbbcal run pipelines/reference-match.toml              # matching study with mismatch heat map\n  dbbcal identify --campaign data/sample --out /tmp/id --add-effect head_heating\n  dbbcal simulate --config pipelines/sim-sample.toml --out /tmp/campaign\n\nExit codes: 0 all bars processed, 2 some bars failed (others done), 3 unusable input, 1 other errors.")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the staged jobs of a pipeline TOML (stages, model effects, options).
+    Run {
+        /// The pipeline file, e.g. pipelines/nightly.toml.
+        pipeline: PathBuf,
+        #[command(flatten)]
+        io: IoArgs,
+        /// Add an effect to the pipeline's model: a name exactly as the diagnosis prints it
+        /// (e.g. head_heating, second_path, lag:T2, rate:T1@600). Repeatable.
+        #[arg(long = "add-effect", value_name = "NAME")]
+        add_effect: Vec<String>,
+    },
+    /// Read and validate a campaign; write the input record.
+    Ingest(StageArgs),
+    /// Ingest, then identify every bar's thermal model.
+    Identify(StageArgs),
+    /// Ingest, identify, then pick the reference bar and compute mismatches.
+    Match(StageArgs),
+    /// Ingest, identify, match, then render PNG figures.
+    Report(StageArgs),
+    /// Write a simulated campaign (with truth.json) from a simulation TOML.
+    Simulate {
+        /// Simulation config (see pipelines/sim-sample.toml); defaults when absent.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Output campaign directory (must not exist yet).
+        #[arg(long)]
+        out: PathBuf,
+        /// Override the config's random seed.
+        #[arg(long)]
+        seed: Option<u64>,
+    },
+}
+
+#[derive(Args)]
+struct IoArgs {
+    /// Campaign directory (default: the pipeline's, else data/sample).
+    #[arg(long)]
+    campaign: Option<PathBuf>,
+    /// Output directory (default: reports/<campaign id>). Replaced atomically at the end.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct StageArgs {
+    #[command(flatten)]
+    io: IoArgs,
+    /// Model effects (default: the base model fixed_part, scale).
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    effects: Vec<String>,
+    /// Add an effect to the model (repeatable).
+    #[arg(long = "add-effect", value_name = "NAME")]
+    add_effect: Vec<String>,
+}
+
+fn main() -> ExitCode {
+    init_tracing();
+    let cli = Cli::parse();
+    match execute(cli) {
+        Ok(RunStatus::AllBars) => ExitCode::SUCCESS,
+        Ok(RunStatus::SomeBarsFailed(n)) => {
+            eprintln!("dbbcal: {n} bar(s) failed; the others were processed (see failed_bars in summary.json)");
+            ExitCode::from(EXIT_SOME_BARS_FAILED)
+        }
+        Err(e) => {
+            let unusable = e.chain().any(runner::is_input_error);
+            eprintln!("dbbcal: error: {}", one_line(&e));
+            ExitCode::from(if unusable { EXIT_UNUSABLE_INPUT } else { EXIT_OTHER })
+        }
+    }
+}
+
+/// The error and its causes on one line.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        if !parts.iter().any(|p| p.contains(&s)) {
+            parts.push(s);
+        }
+    }
+    parts.join(": ")
+}
+
+fn execute(cli: Cli) -> anyhow::Result<RunStatus> {
+    match cli.command {
+        Command::Run { pipeline, io, add_effect } => {
+            let plan = RunPlan::from_pipeline_file(&pipeline, io.campaign, io.out, &add_effect)?;
+            runner::run(&plan)
+        }
+        Command::Ingest(a) => stage(Stage::Ingest, a),
+        Command::Identify(a) => stage(Stage::Identify, a),
+        Command::Match(a) => stage(Stage::Match, a),
+        Command::Report(a) => stage(Stage::Report, a),
+        Command::Simulate { config, out, seed } => {
+            runner::simulate(config.as_deref(), &out, seed).with_context(|| format!("simulate into {}", out.display()))?;
+            Ok(RunStatus::AllBars)
+        }
+    }
+}
+
+fn stage(stage: Stage, a: StageArgs) -> anyhow::Result<RunStatus> {
+    let mut effects = a.effects;
+    if effects.is_empty() && !a.add_effect.is_empty() {
+        effects = dbbcal::model::base_effects().iter().map(|e| e.name()).collect();
+    }
+    effects.extend(a.add_effect);
+    let campaign = a.io.campaign.unwrap_or_else(|| PathBuf::from("data/sample"));
+    let plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
+    runner::run(&plan)
+}
+
+fn init_tracing() {
+    let filter = tracing_subscriber::EnvFilter::try_from_env("DBBCAL_LOG").unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).init();
+}

@@ -1,0 +1,147 @@
+//! Channels: every logged signal a term or the diagnosis can use, at a bar's sample times.
+//!
+//! Names (the strings users type after `lag:`, `rate:`, `level:`):
+//! - a sensor id (`T1`), or a difference of two (`T2-T1`);
+//! - `event:KIND`: events with values as a held (step) series (`head_power`, `tilt`, …),
+//!   events without values as unit impulses (`door`, `handling`, …);
+//! - `time_since_mount_h`, `time_of_day_h`, `length_mm` (`I_p`), `tilt_deg`.
+
+use crate::series::BarSeries;
+
+use super::lag;
+
+/// A channel's samples at the bar's times, or impulse times.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Channel {
+    Sampled(Vec<f64>),
+    /// Times (s, sorted) of unit impulses.
+    Impulses(Vec<f64>),
+}
+
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum ChannelError {
+    #[error("no channel {0:?} in this campaign for this bar")]
+    Unknown(String),
+    #[error("no {0} events for this bar")]
+    NoEvents(String),
+    #[error("needs two air sensors and a bar with its own `sensor`")]
+    NoGradient,
+    #[error("needs a sensor of kind \"plate\"")]
+    NoPlateSensor,
+}
+
+impl Channel {
+    /// First-order lag of the channel (impulses: their unit responses).
+    pub fn lag(&self, t_s: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+        match self {
+            Channel::Sampled(u) => lag::lag(t_s, u, tau_s, with_derivative),
+            Channel::Impulses(e) => lag::impulse_lag(t_s, e, tau_s, with_derivative),
+        }
+    }
+
+    /// The channel's level (impulses: 1 at the first sample at or after each impulse).
+    pub fn level(&self, n: usize) -> Vec<f64> {
+        match self {
+            Channel::Sampled(u) => u.clone(),
+            Channel::Impulses(_) => vec![0.0; n],
+        }
+    }
+}
+
+/// Resolve a channel name for a bar.
+pub fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> {
+    if let Some(c) = series.celsius.get(name) {
+        return Ok(Channel::Sampled(c.clone()));
+    }
+    if let Some((a, b)) = name.split_once('-') {
+        if let (Some(a), Some(b)) = (series.celsius.get(a), series.celsius.get(b)) {
+            return Ok(Channel::Sampled(a.iter().zip(b).map(|(a, b)| a - b).collect()));
+        }
+    }
+    if let Some(kind) = name.strip_prefix("event:") {
+        return event_channel(series, kind);
+    }
+    let t = &series.t_s;
+    match name {
+        "time_since_mount_h" => Ok(Channel::Sampled(
+            t.iter()
+                .zip(&series.mount_of)
+                .map(|(t, m)| m.map_or(0.0, |m| (t - series.mounts[m as usize].from_s) / 3600.0))
+                .collect(),
+        )),
+        "time_of_day_h" => {
+            let t0_s = series.t0_ns as f64 * 1e-9;
+            Ok(Channel::Sampled(t.iter().map(|t| ((t0_s + t) / 3600.0).rem_euclid(24.0)).collect()))
+        }
+        "length_mm" => Ok(Channel::Sampled(series.i_p_mm())),
+        "tilt_deg" => Ok(Channel::Sampled(
+            series.mount_of.iter().map(|m| m.map_or(0.0, |m| series.mounts[m as usize].tilt_deg)).collect(),
+        )),
+        _ => Err(ChannelError::Unknown(name.to_string())),
+    }
+}
+
+/// Events of one kind for the bar: a held series when they carry values, impulses otherwise.
+pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelError> {
+    let events: Vec<(f64, Option<f64>)> = series.events.iter().filter(|(_, e)| e.kind == kind).map(|(t, e)| (*t, e.value)).collect();
+    if events.is_empty() {
+        return Err(ChannelError::NoEvents(kind.to_string()));
+    }
+    if events.iter().all(|(_, v)| v.is_none()) {
+        return Ok(Channel::Impulses(events.iter().map(|(t, _)| *t).collect()));
+    }
+    let mut held = Vec::with_capacity(series.t_s.len());
+    let mut next = 0;
+    let mut value = 0.0;
+    for &t in &series.t_s {
+        while next < events.len() && events[next].0 <= t {
+            if let Some(v) = events[next].1 {
+                value = v;
+            }
+            next += 1;
+        }
+        held.push(value);
+    }
+    Ok(Channel::Sampled(held))
+}
+
+/// Mean of the other air sensors minus the bar's own.
+pub fn air_gradient(series: &BarSeries) -> Result<Channel, ChannelError> {
+    let own = series.bar.sensor.as_ref().ok_or(ChannelError::NoGradient)?;
+    let own_c = series.celsius.get(own).ok_or(ChannelError::NoGradient)?;
+    let others: Vec<&Vec<f64>> = series
+        .air_sensor_ids
+        .iter()
+        .filter(|id| *id != own)
+        .filter_map(|id| series.celsius.get(id))
+        .collect();
+    if others.is_empty() {
+        return Err(ChannelError::NoGradient);
+    }
+    let k = others.len() as f64;
+    Ok(Channel::Sampled(
+        (0..own_c.len()).map(|i| others.iter().map(|c| c[i]).sum::<f64>() / k - own_c[i]).collect(),
+    ))
+}
+
+/// The plate sensor's temperature.
+pub fn plate_temperature(series: &BarSeries) -> Result<Vec<f64>, ChannelError> {
+    series.plate_sensor_id.as_ref().and_then(|id| series.celsius.get(id)).cloned().ok_or(ChannelError::NoPlateSensor)
+}
+
+/// Every channel the diagnosis can offer for this bar (names accepted by [`resolve`]).
+pub fn available(series: &BarSeries) -> Vec<String> {
+    let mut names: Vec<String> = series.celsius.keys().cloned().collect();
+    let sensors: Vec<String> = series.celsius.keys().cloned().collect();
+    for (i, a) in sensors.iter().enumerate() {
+        for b in &sensors[i + 1..] {
+            names.push(format!("{b}-{a}"));
+        }
+    }
+    let mut kinds: Vec<String> = series.events.iter().map(|(_, e)| e.kind.clone()).collect();
+    kinds.sort();
+    kinds.dedup();
+    names.extend(kinds.into_iter().map(|k| format!("event:{k}")));
+    names.extend(["time_since_mount_h", "time_of_day_h", "length_mm", "tilt_deg"].map(String::from));
+    names
+}

@@ -1,0 +1,404 @@
+//! Thermal models as lists of composable terms.
+//!
+//! A model is a list of [`Effect`]s (the base model is `fixed_part` + `scale`, `physics.md`'s
+//! first-order model) plus one zero per zero segment. Each effect contributes basis columns
+//! (linear gains) and at most one time constant; [`ThermalProblem`] assembles them for the one
+//! fitting engine ([`crate::fit`]). Effects are named by strings — exactly the strings the
+//! diagnosis prints and `--add-effect` accepts (see [`Effect::parse`]).
+//!
+//! Sign convention (`physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
+//! error is `-dD`; gains are reported with the physical sign (positive = expands when warmed).
+
+pub mod channels;
+pub mod lag;
+
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+use crate::fit::Separable;
+use crate::series::BarSeries;
+use channels::{Channel, ChannelError};
+
+/// How a generic channel enters the model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Transform {
+    /// First-order response (gain, tau).
+    Lag,
+    /// Rate of change, smoothed: `u - lag(u)` (gain, tau).
+    Rate,
+    /// The channel as it is (gain only).
+    Level,
+}
+
+impl Transform {
+    fn as_str(self) -> &'static str {
+        match self {
+            Transform::Lag => "lag",
+            Transform::Rate => "rate",
+            Transform::Level => "level",
+        }
+    }
+}
+
+/// One physical effect a bar's model may contain.
+#[derive(Debug, Clone, PartialEq, PartialOrd)]
+pub enum Effect {
+    /// `alpha` on the fixed part `I_min`, lag `tau_R` of the air temperature (patent).
+    FixedPart,
+    /// `beta` on the scale travel `I_p`, lag `tau_S` (patent).
+    Scale,
+    /// Read-head self-heating: first-order response to `head_power` (µm, tau).
+    HeadHeating,
+    /// A second thermal path on `I_min` with its own time constant (ppm/K, tau).
+    SecondPath,
+    /// Gradient between the other air sensors and the bar's own, seen through a lag on `I_min`.
+    AirGradient,
+    /// Plate expansion: plate temperature times plate length (ppm/K).
+    PlateExpansion,
+    /// Exponential settling after each mount (µm, tau).
+    Settling,
+    /// Slow linear trend independent of temperature (µm/day).
+    Creep,
+    /// Generic term: `transform` of a named channel (see [`channels`]).
+    Channel { transform: Transform, channel: String, tau0_s: Option<f64> },
+}
+
+/// The named effects of the catalogue (`physics.md`), in display order.
+pub const CATALOGUE: &[&str] = &[
+    "fixed_part",
+    "scale",
+    "head_heating",
+    "second_path",
+    "air_gradient",
+    "plate_expansion",
+    "settling",
+    "creep",
+];
+
+/// The base model of `physics.md`.
+pub fn base_effects() -> Vec<Effect> {
+    vec![Effect::FixedPart, Effect::Scale]
+}
+
+/// An effect string that is not understood.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+#[error("unknown effect {0:?}: use one of {known} or lag:CHANNEL, rate:CHANNEL, level:CHANNEL (optionally @TAU_S)", known = CATALOGUE.join(", "))]
+pub struct UnknownEffect(pub String);
+
+impl Effect {
+    /// Parse an effect name: a catalogue name, or `lag:CH`, `rate:CH`, `level:CH`, with an
+    /// optional initial time constant `@SECONDS`.
+    pub fn parse(s: &str) -> Result<Effect, UnknownEffect> {
+        let s = s.trim();
+        let named = match s {
+            "fixed_part" => Some(Effect::FixedPart),
+            "scale" => Some(Effect::Scale),
+            "head_heating" => Some(Effect::HeadHeating),
+            "second_path" => Some(Effect::SecondPath),
+            "air_gradient" => Some(Effect::AirGradient),
+            "plate_expansion" => Some(Effect::PlateExpansion),
+            "settling" => Some(Effect::Settling),
+            "creep" => Some(Effect::Creep),
+            _ => None,
+        };
+        if let Some(e) = named {
+            return Ok(e);
+        }
+        let (head, channel) = s.split_once(':').ok_or_else(|| UnknownEffect(s.to_string()))?;
+        let transform = match head {
+            "lag" => Transform::Lag,
+            "rate" => Transform::Rate,
+            "level" => Transform::Level,
+            _ => return Err(UnknownEffect(s.to_string())),
+        };
+        let (channel, tau0_s) = match channel.rsplit_once('@') {
+            Some((ch, tau)) => {
+                let tau: f64 = tau.parse().map_err(|_| UnknownEffect(s.to_string()))?;
+                if !(tau > 0.0) {
+                    return Err(UnknownEffect(s.to_string()));
+                }
+                (ch, Some(tau))
+            }
+            None => (channel, None),
+        };
+        if channel.is_empty() {
+            return Err(UnknownEffect(s.to_string()));
+        }
+        Ok(Effect::Channel { transform, channel: channel.to_string(), tau0_s })
+    }
+
+    /// The effect's name; `Effect::parse(&e.name()) == e`.
+    pub fn name(&self) -> String {
+        match self {
+            Effect::FixedPart => "fixed_part".into(),
+            Effect::Scale => "scale".into(),
+            Effect::HeadHeating => "head_heating".into(),
+            Effect::SecondPath => "second_path".into(),
+            Effect::AirGradient => "air_gradient".into(),
+            Effect::PlateExpansion => "plate_expansion".into(),
+            Effect::Settling => "settling".into(),
+            Effect::Creep => "creep".into(),
+            Effect::Channel { transform, channel, tau0_s } => match tau0_s {
+                Some(t) => format!("{}:{channel}@{t}", transform.as_str()),
+                None => format!("{}:{channel}", transform.as_str()),
+            },
+        }
+    }
+
+    /// Name of the linear gain and its unit.
+    pub fn gain_name(&self) -> String {
+        match self {
+            Effect::FixedPart => "alpha_ppm_per_k".into(),
+            Effect::Scale => "beta_ppm_per_k".into(),
+            Effect::HeadHeating => "head_growth_um".into(),
+            Effect::SecondPath => "alpha2_ppm_per_k".into(),
+            Effect::AirGradient => "gradient_ppm_per_k".into(),
+            Effect::PlateExpansion => "plate_cte_ppm_per_k".into(),
+            Effect::Settling => "settling_um".into(),
+            Effect::Creep => "creep_um_per_day".into(),
+            Effect::Channel { transform, channel, .. } => format!("{}_{channel}_gain_um_per_unit", transform.as_str()),
+        }
+    }
+
+    /// Name of the time constant, if the effect has one.
+    pub fn tau_name(&self) -> Option<String> {
+        match self {
+            Effect::FixedPart => Some("tau_r_s".into()),
+            Effect::Scale => Some("tau_s_s".into()),
+            Effect::HeadHeating => Some("tau_head_s".into()),
+            Effect::SecondPath => Some("tau_2_s".into()),
+            Effect::AirGradient => Some("tau_gradient_s".into()),
+            Effect::Settling => Some("tau_settling_s".into()),
+            Effect::PlateExpansion | Effect::Creep => None,
+            Effect::Channel { transform: Transform::Level, .. } => None,
+            Effect::Channel { transform, channel, .. } => Some(format!("{}_{channel}_tau_s", transform.as_str())),
+        }
+    }
+
+    /// Initial time constant, seconds.
+    fn tau0_s(&self) -> f64 {
+        match self {
+            Effect::FixedPart => 1800.0,
+            Effect::Scale => 3600.0,
+            Effect::HeadHeating => 900.0,
+            Effect::SecondPath => 10800.0,
+            Effect::AirGradient => 1800.0,
+            Effect::Settling => 3600.0,
+            Effect::Channel { tau0_s, .. } => tau0_s.unwrap_or(1800.0),
+            Effect::PlateExpansion | Effect::Creep => f64::NAN,
+        }
+    }
+}
+
+/// An effect bound to one bar's data: its input channel and its column scale.
+#[derive(Debug, Clone)]
+struct BoundTerm {
+    effect: Effect,
+    input: Channel,
+    /// Multiplies the (lagged) input per sample, e.g. `-I_min / 1000`; `None` = 1.
+    scale: Option<Vec<f64>>,
+    kind: TermKind,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum TermKind {
+    Lag,
+    Rate,
+    Level,
+    /// `exp(-(t - mount start)/tau)` within each mount.
+    Settling,
+}
+
+/// One bar's thermal model, ready for the fitting engine.
+pub struct ThermalProblem<'a> {
+    series: &'a BarSeries,
+    terms: Vec<BoundTerm>,
+    /// Indices (into `terms`) of the terms with a time constant, in `theta` order.
+    tau_terms: Vec<usize>,
+    y: Vec<f64>,
+}
+
+/// A model that cannot be built for a bar.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum ModelError {
+    #[error("effect {effect}: {source}")]
+    Channel { effect: String, source: ChannelError },
+}
+
+impl<'a> ThermalProblem<'a> {
+    pub fn new(series: &'a BarSeries, effects: &[Effect]) -> Result<Self, ModelError> {
+        let terms = effects
+            .iter()
+            .map(|e| bind(series, e).map_err(|source| ModelError::Channel { effect: e.name(), source }))
+            .collect::<Result<Vec<_>, _>>()?;
+        let tau_terms = terms.iter().enumerate().filter(|(_, t)| t.effect.tau_name().is_some()).map(|(i, _)| i).collect();
+        let y = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
+        Ok(ThermalProblem { series, terms, tau_terms, y })
+    }
+
+    /// Fit these observations (one per fitted sample) instead of the bar's reading: the
+    /// diagnosis explains a residual with a single channel this way.
+    pub fn with_observations(mut self, y: Vec<f64>) -> Self {
+        assert_eq!(y.len(), self.y.len(), "one observation per fitted sample");
+        self.y = y;
+        self
+    }
+
+    /// `theta0`: `ln tau` of every term with a time constant.
+    pub fn theta0(&self) -> Vec<f64> {
+        self.tau_terms.iter().map(|&i| self.terms[i].effect.tau0_s().ln()).collect()
+    }
+
+    pub fn effects(&self) -> Vec<Effect> {
+        self.terms.iter().map(|t| t.effect.clone()).collect()
+    }
+
+    /// Number of linear columns before the zeros.
+    pub fn n_gains(&self) -> usize {
+        self.terms.len()
+    }
+
+    /// The model's columns for every sample of the bar (not only the fitted ones), for plotting
+    /// and for evaluating the model outside its fit mounts.
+    pub fn full_columns(&self, theta: &[f64]) -> Vec<Vec<f64>> {
+        (0..self.terms.len()).map(|j| self.term_column(j, theta, false).0).collect()
+    }
+
+    fn tau_of(&self, j: usize, theta: &[f64]) -> Option<f64> {
+        self.tau_terms.iter().position(|&i| i == j).map(|k| theta[k].exp())
+    }
+
+    /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`.
+    fn term_column(&self, j: usize, theta: &[f64], with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+        let term = &self.terms[j];
+        let t = &self.series.t_s;
+        let tau = self.tau_of(j, theta);
+        let (mut x, mut d) = match (term.kind, tau) {
+            (TermKind::Lag, Some(tau)) => term.input.lag(t, tau, with_derivative),
+            (TermKind::Rate, Some(tau)) => {
+                let (l, dl) = term.input.lag(t, tau, with_derivative);
+                let u = term.input.level(t.len());
+                (u.iter().zip(&l).map(|(u, l)| u - l).collect(), dl.map(|d| d.into_iter().map(|v| -v).collect()))
+            }
+            (TermKind::Settling, Some(tau)) => settling(self.series, tau, with_derivative),
+            _ => (term.input.level(t.len()), None),
+        };
+        if let Some(s) = &term.scale {
+            x.iter_mut().zip(s).for_each(|(x, s)| *x *= s);
+            if let Some(d) = d.as_mut() {
+                d.iter_mut().zip(s).for_each(|(d, s)| *d *= s);
+            }
+        }
+        (x, d)
+    }
+
+    /// The fitted samples of a full-timeline column.
+    fn gather<'b>(&'b self, full: &'b [f64]) -> impl Iterator<Item = f64> + 'b {
+        self.series.fit_index.iter().map(move |&i| full[i])
+    }
+}
+
+fn settling(series: &BarSeries, tau: f64, with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+    let mut x = Vec::with_capacity(series.t_s.len());
+    let mut d = with_derivative.then(|| Vec::with_capacity(series.t_s.len()));
+    for (t, m) in series.t_s.iter().zip(&series.mount_of) {
+        let (v, dv) = match m {
+            Some(m) => {
+                let s = (t - series.mounts[*m as usize].from_s).max(0.0);
+                let e = (-s / tau).exp();
+                (e, e * s / tau)
+            }
+            None => (0.0, 0.0),
+        };
+        x.push(v);
+        if let Some(d) = d.as_mut() {
+            d.push(dv);
+        }
+    }
+    (x, d)
+}
+
+/// Bind an effect to a bar's data: find its input channel and its per-sample scale.
+fn bind(series: &BarSeries, effect: &Effect) -> Result<BoundTerm, ChannelError> {
+    let t0 = series.reference_temperature_c;
+    let minus_i_min = Some(vec![-series.bar.fixed_length_mm * 1e-3; series.t_s.len()]);
+    let air = || Channel::Sampled(series.air_c.iter().map(|t| t - t0).collect());
+    let (input, scale, kind) = match effect {
+        Effect::FixedPart | Effect::SecondPath => (air(), minus_i_min, TermKind::Lag),
+        Effect::Scale => (air(), Some(series.i_p_mm().iter().map(|ip| -ip * 1e-3).collect()), TermKind::Lag),
+        Effect::HeadHeating => (channels::event_channel(series, "head_power")?, Some(vec![-1.0; series.t_s.len()]), TermKind::Lag),
+        Effect::AirGradient => (channels::air_gradient(series)?, minus_i_min, TermKind::Lag),
+        Effect::PlateExpansion => {
+            let plate = channels::plate_temperature(series)?;
+            let length: Vec<f64> = series
+                .mount_of
+                .iter()
+                .map(|m| m.and_then(|m| series.mounts[m as usize].length_mm).unwrap_or(0.0) * 1e-3)
+                .collect();
+            (Channel::Sampled(plate.iter().map(|t| t - t0).collect()), Some(length), TermKind::Level)
+        }
+        Effect::Settling => (Channel::Sampled(vec![0.0; series.t_s.len()]), None, TermKind::Settling),
+        Effect::Creep => (Channel::Sampled(series.t_s.iter().map(|t| t / 86400.0).collect()), None, TermKind::Level),
+        Effect::Channel { transform, channel, .. } => {
+            let input = channels::resolve(series, channel)?;
+            let kind = match transform {
+                Transform::Lag => TermKind::Lag,
+                Transform::Rate => TermKind::Rate,
+                Transform::Level => TermKind::Level,
+            };
+            (input, None, kind)
+        }
+    };
+    Ok(BoundTerm { effect: effect.clone(), input, scale, kind })
+}
+
+impl Separable for ThermalProblem<'_> {
+    fn observations(&self) -> &[f64] {
+        &self.y
+    }
+
+    fn nonlinear_names(&self) -> Vec<String> {
+        self.tau_terms.iter().map(|&i| format!("ln_{}", self.terms[i].effect.tau_name().unwrap_or_default())).collect()
+    }
+
+    fn linear_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.terms.iter().map(|t| t.effect.gain_name()).collect();
+        names.extend((0..self.series.n_zero_segments).map(|k| format!("zero_{k}_um")));
+        names
+    }
+
+    fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
+        let n = self.y.len();
+        let mut phi = DMatrix::zeros(n, self.terms.len() + self.series.n_zero_segments);
+        for j in 0..self.terms.len() {
+            let (col, _) = self.term_column(j, theta, false);
+            for (r, v) in self.gather(&col).enumerate() {
+                phi[(r, j)] = v;
+            }
+        }
+        let base = self.terms.len();
+        for (r, &i) in self.series.fit_index.iter().enumerate() {
+            if let Some(s) = self.series.zero_segment[i] {
+                phi[(r, base + s as usize)] = 1.0;
+            }
+        }
+        phi
+    }
+
+    fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
+        let n = self.y.len();
+        let mut d = DMatrix::zeros(n, self.terms.len() + self.series.n_zero_segments);
+        let j = self.tau_terms[k];
+        if let (_, Some(col)) = self.term_column(j, theta, true) {
+            for (r, v) in self.gather(&col).enumerate() {
+                d[(r, j)] = v;
+            }
+        }
+        d
+    }
+
+    fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
+        Some((60f64.ln(), (30.0 * 86400f64).ln()))
+    }
+}

@@ -1,0 +1,617 @@
+//! Staged jobs: a pipeline TOML names the stages and the model; [`RunPlan`] is its validated
+//! form (checked before any heavy IO); [`run`] executes it into a temporary folder beside the
+//! output and renames it into place at the end, so a failed run never leaves a half-written
+//! output folder.
+//!
+//! Data flow: ingest (`io`) -> series -> identify (per bar, in parallel) -> match -> outputs
+//! (JSON, parquet, figures). Stages talk through plain data types.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::campaign::{Campaign, Place};
+use crate::diagnose::{self, BarDiagnosis, Candidate, LedgerStep};
+use crate::identify::{identify, BarModel, Estimate};
+use crate::matching::{self, MatchInput, MatchStudy, Mismatch, ReferenceChoice, TemperatureHistory};
+use crate::model::Effect;
+use crate::series::{BarSeries, CampaignLogs, InputFile};
+
+/// The stages a pipeline may run, in execution order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    Ingest,
+    Identify,
+    Match,
+    MatchStudy,
+    Diagnose,
+    Report,
+}
+
+impl Stage {
+    /// The stages `self` needs before it.
+    pub fn with_prerequisites(self) -> Vec<Stage> {
+        use Stage::*;
+        match self {
+            Ingest => vec![Ingest],
+            Identify => vec![Ingest, Identify],
+            Match => vec![Ingest, Identify, Match],
+            MatchStudy => vec![Ingest, Identify, Match, MatchStudy],
+            Diagnose => vec![Ingest, Identify, Diagnose],
+            Report => vec![Ingest, Identify, Match, Report],
+        }
+    }
+}
+
+/// A pipeline file (`pipelines/*.toml`), as written.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineFile {
+    pub pipeline: PipelineSection,
+    #[serde(default)]
+    pub model: ModelSection,
+    #[serde(default, rename = "match")]
+    pub matching: MatchSection,
+    #[serde(default)]
+    pub diagnose: DiagnoseSection,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiagnoseSection {
+    /// Forward selection adds at most this many effects (0: rank candidates only).
+    #[serde(default = "default_forward_steps")]
+    pub forward_steps: usize,
+}
+
+impl Default for DiagnoseSection {
+    fn default() -> Self {
+        Self { forward_steps: default_forward_steps() }
+    }
+}
+
+fn default_forward_steps() -> usize {
+    3
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineSection {
+    pub name: String,
+    pub stages: Vec<Stage>,
+    /// Default campaign directory, relative to the working directory.
+    #[serde(default)]
+    pub campaign: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSection {
+    /// Effect names (see `model::Effect::parse`); the base model when absent.
+    #[serde(default = "default_effects")]
+    pub effects: Vec<String>,
+}
+
+impl Default for ModelSection {
+    fn default() -> Self {
+        Self { effects: default_effects() }
+    }
+}
+
+fn default_effects() -> Vec<String> {
+    crate::model::base_effects().iter().map(Effect::name).collect()
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MatchSection {
+    /// Flag bars whose predicted mismatch exceeds this, µm (the patent's ±1 µm).
+    #[serde(default = "default_limit")]
+    pub limit_um: f64,
+    /// Plate length id at which bars are compared; the middle plate length when absent.
+    #[serde(default)]
+    pub at_length: Option<String>,
+    /// Grid step of the measured-drift matching study, s.
+    #[serde(default = "default_study_step")]
+    pub study_step_s: f64,
+}
+
+impl Default for MatchSection {
+    fn default() -> Self {
+        Self { limit_um: default_limit(), at_length: None, study_step_s: default_study_step() }
+    }
+}
+
+fn default_limit() -> f64 {
+    1.0
+}
+fn default_study_step() -> f64 {
+    60.0
+}
+
+/// Errors that make a run impossible (unusable input or configuration).
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    #[error("{path}: {message}")]
+    Pipeline { path: String, message: String },
+    #[error("campaign directory {0} does not exist or has no campaign.toml")]
+    NoCampaign(String),
+    #[error("{0}")]
+    Effect(#[from] crate::model::UnknownEffect),
+}
+
+/// A validated run: what to read, what to do, where to write.
+#[derive(Debug, Clone)]
+pub struct RunPlan {
+    pub pipeline_name: String,
+    /// The pipeline file and its hash (`None` for stage subcommands).
+    pub pipeline_source: Option<(PathBuf, String)>,
+    pub stages: Vec<Stage>,
+    pub campaign_dir: PathBuf,
+    /// `None`: `reports/<campaign id>`, decided after the manifest is read.
+    pub out_dir: Option<PathBuf>,
+    pub effects: Vec<Effect>,
+    pub matching: MatchSection,
+    pub diagnose: DiagnoseSection,
+}
+
+impl RunPlan {
+    /// Validate a pipeline file plus command-line overrides.
+    pub fn from_pipeline_file(path: &Path, campaign: Option<PathBuf>, out: Option<PathBuf>, add_effects: &[String]) -> Result<RunPlan, PlanError> {
+        let perr = |message: String| PlanError::Pipeline { path: path.display().to_string(), message };
+        let text = std::fs::read_to_string(path).map_err(|e| perr(format!("cannot read: {e}")))?;
+        let file: PipelineFile = toml::from_str(&text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
+        if file.pipeline.stages.is_empty() {
+            return Err(perr("pipeline.stages is empty".into()));
+        }
+        let mut stages: Vec<Stage> = file.pipeline.stages.iter().flat_map(|s| s.with_prerequisites()).collect();
+        stages.sort();
+        stages.dedup();
+        let mut names = file.model.effects.clone();
+        names.extend(add_effects.iter().cloned());
+        let campaign_dir = campaign.or(file.pipeline.campaign.clone()).unwrap_or_else(|| PathBuf::from("data/sample"));
+        let sha = sha256_hex(text.as_bytes());
+        let mut plan = RunPlan::new(file.pipeline.name.clone(), Some((path.to_path_buf(), sha)), stages, campaign_dir, out, &names, file.matching)?;
+        plan.diagnose = file.diagnose;
+        Ok(plan)
+    }
+
+    /// A plan for one stage subcommand (and the stages it needs).
+    pub fn for_stage(stage: Stage, campaign: PathBuf, out: Option<PathBuf>, effects: &[String]) -> Result<RunPlan, PlanError> {
+        let names = if effects.is_empty() { default_effects() } else { effects.to_vec() };
+        RunPlan::new(format!("{stage:?}").to_lowercase(), None, stage.with_prerequisites(), campaign, out, &names, MatchSection::default())
+    }
+
+    fn new(name: String, source: Option<(PathBuf, String)>, stages: Vec<Stage>, campaign_dir: PathBuf, out_dir: Option<PathBuf>, effect_names: &[String], matching: MatchSection) -> Result<RunPlan, PlanError> {
+        let mut effects = Vec::new();
+        for n in effect_names {
+            let e = Effect::parse(n)?;
+            if !effects.contains(&e) {
+                effects.push(e);
+            }
+        }
+        if !campaign_dir.join("campaign.toml").is_file() {
+            return Err(PlanError::NoCampaign(campaign_dir.display().to_string()));
+        }
+        Ok(RunPlan { pipeline_name: name, pipeline_source: source, stages, campaign_dir, out_dir, effects, matching, diagnose: DiagnoseSection::default() })
+    }
+
+    pub fn runs(&self, stage: Stage) -> bool {
+        self.stages.contains(&stage)
+    }
+}
+
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    let digest = Sha256::digest(bytes);
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+// ------------------------------------------------------------------------------------ results
+
+/// One bar's outcome.
+#[derive(Debug, Clone)]
+pub struct BarOutcome {
+    pub series: BarSeries,
+    pub model: BarModel,
+}
+
+/// Everything a run produced, as plain data.
+#[derive(Debug, Clone)]
+pub struct RunResults {
+    pub campaign: Campaign,
+    pub inputs: Vec<InputFile>,
+    pub bars: Vec<BarOutcome>,
+    pub failed: Vec<(String, String)>,
+    pub reference: Option<ReferenceReport>,
+    pub study: Option<MatchStudy>,
+    pub history: TemperatureHistory,
+    pub diagnosis: Option<Diagnosis>,
+    /// When the model has more than the base effects: base-model RMS beside the model's.
+    pub before_after: Option<BeforeAfter>,
+}
+
+/// The diagnose stage's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    pub bars: Vec<BarDiagnosis>,
+    pub candidates: Vec<Candidate>,
+    pub ledger: Vec<LedgerStep>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BeforeAfter {
+    pub before_effects: Vec<String>,
+    pub after_effects: Vec<String>,
+    pub bars: Vec<BarBeforeAfter>,
+    pub fleet_rms_before_um: f64,
+    pub fleet_rms_after_um: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BarBeforeAfter {
+    pub bar: String,
+    pub rms_before_um: f64,
+    pub rms_after_um: f64,
+    /// Base parameters before and after: how much adding the effects moved them.
+    pub params_before: BTreeMap<String, f64>,
+    pub params_after: BTreeMap<String, f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceReport {
+    pub choice: ReferenceChoice,
+    pub distance_mm: f64,
+    pub limit_um: f64,
+    pub mismatches: Vec<Mismatch>,
+}
+
+/// Run the analysis stages on already-read logs (no output written).
+pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
+    let CampaignLogs { campaign, inputs, bars, sensors, events } = logs;
+    let t0 = campaign.mounts.iter().map(|m| m.from_ns).min().unwrap_or_else(|| campaign_origin_from(&bars));
+    let history = air_history(&campaign, &sensors, t0, 60.0);
+    if !plan.runs(Stage::Identify) {
+        return RunResults { campaign, inputs, bars: Vec::new(), failed: Vec::new(), reference: None, study: None, history, diagnosis: None, before_after: None };
+    }
+    let progress = crate::progress::bar(bars.len() as u64, "identify");
+    let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
+        .into_iter()
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(id, log)| {
+            let r = BarSeries::build(&campaign, &events, &id, log, t0).map_err(|e| e.to_string()).and_then(|series| {
+                let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
+                Ok(BarOutcome { series, model })
+            });
+            progress.inc(1);
+            (id, r)
+        })
+        .collect();
+    progress.finish_and_clear();
+    let mut ok = Vec::new();
+    let mut failed = Vec::new();
+    for (id, r) in outcomes {
+        match r {
+            Ok(o) => ok.push(o),
+            Err(e) => {
+                tracing::warn!("{e}");
+                failed.push((id, e));
+            }
+        }
+    }
+    let mut results = RunResults { campaign, inputs, bars: ok, failed, reference: None, study: None, history, diagnosis: None, before_after: None };
+    if plan.runs(Stage::Match) {
+        run_match(plan, &mut results);
+    }
+    if plan.effects != crate::model::base_effects() {
+        results.before_after = Some(before_after(&results.bars));
+    }
+    if plan.runs(Stage::Diagnose) {
+        results.diagnosis = Some(run_diagnose(plan, &results.bars));
+    }
+    results
+}
+
+fn campaign_origin_from(bars: &BTreeMap<String, crate::series::BarLog>) -> i64 {
+    bars.values().filter_map(|l| l.time_ns.first().copied()).min().unwrap_or(0)
+}
+
+/// Mean air temperature minus the reference, on a regular grid (each sensor interpolated).
+fn air_history(campaign: &Campaign, sensors: &BTreeMap<String, crate::series::SensorLog>, t0_ns: i64, step_s: f64) -> TemperatureHistory {
+    let logs: Vec<&crate::series::SensorLog> = campaign.air_sensors().filter_map(|s| sensors.get(&s.id)).filter(|l| !l.time_ns.is_empty()).collect();
+    let to_s = |ns: i64| (ns - t0_ns) as f64 * 1e-9;
+    let start = logs.iter().map(|l| to_s(l.time_ns[0])).fold(f64::INFINITY, f64::min);
+    let end = logs.iter().map(|l| to_s(*l.time_ns.last().unwrap_or(&0))).fold(f64::NEG_INFINITY, f64::max);
+    if logs.is_empty() || !(end > start) {
+        return TemperatureHistory { t_s: vec![], delta_c: vec![] };
+    }
+    let n = ((end - start) / step_s).floor() as usize + 1;
+    let t_s: Vec<f64> = (0..n).map(|i| start + i as f64 * step_s).collect();
+    let mut sum = vec![0.0; n];
+    for l in &logs {
+        let ts: Vec<f64> = l.time_ns.iter().map(|&t| to_s(t)).collect();
+        for (s, t) in sum.iter_mut().zip(&t_s) {
+            *s += interpolate(&ts, &l.celsius, *t);
+        }
+    }
+    let k = logs.len() as f64;
+    TemperatureHistory { t_s, delta_c: sum.into_iter().map(|s| s / k - campaign.reference_temperature_c).collect() }
+}
+
+fn interpolate(x: &[f64], y: &[f64], at: f64) -> f64 {
+    let i = x.partition_point(|&v| v <= at);
+    if i == 0 {
+        return y[0];
+    }
+    if i >= x.len() {
+        return y[x.len() - 1];
+    }
+    let (x0, x1) = (x[i - 1], x[i]);
+    if x1 <= x0 {
+        return y[i];
+    }
+    y[i - 1] + (y[i] - y[i - 1]) * (at - x0) / (x1 - x0)
+}
+
+/// What matching needs of an identified bar (bars whose model lacks a base parameter are left out).
+pub fn match_input(o: &BarOutcome) -> Option<MatchInput> {
+    let p = |name: &str| o.model.value(name);
+    let params = [p(matching::MATCH_PARAMS[0])?, p(matching::MATCH_PARAMS[1])?, p(matching::MATCH_PARAMS[2])?, p(matching::MATCH_PARAMS[3])?];
+    let (t_s, measured_um) = o
+        .series
+        .fit_index
+        .iter()
+        .map(|&i| {
+            let zero = o.series.zero_segment[i].map_or(0.0, |s| o.model.zeros_um[s as usize]);
+            (o.series.t_s[i], o.series.y_um[i] - zero)
+        })
+        .unzip();
+    Some(MatchInput { bar: o.model.bar.clone(), fixed_length_mm: o.series.bar.fixed_length_mm, params, t_s, measured_um })
+}
+
+fn run_match(plan: &RunPlan, results: &mut RunResults) {
+    let inputs: Vec<MatchInput> = results.bars.iter().filter_map(match_input).collect();
+    let Some(choice) = matching::choose_reference(&inputs) else { return };
+    let distance_mm = comparison_distance(&results.campaign, plan.matching.at_length.as_deref());
+    let mismatches = matching::predicted_mismatch(&inputs, &choice.bar, &results.history, distance_mm, plan.matching.limit_um);
+    if plan.runs(Stage::MatchStudy) {
+        results.study = matching::measured_mismatch_matrix(&inputs, &choice.bar, plan.matching.study_step_s);
+    }
+    results.reference = Some(ReferenceReport { choice, distance_mm, limit_um: plan.matching.limit_um, mismatches });
+}
+
+/// The centre distance at which bars are compared: the named plate length, else the middle one.
+fn comparison_distance(campaign: &Campaign, at_length: Option<&str>) -> f64 {
+    let mut lengths: Vec<f64> = campaign.plate.lengths.iter().map(|l| l.mm).collect();
+    if let Some(l) = at_length.and_then(|id| campaign.plate.lengths.iter().find(|l| l.id == id)) {
+        return l.mm;
+    }
+    lengths.sort_by(f64::total_cmp);
+    lengths.get(lengths.len() / 2).copied().unwrap_or_else(|| {
+        campaign.mounts.iter().find_map(|m| match &m.place {
+            Place::Length(l) => Some(l.mm),
+            Place::Device(_) => None,
+        }).unwrap_or(0.0)
+    })
+}
+
+// ------------------------------------------------------------------------------------ summary
+
+/// `summary.json`: the stable contract for cron jobs and dashboards.
+#[derive(Debug, Serialize)]
+pub struct Summary {
+    pub dbbcal_version: String,
+    pub campaign: String,
+    pub pipeline: PipelineRecord,
+    pub inputs: Vec<InputFile>,
+    pub model: ModelRecord,
+    pub bars: Vec<BarSummary>,
+    pub failed_bars: Vec<FailedBar>,
+    pub reference: Option<ReferenceSummary>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct PipelineRecord {
+    pub name: String,
+    pub path: Option<String>,
+    pub sha256: Option<String>,
+    pub stages: Vec<Stage>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ModelRecord {
+    pub effects: Vec<String>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ParamValue {
+    pub value: f64,
+    pub u: f64,
+    pub u_naive: f64,
+    pub ci95: [f64; 2],
+}
+
+#[derive(Debug, Serialize)]
+pub struct BarSummary {
+    pub bar: String,
+    pub effects: Vec<String>,
+    pub params: BTreeMap<String, ParamValue>,
+    pub correlation: CorrelationRecord,
+    pub rms_um: f64,
+    pub n_samples: usize,
+    pub dropped_outside_mounts: usize,
+    pub hac_batch_samples: usize,
+}
+
+#[derive(Debug, Serialize)]
+pub struct CorrelationRecord {
+    pub names: Vec<String>,
+    pub matrix: Vec<Vec<f64>>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct FailedBar {
+    pub bar: String,
+    pub error: String,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ReferenceSummary {
+    pub bar: String,
+    pub rule: &'static str,
+    pub compared_at_mm: f64,
+    pub limit_um: f64,
+    pub mismatch_um: BTreeMap<String, f64>,
+    pub flagged: Vec<String>,
+    pub scaled_distance_to_mean: BTreeMap<String, f64>,
+}
+
+fn param_value(e: &Estimate) -> ParamValue {
+    ParamValue { value: e.value, u: e.u, u_naive: e.u_naive, ci95: e.ci95 }
+}
+
+pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
+    let bars = r
+        .bars
+        .iter()
+        .map(|o| BarSummary {
+            bar: o.model.bar.clone(),
+            effects: o.model.effect_names(),
+            params: o.model.params.iter().map(|p| (p.name.clone(), param_value(p))).collect(),
+            correlation: CorrelationRecord { names: o.model.params.iter().map(|p| p.name.clone()).collect(), matrix: o.model.correlation.clone() },
+            rms_um: o.model.rms_um,
+            n_samples: o.model.n_samples,
+            dropped_outside_mounts: o.series.dropped_outside_mounts,
+            hac_batch_samples: o.model.hac_batch_len,
+        })
+        .collect();
+    let reference = r.reference.as_ref().map(|rr| ReferenceSummary {
+        bar: rr.choice.bar.clone(),
+        rule: "nearest the fleet mean in (alpha, beta, tau_R, tau_S) scaled by the fleet standard deviation",
+        compared_at_mm: rr.distance_mm,
+        limit_um: rr.limit_um,
+        mismatch_um: rr.mismatches.iter().map(|m| (m.bar.clone(), m.max_abs_um)).collect(),
+        flagged: rr.mismatches.iter().filter(|m| m.flagged).map(|m| m.bar.clone()).collect(),
+        scaled_distance_to_mean: rr.choice.distance.iter().cloned().collect(),
+    });
+    Summary {
+        dbbcal_version: env!("CARGO_PKG_VERSION").to_string(),
+        campaign: r.campaign.id.clone(),
+        pipeline: PipelineRecord {
+            name: plan.pipeline_name.clone(),
+            path: plan.pipeline_source.as_ref().map(|(p, _)| p.display().to_string()),
+            sha256: plan.pipeline_source.as_ref().map(|(_, h)| h.clone()),
+            stages: plan.stages.clone(),
+        },
+        inputs: r.inputs.clone(),
+        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect() },
+        bars,
+        failed_bars: r.failed.iter().map(|(bar, error)| FailedBar { bar: bar.clone(), error: error.clone() }).collect(),
+        reference,
+    }
+}
+
+/// Refit each bar with the base model to show what the added effects bought.
+fn before_after(bars: &[BarOutcome]) -> BeforeAfter {
+    let base = crate::model::base_effects();
+    let rows: Vec<BarBeforeAfter> = bars
+        .par_iter()
+        .filter_map(|o| {
+            let before = identify(&o.series, &base).ok()?;
+            let pick = |m: &BarModel| m.params.iter().filter(|p| matching::MATCH_PARAMS.contains(&p.name.as_str())).map(|p| (p.name.clone(), p.value)).collect();
+            Some(BarBeforeAfter { bar: o.model.bar.clone(), rms_before_um: before.rms_um, rms_after_um: o.model.rms_um, params_before: pick(&before), params_after: pick(&o.model) })
+        })
+        .collect();
+    let fleet = |f: &dyn Fn(&BarBeforeAfter) -> f64| (rows.iter().map(|r| f(r).powi(2)).sum::<f64>() / rows.len().max(1) as f64).sqrt();
+    BeforeAfter {
+        before_effects: base.iter().map(Effect::name).collect(),
+        after_effects: bars.first().map(|o| o.model.effect_names()).unwrap_or_default(),
+        fleet_rms_before_um: fleet(&|r| r.rms_before_um),
+        fleet_rms_after_um: fleet(&|r| r.rms_after_um),
+        bars: rows,
+    }
+}
+
+/// Diagnose every bar, rank the candidate effects, run forward selection.
+fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
+    let progress = crate::progress::bar(bars.len() as u64, "diagnose");
+    let diagnoses: Vec<BarDiagnosis> = bars
+        .par_iter()
+        .map(|o| {
+            let d = diagnose::diagnose_bar(&o.series, &o.model);
+            progress.inc(1);
+            d
+        })
+        .collect();
+    progress.finish_and_clear();
+    let pairs: Vec<(&BarSeries, &BarModel)> = bars.iter().map(|o| (&o.series, &o.model)).collect();
+    let candidates = diagnose::evaluate_candidates(&pairs, &diagnose::candidate_effects(&plan.effects, &diagnoses));
+    let series: Vec<&BarSeries> = bars.iter().map(|o| &o.series).collect();
+    let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
+    let (ledger, _) = diagnose::forward_selection(&series, models, plan.diagnose.forward_steps);
+    Diagnosis { bars: diagnoses, candidates, ledger }
+}
+
+/// `diagnosis.json`: per bar where the model fails, and the ranked candidate effects (every
+/// `effect` string is accepted verbatim by `--add-effect`).
+#[derive(Debug, Serialize)]
+pub struct DiagnosisRecord<'a> {
+    pub campaign: &'a str,
+    pub model: ModelRecord,
+    pub inputs: &'a [InputFile],
+    pub bars: Vec<BarDiagnosisRecord<'a>>,
+    pub candidates: &'a [Candidate],
+    pub ledger: &'a [LedgerStep],
+}
+
+#[derive(Debug, Serialize)]
+pub struct BarDiagnosisRecord<'a> {
+    pub bar: &'a str,
+    pub rms_um: f64,
+    pub peak_to_valley_um: f64,
+    pub fit_percent: f64,
+    pub whiteness_p: f64,
+    pub ljung_box_q: f64,
+    pub residual_correlation_time_samples: f64,
+    pub channels: Vec<ChannelRecord<'a>>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ChannelRecord<'a> {
+    pub channel: &'a str,
+    pub explained_fraction: f64,
+    pub tau_s: f64,
+    pub description: String,
+}
+
+pub fn diagnosis_record<'a>(plan: &RunPlan, r: &'a RunResults, d: &'a Diagnosis) -> DiagnosisRecord<'a> {
+    DiagnosisRecord {
+        campaign: &r.campaign.id,
+        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect() },
+        inputs: &r.inputs,
+        bars: d
+            .bars
+            .iter()
+            .map(|b| BarDiagnosisRecord {
+                bar: &b.bar,
+                rms_um: b.rms_um,
+                peak_to_valley_um: b.stats.peak_to_valley_um,
+                fit_percent: b.stats.fit_percent,
+                whiteness_p: b.whiteness_p,
+                ljung_box_q: b.stats.ljung_box_q,
+                residual_correlation_time_samples: b.stats.correlation_time_samples,
+                channels: b
+                    .channels
+                    .iter()
+                    .map(|c| ChannelRecord { channel: &c.channel, explained_fraction: c.explained_fraction, tau_s: c.tau_s, description: diagnose::explain::describe_channel(&c.channel) })
+                    .collect(),
+            })
+            .collect(),
+        candidates: &d.candidates,
+        ledger: &d.ledger,
+    }
+}

@@ -1,0 +1,142 @@
+//! The edge between the library and the file system: run a plan end to end into an output
+//! folder that appears whole or not at all.
+//!
+//! Everything is written into `OUT.partial-<pid>` beside `OUT`; on success an existing `OUT` is
+//! moved aside and the new folder renamed into place. Outputs contain no clocks or host names,
+//! so the same inputs and plan give byte-identical JSON.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use crate::io;
+use crate::pipeline::{self, RunPlan, RunResults, Stage};
+
+/// How a run ended when it produced output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunStatus {
+    AllBars,
+    SomeBarsFailed(usize),
+}
+
+/// Whether an error (anywhere in a chain) means the input or configuration is unusable.
+pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
+    e.is::<io::IngestError>() || e.is::<pipeline::PlanError>() || e.is::<crate::campaign::CampaignError>()
+}
+
+/// Run `plan`: ingest, analyse, write the output folder.
+pub fn run(plan: &RunPlan) -> Result<RunStatus> {
+    let logs = io::read_campaign(&plan.campaign_dir)?;
+    let out = plan.out_dir.clone().unwrap_or_else(|| PathBuf::from("reports").join(&logs.campaign.id));
+    let results = pipeline::analyse(plan, logs);
+    write_atomically(&out, |tmp| write_outputs(plan, &results, tmp))?;
+    Ok(match results.failed.len() {
+        0 => RunStatus::AllBars,
+        n => RunStatus::SomeBarsFailed(n),
+    })
+}
+
+/// Write a simulated campaign into `out` (which must not exist).
+pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<()> {
+    let mut cfg = match config {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+            toml::from_str::<crate::simulate::SimConfig>(&text).map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " ")))?
+        }
+        None => crate::simulate::SimConfig::default(),
+    };
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    if out.exists() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = crate::simulate::generate(&cfg)?;
+    write_atomically(out, |tmp| crate::simulate::write(&sim, tmp, &io::WriteOptions::default()).map_err(anyhow::Error::from))
+}
+
+/// Build a folder at `out` through a temporary sibling renamed at the end.
+fn write_atomically(out: &Path, build: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).with_context(|| format!("cannot create {}", parent.display()))?;
+    let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    if let Err(e) = build(&tmp) {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    let old = parent.join(format!(".{name}.old-{}", std::process::id()));
+    if out.exists() {
+        std::fs::rename(out, &old).with_context(|| format!("cannot move the previous {} aside", out.display()))?;
+    }
+    std::fs::rename(&tmp, out).with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
+    let _ = std::fs::remove_dir_all(&old);
+    Ok(())
+}
+
+fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
+    let mut text = serde_json::to_string_pretty(value)?;
+    text.push('\n');
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn write_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()> {
+    write_json(&dir.join("summary.json"), &pipeline::summary(plan, results))?;
+    write_json(&dir.join("inputs.json"), &results.inputs)?;
+    if plan.runs(Stage::Identify) {
+        io::write_table(&dir.join("models.parquet"), &models_table(results))?;
+    }
+    if let Some(d) = &results.diagnosis {
+        write_json(&dir.join("diagnosis.json"), &pipeline::diagnosis_record(plan, results, d))?;
+    }
+    if let Some(ba) = &results.before_after {
+        write_json(&dir.join("before_after.json"), ba)?;
+    }
+    if let Some(study) = &results.study {
+        write_json(&dir.join("match_study.json"), study)?;
+    }
+    if plan.runs(Stage::Report) {
+        let figures = dir.join("figures");
+        std::fs::create_dir_all(&figures)?;
+        crate::figures::render_all(plan, results, &figures)?;
+    }
+    Ok(())
+}
+
+/// `models.parquet`: one row per bar and parameter.
+fn models_table(results: &RunResults) -> io::Table {
+    let mut bar = Vec::new();
+    let mut param = Vec::new();
+    let (mut value, mut u, mut u_naive, mut lo, mut hi) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut rms, mut n) = (Vec::new(), Vec::new());
+    for o in &results.bars {
+        for p in &o.model.params {
+            bar.push(o.model.bar.clone());
+            param.push(p.name.clone());
+            value.push(p.value);
+            u.push(p.u);
+            u_naive.push(p.u_naive);
+            lo.push(p.ci95[0]);
+            hi.push(p.ci95[1]);
+            rms.push(o.model.rms_um);
+            n.push(o.model.n_samples as i64);
+        }
+    }
+    use io::Column::*;
+    io::Table {
+        columns: vec![
+            ("campaign".into(), Str(vec![results.campaign.id.clone(); bar.len()])),
+            ("bar".into(), Str(bar)),
+            ("param".into(), Str(param)),
+            ("value".into(), F64(value)),
+            ("u".into(), F64(u)),
+            ("u_naive".into(), F64(u_naive)),
+            ("ci95_low".into(), F64(lo)),
+            ("ci95_high".into(), F64(hi)),
+            ("rms_um".into(), F64(rms)),
+            ("n_samples".into(), I64(n)),
+        ],
+    }
+}

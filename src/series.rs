@@ -1,0 +1,368 @@
+//! Plain, typed time series: what ingest hands to every later stage (no polars past this point).
+//!
+//! [`CampaignLogs`] is the whole campaign as read from disk, per bar and per sensor, sorted by
+//! time. [`BarSeries`] (built by [`BarSeries::build`]) is what the fits use: one bar's readings
+//! inside its plate mounts, as thermal error in micrometres up to each mount's zero, with the
+//! temperatures seen at the same instants.
+
+use std::collections::BTreeMap;
+
+use crate::campaign::{Bar, Campaign, TimeNs};
+
+/// One input file the run read, with its hash, for the output's provenance record.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct InputFile {
+    /// Path relative to the campaign directory, `/`-separated.
+    pub path: String,
+    pub sha256: String,
+    pub bytes: u64,
+}
+
+/// One event row (`events/*.parquet`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Event {
+    pub time_ns: TimeNs,
+    /// `None`: the whole setup.
+    pub bar: Option<String>,
+    pub kind: String,
+    pub value: Option<f64>,
+}
+
+/// A bar's encoder log, sorted by time, with every sensor's temperature at the same instants
+/// (as-of join: the latest reading at or before each encoder time, else the first one after).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BarLog {
+    pub time_ns: Vec<TimeNs>,
+    pub counts: Vec<i64>,
+    /// Sensor id -> temperature (°C) at each `time_ns`.
+    pub celsius: BTreeMap<String, Vec<f64>>,
+}
+
+/// A sensor's own log, sorted by time.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SensorLog {
+    pub time_ns: Vec<TimeNs>,
+    pub celsius: Vec<f64>,
+}
+
+/// Everything a campaign directory holds, validated and sorted.
+#[derive(Debug, Clone)]
+pub struct CampaignLogs {
+    pub campaign: Campaign,
+    /// Every file read (manifest first), sorted by path.
+    pub inputs: Vec<InputFile>,
+    /// Bar id -> its log. Every manifest bar has an entry (possibly empty).
+    pub bars: BTreeMap<String, BarLog>,
+    /// Sensor id -> its log. Every manifest sensor has an entry (possibly empty).
+    pub sensors: BTreeMap<String, SensorLog>,
+    /// Sorted by time.
+    pub events: Vec<Event>,
+}
+
+/// A bar's raw encoder readings (what a logger writes), not necessarily sorted.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct EncoderLog {
+    pub time_ns: Vec<TimeNs>,
+    pub counts: Vec<i64>,
+}
+
+/// The three tables of a campaign as plain columns: what `simulate` produces and
+/// `io::write_campaign` writes (see `campaign-format.md`).
+#[derive(Debug, Clone, Default)]
+pub struct CampaignTables {
+    /// Bar id -> readings.
+    pub encoders: BTreeMap<String, EncoderLog>,
+    /// Sensor id -> readings.
+    pub temperatures: BTreeMap<String, SensorLog>,
+    pub events: Vec<Event>,
+}
+
+/// A mount as the fits see it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MountSpan {
+    /// Index into `Campaign::mounts`.
+    pub campaign_index: usize,
+    /// Plate length id and its calibrated centre distance; `None` on a device.
+    pub length_id: Option<String>,
+    pub length_mm: Option<f64>,
+    /// `I_p = D_p - I_min` (physics.md): scale travel at this mount, mm (0 on a device).
+    pub i_p_mm: f64,
+    pub tilt_deg: f64,
+    pub purpose: crate::campaign::Purpose,
+    pub device: Option<String>,
+    pub from_s: f64,
+    pub to_s: f64,
+}
+
+impl MountSpan {
+    /// Whether the thermal model is fitted on this mount: a plate length used for calibration
+    /// or as a reference (checks are never fitted; devices have no known distance).
+    pub fn is_fitted(&self) -> bool {
+        self.length_mm.is_some() && self.purpose != crate::campaign::Purpose::Check
+    }
+}
+
+/// One bar's data as the fits use it. Every vector is indexed by sample, sorted by time.
+#[derive(Debug, Clone)]
+pub struct BarSeries {
+    pub bar: Bar,
+    pub reference_temperature_c: f64,
+    /// Time origin of `t_s`: the campaign's first mount start.
+    pub t0_ns: TimeNs,
+    /// Seconds since `t0_ns`; the bar's whole log, handling time included, so that lags carry
+    /// the thermal state through the gaps between mounts.
+    pub t_s: Vec<f64>,
+    /// Indicated reading `k * counts` in micrometres, minus the plate's known expansion
+    /// (`campaign-format.md`: true distance grows by `cte * (T_plate - T0)`), minus the median
+    /// of its zero segment: the thermal error up to each segment's unknown zero.
+    pub y_um: Vec<f64>,
+    /// Mount of each sample, `None` for handling time.
+    pub mount_of: Vec<Option<u32>>,
+    /// Zero segment of each sample (a mount, split at `rezero` events), `None` outside mounts.
+    pub zero_segment: Vec<Option<u32>>,
+    pub n_zero_segments: usize,
+    /// What was subtracted from each zero segment (its median, µm): `y_um + offset` is the
+    /// indicated reading `k * counts` (minus known plate expansion) that calibration needs.
+    pub segment_offset_um: Vec<f64>,
+    pub mounts: Vec<MountSpan>,
+    /// The bar's air temperature: its `sensor`, else the mean of the air sensors.
+    pub air_c: Vec<f64>,
+    /// Every sensor at the sample times.
+    pub celsius: BTreeMap<String, Vec<f64>>,
+    /// The campaign's air sensors, and its plate sensor if any.
+    pub air_sensor_ids: Vec<String>,
+    pub plate_sensor_id: Option<String>,
+    /// Samples used by the thermal fit (inside fitted mounts), ascending.
+    pub fit_index: Vec<usize>,
+    /// Readings outside every mount of the bar (handling time), dropped from the fits.
+    pub dropped_outside_mounts: usize,
+    /// The bar's own events and the setup-wide ones, sorted by time, times in seconds.
+    pub events: Vec<(f64, Event)>,
+}
+
+/// Why a bar's series could not be built.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum SeriesError {
+    #[error("bar {bar}: no encoder readings")]
+    NoReadings { bar: String },
+    #[error("bar {bar}: no readings inside any plate mount")]
+    NoMountedReadings { bar: String },
+    #[error("bar {bar}: no air temperature (sensor {sensor} has no readings)")]
+    NoAirTemperature { bar: String, sensor: String },
+    #[error("bar {bar}: the campaign declares no air sensor and the bar names none")]
+    NoAirSensor { bar: String },
+}
+
+impl BarSeries {
+    /// Build bar `bar_id`'s series from its log (taken by value: the series owns the data, so a
+    /// large campaign is never held twice) and the campaign's events.
+    pub fn build(campaign: &Campaign, events: &[Event], bar_id: &str, log: BarLog, t0_ns: TimeNs) -> Result<BarSeries, SeriesError> {
+        let bar = campaign.bar(bar_id).cloned().ok_or_else(|| SeriesError::NoReadings { bar: bar_id.to_string() })?;
+        if log.time_ns.is_empty() {
+            return Err(SeriesError::NoReadings { bar: bar_id.to_string() });
+        }
+        let to_s = |ns: TimeNs| (ns - t0_ns) as f64 * 1e-9;
+        let t_s: Vec<f64> = log.time_ns.iter().map(|&t| to_s(t)).collect();
+        let mounts = mount_spans(campaign, &bar, &to_s);
+        let mount_of = assign_mounts(&t_s, &mounts);
+        let dropped_outside_mounts = mount_of.iter().filter(|m| m.is_none()).count();
+        let events: Vec<(f64, Event)> = events
+            .iter()
+            .filter(|e| e.bar.as_deref().is_none_or(|b| b == bar_id))
+            .map(|e| (to_s(e.time_ns), e.clone()))
+            .collect();
+        let (zero_segment, n_zero_segments) = zero_segments(&t_s, &mount_of, &events);
+        let air_c = air_temperature(campaign, &bar, &log)?;
+        let mut y_um: Vec<f64> = log.counts.iter().map(|&c| c as f64 * bar.resolution_nm * 1e-3).collect();
+        subtract_plate_expansion(campaign, &log, &mount_of, &mounts, &mut y_um);
+        let segment_offset_um = centre_segments(&mut y_um, &zero_segment, n_zero_segments);
+        let fit_index: Vec<usize> = (0..t_s.len())
+            .filter(|&i| mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted()))
+            .collect();
+        if fit_index.is_empty() {
+            return Err(SeriesError::NoMountedReadings { bar: bar_id.to_string() });
+        }
+        Ok(BarSeries {
+            bar,
+            reference_temperature_c: campaign.reference_temperature_c,
+            t0_ns,
+            t_s,
+            y_um,
+            mount_of,
+            zero_segment,
+            n_zero_segments,
+            segment_offset_um,
+            mounts,
+            air_c,
+            celsius: log.celsius,
+            air_sensor_ids: campaign.air_sensors().map(|s| s.id.clone()).collect(),
+            plate_sensor_id: campaign.sensors.iter().find(|s| s.kind == crate::campaign::SensorKind::Plate).map(|s| s.id.clone()),
+            fit_index,
+            dropped_outside_mounts,
+            events,
+        })
+    }
+
+    /// A series from plain vectors (no campaign files): for tests and tools that make their own
+    /// data. Samples are assigned to `mounts` by time; `y_um` is taken as it is.
+    pub fn from_vectors(bar: Bar, reference_temperature_c: f64, t_s: Vec<f64>, y_um: Vec<f64>, air_c: Vec<f64>, mounts: Vec<MountSpan>) -> BarSeries {
+        let mount_of = assign_mounts(&t_s, &mounts);
+        let dropped_outside_mounts = mount_of.iter().filter(|m| m.is_none()).count();
+        let (zero_segment, n_zero_segments) = zero_segments(&t_s, &mount_of, &[]);
+        let fit_index = (0..t_s.len()).filter(|&i| mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted())).collect();
+        let celsius = BTreeMap::from([("T1".to_string(), air_c.clone())]);
+        BarSeries {
+            bar,
+            reference_temperature_c,
+            t0_ns: 0,
+            t_s,
+            y_um,
+            mount_of,
+            zero_segment,
+            segment_offset_um: vec![0.0; n_zero_segments],
+            n_zero_segments,
+            mounts,
+            air_c,
+            celsius,
+            air_sensor_ids: vec!["T1".into()],
+            plate_sensor_id: None,
+            fit_index,
+            dropped_outside_mounts,
+            events: Vec::new(),
+        }
+    }
+
+    /// `I_p` of each sample (0 outside mounts).
+    pub fn i_p_mm(&self) -> Vec<f64> {
+        self.mount_of.iter().map(|m| m.map_or(0.0, |m| self.mounts[m as usize].i_p_mm)).collect()
+    }
+}
+
+/// Campaign time origin: the earliest mount start (else the earliest reading).
+pub fn campaign_origin_ns(logs: &CampaignLogs) -> TimeNs {
+    let first_mount = logs.campaign.mounts.iter().map(|m| m.from_ns).min();
+    let first_reading = logs.bars.values().filter_map(|l| l.time_ns.first().copied()).min();
+    first_mount.or(first_reading).unwrap_or(0)
+}
+
+fn mount_spans(campaign: &Campaign, bar: &Bar, to_s: &dyn Fn(TimeNs) -> f64) -> Vec<MountSpan> {
+    campaign
+        .mounts
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.bar == bar.id)
+        .map(|(i, m)| {
+            let (length_id, length_mm, device) = match &m.place {
+                crate::campaign::Place::Length(l) => (Some(l.id.clone()), Some(l.mm), None),
+                crate::campaign::Place::Device(d) => (None, None, Some(d.clone())),
+            };
+            MountSpan {
+                campaign_index: i,
+                i_p_mm: length_mm.map_or(0.0, |mm| mm - bar.fixed_length_mm),
+                length_id,
+                length_mm,
+                tilt_deg: m.tilt_deg,
+                purpose: m.purpose,
+                device,
+                from_s: to_s(m.from_ns),
+                to_s: to_s(m.to_ns),
+            }
+        })
+        .collect()
+}
+
+/// Mount index of each sample (mounts of one bar never overlap; intervals are `[from, to)`).
+fn assign_mounts(t_s: &[f64], mounts: &[MountSpan]) -> Vec<Option<u32>> {
+    t_s.iter()
+        .map(|&t| mounts.iter().position(|m| t >= m.from_s && t < m.to_s).map(|i| i as u32))
+        .collect()
+}
+
+/// Zero segments: each mount, split again at every `rezero` event inside it.
+fn zero_segments(t_s: &[f64], mount_of: &[Option<u32>], events: &[(f64, Event)]) -> (Vec<Option<u32>>, usize) {
+    let rezeros: Vec<f64> = events.iter().filter(|(_, e)| e.kind == "rezero").map(|(t, _)| *t).collect();
+    let mut out = Vec::with_capacity(t_s.len());
+    let mut next: u32 = 0;
+    let mut last: Option<(u32, usize)> = None; // (mount, rezeros passed)
+    let mut current: u32 = 0;
+    for (i, m) in mount_of.iter().enumerate() {
+        let Some(m) = m else {
+            out.push(None);
+            continue;
+        };
+        let passed = rezeros.partition_point(|&r| r <= t_s[i]);
+        if last != Some((*m, passed)) {
+            current = next;
+            next += 1;
+            last = Some((*m, passed));
+        }
+        out.push(Some(current));
+    }
+    (out, next as usize)
+}
+
+fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f64>, SeriesError> {
+    let ids: Vec<String> = match &bar.sensor {
+        Some(s) => vec![s.clone()],
+        None => campaign.air_sensors().map(|s| s.id.clone()).collect(),
+    };
+    if ids.is_empty() {
+        return Err(SeriesError::NoAirSensor { bar: bar.id.clone() });
+    }
+    let mut sum = vec![0.0; log.time_ns.len()];
+    for id in &ids {
+        let col = log
+            .celsius
+            .get(id)
+            .filter(|c| c.len() == sum.len() && c.iter().all(|v| v.is_finite()))
+            .ok_or_else(|| SeriesError::NoAirTemperature { bar: bar.id.clone(), sensor: id.clone() })?;
+        sum.iter_mut().zip(col).for_each(|(s, v)| *s += v);
+    }
+    let k = ids.len() as f64;
+    Ok(sum.into_iter().map(|s| s / k).collect())
+}
+
+/// Remove the known plate expansion from the reading (only when the manifest gives a CTE and
+/// a plate sensor exists).
+fn subtract_plate_expansion(campaign: &Campaign, log: &BarLog, mount_of: &[Option<u32>], mounts: &[MountSpan], y_um: &mut [f64]) {
+    let cte = campaign.plate.cte_ppm_per_k;
+    if cte == 0.0 {
+        return;
+    }
+    let Some(plate) = campaign.sensors.iter().find(|s| s.kind == crate::campaign::SensorKind::Plate) else { return };
+    let Some(tp) = log.celsius.get(&plate.id) else { return };
+    for (i, y) in y_um.iter_mut().enumerate() {
+        if let Some(mm) = mount_of[i].and_then(|m| mounts[m as usize].length_mm) {
+            *y -= cte * mm * 1e-3 * (tp[i] - campaign.reference_temperature_c);
+        }
+    }
+}
+
+/// Subtract each zero segment's median, so every segment reads near zero; returns the medians.
+fn centre_segments(y_um: &mut [f64], segment: &[Option<u32>], n_segments: usize) -> Vec<f64> {
+    let mut values: Vec<Vec<f64>> = vec![Vec::new(); n_segments];
+    for (y, s) in y_um.iter().zip(segment) {
+        if let Some(s) = s {
+            values[*s as usize].push(*y);
+        }
+    }
+    let medians: Vec<f64> = values
+        .iter_mut()
+        .map(|v| {
+            if v.is_empty() {
+                return 0.0;
+            }
+            let mid = v.len() / 2;
+            *v.select_nth_unstable_by(mid, f64::total_cmp).1
+        })
+        .collect();
+    // Samples outside mounts are centred on the nearest earlier segment for plotting.
+    let mut last = 0.0;
+    for (y, s) in y_um.iter_mut().zip(segment) {
+        if let Some(s) = s {
+            last = medians[*s as usize];
+        }
+        *y -= last;
+    }
+    medians
+}

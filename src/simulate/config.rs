@@ -1,0 +1,637 @@
+//! [`SimConfig`]: everything the simulator needs, loadable from TOML (`pipelines/sim-*.toml`).
+//!
+//! Every section has defaults, so an empty file is a valid (6-bar, 4-day) campaign. All extra
+//! effects are off by default. [`SimConfig::validate`] rejects bad input with the key's name.
+
+use std::path::Path;
+
+use chrono::{DateTime, Utc};
+use serde::{Deserialize, Serialize};
+
+use super::SimError;
+use crate::campaign::PlateLength;
+
+/// The whole simulator configuration.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimConfig {
+    /// Seed of every random draw: same seed, same campaign.
+    pub seed: u64,
+    pub campaign_id: String,
+    /// Campaign start (UTC), a TOML datetime or an RFC 3339 string.
+    #[serde(with = "start_time")]
+    pub start: DateTime<Utc>,
+    pub duration_days: f64,
+    /// Encoder sampling period, seconds.
+    pub sample_s: f64,
+    /// Upper bound of the internal integration step of the thermal states, seconds (the step
+    /// used divides `sample_s`).
+    pub max_internal_step_s: f64,
+    /// Encoder reading noise, white Gaussian, standard deviation in micrometres.
+    pub noise_um: f64,
+    /// Encoder resolution `k`, nanometres per count (the counts are quantized to it).
+    pub resolution_nm: f64,
+    /// `T0` of the thermal models, degrees Celsius.
+    pub reference_temperature_c: f64,
+    /// Keep the noise-free thermal error of every encoder row in [`super::Simulation`]
+    /// (memory: 8 bytes a row).
+    pub record_true_error: bool,
+    pub plate: PlateConfig,
+    /// Explicit bars; when empty, `fleet` (or its default) generates them.
+    pub bars: Vec<BarConfig>,
+    pub fleet: Option<FleetConfig>,
+    pub room: RoomConfig,
+    pub schedule: ScheduleConfig,
+    pub effects: EffectsConfig,
+}
+
+/// The calibration plate.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlateConfig {
+    pub material: String,
+    /// Declared (manifest) expansion of the plate, ppm/K; the `plate_expansion` effect adds an
+    /// undeclared part.
+    pub cte_ppm_per_k: f64,
+    pub tilt_deg: f64,
+    /// Time constant of the plate temperature behind the air (T1), seconds.
+    pub thermal_tau_s: f64,
+    /// Calibrated socket-pair distances, as in `campaign.toml`.
+    pub length: Vec<PlateLength>,
+}
+
+/// One bar given explicitly.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BarConfig {
+    pub id: String,
+    /// `I_min` of `physics.md`.
+    pub fixed_length_mm: f64,
+    pub alpha_ppm_per_k: f64,
+    pub beta_ppm_per_k: f64,
+    pub tau_r_s: f64,
+    pub tau_s_s: f64,
+}
+
+/// A fleet of nominally equal bars with a spread around the mean (drawn from the seed).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct FleetConfig {
+    pub n_bars: usize,
+    /// Ids are `{id_prefix}{01..}`.
+    pub id_prefix: String,
+    pub fixed_length_mm: f64,
+    pub fixed_length_sd_mm: f64,
+    pub alpha_ppm_per_k: f64,
+    pub alpha_sd_ppm_per_k: f64,
+    pub beta_ppm_per_k: f64,
+    pub beta_sd_ppm_per_k: f64,
+    pub tau_r_s: f64,
+    pub tau_s_s: f64,
+    /// Relative (log-normal) spread of both time constants.
+    pub tau_rel_sd: f64,
+}
+
+/// The room: true air temperature at bar height (T1) and above (T2), sensors, doors.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct RoomConfig {
+    pub mean_c: f64,
+    /// Amplitude of the daily sinusoid, K.
+    pub daily_amplitude_k: f64,
+    /// Local (UTC) hour of the daily maximum.
+    pub daily_peak_hour: f64,
+    /// Air-conditioning cycle (triangle wave): period in seconds, amplitude in K.
+    pub ac_period_s: f64,
+    pub ac_amplitude_k: f64,
+    /// Linear drift over the campaign, K/day.
+    pub drift_k_per_day: f64,
+    /// Slow random wander (sum of sinusoids of 1.5–6 days), amplitude K.
+    pub wander_k: f64,
+    /// Door openings: Poisson rate, bump height (K), rise and decay time constants (s).
+    pub door_rate_per_day: f64,
+    pub door_amplitude_k: f64,
+    pub door_rise_s: f64,
+    pub door_decay_s: f64,
+    /// Vertical gradient T2 − T1: mean, daily amplitude, AC-synchronous amplitude, slow wander (K).
+    pub gradient_k: f64,
+    pub gradient_daily_k: f64,
+    pub gradient_ac_k: f64,
+    pub gradient_wander_k: f64,
+    /// Sensor noise (white Gaussian, K) and temperature logging period (s).
+    pub sensor_noise_k: f64,
+    pub temperature_sample_s: f64,
+    /// Log a plate sensor `P1` (kind plate) even when the plate does not expand.
+    pub plate_sensor: bool,
+}
+
+/// Mount schedule: rotating bars visit every plate length in turn, with handling gaps.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct ScheduleConfig {
+    pub mount_days: f64,
+    /// Handling time between mounts (no mount; readings still logged), minutes.
+    pub gap_minutes: f64,
+    /// Bar `i` starts `i * stagger_minutes` later (modulo a mount), so gaps do not coincide.
+    pub stagger_minutes: f64,
+    /// During handling the bar rests at a random offset up to this many mm from the socket length.
+    pub handling_offset_mm: f64,
+    /// Bars that stay on one length all campaign, with purpose `reference`.
+    pub reference: Vec<ReferenceMount>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceMount {
+    pub bar: String,
+    /// A plate length id.
+    pub length: String,
+}
+
+/// The switchable effects outside the base model (all off by default).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct EffectsConfig {
+    pub head_heating: HeadHeating,
+    pub second_path: SecondPath,
+    pub sensor_gradient: SensorGradient,
+    pub settling: Settling,
+    pub plate_expansion: PlateExpansion,
+    pub creep: Creep,
+    pub hidden_channel: HiddenChannel,
+}
+
+/// Read-head self-heating: the bar grows by `amplitude_um * lag(power; tau_s)`; the head is
+/// switched on and off (`head_power` events), readings are logged only while it is on.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct HeadHeating {
+    pub enabled: bool,
+    pub amplitude_um: f64,
+    pub tau_s: f64,
+    /// Relative (log-normal) spread of amplitude and tau across bars.
+    pub spread: f64,
+    /// Mean on and off durations (exponential), hours.
+    pub mean_on_h: f64,
+    pub mean_off_h: f64,
+}
+
+/// A second thermal path of the fixed part: `gain * I_min * lag(T - T0; tau_s)`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SecondPath {
+    pub enabled: bool,
+    pub gain_ppm_per_k: f64,
+    pub tau_s: f64,
+    pub spread: f64,
+}
+
+/// The bar sees `(1 - weight_t2) * T1 + weight_t2 * T2` while it declares T1.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorGradient {
+    pub enabled: bool,
+    pub weight_t2: f64,
+}
+
+/// After each mount the reading carries `a * exp(-(t - from) / tau_s)`, `a` drawn per mount in
+/// `[0.5, 1.5] * amplitude_um`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Settling {
+    pub enabled: bool,
+    pub amplitude_um: f64,
+    pub tau_s: f64,
+}
+
+/// Undeclared plate expansion: the true distance is `mm * (1 + cte * (T_plate - T0))`; turns
+/// the plate sensor `P1` on.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PlateExpansion {
+    pub enabled: bool,
+    pub cte_ppm_per_k: f64,
+}
+
+/// Slow linear trend of the reading, µm/day (spread across bars, relative log-normal).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct Creep {
+    pub enabled: bool,
+    pub rate_um_per_day: f64,
+    pub spread: f64,
+}
+
+/// A channel outside the catalogue: a nearby machine's temperature (sensor of kind `other`),
+/// switched on and off at random, that drives every bar by `gain * lag(H - base; tau_s)`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct HiddenChannel {
+    pub enabled: bool,
+    pub sensor_id: String,
+    pub base_c: f64,
+    pub amplitude_k: f64,
+    pub mean_on_h: f64,
+    pub mean_off_h: f64,
+    /// Time constant of the machine's own temperature, seconds.
+    pub signal_tau_s: f64,
+    pub noise_k: f64,
+    /// Growth of the bar per kelvin of the channel, µm/K, and its time constant.
+    pub gain_um_per_k: f64,
+    pub tau_s: f64,
+    pub spread: f64,
+}
+
+// ---------------------------------------------------------------- defaults
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            campaign_id: "sim".into(),
+            start: DateTime::parse_from_rfc3339("2026-11-01T00:00:00Z")
+                .expect("constant")
+                .with_timezone(&Utc),
+            duration_days: 4.0,
+            sample_s: 10.0,
+            max_internal_step_s: 1.0,
+            noise_um: 0.02,
+            resolution_nm: 5.0,
+            reference_temperature_c: 20.0,
+            record_true_error: false,
+            plate: PlateConfig::default(),
+            bars: Vec::new(),
+            fleet: None,
+            room: RoomConfig::default(),
+            schedule: ScheduleConfig::default(),
+            effects: EffectsConfig::default(),
+        }
+    }
+}
+
+impl Default for PlateConfig {
+    fn default() -> Self {
+        let length = |id: &str, mm: f64, u_um: f64| PlateLength { id: id.into(), mm, u_um };
+        Self {
+            material: "zerodur".into(),
+            cte_ppm_per_k: 0.0,
+            tilt_deg: 60.0,
+            thermal_tau_s: 3.0 * 3600.0,
+            length: vec![
+                length("min", 250.0006, 0.15),
+                length("mid", 325.0011, 0.15),
+                length("max", 400.0019, 0.20),
+            ],
+        }
+    }
+}
+
+impl Default for FleetConfig {
+    fn default() -> Self {
+        Self {
+            n_bars: 6,
+            id_prefix: "B".into(),
+            fixed_length_mm: 230.0,
+            fixed_length_sd_mm: 0.3,
+            alpha_ppm_per_k: 2.0,
+            alpha_sd_ppm_per_k: 0.15,
+            beta_ppm_per_k: 0.6,
+            beta_sd_ppm_per_k: 0.05,
+            tau_r_s: 3000.0,
+            tau_s_s: 1500.0,
+            tau_rel_sd: 0.1,
+        }
+    }
+}
+
+impl Default for RoomConfig {
+    fn default() -> Self {
+        Self {
+            mean_c: 20.3,
+            daily_amplitude_k: 0.5,
+            daily_peak_hour: 15.0,
+            ac_period_s: 1200.0,
+            ac_amplitude_k: 0.1,
+            drift_k_per_day: 0.05,
+            wander_k: 0.3,
+            door_rate_per_day: 0.0,
+            door_amplitude_k: 0.3,
+            door_rise_s: 60.0,
+            door_decay_s: 600.0,
+            gradient_k: 0.3,
+            gradient_daily_k: 0.25,
+            gradient_ac_k: 0.05,
+            gradient_wander_k: 0.2,
+            sensor_noise_k: 0.008,
+            temperature_sample_s: 30.0,
+            plate_sensor: false,
+        }
+    }
+}
+
+impl Default for ScheduleConfig {
+    fn default() -> Self {
+        Self {
+            mount_days: 1.0,
+            gap_minutes: 20.0,
+            stagger_minutes: 30.0,
+            handling_offset_mm: 2.0,
+            reference: Vec::new(),
+        }
+    }
+}
+
+impl Default for HeadHeating {
+    fn default() -> Self {
+        Self { enabled: false, amplitude_um: 1.5, tau_s: 900.0, spread: 0.2, mean_on_h: 18.0, mean_off_h: 2.0 }
+    }
+}
+
+impl Default for SecondPath {
+    fn default() -> Self {
+        Self { enabled: false, gain_ppm_per_k: 0.8, tau_s: 300.0, spread: 0.2 }
+    }
+}
+
+impl Default for SensorGradient {
+    fn default() -> Self {
+        Self { enabled: false, weight_t2: 0.5 }
+    }
+}
+
+impl Default for Settling {
+    fn default() -> Self {
+        Self { enabled: false, amplitude_um: 1.0, tau_s: 1800.0 }
+    }
+}
+
+impl Default for PlateExpansion {
+    fn default() -> Self {
+        Self { enabled: false, cte_ppm_per_k: 1.0 }
+    }
+}
+
+impl Default for Creep {
+    fn default() -> Self {
+        Self { enabled: false, rate_um_per_day: 0.1, spread: 0.3 }
+    }
+}
+
+impl Default for HiddenChannel {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            sensor_id: "H1".into(),
+            base_c: 25.0,
+            amplitude_k: 8.0,
+            mean_on_h: 3.0,
+            mean_off_h: 6.0,
+            signal_tau_s: 1200.0,
+            noise_k: 0.05,
+            gain_um_per_k: 0.05,
+            tau_s: 1800.0,
+            spread: 0.2,
+        }
+    }
+}
+
+// ---------------------------------------------------------------- loading and validation
+
+impl SimConfig {
+    /// Parse and validate a TOML configuration.
+    pub fn from_toml_str(text: &str) -> Result<Self, SimError> {
+        let cfg: Self = toml::from_str(text)?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Read, parse and validate a TOML file.
+    pub fn load(path: &Path) -> Result<Self, SimError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| SimError::Io { path: path.display().to_string(), source })?;
+        Self::from_toml_str(&text)
+    }
+
+    /// The fleet generator in force when `bars` is empty: the given one or the default.
+    pub(crate) fn fleet_or_default(&self) -> FleetConfig {
+        self.fleet.clone().unwrap_or_default()
+    }
+
+    /// Check every field a simulation depends on; the error names the key.
+    pub fn validate(&self) -> Result<(), SimError> {
+        positive("duration_days", self.duration_days)?;
+        positive("sample_s", self.sample_s)?;
+        positive("max_internal_step_s", self.max_internal_step_s)?;
+        non_negative("noise_um", self.noise_um)?;
+        positive("resolution_nm", self.resolution_nm)?;
+        finite("reference_temperature_c", self.reference_temperature_c)?;
+        if self.duration_days > 3660.0 {
+            return Err(invalid("duration_days", "longer than ten years"));
+        }
+        if self.sample_s < 1e-3 {
+            return Err(invalid("sample_s", "below a millisecond"));
+        }
+        self.validate_plate()?;
+        self.validate_bars()?;
+        self.validate_room()?;
+        self.validate_schedule()?;
+        self.validate_effects()
+    }
+
+    fn validate_plate(&self) -> Result<(), SimError> {
+        let p = &self.plate;
+        finite("plate.cte_ppm_per_k", p.cte_ppm_per_k)?;
+        finite("plate.tilt_deg", p.tilt_deg)?;
+        positive("plate.thermal_tau_s", p.thermal_tau_s)?;
+        if p.length.is_empty() {
+            return Err(invalid("plate.length", "no plate length"));
+        }
+        for (i, l) in p.length.iter().enumerate() {
+            positive(&format!("plate.length[{i}].mm"), l.mm)?;
+            non_negative(&format!("plate.length[{i}].u_um"), l.u_um)?;
+        }
+        unique("plate.length.id", p.length.iter().map(|l| l.id.as_str()))
+    }
+
+    fn validate_bars(&self) -> Result<(), SimError> {
+        if !self.bars.is_empty() && self.fleet.is_some() {
+            return Err(invalid("fleet", "give either `bars` or `fleet`, not both"));
+        }
+        let min_mm = self.plate.length.iter().map(|l| l.mm).fold(f64::INFINITY, f64::min);
+        for (i, b) in self.bars.iter().enumerate() {
+            let key = |f: &str| format!("bars[{i}].{f}");
+            if b.id.is_empty() {
+                return Err(invalid(&key("id"), "empty"));
+            }
+            positive(&key("fixed_length_mm"), b.fixed_length_mm)?;
+            if b.fixed_length_mm >= min_mm {
+                return Err(invalid(&key("fixed_length_mm"), "not below the shortest plate length"));
+            }
+            finite(&key("alpha_ppm_per_k"), b.alpha_ppm_per_k)?;
+            finite(&key("beta_ppm_per_k"), b.beta_ppm_per_k)?;
+            positive(&key("tau_r_s"), b.tau_r_s)?;
+            positive(&key("tau_s_s"), b.tau_s_s)?;
+        }
+        unique("bars.id", self.bars.iter().map(|b| b.id.as_str()))?;
+        if self.bars.is_empty() {
+            self.validate_fleet(min_mm)?;
+        }
+        Ok(())
+    }
+
+    fn validate_fleet(&self, min_mm: f64) -> Result<(), SimError> {
+        let f = self.fleet_or_default();
+        if f.n_bars == 0 || f.n_bars > 999 {
+            return Err(invalid("fleet.n_bars", "must be 1..=999"));
+        }
+        positive("fleet.fixed_length_mm", f.fixed_length_mm)?;
+        non_negative("fleet.fixed_length_sd_mm", f.fixed_length_sd_mm)?;
+        if f.fixed_length_mm + 5.0 * f.fixed_length_sd_mm >= min_mm {
+            return Err(invalid("fleet.fixed_length_mm", "too close to the shortest plate length"));
+        }
+        finite("fleet.alpha_ppm_per_k", f.alpha_ppm_per_k)?;
+        non_negative("fleet.alpha_sd_ppm_per_k", f.alpha_sd_ppm_per_k)?;
+        finite("fleet.beta_ppm_per_k", f.beta_ppm_per_k)?;
+        non_negative("fleet.beta_sd_ppm_per_k", f.beta_sd_ppm_per_k)?;
+        positive("fleet.tau_r_s", f.tau_r_s)?;
+        positive("fleet.tau_s_s", f.tau_s_s)?;
+        non_negative("fleet.tau_rel_sd", f.tau_rel_sd)
+    }
+
+    fn validate_room(&self) -> Result<(), SimError> {
+        let r = &self.room;
+        finite("room.mean_c", r.mean_c)?;
+        for (k, v) in [
+            ("room.daily_amplitude_k", r.daily_amplitude_k),
+            ("room.ac_amplitude_k", r.ac_amplitude_k),
+            ("room.wander_k", r.wander_k),
+            ("room.door_rate_per_day", r.door_rate_per_day),
+            ("room.door_amplitude_k", r.door_amplitude_k),
+            ("room.gradient_daily_k", r.gradient_daily_k),
+            ("room.gradient_ac_k", r.gradient_ac_k),
+            ("room.gradient_wander_k", r.gradient_wander_k),
+            ("room.sensor_noise_k", r.sensor_noise_k),
+        ] {
+            non_negative(k, v)?;
+        }
+        finite("room.daily_peak_hour", r.daily_peak_hour)?;
+        finite("room.drift_k_per_day", r.drift_k_per_day)?;
+        finite("room.gradient_k", r.gradient_k)?;
+        positive("room.ac_period_s", r.ac_period_s)?;
+        positive("room.door_rise_s", r.door_rise_s)?;
+        positive("room.door_decay_s", r.door_decay_s)?;
+        if r.door_decay_s <= r.door_rise_s {
+            return Err(invalid("room.door_decay_s", "must exceed room.door_rise_s"));
+        }
+        if r.door_rate_per_day > 1440.0 {
+            return Err(invalid("room.door_rate_per_day", "more than one a minute"));
+        }
+        if !(r.temperature_sample_s >= 0.1) {
+            return Err(invalid("room.temperature_sample_s", "must be at least 0.1 s"));
+        }
+        Ok(())
+    }
+
+    fn validate_schedule(&self) -> Result<(), SimError> {
+        let s = &self.schedule;
+        positive("schedule.mount_days", s.mount_days)?;
+        non_negative("schedule.gap_minutes", s.gap_minutes)?;
+        non_negative("schedule.stagger_minutes", s.stagger_minutes)?;
+        non_negative("schedule.handling_offset_mm", s.handling_offset_mm)?;
+        if s.mount_days * 86400.0 < 60.0 {
+            return Err(invalid("schedule.mount_days", "shorter than a minute"));
+        }
+        for (i, r) in s.reference.iter().enumerate() {
+            if !self.plate.length.iter().any(|l| l.id == r.length) {
+                return Err(invalid(&format!("schedule.reference[{i}].length"), "no such plate length"));
+            }
+        }
+        unique("schedule.reference.bar", s.reference.iter().map(|r| r.bar.as_str()))
+    }
+
+    fn validate_effects(&self) -> Result<(), SimError> {
+        let e = &self.effects;
+        let h = &e.head_heating;
+        finite("effects.head_heating.amplitude_um", h.amplitude_um)?;
+        positive("effects.head_heating.tau_s", h.tau_s)?;
+        non_negative("effects.head_heating.spread", h.spread)?;
+        positive("effects.head_heating.mean_on_h", h.mean_on_h)?;
+        positive("effects.head_heating.mean_off_h", h.mean_off_h)?;
+        finite("effects.second_path.gain_ppm_per_k", e.second_path.gain_ppm_per_k)?;
+        positive("effects.second_path.tau_s", e.second_path.tau_s)?;
+        non_negative("effects.second_path.spread", e.second_path.spread)?;
+        let w = e.sensor_gradient.weight_t2;
+        if !(0.0..=1.0).contains(&w) {
+            return Err(invalid("effects.sensor_gradient.weight_t2", "must be in [0, 1]"));
+        }
+        finite("effects.settling.amplitude_um", e.settling.amplitude_um)?;
+        positive("effects.settling.tau_s", e.settling.tau_s)?;
+        finite("effects.plate_expansion.cte_ppm_per_k", e.plate_expansion.cte_ppm_per_k)?;
+        finite("effects.creep.rate_um_per_day", e.creep.rate_um_per_day)?;
+        non_negative("effects.creep.spread", e.creep.spread)?;
+        self.validate_hidden()
+    }
+
+    fn validate_hidden(&self) -> Result<(), SimError> {
+        let h = &self.effects.hidden_channel;
+        if h.sensor_id.is_empty() || ["T1", "T2", "P1"].contains(&h.sensor_id.as_str()) {
+            return Err(invalid("effects.hidden_channel.sensor_id", "empty or taken (T1, T2, P1)"));
+        }
+        finite("effects.hidden_channel.base_c", h.base_c)?;
+        finite("effects.hidden_channel.amplitude_k", h.amplitude_k)?;
+        positive("effects.hidden_channel.mean_on_h", h.mean_on_h)?;
+        positive("effects.hidden_channel.mean_off_h", h.mean_off_h)?;
+        positive("effects.hidden_channel.signal_tau_s", h.signal_tau_s)?;
+        non_negative("effects.hidden_channel.noise_k", h.noise_k)?;
+        finite("effects.hidden_channel.gain_um_per_k", h.gain_um_per_k)?;
+        positive("effects.hidden_channel.tau_s", h.tau_s)?;
+        non_negative("effects.hidden_channel.spread", h.spread)
+    }
+}
+
+fn invalid(key: &str, reason: &str) -> SimError {
+    SimError::Invalid { key: key.into(), reason: reason.into() }
+}
+
+fn finite(key: &str, v: f64) -> Result<(), SimError> {
+    if v.is_finite() { Ok(()) } else { Err(invalid(key, "not a finite number")) }
+}
+
+fn positive(key: &str, v: f64) -> Result<(), SimError> {
+    if v.is_finite() && v > 0.0 { Ok(()) } else { Err(invalid(key, "must be positive")) }
+}
+
+fn non_negative(key: &str, v: f64) -> Result<(), SimError> {
+    if v.is_finite() && v >= 0.0 { Ok(()) } else { Err(invalid(key, "must be >= 0")) }
+}
+
+fn unique<'a>(key: &str, ids: impl Iterator<Item = &'a str>) -> Result<(), SimError> {
+    let mut seen = std::collections::BTreeSet::new();
+    for id in ids {
+        if !seen.insert(id) {
+            return Err(invalid(key, &format!("duplicate id `{id}`")));
+        }
+    }
+    Ok(())
+}
+
+/// `start` as an RFC 3339 string on output; a TOML datetime or a string on input.
+mod start_time {
+    use chrono::{DateTime, Utc};
+    use serde::{de::Error, Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(t: &DateTime<Utc>, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&t.to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<DateTime<Utc>, D::Error> {
+        let text = match toml::Value::deserialize(d)? {
+            toml::Value::Datetime(dt) => dt.to_string(),
+            toml::Value::String(s) => s,
+            other => return Err(D::Error::custom(format!("start: expected a datetime, got {other}"))),
+        };
+        DateTime::parse_from_rfc3339(&text)
+            .map(|t| t.with_timezone(&Utc))
+            .map_err(|e| D::Error::custom(format!("start `{text}`: {e} (give a full UTC datetime)")))
+    }
+}

@@ -1,0 +1,101 @@
+//! [`Truth`]: what the simulator knows and the pipeline must find, written to `truth.json`.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::config::SimConfig;
+use crate::campaign::Purpose;
+
+/// Everything true about a simulated campaign.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Truth {
+    /// The configuration that produced the campaign (echo).
+    pub config: SimConfig,
+    /// Names of the effects switched on (as in `[effects]`).
+    pub effects_on: Vec<String>,
+    pub plate: PlateTruth,
+    pub bars: Vec<BarTruth>,
+    pub mounts: Vec<MountTruth>,
+    pub n_door_events: usize,
+    /// Encoder rows written, all bars.
+    pub n_encoder_rows: usize,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct PlateTruth {
+    /// Expansion written in the manifest, ppm/K.
+    pub declared_cte_ppm_per_k: f64,
+    /// Expansion simulated (declared + undeclared `plate_expansion`), ppm/K.
+    pub true_cte_ppm_per_k: f64,
+    /// Plate temperature = T1 lagged by this time constant, seconds.
+    pub thermal_tau_s: f64,
+    /// The plate sensor id, when one is logged.
+    pub sensor: Option<String>,
+}
+
+/// A bar's true parameters (`physics.md` notation) and its extra terms, when on.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct BarTruth {
+    pub id: String,
+    /// `I_min`, millimetres.
+    pub fixed_length_mm: f64,
+    /// Distance at which the counter reads zero, millimetres.
+    pub d_zero_mm: f64,
+    pub resolution_nm: f64,
+    pub alpha_ppm_per_k: f64,
+    pub beta_ppm_per_k: f64,
+    pub tau_r_s: f64,
+    pub tau_s_s: f64,
+    /// The sensor the manifest names for the bar.
+    pub declared_sensor: String,
+    /// Weights of the true air temperatures the bar actually follows (sum 1).
+    pub seen_weights: BTreeMap<String, f64>,
+    /// Read-head heating: growth `amplitude_um * lag(power; tau_s)`.
+    pub head_heating: Option<HeadTruth>,
+    /// Second path: growth `gain_ppm_per_k * I_min * lag(T - T0; tau_s)`.
+    pub second_path: Option<SecondPathTruth>,
+    /// Reading trend, µm/day.
+    pub creep_um_per_day: Option<f64>,
+    /// Growth `gain_um_per_k * lag(H - base_c; tau_s)` from the hidden channel.
+    pub hidden_channel: Option<ChannelTruth>,
+    /// Settling time constant after each mount (amplitudes are per mount).
+    pub settling_tau_s: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct HeadTruth {
+    pub amplitude_um: f64,
+    pub tau_s: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct SecondPathTruth {
+    pub gain_ppm_per_k: f64,
+    pub tau_s: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ChannelTruth {
+    pub sensor: String,
+    pub base_c: f64,
+    pub gain_um_per_k: f64,
+    pub tau_s: f64,
+}
+
+/// One mount as simulated.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct MountTruth {
+    pub bar: String,
+    pub length: String,
+    pub purpose: Purpose,
+    /// RFC 3339, UTC (the manifest's `from`/`to`).
+    pub from: String,
+    pub to: String,
+    /// Calibrated length, mm (true at `T0` of the plate).
+    pub length_mm: f64,
+    /// Counts at zero thermal error with the plate at `T0`: `(length_mm - d_zero_mm) / k`.
+    pub zero_counts: f64,
+    /// Settling amplitude of this mount, µm added to the reading at `from`.
+    pub settling_um: Option<f64>,
+}

@@ -1,0 +1,47 @@
+//! Identification against simulated truth (issue: 10 bars, 15 days, 10 s, noise 0.02 µm, base
+//! effects only: alpha and beta within 0.5 %, taus within 3 %, RMS within 5 % of the noise).
+
+use dbbcal::pipeline::Stage;
+use dbbcal::simulate::{FleetConfig, SimConfig};
+
+use crate::support::{analyse_campaign, rel, simulate_campaign};
+
+#[test]
+fn base_model_recovers_truth_ten_bars_fifteen_days() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = SimConfig {
+        seed: 2026,
+        campaign_id: "truth-10x15".into(),
+        duration_days: 15.0,
+        sample_s: 10.0,
+        noise_um: 0.02,
+        fleet: Some(FleetConfig { n_bars: 10, ..FleetConfig::default() }),
+        ..SimConfig::default()
+    };
+    let (dir, truth) = simulate_campaign(tmp.path(), "c", &cfg);
+    let results = analyse_campaign(&dir, Stage::Identify, &["fixed_part", "scale"]);
+    assert!(results.failed.is_empty(), "failed bars: {:?}", results.failed);
+    assert_eq!(results.bars.len(), 10);
+    let mut report = String::new();
+    let mut worst = [0.0f64; 5];
+    for o in &results.bars {
+        let t = truth.bars.iter().find(|b| b.id == o.model.bar).expect("truth for bar");
+        let v = |n: &str| o.model.value(n).unwrap();
+        let errs = [
+            rel(v("alpha_ppm_per_k"), t.alpha_ppm_per_k),
+            rel(v("beta_ppm_per_k"), t.beta_ppm_per_k),
+            rel(v("tau_r_s"), t.tau_r_s),
+            rel(v("tau_s_s"), t.tau_s_s),
+            rel(o.model.rms_um, cfg.noise_um),
+        ];
+        for (w, e) in worst.iter_mut().zip(errs) {
+            *w = w.max(e);
+        }
+        report += &format!("{} alpha {:.3}% beta {:.3}% tau_r {:.3}% tau_s {:.3}% rms {:.5} µm\n", o.model.bar, errs[0] * 100.0, errs[1] * 100.0, errs[2] * 100.0, errs[3] * 100.0, o.model.rms_um);
+    }
+    eprintln!("{report}");
+    assert!(worst[0] < 0.005, "alpha worst {:.3} %\n{report}", worst[0] * 100.0);
+    assert!(worst[1] < 0.005, "beta worst {:.3} %\n{report}", worst[1] * 100.0);
+    assert!(worst[2] < 0.03 && worst[3] < 0.03, "tau worst {:.2} / {:.2} %\n{report}", worst[2] * 100.0, worst[3] * 100.0);
+    assert!(worst[4] < 0.05, "rms worst {:.2} % off the noise\n{report}", worst[4] * 100.0);
+}
