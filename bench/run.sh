@@ -13,9 +13,15 @@
 #    PY_BARS bars, extrapolated to all 12 -- plus the --project-zeros variant on all bars;
 # 5. writes bench/results.md (bench/report.py).
 #
+# The binary is copied to bench/out/dbbcal first, so a rebuild by someone else during the run
+# cannot mix two versions; results.md records a hash of src/ and Cargo.lock.
+#
 # Knobs (environment):
 #   SIZES="quarter half full"  campaign sizes to time (full = sim-bench.toml)
 #   REPEAT=1                   dbbcal runs per measurement (the fastest is reported)
+#   DBBCAL_BARS=all            bars of the 30-day campaign for `dbbcal identify`; a number N times a copy
+#                              with the first N bars (bench/subset_campaign.py) and extrapolates:
+#                              ingest(all 12) + (identify - ingest)(N bars) x 12/N  (labelled in results.md)
 #   PY_BARS=2                  bars of the dense Python run ("all" for every bar; ~4 min a bar on 2 cores)
 #   PY_FAST=1                  also run python_equivalent.py --project-zeros on all bars (0 to skip)
 #   SKIP_PYTHON=1              skip the Python equivalent
@@ -28,13 +34,14 @@ cd "$(dirname "$0")/.."
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/dbbcal-target}
 SIZES=${SIZES:-quarter half full}
 REPEAT=${REPEAT:-1}
+DBBCAL_BARS=${DBBCAL_BARS:-all}
 PY_BARS=${PY_BARS:-2}
 PY_FAST=${PY_FAST:-1}
 SKIP_PYTHON=${SKIP_PYTHON:-0}
 WAIT_IDLE=${WAIT_IDLE:-0}
 IDLE_LOAD=${IDLE_LOAD:-0.7}
 OUT=bench/out
-BIN=$CARGO_TARGET_DIR/release/dbbcal
+BIN=$OUT/dbbcal
 TSV=$OUT/measurements.tsv
 
 say() { printf '\n== %s\n' "$*" >&2; }
@@ -52,8 +59,8 @@ fi
 
 say "cargo build --release (CARGO_TARGET_DIR=$CARGO_TARGET_DIR)"
 cargo build --release
-
 mkdir -p "$OUT"
+cp "$CARGO_TARGET_DIR/release/dbbcal" "$BIN"
 
 # ------------------------------------------------------------------ campaigns
 config_of() {
@@ -108,7 +115,7 @@ measure() {
     echo "kernel	$(uname -r)"
     echo "rustc	$(rustc --version)"
     echo "python	$(python3 -c 'import sys, polars, numpy, scipy; print(sys.version.split()[0], "polars", polars.__version__, "numpy", numpy.__version__, "scipy", scipy.__version__)')"
-    echo "dbbcal	$("$BIN" --version)"
+    echo "dbbcal	$("$BIN" --version), built $(date -u -r "$CARGO_TARGET_DIR/release/dbbcal" +%Y-%m-%dT%H:%M:%SZ), sha256(src/ + Cargo.lock) $(find src Cargo.lock -type f | LC_ALL=C sort | xargs cat | sha256sum | cut -c1-12)"
     echo "date	$(date -u +%Y-%m-%dT%H:%M:%SZ)"
 } >"$OUT/machine.tsv"
 
@@ -124,9 +131,21 @@ for size in $SIZES; do
     measure "bare-scan-$size" "$size" python3 bench/bare_scan.py "$camp" --repeat 3 --json "$OUT/bare-scan-$size.json"
     for r in $(seq 1 "$REPEAT"); do
         measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest"
-        measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify"
+        if [ "$size" = full ] && [ "$DBBCAL_BARS" != all ]; then
+            sub=$OUT/campaign-full-${DBBCAL_BARS}bars
+            if [ ! -f "$sub/campaign.toml" ]; then
+                bars=$(python3 -c "import tomllib,sys; m=tomllib.load(open('$camp/campaign.toml','rb')); print(','.join(b['id'] for b in m['bar'][:int(sys.argv[1])]))" "$DBBCAL_BARS")
+                python3 bench/subset_campaign.py "$camp" "$sub" --bars "$bars"
+            fi
+            measure "dbbcal-ingest-full-sub-$r" full-sub "$BIN" ingest --campaign "$sub" --out "$OUT/res-full-sub-ingest"
+            measure "dbbcal-identify-full-sub-$r" full-sub "$BIN" identify --campaign "$sub" --out "$OUT/res-full-sub-identify"
+        else
+            measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify"
+        fi
     done
 done
+FULL_SUMMARY=$OUT/res-full-identify/summary.json
+[ "$DBBCAL_BARS" = all ] || FULL_SUMMARY=$OUT/res-full-sub-identify/summary.json
 
 if [ "$SKIP_PYTHON" != 1 ]; then
     camp=$OUT/campaign-full
@@ -136,14 +155,14 @@ if [ "$SKIP_PYTHON" != 1 ]; then
     fi
     say "timing the Python equivalent (dense lstsq) on ${bars:-all bars}"
     measure "python-dense-full" full python3 bench/python_equivalent.py "$camp" ${bars:+--bars "$bars"} \
-        --json "$OUT/py-dense-full.json" --compare "$OUT/res-full-identify/summary.json"
+        --json "$OUT/py-dense-full.json" --compare "$FULL_SUMMARY"
     if [ "$PY_FAST" = 1 ]; then
         say "timing the Python equivalent (--project-zeros) on all bars"
         measure "python-fwl-full" full python3 bench/python_equivalent.py "$camp" --project-zeros \
-            --json "$OUT/py-fwl-full.json" --compare "$OUT/res-full-identify/summary.json"
+            --json "$OUT/py-fwl-full.json" --compare "$FULL_SUMMARY"
     fi
 fi
 
 say "writing bench/results.md"
-python3 bench/report.py --out-dir "$OUT" --results bench/results.md
+python3 bench/report.py --out-dir "$OUT" --results bench/results.md --dbbcal-bars "$DBBCAL_BARS"
 cat bench/results.md

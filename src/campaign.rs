@@ -159,6 +159,9 @@ pub struct Mount {
     pub place: Place,
     /// Tilt from horizontal, degrees: the mount's, else the plate's.
     pub tilt_deg: f64,
+    /// Whether the mount gave its own `tilt_deg` (it then wins over `tilt` events, see
+    /// `calibrate::tilt_at_deg`).
+    pub tilt_explicit: bool,
     pub purpose: Purpose,
     pub from_ns: TimeNs,
     pub to_ns: TimeNs,
@@ -483,6 +486,7 @@ impl Validator<'_> {
             bar: d.bar.clone(),
             place,
             tilt_deg,
+            tilt_explicit: d.tilt_deg.is_some(),
             purpose: d.purpose.unwrap_or_default(),
             from_ns,
             to_ns,

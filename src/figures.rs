@@ -31,7 +31,99 @@ pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()
     if let Some(ba) = &results.before_after {
         report::render_before_after(&before_after(ba), &dir.join("before-after.png"))?;
     }
+    if let Some(acc) = &results.acceptance {
+        render_acceptance(acc, dir)?;
+    }
     Ok(())
+}
+
+/// Acceptance sheets: one per working bar (error over time before/after compensation against the
+/// tolerance, the thermal error removed) and the fleet's (all bars, and RMS before/after).
+fn render_acceptance(acc: &[crate::acceptance::BarAcceptance], dir: &Path) -> Result<(), ReportError> {
+    for a in acc {
+        let name = format!("acceptance-{}-{}.png", file_safe(&a.bar), file_safe(&a.length_id));
+        report::render_series_panels(&acceptance_sheet(a), &dir.join(name))?;
+    }
+    if !acc.is_empty() {
+        report::render_series_panels(&acceptance_fleet(acc), &dir.join("acceptance-fleet.png"))?;
+        report::render_before_after(&acceptance_rms(acc), &dir.join("acceptance-rms.png"))?;
+    }
+    Ok(())
+}
+
+fn tolerance_lines(t: f64) -> Vec<report::RefLine> {
+    let line = |v: f64| report::RefLine { label: format!("tolerance ±{t} µm"), value: v };
+    vec![line(t), line(-t)]
+}
+
+fn acceptance_sheet(a: &crate::acceptance::BarAcceptance) -> report::SeriesPanelsFigure {
+    let budget: Vec<String> = a.budget.iter().map(|t| format!("{} {:.3}", t.name.replace("thermal_model_", "thermal_").replace("_measurement", ""), t.u_um)).collect();
+    let refs = if a.references.is_empty() { "none".to_string() } else { a.references.join(", ") };
+    report::SeriesPanelsFigure {
+        title: format!("Acceptance — bar {} on {} ({:.4} mm): {}", a.bar, a.length_id, a.length_mm, a.decision.as_str().to_uppercase()),
+        subtitle: format!(
+            "Mode {} (references: {refs}). Compensated: max|e| {:.3} µm, PV {:.3}, RMS {:.3}; without: max|e| {:.3}, PV {:.3}, RMS {:.3}.\nu (µm, k=1): {}. U(k=2) = {:.3} µm.\n{}",
+            a.mode, a.max_abs_error_um, a.pv_um, a.rms_um, a.before.max_abs_um, a.before.pv_um, a.before.rms_um, budget.join(", "), a.u_k2_um, crate::acceptance::DECISION_RULE_SHORT
+        ),
+        x_axis: report::XAxis::TimeSeconds,
+        panels: vec![
+            report::SeriesPanel {
+                title: "Centre-distance error, compensated and not".into(),
+                y_label: "error (µm)".into(),
+                series: vec![
+                    NamedSeries { name: "without compensation".into(), x: a.t_s.clone(), y: a.error_before_um.clone() },
+                    NamedSeries { name: "compensated".into(), x: a.t_s.clone(), y: a.error_um.clone() },
+                ],
+                ref_lines: tolerance_lines(a.tolerance_um),
+            },
+            report::SeriesPanel {
+                title: "Compensated error with its expanded uncertainty (decision zone)".into(),
+                y_label: "error (µm)".into(),
+                series: vec![NamedSeries { name: "compensated".into(), x: a.t_s.clone(), y: a.error_um.clone() }],
+                ref_lines: vec![
+                    report::RefLine { label: format!("tolerance − U = ±{:.3} µm (pass zone)", a.tolerance_um - a.u_k2_um), value: a.tolerance_um - a.u_k2_um },
+                    report::RefLine { label: format!("tolerance − U = ±{:.3} µm (pass zone)", a.tolerance_um - a.u_k2_um), value: -(a.tolerance_um - a.u_k2_um) },
+                ],
+            },
+        ],
+    }
+}
+
+fn acceptance_fleet(acc: &[crate::acceptance::BarAcceptance]) -> report::SeriesPanelsFigure {
+    let f = crate::acceptance::fleet(acc);
+    let tol = acc.first().map_or(1.0, |a| a.tolerance_um);
+    let series = |after: bool| -> Vec<NamedSeries> {
+        acc.iter()
+            .map(|a| NamedSeries { name: format!("{} ({})", a.bar, a.decision.as_str()), x: a.t_s.clone(), y: if after { a.error_um.clone() } else { a.error_before_um.clone() } })
+            .collect()
+    };
+    report::SeriesPanelsFigure {
+        title: format!("Fleet acceptance — {} pass, {} fail, {} no decision (tolerance ±{tol} µm)", f.n_pass, f.n_fail, f.n_no_decision),
+        subtitle: format!(
+            "Modes: {}. Max|e| {:.3} µm compensated, {:.3} µm without; RMS {:.3} vs {:.3} µm; largest U(k=2) {:.3} µm.\n{}",
+            f.modes.join(", "), f.max_abs_error_um, f.max_abs_error_before_um, f.rms_um, f.rms_before_um, f.max_u_k2_um, crate::acceptance::DECISION_RULE_SHORT
+        ),
+        x_axis: report::XAxis::TimeSeconds,
+        panels: vec![
+            report::SeriesPanel { title: "Compensated error".into(), y_label: "error (µm)".into(), series: series(true), ref_lines: tolerance_lines(tol) },
+            report::SeriesPanel { title: "Error without thermal compensation".into(), y_label: "error (µm)".into(), series: series(false), ref_lines: tolerance_lines(tol) },
+        ],
+    }
+}
+
+fn acceptance_rms(acc: &[crate::acceptance::BarAcceptance]) -> report::BeforeAfterFigure {
+    let f = crate::acceptance::fleet(acc);
+    report::BeforeAfterFigure {
+        title: "Acceptance — RMS error per working bar without and with thermal compensation".into(),
+        subtitle: format!("Modes: {}", f.modes.join(", ")),
+        bar_names: acc.iter().map(|a| format!("{}@{}", a.bar, a.length_id)).collect(),
+        before_um: acc.iter().map(|a| a.before.rms_um).collect(),
+        after_um: acc.iter().map(|a| a.rms_um).collect(),
+        fleet_before_um: Some(f.rms_before_um),
+        fleet_after_um: Some(f.rms_um),
+        before_label: "without compensation".into(),
+        after_label: "compensated".into(),
+    }
 }
 
 fn file_safe(s: &str) -> String {
@@ -97,7 +189,7 @@ fn fleet(r: &RunResults) -> report::FleetFigure {
     };
     let subtitle = match &r.reference {
         Some(rr) => format!(
-            "Reference: {} (nearest the fleet mean of alpha, beta, tau_R, tau_S scaled by the fleet spread). Mismatch = max |predicted difference| over this campaign's temperature history at {:.1} mm.",
+            "Reference: {} (nearest the fleet mean of alpha, beta, tau_R, tau_S scaled by the fleet spread).\nMismatch = max |predicted difference| over this campaign's temperature history at {:.1} mm.",
             rr.choice.bar, rr.distance_mm
         ),
         None => "No reference chosen (no bar with the base parameters).".into(),

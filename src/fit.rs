@@ -69,8 +69,8 @@ pub struct Fit {
     pub cov_hac: DMatrix<f64>,
     /// Batch length (samples) used by the HAC estimate.
     pub hac_batch_len: usize,
-    /// Degrees of freedom of the HAC variance (number of batches − 1): intervals use Student's
-    /// t with this many degrees of freedom.
+    /// Degrees of freedom of the HAC variance (number of batches − number of parameters):
+    /// intervals use Student's t with this many degrees of freedom.
     pub hac_dof: usize,
     pub iterations: usize,
 }
@@ -173,7 +173,7 @@ pub fn fit<P: Separable>(problem: &P, theta0: &[f64], options: &FitOptions) -> R
     values.extend(&theta);
     let (cov_naive, cov_hac, hac_batch_len) = covariances(&jac, &residuals, options.hac_batch_len)
         .ok_or_else(|| FitError::Singular(names.join(", ")))?;
-    let hac_dof = n_batches(y.len(), hac_batch_len).saturating_sub(1).max(1);
+    let hac_dof = n_batches(y.len(), hac_batch_len).saturating_sub(p).max(1);
     Ok(Fit {
         hac_dof,
         names,
@@ -380,8 +380,14 @@ fn covariances(jac: &DMatrix<f64>, residuals: &[f64], batch_len: Option<usize>) 
         meat.ger(1.0, &g, &g, 1.0);
         start = end;
     }
-    // Small-sample correction: n/(n-p).
-    meat *= n as f64 / (n.saturating_sub(p).max(1)) as f64;
+    // Degrees-of-freedom correction at the batch level, B/(B-p): the fitted parameters make the
+    // batch sums sum to zero in p directions (for mount zeros, within each mount), so the raw
+    // sum of squares underestimates the long-run variance (the batch analogue of HC1's n/(n-p)).
+    let b = n_batches(n, batch) as f64;
+    meat *= b / (b - p as f64).max(1.0);
+    // Batch sums miss the correlation across batch edges: relative bias -2 Σ k ρ_k / (L τ_int)
+    // (ρ_k the residual autocorrelation); undo it.
+    meat /= (1.0 - batch_edge_bias(residuals, batch)).max(0.5);
     let cov_hac = &jtj_inv * meat * &jtj_inv;
     Some((cov_naive, cov_hac, batch))
 }
@@ -401,6 +407,21 @@ pub fn hac_batch_length(residuals: &[f64]) -> usize {
     let lower = (n as f64).cbrt();
     let upper = (n / 20) as f64;
     (10.0 * tau_int).max(lower).min(upper).max(1.0).round() as usize
+}
+
+/// Relative downward bias of batch-means variance with batches of `batch_len` samples:
+/// `2 Σ k ρ_k / (L (1 + 2 Σ ρ_k))`, sums over the initial positive autocorrelations.
+fn batch_edge_bias(residuals: &[f64], batch_len: usize) -> f64 {
+    let acf = autocorrelation(residuals, residuals.len() / 2);
+    let (mut first_moment, mut tau) = (0.0, 1.0);
+    for (k, rho) in acf.iter().enumerate().skip(1) {
+        if *rho <= 0.0 {
+            break;
+        }
+        first_moment += k as f64 * rho;
+        tau += 2.0 * rho;
+    }
+    2.0 * first_moment / (batch_len.max(1) as f64 * tau)
 }
 
 /// Integrated autocorrelation time `1 + 2 Σ ρ_k`, summed until the ACF first drops below zero

@@ -18,7 +18,7 @@ const EXIT_OTHER: u8 = 1;
 
 #[derive(Parser)]
 #[command(name = "dbbcal", version, about = "Batch analysis of double-ballbar thermal campaigns", long_about = None,
-    after_help = "Examples:\n  dbbcal run pipelines/nightly.toml                      # the shipped sample -> reports/<campaign id>\n  dbbcal run pipelines/nightly.toml --campaign /data/lab-a-2026-11 --out /tmp/out\n  dbbcal run pipelines/reference-match.toml              # matching study with mismatch heat map\n  dbbcal identify --campaign data/sample --out /tmp/id --add-effect head_heating\n  dbbcal simulate --config pipelines/sim-sample.toml --out /tmp/campaign\n\nExit codes: 0 all bars processed, 2 some bars failed (others done), 3 unusable input, 1 other errors.")]
+    after_help = "Examples:\n  dbbcal run pipelines/nightly.toml                      # the shipped sample -> reports/<campaign id>\n  dbbcal run pipelines/nightly.toml --campaign /data/lab-a-2026-11 --out /tmp/out\n  dbbcal run pipelines/reference-match.toml              # matching study with mismatch heat map\n  dbbcal run pipelines/acceptance.toml --campaign DIR    # calibrate, compensate, accept working bars\n  dbbcal calibrate --campaign DIR --out /tmp/cal          # centre-distance functions D(n, A)\n  dbbcal identify --campaign data/sample --out /tmp/id --add-effect head_heating\n  dbbcal simulate --config pipelines/sim-sample.toml --out /tmp/campaign\n\nExit codes: 0 all bars processed, 2 some bars failed (others done), 3 unusable input, 1 other errors.")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -45,6 +45,12 @@ enum Command {
     Match(StageArgs),
     /// Ingest, identify, match, then render PNG figures.
     Report(StageArgs),
+    /// Ingest, identify, then fit each bar's centre-distance function D(n, A) from its plate
+    /// mounts (form chosen by leave-one-point-out cross-validation) -> calibration.json.
+    Calibrate(StageArgs),
+    /// Calibrate, then compensate the working bars (check lengths, devices) with the reference
+    /// bars (two, one) or the identified models -> compensation.json, compensated.parquet.
+    Compensate(StageArgs),
     /// Write a simulated campaign (with truth.json) from a simulation TOML.
     Simulate {
         /// Simulation config (see pipelines/sim-sample.toml); defaults when absent.
@@ -120,6 +126,8 @@ fn execute(cli: Cli) -> anyhow::Result<RunStatus> {
         Command::Identify(a) => stage(Stage::Identify, a),
         Command::Match(a) => stage(Stage::Match, a),
         Command::Report(a) => stage(Stage::Report, a),
+        Command::Calibrate(a) => stage(Stage::Calibrate, a),
+        Command::Compensate(a) => stage(Stage::Compensate, a),
         Command::Simulate { config, out, seed } => {
             runner::simulate(config.as_deref(), &out, seed).with_context(|| format!("simulate into {}", out.display()))?;
             Ok(RunStatus::AllBars)

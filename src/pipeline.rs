@@ -29,6 +29,9 @@ pub enum Stage {
     Match,
     MatchStudy,
     Diagnose,
+    Calibrate,
+    Compensate,
+    Acceptance,
     Report,
 }
 
@@ -42,6 +45,9 @@ impl Stage {
             Match => vec![Ingest, Identify, Match],
             MatchStudy => vec![Ingest, Identify, Match, MatchStudy],
             Diagnose => vec![Ingest, Identify, Diagnose],
+            Calibrate => vec![Ingest, Identify, Calibrate],
+            Compensate => vec![Ingest, Identify, Match, Calibrate, Compensate],
+            Acceptance => vec![Ingest, Identify, Match, Calibrate, Compensate, Acceptance],
             Report => vec![Ingest, Identify, Match, Report],
         }
     }
@@ -58,6 +64,39 @@ pub struct PipelineFile {
     pub matching: MatchSection,
     #[serde(default)]
     pub diagnose: DiagnoseSection,
+    #[serde(default)]
+    pub acceptance: AcceptanceSection,
+}
+
+/// `[acceptance]`: compensation and acceptance options (`calibrate`, `compensate`, `acceptance`).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AcceptanceSection {
+    /// Tolerance on the compensated centre-distance error, ± µm (patent: ±1 µm).
+    #[serde(default = "default_limit")]
+    pub tolerance_um: f64,
+    /// Standard uncertainty of the temperature measurement, K (uncertainty budget).
+    #[serde(default = "default_u_temperature")]
+    pub u_temperature_k: f64,
+    /// Also compensate the modelled reference-to-working difference.
+    #[serde(default)]
+    pub model_difference: bool,
+    /// A reference reading farther than this from a working sample is not used, s.
+    #[serde(default = "default_max_gap")]
+    pub max_gap_s: f64,
+}
+
+impl Default for AcceptanceSection {
+    fn default() -> Self {
+        Self { tolerance_um: default_limit(), u_temperature_k: default_u_temperature(), model_difference: false, max_gap_s: default_max_gap() }
+    }
+}
+
+fn default_u_temperature() -> f64 {
+    0.05
+}
+fn default_max_gap() -> f64 {
+    300.0
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -94,11 +133,30 @@ pub struct ModelSection {
     /// Effect names (see `model::Effect::parse`); the base model when absent.
     #[serde(default = "default_effects")]
     pub effects: Vec<String>,
+    /// Generic terms spelled out (`[[model.term]]`): the same as `"lag:H1@1800"` in `effects`.
+    #[serde(default)]
+    pub term: Vec<GenericTerm>,
+}
+
+/// A generic term defined in the pipeline TOML: `transform` of `channel`, starting at `tau_s`.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GenericTerm {
+    pub channel: String,
+    pub transform: crate::model::Transform,
+    #[serde(default)]
+    pub tau_s: Option<f64>,
+}
+
+impl GenericTerm {
+    fn effect(&self) -> Effect {
+        Effect::Channel { transform: self.transform, channel: self.channel.clone(), tau0_s: self.tau_s }
+    }
 }
 
 impl Default for ModelSection {
     fn default() -> Self {
-        Self { effects: default_effects() }
+        Self { effects: default_effects(), term: Vec::new() }
     }
 }
 
@@ -157,6 +215,7 @@ pub struct RunPlan {
     pub effects: Vec<Effect>,
     pub matching: MatchSection,
     pub diagnose: DiagnoseSection,
+    pub acceptance: AcceptanceSection,
 }
 
 impl RunPlan {
@@ -172,11 +231,21 @@ impl RunPlan {
         stages.sort();
         stages.dedup();
         let mut names = file.model.effects.clone();
+        for t in &file.model.term {
+            if t.tau_s.is_some_and(|tau| !(tau > 0.0)) {
+                return Err(perr(format!("model.term (channel {:?}): tau_s must be positive", t.channel)));
+            }
+            names.push(t.effect().name());
+        }
         names.extend(add_effects.iter().cloned());
         let campaign_dir = campaign.or(file.pipeline.campaign.clone()).unwrap_or_else(|| PathBuf::from("data/sample"));
         let sha = sha256_hex(text.as_bytes());
         let mut plan = RunPlan::new(file.pipeline.name.clone(), Some((path.to_path_buf(), sha)), stages, campaign_dir, out, &names, file.matching)?;
         plan.diagnose = file.diagnose;
+        if !(file.acceptance.tolerance_um > 0.0 && file.acceptance.u_temperature_k >= 0.0 && file.acceptance.max_gap_s > 0.0) {
+            return Err(perr("acceptance: tolerance_um and max_gap_s must be > 0, u_temperature_k >= 0".into()));
+        }
+        plan.acceptance = file.acceptance;
         Ok(plan)
     }
 
@@ -197,7 +266,7 @@ impl RunPlan {
         if !campaign_dir.join("campaign.toml").is_file() {
             return Err(PlanError::NoCampaign(campaign_dir.display().to_string()));
         }
-        Ok(RunPlan { pipeline_name: name, pipeline_source: source, stages, campaign_dir, out_dir, effects, matching, diagnose: DiagnoseSection::default() })
+        Ok(RunPlan { pipeline_name: name, pipeline_source: source, stages, campaign_dir, out_dir, effects, matching, diagnose: DiagnoseSection::default(), acceptance: AcceptanceSection::default() })
     }
 
     pub fn runs(&self, stage: Stage) -> bool {
@@ -232,6 +301,24 @@ pub struct RunResults {
     pub diagnosis: Option<Diagnosis>,
     /// When the model has more than the base effects: base-model RMS beside the model's.
     pub before_after: Option<BeforeAfter>,
+    /// Calibrate stage: per-bar centre-distance functions.
+    pub calibration: Option<CalibrationStage>,
+    /// Compensate stage: every working mount, compensated.
+    pub compensation: Option<CompensationStage>,
+    /// Acceptance stage: one entry per working bar on a known length.
+    pub acceptance: Option<Vec<crate::acceptance::BarAcceptance>>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationStage {
+    pub bars: Vec<crate::calibrate::BarCalibration>,
+    pub failed: Vec<(String, String)>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct CompensationStage {
+    pub working: Vec<crate::compensate::WorkingSeries>,
+    pub failed: Vec<(String, String)>,
 }
 
 /// The diagnose stage's result.
@@ -239,6 +326,7 @@ pub struct RunResults {
 pub struct Diagnosis {
     pub bars: Vec<BarDiagnosis>,
     pub candidates: Vec<Candidate>,
+    pub unavailable: Vec<diagnose::Unavailable>,
     pub ledger: Vec<LedgerStep>,
 }
 
@@ -275,7 +363,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let t0 = campaign.mounts.iter().map(|m| m.from_ns).min().unwrap_or_else(|| campaign_origin_from(&bars));
     let history = air_history(&campaign, &sensors, t0, 60.0);
     if !plan.runs(Stage::Identify) {
-        return RunResults { campaign, inputs, bars: Vec::new(), failed: Vec::new(), reference: None, study: None, history, diagnosis: None, before_after: None };
+        return RunResults { campaign, inputs, bars: Vec::new(), failed: Vec::new(), reference: None, study: None, history, diagnosis: None, before_after: None, calibration: None, compensation: None, acceptance: None };
     }
     let progress = crate::progress::bar(bars.len() as u64, "identify");
     let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
@@ -303,7 +391,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
             }
         }
     }
-    let mut results = RunResults { campaign, inputs, bars: ok, failed, reference: None, study: None, history, diagnosis: None, before_after: None };
+    let mut results = RunResults { campaign, inputs, bars: ok, failed, reference: None, study: None, history, diagnosis: None, before_after: None, calibration: None, compensation: None, acceptance: None };
     if plan.runs(Stage::Match) {
         run_match(plan, &mut results);
     }
@@ -313,7 +401,74 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     if plan.runs(Stage::Diagnose) {
         results.diagnosis = Some(run_diagnose(plan, &results.bars));
     }
+    if plan.runs(Stage::Calibrate) {
+        results.calibration = Some(run_calibrate(&results));
+    }
+    if plan.runs(Stage::Compensate) {
+        results.compensation = Some(run_compensate(plan, &results));
+    }
+    if plan.runs(Stage::Acceptance) {
+        results.acceptance = Some(run_acceptance(plan, &results));
+    }
     results
+}
+
+/// Calibrate every identified bar (a bar that cannot be calibrated is listed, the others go on).
+fn run_calibrate(r: &RunResults) -> CalibrationStage {
+    let outcomes: Vec<Result<crate::calibrate::BarCalibration, String>> =
+        r.bars.par_iter().map(|o| crate::calibrate::calibrate_bar(&o.series, &o.model, &r.campaign).map_err(|e| e.to_string())).collect();
+    let mut stage = CalibrationStage { bars: Vec::new(), failed: Vec::new() };
+    for (o, c) in r.bars.iter().zip(outcomes) {
+        match c {
+            Ok(c) => stage.bars.push(c),
+            Err(e) => {
+                tracing::warn!("{e}");
+                stage.failed.push((o.model.bar.clone(), e));
+            }
+        }
+    }
+    stage
+}
+
+/// Compensate every working mount (check lengths and devices).
+fn run_compensate(plan: &RunPlan, r: &RunResults) -> CompensationStage {
+    let cals = r.calibration.as_ref().map(|c| c.bars.as_slice()).unwrap_or_default();
+    let bars: Vec<crate::compensate::CompBar> = r
+        .bars
+        .iter()
+        .map(|o| crate::compensate::CompBar { series: &o.series, model: &o.model, calibration: cals.iter().find(|c| c.bar == o.model.bar) })
+        .collect();
+    let fleet_distance: BTreeMap<String, f64> = r.reference.as_ref().map(|rr| rr.choice.distance.iter().cloned().collect()).unwrap_or_default();
+    let options = crate::compensate::CompensateOptions { model_difference: plan.acceptance.model_difference, max_gap_s: plan.acceptance.max_gap_s };
+    let mut stage = CompensationStage { working: Vec::new(), failed: Vec::new() };
+    for w in crate::compensate::compensate(&bars, &r.campaign, &fleet_distance, &options) {
+        match w {
+            Ok(w) => stage.working.push(w),
+            Err(e) => {
+                tracing::warn!("{e}");
+                let bar = match &e {
+                    crate::compensate::CompensateError::NotCalibrated { bar } | crate::compensate::CompensateError::Model { bar, .. } => bar.clone(),
+                    crate::compensate::CompensateError::OtherEpoch { bar, .. } | crate::compensate::CompensateError::NoReadings { bar, .. } => bar.clone(),
+                };
+                stage.failed.push((bar, e.to_string()));
+            }
+        }
+    }
+    stage
+}
+
+/// Accept every compensated working series on a known length.
+fn run_acceptance(plan: &RunPlan, r: &RunResults) -> Vec<crate::acceptance::BarAcceptance> {
+    let (Some(cal), Some(comp)) = (&r.calibration, &r.compensation) else { return Vec::new() };
+    let options = crate::acceptance::AcceptanceOptions { tolerance_um: plan.acceptance.tolerance_um, u_temperature_k: plan.acceptance.u_temperature_k };
+    comp.working
+        .iter()
+        .filter_map(|w| {
+            let c = cal.bars.iter().find(|c| c.bar == w.bar)?;
+            let resolution_nm = r.campaign.bar(&w.bar).map_or(0.0, |b| b.resolution_nm);
+            crate::acceptance::accept(w, c, resolution_nm, &options)
+        })
+        .collect()
 }
 
 fn campaign_origin_from(bars: &BTreeMap<String, crate::series::BarLog>) -> i64 {
@@ -549,11 +704,11 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
         .collect();
     progress.finish_and_clear();
     let pairs: Vec<(&BarSeries, &BarModel)> = bars.iter().map(|o| (&o.series, &o.model)).collect();
-    let candidates = diagnose::evaluate_candidates(&pairs, &diagnose::candidate_effects(&plan.effects, &diagnoses));
+    let (candidates, unavailable) = diagnose::evaluate_candidates(&pairs, &diagnose::candidate_effects(&plan.effects, &diagnoses));
     let series: Vec<&BarSeries> = bars.iter().map(|o| &o.series).collect();
     let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
-    let (ledger, _) = diagnose::forward_selection(&series, models, plan.diagnose.forward_steps);
-    Diagnosis { bars: diagnoses, candidates, ledger }
+    let (ledger, _) = diagnose::forward_selection(&series, models, &candidates, plan.diagnose.forward_steps);
+    Diagnosis { bars: diagnoses, candidates, unavailable, ledger }
 }
 
 /// `diagnosis.json`: per bar where the model fails, and the ranked candidate effects (every
@@ -565,6 +720,8 @@ pub struct DiagnosisRecord<'a> {
     pub inputs: &'a [InputFile],
     pub bars: Vec<BarDiagnosisRecord<'a>>,
     pub candidates: &'a [Candidate],
+    /// Candidates that could not be fitted on any bar, with the reason.
+    pub unavailable: &'a [diagnose::Unavailable],
     pub ledger: &'a [LedgerStep],
 }
 
@@ -612,6 +769,7 @@ pub fn diagnosis_record<'a>(plan: &RunPlan, r: &'a RunResults, d: &'a Diagnosis)
             })
             .collect(),
         candidates: &d.candidates,
+        unavailable: &d.unavailable,
         ledger: &d.ledger,
     }
 }

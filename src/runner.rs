@@ -97,6 +97,7 @@ fn write_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()>
     if let Some(study) = &results.study {
         write_json(&dir.join("match_study.json"), study)?;
     }
+    write_calibration_outputs(plan, results, dir)?;
     if plan.runs(Stage::Report) {
         let figures = dir.join("figures");
         std::fs::create_dir_all(&figures)?;
@@ -137,6 +138,69 @@ fn models_table(results: &RunResults) -> io::Table {
             ("ci95_high".into(), F64(hi)),
             ("rms_um".into(), F64(rms)),
             ("n_samples".into(), I64(n)),
+        ],
+    }
+}
+
+/// `calibration.json`, `compensation.json` + `compensated.parquet`, `acceptance.json`: what the
+/// calibrate, compensate and acceptance stages produced.
+fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()> {
+    use crate::acceptance::FailedRecord;
+    let failed = |v: &[(String, String)]| v.iter().map(|(bar, error)| FailedRecord { bar: bar.clone(), error: error.clone() }).collect::<Vec<_>>();
+    let campaign = results.campaign.id.as_str();
+    if let Some(c) = &results.calibration {
+        let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "bars": &c.bars, "failed_bars": failed(&c.failed) });
+        write_json(&dir.join("calibration.json"), &record)?;
+    }
+    if let Some(c) = &results.compensation {
+        let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "options": &plan.acceptance, "working": &c.working, "failed": failed(&c.failed) });
+        write_json(&dir.join("compensation.json"), &record)?;
+        io::write_table(&dir.join("compensated.parquet"), &compensated_table(results, &c.working))?;
+    }
+    if let (Some(a), Some(c)) = (&results.acceptance, &results.compensation) {
+        let record = crate::acceptance::AcceptanceRecord {
+            campaign,
+            decision_rule: crate::acceptance::DECISION_RULE,
+            tolerance_um: plan.acceptance.tolerance_um,
+            u_temperature_k: plan.acceptance.u_temperature_k,
+            inputs: &results.inputs,
+            fleet: crate::acceptance::fleet(a),
+            bars: a,
+            not_accepted: failed(&c.failed),
+        };
+        write_json(&dir.join("acceptance.json"), &record)?;
+    }
+    Ok(())
+}
+
+/// `compensated.parquet`: one row per working sample.
+fn compensated_table(results: &RunResults, working: &[crate::compensate::WorkingSeries]) -> io::Table {
+    let (mut bar, mut mode, mut mount) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut t, mut d, mut du, mut th, mut err) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for w in working {
+        for k in 0..w.t_s.len() {
+            bar.push(w.bar.clone());
+            mode.push(w.mode.clone());
+            mount.push(w.mount as i64);
+            t.push(w.t_s[k]);
+            d.push(w.distance_mm[k]);
+            du.push(w.uncompensated_mm[k]);
+            th.push(w.thermal_um[k]);
+            err.push(w.length_mm.map(|l| (w.distance_mm[k] - l) * 1e3));
+        }
+    }
+    use io::Column::*;
+    io::Table {
+        columns: vec![
+            ("campaign".into(), Str(vec![results.campaign.id.clone(); bar.len()])),
+            ("bar".into(), Str(bar)),
+            ("mount".into(), I64(mount)),
+            ("mode".into(), Str(mode)),
+            ("t_s".into(), F64(t)),
+            ("distance_mm".into(), F64(d)),
+            ("uncompensated_mm".into(), F64(du)),
+            ("thermal_um".into(), F64(th)),
+            ("error_um".into(), OptF64(err)),
         ],
     }
 }

@@ -119,19 +119,33 @@ pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<
     out
 }
 
-/// Fit every candidate on every bar; rank them best first.
-pub fn evaluate_candidates(bars: &[(&BarSeries, &BarModel)], candidates: &[Effect]) -> Vec<Candidate> {
+/// A candidate that could not be fitted on any bar (e.g. `head_heating` without `head_power`
+/// events), with the first bar's reason.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Unavailable {
+    pub effect: String,
+    pub reason: String,
+}
+
+/// Fit every candidate on every bar; rank the ones that could be fitted best first (by the
+/// fleet's ΔBIC) and list the others apart.
+pub fn evaluate_candidates(bars: &[(&BarSeries, &BarModel)], candidates: &[Effect]) -> (Vec<Candidate>, Vec<Unavailable>) {
     let n_candidates = candidates.len().max(1);
     let threshold = ALPHA / n_candidates as f64;
-    let mut out: Vec<Candidate> = candidates
+    let out: Vec<Candidate> = candidates
         .par_iter()
         .map(|effect| {
             let per_bar: Vec<CandidateOnBar> = bars.iter().map(|(s, m)| candidate_on_bar(s, m, effect, threshold)).collect();
             summarise_candidate(effect, per_bar, threshold)
         })
         .collect();
-    out.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic).then_with(|| a.effect.cmp(&b.effect)));
-    out
+    let (mut ranked, unfit): (Vec<Candidate>, Vec<Candidate>) = out.into_iter().partition(|c| c.per_bar.iter().any(|b| b.error.is_none()));
+    ranked.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic).then_with(|| a.effect.cmp(&b.effect)));
+    let unavailable = unfit
+        .into_iter()
+        .map(|c| Unavailable { reason: c.per_bar.iter().find_map(|b| b.error.clone()).unwrap_or_default(), effect: c.effect })
+        .collect();
+    (ranked, unavailable)
 }
 
 fn candidate_on_bar(series: &BarSeries, base: &BarModel, effect: &Effect, threshold: f64) -> CandidateOnBar {
@@ -224,14 +238,19 @@ pub struct LedgerStep {
 
 /// Forward selection: add the best significant candidate (fleet-wide) until none is left or
 /// `max_steps` effects were added. Returns the ledger and the final models.
-pub fn forward_selection(series: &[&BarSeries], start: Vec<BarModel>, max_steps: usize) -> (Vec<LedgerStep>, Vec<BarModel>) {
+/// `first_candidates` are the candidates already ranked for `start` (reused for the first step).
+pub fn forward_selection(series: &[&BarSeries], start: Vec<BarModel>, first_candidates: &[Candidate], max_steps: usize) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let mut models = start;
     let mut ledger = vec![ledger_step("base".into(), &models, f64::NAN, f64::NAN)];
-    for _ in 0..max_steps {
-        let diagnoses: Vec<BarDiagnosis> = series.par_iter().zip(models.par_iter()).map(|(s, m)| diagnose_bar(s, m)).collect();
+    for step in 0..max_steps {
         let effects = models.first().map(|m| m.effects.clone()).unwrap_or_default();
-        let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
-        let candidates = evaluate_candidates(&pairs, &candidate_effects(&effects, &diagnoses));
+        let candidates = if step == 0 {
+            first_candidates.to_vec()
+        } else {
+            let diagnoses: Vec<BarDiagnosis> = series.par_iter().zip(models.par_iter()).map(|(s, m)| diagnose_bar(s, m)).collect();
+            let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
+            evaluate_candidates(&pairs, &candidate_effects(&effects, &diagnoses)).0
+        };
         let Some(best) = candidates.into_iter().find(|c| c.significant) else { break };
         let Ok(effect) = Effect::parse(&best.effect) else { break };
         let mut next_effects = effects.clone();

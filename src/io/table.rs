@@ -15,6 +15,8 @@ pub enum Column {
     OptF64(Vec<Option<f64>>),
     I64(Vec<i64>),
     Str(Vec<String>),
+    /// Timestamps, nanoseconds since the Unix epoch, written as a naive (= UTC) `Datetime(ns)`.
+    TimeNs(Vec<i64>),
 }
 
 impl Column {
@@ -24,6 +26,7 @@ impl Column {
             Column::OptF64(v) => v.len(),
             Column::I64(v) => v.len(),
             Column::Str(v) => v.len(),
+            Column::TimeNs(v) => v.len(),
         }
     }
 
@@ -38,6 +41,7 @@ impl Column {
             Column::OptF64(v) => pl::Series::new(name, v.as_slice()).into_column(),
             Column::I64(v) => pl::Series::new(name, v.as_slice()).into_column(),
             Column::Str(v) => pl::Series::new(name, v.as_slice()).into_column(),
+            Column::TimeNs(v) => pl::Int64Chunked::from_vec(name, v.clone()).into_datetime(pl::TimeUnit::Nanoseconds, None).into_column(),
         }
     }
 }

@@ -126,6 +126,7 @@ fn read_err(dir: &Path) -> String {
         Ok(_) => panic!("expected an error"),
         Err(e) => {
             let msg = e.to_string();
+            eprintln!("{msg}");
             assert!(!msg.contains('\n'), "message is not one line: {msg}");
             msg
         }
@@ -230,6 +231,18 @@ fn reads_events_sorted_keeping_unknown_kinds_and_hashes_inputs() {
     assert_eq!(logs.inputs[0].sha256, hex);
     assert_eq!(logs.inputs[0].bytes, MANIFEST.len() as u64);
     assert_eq!(logs.campaign, Campaign::from_manifest(Manifest::from_toml_str(MANIFEST, "m").expect("toml")).expect("valid"));
+}
+
+#[test]
+fn equal_times_are_ordered_by_value_whatever_the_file_order() {
+    let dir = campaign_dir();
+    let d = dir.path();
+    write_t1(d);
+    write_df(&d.join("encoders/a.parquet"), encoders(&[T0 + S, T0], &["B01", "B01"], &[7, 0]));
+    write_df(&d.join("encoders/b.parquet"), encoders(&[T0 + S, T0 + 2 * S], &["B01", "B01"], &[3, 9]));
+    let b01 = &read_campaign(d).expect("read").bars["B01"];
+    assert_eq!(b01.time_ns, vec![T0, T0 + S, T0 + S, T0 + 2 * S]);
+    assert_eq!(b01.counts, vec![0, 3, 7, 9]);
 }
 
 // ---------------------------------------------------------------- bad input
@@ -480,4 +493,40 @@ fn write_table_is_readable_deterministic_and_checks_lengths() {
     let ragged = table.with("short", Column::I64(vec![1]));
     let err = write_table(&p1, &ragged).expect_err("ragged");
     assert!(err.to_string().contains("column `short` has 1 rows, expected 2"), "{err}");
+}
+
+/// Timing on a campaign of realistic size (~31 M encoder rows). Run by hand:
+/// `cargo test --release --lib io::tests::large -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn large_campaign_write_and_read_timing() {
+    let _ = tracing_subscriber::fmt().with_max_level(tracing::Level::DEBUG).with_test_writer().try_init();
+    let manifest = Manifest::from_toml_str(MANIFEST, "m").expect("toml");
+    let rows_per_bar = 15_500_000i64; // 2 bars: 31 M rows, one reading every ~170 ms over 30 days
+    let step = 30 * 86_400 * S / rows_per_bar;
+    let mut tables = CampaignTables::default();
+    for bar in ["B01", "B02"] {
+        tables.encoders.insert(
+            bar.to_string(),
+            EncoderLog { time_ns: (0..rows_per_bar).map(|i| T0 + i * step).collect(), counts: (0..rows_per_bar).collect() },
+        );
+    }
+    for sensor in ["T1", "T2"] {
+        let n = 30 * 1440;
+        tables.temperatures.insert(
+            sensor.to_string(),
+            SensorLog { time_ns: (0..n).map(|i| T0 + i * 60 * S).collect(), celsius: (0..n).map(|i| 20.0 + (i % 100) as f64 / 100.0).collect() },
+        );
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    for opts in [WriteOptions::default(), WriteOptions { split_by_day: true, shuffle_rows: true, dictionary_strings: true, ..Default::default() }] {
+        let t = std::time::Instant::now();
+        write_campaign(dir.path(), &manifest, &tables, &opts).expect("write");
+        let written = t.elapsed();
+        let t = std::time::Instant::now();
+        let logs = read_campaign(dir.path()).expect("read");
+        eprintln!("{opts:?}: write {written:?}, read {:?}", t.elapsed());
+        assert_eq!(logs.bars["B01"].time_ns.len() as i64, rows_per_bar);
+        assert_eq!(logs.bars["B02"].counts, tables.encoders["B02"].counts);
+    }
 }

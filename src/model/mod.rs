@@ -217,6 +217,10 @@ pub struct ThermalProblem<'a> {
     /// Indices (into `terms`) of the terms with a time constant, in `theta` order.
     tau_terms: Vec<usize>,
     y: Vec<f64>,
+    /// Zero column of each zero segment: only segments with fitted samples get one (a check
+    /// mount is a zero segment without fitted samples; its column would be all zeros).
+    zero_columns: Vec<Option<usize>>,
+    n_zero_columns: usize,
 }
 
 /// A model that cannot be built for a bar.
@@ -234,7 +238,23 @@ impl<'a> ThermalProblem<'a> {
             .collect::<Result<Vec<_>, _>>()?;
         let tau_terms = terms.iter().enumerate().filter(|(_, t)| t.effect.tau_name().is_some()).map(|(i, _)| i).collect();
         let y = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
-        Ok(ThermalProblem { series, terms, tau_terms, y })
+        let mut fitted = vec![false; series.n_zero_segments];
+        for &i in &series.fit_index {
+            if let Some(s) = series.zero_segment[i] {
+                fitted[s as usize] = true;
+            }
+        }
+        let mut n_zero_columns = 0;
+        let zero_columns = fitted
+            .iter()
+            .map(|&f| {
+                f.then(|| {
+                    n_zero_columns += 1;
+                    n_zero_columns - 1
+                })
+            })
+            .collect();
+        Ok(ThermalProblem { series, terms, tau_terms, y, zero_columns, n_zero_columns })
     }
 
     /// Fit these observations (one per fitted sample) instead of the bar's reading: the
@@ -252,6 +272,12 @@ impl<'a> ThermalProblem<'a> {
 
     pub fn effects(&self) -> Vec<Effect> {
         self.terms.iter().map(|t| t.effect.clone()).collect()
+    }
+
+    /// Zero column (after the gains) of each zero segment; `None` for a segment without fitted
+    /// samples (its zero is unknown).
+    pub fn zero_columns(&self) -> &[Option<usize>] {
+        &self.zero_columns
     }
 
     /// Number of linear columns before the zeros.
@@ -364,13 +390,13 @@ impl Separable for ThermalProblem<'_> {
 
     fn linear_names(&self) -> Vec<String> {
         let mut names: Vec<String> = self.terms.iter().map(|t| t.effect.gain_name()).collect();
-        names.extend((0..self.series.n_zero_segments).map(|k| format!("zero_{k}_um")));
+        names.extend(self.zero_columns.iter().enumerate().filter(|(_, c)| c.is_some()).map(|(k, _)| format!("zero_{k}_um")));
         names
     }
 
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
         let n = self.y.len();
-        let mut phi = DMatrix::zeros(n, self.terms.len() + self.series.n_zero_segments);
+        let mut phi = DMatrix::zeros(n, self.terms.len() + self.n_zero_columns);
         for j in 0..self.terms.len() {
             let (col, _) = self.term_column(j, theta, false);
             for (r, v) in self.gather(&col).enumerate() {
@@ -379,8 +405,8 @@ impl Separable for ThermalProblem<'_> {
         }
         let base = self.terms.len();
         for (r, &i) in self.series.fit_index.iter().enumerate() {
-            if let Some(s) = self.series.zero_segment[i] {
-                phi[(r, base + s as usize)] = 1.0;
+            if let Some(c) = self.series.zero_segment[i].and_then(|s| self.zero_columns[s as usize]) {
+                phi[(r, base + c)] = 1.0;
             }
         }
         phi
@@ -388,7 +414,7 @@ impl Separable for ThermalProblem<'_> {
 
     fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
         let n = self.y.len();
-        let mut d = DMatrix::zeros(n, self.terms.len() + self.series.n_zero_segments);
+        let mut d = DMatrix::zeros(n, self.terms.len() + self.n_zero_columns);
         let j = self.tau_terms[k];
         if let (_, Some(col)) = self.term_column(j, theta, true) {
             for (r, v) in self.gather(&col).enumerate() {

@@ -43,6 +43,10 @@ pub struct SimConfig {
     pub room: RoomConfig,
     pub schedule: ScheduleConfig,
     pub effects: EffectsConfig,
+    /// Geometric errors and gravity sag of the bars (neutral by default).
+    pub geometry: GeometryConfig,
+    /// Bars made deliberately different from the fleet (none by default).
+    pub mismatch: Vec<Mismatch>,
 }
 
 /// The calibration plate.
@@ -136,8 +140,149 @@ pub struct ScheduleConfig {
     pub stagger_minutes: f64,
     /// During handling the bar rests at a random offset up to this many mm from the socket length.
     pub handling_offset_mm: f64,
-    /// Bars that stay on one length all campaign, with purpose `reference`.
+    /// Bars that stay on one length all campaign (after the calibration phase, if any), with
+    /// purpose `reference`.
     pub reference: Vec<ReferenceMount>,
+    /// Optional calibration phase at the start: every bar visits every (plate length, tilt).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<CalibrationPhase>,
+    /// Optional fixed layout of the non-reference bars after the calibration phase (else they
+    /// rotate over the plate lengths).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub working: Option<WorkingLayout>,
+}
+
+/// The calibration phase (`physics.md`, calibration unit, point 1): the plate is tilted to each
+/// of `tilts_deg` in turn (a `tilt` event each); at each tilt every bar visits every plate length
+/// once (`mount_hours` each, purpose `calibration`, handling gaps between). All bars move
+/// together, so the plate can be re-tilted while every bar is off it. Afterwards the plate goes
+/// back to `plate.tilt_deg`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct CalibrationPhase {
+    /// Plate tilts from horizontal, degrees, in [0, 90], in visiting order.
+    pub tilts_deg: Vec<f64>,
+    pub mount_hours: f64,
+}
+
+/// Where the non-reference (working) bars sit for the rest of the campaign after the
+/// calibration phase (`physics.md`, calibration unit, point 2).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct WorkingLayout {
+    /// The plate length id the working bars sit on (at the plate tilt).
+    pub length: String,
+    /// `check` (known length used only to verify; the default) or `calibration`.
+    #[serde(default = "check_purpose")]
+    pub purpose: crate::campaign::Purpose,
+    /// Bars on a target device instead of the plate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<DeviceLayout>,
+}
+
+fn check_purpose() -> crate::campaign::Purpose {
+    crate::campaign::Purpose::Check
+}
+
+/// Working bars on a target device: the manifest names only the device; the true (constant)
+/// centre distance is written to the truth alone.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DeviceLayout {
+    pub id: String,
+    /// Bar ids mounted on the device.
+    pub bars: Vec<String>,
+    /// True centre distance of the device's ball pair, mm.
+    pub distance_mm: f64,
+    /// Tilt of the bars on the device from horizontal, degrees, in [0, 90].
+    pub tilt_deg: f64,
+}
+
+/// Geometric, time-invariant errors (`physics.md`, "The instrument"): fleet mean and spread of
+/// each term. With `x = k n` the indicated travel from the counter zero (mm), the true centre
+/// distance at tilt `A` is
+///
+/// `D(n, A) = D_zero + (x (1 + scale_ppm 1e-6) + q 1e-6 x^2) / cos(theta) - sag_um(A, D_zero + x) 1e-3`
+///
+/// with `q = nonlinearity_ppm_per_mm`, `theta = cosine_mrad 1e-3` (the scale is inclined to the
+/// ball-centre line, so it sees the centre travel times `cos theta`) and
+/// `D_zero = I_min + zero_offset_um 1e-3` (an Abbe-like constant offset of the counter zero).
+/// All zero (the default) gives the ideal `D = D_zero + k n`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct GeometryConfig {
+    /// Linear scale error, ppm (normal spread `scale_sd_ppm`).
+    pub scale_ppm: f64,
+    pub scale_sd_ppm: f64,
+    /// Quadratic scale nonlinearity `q`, ppm per mm of travel.
+    pub nonlinearity_ppm_per_mm: f64,
+    pub nonlinearity_sd_ppm_per_mm: f64,
+    /// Misalignment of the scale to the ball-centre line, mrad.
+    pub cosine_mrad: f64,
+    pub cosine_sd_mrad: f64,
+    /// Counter zero offset from `I_min`, µm.
+    pub zero_offset_um: f64,
+    pub zero_offset_sd_um: f64,
+    pub sag: SagConfig,
+}
+
+/// Gravity sag (`physics.md`): the chord between the ball centres shortens as the bar bends, so
+/// the reading is *long* by `sag_um(A, L) = amplitude_um f(A) (L / ref_mm)^exponent`, with
+/// `f = cos A` or `cos^2 A` (`form`): largest horizontal (`A = 0`), zero vertical (`A = 90°`).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct SagConfig {
+    /// Sag at horizontal and `L = ref_mm`, µm (0 = no sag).
+    pub amplitude_um: f64,
+    /// Relative (log-normal) spread of the amplitude across bars.
+    pub spread: f64,
+    pub form: SagForm,
+    pub ref_mm: f64,
+    pub exponent: f64,
+}
+
+/// The tilt dependence of the sag.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum SagForm {
+    /// `cos A`.
+    #[default]
+    Cos,
+    /// `cos^2 A`.
+    Cos2,
+}
+
+impl SagForm {
+    /// `f(A)` of the sag, `A` in degrees.
+    pub fn factor(self, tilt_deg: f64) -> f64 {
+        let c = tilt_deg.to_radians().cos();
+        match self {
+            Self::Cos => c,
+            Self::Cos2 => c * c,
+        }
+    }
+}
+
+/// One bar made deliberately different from the fleet: its drawn parameters are multiplied by
+/// these factors (1 = unchanged).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Mismatch {
+    pub bar: String,
+    #[serde(default = "one")]
+    pub alpha_factor: f64,
+    #[serde(default = "one")]
+    pub beta_factor: f64,
+    #[serde(default = "one")]
+    pub tau_r_factor: f64,
+    #[serde(default = "one")]
+    pub tau_s_factor: f64,
+    #[serde(default = "one")]
+    pub sag_factor: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -265,6 +410,8 @@ impl Default for SimConfig {
             room: RoomConfig::default(),
             schedule: ScheduleConfig::default(),
             effects: EffectsConfig::default(),
+            geometry: GeometryConfig::default(),
+            mismatch: Vec::new(),
         }
     }
 }
@@ -337,7 +484,21 @@ impl Default for ScheduleConfig {
             stagger_minutes: 30.0,
             handling_offset_mm: 2.0,
             reference: Vec::new(),
+            calibration: None,
+            working: None,
         }
+    }
+}
+
+impl Default for CalibrationPhase {
+    fn default() -> Self {
+        Self { tilts_deg: vec![30.0, 60.0, 90.0], mount_hours: 3.0 }
+    }
+}
+
+impl Default for SagConfig {
+    fn default() -> Self {
+        Self { amplitude_um: 0.0, spread: 0.0, form: SagForm::Cos, ref_mm: 400.0, exponent: 2.0 }
     }
 }
 
@@ -435,13 +596,16 @@ impl SimConfig {
         self.validate_bars()?;
         self.validate_room()?;
         self.validate_schedule()?;
+        self.validate_phases()?;
+        self.validate_geometry()?;
+        self.validate_mismatch()?;
         self.validate_effects()
     }
 
     fn validate_plate(&self) -> Result<(), SimError> {
         let p = &self.plate;
         finite("plate.cte_ppm_per_k", p.cte_ppm_per_k)?;
-        finite("plate.tilt_deg", p.tilt_deg)?;
+        tilt("plate.tilt_deg", p.tilt_deg)?;
         positive("plate.thermal_tau_s", p.thermal_tau_s)?;
         if p.length.is_empty() {
             return Err(invalid("plate.length", "no plate length"));
@@ -549,6 +713,98 @@ impl SimConfig {
         unique("schedule.reference.bar", s.reference.iter().map(|r| r.bar.as_str()))
     }
 
+    /// The calibration phase and the working layout.
+    fn validate_phases(&self) -> Result<(), SimError> {
+        let s = &self.schedule;
+        if let Some(c) = &s.calibration {
+            if c.tilts_deg.is_empty() {
+                return Err(invalid("schedule.calibration.tilts_deg", "no tilt"));
+            }
+            for (i, &t) in c.tilts_deg.iter().enumerate() {
+                tilt(&format!("schedule.calibration.tilts_deg[{i}]"), t)?;
+            }
+            positive("schedule.calibration.mount_hours", c.mount_hours)?;
+            if c.mount_hours < 1.0 / 60.0 {
+                return Err(invalid("schedule.calibration.mount_hours", "shorter than a minute"));
+            }
+            let rounds = (c.tilts_deg.len() * self.plate.length.len()) as f64;
+            let phase_s = rounds * (c.mount_hours * 3600.0 + s.gap_minutes.max(1.0 / 60.0) * 60.0);
+            if phase_s >= self.duration_days * 86400.0 {
+                return Err(invalid("schedule.calibration", "the calibration phase does not end before the campaign"));
+            }
+        }
+        let Some(w) = &s.working else { return Ok(()) };
+        if !self.plate.length.iter().any(|l| l.id == w.length) {
+            return Err(invalid("schedule.working.length", "no such plate length"));
+        }
+        if w.purpose == crate::campaign::Purpose::Reference {
+            return Err(invalid("schedule.working.purpose", "must be check or calibration (references go in schedule.reference)"));
+        }
+        let Some(d) = &w.device else { return Ok(()) };
+        if d.id.trim().is_empty() {
+            return Err(invalid("schedule.working.device.id", "empty"));
+        }
+        unique("schedule.working.device.bars", d.bars.iter().map(String::as_str))?;
+        if let Some(b) = d.bars.iter().find(|b| s.reference.iter().any(|r| &r.bar == *b)) {
+            return Err(invalid("schedule.working.device.bars", &format!("`{b}` is also a reference bar")));
+        }
+        let min_mm = self.plate.length.iter().map(|l| l.mm).fold(f64::INFINITY, f64::min);
+        if !(d.distance_mm.is_finite() && d.distance_mm >= min_mm) {
+            return Err(invalid("schedule.working.device.distance_mm", "must be at least the shortest plate length"));
+        }
+        tilt("schedule.working.device.tilt_deg", d.tilt_deg)
+    }
+
+    fn validate_geometry(&self) -> Result<(), SimError> {
+        let g = &self.geometry;
+        bounded("geometry.scale_ppm", g.scale_ppm, g.scale_sd_ppm, 1000.0)?;
+        bounded("geometry.nonlinearity_ppm_per_mm", g.nonlinearity_ppm_per_mm, g.nonlinearity_sd_ppm_per_mm, 1.0)?;
+        bounded("geometry.cosine_mrad", g.cosine_mrad, g.cosine_sd_mrad, 100.0)?;
+        bounded("geometry.zero_offset_um", g.zero_offset_um, g.zero_offset_sd_um, 1000.0)?;
+        non_negative("geometry.scale_sd_ppm", g.scale_sd_ppm)?;
+        non_negative("geometry.nonlinearity_sd_ppm_per_mm", g.nonlinearity_sd_ppm_per_mm)?;
+        non_negative("geometry.cosine_sd_mrad", g.cosine_sd_mrad)?;
+        non_negative("geometry.zero_offset_sd_um", g.zero_offset_sd_um)?;
+        let sag = &g.sag;
+        finite("geometry.sag.amplitude_um", sag.amplitude_um)?;
+        if sag.amplitude_um.abs() > 100.0 {
+            return Err(invalid("geometry.sag.amplitude_um", "beyond ±100 µm"));
+        }
+        non_negative("geometry.sag.spread", sag.spread)?;
+        if sag.spread > 1.0 {
+            return Err(invalid("geometry.sag.spread", "above 1 (log-normal relative spread)"));
+        }
+        positive("geometry.sag.ref_mm", sag.ref_mm)?;
+        if !(sag.exponent.is_finite() && sag.exponent.abs() <= 10.0) {
+            return Err(invalid("geometry.sag.exponent", "must be in [-10, 10]"));
+        }
+        Ok(())
+    }
+
+    fn validate_mismatch(&self) -> Result<(), SimError> {
+        for (i, m) in self.mismatch.iter().enumerate() {
+            let key = |f: &str| format!("mismatch[{i}].{f}");
+            if m.bar.is_empty() {
+                return Err(invalid(&key("bar"), "empty"));
+            }
+            for (f, v) in [
+                ("alpha_factor", m.alpha_factor),
+                ("beta_factor", m.beta_factor),
+                ("tau_r_factor", m.tau_r_factor),
+                ("tau_s_factor", m.tau_s_factor),
+                ("sag_factor", m.sag_factor),
+            ] {
+                if !(v.is_finite() && (0.0..=100.0).contains(&v)) {
+                    return Err(invalid(&key(f), "must be in [0, 100]"));
+                }
+            }
+            if !(m.tau_r_factor > 0.0 && m.tau_s_factor > 0.0) {
+                return Err(invalid(&key("tau_r_factor"), "time-constant factors must be positive"));
+            }
+        }
+        unique("mismatch.bar", self.mismatch.iter().map(|m| m.bar.as_str()))
+    }
+
     fn validate_effects(&self) -> Result<(), SimError> {
         let e = &self.effects;
         let h = &e.head_heating;
@@ -603,6 +859,17 @@ fn positive(key: &str, v: f64) -> Result<(), SimError> {
 
 fn non_negative(key: &str, v: f64) -> Result<(), SimError> {
     if v.is_finite() && v >= 0.0 { Ok(()) } else { Err(invalid(key, "must be >= 0")) }
+}
+
+/// A tilt from horizontal in [0, 90] degrees.
+fn tilt(key: &str, v: f64) -> Result<(), SimError> {
+    if v.is_finite() && (0.0..=90.0).contains(&v) { Ok(()) } else { Err(invalid(key, "must be in [0, 90] degrees")) }
+}
+
+/// A fleet mean and spread with `|mean| + 5 sd <= limit`.
+fn bounded(key: &str, mean: f64, sd: f64, limit: f64) -> Result<(), SimError> {
+    finite(key, mean)?;
+    if mean.abs() + 5.0 * sd.abs() <= limit { Ok(()) } else { Err(invalid(key, &format!("mean + 5 sd beyond {limit}"))) }
 }
 
 fn unique<'a>(key: &str, ids: impl Iterator<Item = &'a str>) -> Result<(), SimError> {

@@ -1,8 +1,9 @@
 //! One bar's encoder log: the thermal states integrated on the fine grid, the true distance,
 //! the thermal error and the quantized, noisy counts (`physics.md`, first-order model).
 //!
-//! `counts = round(((D_true - D_zero) + e + noise) / k)` with the thermal error
-//! `e = -dD + settling + creep` and `dD = alpha I_min lag(T - T0; tau_R) + beta I_p lag(T - T0;
+//! `counts = round(((D_true - D_zero) + e + noise) / k)` for an ideal bar, with the thermal error
+//! `e = -dD + settling + creep`; with geometric terms (`geometry.rs`) the counts are those the
+//! true map `D(n, A)` sends to `D_true + e + noise`. And `dD = alpha I_min lag(T - T0; tau_R) + beta I_p lag(T - T0;
 //! tau_S)` plus the enabled growth terms (second path, head heating, hidden channel). Lengths
 //! in mm, `alpha`/`beta` in ppm/K, so `ppm * mm * 1e-3` is micrometres.
 
@@ -165,10 +166,10 @@ pub(crate) fn simulate_bar(setup: &BarSetup, env: &Environment, grid: &Grid) -> 
         }
         let t_ns = j as i64 * grid.sample_ns;
         let place = setup.plan.place_at(t_ns, setup.lengths_mm, &mut cursor);
-        let (true_mm, error_um) = distance_and_error(setup, &state, env, i, t_ns, place);
+        let (true_mm, error_um, tilt_deg) = distance_and_error(setup, &state, env, i, t_ns, place);
         let reading_um = (true_mm - setup.bar.d_zero_mm) * 1e3 + error_um + noise_um;
         run.log.time_ns.push(setup.start_ns + t_ns);
-        run.log.counts.push((reading_um * 1e3 / setup.bar.resolution_nm).round() as i64);
+        run.log.counts.push(counts_of(setup.bar, reading_um, tilt_deg));
         if setup.record_true_error {
             run.true_error_um.push(error_um);
         }
@@ -176,23 +177,33 @@ pub(crate) fn simulate_bar(setup: &BarSetup, env: &Environment, grid: &Grid) -> 
     run
 }
 
-/// True centre distance (mm) and thermal error (µm) at grid point `i`, time `t_ns`.
-fn distance_and_error(setup: &BarSetup, state: &ThermalState, env: &Environment, i: usize, t_ns: i64, place: Place) -> (f64, f64) {
+/// Quantized counts of an indicated distance `D_zero + reading_um` at tilt `tilt_deg`: ideal
+/// bars keep the plain `reading / k`, others invert their true map `D(n, A)`.
+fn counts_of(bar: &BarTruth, reading_um: f64, tilt_deg: f64) -> i64 {
+    if bar.geometry.is_ideal() {
+        return (reading_um * 1e3 / bar.resolution_nm).round() as i64;
+    }
+    let travel_mm = bar.geometry.indicated_travel_mm(reading_um * 1e-3, tilt_deg, bar.d_zero_mm);
+    (travel_mm * 1e6 / bar.resolution_nm).round() as i64
+}
+
+/// True centre distance (mm), thermal error (µm) and tilt (degrees) at grid point `i`, time `t_ns`.
+fn distance_and_error(setup: &BarSetup, state: &ThermalState, env: &Environment, i: usize, t_ns: i64, place: Place) -> (f64, f64, f64) {
     let bar = setup.bar;
-    let (true_mm, nominal_mm, settling_um) = match place {
-        Place::Mounted { length_index, from_ns, settling_um } => {
-            let length_mm = setup.lengths_mm[length_index];
+    let (true_mm, nominal_mm, settling_um, tilt_deg) = match place {
+        Place::Mounted { nominal_mm, on_plate, tilt_deg, from_ns, settling_um } => {
             let plate_dt = env.plate_c[i] - setup.reference_temperature_c;
-            let true_mm = length_mm * (1.0 + setup.plate_cte_ppm_per_k * 1e-6 * plate_dt);
+            let cte = if on_plate { setup.plate_cte_ppm_per_k } else { 0.0 };
+            let true_mm = nominal_mm * (1.0 + cte * 1e-6 * plate_dt);
             let settling = match bar.settling_tau_s {
                 Some(tau_s) => settling_um * (-((t_ns - from_ns) as f64 * 1e-9) / tau_s).exp(),
                 None => 0.0,
             };
-            (true_mm, length_mm, settling)
+            (true_mm, nominal_mm, settling, tilt_deg)
         }
-        Place::Handling { position_mm } => (position_mm, position_mm, 0.0),
+        Place::Handling { position_mm, tilt_deg } => (position_mm, position_mm, 0.0, tilt_deg),
     };
     let travel_mm = nominal_mm - bar.fixed_length_mm;
     let creep_um = bar.creep_um_per_day.map_or(0.0, |rate| rate * t_ns as f64 * 1e-9 / 86400.0);
-    (true_mm, -state.growth_um(bar, travel_mm) + settling_um + creep_um)
+    (true_mm, -state.growth_um(bar, travel_mm) + settling_um + creep_um, tilt_deg)
 }

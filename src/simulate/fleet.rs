@@ -1,6 +1,6 @@
 //! The bars' true parameters: the explicit list or a seeded fleet, plus the per-bar parameters
 //! of each extra effect (drawn whether or not the effect is on, so switching one effect changes
-//! nothing else).
+//! nothing else), the geometric terms (own random stream) and the deliberate mismatches.
 
 use std::collections::BTreeMap;
 
@@ -9,6 +9,7 @@ use rand_distr::StandardNormal;
 
 use super::config::{FleetConfig, SimConfig};
 use super::environment::{AIR_HIGH, AIR_LOW};
+use super::geometry::BarGeometry;
 use super::truth::{BarTruth, ChannelTruth, HeadTruth, SecondPathTruth};
 use super::{stream_rng, streams};
 
@@ -17,7 +18,7 @@ pub(crate) fn bar_truths(cfg: &SimConfig) -> Vec<BarTruth> {
     let base = if cfg.bars.is_empty() { fleet_bars(cfg.seed, &cfg.fleet_or_default()) } else { explicit_bars(cfg) };
     base.into_iter()
         .enumerate()
-        .map(|(i, bar)| with_effects(cfg, i, bar))
+        .map(|(i, bar)| with_mismatch(cfg, with_geometry(cfg, i, with_effects(cfg, i, bar))))
         .collect()
 }
 
@@ -38,6 +39,8 @@ fn plain_bar(cfg: &SimConfig, id: String, fixed_length_mm: f64, alpha: f64, beta
         creep_um_per_day: None,
         hidden_channel: None,
         settling_tau_s: None,
+        geometry: BarGeometry::default(),
+        mismatch: None,
     }
 }
 
@@ -116,5 +119,37 @@ fn with_effects(cfg: &SimConfig, index: usize, mut bar: BarTruth) -> BarTruth {
     if e.settling.enabled {
         bar.settling_tau_s = Some(e.settling.tau_s);
     }
+    bar
+}
+
+/// The bar's geometric terms around the `[geometry]` fleet mean (normal; sag log-normal), and
+/// the counter zero moved by the zero offset.
+fn with_geometry(cfg: &SimConfig, index: usize, mut bar: BarTruth) -> BarTruth {
+    let mut rng = stream_rng(cfg.seed, streams::GEOMETRY + index as u64);
+    let z: [f64; 5] = std::array::from_fn(|_| rng.sample(StandardNormal));
+    let g = &cfg.geometry;
+    bar.geometry = BarGeometry {
+        scale_ppm: g.scale_ppm + g.scale_sd_ppm * z[0],
+        nonlinearity_ppm_per_mm: g.nonlinearity_ppm_per_mm + g.nonlinearity_sd_ppm_per_mm * z[1],
+        cosine_mrad: g.cosine_mrad + g.cosine_sd_mrad * z[2],
+        zero_offset_um: g.zero_offset_um + g.zero_offset_sd_um * z[3],
+        sag_um: g.sag.amplitude_um * (g.sag.spread * z[4]).exp(),
+        sag_form: g.sag.form,
+        sag_ref_mm: g.sag.ref_mm,
+        sag_exponent: g.sag.exponent,
+    };
+    bar.d_zero_mm = bar.fixed_length_mm + bar.geometry.zero_offset_um * 1e-3;
+    bar
+}
+
+/// Apply the bar's `[[mismatch]]` factors, if it has one.
+fn with_mismatch(cfg: &SimConfig, mut bar: BarTruth) -> BarTruth {
+    let Some(m) = cfg.mismatch.iter().find(|m| m.bar == bar.id) else { return bar };
+    bar.alpha_ppm_per_k *= m.alpha_factor;
+    bar.beta_ppm_per_k *= m.beta_factor;
+    bar.tau_r_s *= m.tau_r_factor;
+    bar.tau_s_s *= m.tau_s_factor;
+    bar.geometry.sag_um *= m.sag_factor;
+    bar.mismatch = Some(m.clone());
     bar
 }

@@ -11,11 +11,18 @@
 //! initial air, and logs quantized noisy counts every `sample_s` (`encoder.rs`). Bars rotate
 //! over the plate lengths with handling gaps (`schedule.rs`); readings in the gaps are logged
 //! at off-socket positions, for the pipeline to drop.
+//!
+//! For calibration and compensation (`physics.md`, the calibration unit): an optional
+//! calibration phase visits every (plate length, tilt) with `tilt` events; reference bars then
+//! stay on their lengths while working bars sit on a check length or a device; each bar's
+//! counts follow its true geometric map `D(n, A)` (scale error, nonlinearity, cosine error,
+//! zero offset, gravity sag, `geometry.rs`), and `[[mismatch]]` makes chosen bars different.
 
 pub mod config;
 mod encoder;
 mod environment;
 mod fleet;
+mod geometry;
 mod lag;
 mod schedule;
 pub mod truth;
@@ -31,15 +38,16 @@ use crate::campaign::{BarDecl, CampaignSection, Manifest, MountDecl, PlateSectio
 use crate::series::{CampaignTables, Event};
 
 pub use config::{
-    BarConfig, Creep, EffectsConfig, FleetConfig, HeadHeating, HiddenChannel, PlateConfig, PlateExpansion,
-    ReferenceMount, RoomConfig, ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig,
+    BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig, FleetConfig, GeometryConfig, HeadHeating,
+    HiddenChannel, Mismatch, PlateConfig, PlateExpansion, ReferenceMount, RoomConfig, SagConfig, SagForm,
+    ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig, WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
-pub use truth::{BarTruth, ChannelTruth, HeadTruth, MountTruth, PlateTruth, SecondPathTruth, Truth};
+pub use truth::{BarGeometry, BarTruth, ChannelTruth, HeadTruth, MountTruth, PlateTruth, SecondPathTruth, Truth};
 
 use encoder::{BarRun, BarSetup};
 use environment::Environment;
-use schedule::BarPlan;
+use schedule::{BarPlan, PlannedMount, Site};
 
 /// Largest fine grid (points) and total encoder rows accepted.
 const MAX_GRID_POINTS: usize = 100_000_000;
@@ -82,6 +90,7 @@ pub(crate) mod streams {
     pub const HEAD: u64 = 2_000;
     pub const BAR_EFFECTS: u64 = 3_000;
     pub const BAR_NOISE: u64 = 4_000;
+    pub const GEOMETRY: u64 = 5_000;
 }
 
 /// The random stream `stream` of seed `seed`.
@@ -142,13 +151,13 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
     if grid.n_samples.saturating_mul(bars.len()) > MAX_ENCODER_ROWS {
         return Err(SimError::Invalid { key: "sample_s".into(), reason: "more than 5e8 encoder rows".into() });
     }
-    validate_reference_bars(cfg, &bars)?;
+    validate_named_bars(cfg, &bars)?;
     let start_ns = start_ns(cfg)?;
     let env = Environment::build(cfg, &grid);
     let plans: Vec<BarPlan> = bars.iter().enumerate().map(|(i, b)| schedule::plan_bar(cfg, &grid, i, &b.id)).collect();
     let runs = run_bars(cfg, &grid, &env, &bars, &plans, start_ns);
     let manifest = build_manifest(cfg, &bars, &plans, start_ns)?;
-    let events = build_events(cfg, &env, &bars, &plans, start_ns);
+    let events = build_events(cfg, &grid, &env, &bars, &plans, start_ns);
     let truth = build_truth(cfg, &bars, &plans, &env, &runs, start_ns)?;
     let mut tables = CampaignTables { encoders: BTreeMap::new(), temperatures: env.sensor_logs(cfg, &grid, start_ns), events };
     let mut true_error_um = BTreeMap::new();
@@ -161,10 +170,20 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
     Ok(Simulation { manifest, tables, truth, true_error_um })
 }
 
-fn validate_reference_bars(cfg: &SimConfig, bars: &[BarTruth]) -> Result<(), SimError> {
-    for (i, r) in cfg.schedule.reference.iter().enumerate() {
-        if !bars.iter().any(|b| b.id == r.bar) {
-            return Err(SimError::Invalid { key: format!("schedule.reference[{i}].bar"), reason: format!("no bar `{}`", r.bar) });
+/// Every bar named in the schedule or a mismatch exists.
+fn validate_named_bars(cfg: &SimConfig, bars: &[BarTruth]) -> Result<(), SimError> {
+    let device_bars = cfg.schedule.working.iter().flat_map(|w| w.device.iter()).flat_map(|d| d.bars.iter());
+    let named = cfg
+        .schedule
+        .reference
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (format!("schedule.reference[{i}].bar"), &r.bar))
+        .chain(device_bars.enumerate().map(|(i, b)| (format!("schedule.working.device.bars[{i}]"), b)))
+        .chain(cfg.mismatch.iter().enumerate().map(|(i, m)| (format!("mismatch[{i}].bar"), &m.bar)));
+    for (key, id) in named {
+        if !bars.iter().any(|b| &b.id == id) {
+            return Err(SimError::Invalid { key, reason: format!("no bar `{id}`") });
         }
     }
     Ok(())
@@ -217,14 +236,17 @@ fn toml_datetime(t_ns: i64) -> Result<toml::value::Datetime, SimError> {
 }
 
 fn build_manifest(cfg: &SimConfig, bars: &[BarTruth], plans: &[BarPlan], start_ns: i64) -> Result<Manifest, SimError> {
+    // Campaigns with a calibration phase or a working layout state every mount's tilt.
+    let explicit_tilts = cfg.schedule.calibration.is_some() || cfg.schedule.working.is_some();
     let mut mount = Vec::new();
     for (bar, plan) in bars.iter().zip(plans) {
         for m in &plan.mounts {
+            let (length, device) = site_names(cfg, m);
             mount.push(MountDecl {
                 bar: bar.id.clone(),
-                length: Some(cfg.plate.length[m.length_index].id.clone()),
-                device: None,
-                tilt_deg: None,
+                length,
+                device,
+                tilt_deg: (explicit_tilts || m.tilt_deg != cfg.plate.tilt_deg).then_some(m.tilt_deg),
                 purpose: Some(m.purpose),
                 from: toml_datetime(start_ns + m.from_ns)?,
                 to: toml_datetime(start_ns + m.to_ns)?,
@@ -253,6 +275,14 @@ fn build_manifest(cfg: &SimConfig, bars: &[BarTruth], plans: &[BarPlan], start_n
     })
 }
 
+/// The manifest's `length` and `device` of a mount (exactly one is `Some`).
+fn site_names(cfg: &SimConfig, m: &PlannedMount) -> (Option<String>, Option<String>) {
+    match &m.site {
+        Site::Length(i) => (Some(cfg.plate.length[*i].id.clone()), None),
+        Site::Device { id, .. } => (None, Some(id.clone())),
+    }
+}
+
 fn sensor_decls(cfg: &SimConfig) -> Vec<SensorDecl> {
     let decl = |id: &str, kind| SensorDecl { id: id.into(), kind };
     let mut sensors = vec![decl(AIR_LOW, SensorKind::Air), decl(AIR_HIGH, SensorKind::Air)];
@@ -265,8 +295,9 @@ fn sensor_decls(cfg: &SimConfig) -> Vec<SensorDecl> {
     sensors
 }
 
-/// Door openings (whole setup), handling gaps and head power switches (per bar), sorted by time.
-fn build_events(_cfg: &SimConfig, env: &Environment, bars: &[BarTruth], plans: &[BarPlan], start_ns: i64) -> Vec<Event> {
+/// Door openings and plate re-tilts (whole setup), handling gaps and head power switches (per
+/// bar), sorted by time.
+fn build_events(cfg: &SimConfig, grid: &Grid, env: &Environment, bars: &[BarTruth], plans: &[BarPlan], start_ns: i64) -> Vec<Event> {
     let event = |t_ns: i64, bar: Option<&str>, kind: &str, value: Option<f64>| Event {
         time_ns: start_ns + t_ns,
         bar: bar.map(str::to_string),
@@ -274,6 +305,7 @@ fn build_events(_cfg: &SimConfig, env: &Environment, bars: &[BarTruth], plans: &
         value,
     };
     let mut events: Vec<Event> = env.door_times_s.iter().map(|&t| event((t * 1e9) as i64, None, "door", None)).collect();
+    events.extend(schedule::plate_tilts(cfg, grid).into_iter().map(|(t, tilt)| event(t, None, "tilt", Some(tilt))));
     for (bar, plan) in bars.iter().zip(plans) {
         events.extend(plan.handling_ns.iter().map(|&t| event(t, Some(&bar.id), "handling", None)));
         events.extend(plan.head_toggles_ns.iter().enumerate().map(|(k, &t)| {
@@ -286,18 +318,22 @@ fn build_events(_cfg: &SimConfig, env: &Environment, bars: &[BarTruth], plans: &
 }
 
 fn build_truth(cfg: &SimConfig, bars: &[BarTruth], plans: &[BarPlan], env: &Environment, runs: &[BarRun], start_ns: i64) -> Result<Truth, SimError> {
+    let lengths_mm: Vec<f64> = cfg.plate.length.iter().map(|l| l.mm).collect();
     let mut mounts = Vec::new();
     for (bar, plan) in bars.iter().zip(plans) {
         for m in &plan.mounts {
-            let length = &cfg.plate.length[m.length_index];
+            let (length, device) = site_names(cfg, m);
+            let length_mm = m.nominal_mm(&lengths_mm);
             mounts.push(MountTruth {
                 bar: bar.id.clone(),
-                length: length.id.clone(),
+                length: length.unwrap_or_default(),
+                device,
+                tilt_deg: m.tilt_deg,
                 purpose: m.purpose,
                 from: rfc3339(start_ns + m.from_ns),
                 to: rfc3339(start_ns + m.to_ns),
-                length_mm: length.mm,
-                zero_counts: (length.mm - bar.d_zero_mm) * 1e6 / bar.resolution_nm,
+                length_mm,
+                zero_counts: bar.counts_at(length_mm, m.tilt_deg),
                 settling_um: cfg.effects.settling.enabled.then_some(m.settling_um),
             });
         }
@@ -353,3 +389,5 @@ pub fn write_truth(truth: &Truth, dir: &Path) -> Result<(), SimError> {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod acceptance_tests;

@@ -1,10 +1,22 @@
 //! [`Truth`]: what the simulator knows and the pipeline must find, written to `truth.json`.
+//!
+//! The true centre distance of a bar for `counts` at tilt `A` (no thermal error, plate at `T0`)
+//! is [`BarTruth::true_distance_mm`]; from the JSON alone, with `g = bars[i].geometry`,
+//! `k = resolution_nm`, `x = counts * k * 1e-6` (mm):
+//!
+//! `D = d_zero_mm + (x (1 + g.scale_ppm 1e-6) + g.nonlinearity_ppm_per_mm 1e-6 x^2) / cos(g.cosine_mrad 1e-3)
+//!      - 1e-3 g.sag_um f(A) ((d_zero_mm + x) / g.sag_ref_mm)^g.sag_exponent`
+//!
+//! with `f(A) = cos A` (`sag_form = "cos"`) or `cos^2 A` (`"cos2"`). A reading carries on top the
+//! thermal error `e` (indicated − true, µm): `D(counts, A) = D_true + e * 1e-3` up to noise and
+//! quantization.
 
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use super::config::SimConfig;
+use super::config::{Mismatch, SimConfig};
+pub use super::geometry::BarGeometry;
 use crate::campaign::Purpose;
 
 /// Everything true about a simulated campaign.
@@ -61,6 +73,29 @@ pub struct BarTruth {
     pub hidden_channel: Option<ChannelTruth>,
     /// Settling time constant after each mount (amplitudes are per mount).
     pub settling_tau_s: Option<f64>,
+    /// Geometric terms of the counts -> distance mapping (all zero: ideal bar).
+    #[serde(default)]
+    pub geometry: BarGeometry,
+    /// The factors this bar was made different by (`[[mismatch]]`), already applied to
+    /// `alpha_ppm_per_k`, `beta_ppm_per_k`, the taus and `geometry.sag_um`.
+    #[serde(default)]
+    pub mismatch: Option<Mismatch>,
+}
+
+impl BarTruth {
+    /// True centre distance (mm) for `counts` at tilt `tilt_deg` with no thermal error
+    /// (`physics.md`: the centre distance function `D(n, A)`).
+    pub fn true_distance_mm(&self, counts: f64, tilt_deg: f64) -> f64 {
+        let travel_mm = counts * self.resolution_nm * 1e-6;
+        self.d_zero_mm + self.geometry.true_travel_mm(travel_mm, tilt_deg, self.d_zero_mm)
+    }
+
+    /// Counts (unrounded) the bar reads at true distance `distance_mm` and tilt `tilt_deg` with
+    /// no thermal error: the inverse of [`Self::true_distance_mm`].
+    pub fn counts_at(&self, distance_mm: f64, tilt_deg: f64) -> f64 {
+        let travel_mm = self.geometry.indicated_travel_mm(distance_mm - self.d_zero_mm, tilt_deg, self.d_zero_mm);
+        travel_mm * 1e6 / self.resolution_nm
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -87,14 +122,22 @@ pub struct ChannelTruth {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct MountTruth {
     pub bar: String,
+    /// The plate length id; empty on a device.
     pub length: String,
+    /// The target device, when the bar is on one (then `length` is empty).
+    #[serde(default)]
+    pub device: Option<String>,
+    /// Tilt of the bar from horizontal during the mount, degrees.
+    #[serde(default)]
+    pub tilt_deg: f64,
     pub purpose: Purpose,
     /// RFC 3339, UTC (the manifest's `from`/`to`).
     pub from: String,
     pub to: String,
-    /// Calibrated length, mm (true at `T0` of the plate).
+    /// Calibrated length, mm (true at `T0` of the plate); on a device its true distance.
     pub length_mm: f64,
-    /// Counts at zero thermal error with the plate at `T0`: `(length_mm - d_zero_mm) / k`.
+    /// Counts at zero thermal error with the plate at `T0`:
+    /// `BarTruth::counts_at(length_mm, tilt_deg)` (`(length_mm - d_zero_mm) / k` for an ideal bar).
     pub zero_counts: f64,
     /// Settling amplitude of this mount, µm added to the reading at `from`.
     pub settling_um: Option<f64>,

@@ -22,7 +22,7 @@ fn small_campaign(root: &Path, name: &str) -> std::path::PathBuf {
 
 fn encoder_table(bar: &str, counts: Column) -> Table {
     Table::new()
-        .with("time", Column::I64(vec![1_793_491_200_000_000_000, 1_793_491_260_000_000_000]))
+        .with("time", Column::TimeNs(vec![1_793_491_200_000_000_000, 1_793_491_260_000_000_000]))
         .with("bar", Column::Str(vec![bar.into(), bar.into()]))
         .with("counts", counts)
 }
@@ -50,7 +50,7 @@ fn bad_inputs_give_one_clear_line_and_no_output() {
     let root = tmp.path();
 
     let d = small_campaign(root, "missing-column");
-    write_table(&d.join("encoders/extra.parquet"), &Table::new().with("time", Column::I64(vec![1])).with("bar", Column::Str(vec!["B01".into()]))).unwrap();
+    write_table(&d.join("encoders/extra.parquet"), &Table::new().with("time", Column::TimeNs(vec![1_793_491_200_000_000_000])).with("bar", Column::Str(vec!["B01".into()]))).unwrap();
     check(&d, &["extra.parquet", "counts"]);
 
     let d = small_campaign(root, "wrong-type");

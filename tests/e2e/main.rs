@@ -1,7 +1,11 @@
 //! The one integration-test binary (each extra one would link polars again).
 //! Data-driven through small `check(...)` helpers in each module.
 
+mod acceptance;
 mod bad_input;
+mod cli;
+mod diagnose;
 mod identify;
+mod machine_tool;
 mod nist;
 mod support;
