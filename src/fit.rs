@@ -154,11 +154,13 @@ pub fn fit<P: Separable>(problem: &P, theta0: &[f64], options: &FitOptions) -> R
     if options.brent_start {
         brent_start(problem, &mut theta);
     }
+    tracing::debug!(?theta, "fit: nonlinear start after the Brent sweep");
     let (theta, iterations) = if theta.is_empty() {
         (theta, 0)
     } else {
         levenberg_marquardt(problem, &theta)?
     };
+    tracing::debug!(?theta, iterations, "fit: after Levenberg-Marquardt");
     let phi = problem.basis(&theta);
     let coef = solve_linear(&phi, y).ok_or_else(|| singular_term(problem, &phi))?;
     let residuals: Vec<f64> = (&phi * &coef).iter().zip(y).map(|(f, y)| y - f).collect();
@@ -249,13 +251,17 @@ fn brent_start<P: Separable>(problem: &P, theta: &mut [f64]) {
         let result = Executor::new(cost, solver)
             .configure(|state| state.param(theta[k].clamp(lo, hi)).max_iters(60))
             .run();
-        if let Ok(res) = result {
-            let state = res.state();
-            if let Some(best) = state.best_param {
-                if state.best_cost < best_now {
-                    theta[k] = best;
+        match result {
+            Ok(res) => {
+                let state = res.state();
+                tracing::debug!(k, best = ?state.best_param, best_cost = state.best_cost, start_cost = best_now, "fit: Brent start");
+                if let Some(best) = state.best_param {
+                    if state.best_cost < best_now {
+                        theta[k] = best;
+                    }
                 }
             }
+            Err(e) => tracing::debug!(k, error = %e, "fit: Brent start failed"),
         }
     }
 }
@@ -306,11 +312,20 @@ impl<P: Separable> SeparableNonlinearModel for VarproModel<'_, P> {
     fn params(&self) -> OVector<f64, Dyn> {
         self.theta.clone()
     }
+    // Non-finite values are refused here: nalgebra's SVD inside varpro never returns on NaN.
     fn eval(&self) -> Result<OMatrix<f64, Dyn, Dyn>, Self::Error> {
-        Ok(self.problem.basis(self.theta.as_slice()))
+        finite(self.problem.basis(self.theta.as_slice()))
     }
     fn eval_partial_deriv(&self, k: usize) -> Result<OMatrix<f64, Dyn, Dyn>, Self::Error> {
-        Ok(self.problem.basis_derivative(self.theta.as_slice(), k))
+        finite(self.problem.basis_derivative(self.theta.as_slice(), k))
+    }
+}
+
+fn finite(m: DMatrix<f64>) -> Result<DMatrix<f64>, ModelEvalError> {
+    if m.iter().all(|v| v.is_finite()) {
+        Ok(m)
+    } else {
+        Err(ModelEvalError)
     }
 }
 

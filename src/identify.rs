@@ -83,7 +83,29 @@ pub fn identify_from(series: &BarSeries, effects: &[Effect], start: Option<&BarM
         warm_start(&problem, start, &mut theta0);
     }
     let fit = fit::fit(&problem, &theta0, &FitOptions::default()).map_err(|source| IdentifyError::Fit { bar: bar.clone(), source })?;
-    Ok(to_bar_model(series, &problem, &fit))
+    let mut model = to_bar_model(series, &problem, &fit);
+    canonical_thermal_paths(&mut model);
+    Ok(model)
+}
+
+/// Two lags on `I_min` (`fixed_part` and `second_path`) are the same model with their labels
+/// swapped; by convention the fixed part is the dominant path (larger |gain|), so a fit that
+/// converged the other way round is relabelled.
+fn canonical_thermal_paths(model: &mut BarModel) {
+    let pos = |name: &str| model.params.iter().position(|p| p.name == name);
+    let (Some(a), Some(a2), Some(t), Some(t2)) = (pos("alpha_ppm_per_k"), pos("alpha2_ppm_per_k"), pos("tau_r_s"), pos("tau_2_s")) else { return };
+    if model.params[a2].value.abs() <= model.params[a].value.abs() {
+        return;
+    }
+    for (i, j) in [(a, a2), (t, t2)] {
+        let (vi, vj) = (model.params[i].clone(), model.params[j].clone());
+        model.params[i] = Estimate { name: vi.name, ..vj };
+        model.params[j] = Estimate { name: vj.name, ..vi };
+        model.correlation.swap(i, j);
+        for row in model.correlation.iter_mut() {
+            row.swap(i, j);
+        }
+    }
 }
 
 /// Reuse the time constants a previous fit found for the same effects.
@@ -98,7 +120,8 @@ fn warm_start(problem: &ThermalProblem, start: &BarModel, theta0: &mut [f64]) {
 
 fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarModel {
     let effects = problem.effects();
-    let n_gains = problem.n_gains();
+    let gain_names = problem.gain_names();
+    let n_gains = gain_names.len();
     let n_lin = fit.n_linear;
     let theta: Vec<f64> = fit.values[n_lin..].to_vec();
     // Parameters reported: gains (0..n_gains) and taus (n_lin..), zeros kept apart.
@@ -111,10 +134,10 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         .map(|&i| {
             if i < n_gains {
                 let (v, u) = (fit.values[i], fit.se_hac(i));
-                Estimate { name: effects[i].gain_name(), value: v, u, u_naive: fit.se_naive(i), ci95: [v - t95 * u, v + t95 * u] }
+                Estimate { name: gain_names[i].clone(), value: v, u, u_naive: fit.se_naive(i), ci95: [v - t95 * u, v + t95 * u] }
             } else {
                 let (ln_tau, u_ln) = (fit.values[i], fit.se_hac(i));
-                let tau = ln_tau.exp();
+                let tau = ln_tau.clamp(0.0, 1e9f64.ln()).exp();
                 Estimate {
                     name: tau_names[i - n_lin].clone(),
                     value: tau,

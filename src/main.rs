@@ -85,6 +85,9 @@ struct StageArgs {
     /// Add an effect to the model (repeatable).
     #[arg(long = "add-effect", value_name = "NAME")]
     add_effect: Vec<String>,
+    /// Fit on means of bins of this many seconds (0: every sample), e.g. 30 for 1 Hz logs.
+    #[arg(long = "bin-s", value_name = "SECONDS", default_value_t = 0.0)]
+    bin_s: f64,
 }
 
 fn main() -> ExitCode {
@@ -142,7 +145,11 @@ fn stage(stage: Stage, a: StageArgs) -> anyhow::Result<RunStatus> {
     }
     effects.extend(a.add_effect);
     let campaign = a.io.campaign.unwrap_or_else(|| PathBuf::from("data/sample"));
-    let plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
+    if !(a.bin_s >= 0.0) {
+        anyhow::bail!(dbbcal::pipeline::PlanError::Pipeline { path: "--bin-s".into(), message: "must be zero or positive".into() });
+    }
+    let mut plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
+    plan.bin_s = a.bin_s;
     runner::run(&plan)
 }
 

@@ -136,6 +136,9 @@ pub struct ModelSection {
     /// Generic terms spelled out (`[[model.term]]`): the same as `"lag:H1@1800"` in `effects`.
     #[serde(default)]
     pub term: Vec<GenericTerm>,
+    /// Fit on means of bins of this many seconds (0: every sample). See `BarSeries::binned`.
+    #[serde(default)]
+    pub bin_s: f64,
 }
 
 /// A generic term defined in the pipeline TOML: `transform` of `channel`, starting at `tau_s`.
@@ -156,7 +159,7 @@ impl GenericTerm {
 
 impl Default for ModelSection {
     fn default() -> Self {
-        Self { effects: default_effects(), term: Vec::new() }
+        Self { effects: default_effects(), term: Vec::new(), bin_s: 0.0 }
     }
 }
 
@@ -213,6 +216,8 @@ pub struct RunPlan {
     /// `None`: `reports/<campaign id>`, decided after the manifest is read.
     pub out_dir: Option<PathBuf>,
     pub effects: Vec<Effect>,
+    /// Bin length of the fits, s (0: every sample).
+    pub bin_s: f64,
     pub matching: MatchSection,
     pub diagnose: DiagnoseSection,
     pub acceptance: AcceptanceSection,
@@ -242,6 +247,10 @@ impl RunPlan {
         let sha = sha256_hex(text.as_bytes());
         let mut plan = RunPlan::new(file.pipeline.name.clone(), Some((path.to_path_buf(), sha)), stages, campaign_dir, out, &names, file.matching)?;
         plan.diagnose = file.diagnose;
+        if !(file.model.bin_s >= 0.0) {
+            return Err(perr("model.bin_s must be zero or positive".into()));
+        }
+        plan.bin_s = file.model.bin_s;
         if !(file.acceptance.tolerance_um > 0.0 && file.acceptance.u_temperature_k >= 0.0 && file.acceptance.max_gap_s > 0.0) {
             return Err(perr("acceptance: tolerance_um and max_gap_s must be > 0, u_temperature_k >= 0".into()));
         }
@@ -266,7 +275,7 @@ impl RunPlan {
         if !campaign_dir.join("campaign.toml").is_file() {
             return Err(PlanError::NoCampaign(campaign_dir.display().to_string()));
         }
-        Ok(RunPlan { pipeline_name: name, pipeline_source: source, stages, campaign_dir, out_dir, effects, matching, diagnose: DiagnoseSection::default(), acceptance: AcceptanceSection::default() })
+        Ok(RunPlan { pipeline_name: name, pipeline_source: source, stages, campaign_dir, out_dir, effects, bin_s: 0.0, matching, diagnose: DiagnoseSection::default(), acceptance: AcceptanceSection::default() })
     }
 
     pub fn runs(&self, stage: Stage) -> bool {
@@ -371,7 +380,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .collect::<Vec<_>>()
         .into_par_iter()
         .map(|(id, log)| {
-            let r = BarSeries::build(&campaign, &events, &id, log, t0).map_err(|e| e.to_string()).and_then(|series| {
+            let r = BarSeries::build(&campaign, &events, &id, log, t0).map(|s| s.binned(plan.bin_s)).map_err(|e| e.to_string()).and_then(|series| {
                 let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
                 Ok(BarOutcome { series, model })
             });
@@ -580,6 +589,8 @@ pub struct PipelineRecord {
 #[derive(Debug, Serialize)]
 pub struct ModelRecord {
     pub effects: Vec<String>,
+    /// Bin length of the fits, s (0: every sample); RMS values are then those of bin means.
+    pub bin_s: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -663,7 +674,7 @@ pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
             stages: plan.stages.clone(),
         },
         inputs: r.inputs.clone(),
-        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect() },
+        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect(), bin_s: plan.bin_s },
         bars,
         failed_bars: r.failed.iter().map(|(bar, error)| FailedBar { bar: bar.clone(), error: error.clone() }).collect(),
         reference,
@@ -748,7 +759,7 @@ pub struct ChannelRecord<'a> {
 pub fn diagnosis_record<'a>(plan: &RunPlan, r: &'a RunResults, d: &'a Diagnosis) -> DiagnosisRecord<'a> {
     DiagnosisRecord {
         campaign: &r.campaign.id,
-        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect() },
+        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect(), bin_s: plan.bin_s },
         inputs: &r.inputs,
         bars: d
             .bars

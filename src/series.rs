@@ -232,6 +232,35 @@ impl BarSeries {
         }
     }
 
+    /// The series averaged over consecutive bins of at most `bin_s` seconds that never cross a
+    /// mount or zero-segment boundary (nor a gap longer than `bin_s`). Thermal time constants
+    /// are 15 min to 2 h (`physics.md`), so 10-60 s bins keep the dynamics while a 1 Hz log
+    /// shrinks 10-60x; the lag's first-order hold between bin means is exact to O((bin/tau)^2).
+    /// Residual statistics of a binned fit are those of bin means. `bin_s <= 0`: unchanged.
+    pub fn binned(self, bin_s: f64) -> BarSeries {
+        if !(bin_s > 0.0) || self.t_s.len() < 2 {
+            return self;
+        }
+        let groups = bin_groups(&self.t_s, &self.mount_of, &self.zero_segment, bin_s);
+        if groups.len() == self.t_s.len() {
+            return self;
+        }
+        let mean = |v: &[f64]| -> Vec<f64> { groups.iter().map(|&(a, b)| v[a..b].iter().sum::<f64>() / (b - a) as f64).collect() };
+        let pick = |v: &[Option<u32>]| -> Vec<Option<u32>> { groups.iter().map(|&(a, _)| v[a]).collect() };
+        let mount_of = pick(&self.mount_of);
+        let fit_index = (0..groups.len()).filter(|&i| mount_of[i].is_some_and(|m| self.mounts[m as usize].is_fitted())).collect();
+        BarSeries {
+            t_s: mean(&self.t_s),
+            y_um: mean(&self.y_um),
+            zero_segment: pick(&self.zero_segment),
+            air_c: mean(&self.air_c),
+            celsius: self.celsius.iter().map(|(k, v)| (k.clone(), mean(v))).collect(),
+            mount_of,
+            fit_index,
+            ..self
+        }
+    }
+
     /// `I_p` of each sample (0 outside mounts).
     pub fn i_p_mm(&self) -> Vec<f64> {
         self.mount_of.iter().map(|m| m.map_or(0.0, |m| self.mounts[m as usize].i_p_mm)).collect()
@@ -365,4 +394,21 @@ fn centre_segments(y_um: &mut [f64], segment: &[Option<u32>], n_segments: usize)
         *y -= last;
     }
     medians
+}
+
+/// Sample ranges `[a, b)` of the bins of [`BarSeries::binned`].
+fn bin_groups(t_s: &[f64], mount_of: &[Option<u32>], segment: &[Option<u32>], bin_s: f64) -> Vec<(usize, usize)> {
+    let mut groups = Vec::with_capacity(t_s.len() / 4 + 1);
+    let mut start = 0;
+    for i in 1..=t_s.len() {
+        let closes = i == t_s.len()
+            || mount_of[i] != mount_of[start]
+            || segment[i] != segment[start]
+            || t_s[i] - t_s[start] >= bin_s;
+        if closes {
+            groups.push((start, i));
+            start = i;
+        }
+    }
+    groups
 }

@@ -26,7 +26,7 @@ use residual::{residual_stats, ResidualStats};
 /// Significance level of one candidate before the Bonferroni correction over candidates.
 pub const ALPHA: f64 = 0.01;
 /// How many of the best-explaining channels get a generic `lag:` candidate.
-pub const CHANNEL_CANDIDATES: usize = 3;
+pub const CHANNEL_CANDIDATES: usize = 5;
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ChannelScore {
@@ -141,6 +141,7 @@ pub fn evaluate_candidates(bars: &[(&BarSeries, &BarModel)], candidates: &[Effec
         .collect();
     let (mut ranked, unfit): (Vec<Candidate>, Vec<Candidate>) = out.into_iter().partition(|c| c.per_bar.iter().any(|b| b.error.is_none()));
     ranked.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic).then_with(|| a.effect.cmp(&b.effect)));
+    prefer_named_effects(&mut ranked);
     let unavailable = unfit
         .into_iter()
         .map(|c| Unavailable { reason: c.per_bar.iter().find_map(|b| b.error.clone()).unwrap_or_default(), effect: c.effect })
@@ -164,6 +165,9 @@ fn candidate_on_bar(series: &BarSeries, base: &BarModel, effect: &Effect, thresh
         Ok(m) => m,
         Err(e) => return unfit(e.to_string()),
     };
+    if let Some((a, b, r)) = unidentifiable_pair(base, &extended) {
+        return unfit(format!("not identifiable on this bar: {a} and {b} correlate at {r:.4}"));
+    }
     let added = extended.n_params.saturating_sub(base.n_params).max(1);
     let p_value = lr_p_value(base, &extended, added);
     let delta_bic = extended.bic - base.bic;
@@ -176,6 +180,39 @@ fn candidate_on_bar(series: &BarSeries, base: &BarModel, effect: &Effect, thresh
         significant: p_value < threshold && delta_bic < 0.0,
         error: None,
     }
+}
+
+/// When a generic channel term and a catalogue effect fit equally well (ΔBIC within 2, "not
+/// worth more than a bare mention" on Kass & Raftery's scale), the named physical effect goes
+/// first: `lag:event:head_power` and `head_heating` are the same model, and the user should be
+/// told the physics.
+fn prefer_named_effects(ranked: &mut [Candidate]) {
+    let generic = |c: &Candidate| c.effect.contains(':');
+    for i in 1..ranked.len() {
+        let mut j = i;
+        while j > 0 && generic(&ranked[j - 1]) && !generic(&ranked[j]) && (ranked[j].delta_bic - ranked[j - 1].delta_bic).abs() < 2.0 {
+            ranked.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+}
+
+/// Correlation beyond which two estimates are taken as one combination the data cannot split
+/// (e.g. two equal time constants with huge, cancelling gains: a derivative in disguise).
+pub const MAX_PARAM_CORRELATION: f64 = 0.995;
+
+/// The first pair of parameters of `model`, one of them new relative to `base`, whose
+/// estimates correlate beyond [`MAX_PARAM_CORRELATION`].
+fn unidentifiable_pair(base: &BarModel, model: &BarModel) -> Option<(String, String, f64)> {
+    let is_new = |k: usize| base.param(&model.params[k].name).is_none();
+    for (i, row) in model.correlation.iter().enumerate() {
+        for (j, r) in row.iter().enumerate().skip(i + 1) {
+            if (is_new(i) || is_new(j)) && r.abs() > MAX_PARAM_CORRELATION {
+                return Some((model.params[i].name.clone(), model.params[j].name.clone(), *r));
+            }
+        }
+    }
+    None
 }
 
 /// Likelihood-ratio test of nested Gaussian fits, `LR = n ln(RSS0/RSS1)`, deflated by the

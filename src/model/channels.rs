@@ -16,6 +16,9 @@ pub enum Channel {
     Sampled(Vec<f64>),
     /// Times (s, sorted) of unit impulses.
     Impulses(Vec<f64>),
+    /// A piecewise-constant input switching to `values[j]` at `switch_s[j]` (from events that
+    /// carry values), held between switches even where no sample was logged.
+    Held { switch_s: Vec<f64>, values: Vec<f64>, at_samples: Vec<f64> },
 }
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -36,6 +39,7 @@ impl Channel {
         match self {
             Channel::Sampled(u) => lag::lag(t_s, u, tau_s, with_derivative),
             Channel::Impulses(e) => lag::impulse_lag(t_s, e, tau_s, with_derivative),
+            Channel::Held { switch_s, values, .. } => lag::held_lag(t_s, switch_s, values, tau_s, with_derivative),
         }
     }
 
@@ -44,6 +48,7 @@ impl Channel {
         match self {
             Channel::Sampled(u) => u.clone(),
             Channel::Impulses(_) => vec![0.0; n],
+            Channel::Held { at_samples, .. } => at_samples.clone(),
         }
     }
 }
@@ -90,19 +95,29 @@ pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelE
     if events.iter().all(|(_, v)| v.is_none()) {
         return Ok(Channel::Impulses(events.iter().map(|(t, _)| *t).collect()));
     }
-    let mut held = Vec::with_capacity(series.t_s.len());
-    let mut next = 0;
+    // Valueless events of a kind that otherwise carries values keep the value they find.
+    let mut switch_s = Vec::with_capacity(events.len() + 1);
+    let mut values = Vec::with_capacity(events.len() + 1);
     let mut value = 0.0;
+    for (t, v) in &events {
+        value = v.unwrap_or(value);
+        switch_s.push(*t);
+        values.push(value);
+    }
+    // Before the first event the input is 0 (e.g. the head not yet powered).
+    switch_s.insert(0, series.t_s.first().copied().unwrap_or(0.0).min(switch_s[0]) - 1.0);
+    values.insert(0, 0.0);
+    let mut at_samples = Vec::with_capacity(series.t_s.len());
+    let mut next = 0;
+    let mut current = 0.0;
     for &t in &series.t_s {
-        while next < events.len() && events[next].0 <= t {
-            if let Some(v) = events[next].1 {
-                value = v;
-            }
+        while next < switch_s.len() && switch_s[next] <= t {
+            current = values[next];
             next += 1;
         }
-        held.push(value);
+        at_samples.push(current);
     }
-    Ok(Channel::Sampled(held))
+    Ok(Channel::Held { switch_s, values, at_samples })
 }
 
 /// Mean of the other air sensors minus the bar's own.

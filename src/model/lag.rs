@@ -32,11 +32,13 @@ pub fn lag(t_s: &[f64], u: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f6
             let r = dt / tau_s;
             let one_minus_a = -(-r).exp_m1();
             let a = 1.0 - one_minus_a;
-            let m_tau = (u[k] - u[k - 1]) / r; // m * tau
-            let x_next = a * xs + u[k] - a * u[k - 1] - m_tau * one_minus_a;
+            let du = u[k] - u[k - 1];
+            // m tau (1 - a) = du (1 - a) / r, written so that tau -> infinity (r -> 0) stays finite.
+            let hold = if r > 1e-300 { one_minus_a / r } else { 1.0 };
+            let x_next = a * xs + u[k] - a * u[k - 1] - du * hold;
             if d.is_some() {
                 let b = a * r;
-                ds = a * ds + b * (xs - u[k - 1]) + m_tau * (b - one_minus_a);
+                ds = a * ds + b * (xs - u[k - 1]) + du * (a - hold);
             }
             xs = x_next;
         }
@@ -75,6 +77,43 @@ pub fn impulse_lag(t_s: &[f64], events_s: &[f64], tau_s: f64, with_derivative: b
             d.push(ds);
         }
         t_prev = t;
+    }
+    (x, d)
+}
+
+/// Response of a unit first-order system to a piecewise-constant input that switches to
+/// `values[j]` at `switch_s[j]` (sorted; the input before the first switch is `values[0]`),
+/// sampled at `t_s`, and optionally `dx/d ln tau`. Exact at any sampling: the switches are
+/// integrated at their own times, so an input that changes while no sample is logged (a read
+/// head switched off between readings) is still seen. Starts in equilibrium.
+pub fn held_lag(t_s: &[f64], switch_s: &[f64], values: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+    let n = t_s.len();
+    let mut x = Vec::with_capacity(n);
+    let mut d = with_derivative.then(|| Vec::with_capacity(n));
+    let Some(&u0) = values.first() else {
+        return (vec![0.0; n], d.map(|_| vec![0.0; n]));
+    };
+    let (mut xs, mut ds, mut u) = (u0, 0.0, u0);
+    let mut t_prev = t_s.first().copied().unwrap_or(0.0).min(switch_s.first().copied().unwrap_or(f64::INFINITY));
+    let mut next = 0;
+    let advance = |to: f64, xs: &mut f64, ds: &mut f64, u: f64, t_prev: &mut f64| {
+        let dt = (to - *t_prev).max(0.0);
+        let a = (-dt / tau_s).exp();
+        *ds = a * *ds + a * dt / tau_s * (*xs - u);
+        *xs = u + (*xs - u) * a;
+        *t_prev = to;
+    };
+    for &t in t_s {
+        while next < switch_s.len() && switch_s[next] <= t {
+            advance(switch_s[next], &mut xs, &mut ds, u, &mut t_prev);
+            u = values[next];
+            next += 1;
+        }
+        advance(t, &mut xs, &mut ds, u, &mut t_prev);
+        x.push(xs);
+        if let Some(d) = d.as_mut() {
+            d.push(ds);
+        }
     }
     (x, d)
 }
@@ -125,6 +164,22 @@ mod tests {
         for k in 0..t.len() {
             let fd = (xp[k] - xm[k]) / (2.0 * h);
             assert!((d.as_ref().unwrap()[k] - fd).abs() < 1e-6, "k={k}");
+        }
+    }
+
+    #[test]
+    fn held_input_switching_between_samples_is_seen() {
+        // Samples only while the input is 1; it is 0 between t = 100 and 1000 with no sample.
+        let t = [0.0, 50.0, 100.0, 1000.0, 1100.0];
+        let (x, d) = held_lag(&t, &[0.0, 100.0, 1000.0], &[1.0, 0.0, 1.0], 300.0, true);
+        let off = (-900.0f64 / 300.0).exp(); // state left after 900 s off
+        assert!((x[3] - off).abs() < 1e-12, "{x:?}");
+        assert!((x[4] - (1.0 - (1.0 - off) * (-100.0f64 / 300.0).exp())).abs() < 1e-12);
+        let h = 1e-6;
+        let (xp, _) = held_lag(&t, &[0.0, 100.0, 1000.0], &[1.0, 0.0, 1.0], (300f64.ln() + h).exp(), false);
+        let (xm, _) = held_lag(&t, &[0.0, 100.0, 1000.0], &[1.0, 0.0, 1.0], (300f64.ln() - h).exp(), false);
+        for k in 0..t.len() {
+            assert!((d.as_ref().unwrap()[k] - (xp[k] - xm[k]) / (2.0 * h)).abs() < 1e-6, "k={k}");
         }
     }
 

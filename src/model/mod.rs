@@ -280,19 +280,66 @@ impl<'a> ThermalProblem<'a> {
         &self.zero_columns
     }
 
+    /// The gain columns: `(term, zero column)`. Most terms have one gain; `settling` has one per
+    /// zero segment (`settling_K_um`: its amplitude differs from mount to mount), masked to
+    /// that segment.
+    fn gain_columns(&self) -> Vec<(usize, Option<usize>)> {
+        let mut out = Vec::new();
+        for (j, t) in self.terms.iter().enumerate() {
+            if t.kind == TermKind::Settling {
+                out.extend((0..self.n_zero_columns).map(|k| (j, Some(k))));
+            } else {
+                out.push((j, None));
+            }
+        }
+        out
+    }
+
     /// Number of linear columns before the zeros.
     pub fn n_gains(&self) -> usize {
-        self.terms.len()
+        self.gain_columns().len()
     }
 
-    /// The model's columns for every sample of the bar (not only the fitted ones), for plotting
-    /// and for evaluating the model outside its fit mounts.
+    /// Names of the gain columns, in order.
+    pub fn gain_names(&self) -> Vec<String> {
+        self.gain_columns()
+            .into_iter()
+            .map(|(j, k)| match k {
+                Some(k) => format!("settling_{k}_um"),
+                None => self.terms[j].effect.gain_name(),
+            })
+            .collect()
+    }
+
+    /// Zero the samples of `col` outside zero column `k`.
+    fn mask_to(&self, col: &mut [f64], k: usize) {
+        for (v, seg) in col.iter_mut().zip(&self.series.zero_segment) {
+            if seg.and_then(|s| self.zero_columns[s as usize]) != Some(k) {
+                *v = 0.0;
+            }
+        }
+    }
+
+    /// The model's gain columns for every sample of the bar (not only the fitted ones), for
+    /// plotting and for evaluating the model outside its fit mounts.
     pub fn full_columns(&self, theta: &[f64]) -> Vec<Vec<f64>> {
-        (0..self.terms.len()).map(|j| self.term_column(j, theta, false).0).collect()
+        let per_term: Vec<Vec<f64>> = (0..self.terms.len()).map(|j| self.term_column(j, theta, false).0).collect();
+        self.gain_columns()
+            .into_iter()
+            .map(|(j, k)| {
+                let mut col = per_term[j].clone();
+                if let Some(k) = k {
+                    self.mask_to(&mut col, k);
+                }
+                col
+            })
+            .collect()
     }
 
+    /// Time constant of term `j`, kept within 1 s .. 1e9 s so that a solver wandering off to an
+    /// unidentifiable extreme never produces infinities.
     fn tau_of(&self, j: usize, theta: &[f64]) -> Option<f64> {
-        self.tau_terms.iter().position(|&i| i == j).map(|k| theta[k].exp())
+        self.tau_terms.iter().position(|&i| i == j).map(|k| theta[k].clamp(0.0, 1e9f64.ln()).exp())
     }
 
     /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`.
@@ -389,21 +436,21 @@ impl Separable for ThermalProblem<'_> {
     }
 
     fn linear_names(&self) -> Vec<String> {
-        let mut names: Vec<String> = self.terms.iter().map(|t| t.effect.gain_name()).collect();
+        let mut names = self.gain_names();
         names.extend(self.zero_columns.iter().enumerate().filter(|(_, c)| c.is_some()).map(|(k, _)| format!("zero_{k}_um")));
         names
     }
 
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
         let n = self.y.len();
-        let mut phi = DMatrix::zeros(n, self.terms.len() + self.n_zero_columns);
-        for j in 0..self.terms.len() {
-            let (col, _) = self.term_column(j, theta, false);
-            for (r, v) in self.gather(&col).enumerate() {
-                phi[(r, j)] = v;
+        let columns = self.full_columns(theta);
+        let mut phi = DMatrix::zeros(n, columns.len() + self.n_zero_columns);
+        for (c, col) in columns.iter().enumerate() {
+            for (r, v) in self.gather(col).enumerate() {
+                phi[(r, c)] = v;
             }
         }
-        let base = self.terms.len();
+        let base = columns.len();
         for (r, &i) in self.series.fit_index.iter().enumerate() {
             if let Some(c) = self.series.zero_segment[i].and_then(|s| self.zero_columns[s as usize]) {
                 phi[(r, base + c)] = 1.0;
@@ -414,11 +461,18 @@ impl Separable for ThermalProblem<'_> {
 
     fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
         let n = self.y.len();
-        let mut d = DMatrix::zeros(n, self.terms.len() + self.n_zero_columns);
+        let gains = self.gain_columns();
+        let mut d = DMatrix::zeros(n, gains.len() + self.n_zero_columns);
         let j = self.tau_terms[k];
-        if let (_, Some(col)) = self.term_column(j, theta, true) {
-            for (r, v) in self.gather(&col).enumerate() {
-                d[(r, j)] = v;
+        if let (_, Some(full)) = self.term_column(j, theta, true) {
+            for (c, (_, seg)) in gains.iter().enumerate().filter(|(_, (term, _))| *term == j) {
+                let mut col = full.clone();
+                if let Some(seg) = seg {
+                    self.mask_to(&mut col, *seg);
+                }
+                for (r, v) in self.gather(&col).enumerate() {
+                    d[(r, c)] = v;
+                }
             }
         }
         d
