@@ -26,7 +26,10 @@ pub struct AcceptanceOptions {
 
 impl Default for AcceptanceOptions {
     fn default() -> Self {
-        Self { tolerance_um: 1.0, u_temperature_k: 0.05 }
+        Self {
+            tolerance_um: 1.0,
+            u_temperature_k: 0.05,
+        }
     }
 }
 
@@ -62,9 +65,17 @@ impl ErrorStats {
     pub fn of(e: &[f64]) -> ErrorStats {
         let finite: Vec<f64> = e.iter().copied().filter(|v| v.is_finite()).collect();
         if finite.is_empty() {
-            return ErrorStats { max_abs_um: f64::NAN, pv_um: f64::NAN, rms_um: f64::NAN };
+            return ErrorStats {
+                max_abs_um: f64::NAN,
+                pv_um: f64::NAN,
+                rms_um: f64::NAN,
+            };
         }
-        let (lo, hi) = finite.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(*v), h.max(*v)));
+        let (lo, hi) = finite
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
         ErrorStats {
             max_abs_um: lo.abs().max(hi.abs()),
             pv_um: hi - lo,
@@ -123,10 +134,19 @@ pub fn decide(max_abs_um: f64, u_k2_um: f64, tolerance_um: f64) -> Decision {
 }
 
 /// The uncertainty budget (standard uncertainties, k = 1) of a compensated working series.
-pub fn budget(w: &WorkingSeries, cal: &BarCalibration, resolution_nm: f64, options: &AcceptanceOptions) -> Vec<BudgetTerm> {
+pub fn budget(
+    w: &WorkingSeries,
+    cal: &BarCalibration,
+    resolution_nm: f64,
+    options: &AcceptanceOptions,
+) -> Vec<BudgetTerm> {
     let x_mm = representative_reading_mm(w, cal);
     let u_cal_lengths = u_from_lengths_um(cal, x_mm, w.tilt_deg);
-    let term = |name: &str, u_um: f64, note: String| BudgetTerm { name: name.into(), u_um, note };
+    let term = |name: &str, u_um: f64, note: String| BudgetTerm {
+        name: name.into(),
+        u_um,
+        note,
+    };
     vec![
         term("plate_length", (w.u_length_um.powi(2) + u_cal_lengths.powi(2)).sqrt(), format!("check length {:.3} µm (k=1) and the calibration lengths propagated through D(n, A) ({:.3} µm)", w.u_length_um, u_cal_lengths)),
         term("resolution", resolution_nm * 1e-3 / 12f64.sqrt(), format!("k = {resolution_nm} nm, rectangular")),
@@ -148,7 +168,12 @@ fn representative_reading_mm(w: &WorkingSeries, cal: &BarCalibration) -> f64 {
 }
 
 /// Accept one working series on a known length.
-pub fn accept(w: &WorkingSeries, cal: &BarCalibration, resolution_nm: f64, options: &AcceptanceOptions) -> Option<BarAcceptance> {
+pub fn accept(
+    w: &WorkingSeries,
+    cal: &BarCalibration,
+    resolution_nm: f64,
+    options: &AcceptanceOptions,
+) -> Option<BarAcceptance> {
     let (after, before) = w.errors_um()?;
     let stats = ErrorStats::of(&after);
     let budget = budget(w, cal, resolution_nm, options);
@@ -215,7 +240,14 @@ pub struct AcceptanceRecord<'a> {
 /// Summarise the fleet: counts of decisions, worst errors, RMS over all samples.
 pub fn fleet(bars: &[BarAcceptance]) -> FleetAcceptance {
     let count = |d: Decision| bars.iter().filter(|b| b.decision == d).count();
-    let all = |f: &dyn Fn(&BarAcceptance) -> &Vec<f64>| ErrorStats::of(&bars.iter().flat_map(|b| f(b).iter().copied()).collect::<Vec<_>>());
+    let all = |f: &dyn Fn(&BarAcceptance) -> &Vec<f64>| {
+        ErrorStats::of(
+            &bars
+                .iter()
+                .flat_map(|b| f(b).iter().copied())
+                .collect::<Vec<_>>(),
+        )
+    };
     let after = all(&|b| &b.error_um);
     let before = all(&|b| &b.error_before_um);
     let mut modes: Vec<String> = bars.iter().map(|b| b.mode.clone()).collect();
@@ -246,7 +278,10 @@ mod tests {
         assert_eq!(decide(1.2, 0.4, 1.0), Decision::NoDecision);
         assert_eq!(decide(1.5, 0.4, 1.0), Decision::Fail);
         assert_eq!(decide(f64::NAN, 0.4, 1.0), Decision::NoDecision);
-        assert_eq!(serde_json::to_string(&Decision::NoDecision).unwrap(), "\"no decision\"");
+        assert_eq!(
+            serde_json::to_string(&Decision::NoDecision).unwrap(),
+            "\"no decision\""
+        );
     }
 
     #[test]

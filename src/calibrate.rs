@@ -81,12 +81,30 @@ pub enum Form {
 pub const FORMS: [Form; 9] = [
     Form::Linear,
     Form::Quadratic,
-    Form::Sag { tilt: SagTilt::Cos, length_degree: 0 },
-    Form::Sag { tilt: SagTilt::Cos2, length_degree: 0 },
-    Form::Sag { tilt: SagTilt::Cos, length_degree: 1 },
-    Form::Sag { tilt: SagTilt::Cos2, length_degree: 1 },
-    Form::Sag { tilt: SagTilt::Cos, length_degree: 2 },
-    Form::Sag { tilt: SagTilt::Cos2, length_degree: 2 },
+    Form::Sag {
+        tilt: SagTilt::Cos,
+        length_degree: 0,
+    },
+    Form::Sag {
+        tilt: SagTilt::Cos2,
+        length_degree: 0,
+    },
+    Form::Sag {
+        tilt: SagTilt::Cos,
+        length_degree: 1,
+    },
+    Form::Sag {
+        tilt: SagTilt::Cos2,
+        length_degree: 1,
+    },
+    Form::Sag {
+        tilt: SagTilt::Cos,
+        length_degree: 2,
+    },
+    Form::Sag {
+        tilt: SagTilt::Cos2,
+        length_degree: 2,
+    },
     Form::Table,
 ];
 
@@ -96,9 +114,15 @@ impl Form {
         match self {
             Form::Linear => "linear".into(),
             Form::Quadratic => "quadratic".into(),
-            Form::Sag { tilt, length_degree } => {
+            Form::Sag {
+                tilt,
+                length_degree,
+            } => {
                 let t = if tilt == SagTilt::Cos { "cos" } else { "cos2" };
-                let l = ["", "*length", "*length^2"].get(length_degree as usize).copied().unwrap_or("*length^n");
+                let l = ["", "*length", "*length^2"]
+                    .get(length_degree as usize)
+                    .copied()
+                    .unwrap_or("*length^n");
                 format!("quadratic+sag_{t}{l}")
             }
             Form::Table => "table".into(),
@@ -165,7 +189,10 @@ impl DistanceFunction {
         }
         let u = (reading_mm - self.reading_centre_mm) / self.reading_half_range_mm;
         let row = basis_row(self.form, u, tilt_deg);
-        row.iter().zip(&self.coefficients).map(|(x, (_, c))| x * c).sum()
+        row.iter()
+            .zip(&self.coefficients)
+            .map(|(x, (_, c))| x * c)
+            .sum()
     }
 }
 
@@ -227,10 +254,16 @@ pub enum CalibrateError {
 /// latest `tilt` event at or before the sample, else the plate's.
 pub fn tilt_at_deg(series: &BarSeries, campaign: &Campaign, i: usize) -> f64 {
     let explicit = series.mount_of[i]
-        .and_then(|m| campaign.mounts.get(series.mounts[m as usize].campaign_index))
+        .and_then(|m| {
+            campaign
+                .mounts
+                .get(series.mounts[m as usize].campaign_index)
+        })
         .filter(|m| m.tilt_explicit)
         .map(|m| m.tilt_deg);
-    explicit.or_else(|| latest_tilt_event(series, series.t_s[i])).unwrap_or(campaign.plate.tilt_deg)
+    explicit
+        .or_else(|| latest_tilt_event(series, series.t_s[i]))
+        .unwrap_or(campaign.plate.tilt_deg)
 }
 
 fn latest_tilt_event(series: &BarSeries, t_s: f64) -> Option<f64> {
@@ -245,8 +278,17 @@ fn latest_tilt_event(series: &BarSeries, t_s: f64) -> Option<f64> {
 
 /// Counter epoch of each sample: the number of `rezero` events at or before it.
 pub fn counter_epochs(series: &BarSeries) -> Vec<usize> {
-    let rezeros: Vec<f64> = series.events.iter().filter(|(_, e)| e.kind == "rezero").map(|(t, _)| *t).collect();
-    series.t_s.iter().map(|t| rezeros.partition_point(|r| r <= t)).collect()
+    let rezeros: Vec<f64> = series
+        .events
+        .iter()
+        .filter(|(_, e)| e.kind == "rezero")
+        .map(|(t, _)| *t)
+        .collect();
+    series
+        .t_s
+        .iter()
+        .map(|t| rezeros.partition_point(|r| r <= t))
+        .collect()
 }
 
 /// The indicated reading `k n` in µm at sample `i` (plate expansion removed).
@@ -259,33 +301,59 @@ pub fn reading_um(series: &BarSeries, i: usize) -> f64 {
 /// Calibration points of one bar: one per (plate mount, counter epoch, tilt), check mounts left
 /// out (they verify, never fit). The reading at the reference temperature is the mean over the
 /// mount of the reading minus the model's thermal error.
-pub fn calibration_points(series: &BarSeries, model: &BarModel, campaign: &Campaign) -> Vec<CalibrationPoint> {
+pub fn calibration_points(
+    series: &BarSeries,
+    model: &BarModel,
+    campaign: &Campaign,
+) -> Vec<CalibrationPoint> {
     let epochs = counter_epochs(series);
     let mut groups: std::collections::BTreeMap<(usize, usize, i64), Vec<f64>> = Default::default();
     for i in 0..series.t_s.len() {
-        let Some(m) = series.mount_of[i] else { continue };
+        let Some(m) = series.mount_of[i] else {
+            continue;
+        };
         let span = &series.mounts[m as usize];
         if span.length_mm.is_none() || span.purpose == Purpose::Check {
             continue;
         }
-        let Some(thermal) = model.thermal_um.get(i).copied().filter(|v| v.is_finite()) else { continue };
+        let Some(thermal) = model.thermal_um.get(i).copied().filter(|v| v.is_finite()) else {
+            continue;
+        };
         let tilt_key = (tilt_at_deg(series, campaign, i) * 1000.0).round() as i64;
         let key = (m as usize, epochs[i], tilt_key);
         let value = reading_um(series, i) - thermal;
         groups.entry(key).or_default().push(value);
     }
-    groups.into_iter().filter_map(|((m, epoch, tilt), values)| point(series, campaign, m, epoch, tilt as f64 / 1000.0, &values)).collect()
+    groups
+        .into_iter()
+        .filter_map(|((m, epoch, tilt), values)| {
+            point(series, campaign, m, epoch, tilt as f64 / 1000.0, &values)
+        })
+        .collect()
 }
 
-fn point(series: &BarSeries, campaign: &Campaign, m: usize, epoch: usize, tilt_deg: f64, values: &[f64]) -> Option<CalibrationPoint> {
+fn point(
+    series: &BarSeries,
+    campaign: &Campaign,
+    m: usize,
+    epoch: usize,
+    tilt_deg: f64,
+    values: &[f64],
+) -> Option<CalibrationPoint> {
     let span = &series.mounts[m];
     let length_id = span.length_id.clone()?;
     let length_mm = span.length_mm?;
     let n = values.len();
     let mean = values.iter().sum::<f64>() / n as f64;
-    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n.saturating_sub(1).max(1)) as f64;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
+        / (n.saturating_sub(1).max(1)) as f64;
     let n_eff = n as f64 / fit::integrated_autocorrelation_time(values).max(1.0);
-    let u_length_um = campaign.plate.lengths.iter().find(|l| l.id == length_id).map_or(0.0, |l| l.u_um);
+    let u_length_um = campaign
+        .plate
+        .lengths
+        .iter()
+        .find(|l| l.id == length_id)
+        .map_or(0.0, |l| l.u_um);
     Some(CalibrationPoint {
         mount: m,
         length_id,
@@ -309,7 +377,11 @@ fn basis_row(form: Form, u: f64, tilt_deg: f64) -> Vec<f64> {
         return row;
     }
     row.push(u * u);
-    if let Form::Sag { tilt, length_degree } = form {
+    if let Form::Sag {
+        tilt,
+        length_degree,
+    } = form
+    {
         let f = tilt.factor(tilt_deg);
         row.extend((0..=length_degree as i32).map(|k| f * u.powi(k)));
     }
@@ -346,41 +418,78 @@ pub fn fit_form(form: Form, points: &[CalibrationPoint]) -> Result<DistanceFunct
     if points.is_empty() {
         return Err("no points".into());
     }
-    let (lo, hi) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.reading_mm), hi.max(p.reading_mm)));
+    let (lo, hi) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.reading_mm), hi.max(p.reading_mm))
+        });
     let centre = 0.5 * (lo + hi);
     let half = (0.5 * (hi - lo)).max(1.0);
     if form == Form::Table {
         return fit_table(points, centre, half);
     }
     let names: Vec<String> = form.columns();
-    let y: Vec<f64> = points.iter().map(|p| (p.length_mm - p.reading_mm) * 1e3).collect();
-    let rows: Vec<Vec<f64>> = points.iter().map(|p| basis_row(form, (p.reading_mm - centre) / half, p.tilt_deg)).collect();
+    let y: Vec<f64> = points
+        .iter()
+        .map(|p| (p.length_mm - p.reading_mm) * 1e3)
+        .collect();
+    let rows: Vec<Vec<f64>> = points
+        .iter()
+        .map(|p| basis_row(form, (p.reading_mm - centre) / half, p.tilt_deg))
+        .collect();
     let phi = DMatrix::from_fn(points.len(), names.len(), |i, j| rows[i][j]);
-    let problem = LinearProblem { y, phi, names: names.clone() };
-    let options = FitOptions { brent_start: false, hac_batch_len: Some(1) };
+    let problem = LinearProblem {
+        y,
+        phi,
+        names: names.clone(),
+    };
+    let options = FitOptions {
+        brent_start: false,
+        hac_batch_len: Some(1),
+    };
     let f = fit::fit(&problem, &[], &options).map_err(|e| e.to_string())?;
-    let coefficients: Vec<(String, f64)> = names.into_iter().zip(f.values.iter().copied()).collect();
+    let coefficients: Vec<(String, f64)> =
+        names.into_iter().zip(f.values.iter().copied()).collect();
     let patent_abc = (form != Form::Linear).then(|| patent_abc(&coefficients, centre, half));
-    Ok(DistanceFunction { form, reading_centre_mm: centre, reading_half_range_mm: half, coefficients, patent_abc, table: Vec::new(), fit_rms_um: f.rms() })
+    Ok(DistanceFunction {
+        form,
+        reading_centre_mm: centre,
+        reading_half_range_mm: half,
+        coefficients,
+        patent_abc,
+        table: Vec::new(),
+        fit_rms_um: f.rms(),
+    })
 }
 
 /// `D = a x^2 + b x + c` (x = k n in mm) from the normalised correction `c0 + c1 u + c2 u^2` µm.
 fn patent_abc(coefficients: &[(String, f64)], centre: f64, half: f64) -> [f64; 3] {
-    let (c0, c1, c2) = (coefficients[0].1 * 1e-3, coefficients[1].1 * 1e-3, coefficients[2].1 * 1e-3);
+    let (c0, c1, c2) = (
+        coefficients[0].1 * 1e-3,
+        coefficients[1].1 * 1e-3,
+        coefficients[2].1 * 1e-3,
+    );
     let a = c2 / (half * half);
     let b = 1.0 + c1 / half - 2.0 * c2 * centre / (half * half);
     let c = c0 - c1 * centre / half + c2 * centre * centre / (half * half);
     [a, b, c]
 }
 
-fn fit_table(points: &[CalibrationPoint], centre: f64, half: f64) -> Result<DistanceFunction, String> {
+fn fit_table(
+    points: &[CalibrationPoint],
+    centre: f64,
+    half: f64,
+) -> Result<DistanceFunction, String> {
     if points.len() < 2 {
         return Err("a table needs at least 2 points".into());
     }
     let mut table: Vec<(f64, Vec<(f64, f64)>)> = Vec::new();
     for p in points {
         let row = (p.reading_mm, (p.length_mm - p.reading_mm) * 1e3);
-        match table.iter_mut().find(|(t, _)| (t - p.tilt_deg).abs() < 1e-3) {
+        match table
+            .iter_mut()
+            .find(|(t, _)| (t - p.tilt_deg).abs() < 1e-3)
+        {
             Some((_, rows)) => rows.push(row),
             None => table.push((p.tilt_deg, vec![row])),
         }
@@ -389,8 +498,19 @@ fn fit_table(points: &[CalibrationPoint], centre: f64, half: f64) -> Result<Dist
     for (_, rows) in &mut table {
         *rows = merge_close(rows);
     }
-    let mut f = DistanceFunction { form: Form::Table, reading_centre_mm: centre, reading_half_range_mm: half, coefficients: Vec::new(), patent_abc: None, table, fit_rms_um: 0.0 };
-    let rss: f64 = points.iter().map(|p| ((f.distance_mm(p.reading_mm, p.tilt_deg) - p.length_mm) * 1e3).powi(2)).sum();
+    let mut f = DistanceFunction {
+        form: Form::Table,
+        reading_centre_mm: centre,
+        reading_half_range_mm: half,
+        coefficients: Vec::new(),
+        patent_abc: None,
+        table,
+        fit_rms_um: 0.0,
+    };
+    let rss: f64 = points
+        .iter()
+        .map(|p| ((f.distance_mm(p.reading_mm, p.tilt_deg) - p.length_mm) * 1e3).powi(2))
+        .sum();
     f.fit_rms_um = (rss / points.len() as f64).sqrt();
     Ok(f)
 }
@@ -410,7 +530,9 @@ fn merge_close(rows: &[(f64, f64)]) -> Vec<(f64, f64)> {
             _ => out.push((x, y, 1)),
         }
     }
-    out.into_iter().map(|(x, y, n)| (x / n as f64, y / n as f64)).collect()
+    out.into_iter()
+        .map(|(x, y, n)| (x / n as f64, y / n as f64))
+        .collect()
 }
 
 /// Piecewise-linear interpolation (linear extrapolation from the end segments).
@@ -431,7 +553,10 @@ fn interpolate_rows(rows: &[(f64, f64)], x: f64) -> f64 {
 }
 
 fn table_correction_um(table: &[(f64, Vec<(f64, f64)>)], reading_mm: f64, tilt_deg: f64) -> f64 {
-    let per_tilt: Vec<(f64, f64)> = table.iter().map(|(t, rows)| (*t, interpolate_rows(rows, reading_mm))).collect();
+    let per_tilt: Vec<(f64, f64)> = table
+        .iter()
+        .map(|(t, rows)| (*t, interpolate_rows(rows, reading_mm)))
+        .collect();
     interpolate_rows(&per_tilt, tilt_deg)
 }
 
@@ -439,7 +564,12 @@ fn table_correction_um(table: &[(f64, Vec<(f64, f64)>)], reading_mm: f64, tilt_d
 pub fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64>, String> {
     (0..points.len())
         .map(|k| {
-            let rest: Vec<CalibrationPoint> = points.iter().enumerate().filter(|(i, _)| *i != k).map(|(_, p)| p.clone()).collect();
+            let rest: Vec<CalibrationPoint> = points
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, p)| p.clone())
+                .collect();
             let f = fit_form(form, &rest).map_err(|e| format!("without point {k}: {e}"))?;
             let p = &points[k];
             Ok((f.distance_mm(p.reading_mm, p.tilt_deg) - p.length_mm) * 1e3)
@@ -448,9 +578,16 @@ pub fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64
 }
 
 fn score(form: Form, points: &[CalibrationPoint]) -> FormScore {
-    let n_params = if form == Form::Table { 0 } else { form.columns().len() };
+    let n_params = if form == Form::Table {
+        0
+    } else {
+        form.columns().len()
+    };
     let full = fit_form(form, points);
-    let cv = full.as_ref().map_err(|e| e.clone()).and_then(|_| cross_validate(form, points));
+    let cv = full
+        .as_ref()
+        .map_err(|e| e.clone())
+        .and_then(|_| cross_validate(form, points));
     let note = match (&full, &cv) {
         (Err(e), _) | (Ok(_), Err(e)) => Some(e.clone()),
         _ => None,
@@ -459,8 +596,12 @@ fn score(form: Form, points: &[CalibrationPoint]) -> FormScore {
     FormScore {
         form,
         n_params,
-        cv_rms_um: cv.as_ref().map(|e| (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt()),
-        cv_max_abs_um: cv.as_ref().map(|e| e.iter().fold(0.0, |m: f64, v| m.max(v.abs()))),
+        cv_rms_um: cv
+            .as_ref()
+            .map(|e| (e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt()),
+        cv_max_abs_um: cv
+            .as_ref()
+            .map(|e| e.iter().fold(0.0, |m: f64, v| m.max(v.abs()))),
         fit_rms_um: full.ok().map(|f| f.fit_rms_um),
         note,
     }
@@ -472,19 +613,35 @@ fn main_epoch(points: &[CalibrationPoint]) -> usize {
     for p in points {
         *counts.entry(p.epoch).or_default() += 1;
     }
-    counts.into_iter().max_by_key(|(e, n)| (*n, *e)).map_or(0, |(e, _)| e)
+    counts
+        .into_iter()
+        .max_by_key(|(e, n)| (*n, *e))
+        .map_or(0, |(e, _)| e)
 }
 
 /// Fit every form to `points`, cross-validate, keep the best.
-pub fn calibrate_points(bar: &str, points: Vec<CalibrationPoint>) -> Result<BarCalibration, CalibrateError> {
+pub fn calibrate_points(
+    bar: &str,
+    points: Vec<CalibrationPoint>,
+) -> Result<BarCalibration, CalibrateError> {
     let epoch = main_epoch(&points);
     let (points, other): (Vec<_>, Vec<_>) = points.into_iter().partition(|p| p.epoch == epoch);
     let excluded = other
         .into_iter()
-        .map(|p| ExcludedPoint { reason: format!("counter epoch {} (re-zeroed): counts not comparable with epoch {epoch}", p.epoch), point: p })
+        .map(|p| ExcludedPoint {
+            reason: format!(
+                "counter epoch {} (re-zeroed): counts not comparable with epoch {epoch}",
+                p.epoch
+            ),
+            point: p,
+        })
         .collect();
     if points.len() < 3 {
-        return Err(CalibrateError::TooFewPoints { bar: bar.to_string(), n: points.len(), epoch });
+        return Err(CalibrateError::TooFewPoints {
+            bar: bar.to_string(),
+            n: points.len(),
+            epoch,
+        });
     }
     let forms: Vec<FormScore> = FORMS.iter().map(|&f| score(f, &points)).collect();
     let best = forms
@@ -495,15 +652,37 @@ pub fn calibrate_points(bar: &str, points: Vec<CalibrationPoint>) -> Result<BarC
             _ => Some((f, cv)),
         });
     let Some((form, cv_rms_um)) = best else {
-        let reasons = forms.iter().map(|s| format!("{}: {}", s.form.name(), s.note.clone().unwrap_or_default())).collect::<Vec<_>>().join("; ");
-        return Err(CalibrateError::NoForm { bar: bar.to_string(), reasons });
+        let reasons = forms
+            .iter()
+            .map(|s| format!("{}: {}", s.form.name(), s.note.clone().unwrap_or_default()))
+            .collect::<Vec<_>>()
+            .join("; ");
+        return Err(CalibrateError::NoForm {
+            bar: bar.to_string(),
+            reasons,
+        });
     };
-    let chosen = fit_form(form, &points).map_err(|e| CalibrateError::NoForm { bar: bar.to_string(), reasons: e })?;
-    Ok(BarCalibration { bar: bar.to_string(), epoch, points, excluded, forms, chosen, cv_rms_um })
+    let chosen = fit_form(form, &points).map_err(|e| CalibrateError::NoForm {
+        bar: bar.to_string(),
+        reasons: e,
+    })?;
+    Ok(BarCalibration {
+        bar: bar.to_string(),
+        epoch,
+        points,
+        excluded,
+        forms,
+        chosen,
+        cv_rms_um,
+    })
 }
 
 /// Calibrate one bar from its series and identified model.
-pub fn calibrate_bar(series: &BarSeries, model: &BarModel, campaign: &Campaign) -> Result<BarCalibration, CalibrateError> {
+pub fn calibrate_bar(
+    series: &BarSeries,
+    model: &BarModel,
+    campaign: &Campaign,
+) -> Result<BarCalibration, CalibrateError> {
     calibrate_points(&series.bar.id, calibration_points(series, model, campaign))
 }
 
@@ -516,14 +695,20 @@ pub fn length_weights(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> V
         .map(|k| {
             let mut shifted = cal.points.clone();
             shifted[k].length_mm += 1e-3;
-            fit_form(cal.chosen.form, &shifted).map_or(0.0, |f| (f.distance_mm(reading_mm, tilt_deg) - base) / 1e-3)
+            fit_form(cal.chosen.form, &shifted)
+                .map_or(0.0, |f| (f.distance_mm(reading_mm, tilt_deg) - base) / 1e-3)
         })
         .collect()
 }
 
 /// Standard uncertainty (µm) of the calibrated distance from the plate lengths used in the fit.
 pub fn u_from_lengths_um(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> f64 {
-    length_weights(cal, reading_mm, tilt_deg).iter().zip(&cal.points).map(|(w, p)| (w * p.u_length_um).powi(2)).sum::<f64>().sqrt()
+    length_weights(cal, reading_mm, tilt_deg)
+        .iter()
+        .zip(&cal.points)
+        .map(|(w, p)| (w * p.u_length_um).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 #[cfg(test)]
@@ -532,7 +717,12 @@ mod tests {
 
     /// A bar whose true relation is `D = D_zero + x (1 + g) + q (x - 80)^2 - sag cos A (1 + x/400)`,
     /// at lengths (mm) × tilts (deg), with reading noise `noise_um` (deterministic pattern).
-    fn synthetic_points(lengths: &[f64], tilts: &[f64], sag_um: f64, noise_um: f64) -> Vec<CalibrationPoint> {
+    fn synthetic_points(
+        lengths: &[f64],
+        tilts: &[f64],
+        sag_um: f64,
+        noise_um: f64,
+    ) -> Vec<CalibrationPoint> {
         let d_zero = 230.0;
         let (g, q) = (-40e-6, 2e-8);
         let mut out = Vec::new();
@@ -542,10 +732,12 @@ mod tests {
                 // Invert D(x) by fixed-point iteration.
                 let mut x = l - d_zero;
                 for _ in 0..50 {
-                    let d = d_zero + x * (1.0 + g) + q * (x - 80.0).powi(2) - sag_um * 1e-3 * a.to_radians().cos() * (1.0 + x / 400.0);
+                    let d = d_zero + x * (1.0 + g) + q * (x - 80.0).powi(2)
+                        - sag_um * 1e-3 * a.to_radians().cos() * (1.0 + x / 400.0);
                     x += l - d;
                 }
-                let noise = noise_um * 1e-3 * [0.3, -0.8, 0.5, 1.0, -0.2, -0.6, 0.9, -1.0, 0.1][k % 9];
+                let noise =
+                    noise_um * 1e-3 * [0.3, -0.8, 0.5, 1.0, -0.2, -0.6, 0.9, -1.0, 0.1][k % 9];
                 k += 1;
                 out.push(CalibrationPoint {
                     mount: k,
@@ -580,9 +772,24 @@ mod tests {
     fn cross_validation_picks_a_sag_form_when_tilt_matters() {
         let pts = synthetic_points(&[250.0, 325.0, 400.0], &[0.0, 30.0, 60.0, 90.0], 1.5, 0.01);
         let cal = calibrate_points("S", pts.clone()).expect("calibrate");
-        assert!(cal.chosen.form.has_sag(), "chose {:?}: {:#?}", cal.chosen.form, cal.forms);
-        let quad = cal.forms.iter().find(|s| s.form == Form::Quadratic).and_then(|s| s.cv_rms_um).expect("quadratic scored");
-        assert!(cal.cv_rms_um < quad / 5.0, "cv {} vs quadratic {}", cal.cv_rms_um, quad);
+        assert!(
+            cal.chosen.form.has_sag(),
+            "chose {:?}: {:#?}",
+            cal.chosen.form,
+            cal.forms
+        );
+        let quad = cal
+            .forms
+            .iter()
+            .find(|s| s.form == Form::Quadratic)
+            .and_then(|s| s.cv_rms_um)
+            .expect("quadratic scored");
+        assert!(
+            cal.cv_rms_um < quad / 5.0,
+            "cv {} vs quadratic {}",
+            cal.cv_rms_um,
+            quad
+        );
         // Held-out tilt: fit without 30°, predict it.
         let (held, train): (Vec<_>, Vec<_>) = pts.into_iter().partition(|p| p.tilt_deg == 30.0);
         let f = fit_form(cal.chosen.form, &train).expect("fit");
@@ -596,7 +803,10 @@ mod tests {
     fn without_tilt_variation_sag_forms_are_reported_singular() {
         let pts = synthetic_points(&[250.0, 300.0, 325.0, 350.0, 400.0], &[60.0], 0.0, 0.01);
         let cal = calibrate_points("S", pts).expect("calibrate");
-        assert!(matches!(cal.chosen.form, Form::Quadratic | Form::Linear | Form::Table));
+        assert!(matches!(
+            cal.chosen.form,
+            Form::Quadratic | Form::Linear | Form::Table
+        ));
         let sag = cal.forms.iter().find(|s| s.form.has_sag()).expect("scored");
         assert!(sag.cv_rms_um.is_none() && sag.note.is_some(), "{sag:?}");
     }
@@ -625,7 +835,10 @@ mod tests {
     #[test]
     fn too_few_points_is_a_typed_error() {
         let pts = synthetic_points(&[250.0, 400.0], &[60.0], 0.0, 0.0);
-        assert!(matches!(calibrate_points("S", pts), Err(CalibrateError::TooFewPoints { n: 2, .. })));
+        assert!(matches!(
+            calibrate_points("S", pts),
+            Err(CalibrateError::TooFewPoints { n: 2, .. })
+        ));
     }
 
     #[test]
@@ -633,7 +846,10 @@ mod tests {
         let pts = synthetic_points(&[250.0, 325.0, 400.0], &[60.0], 0.0, 0.0);
         let cal = calibrate_points("S", pts).expect("calibrate");
         let w = length_weights(&cal, cal.points[1].reading_mm, 60.0);
-        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-6, "weights sum to one: {w:?}");
+        assert!(
+            (w.iter().sum::<f64>() - 1.0).abs() < 1e-6,
+            "weights sum to one: {w:?}"
+        );
         let u = u_from_lengths_um(&cal, cal.points[1].reading_mm, 60.0);
         assert!(u > 0.0 && u <= 0.1 + 1e-9, "u = {u}");
     }

@@ -82,7 +82,9 @@ pub struct BarDecl {
     pub sensor: Option<String>,
 }
 
-#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+#[derive(
+    Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash, Default,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Purpose {
     #[default]
@@ -191,10 +193,21 @@ impl Campaign {
 pub enum CampaignError {
     /// The text is not TOML, or does not have the manifest's shape (unknown or missing key).
     #[error("{file}:{line}:{column}: {message}")]
-    Syntax { file: String, line: usize, column: usize, message: String },
+    Syntax {
+        file: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
     /// Two entries of one table share an id.
     #[error("{file}: {table}[{second}]: id \"{id}\" is already used by {table}[{first}]")]
-    DuplicateId { file: String, table: &'static str, id: String, first: usize, second: usize },
+    DuplicateId {
+        file: String,
+        table: &'static str,
+        id: String,
+        first: usize,
+        second: usize,
+    },
     /// A reference to something the manifest does not declare.
     #[error("{file}: {key}: {field} \"{value}\" is not {what} (known: {known})")]
     Unknown {
@@ -207,7 +220,11 @@ pub enum CampaignError {
     },
     /// Any other invalid value.
     #[error("{file}: {key}: {problem}")]
-    Invalid { file: String, key: String, problem: String },
+    Invalid {
+        file: String,
+        key: String,
+        problem: String,
+    },
 }
 
 /// The file name used in messages when the caller does not give one.
@@ -249,12 +266,19 @@ fn one_line(s: &str) -> String {
 /// a date or time alone is an error (the string says why).
 pub fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
     let (Some(d), Some(t)) = (dt.date, dt.time) else {
-        return Err(format!("{dt} is not a date-time (need e.g. 2026-11-01T00:00:00Z)"));
+        return Err(format!(
+            "{dt} is not a date-time (need e.g. 2026-11-01T00:00:00Z)"
+        ));
     };
-    let date = chrono::NaiveDate::from_ymd_opt(i32::from(d.year), u32::from(d.month), u32::from(d.day))
-        .ok_or_else(|| format!("{dt}: no such date"))?;
+    let date =
+        chrono::NaiveDate::from_ymd_opt(i32::from(d.year), u32::from(d.month), u32::from(d.day))
+            .ok_or_else(|| format!("{dt}: no such date"))?;
     // Leap seconds (second = 60) are folded into the next second by chrono's nanosecond field.
-    let (second, extra_ns) = if t.second == 60 { (59, 1_000_000_000) } else { (t.second, 0) };
+    let (second, extra_ns) = if t.second == 60 {
+        (59, 1_000_000_000)
+    } else {
+        (t.second, 0)
+    };
     let time = chrono::NaiveTime::from_hms_nano_opt(
         u32::from(t.hour),
         u32::from(t.minute),
@@ -319,7 +343,14 @@ impl Campaign {
                 tilt_deg: manifest.plate.tilt_deg,
                 lengths: manifest.plate.length,
             },
-            sensors: manifest.sensor.into_iter().map(|s| Sensor { id: s.id, kind: s.kind }).collect(),
+            sensors: manifest
+                .sensor
+                .into_iter()
+                .map(|s| Sensor {
+                    id: s.id,
+                    kind: s.kind,
+                })
+                .collect(),
             bars: manifest
                 .bar
                 .into_iter()
@@ -342,7 +373,11 @@ struct Validator<'a> {
 
 impl Validator<'_> {
     fn invalid(&self, key: impl Into<String>, problem: impl Into<String>) -> CampaignError {
-        CampaignError::Invalid { file: self.file.to_string(), key: key.into(), problem: problem.into() }
+        CampaignError::Invalid {
+            file: self.file.to_string(),
+            key: key.into(),
+            problem: problem.into(),
+        }
     }
 
     fn unknown(
@@ -359,7 +394,11 @@ impl Validator<'_> {
             field,
             value: value.to_string(),
             what,
-            known: if known.is_empty() { "none".to_string() } else { known.join(", ") },
+            known: if known.is_empty() {
+                "none".to_string()
+            } else {
+                known.join(", ")
+            },
         }
     }
 
@@ -407,7 +446,11 @@ impl Validator<'_> {
         if c.id.trim().is_empty() {
             return Err(self.invalid("campaign.id", "is empty"));
         }
-        self.finite("campaign", "reference_temperature_c", c.reference_temperature_c)
+        self.finite(
+            "campaign",
+            "reference_temperature_c",
+            c.reference_temperature_c,
+        )
     }
 
     fn plate(&self, p: &PlateSection) -> Result<(), CampaignError> {
@@ -418,7 +461,10 @@ impl Validator<'_> {
             let key = format!("plate.length[{i}] (\"{}\")", l.id);
             self.positive(&key, "mm", l.mm)?;
             if !(l.u_um.is_finite() && l.u_um >= 0.0) {
-                return Err(self.invalid(key, format!("u_um = {} must be a finite number >= 0", l.u_um)));
+                return Err(self.invalid(
+                    key,
+                    format!("u_um = {} must be a finite number >= 0", l.u_um),
+                ));
             }
         }
         Ok(())
@@ -472,15 +518,26 @@ impl Validator<'_> {
         let key = format!("mount[{i}] (bar \"{}\")", d.bar);
         let bar_ids: Vec<&str> = m.bar.iter().map(|b| b.id.as_str()).collect();
         let Some(bar) = m.bar.iter().find(|b| b.id == d.bar) else {
-            return Err(self.unknown(format!("mount[{i}]"), "bar", &d.bar, "a declared bar", &bar_ids));
+            return Err(self.unknown(
+                format!("mount[{i}]"),
+                "bar",
+                &d.bar,
+                "a declared bar",
+                &bar_ids,
+            ));
         };
         let place = self.place(&key, d, bar, &m.plate)?;
         let tilt_deg = d.tilt_deg.unwrap_or(m.plate.tilt_deg);
         self.finite(&key, "tilt_deg", tilt_deg)?;
-        let from_ns = toml_datetime_to_ns(&d.from).map_err(|e| self.invalid(key.clone(), format!("from: {e}")))?;
-        let to_ns = toml_datetime_to_ns(&d.to).map_err(|e| self.invalid(key.clone(), format!("to: {e}")))?;
+        let from_ns = toml_datetime_to_ns(&d.from)
+            .map_err(|e| self.invalid(key.clone(), format!("from: {e}")))?;
+        let to_ns = toml_datetime_to_ns(&d.to)
+            .map_err(|e| self.invalid(key.clone(), format!("to: {e}")))?;
         if from_ns >= to_ns {
-            return Err(self.invalid(key, format!("from = {} is not before to = {}", d.from, d.to)));
+            return Err(self.invalid(
+                key,
+                format!("from = {} is not before to = {}", d.from, d.to),
+            ));
         }
         Ok(Mount {
             bar: d.bar.clone(),
@@ -494,16 +551,35 @@ impl Validator<'_> {
     }
 
     /// Exactly one of `length` / `device`; a length must exist and exceed the bar's fixed length.
-    fn place(&self, key: &str, d: &MountDecl, bar: &BarDecl, plate: &PlateSection) -> Result<Place, CampaignError> {
+    fn place(
+        &self,
+        key: &str,
+        d: &MountDecl,
+        bar: &BarDecl,
+        plate: &PlateSection,
+    ) -> Result<Place, CampaignError> {
         match (&d.length, &d.device) {
-            (Some(_), Some(_)) => Err(self.invalid(key, "gives both length and device (exactly one is allowed)")),
-            (None, None) => Err(self.invalid(key, "gives neither length nor device (exactly one is needed)")),
-            (None, Some(device)) if device.trim().is_empty() => Err(self.invalid(key, "device is empty")),
+            (Some(_), Some(_)) => {
+                Err(self.invalid(key, "gives both length and device (exactly one is allowed)"))
+            }
+            (None, None) => Err(self.invalid(
+                key,
+                "gives neither length nor device (exactly one is needed)",
+            )),
+            (None, Some(device)) if device.trim().is_empty() => {
+                Err(self.invalid(key, "device is empty"))
+            }
             (None, Some(device)) => Ok(Place::Device(device.clone())),
             (Some(length), None) => {
                 let Some(l) = plate.length.iter().find(|l| &l.id == length) else {
                     let known: Vec<&str> = plate.length.iter().map(|l| l.id.as_str()).collect();
-                    return Err(self.unknown(key.to_string(), "length", length, "a plate length", &known));
+                    return Err(self.unknown(
+                        key.to_string(),
+                        "length",
+                        length,
+                        "a plate length",
+                        &known,
+                    ));
                 };
                 if bar.fixed_length_mm > l.mm {
                     return Err(self.invalid(
@@ -590,11 +666,25 @@ to = 2026-11-04T00:00:00Z
     #[test]
     fn resolves_sorts_and_fills_in() {
         let c = validate(GOOD).expect("valid");
-        let order: Vec<(&str, i64)> = c.mounts.iter().map(|m| (m.bar.as_str(), m.from_ns)).collect();
+        let order: Vec<(&str, i64)> = c
+            .mounts
+            .iter()
+            .map(|m| (m.bar.as_str(), m.from_ns))
+            .collect();
         // Sorted by (bar, from); +01:00 offset and local (= UTC) datetimes converted.
-        assert_eq!(order, vec![("B01", NOV1), ("B01", NOV1 + 3 * DAY_NS), ("B02", NOV1 + DAY_NS)]);
+        assert_eq!(
+            order,
+            vec![
+                ("B01", NOV1),
+                ("B01", NOV1 + 3 * DAY_NS),
+                ("B02", NOV1 + DAY_NS)
+            ]
+        );
         assert_eq!(c.mounts[1].to_ns, NOV1 + 5 * DAY_NS);
-        assert_eq!(c.mounts[0].tilt_deg, 60.0, "plate tilt when the mount has none");
+        assert_eq!(
+            c.mounts[0].tilt_deg, 60.0,
+            "plate tilt when the mount has none"
+        );
         assert_eq!(c.mounts[1].tilt_deg, 10.0);
         assert_eq!(c.mounts[1].place, Place::Device("hexapod-1".into()));
         assert_eq!(c.mounts[1].purpose, Purpose::Check);
@@ -619,7 +709,10 @@ to = 2026-11-04T00:00:00Z
 
     #[test]
     fn syntax_errors_name_file_and_line() {
-        let msg = error(&GOOD.replace("resolution_nm = 5.0\nfixed_length_mm = 230.0\nsensor", "resolution = 5.0\nfixed_length_mm = 230.0\nsensor"));
+        let msg = error(&GOOD.replace(
+            "resolution_nm = 5.0\nfixed_length_mm = 230.0\nsensor",
+            "resolution = 5.0\nfixed_length_mm = 230.0\nsensor",
+        ));
         assert!(msg.starts_with("campaign.toml:"), "{msg}");
         assert!(msg.contains("resolution"), "{msg}");
         let msg = error("[campaign\nid = 1");
@@ -628,11 +721,23 @@ to = 2026-11-04T00:00:00Z
 
     #[test]
     fn duplicate_ids_are_named() {
-        let msg = error(&GOOD.replace("id = \"B02\"", "id = \"B01\"").replace("bar = \"B02\"", "bar = \"B01\""));
-        assert!(msg.contains("campaign.toml: bar[1]: id \"B01\" is already used by bar[0]"), "{msg}");
+        let msg = error(
+            &GOOD
+                .replace("id = \"B02\"", "id = \"B01\"")
+                .replace("bar = \"B02\"", "bar = \"B01\""),
+        );
+        assert!(
+            msg.contains("campaign.toml: bar[1]: id \"B01\" is already used by bar[0]"),
+            "{msg}"
+        );
         let msg = error(&GOOD.replace("id = \"max\"", "id = \"min\""));
-        assert!(msg.contains("plate.length[1]: id \"min\" is already used by plate.length[0]"), "{msg}");
-        let msg = error(&format!("{GOOD}\n[[sensor]]\nid = \"T1\"\nkind = \"bar\"\n"));
+        assert!(
+            msg.contains("plate.length[1]: id \"min\" is already used by plate.length[0]"),
+            "{msg}"
+        );
+        let msg = error(&format!(
+            "{GOOD}\n[[sensor]]\nid = \"T1\"\nkind = \"bar\"\n"
+        ));
         assert!(msg.contains("sensor[1]: id \"T1\""), "{msg}");
     }
 
@@ -641,38 +746,74 @@ to = 2026-11-04T00:00:00Z
         let msg = error(&GOOD.replace("length = \"max\"", "length = \"huge\""));
         assert_eq!(msg, "campaign.toml: mount[0] (bar \"B02\"): length \"huge\" is not a plate length (known: min, max)");
         let msg = error(&GOOD.replace("bar = \"B02\"", "bar = \"B03\""));
-        assert!(msg.contains("mount[0]: bar \"B03\" is not a declared bar (known: B02, B01)"), "{msg}");
+        assert!(
+            msg.contains("mount[0]: bar \"B03\" is not a declared bar (known: B02, B01)"),
+            "{msg}"
+        );
         let msg = error(&GOOD.replace("sensor = \"T1\"", "sensor = \"T7\""));
-        assert!(msg.contains("bar[1] (\"B01\"): sensor \"T7\" is not a declared sensor (known: T1)"), "{msg}");
+        assert!(
+            msg.contains("bar[1] (\"B01\"): sensor \"T7\" is not a declared sensor (known: T1)"),
+            "{msg}"
+        );
     }
 
     #[test]
     fn place_must_be_length_xor_device() {
-        let msg = error(&GOOD.replace("device = \"hexapod-1\"", "device = \"hexapod-1\"\nlength = \"min\""));
-        assert!(msg.contains("mount[1] (bar \"B01\"): gives both length and device"), "{msg}");
+        let msg = error(&GOOD.replace(
+            "device = \"hexapod-1\"",
+            "device = \"hexapod-1\"\nlength = \"min\"",
+        ));
+        assert!(
+            msg.contains("mount[1] (bar \"B01\"): gives both length and device"),
+            "{msg}"
+        );
         let msg = error(&GOOD.replace("device = \"hexapod-1\"\n", ""));
-        assert!(msg.contains("mount[1] (bar \"B01\"): gives neither length nor device"), "{msg}");
+        assert!(
+            msg.contains("mount[1] (bar \"B01\"): gives neither length nor device"),
+            "{msg}"
+        );
     }
 
     #[test]
     fn bad_intervals_are_named() {
         let msg = error(&GOOD.replace("to = 2026-11-03T00:00:00Z", "to = 2026-11-02T00:00:00Z"));
-        assert!(msg.contains("mount[0] (bar \"B02\"): from = 2026-11-02T00:00:00Z is not before to"), "{msg}");
+        assert!(
+            msg.contains("mount[0] (bar \"B02\"): from = 2026-11-02T00:00:00Z is not before to"),
+            "{msg}"
+        );
         // The device mount starts (01:00+01:00 = 00:00Z) when the plate mount ends: touching is
         // fine. One hour earlier overlaps.
-        let msg = error(&GOOD.replace("from = 2026-11-04T01:00:00+01:00", "from = 2026-11-04T00:00:00+01:00"));
-        assert!(msg.contains("mount[1] (bar \"B01\"): interval") && msg.contains("overlaps mount[2]"), "{msg}");
+        let msg = error(&GOOD.replace(
+            "from = 2026-11-04T01:00:00+01:00",
+            "from = 2026-11-04T00:00:00+01:00",
+        ));
+        assert!(
+            msg.contains("mount[1] (bar \"B01\"): interval") && msg.contains("overlaps mount[2]"),
+            "{msg}"
+        );
         let msg = error(&GOOD.replace("from = 2026-11-01T00:00:00Z", "from = 2026-11-01"));
-        assert!(msg.contains("mount[2] (bar \"B01\"): from: 2026-11-01 is not a date-time"), "{msg}");
+        assert!(
+            msg.contains("mount[2] (bar \"B01\"): from: 2026-11-01 is not a date-time"),
+            "{msg}"
+        );
     }
 
     #[test]
     fn bad_numbers_are_named() {
         let msg = error(&GOOD.replacen("resolution_nm = 5.0", "resolution_nm = 0.0", 1));
-        assert!(msg.contains("bar[0] (\"B02\"): resolution_nm = 0 must be a finite number > 0"), "{msg}");
+        assert!(
+            msg.contains("bar[0] (\"B02\"): resolution_nm = 0 must be a finite number > 0"),
+            "{msg}"
+        );
         let msg = error(&GOOD.replacen("fixed_length_mm = 230.0", "fixed_length_mm = -1.0", 1));
-        assert!(msg.contains("bar[0] (\"B02\"): fixed_length_mm = -1"), "{msg}");
-        let msg = error(&GOOD.replace("fixed_length_mm = 230.0\nsensor", "fixed_length_mm = 260.0\nsensor"));
+        assert!(
+            msg.contains("bar[0] (\"B02\"): fixed_length_mm = -1"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace(
+            "fixed_length_mm = 230.0\nsensor",
+            "fixed_length_mm = 260.0\nsensor",
+        ));
         assert!(msg.contains("mount[2] (bar \"B01\"): bar fixed_length_mm = 260 exceeds plate length \"min\" = 250 mm"), "{msg}");
     }
 }

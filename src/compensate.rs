@@ -45,7 +45,10 @@ pub struct CompensateOptions {
 
 impl Default for CompensateOptions {
     fn default() -> Self {
-        Self { model_difference: false, max_gap_s: 300.0 }
+        Self {
+            model_difference: false,
+            max_gap_s: 300.0,
+        }
     }
 }
 
@@ -125,7 +128,13 @@ impl WorkingSeries {
     /// Compensated and uncompensated errors against the known length, µm.
     pub fn errors_um(&self) -> Option<(Vec<f64>, Vec<f64>)> {
         let l = self.length_mm?;
-        Some((self.distance_mm.iter().map(|d| (d - l) * 1e3).collect(), self.uncompensated_mm.iter().map(|d| (d - l) * 1e3).collect()))
+        Some((
+            self.distance_mm.iter().map(|d| (d - l) * 1e3).collect(),
+            self.uncompensated_mm
+                .iter()
+                .map(|d| (d - l) * 1e3)
+                .collect(),
+        ))
     }
 }
 
@@ -161,13 +170,28 @@ pub fn is_working(series: &BarSeries, mount: usize) -> bool {
 
 /// Compensate every working mount of every bar. `fleet_distance`: each bar's scaled distance to
 /// the fleet mean (`matching::choose_reference`); the nearest is preferred as reference.
-pub fn compensate(bars: &[CompBar], campaign: &Campaign, fleet_distance: &BTreeMap<String, f64>, options: &CompensateOptions) -> Vec<Result<WorkingSeries, CompensateError>> {
-    let tracks: Vec<RefTrack> = bars.iter().flat_map(|b| reference_tracks(b, campaign)).collect();
+pub fn compensate(
+    bars: &[CompBar],
+    campaign: &Campaign,
+    fleet_distance: &BTreeMap<String, f64>,
+    options: &CompensateOptions,
+) -> Vec<Result<WorkingSeries, CompensateError>> {
+    let tracks: Vec<RefTrack> = bars
+        .iter()
+        .flat_map(|b| reference_tracks(b, campaign))
+        .collect();
     let mut out = Vec::new();
     for b in bars {
         for m in 0..b.series.mounts.len() {
             if is_working(b.series, m) {
-                out.push(compensate_mount(b, m, campaign, &tracks, fleet_distance, options));
+                out.push(compensate_mount(
+                    b,
+                    m,
+                    campaign,
+                    &tracks,
+                    fleet_distance,
+                    options,
+                ));
             }
         }
     }
@@ -178,17 +202,29 @@ fn reference_tracks<'a>(b: &'a CompBar<'a>, campaign: &Campaign) -> Vec<RefTrack
     let s = b.series;
     let mut out = Vec::new();
     for (m, span) in s.mounts.iter().enumerate() {
-        let (Some(length_id), Some(length_mm)) = (span.length_id.clone(), span.length_mm) else { continue };
+        let (Some(length_id), Some(length_mm)) = (span.length_id.clone(), span.length_mm) else {
+            continue;
+        };
         if span.purpose != Purpose::Reference {
             continue;
         }
-        let idx: Vec<usize> = (0..s.t_s.len()).filter(|&i| s.mount_of[i] == Some(m as u32) && b.model.thermal_um[i].is_finite()).collect();
+        let idx: Vec<usize> = (0..s.t_s.len())
+            .filter(|&i| s.mount_of[i] == Some(m as u32) && b.model.thermal_um[i].is_finite())
+            .collect();
         if idx.is_empty() {
             continue;
         }
         let anchors = anchors_um(s, b.model, campaign, &idx);
-        let measured_um = idx.iter().zip(&anchors).map(|(&i, a)| reading_um(s, i) - a).collect();
-        let mean_dt_k = idx.iter().map(|&i| s.air_c[i] - s.reference_temperature_c).sum::<f64>() / idx.len() as f64;
+        let measured_um = idx
+            .iter()
+            .zip(&anchors)
+            .map(|(&i, a)| reading_um(s, i) - a)
+            .collect();
+        let mean_dt_k = idx
+            .iter()
+            .map(|&i| s.air_c[i] - s.reference_temperature_c)
+            .sum::<f64>()
+            / idx.len() as f64;
         out.push(RefTrack {
             bar: b,
             length_id,
@@ -205,14 +241,24 @@ fn reference_tracks<'a>(b: &'a CompBar<'a>, campaign: &Campaign) -> Vec<RefTrack
 /// The reading at the reference temperature for each sample of `idx`: the mean of reading
 /// minus modelled thermal error over the sample's (zero segment, tilt) group.
 fn anchors_um(s: &BarSeries, model: &BarModel, campaign: &Campaign, idx: &[usize]) -> Vec<f64> {
-    let key = |i: usize| (s.zero_segment[i], (tilt_at_deg(s, campaign, i) * 1000.0).round() as i64);
+    let key = |i: usize| {
+        (
+            s.zero_segment[i],
+            (tilt_at_deg(s, campaign, i) * 1000.0).round() as i64,
+        )
+    };
     let mut sums: BTreeMap<(Option<u32>, i64), (f64, usize)> = BTreeMap::new();
     for &i in idx {
         let e = sums.entry(key(i)).or_default();
         e.0 += reading_um(s, i) - model.thermal_um[i];
         e.1 += 1;
     }
-    idx.iter().map(|&i| sums.get(&key(i)).map_or(f64::NAN, |(sum, n)| sum / *n as f64)).collect()
+    idx.iter()
+        .map(|&i| {
+            sums.get(&key(i))
+                .map_or(f64::NAN, |(sum, n)| sum / *n as f64)
+        })
+        .collect()
 }
 
 /// Linear interpolation of a track at `t`, `None` when no sample lies within `max_gap_s`.
@@ -221,7 +267,11 @@ fn at_time(t_s: &[f64], v: &[f64], t: f64, max_gap_s: f64) -> Option<f64> {
     let before = k.checked_sub(1).map(|j| (t_s[j], v[j]));
     let after = t_s.get(k).map(|x| (*x, v[k]));
     match (before, after) {
-        (Some((t0, v0)), Some((t1, v1))) if t - t0 <= max_gap_s && t1 - t <= max_gap_s && t1 > t0 => Some(v0 + (v1 - v0) * (t - t0) / (t1 - t0)),
+        (Some((t0, v0)), Some((t1, v1)))
+            if t - t0 <= max_gap_s && t1 - t <= max_gap_s && t1 > t0 =>
+        {
+            Some(v0 + (v1 - v0) * (t - t0) / (t1 - t0))
+        }
         (Some((t0, v0)), _) if t - t0 <= max_gap_s => Some(v0),
         (_, Some((t1, v1))) if t1 - t <= max_gap_s => Some(v1),
         _ => None,
@@ -230,24 +280,44 @@ fn at_time(t_s: &[f64], v: &[f64], t: f64, max_gap_s: f64) -> Option<f64> {
 
 /// References for a working mount: overlapping reference mounts of other bars, grouped by
 /// length; the shortest and longest lengths (or the only one), nearest the fleet mean on each.
-fn choose_references<'t>(tracks: &'t [RefTrack<'t>], bar: &str, from_s: f64, to_s: f64, fleet_distance: &BTreeMap<String, f64>) -> Vec<&'t RefTrack<'t>> {
+fn choose_references<'t>(
+    tracks: &'t [RefTrack<'t>],
+    bar: &str,
+    from_s: f64,
+    to_s: f64,
+    fleet_distance: &BTreeMap<String, f64>,
+) -> Vec<&'t RefTrack<'t>> {
     let overlapping: Vec<&RefTrack> = tracks
         .iter()
         .filter(|r| r.bar.series.bar.id != bar)
-        .filter(|r| r.t_s.first().is_some_and(|&a| a < to_s) && r.t_s.last().is_some_and(|&b| b > from_s))
+        .filter(|r| {
+            r.t_s.first().is_some_and(|&a| a < to_s) && r.t_s.last().is_some_and(|&b| b > from_s)
+        })
         .collect();
     let best_on = |mm: f64| {
         overlapping
             .iter()
             .filter(|r| (r.length_mm - mm).abs() < 1e-6)
             .min_by(|a, b| {
-                let d = |r: &RefTrack| fleet_distance.get(&r.bar.series.bar.id).copied().unwrap_or(f64::INFINITY);
-                d(a).total_cmp(&d(b)).then_with(|| a.bar.series.bar.id.cmp(&b.bar.series.bar.id))
+                let d = |r: &RefTrack| {
+                    fleet_distance
+                        .get(&r.bar.series.bar.id)
+                        .copied()
+                        .unwrap_or(f64::INFINITY)
+                };
+                d(a).total_cmp(&d(b))
+                    .then_with(|| a.bar.series.bar.id.cmp(&b.bar.series.bar.id))
             })
             .copied()
     };
-    let lo = overlapping.iter().map(|r| r.length_mm).fold(f64::INFINITY, f64::min);
-    let hi = overlapping.iter().map(|r| r.length_mm).fold(f64::NEG_INFINITY, f64::max);
+    let lo = overlapping
+        .iter()
+        .map(|r| r.length_mm)
+        .fold(f64::INFINITY, f64::min);
+    let hi = overlapping
+        .iter()
+        .map(|r| r.length_mm)
+        .fold(f64::NEG_INFINITY, f64::max);
     match (best_on(lo), best_on(hi)) {
         (Some(a), Some(b)) if hi > lo => vec![a, b],
         (Some(a), _) => vec![a],
@@ -284,24 +354,48 @@ fn model_thermal_at(b: &CompBar, mount: usize, i_p_mm: f64) -> Result<Vec<f64>, 
     Ok(out)
 }
 
-fn compensate_mount(b: &CompBar, m: usize, campaign: &Campaign, tracks: &[RefTrack], fleet_distance: &BTreeMap<String, f64>, options: &CompensateOptions) -> Result<WorkingSeries, CompensateError> {
+fn compensate_mount(
+    b: &CompBar,
+    m: usize,
+    campaign: &Campaign,
+    tracks: &[RefTrack],
+    fleet_distance: &BTreeMap<String, f64>,
+    options: &CompensateOptions,
+) -> Result<WorkingSeries, CompensateError> {
     let s = b.series;
     let bar = s.bar.id.clone();
-    let cal = b.calibration.ok_or_else(|| CompensateError::NotCalibrated { bar: bar.clone() })?;
+    let cal = b
+        .calibration
+        .ok_or_else(|| CompensateError::NotCalibrated { bar: bar.clone() })?;
     let span = &s.mounts[m];
     let epochs = counter_epochs(s);
-    let all: Vec<usize> = (0..s.t_s.len()).filter(|&i| s.mount_of[i] == Some(m as u32)).collect();
+    let all: Vec<usize> = (0..s.t_s.len())
+        .filter(|&i| s.mount_of[i] == Some(m as u32))
+        .collect();
     if all.is_empty() {
         return Err(CompensateError::NoReadings { bar, mount: m });
     }
-    let idx: Vec<usize> = all.iter().copied().filter(|&i| epochs[i] == cal.epoch).collect();
+    let idx: Vec<usize> = all
+        .iter()
+        .copied()
+        .filter(|&i| epochs[i] == cal.epoch)
+        .collect();
     if idx.is_empty() {
         return Err(CompensateError::OtherEpoch { bar, mount: m });
     }
     let tilts: Vec<f64> = idx.iter().map(|&i| tilt_at_deg(s, campaign, i)).collect();
-    let uncompensated_mm: Vec<f64> = idx.iter().zip(&tilts).map(|(&i, a)| cal.chosen.distance_mm(reading_um(s, i) * 1e-3, *a)).collect();
+    let uncompensated_mm: Vec<f64> = idx
+        .iter()
+        .zip(&tilts)
+        .map(|(&i, a)| cal.chosen.distance_mm(reading_um(s, i) * 1e-3, *a))
+        .collect();
     let d_p = span.length_mm.unwrap_or_else(|| median(&uncompensated_mm));
-    let own = model_thermal_at(b, m, d_p - s.bar.fixed_length_mm).map_err(|reason| CompensateError::Model { bar: bar.clone(), reason })?;
+    let own = model_thermal_at(b, m, d_p - s.bar.fixed_length_mm).map_err(|reason| {
+        CompensateError::Model {
+            bar: bar.clone(),
+            reason,
+        }
+    })?;
     let refs = choose_references(tracks, &bar, span.from_s, span.to_s, fleet_distance);
     let w = weights(&refs, d_p);
     let mut thermal_um = Vec::with_capacity(idx.len());
@@ -309,8 +403,14 @@ fn compensate_mount(b: &CompBar, m: usize, campaign: &Campaign, tracks: &[RefTra
     let mut delta_sq = 0.0;
     for &i in &idx {
         let t = s.t_s[i];
-        let measured: Option<Vec<f64>> = refs.iter().map(|r| at_time(&r.t_s, &r.measured_um, t, options.max_gap_s)).collect();
-        let modelled: Option<Vec<f64>> = refs.iter().map(|r| at_time(&r.t_s, &r.modelled_um, t, options.max_gap_s)).collect();
+        let measured: Option<Vec<f64>> = refs
+            .iter()
+            .map(|r| at_time(&r.t_s, &r.measured_um, t, options.max_gap_s))
+            .collect();
+        let modelled: Option<Vec<f64>> = refs
+            .iter()
+            .map(|r| at_time(&r.t_s, &r.modelled_um, t, options.max_gap_s))
+            .collect();
         let e = match (measured.filter(|v| !v.is_empty()), modelled) {
             (Some(meas), Some(model)) => {
                 let e_ref: f64 = meas.iter().zip(&w).map(|(v, w)| v * w).sum();
@@ -325,24 +425,55 @@ fn compensate_mount(b: &CompBar, m: usize, campaign: &Campaign, tracks: &[RefTra
         };
         thermal_um.push(e);
     }
-    let distance_mm = idx.iter().zip(&tilts).zip(&thermal_um).map(|((&i, a), e)| cal.chosen.distance_mm((reading_um(s, i) - e) * 1e-3, *a)).collect();
+    let distance_mm = idx
+        .iter()
+        .zip(&tilts)
+        .zip(&thermal_um)
+        .map(|((&i, a), e)| cal.chosen.distance_mm((reading_um(s, i) - e) * 1e-3, *a))
+        .collect();
     let mode = match refs.len() {
         2 => Mode::TwoReferences,
         1 => Mode::OneReference,
         _ => Mode::Model,
     };
     let n_ref = idx.len() - n_model_fallback;
-    let rms_delta = if n_ref > 0 { (delta_sq / n_ref as f64).sqrt() } else { 0.0 };
-    let budget = thermal_budget(b, &refs, &w, d_p, &idx, mode, rms_delta, options.model_difference);
+    let rms_delta = if n_ref > 0 {
+        (delta_sq / n_ref as f64).sqrt()
+    } else {
+        0.0
+    };
+    let budget = thermal_budget(
+        b,
+        &refs,
+        &w,
+        d_p,
+        &idx,
+        mode,
+        rms_delta,
+        options.model_difference,
+    );
     Ok(WorkingSeries {
         bar,
         mount: m,
         length_id: span.length_id.clone(),
         length_mm: span.length_mm,
-        u_length_um: span.length_id.as_ref().and_then(|id| campaign.plate.lengths.iter().find(|l| &l.id == id)).map_or(0.0, |l| l.u_um),
+        u_length_um: span
+            .length_id
+            .as_ref()
+            .and_then(|id| campaign.plate.lengths.iter().find(|l| &l.id == id))
+            .map_or(0.0, |l| l.u_um),
         device: span.device.clone(),
         mode: mode.name(options.model_difference),
-        references: refs.iter().zip(&w).map(|(r, w)| ReferenceUse { bar: r.bar.series.bar.id.clone(), length_id: r.length_id.clone(), length_mm: r.length_mm, weight: *w }).collect(),
+        references: refs
+            .iter()
+            .zip(&w)
+            .map(|(r, w)| ReferenceUse {
+                bar: r.bar.series.bar.id.clone(),
+                length_id: r.length_id.clone(),
+                length_mm: r.length_mm,
+                weight: *w,
+            })
+            .collect(),
         distance_for_weights_mm: d_p,
         tilt_deg: median(&tilts),
         t_s: idx.iter().map(|&i| s.t_s[i]).collect(),
@@ -362,7 +493,10 @@ fn sensitivity_um_per_k(model: &BarModel, i_min_mm: f64, i_p_mm: f64) -> (f64, f
     let p = |n: &str| model.param(n).map_or((0.0, 0.0), |e| (e.value, e.u));
     let (a, ua) = p("alpha_ppm_per_k");
     let (b, ub) = p("beta_ppm_per_k");
-    ((a * i_min_mm + b * i_p_mm) * 1e-3, ((ua * i_min_mm).powi(2) + (ub * i_p_mm).powi(2)).sqrt() * 1e-3)
+    (
+        (a * i_min_mm + b * i_p_mm) * 1e-3,
+        ((ua * i_min_mm).powi(2) + (ub * i_p_mm).powi(2)).sqrt() * 1e-3,
+    )
 }
 
 /// Thermal terms of the budget (k = 1): (residual µm, parameters µm, temperature sensitivity µm/K).
@@ -374,10 +508,25 @@ fn sensitivity_um_per_k(model: &BarModel, i_min_mm: f64, i_p_mm: f64) -> (f64, f
 ///   plus each reference's anchor (its mean excursion), weighted;
 /// - temperature: sensitivities combined without correlation credit (conservative).
 #[allow(clippy::too_many_arguments)]
-fn thermal_budget(b: &CompBar, refs: &[&RefTrack], w: &[f64], d_p: f64, idx: &[usize], mode: Mode, rms_delta: f64, model_difference: bool) -> (f64, f64, f64) {
+fn thermal_budget(
+    b: &CompBar,
+    refs: &[&RefTrack],
+    w: &[f64],
+    d_p: f64,
+    idx: &[usize],
+    mode: Mode,
+    rms_delta: f64,
+    model_difference: bool,
+) -> (f64, f64, f64) {
     let s = b.series;
-    let dt_rms = (idx.iter().map(|&i| (s.air_c[i] - s.reference_temperature_c).powi(2)).sum::<f64>() / idx.len().max(1) as f64).sqrt();
-    let (sens_w, u_sens_w) = sensitivity_um_per_k(b.model, s.bar.fixed_length_mm, d_p - s.bar.fixed_length_mm);
+    let dt_rms = (idx
+        .iter()
+        .map(|&i| (s.air_c[i] - s.reference_temperature_c).powi(2))
+        .sum::<f64>()
+        / idx.len().max(1) as f64)
+        .sqrt();
+    let (sens_w, u_sens_w) =
+        sensitivity_um_per_k(b.model, s.bar.fixed_length_mm, d_p - s.bar.fixed_length_mm);
     if mode == Mode::Model {
         return (b.model.rms_um, u_sens_w * dt_rms, sens_w.abs());
     }
@@ -386,7 +535,11 @@ fn thermal_budget(b: &CompBar, refs: &[&RefTrack], w: &[f64], d_p: f64, idx: &[u
     let mut ref_rms_sq = 0.0;
     for (r, w) in refs.iter().zip(w) {
         let rs = r.bar.series;
-        let (sens_r, u_sens_r) = sensitivity_um_per_k(r.bar.model, rs.bar.fixed_length_mm, r.length_mm - rs.bar.fixed_length_mm);
+        let (sens_r, u_sens_r) = sensitivity_um_per_k(
+            r.bar.model,
+            rs.bar.fixed_length_mm,
+            r.length_mm - rs.bar.fixed_length_mm,
+        );
         params_sq += (w * u_sens_r * r.mean_dt_k).powi(2);
         sens_sq += (w * sens_r).powi(2);
         ref_rms_sq += (w * r.bar.model.rms_um).powi(2);
@@ -418,7 +571,10 @@ mod tests {
         // Weights are linear in distance and reproduce the references at their own lengths.
         let w_mid: f64 = (325.0 - 250.0) / (400.0 - 250.0);
         assert!((w_mid - 0.5).abs() < 1e-12);
-        assert_eq!(Mode::TwoReferences.name(true), "two_references+model_difference");
+        assert_eq!(
+            Mode::TwoReferences.name(true),
+            "two_references+model_difference"
+        );
         assert_eq!(Mode::Model.name(true), "model");
     }
 

@@ -10,7 +10,10 @@ use crate::report::{self, NamedSeries, ReportError};
 /// Every figure the run's stages call for, into `dir`.
 pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<(), ReportError> {
     for o in &results.bars {
-        report::render_bar_fit(&bar_fit(o), &dir.join(format!("bar-{}.png", file_safe(&o.model.bar))))?;
+        report::render_bar_fit(
+            &bar_fit(o),
+            &dir.join(format!("bar-{}.png", file_safe(&o.model.bar))),
+        )?;
     }
     if !results.bars.is_empty() {
         report::render_fleet(&fleet(results), &dir.join("fleet.png"))?;
@@ -22,7 +25,10 @@ pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()
     }
     if let Some(d) = &results.diagnosis {
         for (bd, o) in d.bars.iter().zip(&results.bars) {
-            report::render_residual_diagnostics(&residual_figure(bd, o), &dir.join(format!("diagnosis-{}.png", file_safe(&bd.bar))))?;
+            report::render_residual_diagnostics(
+                &residual_figure(bd, o),
+                &dir.join(format!("diagnosis-{}.png", file_safe(&bd.bar))),
+            )?;
         }
         if d.ledger.len() > 1 {
             report::render_ledger(&ledger(&d.ledger), &dir.join("ledger.png"))?;
@@ -39,9 +45,16 @@ pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()
 
 /// Acceptance sheets: one per working bar (error over time before/after compensation against the
 /// tolerance, the thermal error removed) and the fleet's (all bars, and RMS before/after).
-fn render_acceptance(acc: &[crate::acceptance::BarAcceptance], dir: &Path) -> Result<(), ReportError> {
+fn render_acceptance(
+    acc: &[crate::acceptance::BarAcceptance],
+    dir: &Path,
+) -> Result<(), ReportError> {
     for a in acc {
-        let name = format!("acceptance-{}-{}.png", file_safe(&a.bar), file_safe(&a.length_id));
+        let name = format!(
+            "acceptance-{}-{}.png",
+            file_safe(&a.bar),
+            file_safe(&a.length_id)
+        );
         report::render_series_panels(&acceptance_sheet(a), &dir.join(name))?;
     }
     if !acc.is_empty() {
@@ -52,13 +65,32 @@ fn render_acceptance(acc: &[crate::acceptance::BarAcceptance], dir: &Path) -> Re
 }
 
 fn tolerance_lines(t: f64) -> Vec<report::RefLine> {
-    let line = |v: f64| report::RefLine { label: format!("tolerance ±{t} µm"), value: v };
+    let line = |v: f64| report::RefLine {
+        label: format!("tolerance ±{t} µm"),
+        value: v,
+    };
     vec![line(t), line(-t)]
 }
 
 fn acceptance_sheet(a: &crate::acceptance::BarAcceptance) -> report::SeriesPanelsFigure {
-    let budget: Vec<String> = a.budget.iter().map(|t| format!("{} {:.3}", t.name.replace("thermal_model_", "thermal_").replace("_measurement", ""), t.u_um)).collect();
-    let refs = if a.references.is_empty() { "none".to_string() } else { a.references.join(", ") };
+    let budget: Vec<String> = a
+        .budget
+        .iter()
+        .map(|t| {
+            format!(
+                "{} {:.3}",
+                t.name
+                    .replace("thermal_model_", "thermal_")
+                    .replace("_measurement", ""),
+                t.u_um
+            )
+        })
+        .collect();
+    let refs = if a.references.is_empty() {
+        "none".to_string()
+    } else {
+        a.references.join(", ")
+    };
     report::SeriesPanelsFigure {
         title: format!("Acceptance — bar {} on {} ({:.4} mm): {}", a.bar, a.length_id, a.length_mm, a.decision.as_str().to_uppercase()),
         subtitle: format!(
@@ -94,7 +126,15 @@ fn acceptance_fleet(acc: &[crate::acceptance::BarAcceptance]) -> report::SeriesP
     let tol = acc.first().map_or(1.0, |a| a.tolerance_um);
     let series = |after: bool| -> Vec<NamedSeries> {
         acc.iter()
-            .map(|a| NamedSeries { name: format!("{} ({})", a.bar, a.decision.as_str()), x: a.t_s.clone(), y: if after { a.error_um.clone() } else { a.error_before_um.clone() } })
+            .map(|a| NamedSeries {
+                name: format!("{} ({})", a.bar, a.decision.as_str()),
+                x: a.t_s.clone(),
+                y: if after {
+                    a.error_um.clone()
+                } else {
+                    a.error_before_um.clone()
+                },
+            })
             .collect()
     };
     report::SeriesPanelsFigure {
@@ -114,9 +154,13 @@ fn acceptance_fleet(acc: &[crate::acceptance::BarAcceptance]) -> report::SeriesP
 fn acceptance_rms(acc: &[crate::acceptance::BarAcceptance]) -> report::BeforeAfterFigure {
     let f = crate::acceptance::fleet(acc);
     report::BeforeAfterFigure {
-        title: "Acceptance — RMS error per working bar without and with thermal compensation".into(),
+        title: "Acceptance — RMS error per working bar without and with thermal compensation"
+            .into(),
         subtitle: format!("Modes: {}", f.modes.join(", ")),
-        bar_names: acc.iter().map(|a| format!("{}@{}", a.bar, a.length_id)).collect(),
+        bar_names: acc
+            .iter()
+            .map(|a| format!("{}@{}", a.bar, a.length_id))
+            .collect(),
         before_um: acc.iter().map(|a| a.before.rms_um).collect(),
         after_um: acc.iter().map(|a| a.rms_um).collect(),
         fleet_before_um: Some(f.rms_before_um),
@@ -127,7 +171,15 @@ fn acceptance_rms(acc: &[crate::acceptance::BarAcceptance]) -> report::BeforeAft
 }
 
 fn file_safe(s: &str) -> String {
-    s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
 }
 
 fn params_line(o: &BarOutcome) -> String {
@@ -135,7 +187,13 @@ fn params_line(o: &BarOutcome) -> String {
         .model
         .params
         .iter()
-        .map(|p| if p.name.ends_with("_s") { format!("{} = {:.0} ± {:.0}", p.name, p.value, p.u) } else { format!("{} = {:.4} ± {:.4}", p.name, p.value, p.u) })
+        .map(|p| {
+            if p.name.ends_with("_s") {
+                format!("{} = {:.0} ± {:.0}", p.name, p.value, p.u)
+            } else {
+                format!("{} = {:.4} ± {:.4}", p.name, p.value, p.u)
+            }
+        })
         .collect();
     format!("{}\nRMS {:.4} µm over {} samples (± are standard uncertainties, autocorrelation-consistent)", p.join("   "), o.model.rms_um, o.model.n_samples)
 }
@@ -144,19 +202,35 @@ fn bar_fit(o: &BarOutcome) -> report::BarFitFigure {
     let s = &o.series;
     let idx = &s.fit_index;
     let time_s: Vec<f64> = idx.iter().map(|&i| s.t_s[i]).collect();
-    let measured_um: Vec<f64> = idx.iter().map(|&i| s.y_um[i] - s.zero_segment[i].map_or(0.0, |z| o.model.zeros_um[z as usize])).collect();
+    let measured_um: Vec<f64> = idx
+        .iter()
+        .map(|&i| s.y_um[i] - s.zero_segment[i].map_or(0.0, |z| o.model.zeros_um[z as usize]))
+        .collect();
     let model_um: Vec<f64> = idx.iter().map(|&i| o.model.thermal_um[i]).collect();
-    let mut temperatures_c = vec![NamedSeries { name: "air seen by the bar".into(), x: time_s.clone(), y: idx.iter().map(|&i| s.air_c[i]).collect() }];
+    let mut temperatures_c = vec![NamedSeries {
+        name: "air seen by the bar".into(),
+        x: time_s.clone(),
+        y: idx.iter().map(|&i| s.air_c[i]).collect(),
+    }];
     if let Some(plate) = &s.plate_sensor_id {
         if let Some(c) = s.celsius.get(plate) {
-            temperatures_c.push(NamedSeries { name: format!("plate ({plate})"), x: time_s.clone(), y: idx.iter().map(|&i| c[i]).collect() });
+            temperatures_c.push(NamedSeries {
+                name: format!("plate ({plate})"),
+                x: time_s.clone(),
+                y: idx.iter().map(|&i| c[i]).collect(),
+            });
         }
     }
-    let mut mount_boundaries_s: Vec<f64> = s.mounts.iter().flat_map(|m| [m.from_s, m.to_s]).collect();
+    let mut mount_boundaries_s: Vec<f64> =
+        s.mounts.iter().flat_map(|m| [m.from_s, m.to_s]).collect();
     mount_boundaries_s.sort_by(f64::total_cmp);
     mount_boundaries_s.dedup();
     report::BarFitFigure {
-        title: format!("Bar {} — measured thermal error vs model [{}]", o.model.bar, o.model.effect_names().join(" + ")),
+        title: format!(
+            "Bar {} — measured thermal error vs model [{}]",
+            o.model.bar,
+            o.model.effect_names().join(" + ")
+        ),
         subtitle: params_line(o),
         time_s,
         measured_um,
@@ -168,23 +242,45 @@ fn bar_fit(o: &BarOutcome) -> report::BarFitFigure {
 
 fn fleet(r: &RunResults) -> report::FleetFigure {
     let bar_names: Vec<String> = r.bars.iter().map(|o| o.model.bar.clone()).collect();
-    let names: Vec<String> = r.bars.first().map(|o| o.model.params.iter().map(|p| p.name.clone()).collect()).unwrap_or_default();
+    let names: Vec<String> = r
+        .bars
+        .first()
+        .map(|o| o.model.params.iter().map(|p| p.name.clone()).collect())
+        .unwrap_or_default();
     let parameters = names
         .iter()
         .map(|name| {
-            let est: Vec<Option<&crate::identify::Estimate>> = r.bars.iter().map(|o| o.model.param(name)).collect();
+            let est: Vec<Option<&crate::identify::Estimate>> =
+                r.bars.iter().map(|o| o.model.param(name)).collect();
             report::ParameterPanel {
                 name: name.clone(),
                 unit: unit_of(name).into(),
-                values: est.iter().map(|e| e.map_or(f64::NAN, |e| e.value)).collect(),
-                u95: est.iter().map(|e| e.map_or(f64::NAN, |e| (e.ci95[1] - e.ci95[0]) / 2.0)).collect(),
+                values: est
+                    .iter()
+                    .map(|e| e.map_or(f64::NAN, |e| e.value))
+                    .collect(),
+                u95: est
+                    .iter()
+                    .map(|e| e.map_or(f64::NAN, |e| (e.ci95[1] - e.ci95[0]) / 2.0))
+                    .collect(),
                 fleet_mean: None,
             }
         })
         .collect();
-    let reference = r.reference.as_ref().and_then(|rr| bar_names.iter().position(|b| *b == rr.choice.bar));
+    let reference = r
+        .reference
+        .as_ref()
+        .and_then(|rr| bar_names.iter().position(|b| *b == rr.choice.bar));
     let mismatch_um = match &r.reference {
-        Some(rr) => bar_names.iter().map(|b| rr.mismatches.iter().find(|m| m.bar == *b).map_or(0.0, |m| m.max_abs_um)).collect(),
+        Some(rr) => bar_names
+            .iter()
+            .map(|b| {
+                rr.mismatches
+                    .iter()
+                    .find(|m| m.bar == *b)
+                    .map_or(0.0, |m| m.max_abs_um)
+            })
+            .collect(),
         None => Vec::new(),
     };
     let subtitle = match &r.reference {
@@ -195,7 +291,10 @@ fn fleet(r: &RunResults) -> report::FleetFigure {
         None => "No reference chosen (no bar with the base parameters).".into(),
     };
     report::FleetFigure {
-        title: format!("Fleet of campaign {} — thermal parameters and reference matching", r.campaign.id),
+        title: format!(
+            "Fleet of campaign {} — thermal parameters and reference matching",
+            r.campaign.id
+        ),
         subtitle,
         bar_names,
         parameters,
@@ -264,7 +363,11 @@ fn residual_figure(d: &BarDiagnosis, o: &BarOutcome) -> report::ResidualDiagnost
 }
 
 fn median_step(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    let mut d: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
     if d.is_empty() {
         return 1.0;
     }
@@ -294,7 +397,11 @@ fn ledger(steps: &[LedgerStep]) -> report::LedgerFigure {
 fn before_after(ba: &crate::pipeline::BeforeAfter) -> report::BeforeAfterFigure {
     report::BeforeAfterFigure {
         title: "RMS residual before and after adding effects".into(),
-        subtitle: format!("before: [{}]   after: [{}]", ba.before_effects.join(" + "), ba.after_effects.join(" + ")),
+        subtitle: format!(
+            "before: [{}]   after: [{}]",
+            ba.before_effects.join(" + "),
+            ba.after_effects.join(" + ")
+        ),
         bar_names: ba.bars.iter().map(|b| b.bar.clone()).collect(),
         before_um: ba.bars.iter().map(|b| b.rms_before_um).collect(),
         after_um: ba.bars.iter().map(|b| b.rms_after_um).collect(),

@@ -95,7 +95,9 @@ impl Fit {
     /// with [`Fit::hac_dof`] degrees of freedom.
     pub fn t95(&self) -> f64 {
         use statrs::distribution::{ContinuousCDF, StudentsT};
-        StudentsT::new(0.0, 1.0, self.hac_dof as f64).map(|t| t.inverse_cdf(0.975)).unwrap_or(1.96)
+        StudentsT::new(0.0, 1.0, self.hac_dof as f64)
+            .map(|t| t.inverse_cdf(0.975))
+            .unwrap_or(1.96)
     }
 
     /// Gaussian log-likelihood at the ML variance `rss / n`.
@@ -135,12 +137,19 @@ pub struct FitOptions {
 
 impl Default for FitOptions {
     fn default() -> Self {
-        Self { brent_start: true, hac_batch_len: None }
+        Self {
+            brent_start: true,
+            hac_batch_len: None,
+        }
     }
 }
 
 /// Fit `problem` from the nonlinear start `theta0`.
-pub fn fit<P: Separable>(problem: &P, theta0: &[f64], options: &FitOptions) -> Result<Fit, FitError> {
+pub fn fit<P: Separable>(
+    problem: &P,
+    theta0: &[f64],
+    options: &FitOptions,
+) -> Result<Fit, FitError> {
     let y = problem.observations();
     let n_lin = problem.linear_names().len();
     let p = n_lin + theta0.len();
@@ -196,7 +205,11 @@ pub fn projected_rss<P: Separable>(problem: &P, theta: &[f64]) -> f64 {
     let phi = problem.basis(theta);
     let y = problem.observations();
     match solve_linear(&phi, y) {
-        Some(c) => (&phi * &c).iter().zip(y).map(|(f, y)| (y - f) * (y - f)).sum(),
+        Some(c) => (&phi * &c)
+            .iter()
+            .zip(y)
+            .map(|(f, y)| (y - f) * (y - f))
+            .sum(),
         None => f64::INFINITY,
     }
 }
@@ -244,8 +257,14 @@ fn singular_term<P: Separable>(problem: &P, phi: &DMatrix<f64>) -> FitError {
 /// One sweep of 1-D Brent searches of the projected RSS, one nonlinear parameter at a time.
 fn brent_start<P: Separable>(problem: &P, theta: &mut [f64]) {
     for k in 0..theta.len() {
-        let Some((lo, hi)) = problem.start_search_interval(k) else { continue };
-        let cost = Profile1d { problem, theta: theta.to_vec(), k };
+        let Some((lo, hi)) = problem.start_search_interval(k) else {
+            continue;
+        };
+        let cost = Profile1d {
+            problem,
+            theta: theta.to_vec(),
+            k,
+        };
         let best_now = projected_rss(problem, theta);
         let solver = BrentOpt::new(lo, hi).set_tolerance(1e-4, 1e-6);
         let result = Executor::new(cost, solver)
@@ -329,8 +348,14 @@ fn finite(m: DMatrix<f64>) -> Result<DMatrix<f64>, ModelEvalError> {
     }
 }
 
-fn levenberg_marquardt<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec<f64>, usize), FitError> {
-    let model = VarproModel { problem, theta: DVector::from_column_slice(theta0) };
+fn levenberg_marquardt<P: Separable>(
+    problem: &P,
+    theta0: &[f64],
+) -> Result<(Vec<f64>, usize), FitError> {
+    let model = VarproModel {
+        problem,
+        theta: DVector::from_column_slice(theta0),
+    };
     let y = DVector::from_column_slice(problem.observations());
     let separable = SeparableProblemBuilder::new(model)
         .observations(y)
@@ -352,7 +377,9 @@ fn levenberg_marquardt<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec
     if !ok {
         // Accept a stop on iteration limits only if it is no worse than the start.
         let term = format!("{:?}", result.minimization_report.termination);
-        if !theta.iter().all(|t| t.is_finite()) || projected_rss(problem, &theta) > projected_rss(problem, theta0) {
+        if !theta.iter().all(|t| t.is_finite())
+            || projected_rss(problem, &theta) > projected_rss(problem, theta0)
+        {
             return Err(FitError::NoConvergence(term));
         }
     }
@@ -360,7 +387,12 @@ fn levenberg_marquardt<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec
 }
 
 /// `J = [Φ | Σ_j c_j ∂φ_j/∂θ_k]`, the Jacobian of the model in all parameters.
-fn full_jacobian<P: Separable>(problem: &P, theta: &[f64], phi: &DMatrix<f64>, coef: &DVector<f64>) -> DMatrix<f64> {
+fn full_jacobian<P: Separable>(
+    problem: &P,
+    theta: &[f64],
+    phi: &DMatrix<f64>,
+    coef: &DVector<f64>,
+) -> DMatrix<f64> {
     let (n, m) = phi.shape();
     let mut jac = DMatrix::zeros(n, m + theta.len());
     jac.columns_mut(0, m).copy_from(phi);
@@ -376,14 +408,23 @@ fn full_jacobian<P: Separable>(problem: &P, theta: &[f64], phi: &DMatrix<f64>, c
 /// HAC: `(JᵀJ)⁻¹ (Σ_b G_b G_bᵀ) (JᵀJ)⁻¹` with `G_b = Σ_{i∈b} J_iᵀ r_i` summed over consecutive
 /// batches of length `L`: the scores of samples closer than `L` keep their correlation, batch
 /// sums are close to independent when `L` exceeds the residual correlation time.
-fn covariances(jac: &DMatrix<f64>, residuals: &[f64], batch_len: Option<usize>) -> Option<(DMatrix<f64>, DMatrix<f64>, usize)> {
+fn covariances(
+    jac: &DMatrix<f64>,
+    residuals: &[f64],
+    batch_len: Option<usize>,
+) -> Option<(DMatrix<f64>, DMatrix<f64>, usize)> {
     let (n, p) = jac.shape();
     let jtj = jac.tr_mul(jac);
-    let jtj_inv = jtj.clone().try_inverse().or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
+    let jtj_inv = jtj
+        .clone()
+        .try_inverse()
+        .or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
     let rss: f64 = residuals.iter().map(|r| r * r).sum();
     let s2 = rss / (n.saturating_sub(p).max(1)) as f64;
     let cov_naive = &jtj_inv * s2;
-    let batch = batch_len.unwrap_or_else(|| hac_batch_length(residuals)).clamp(1, n.max(1));
+    let batch = batch_len
+        .unwrap_or_else(|| hac_batch_length(residuals))
+        .clamp(1, n.max(1));
     let mut meat = DMatrix::<f64>::zeros(p, p);
     let mut start = 0;
     while start < n {
@@ -483,7 +524,10 @@ pub fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
     if c0 <= 0.0 {
         return vec![1.0];
     }
-    out.iter().take(max_lag.min(n - 1) + 1).map(|c| c / c0).collect()
+    out.iter()
+        .take(max_lag.min(n - 1) + 1)
+        .map(|c| c / c0)
+        .collect()
 }
 
 #[cfg(test)]
@@ -506,10 +550,18 @@ mod tests {
             vec!["b1".into()]
         }
         fn basis(&self, t: &[f64]) -> DMatrix<f64> {
-            DMatrix::from_iterator(self.x.len(), 1, self.x.iter().map(|x| 1.0 - (-t[0] * x).exp()))
+            DMatrix::from_iterator(
+                self.x.len(),
+                1,
+                self.x.iter().map(|x| 1.0 - (-t[0] * x).exp()),
+            )
         }
         fn basis_derivative(&self, t: &[f64], _k: usize) -> DMatrix<f64> {
-            DMatrix::from_iterator(self.x.len(), 1, self.x.iter().map(|x| x * (-t[0] * x).exp()))
+            DMatrix::from_iterator(
+                self.x.len(),
+                1,
+                self.x.iter().map(|x| x * (-t[0] * x).exp()),
+            )
         }
     }
 
@@ -518,7 +570,15 @@ mod tests {
         let x: Vec<f64> = (0..50).map(|i| i as f64).collect();
         let y = x.iter().map(|x| 3.0 * (1.0 - (-0.07 * x).exp())).collect();
         let p = Exponential { x, y };
-        let f = fit(&p, &[0.2], &FitOptions { brent_start: false, hac_batch_len: None }).unwrap();
+        let f = fit(
+            &p,
+            &[0.2],
+            &FitOptions {
+                brent_start: false,
+                hac_batch_len: None,
+            },
+        )
+        .unwrap();
         assert!((f.values[0] - 3.0).abs() < 1e-9, "{:?}", f.values);
         assert!((f.values[1] - 0.07).abs() < 1e-11, "{:?}", f.values);
     }
@@ -528,7 +588,9 @@ mod tests {
         let mut state = 12345u64;
         let x: Vec<f64> = (0..4000)
             .map(|_| {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
             })
             .collect();
@@ -544,7 +606,9 @@ mod tests {
         let mut v = 0.0;
         let x: Vec<f64> = (0..20000)
             .map(|_| {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 let e = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
                 v = 0.9 * v + e;
                 v

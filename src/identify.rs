@@ -75,14 +75,26 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 }
 
 /// Fit `effects` to one bar, starting the time constants that `start` names from its values.
-pub fn identify_from(series: &BarSeries, effects: &[Effect], start: Option<&BarModel>) -> Result<BarModel, IdentifyError> {
+pub fn identify_from(
+    series: &BarSeries,
+    effects: &[Effect],
+    start: Option<&BarModel>,
+) -> Result<BarModel, IdentifyError> {
     let bar = series.bar.id.clone();
-    let problem = ThermalProblem::new(series, effects).map_err(|source| IdentifyError::Model { bar: bar.clone(), source })?;
+    let problem = ThermalProblem::new(series, effects).map_err(|source| IdentifyError::Model {
+        bar: bar.clone(),
+        source,
+    })?;
     let mut theta0 = problem.theta0();
     if let Some(start) = start {
         warm_start(&problem, start, &mut theta0);
     }
-    let fit = fit::fit(&problem, &theta0, &FitOptions::default()).map_err(|source| IdentifyError::Fit { bar: bar.clone(), source })?;
+    let fit = fit::fit(&problem, &theta0, &FitOptions::default()).map_err(|source| {
+        IdentifyError::Fit {
+            bar: bar.clone(),
+            source,
+        }
+    })?;
     let mut model = to_bar_model(series, &problem, &fit);
     canonical_thermal_paths(&mut model);
     Ok(model)
@@ -93,14 +105,27 @@ pub fn identify_from(series: &BarSeries, effects: &[Effect], start: Option<&BarM
 /// converged the other way round is relabelled.
 fn canonical_thermal_paths(model: &mut BarModel) {
     let pos = |name: &str| model.params.iter().position(|p| p.name == name);
-    let (Some(a), Some(a2), Some(t), Some(t2)) = (pos("alpha_ppm_per_k"), pos("alpha2_ppm_per_k"), pos("tau_r_s"), pos("tau_2_s")) else { return };
+    let (Some(a), Some(a2), Some(t), Some(t2)) = (
+        pos("alpha_ppm_per_k"),
+        pos("alpha2_ppm_per_k"),
+        pos("tau_r_s"),
+        pos("tau_2_s"),
+    ) else {
+        return;
+    };
     if model.params[a2].value.abs() <= model.params[a].value.abs() {
         return;
     }
     for (i, j) in [(a, a2), (t, t2)] {
         let (vi, vj) = (model.params[i].clone(), model.params[j].clone());
-        model.params[i] = Estimate { name: vi.name, ..vj };
-        model.params[j] = Estimate { name: vj.name, ..vi };
+        model.params[i] = Estimate {
+            name: vi.name,
+            ..vj
+        };
+        model.params[j] = Estimate {
+            name: vj.name,
+            ..vi
+        };
         model.correlation.swap(i, j);
         for row in model.correlation.iter_mut() {
             row.swap(i, j);
@@ -110,7 +135,11 @@ fn canonical_thermal_paths(model: &mut BarModel) {
 
 /// Reuse the time constants a previous fit found for the same effects.
 fn warm_start(problem: &ThermalProblem, start: &BarModel, theta0: &mut [f64]) {
-    let taus: Vec<String> = problem.effects().iter().filter_map(Effect::tau_name).collect();
+    let taus: Vec<String> = problem
+        .effects()
+        .iter()
+        .filter_map(Effect::tau_name)
+        .collect();
     for (k, name) in taus.iter().enumerate() {
         if let Some(v) = start.value(name) {
             theta0[k] = v.ln();
@@ -134,7 +163,13 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         .map(|&i| {
             if i < n_gains {
                 let (v, u) = (fit.values[i], fit.se_hac(i));
-                Estimate { name: gain_names[i].clone(), value: v, u, u_naive: fit.se_naive(i), ci95: [v - t95 * u, v + t95 * u] }
+                Estimate {
+                    name: gain_names[i].clone(),
+                    value: v,
+                    u,
+                    u_naive: fit.se_naive(i),
+                    ci95: [v - t95 * u, v + t95 * u],
+                }
             } else {
                 let (ln_tau, u_ln) = (fit.values[i], fit.se_hac(i));
                 let tau = ln_tau.clamp(0.0, 1e9f64.ln()).exp();
@@ -149,15 +184,25 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         })
         .collect();
     let corr = fit.correlation();
-    let correlation = order.iter().map(|&i| order.iter().map(|&j| corr[(i, j)]).collect()).collect();
+    let correlation = order
+        .iter()
+        .map(|&i| order.iter().map(|&j| corr[(i, j)]).collect())
+        .collect();
     let columns = problem.full_columns(&theta);
     let n = series.t_s.len();
     let mut thermal_um = vec![0.0; n];
     for (j, col) in columns.iter().enumerate() {
-        thermal_um.iter_mut().zip(col).for_each(|(m, c)| *m += fit.values[j] * c);
+        thermal_um
+            .iter_mut()
+            .zip(col)
+            .for_each(|(m, c)| *m += fit.values[j] * c);
     }
     // One zero per zero segment; a segment without fitted samples (a check mount) has none: 0.
-    let zeros_um: Vec<f64> = problem.zero_columns().iter().map(|c| c.map_or(0.0, |c| fit.values[n_gains + c])).collect();
+    let zeros_um: Vec<f64> = problem
+        .zero_columns()
+        .iter()
+        .map(|c| c.map_or(0.0, |c| fit.values[n_gains + c]))
+        .collect();
     let model_um = thermal_um
         .iter()
         .zip(&series.zero_segment)
@@ -192,7 +237,12 @@ mod tests {
     use rand_distr::{Distribution, Normal};
     use rayon::prelude::*;
 
-    const TRUTH: [(&str, f64); 4] = [("alpha_ppm_per_k", 2.0), ("beta_ppm_per_k", 0.6), ("tau_r_s", 3000.0), ("tau_s_s", 1500.0)];
+    const TRUTH: [(&str, f64); 4] = [
+        ("alpha_ppm_per_k", 2.0),
+        ("beta_ppm_per_k", 0.6),
+        ("tau_r_s", 3000.0),
+        ("tau_s_s", 1500.0),
+    ];
 
     /// One synthetic bar: 8 days at 60 s on four 2-day mounts (I_p 20, 95, 170, 95 mm), a room with a
     /// daily swing, an air-conditioning cycle and a random walk, and AR(1) noise (phi = 0.9):
@@ -207,7 +257,9 @@ mod tests {
             .iter()
             .map(|t| {
                 walk += 0.01 * unit.sample(&mut rng);
-                20.3 + 0.5 * (2.0 * std::f64::consts::PI * t / 86400.0).sin() + 0.1 * (2.0 * std::f64::consts::PI * t / 1500.0).sin() + walk
+                20.3 + 0.5 * (2.0 * std::f64::consts::PI * t / 86400.0).sin()
+                    + 0.1 * (2.0 * std::f64::consts::PI * t / 1500.0).sin()
+                    + walk
             })
             .collect();
         let i_min = 230.0;
@@ -237,23 +289,38 @@ mod tests {
             .map(|i| {
                 let m = i / 2880;
                 ar = phi * ar + sigma_innov * unit.sample(&mut rng);
-                -(TRUTH[0].1 * i_min * lr[i] + TRUTH[1].1 * mounts[m].i_p_mm * ls[i]) * 1e-3 + 0.3 * m as f64 + ar
+                -(TRUTH[0].1 * i_min * lr[i] + TRUTH[1].1 * mounts[m].i_p_mm * ls[i]) * 1e-3
+                    + 0.3 * m as f64
+                    + ar
             })
             .collect();
-        let bar = Bar { id: format!("S{seed}"), resolution_nm: 1.0, fixed_length_mm: i_min, sensor: None };
+        let bar = Bar {
+            id: format!("S{seed}"),
+            resolution_nm: 1.0,
+            fixed_length_mm: i_min,
+            sensor: None,
+        };
         BarSeries::from_vectors(bar, 20.0, t_s, y_um, air_c, mounts)
     }
 
     #[test]
     fn hac_intervals_cover_the_truth_at_their_nominal_rate() {
         let reps = 300u64;
-        let fits: Vec<BarModel> = (0..reps).into_par_iter().map(|seed| identify(&synthetic_bar(seed), &crate::model::base_effects()).expect("fit")).collect();
+        let fits: Vec<BarModel> = (0..reps)
+            .into_par_iter()
+            .map(|seed| identify(&synthetic_bar(seed), &crate::model::base_effects()).expect("fit"))
+            .collect();
         for (name, truth) in TRUTH {
             let v: Vec<f64> = fits.iter().map(|m| m.value(name).unwrap()).collect();
             let mean = v.iter().sum::<f64>() / v.len() as f64;
-            let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt();
+            let sd =
+                (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt();
             let u = fits.iter().map(|m| m.param(name).unwrap().u).sum::<f64>() / v.len() as f64;
-            let un = fits.iter().map(|m| m.param(name).unwrap().u_naive).sum::<f64>() / v.len() as f64;
+            let un = fits
+                .iter()
+                .map(|m| m.param(name).unwrap().u_naive)
+                .sum::<f64>()
+                / v.len() as f64;
             eprintln!("{name}: truth {truth} mean {mean:.5} sd {sd:.5} mean u_hac {u:.5} mean u_naive {un:.5} batch {}", fits[0].hac_batch_len);
         }
         let hits: Vec<([bool; 4], [bool; 4])> = (0..reps)
@@ -281,18 +348,39 @@ mod tests {
         for (k, (name, _)) in TRUTH.iter().enumerate() {
             eprintln!("{name}: HAC coverage {:.1} %", coverage(k) * 100.0);
         }
-        let naive = hits.iter().map(|(_, n)| n.iter().filter(|b| **b).count()).sum::<usize>() as f64 / (reps * 4) as f64;
-        eprintln!("naive coverage, all four parameters: {:.1} %", naive * 100.0);
+        let naive = hits
+            .iter()
+            .map(|(_, n)| n.iter().filter(|b| **b).count())
+            .sum::<usize>() as f64
+            / (reps * 4) as f64;
+        eprintln!(
+            "naive coverage, all four parameters: {:.1} %",
+            naive * 100.0
+        );
         // The linear gains are covered at the nominal rate. The time constants' intervals (from
         // the linearised ln tau) fall short by a few points: the HAC standard error matches the
         // spread for the gains but is ~10 % small for the taus, a nonlinearity effect. Asserted
         // as measured, not widened: 93-97 % for the gains, at least 88 % for the taus.
         for k in 0..2 {
-            assert!((0.93..=0.97).contains(&coverage(k)), "{}: HAC coverage {:.1} %", TRUTH[k].0, coverage(k) * 100.0);
+            assert!(
+                (0.93..=0.97).contains(&coverage(k)),
+                "{}: HAC coverage {:.1} %",
+                TRUTH[k].0,
+                coverage(k) * 100.0
+            );
         }
         for k in 2..4 {
-            assert!(coverage(k) >= 0.88, "{}: HAC coverage {:.1} %", TRUTH[k].0, coverage(k) * 100.0);
+            assert!(
+                coverage(k) >= 0.88,
+                "{}: HAC coverage {:.1} %",
+                TRUTH[k].0,
+                coverage(k) * 100.0
+            );
         }
-        assert!(naive < 0.6, "naive intervals should under-cover with AR(1) residuals: {:.1} %", naive * 100.0);
+        assert!(
+            naive < 0.6,
+            "naive intervals should under-cover with AR(1) residuals: {:.1} %",
+            naive * 100.0
+        );
     }
 }

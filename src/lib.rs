@@ -1,18 +1,18 @@
 //! dbbcal: batch analysis of double-ballbar thermal campaigns. See ARCHITECTURE.md.
+pub mod acceptance;
+pub mod calibrate;
 pub mod campaign;
-pub mod io;
+pub mod compensate;
+pub mod diagnose;
+pub mod figures;
 pub mod fit;
 pub mod identify;
-pub mod model;
-pub mod series;
-pub mod simulate;
+pub mod io;
 pub mod matching;
-pub mod calibrate;
-pub mod compensate;
-pub mod acceptance;
+pub mod model;
 pub mod pipeline;
 pub mod progress;
 pub mod report;
-pub mod diagnose;
 pub mod runner;
-pub mod figures;
+pub mod series;
+pub mod simulate;

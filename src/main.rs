@@ -102,7 +102,11 @@ fn main() -> ExitCode {
         Err(e) => {
             let unusable = e.chain().any(runner::is_input_error);
             eprintln!("dbbcal: error: {}", one_line(&e));
-            ExitCode::from(if unusable { EXIT_UNUSABLE_INPUT } else { EXIT_OTHER })
+            ExitCode::from(if unusable {
+                EXIT_UNUSABLE_INPUT
+            } else {
+                EXIT_OTHER
+            })
         }
     }
 }
@@ -121,7 +125,11 @@ fn one_line(e: &anyhow::Error) -> String {
 
 fn execute(cli: Cli) -> anyhow::Result<RunStatus> {
     match cli.command {
-        Command::Run { pipeline, io, add_effect } => {
+        Command::Run {
+            pipeline,
+            io,
+            add_effect,
+        } => {
             let plan = RunPlan::from_pipeline_file(&pipeline, io.campaign, io.out, &add_effect)?;
             runner::run(&plan)
         }
@@ -132,7 +140,8 @@ fn execute(cli: Cli) -> anyhow::Result<RunStatus> {
         Command::Calibrate(a) => stage(Stage::Calibrate, a),
         Command::Compensate(a) => stage(Stage::Compensate, a),
         Command::Simulate { config, out, seed } => {
-            runner::simulate(config.as_deref(), &out, seed).with_context(|| format!("simulate into {}", out.display()))?;
+            runner::simulate(config.as_deref(), &out, seed)
+                .with_context(|| format!("simulate into {}", out.display()))?;
             Ok(RunStatus::AllBars)
         }
     }
@@ -141,12 +150,20 @@ fn execute(cli: Cli) -> anyhow::Result<RunStatus> {
 fn stage(stage: Stage, a: StageArgs) -> anyhow::Result<RunStatus> {
     let mut effects = a.effects;
     if effects.is_empty() && !a.add_effect.is_empty() {
-        effects = dbbcal::model::base_effects().iter().map(|e| e.name()).collect();
+        effects = dbbcal::model::base_effects()
+            .iter()
+            .map(|e| e.name())
+            .collect();
     }
     effects.extend(a.add_effect);
-    let campaign = a.io.campaign.unwrap_or_else(|| PathBuf::from("data/sample"));
+    let campaign =
+        a.io.campaign
+            .unwrap_or_else(|| PathBuf::from("data/sample"));
     if !(a.bin_s >= 0.0) {
-        anyhow::bail!(dbbcal::pipeline::PlanError::Pipeline { path: "--bin-s".into(), message: "must be zero or positive".into() });
+        anyhow::bail!(dbbcal::pipeline::PlanError::Pipeline {
+            path: "--bin-s".into(),
+            message: "must be zero or positive".into()
+        });
     }
     let mut plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
     plan.bin_s = a.bin_s;
@@ -154,6 +171,11 @@ fn stage(stage: Stage, a: StageArgs) -> anyhow::Result<RunStatus> {
 }
 
 fn init_tracing() {
-    let filter = tracing_subscriber::EnvFilter::try_from_env("DBBCAL_LOG").unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).init();
+    let filter = tracing_subscriber::EnvFilter::try_from_env("DBBCAL_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
 }

@@ -48,7 +48,11 @@ pub fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
     let mut spread = [0.0; 4];
     for k in 0..4 {
         mean[k] = bars.iter().map(|b| b.params[k]).sum::<f64>() / n;
-        let var = bars.iter().map(|b| (b.params[k] - mean[k]).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+        let var = bars
+            .iter()
+            .map(|b| (b.params[k] - mean[k]).powi(2))
+            .sum::<f64>()
+            / (n - 1.0).max(1.0);
         spread[k] = var.sqrt();
     }
     let distance: Vec<(String, f64)> = bars
@@ -61,8 +65,15 @@ pub fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
             (b.bar.clone(), d2.sqrt())
         })
         .collect();
-    let best = distance.iter().min_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)))?;
-    Some(ReferenceChoice { bar: best.0.clone(), distance: distance.clone(), fleet_mean: mean, fleet_spread: spread })
+    let best = distance
+        .iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1).then_with(|| a.0.cmp(&b.0)))?;
+    Some(ReferenceChoice {
+        bar: best.0.clone(),
+        distance: distance.clone(),
+        fleet_mean: mean,
+        fleet_spread: spread,
+    })
 }
 
 /// A temperature history to evaluate models on.
@@ -75,13 +86,20 @@ pub struct TemperatureHistory {
 
 /// Base-model thermal error (µm) of a bar at centre distance `distance_mm` over `history`
 /// (`physics.md`: `-(alpha I_min lag(T; tau_R) + beta I_p lag(T; tau_S))`).
-pub fn predicted_error_um(bar: &MatchInput, history: &TemperatureHistory, distance_mm: f64) -> Vec<f64> {
+pub fn predicted_error_um(
+    bar: &MatchInput,
+    history: &TemperatureHistory,
+    distance_mm: f64,
+) -> Vec<f64> {
     let [alpha, beta, tau_r, tau_s] = bar.params;
     let i_min = bar.fixed_length_mm;
     let i_p = (distance_mm - i_min).max(0.0);
     let (lr, _) = lag(&history.t_s, &history.delta_c, tau_r, false);
     let (ls, _) = lag(&history.t_s, &history.delta_c, tau_s, false);
-    lr.iter().zip(&ls).map(|(r, s)| -(alpha * i_min * r + beta * i_p * s) * 1e-3).collect()
+    lr.iter()
+        .zip(&ls)
+        .map(|(r, s)| -(alpha * i_min * r + beta * i_p * s) * 1e-3)
+        .collect()
 }
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -93,15 +111,31 @@ pub struct Mismatch {
 }
 
 /// Predicted mismatch of every bar against `reference` (the reference itself is left out).
-pub fn predicted_mismatch(bars: &[MatchInput], reference: &str, history: &TemperatureHistory, distance_mm: f64, limit_um: f64) -> Vec<Mismatch> {
-    let Some(r) = bars.iter().find(|b| b.bar == reference) else { return Vec::new() };
+pub fn predicted_mismatch(
+    bars: &[MatchInput],
+    reference: &str,
+    history: &TemperatureHistory,
+    distance_mm: f64,
+    limit_um: f64,
+) -> Vec<Mismatch> {
+    let Some(r) = bars.iter().find(|b| b.bar == reference) else {
+        return Vec::new();
+    };
     let er = predicted_error_um(r, history, distance_mm);
     bars.iter()
         .filter(|b| b.bar != reference)
         .map(|b| {
             let eb = predicted_error_um(b, history, distance_mm);
-            let max_abs_um = eb.iter().zip(&er).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-            Mismatch { bar: b.bar.clone(), max_abs_um, flagged: max_abs_um > limit_um }
+            let max_abs_um = eb
+                .iter()
+                .zip(&er)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            Mismatch {
+                bar: b.bar.clone(),
+                max_abs_um,
+                flagged: max_abs_um > limit_um,
+            }
         })
         .collect()
 }
@@ -122,11 +156,26 @@ pub struct MatchStudy {
 
 /// Evaluate every bar as a reference against all others on the measured drifts, on a common
 /// grid of `step_s` (each bar's nearest sample within `step_s / 2`).
-pub fn measured_mismatch_matrix(bars: &[MatchInput], nearest_mean: &str, step_s: f64) -> Option<MatchStudy> {
-    let t_start = bars.iter().filter_map(|b| b.t_s.first()).copied().reduce(f64::min)?;
-    let t_end = bars.iter().filter_map(|b| b.t_s.last()).copied().reduce(f64::max)?;
+pub fn measured_mismatch_matrix(
+    bars: &[MatchInput],
+    nearest_mean: &str,
+    step_s: f64,
+) -> Option<MatchStudy> {
+    let t_start = bars
+        .iter()
+        .filter_map(|b| b.t_s.first())
+        .copied()
+        .reduce(f64::min)?;
+    let t_end = bars
+        .iter()
+        .filter_map(|b| b.t_s.last())
+        .copied()
+        .reduce(f64::max)?;
     let n_grid = ((t_end - t_start) / step_s).floor() as usize + 1;
-    let grid: Vec<Vec<f64>> = bars.iter().map(|b| on_grid(b, t_start, step_s, n_grid)).collect();
+    let grid: Vec<Vec<f64>> = bars
+        .iter()
+        .map(|b| on_grid(b, t_start, step_s, n_grid))
+        .collect();
     let k = bars.len();
     let mut matrix = vec![vec![f64::NAN; k]; k];
     for r in 0..k {
@@ -136,7 +185,15 @@ pub fn measured_mismatch_matrix(bars: &[MatchInput], nearest_mean: &str, step_s:
             }
         }
     }
-    let worst: Vec<f64> = matrix.iter().map(|row| row.iter().copied().filter(|v| v.is_finite()).fold(0.0, f64::max)).collect();
+    let worst: Vec<f64> = matrix
+        .iter()
+        .map(|row| {
+            row.iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max)
+        })
+        .collect();
     let best_i = (0..k).min_by(|&a, &b| worst[a].total_cmp(&worst[b]))?;
     let picked_i = bars.iter().position(|b| b.bar == nearest_mean)?;
     Some(MatchStudy {
@@ -153,7 +210,11 @@ fn on_grid(bar: &MatchInput, t_start: f64, step_s: f64, n: usize) -> Vec<f64> {
     let mut out = vec![f64::NAN; n];
     for (t, v) in bar.t_s.iter().zip(&bar.measured_um) {
         let g = ((t - t_start) / step_s).round();
-        if g >= 0.0 && (g as usize) < n && (t - t_start - g * step_s).abs() <= step_s / 2.0 && out[g as usize].is_nan() {
+        if g >= 0.0
+            && (g as usize) < n
+            && (t - t_start - g * step_s).abs() <= step_s / 2.0
+            && out[g as usize].is_nan()
+        {
             out[g as usize] = *v;
         }
     }
@@ -176,7 +237,13 @@ mod tests {
     use super::*;
 
     fn bar(id: &str, params: [f64; 4]) -> MatchInput {
-        MatchInput { bar: id.into(), fixed_length_mm: 230.0, params, t_s: vec![], measured_um: vec![] }
+        MatchInput {
+            bar: id.into(),
+            fixed_length_mm: 230.0,
+            params,
+            t_s: vec![],
+            measured_um: vec![],
+        }
     }
 
     #[test]
@@ -193,7 +260,10 @@ mod tests {
 
     #[test]
     fn identical_bars_have_no_mismatch_and_a_step_gives_alpha_i_min_dt() {
-        let history = TemperatureHistory { t_s: (0..1000).map(|i| i as f64 * 60.0).collect(), delta_c: vec![1.0; 1000] };
+        let history = TemperatureHistory {
+            t_s: (0..1000).map(|i| i as f64 * 60.0).collect(),
+            delta_c: vec![1.0; 1000],
+        };
         let a = bar("A", [2.0, 0.0, 600.0, 600.0]);
         let b = bar("B", [3.0, 0.0, 600.0, 600.0]);
         let m = predicted_mismatch(&[a.clone(), b], "A", &history, 300.0, 1.0);

@@ -16,7 +16,9 @@ use sha2::{Digest, Sha256};
 use crate::campaign::{Campaign, Place};
 use crate::diagnose::{self, BarDiagnosis, Candidate, LedgerStep};
 use crate::identify::{identify, BarModel, Estimate};
-use crate::matching::{self, MatchInput, MatchStudy, Mismatch, ReferenceChoice, TemperatureHistory};
+use crate::matching::{
+    self, MatchInput, MatchStudy, Mismatch, ReferenceChoice, TemperatureHistory,
+};
 use crate::model::Effect;
 use crate::series::{BarSeries, CampaignLogs, InputFile};
 
@@ -88,7 +90,12 @@ pub struct AcceptanceSection {
 
 impl Default for AcceptanceSection {
     fn default() -> Self {
-        Self { tolerance_um: default_limit(), u_temperature_k: default_u_temperature(), model_difference: false, max_gap_s: default_max_gap() }
+        Self {
+            tolerance_um: default_limit(),
+            u_temperature_k: default_u_temperature(),
+            model_difference: false,
+            max_gap_s: default_max_gap(),
+        }
     }
 }
 
@@ -109,7 +116,9 @@ pub struct DiagnoseSection {
 
 impl Default for DiagnoseSection {
     fn default() -> Self {
-        Self { forward_steps: default_forward_steps() }
+        Self {
+            forward_steps: default_forward_steps(),
+        }
     }
 }
 
@@ -153,18 +162,29 @@ pub struct GenericTerm {
 
 impl GenericTerm {
     fn effect(&self) -> Effect {
-        Effect::Channel { transform: self.transform, channel: self.channel.clone(), tau0_s: self.tau_s }
+        Effect::Channel {
+            transform: self.transform,
+            channel: self.channel.clone(),
+            tau0_s: self.tau_s,
+        }
     }
 }
 
 impl Default for ModelSection {
     fn default() -> Self {
-        Self { effects: default_effects(), term: Vec::new(), bin_s: 0.0 }
+        Self {
+            effects: default_effects(),
+            term: Vec::new(),
+            bin_s: 0.0,
+        }
     }
 }
 
 fn default_effects() -> Vec<String> {
-    crate::model::base_effects().iter().map(Effect::name).collect()
+    crate::model::base_effects()
+        .iter()
+        .map(Effect::name)
+        .collect()
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -183,7 +203,11 @@ pub struct MatchSection {
 
 impl Default for MatchSection {
     fn default() -> Self {
-        Self { limit_um: default_limit(), at_length: None, study_step_s: default_study_step() }
+        Self {
+            limit_um: default_limit(),
+            at_length: None,
+            study_step_s: default_study_step(),
+        }
     }
 }
 
@@ -225,46 +249,103 @@ pub struct RunPlan {
 
 impl RunPlan {
     /// Validate a pipeline file plus command-line overrides.
-    pub fn from_pipeline_file(path: &Path, campaign: Option<PathBuf>, out: Option<PathBuf>, add_effects: &[String]) -> Result<RunPlan, PlanError> {
-        let perr = |message: String| PlanError::Pipeline { path: path.display().to_string(), message };
+    pub fn from_pipeline_file(
+        path: &Path,
+        campaign: Option<PathBuf>,
+        out: Option<PathBuf>,
+        add_effects: &[String],
+    ) -> Result<RunPlan, PlanError> {
+        let perr = |message: String| PlanError::Pipeline {
+            path: path.display().to_string(),
+            message,
+        };
         let text = std::fs::read_to_string(path).map_err(|e| perr(format!("cannot read: {e}")))?;
-        let file: PipelineFile = toml::from_str(&text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
+        let file: PipelineFile =
+            toml::from_str(&text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
         if file.pipeline.stages.is_empty() {
             return Err(perr("pipeline.stages is empty".into()));
         }
-        let mut stages: Vec<Stage> = file.pipeline.stages.iter().flat_map(|s| s.with_prerequisites()).collect();
+        let mut stages: Vec<Stage> = file
+            .pipeline
+            .stages
+            .iter()
+            .flat_map(|s| s.with_prerequisites())
+            .collect();
         stages.sort();
         stages.dedup();
         let mut names = file.model.effects.clone();
         for t in &file.model.term {
             if t.tau_s.is_some_and(|tau| !(tau > 0.0)) {
-                return Err(perr(format!("model.term (channel {:?}): tau_s must be positive", t.channel)));
+                return Err(perr(format!(
+                    "model.term (channel {:?}): tau_s must be positive",
+                    t.channel
+                )));
             }
             names.push(t.effect().name());
         }
         names.extend(add_effects.iter().cloned());
-        let campaign_dir = campaign.or(file.pipeline.campaign.clone()).unwrap_or_else(|| PathBuf::from("data/sample"));
+        let campaign_dir = campaign
+            .or(file.pipeline.campaign.clone())
+            .unwrap_or_else(|| PathBuf::from("data/sample"));
         let sha = sha256_hex(text.as_bytes());
-        let mut plan = RunPlan::new(file.pipeline.name.clone(), Some((path.to_path_buf(), sha)), stages, campaign_dir, out, &names, file.matching)?;
+        let mut plan = RunPlan::new(
+            file.pipeline.name.clone(),
+            Some((path.to_path_buf(), sha)),
+            stages,
+            campaign_dir,
+            out,
+            &names,
+            file.matching,
+        )?;
         plan.diagnose = file.diagnose;
         if !(file.model.bin_s >= 0.0) {
             return Err(perr("model.bin_s must be zero or positive".into()));
         }
         plan.bin_s = file.model.bin_s;
-        if !(file.acceptance.tolerance_um > 0.0 && file.acceptance.u_temperature_k >= 0.0 && file.acceptance.max_gap_s > 0.0) {
-            return Err(perr("acceptance: tolerance_um and max_gap_s must be > 0, u_temperature_k >= 0".into()));
+        if !(file.acceptance.tolerance_um > 0.0
+            && file.acceptance.u_temperature_k >= 0.0
+            && file.acceptance.max_gap_s > 0.0)
+        {
+            return Err(perr(
+                "acceptance: tolerance_um and max_gap_s must be > 0, u_temperature_k >= 0".into(),
+            ));
         }
         plan.acceptance = file.acceptance;
         Ok(plan)
     }
 
     /// A plan for one stage subcommand (and the stages it needs).
-    pub fn for_stage(stage: Stage, campaign: PathBuf, out: Option<PathBuf>, effects: &[String]) -> Result<RunPlan, PlanError> {
-        let names = if effects.is_empty() { default_effects() } else { effects.to_vec() };
-        RunPlan::new(format!("{stage:?}").to_lowercase(), None, stage.with_prerequisites(), campaign, out, &names, MatchSection::default())
+    pub fn for_stage(
+        stage: Stage,
+        campaign: PathBuf,
+        out: Option<PathBuf>,
+        effects: &[String],
+    ) -> Result<RunPlan, PlanError> {
+        let names = if effects.is_empty() {
+            default_effects()
+        } else {
+            effects.to_vec()
+        };
+        RunPlan::new(
+            format!("{stage:?}").to_lowercase(),
+            None,
+            stage.with_prerequisites(),
+            campaign,
+            out,
+            &names,
+            MatchSection::default(),
+        )
     }
 
-    fn new(name: String, source: Option<(PathBuf, String)>, stages: Vec<Stage>, campaign_dir: PathBuf, out_dir: Option<PathBuf>, effect_names: &[String], matching: MatchSection) -> Result<RunPlan, PlanError> {
+    fn new(
+        name: String,
+        source: Option<(PathBuf, String)>,
+        stages: Vec<Stage>,
+        campaign_dir: PathBuf,
+        out_dir: Option<PathBuf>,
+        effect_names: &[String],
+        matching: MatchSection,
+    ) -> Result<RunPlan, PlanError> {
         let mut effects = Vec::new();
         for n in effect_names {
             let e = Effect::parse(n)?;
@@ -275,7 +356,18 @@ impl RunPlan {
         if !campaign_dir.join("campaign.toml").is_file() {
             return Err(PlanError::NoCampaign(campaign_dir.display().to_string()));
         }
-        Ok(RunPlan { pipeline_name: name, pipeline_source: source, stages, campaign_dir, out_dir, effects, bin_s: 0.0, matching, diagnose: DiagnoseSection::default(), acceptance: AcceptanceSection::default() })
+        Ok(RunPlan {
+            pipeline_name: name,
+            pipeline_source: source,
+            stages,
+            campaign_dir,
+            out_dir,
+            effects,
+            bin_s: 0.0,
+            matching,
+            diagnose: DiagnoseSection::default(),
+            acceptance: AcceptanceSection::default(),
+        })
     }
 
     pub fn runs(&self, stage: Stage) -> bool {
@@ -368,22 +460,50 @@ pub struct ReferenceReport {
 
 /// Run the analysis stages on already-read logs (no output written).
 pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
-    let CampaignLogs { campaign, inputs, bars, sensors, events } = logs;
-    let t0 = campaign.mounts.iter().map(|m| m.from_ns).min().unwrap_or_else(|| campaign_origin_from(&bars));
+    let CampaignLogs {
+        campaign,
+        inputs,
+        bars,
+        sensors,
+        events,
+    } = logs;
+    let t0 = campaign
+        .mounts
+        .iter()
+        .map(|m| m.from_ns)
+        .min()
+        .unwrap_or_else(|| campaign_origin_from(&bars));
     let history = air_history(&campaign, &sensors, t0, 60.0);
     if !plan.runs(Stage::Identify) {
-        return RunResults { campaign, inputs, bars: Vec::new(), failed: Vec::new(), reference: None, study: None, history, diagnosis: None, before_after: None, calibration: None, compensation: None, acceptance: None };
+        return RunResults {
+            campaign,
+            inputs,
+            bars: Vec::new(),
+            failed: Vec::new(),
+            reference: None,
+            study: None,
+            history,
+            diagnosis: None,
+            before_after: None,
+            calibration: None,
+            compensation: None,
+            acceptance: None,
+        };
     }
     let progress = crate::progress::bar(bars.len() as u64, "identify");
     let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
         .into_iter()
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|(id, log)| {
-            let r = BarSeries::build(&campaign, &events, &id, log, t0).map(|s| s.binned(plan.bin_s)).map_err(|e| e.to_string()).and_then(|series| {
-                let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
-                Ok(BarOutcome { series, model })
-            });
+        .map(|(id, mut log)| {
+            crate::series::interpolate_temperatures(&mut log, &sensors);
+            let r = BarSeries::build(&campaign, &events, &id, log, t0)
+                .map(|s| s.binned(plan.bin_s))
+                .map_err(|e| e.to_string())
+                .and_then(|series| {
+                    let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
+                    Ok(BarOutcome { series, model })
+                });
             progress.inc(1);
             (id, r)
         })
@@ -400,7 +520,20 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
             }
         }
     }
-    let mut results = RunResults { campaign, inputs, bars: ok, failed, reference: None, study: None, history, diagnosis: None, before_after: None, calibration: None, compensation: None, acceptance: None };
+    let mut results = RunResults {
+        campaign,
+        inputs,
+        bars: ok,
+        failed,
+        reference: None,
+        study: None,
+        history,
+        diagnosis: None,
+        before_after: None,
+        calibration: None,
+        compensation: None,
+        acceptance: None,
+    };
     if plan.runs(Stage::Match) {
         run_match(plan, &mut results);
     }
@@ -424,9 +557,18 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
 
 /// Calibrate every identified bar (a bar that cannot be calibrated is listed, the others go on).
 fn run_calibrate(r: &RunResults) -> CalibrationStage {
-    let outcomes: Vec<Result<crate::calibrate::BarCalibration, String>> =
-        r.bars.par_iter().map(|o| crate::calibrate::calibrate_bar(&o.series, &o.model, &r.campaign).map_err(|e| e.to_string())).collect();
-    let mut stage = CalibrationStage { bars: Vec::new(), failed: Vec::new() };
+    let outcomes: Vec<Result<crate::calibrate::BarCalibration, String>> = r
+        .bars
+        .par_iter()
+        .map(|o| {
+            crate::calibrate::calibrate_bar(&o.series, &o.model, &r.campaign)
+                .map_err(|e| e.to_string())
+        })
+        .collect();
+    let mut stage = CalibrationStage {
+        bars: Vec::new(),
+        failed: Vec::new(),
+    };
     for (o, c) in r.bars.iter().zip(outcomes) {
         match c {
             Ok(c) => stage.bars.push(c),
@@ -441,23 +583,43 @@ fn run_calibrate(r: &RunResults) -> CalibrationStage {
 
 /// Compensate every working mount (check lengths and devices).
 fn run_compensate(plan: &RunPlan, r: &RunResults) -> CompensationStage {
-    let cals = r.calibration.as_ref().map(|c| c.bars.as_slice()).unwrap_or_default();
+    let cals = r
+        .calibration
+        .as_ref()
+        .map(|c| c.bars.as_slice())
+        .unwrap_or_default();
     let bars: Vec<crate::compensate::CompBar> = r
         .bars
         .iter()
-        .map(|o| crate::compensate::CompBar { series: &o.series, model: &o.model, calibration: cals.iter().find(|c| c.bar == o.model.bar) })
+        .map(|o| crate::compensate::CompBar {
+            series: &o.series,
+            model: &o.model,
+            calibration: cals.iter().find(|c| c.bar == o.model.bar),
+        })
         .collect();
-    let fleet_distance: BTreeMap<String, f64> = r.reference.as_ref().map(|rr| rr.choice.distance.iter().cloned().collect()).unwrap_or_default();
-    let options = crate::compensate::CompensateOptions { model_difference: plan.acceptance.model_difference, max_gap_s: plan.acceptance.max_gap_s };
-    let mut stage = CompensationStage { working: Vec::new(), failed: Vec::new() };
+    let fleet_distance: BTreeMap<String, f64> = r
+        .reference
+        .as_ref()
+        .map(|rr| rr.choice.distance.iter().cloned().collect())
+        .unwrap_or_default();
+    let options = crate::compensate::CompensateOptions {
+        model_difference: plan.acceptance.model_difference,
+        max_gap_s: plan.acceptance.max_gap_s,
+    };
+    let mut stage = CompensationStage {
+        working: Vec::new(),
+        failed: Vec::new(),
+    };
     for w in crate::compensate::compensate(&bars, &r.campaign, &fleet_distance, &options) {
         match w {
             Ok(w) => stage.working.push(w),
             Err(e) => {
                 tracing::warn!("{e}");
                 let bar = match &e {
-                    crate::compensate::CompensateError::NotCalibrated { bar } | crate::compensate::CompensateError::Model { bar, .. } => bar.clone(),
-                    crate::compensate::CompensateError::OtherEpoch { bar, .. } | crate::compensate::CompensateError::NoReadings { bar, .. } => bar.clone(),
+                    crate::compensate::CompensateError::NotCalibrated { bar }
+                    | crate::compensate::CompensateError::Model { bar, .. } => bar.clone(),
+                    crate::compensate::CompensateError::OtherEpoch { bar, .. }
+                    | crate::compensate::CompensateError::NoReadings { bar, .. } => bar.clone(),
                 };
                 stage.failed.push((bar, e.to_string()));
             }
@@ -468,8 +630,13 @@ fn run_compensate(plan: &RunPlan, r: &RunResults) -> CompensationStage {
 
 /// Accept every compensated working series on a known length.
 fn run_acceptance(plan: &RunPlan, r: &RunResults) -> Vec<crate::acceptance::BarAcceptance> {
-    let (Some(cal), Some(comp)) = (&r.calibration, &r.compensation) else { return Vec::new() };
-    let options = crate::acceptance::AcceptanceOptions { tolerance_um: plan.acceptance.tolerance_um, u_temperature_k: plan.acceptance.u_temperature_k };
+    let (Some(cal), Some(comp)) = (&r.calibration, &r.compensation) else {
+        return Vec::new();
+    };
+    let options = crate::acceptance::AcceptanceOptions {
+        tolerance_um: plan.acceptance.tolerance_um,
+        u_temperature_k: plan.acceptance.u_temperature_k,
+    };
     comp.working
         .iter()
         .filter_map(|w| {
@@ -481,17 +648,38 @@ fn run_acceptance(plan: &RunPlan, r: &RunResults) -> Vec<crate::acceptance::BarA
 }
 
 fn campaign_origin_from(bars: &BTreeMap<String, crate::series::BarLog>) -> i64 {
-    bars.values().filter_map(|l| l.time_ns.first().copied()).min().unwrap_or(0)
+    bars.values()
+        .filter_map(|l| l.time_ns.first().copied())
+        .min()
+        .unwrap_or(0)
 }
 
 /// Mean air temperature minus the reference, on a regular grid (each sensor interpolated).
-fn air_history(campaign: &Campaign, sensors: &BTreeMap<String, crate::series::SensorLog>, t0_ns: i64, step_s: f64) -> TemperatureHistory {
-    let logs: Vec<&crate::series::SensorLog> = campaign.air_sensors().filter_map(|s| sensors.get(&s.id)).filter(|l| !l.time_ns.is_empty()).collect();
+fn air_history(
+    campaign: &Campaign,
+    sensors: &BTreeMap<String, crate::series::SensorLog>,
+    t0_ns: i64,
+    step_s: f64,
+) -> TemperatureHistory {
+    let logs: Vec<&crate::series::SensorLog> = campaign
+        .air_sensors()
+        .filter_map(|s| sensors.get(&s.id))
+        .filter(|l| !l.time_ns.is_empty())
+        .collect();
     let to_s = |ns: i64| (ns - t0_ns) as f64 * 1e-9;
-    let start = logs.iter().map(|l| to_s(l.time_ns[0])).fold(f64::INFINITY, f64::min);
-    let end = logs.iter().map(|l| to_s(*l.time_ns.last().unwrap_or(&0))).fold(f64::NEG_INFINITY, f64::max);
+    let start = logs
+        .iter()
+        .map(|l| to_s(l.time_ns[0]))
+        .fold(f64::INFINITY, f64::min);
+    let end = logs
+        .iter()
+        .map(|l| to_s(*l.time_ns.last().unwrap_or(&0)))
+        .fold(f64::NEG_INFINITY, f64::max);
     if logs.is_empty() || !(end > start) {
-        return TemperatureHistory { t_s: vec![], delta_c: vec![] };
+        return TemperatureHistory {
+            t_s: vec![],
+            delta_c: vec![],
+        };
     }
     let n = ((end - start) / step_s).floor() as usize + 1;
     let t_s: Vec<f64> = (0..n).map(|i| start + i as f64 * step_s).collect();
@@ -503,7 +691,13 @@ fn air_history(campaign: &Campaign, sensors: &BTreeMap<String, crate::series::Se
         }
     }
     let k = logs.len() as f64;
-    TemperatureHistory { t_s, delta_c: sum.into_iter().map(|s| s / k - campaign.reference_temperature_c).collect() }
+    TemperatureHistory {
+        t_s,
+        delta_c: sum
+            .into_iter()
+            .map(|s| s / k - campaign.reference_temperature_c)
+            .collect(),
+    }
 }
 
 fn interpolate(x: &[f64], y: &[f64], at: f64) -> f64 {
@@ -524,7 +718,12 @@ fn interpolate(x: &[f64], y: &[f64], at: f64) -> f64 {
 /// What matching needs of an identified bar (bars whose model lacks a base parameter are left out).
 pub fn match_input(o: &BarOutcome) -> Option<MatchInput> {
     let p = |name: &str| o.model.value(name);
-    let params = [p(matching::MATCH_PARAMS[0])?, p(matching::MATCH_PARAMS[1])?, p(matching::MATCH_PARAMS[2])?, p(matching::MATCH_PARAMS[3])?];
+    let params = [
+        p(matching::MATCH_PARAMS[0])?,
+        p(matching::MATCH_PARAMS[1])?,
+        p(matching::MATCH_PARAMS[2])?,
+        p(matching::MATCH_PARAMS[3])?,
+    ];
     let (t_s, measured_um) = o
         .series
         .fit_index
@@ -534,18 +733,38 @@ pub fn match_input(o: &BarOutcome) -> Option<MatchInput> {
             (o.series.t_s[i], o.series.y_um[i] - zero)
         })
         .unzip();
-    Some(MatchInput { bar: o.model.bar.clone(), fixed_length_mm: o.series.bar.fixed_length_mm, params, t_s, measured_um })
+    Some(MatchInput {
+        bar: o.model.bar.clone(),
+        fixed_length_mm: o.series.bar.fixed_length_mm,
+        params,
+        t_s,
+        measured_um,
+    })
 }
 
 fn run_match(plan: &RunPlan, results: &mut RunResults) {
     let inputs: Vec<MatchInput> = results.bars.iter().filter_map(match_input).collect();
-    let Some(choice) = matching::choose_reference(&inputs) else { return };
+    let Some(choice) = matching::choose_reference(&inputs) else {
+        return;
+    };
     let distance_mm = comparison_distance(&results.campaign, plan.matching.at_length.as_deref());
-    let mismatches = matching::predicted_mismatch(&inputs, &choice.bar, &results.history, distance_mm, plan.matching.limit_um);
+    let mismatches = matching::predicted_mismatch(
+        &inputs,
+        &choice.bar,
+        &results.history,
+        distance_mm,
+        plan.matching.limit_um,
+    );
     if plan.runs(Stage::MatchStudy) {
-        results.study = matching::measured_mismatch_matrix(&inputs, &choice.bar, plan.matching.study_step_s);
+        results.study =
+            matching::measured_mismatch_matrix(&inputs, &choice.bar, plan.matching.study_step_s);
     }
-    results.reference = Some(ReferenceReport { choice, distance_mm, limit_um: plan.matching.limit_um, mismatches });
+    results.reference = Some(ReferenceReport {
+        choice,
+        distance_mm,
+        limit_um: plan.matching.limit_um,
+        mismatches,
+    });
 }
 
 /// The centre distance at which bars are compared: the named plate length, else the middle one.
@@ -556,10 +775,14 @@ fn comparison_distance(campaign: &Campaign, at_length: Option<&str>) -> f64 {
     }
     lengths.sort_by(f64::total_cmp);
     lengths.get(lengths.len() / 2).copied().unwrap_or_else(|| {
-        campaign.mounts.iter().find_map(|m| match &m.place {
-            Place::Length(l) => Some(l.mm),
-            Place::Device(_) => None,
-        }).unwrap_or(0.0)
+        campaign
+            .mounts
+            .iter()
+            .find_map(|m| match &m.place {
+                Place::Length(l) => Some(l.mm),
+                Place::Device(_) => None,
+            })
+            .unwrap_or(0.0)
     })
 }
 
@@ -637,7 +860,12 @@ pub struct ReferenceSummary {
 }
 
 fn param_value(e: &Estimate) -> ParamValue {
-    ParamValue { value: e.value, u: e.u, u_naive: e.u_naive, ci95: e.ci95 }
+    ParamValue {
+        value: e.value,
+        u: e.u,
+        u_naive: e.u_naive,
+        ci95: e.ci95,
+    }
 }
 
 pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
@@ -647,8 +875,16 @@ pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
         .map(|o| BarSummary {
             bar: o.model.bar.clone(),
             effects: o.model.effect_names(),
-            params: o.model.params.iter().map(|p| (p.name.clone(), param_value(p))).collect(),
-            correlation: CorrelationRecord { names: o.model.params.iter().map(|p| p.name.clone()).collect(), matrix: o.model.correlation.clone() },
+            params: o
+                .model
+                .params
+                .iter()
+                .map(|p| (p.name.clone(), param_value(p)))
+                .collect(),
+            correlation: CorrelationRecord {
+                names: o.model.params.iter().map(|p| p.name.clone()).collect(),
+                matrix: o.model.correlation.clone(),
+            },
             rms_um: o.model.rms_um,
             n_samples: o.model.n_samples,
             dropped_outside_mounts: o.series.dropped_outside_mounts,
@@ -669,14 +905,27 @@ pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
         campaign: r.campaign.id.clone(),
         pipeline: PipelineRecord {
             name: plan.pipeline_name.clone(),
-            path: plan.pipeline_source.as_ref().map(|(p, _)| p.display().to_string()),
+            path: plan
+                .pipeline_source
+                .as_ref()
+                .map(|(p, _)| p.display().to_string()),
             sha256: plan.pipeline_source.as_ref().map(|(_, h)| h.clone()),
             stages: plan.stages.clone(),
         },
         inputs: r.inputs.clone(),
-        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect(), bin_s: plan.bin_s },
+        model: ModelRecord {
+            effects: plan.effects.iter().map(Effect::name).collect(),
+            bin_s: plan.bin_s,
+        },
         bars,
-        failed_bars: r.failed.iter().map(|(bar, error)| FailedBar { bar: bar.clone(), error: error.clone() }).collect(),
+        failed_bars: r
+            .failed
+            .iter()
+            .map(|(bar, error)| FailedBar {
+                bar: bar.clone(),
+                error: error.clone(),
+            })
+            .collect(),
         reference,
     }
 }
@@ -688,14 +937,31 @@ fn before_after(bars: &[BarOutcome]) -> BeforeAfter {
         .par_iter()
         .filter_map(|o| {
             let before = identify(&o.series, &base).ok()?;
-            let pick = |m: &BarModel| m.params.iter().filter(|p| matching::MATCH_PARAMS.contains(&p.name.as_str())).map(|p| (p.name.clone(), p.value)).collect();
-            Some(BarBeforeAfter { bar: o.model.bar.clone(), rms_before_um: before.rms_um, rms_after_um: o.model.rms_um, params_before: pick(&before), params_after: pick(&o.model) })
+            let pick = |m: &BarModel| {
+                m.params
+                    .iter()
+                    .filter(|p| matching::MATCH_PARAMS.contains(&p.name.as_str()))
+                    .map(|p| (p.name.clone(), p.value))
+                    .collect()
+            };
+            Some(BarBeforeAfter {
+                bar: o.model.bar.clone(),
+                rms_before_um: before.rms_um,
+                rms_after_um: o.model.rms_um,
+                params_before: pick(&before),
+                params_after: pick(&o.model),
+            })
         })
         .collect();
-    let fleet = |f: &dyn Fn(&BarBeforeAfter) -> f64| (rows.iter().map(|r| f(r).powi(2)).sum::<f64>() / rows.len().max(1) as f64).sqrt();
+    let fleet = |f: &dyn Fn(&BarBeforeAfter) -> f64| {
+        (rows.iter().map(|r| f(r).powi(2)).sum::<f64>() / rows.len().max(1) as f64).sqrt()
+    };
     BeforeAfter {
         before_effects: base.iter().map(Effect::name).collect(),
-        after_effects: bars.first().map(|o| o.model.effect_names()).unwrap_or_default(),
+        after_effects: bars
+            .first()
+            .map(|o| o.model.effect_names())
+            .unwrap_or_default(),
         fleet_rms_before_um: fleet(&|r| r.rms_before_um),
         fleet_rms_after_um: fleet(&|r| r.rms_after_um),
         bars: rows,
@@ -715,11 +981,20 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
         .collect();
     progress.finish_and_clear();
     let pairs: Vec<(&BarSeries, &BarModel)> = bars.iter().map(|o| (&o.series, &o.model)).collect();
-    let (candidates, unavailable) = diagnose::evaluate_candidates(&pairs, &diagnose::candidate_effects(&plan.effects, &diagnoses));
+    let (candidates, unavailable) = diagnose::evaluate_candidates(
+        &pairs,
+        &diagnose::candidate_effects(&plan.effects, &diagnoses),
+    );
     let series: Vec<&BarSeries> = bars.iter().map(|o| &o.series).collect();
     let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
-    let (ledger, _) = diagnose::forward_selection(&series, models, &candidates, plan.diagnose.forward_steps);
-    Diagnosis { bars: diagnoses, candidates, unavailable, ledger }
+    let (ledger, _) =
+        diagnose::forward_selection(&series, models, &candidates, plan.diagnose.forward_steps);
+    Diagnosis {
+        bars: diagnoses,
+        candidates,
+        unavailable,
+        ledger,
+    }
 }
 
 /// `diagnosis.json`: per bar where the model fails, and the ranked candidate effects (every
@@ -756,10 +1031,17 @@ pub struct ChannelRecord<'a> {
     pub description: String,
 }
 
-pub fn diagnosis_record<'a>(plan: &RunPlan, r: &'a RunResults, d: &'a Diagnosis) -> DiagnosisRecord<'a> {
+pub fn diagnosis_record<'a>(
+    plan: &RunPlan,
+    r: &'a RunResults,
+    d: &'a Diagnosis,
+) -> DiagnosisRecord<'a> {
     DiagnosisRecord {
         campaign: &r.campaign.id,
-        model: ModelRecord { effects: plan.effects.iter().map(Effect::name).collect(), bin_s: plan.bin_s },
+        model: ModelRecord {
+            effects: plan.effects.iter().map(Effect::name).collect(),
+            bin_s: plan.bin_s,
+        },
         inputs: &r.inputs,
         bars: d
             .bars
@@ -775,7 +1057,12 @@ pub fn diagnosis_record<'a>(plan: &RunPlan, r: &'a RunResults, d: &'a Diagnosis)
                 channels: b
                     .channels
                     .iter()
-                    .map(|c| ChannelRecord { channel: &c.channel, explained_fraction: c.explained_fraction, tau_s: c.tau_s, description: diagnose::explain::describe_channel(&c.channel) })
+                    .map(|c| ChannelRecord {
+                        channel: &c.channel,
+                        explained_fraction: c.explained_fraction,
+                        tau_s: c.tau_s,
+                        description: diagnose::explain::describe_channel(&c.channel),
+                    })
                     .collect(),
             })
             .collect(),

@@ -10,7 +10,9 @@ pub fn bar(len: u64, label: &str) -> ProgressBar {
         return ProgressBar::hidden();
     }
     let pb = ProgressBar::new(len);
-    if let Ok(style) = ProgressStyle::with_template("{msg:>10} [{bar:30}] {pos}/{len} bars ({elapsed})") {
+    if let Ok(style) =
+        ProgressStyle::with_template("{msg:>10} [{bar:30}] {pos}/{len} bars ({elapsed})")
+    {
         pb.set_style(style.progress_chars("=> "));
     }
     pb.set_message(label.to_string());

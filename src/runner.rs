@@ -21,13 +21,18 @@ pub enum RunStatus {
 
 /// Whether an error (anywhere in a chain) means the input or configuration is unusable.
 pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
-    e.is::<io::IngestError>() || e.is::<pipeline::PlanError>() || e.is::<crate::campaign::CampaignError>()
+    e.is::<io::IngestError>()
+        || e.is::<pipeline::PlanError>()
+        || e.is::<crate::campaign::CampaignError>()
 }
 
 /// Run `plan`: ingest, analyse, write the output folder.
 pub fn run(plan: &RunPlan) -> Result<RunStatus> {
     let logs = io::read_campaign(&plan.campaign_dir)?;
-    let out = plan.out_dir.clone().unwrap_or_else(|| PathBuf::from("reports").join(&logs.campaign.id));
+    let out = plan
+        .out_dir
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("reports").join(&logs.campaign.id));
     let results = pipeline::analyse(plan, logs);
     write_atomically(&out, |tmp| write_outputs(plan, &results, tmp))?;
     Ok(match results.failed.len() {
@@ -40,8 +45,11 @@ pub fn run(plan: &RunPlan) -> Result<RunStatus> {
 pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<()> {
     let mut cfg = match config {
         Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-            toml::from_str::<crate::simulate::SimConfig>(&text).map_err(|e| anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " ")))?
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            toml::from_str::<crate::simulate::SimConfig>(&text).map_err(|e| {
+                anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
+            })?
         }
         None => crate::simulate::SimConfig::default(),
     };
@@ -52,13 +60,19 @@ pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<
         anyhow::bail!("{} already exists; choose a new directory", out.display());
     }
     let sim = crate::simulate::generate(&cfg)?;
-    write_atomically(out, |tmp| crate::simulate::write(&sim, tmp, &io::WriteOptions::default()).map_err(anyhow::Error::from))
+    write_atomically(out, |tmp| {
+        crate::simulate::write(&sim, tmp, &io::WriteOptions::default()).map_err(anyhow::Error::from)
+    })
 }
 
 /// Build a folder at `out` through a temporary sibling renamed at the end.
 fn write_atomically(out: &Path, build: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).with_context(|| format!("cannot create {}", parent.display()))?;
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent)
+        .with_context(|| format!("cannot create {}", parent.display()))?;
     let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("out");
     let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
@@ -69,9 +83,11 @@ fn write_atomically(out: &Path, build: impl FnOnce(&Path) -> Result<()>) -> Resu
     }
     let old = parent.join(format!(".{name}.old-{}", std::process::id()));
     if out.exists() {
-        std::fs::rename(out, &old).with_context(|| format!("cannot move the previous {} aside", out.display()))?;
+        std::fs::rename(out, &old)
+            .with_context(|| format!("cannot move the previous {} aside", out.display()))?;
     }
-    std::fs::rename(&tmp, out).with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
+    std::fs::rename(&tmp, out)
+        .with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
     let _ = std::fs::remove_dir_all(&old);
     Ok(())
 }
@@ -89,7 +105,10 @@ fn write_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()>
         io::write_table(&dir.join("models.parquet"), &models_table(results))?;
     }
     if let Some(d) = &results.diagnosis {
-        write_json(&dir.join("diagnosis.json"), &pipeline::diagnosis_record(plan, results, d))?;
+        write_json(
+            &dir.join("diagnosis.json"),
+            &pipeline::diagnosis_record(plan, results, d),
+        )?;
     }
     if let Some(ba) = &results.before_after {
         write_json(&dir.join("before_after.json"), ba)?;
@@ -110,7 +129,8 @@ fn write_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()>
 fn models_table(results: &RunResults) -> io::Table {
     let mut bar = Vec::new();
     let mut param = Vec::new();
-    let (mut value, mut u, mut u_naive, mut lo, mut hi) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut value, mut u, mut u_naive, mut lo, mut hi) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut rms, mut n) = (Vec::new(), Vec::new());
     for o in &results.bars {
         for p in &o.model.params {
@@ -128,7 +148,10 @@ fn models_table(results: &RunResults) -> io::Table {
     use io::Column::*;
     io::Table {
         columns: vec![
-            ("campaign".into(), Str(vec![results.campaign.id.clone(); bar.len()])),
+            (
+                "campaign".into(),
+                Str(vec![results.campaign.id.clone(); bar.len()]),
+            ),
             ("bar".into(), Str(bar)),
             ("param".into(), Str(param)),
             ("value".into(), F64(value)),
@@ -146,7 +169,14 @@ fn models_table(results: &RunResults) -> io::Table {
 /// calibrate, compensate and acceptance stages produced.
 fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()> {
     use crate::acceptance::FailedRecord;
-    let failed = |v: &[(String, String)]| v.iter().map(|(bar, error)| FailedRecord { bar: bar.clone(), error: error.clone() }).collect::<Vec<_>>();
+    let failed = |v: &[(String, String)]| {
+        v.iter()
+            .map(|(bar, error)| FailedRecord {
+                bar: bar.clone(),
+                error: error.clone(),
+            })
+            .collect::<Vec<_>>()
+    };
     let campaign = results.campaign.id.as_str();
     if let Some(c) = &results.calibration {
         let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "bars": &c.bars, "failed_bars": failed(&c.failed) });
@@ -155,7 +185,10 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
     if let Some(c) = &results.compensation {
         let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "options": &plan.acceptance, "working": &c.working, "failed": failed(&c.failed) });
         write_json(&dir.join("compensation.json"), &record)?;
-        io::write_table(&dir.join("compensated.parquet"), &compensated_table(results, &c.working))?;
+        io::write_table(
+            &dir.join("compensated.parquet"),
+            &compensated_table(results, &c.working),
+        )?;
     }
     if let (Some(a), Some(c)) = (&results.acceptance, &results.compensation) {
         let record = crate::acceptance::AcceptanceRecord {
@@ -174,9 +207,13 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
 }
 
 /// `compensated.parquet`: one row per working sample.
-fn compensated_table(results: &RunResults, working: &[crate::compensate::WorkingSeries]) -> io::Table {
+fn compensated_table(
+    results: &RunResults,
+    working: &[crate::compensate::WorkingSeries],
+) -> io::Table {
     let (mut bar, mut mode, mut mount) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut t, mut d, mut du, mut th, mut err) = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut t, mut d, mut du, mut th, mut err) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for w in working {
         for k in 0..w.t_s.len() {
             bar.push(w.bar.clone());
@@ -192,7 +229,10 @@ fn compensated_table(results: &RunResults, working: &[crate::compensate::Working
     use io::Column::*;
     io::Table {
         columns: vec![
-            ("campaign".into(), Str(vec![results.campaign.id.clone(); bar.len()])),
+            (
+                "campaign".into(),
+                Str(vec![results.campaign.id.clone(); bar.len()]),
+            ),
             ("bar".into(), Str(bar)),
             ("mount".into(), I64(mount)),
             ("mode".into(), Str(mode)),

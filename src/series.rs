@@ -156,10 +156,23 @@ pub enum SeriesError {
 impl BarSeries {
     /// Build bar `bar_id`'s series from its log (taken by value: the series owns the data, so a
     /// large campaign is never held twice) and the campaign's events.
-    pub fn build(campaign: &Campaign, events: &[Event], bar_id: &str, log: BarLog, t0_ns: TimeNs) -> Result<BarSeries, SeriesError> {
-        let bar = campaign.bar(bar_id).cloned().ok_or_else(|| SeriesError::NoReadings { bar: bar_id.to_string() })?;
+    pub fn build(
+        campaign: &Campaign,
+        events: &[Event],
+        bar_id: &str,
+        log: BarLog,
+        t0_ns: TimeNs,
+    ) -> Result<BarSeries, SeriesError> {
+        let bar = campaign
+            .bar(bar_id)
+            .cloned()
+            .ok_or_else(|| SeriesError::NoReadings {
+                bar: bar_id.to_string(),
+            })?;
         if log.time_ns.is_empty() {
-            return Err(SeriesError::NoReadings { bar: bar_id.to_string() });
+            return Err(SeriesError::NoReadings {
+                bar: bar_id.to_string(),
+            });
         }
         let to_s = |ns: TimeNs| (ns - t0_ns) as f64 * 1e-9;
         let t_s: Vec<f64> = log.time_ns.iter().map(|&t| to_s(t)).collect();
@@ -173,14 +186,20 @@ impl BarSeries {
             .collect();
         let (zero_segment, n_zero_segments) = zero_segments(&t_s, &mount_of, &events);
         let air_c = air_temperature(campaign, &bar, &log)?;
-        let mut y_um: Vec<f64> = log.counts.iter().map(|&c| c as f64 * bar.resolution_nm * 1e-3).collect();
+        let mut y_um: Vec<f64> = log
+            .counts
+            .iter()
+            .map(|&c| c as f64 * bar.resolution_nm * 1e-3)
+            .collect();
         subtract_plate_expansion(campaign, &log, &mount_of, &mounts, &mut y_um);
         let segment_offset_um = centre_segments(&mut y_um, &zero_segment, n_zero_segments);
         let fit_index: Vec<usize> = (0..t_s.len())
             .filter(|&i| mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted()))
             .collect();
         if fit_index.is_empty() {
-            return Err(SeriesError::NoMountedReadings { bar: bar_id.to_string() });
+            return Err(SeriesError::NoMountedReadings {
+                bar: bar_id.to_string(),
+            });
         }
         Ok(BarSeries {
             bar,
@@ -196,7 +215,11 @@ impl BarSeries {
             air_c,
             celsius: log.celsius,
             air_sensor_ids: campaign.air_sensors().map(|s| s.id.clone()).collect(),
-            plate_sensor_id: campaign.sensors.iter().find(|s| s.kind == crate::campaign::SensorKind::Plate).map(|s| s.id.clone()),
+            plate_sensor_id: campaign
+                .sensors
+                .iter()
+                .find(|s| s.kind == crate::campaign::SensorKind::Plate)
+                .map(|s| s.id.clone()),
             fit_index,
             dropped_outside_mounts,
             events,
@@ -205,11 +228,20 @@ impl BarSeries {
 
     /// A series from plain vectors (no campaign files): for tests and tools that make their own
     /// data. Samples are assigned to `mounts` by time; `y_um` is taken as it is.
-    pub fn from_vectors(bar: Bar, reference_temperature_c: f64, t_s: Vec<f64>, y_um: Vec<f64>, air_c: Vec<f64>, mounts: Vec<MountSpan>) -> BarSeries {
+    pub fn from_vectors(
+        bar: Bar,
+        reference_temperature_c: f64,
+        t_s: Vec<f64>,
+        y_um: Vec<f64>,
+        air_c: Vec<f64>,
+        mounts: Vec<MountSpan>,
+    ) -> BarSeries {
         let mount_of = assign_mounts(&t_s, &mounts);
         let dropped_outside_mounts = mount_of.iter().filter(|m| m.is_none()).count();
         let (zero_segment, n_zero_segments) = zero_segments(&t_s, &mount_of, &[]);
-        let fit_index = (0..t_s.len()).filter(|&i| mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted())).collect();
+        let fit_index = (0..t_s.len())
+            .filter(|&i| mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted()))
+            .collect();
         let celsius = BTreeMap::from([("T1".to_string(), air_c.clone())]);
         BarSeries {
             bar,
@@ -245,16 +277,28 @@ impl BarSeries {
         if groups.len() == self.t_s.len() {
             return self;
         }
-        let mean = |v: &[f64]| -> Vec<f64> { groups.iter().map(|&(a, b)| v[a..b].iter().sum::<f64>() / (b - a) as f64).collect() };
-        let pick = |v: &[Option<u32>]| -> Vec<Option<u32>> { groups.iter().map(|&(a, _)| v[a]).collect() };
+        let mean = |v: &[f64]| -> Vec<f64> {
+            groups
+                .iter()
+                .map(|&(a, b)| v[a..b].iter().sum::<f64>() / (b - a) as f64)
+                .collect()
+        };
+        let pick =
+            |v: &[Option<u32>]| -> Vec<Option<u32>> { groups.iter().map(|&(a, _)| v[a]).collect() };
         let mount_of = pick(&self.mount_of);
-        let fit_index = (0..groups.len()).filter(|&i| mount_of[i].is_some_and(|m| self.mounts[m as usize].is_fitted())).collect();
+        let fit_index = (0..groups.len())
+            .filter(|&i| mount_of[i].is_some_and(|m| self.mounts[m as usize].is_fitted()))
+            .collect();
         BarSeries {
             t_s: mean(&self.t_s),
             y_um: mean(&self.y_um),
             zero_segment: pick(&self.zero_segment),
             air_c: mean(&self.air_c),
-            celsius: self.celsius.iter().map(|(k, v)| (k.clone(), mean(v))).collect(),
+            celsius: self
+                .celsius
+                .iter()
+                .map(|(k, v)| (k.clone(), mean(v)))
+                .collect(),
             mount_of,
             fit_index,
             ..self
@@ -263,14 +307,54 @@ impl BarSeries {
 
     /// `I_p` of each sample (0 outside mounts).
     pub fn i_p_mm(&self) -> Vec<f64> {
-        self.mount_of.iter().map(|m| m.map_or(0.0, |m| self.mounts[m as usize].i_p_mm)).collect()
+        self.mount_of
+            .iter()
+            .map(|m| m.map_or(0.0, |m| self.mounts[m as usize].i_p_mm))
+            .collect()
+    }
+}
+
+/// Replace the as-of (latest reading) temperatures of `log` by linear interpolation of each
+/// sensor's own log at the encoder times. A backward as-of join holds each reading until the
+/// next one, a delay of half the sensor period on average (15 s at 30 s) that would bias every
+/// fitted time constant by about that much; interpolation removes it. Outside a sensor's log
+/// the nearest reading is used.
+pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, SensorLog>) {
+    for (id, column) in log.celsius.iter_mut() {
+        let Some(sensor) = sensors.get(id).filter(|s| s.time_ns.len() >= 2) else {
+            continue;
+        };
+        let mut j = 0;
+        for (value, &t) in column.iter_mut().zip(&log.time_ns) {
+            while j + 1 < sensor.time_ns.len() && sensor.time_ns[j + 1] <= t {
+                j += 1;
+            }
+            let (t0, t1) = (
+                sensor.time_ns[j],
+                sensor
+                    .time_ns
+                    .get(j + 1)
+                    .copied()
+                    .unwrap_or(sensor.time_ns[j]),
+            );
+            *value = if t <= t0 || t1 <= t0 {
+                sensor.celsius[j]
+            } else {
+                let w = (t - t0) as f64 / (t1 - t0) as f64;
+                sensor.celsius[j] + w * (sensor.celsius[j + 1] - sensor.celsius[j])
+            };
+        }
     }
 }
 
 /// Campaign time origin: the earliest mount start (else the earliest reading).
 pub fn campaign_origin_ns(logs: &CampaignLogs) -> TimeNs {
     let first_mount = logs.campaign.mounts.iter().map(|m| m.from_ns).min();
-    let first_reading = logs.bars.values().filter_map(|l| l.time_ns.first().copied()).min();
+    let first_reading = logs
+        .bars
+        .values()
+        .filter_map(|l| l.time_ns.first().copied())
+        .min();
     first_mount.or(first_reading).unwrap_or(0)
 }
 
@@ -303,13 +387,26 @@ fn mount_spans(campaign: &Campaign, bar: &Bar, to_s: &dyn Fn(TimeNs) -> f64) -> 
 /// Mount index of each sample (mounts of one bar never overlap; intervals are `[from, to)`).
 fn assign_mounts(t_s: &[f64], mounts: &[MountSpan]) -> Vec<Option<u32>> {
     t_s.iter()
-        .map(|&t| mounts.iter().position(|m| t >= m.from_s && t < m.to_s).map(|i| i as u32))
+        .map(|&t| {
+            mounts
+                .iter()
+                .position(|m| t >= m.from_s && t < m.to_s)
+                .map(|i| i as u32)
+        })
         .collect()
 }
 
 /// Zero segments: each mount, split again at every `rezero` event inside it.
-fn zero_segments(t_s: &[f64], mount_of: &[Option<u32>], events: &[(f64, Event)]) -> (Vec<Option<u32>>, usize) {
-    let rezeros: Vec<f64> = events.iter().filter(|(_, e)| e.kind == "rezero").map(|(t, _)| *t).collect();
+fn zero_segments(
+    t_s: &[f64],
+    mount_of: &[Option<u32>],
+    events: &[(f64, Event)],
+) -> (Vec<Option<u32>>, usize) {
+    let rezeros: Vec<f64> = events
+        .iter()
+        .filter(|(_, e)| e.kind == "rezero")
+        .map(|(t, _)| *t)
+        .collect();
     let mut out = Vec::with_capacity(t_s.len());
     let mut next: u32 = 0;
     let mut last: Option<(u32, usize)> = None; // (mount, rezeros passed)
@@ -336,7 +433,9 @@ fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f
         None => campaign.air_sensors().map(|s| s.id.clone()).collect(),
     };
     if ids.is_empty() {
-        return Err(SeriesError::NoAirSensor { bar: bar.id.clone() });
+        return Err(SeriesError::NoAirSensor {
+            bar: bar.id.clone(),
+        });
     }
     let mut sum = vec![0.0; log.time_ns.len()];
     for id in &ids {
@@ -344,7 +443,10 @@ fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f
             .celsius
             .get(id)
             .filter(|c| c.len() == sum.len() && c.iter().all(|v| v.is_finite()))
-            .ok_or_else(|| SeriesError::NoAirTemperature { bar: bar.id.clone(), sensor: id.clone() })?;
+            .ok_or_else(|| SeriesError::NoAirTemperature {
+                bar: bar.id.clone(),
+                sensor: id.clone(),
+            })?;
         sum.iter_mut().zip(col).for_each(|(s, v)| *s += v);
     }
     let k = ids.len() as f64;
@@ -353,13 +455,27 @@ fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f
 
 /// Remove the known plate expansion from the reading (only when the manifest gives a CTE and
 /// a plate sensor exists).
-fn subtract_plate_expansion(campaign: &Campaign, log: &BarLog, mount_of: &[Option<u32>], mounts: &[MountSpan], y_um: &mut [f64]) {
+fn subtract_plate_expansion(
+    campaign: &Campaign,
+    log: &BarLog,
+    mount_of: &[Option<u32>],
+    mounts: &[MountSpan],
+    y_um: &mut [f64],
+) {
     let cte = campaign.plate.cte_ppm_per_k;
     if cte == 0.0 {
         return;
     }
-    let Some(plate) = campaign.sensors.iter().find(|s| s.kind == crate::campaign::SensorKind::Plate) else { return };
-    let Some(tp) = log.celsius.get(&plate.id) else { return };
+    let Some(plate) = campaign
+        .sensors
+        .iter()
+        .find(|s| s.kind == crate::campaign::SensorKind::Plate)
+    else {
+        return;
+    };
+    let Some(tp) = log.celsius.get(&plate.id) else {
+        return;
+    };
     for (i, y) in y_um.iter_mut().enumerate() {
         if let Some(mm) = mount_of[i].and_then(|m| mounts[m as usize].length_mm) {
             *y -= cte * mm * 1e-3 * (tp[i] - campaign.reference_temperature_c);
@@ -397,7 +513,12 @@ fn centre_segments(y_um: &mut [f64], segment: &[Option<u32>], n_segments: usize)
 }
 
 /// Sample ranges `[a, b)` of the bins of [`BarSeries::binned`].
-fn bin_groups(t_s: &[f64], mount_of: &[Option<u32>], segment: &[Option<u32>], bin_s: f64) -> Vec<(usize, usize)> {
+fn bin_groups(
+    t_s: &[f64],
+    mount_of: &[Option<u32>],
+    segment: &[Option<u32>],
+    bin_s: f64,
+) -> Vec<(usize, usize)> {
     let mut groups = Vec::with_capacity(t_s.len() / 4 + 1);
     let mut start = 0;
     for i in 1..=t_s.len() {

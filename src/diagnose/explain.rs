@@ -44,7 +44,9 @@ pub fn describe_channel(channel: &str) -> String {
         "time_of_day_h" => "the time of day (a daily cycle not seen by the sensors)".into(),
         "length_mm" => "the scale travel I_p (plate length)".into(),
         "tilt_deg" => "the tilt of the bar".into(),
-        _ if channel.contains('-') => format!("the temperature difference {channel} (a gradient between sensors)"),
+        _ if channel.contains('-') => {
+            format!("the temperature difference {channel} (a gradient between sensors)")
+        }
         _ => format!("sensor {channel}"),
     }
 }

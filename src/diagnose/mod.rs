@@ -83,25 +83,54 @@ pub fn diagnose_bar(series: &BarSeries, model: &BarModel) -> BarDiagnosis {
         .into_iter()
         .filter_map(|ch| score_channel(series, &model.residuals_um, &ch))
         .collect();
-    channels.sort_by(|a, b| b.explained_fraction.total_cmp(&a.explained_fraction).then_with(|| a.channel.cmp(&b.channel)));
-    BarDiagnosis { bar: model.bar.clone(), effects: model.effect_names(), rms_um: model.rms_um, whiteness_p: stats.whiteness_p, stats, channels }
+    channels.sort_by(|a, b| {
+        b.explained_fraction
+            .total_cmp(&a.explained_fraction)
+            .then_with(|| a.channel.cmp(&b.channel))
+    });
+    BarDiagnosis {
+        bar: model.bar.clone(),
+        effects: model.effect_names(),
+        rms_um: model.rms_um,
+        whiteness_p: stats.whiteness_p,
+        stats,
+        channels,
+    }
 }
 
 /// Variance of the residual explained by the channel's best lag (zeros per segment refitted).
 fn score_channel(series: &BarSeries, residual: &[f64], channel: &str) -> Option<ChannelScore> {
-    let effect = Effect::Channel { transform: Transform::Lag, channel: channel.to_string(), tau0_s: None };
-    let problem = ThermalProblem::new(series, std::slice::from_ref(&effect)).ok()?.with_observations(residual.to_vec());
+    let effect = Effect::Channel {
+        transform: Transform::Lag,
+        channel: channel.to_string(),
+        tau0_s: None,
+    };
+    let problem = ThermalProblem::new(series, std::slice::from_ref(&effect))
+        .ok()?
+        .with_observations(residual.to_vec());
     let rss0: f64 = residual.iter().map(|r| r * r).sum();
     let fit = fit::fit(&problem, &problem.theta0(), &FitOptions::default()).ok()?;
-    let explained_fraction = if rss0 > 0.0 { (1.0 - fit.rss / rss0).max(0.0) } else { 0.0 };
+    let explained_fraction = if rss0 > 0.0 {
+        (1.0 - fit.rss / rss0).max(0.0)
+    } else {
+        0.0
+    };
     let tau_s = fit.values.last().map_or(f64::NAN, |t| t.exp());
-    Some(ChannelScore { channel: channel.to_string(), explained_fraction, tau_s })
+    Some(ChannelScore {
+        channel: channel.to_string(),
+        explained_fraction,
+        tau_s,
+    })
 }
 
 /// The candidate effects for a fleet whose model is `effects`: catalogue effects not yet in the
 /// model, and `lag:CH` for the channels that explain most of the residuals fleet-wide.
 pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<Effect> {
-    let mut out: Vec<Effect> = CATALOGUE.iter().filter_map(|n| Effect::parse(n).ok()).filter(|e| !effects.contains(e)).collect();
+    let mut out: Vec<Effect> = CATALOGUE
+        .iter()
+        .filter_map(|n| Effect::parse(n).ok())
+        .filter(|e| !effects.contains(e))
+        .collect();
     let mut totals: std::collections::BTreeMap<&str, f64> = Default::default();
     for d in diagnoses {
         for c in &d.channels {
@@ -111,7 +140,11 @@ pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<
     let mut ranked: Vec<(&str, f64)> = totals.into_iter().collect();
     ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(b.0)));
     for (ch, _) in ranked.into_iter().take(CHANNEL_CANDIDATES) {
-        let e = Effect::Channel { transform: Transform::Lag, channel: ch.to_string(), tau0_s: None };
+        let e = Effect::Channel {
+            transform: Transform::Lag,
+            channel: ch.to_string(),
+            tau0_s: None,
+        };
         if !effects.contains(&e) {
             out.push(e);
         }
@@ -129,27 +162,51 @@ pub struct Unavailable {
 
 /// Fit every candidate on every bar; rank the ones that could be fitted best first (by the
 /// fleet's ΔBIC) and list the others apart.
-pub fn evaluate_candidates(bars: &[(&BarSeries, &BarModel)], candidates: &[Effect]) -> (Vec<Candidate>, Vec<Unavailable>) {
+pub fn evaluate_candidates(
+    bars: &[(&BarSeries, &BarModel)],
+    candidates: &[Effect],
+) -> (Vec<Candidate>, Vec<Unavailable>) {
     let n_candidates = candidates.len().max(1);
     let threshold = ALPHA / n_candidates as f64;
     let out: Vec<Candidate> = candidates
         .par_iter()
         .map(|effect| {
-            let per_bar: Vec<CandidateOnBar> = bars.iter().map(|(s, m)| candidate_on_bar(s, m, effect, threshold)).collect();
+            let per_bar: Vec<CandidateOnBar> = bars
+                .iter()
+                .map(|(s, m)| candidate_on_bar(s, m, effect, threshold))
+                .collect();
             summarise_candidate(effect, per_bar, threshold)
         })
         .collect();
-    let (mut ranked, unfit): (Vec<Candidate>, Vec<Candidate>) = out.into_iter().partition(|c| c.per_bar.iter().any(|b| b.error.is_none()));
-    ranked.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic).then_with(|| a.effect.cmp(&b.effect)));
+    let (mut ranked, unfit): (Vec<Candidate>, Vec<Candidate>) = out
+        .into_iter()
+        .partition(|c| c.per_bar.iter().any(|b| b.error.is_none()));
+    ranked.sort_by(|a, b| {
+        a.delta_bic
+            .total_cmp(&b.delta_bic)
+            .then_with(|| a.effect.cmp(&b.effect))
+    });
     prefer_named_effects(&mut ranked);
     let unavailable = unfit
         .into_iter()
-        .map(|c| Unavailable { reason: c.per_bar.iter().find_map(|b| b.error.clone()).unwrap_or_default(), effect: c.effect })
+        .map(|c| Unavailable {
+            reason: c
+                .per_bar
+                .iter()
+                .find_map(|b| b.error.clone())
+                .unwrap_or_default(),
+            effect: c.effect,
+        })
         .collect();
     (ranked, unavailable)
 }
 
-fn candidate_on_bar(series: &BarSeries, base: &BarModel, effect: &Effect, threshold: f64) -> CandidateOnBar {
+fn candidate_on_bar(
+    series: &BarSeries,
+    base: &BarModel,
+    effect: &Effect,
+    threshold: f64,
+) -> CandidateOnBar {
     let mut effects = base.effects.clone();
     effects.push(effect.clone());
     let unfit = |error: String| CandidateOnBar {
@@ -166,7 +223,9 @@ fn candidate_on_bar(series: &BarSeries, base: &BarModel, effect: &Effect, thresh
         Err(e) => return unfit(e.to_string()),
     };
     if let Some((a, b, r)) = unidentifiable_pair(base, &extended) {
-        return unfit(format!("not identifiable on this bar: {a} and {b} correlate at {r:.4}"));
+        return unfit(format!(
+            "not identifiable on this bar: {a} and {b} correlate at {r:.4}"
+        ));
     }
     let added = extended.n_params.saturating_sub(base.n_params).max(1);
     let p_value = lr_p_value(base, &extended, added);
@@ -190,7 +249,11 @@ fn prefer_named_effects(ranked: &mut [Candidate]) {
     let generic = |c: &Candidate| c.effect.contains(':');
     for i in 1..ranked.len() {
         let mut j = i;
-        while j > 0 && generic(&ranked[j - 1]) && !generic(&ranked[j]) && (ranked[j].delta_bic - ranked[j - 1].delta_bic).abs() < 2.0 {
+        while j > 0
+            && generic(&ranked[j - 1])
+            && !generic(&ranked[j])
+            && (ranked[j].delta_bic - ranked[j - 1].delta_bic).abs() < 2.0
+        {
             ranked.swap(j - 1, j);
             j -= 1;
         }
@@ -199,7 +262,7 @@ fn prefer_named_effects(ranked: &mut [Candidate]) {
 
 /// Correlation beyond which two estimates are taken as one combination the data cannot split
 /// (e.g. two equal time constants with huge, cancelling gains: a derivative in disguise).
-pub const MAX_PARAM_CORRELATION: f64 = 0.995;
+pub const MAX_PARAM_CORRELATION: f64 = 0.9999;
 
 /// The first pair of parameters of `model`, one of them new relative to `base`, whose
 /// estimates correlate beyond [`MAX_PARAM_CORRELATION`].
@@ -208,7 +271,11 @@ fn unidentifiable_pair(base: &BarModel, model: &BarModel) -> Option<(String, Str
     for (i, row) in model.correlation.iter().enumerate() {
         for (j, r) in row.iter().enumerate().skip(i + 1) {
             if (is_new(i) || is_new(j)) && r.abs() > MAX_PARAM_CORRELATION {
-                return Some((model.params[i].name.clone(), model.params[j].name.clone(), *r));
+                return Some((
+                    model.params[i].name.clone(),
+                    model.params[j].name.clone(),
+                    *r,
+                ));
             }
         }
     }
@@ -226,7 +293,9 @@ pub fn lr_p_value(base: &BarModel, extended: &BarModel, added_params: usize) -> 
     }
     let tau_int = crate::fit::integrated_autocorrelation_time(&extended.residuals_um).max(1.0);
     let lr = n * (rss0 / rss1).ln() / tau_int;
-    ChiSquared::new(added_params as f64).map(|d| 1.0 - d.cdf(lr)).unwrap_or(f64::NAN)
+    ChiSquared::new(added_params as f64)
+        .map(|d| 1.0 - d.cdf(lr))
+        .unwrap_or(f64::NAN)
 }
 
 fn summarise_candidate(effect: &Effect, per_bar: Vec<CandidateOnBar>, threshold: f64) -> Candidate {
@@ -244,8 +313,13 @@ fn summarise_candidate(effect: &Effect, per_bar: Vec<CandidateOnBar>, threshold:
     let p_value = if fitted.is_empty() {
         1.0
     } else {
-        let x2: f64 = fitted.iter().map(|c| -2.0 * c.p_value.max(1e-300).ln()).sum();
-        ChiSquared::new(2.0 * fitted.len() as f64).map(|d| 1.0 - d.cdf(x2)).unwrap_or(f64::NAN)
+        let x2: f64 = fitted
+            .iter()
+            .map(|c| -2.0 * c.p_value.max(1e-300).ln())
+            .sum();
+        ChiSquared::new(2.0 * fitted.len() as f64)
+            .map(|d| 1.0 - d.cdf(x2))
+            .unwrap_or(f64::NAN)
     };
     let bars_improved = fitted.iter().filter(|c| c.significant).count();
     Candidate {
@@ -255,7 +329,10 @@ fn summarise_candidate(effect: &Effect, per_bar: Vec<CandidateOnBar>, threshold:
         delta_bic,
         p_value,
         bars_improved,
-        significant: !fitted.is_empty() && p_value < threshold && delta_bic < 0.0 && bars_improved > 0,
+        significant: !fitted.is_empty()
+            && p_value < threshold
+            && delta_bic < 0.0
+            && bars_improved > 0,
         explanation: explain::explain(effect),
         per_bar,
     }
@@ -276,20 +353,37 @@ pub struct LedgerStep {
 /// Forward selection: add the best significant candidate (fleet-wide) until none is left or
 /// `max_steps` effects were added. Returns the ledger and the final models.
 /// `first_candidates` are the candidates already ranked for `start` (reused for the first step).
-pub fn forward_selection(series: &[&BarSeries], start: Vec<BarModel>, first_candidates: &[Candidate], max_steps: usize) -> (Vec<LedgerStep>, Vec<BarModel>) {
+pub fn forward_selection(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    max_steps: usize,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let mut models = start;
     let mut ledger = vec![ledger_step("base".into(), &models, f64::NAN, f64::NAN)];
     for step in 0..max_steps {
-        let effects = models.first().map(|m| m.effects.clone()).unwrap_or_default();
+        let effects = models
+            .first()
+            .map(|m| m.effects.clone())
+            .unwrap_or_default();
         let candidates = if step == 0 {
             first_candidates.to_vec()
         } else {
-            let diagnoses: Vec<BarDiagnosis> = series.par_iter().zip(models.par_iter()).map(|(s, m)| diagnose_bar(s, m)).collect();
-            let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
+            let diagnoses: Vec<BarDiagnosis> = series
+                .par_iter()
+                .zip(models.par_iter())
+                .map(|(s, m)| diagnose_bar(s, m))
+                .collect();
+            let pairs: Vec<(&BarSeries, &BarModel)> =
+                series.iter().copied().zip(models.iter()).collect();
             evaluate_candidates(&pairs, &candidate_effects(&effects, &diagnoses)).0
         };
-        let Some(best) = candidates.into_iter().find(|c| c.significant) else { break };
-        let Ok(effect) = Effect::parse(&best.effect) else { break };
+        let Some(best) = candidates.into_iter().find(|c| c.significant) else {
+            break;
+        };
+        let Ok(effect) = Effect::parse(&best.effect) else {
+            break;
+        };
         let mut next_effects = effects.clone();
         next_effects.push(effect);
         let refit: Vec<Option<BarModel>> = series
@@ -298,20 +392,36 @@ pub fn forward_selection(series: &[&BarSeries], start: Vec<BarModel>, first_cand
             .map(|(s, m)| identify_from(s, &next_effects, Some(m)).ok())
             .collect();
         // A bar whose extended fit fails keeps its model (it is reported as not improved).
-        models = refit.into_iter().zip(models).map(|(new, old)| new.unwrap_or(old)).collect();
-        ledger.push(ledger_step(best.effect.clone(), &models, best.delta_bic, best.p_value));
+        models = refit
+            .into_iter()
+            .zip(models)
+            .map(|(new, old)| new.unwrap_or(old))
+            .collect();
+        ledger.push(ledger_step(
+            best.effect.clone(),
+            &models,
+            best.delta_bic,
+            best.p_value,
+        ));
     }
     (ledger, models)
 }
 
 fn ledger_step(added: String, models: &[BarModel], delta_bic: f64, p_value: f64) -> LedgerStep {
     let n_total: usize = models.iter().map(|m| m.n_samples).sum();
-    let ss: f64 = models.iter().map(|m| m.rms_um.powi(2) * m.n_samples as f64).sum();
+    let ss: f64 = models
+        .iter()
+        .map(|m| m.rms_um.powi(2) * m.n_samples as f64)
+        .sum();
     LedgerStep {
         added,
         effects: models.first().map(|m| m.effect_names()).unwrap_or_default(),
         rms_um: models.iter().map(|m| (m.bar.clone(), m.rms_um)).collect(),
-        fleet_rms_um: if n_total > 0 { (ss / n_total as f64).sqrt() } else { f64::NAN },
+        fleet_rms_um: if n_total > 0 {
+            (ss / n_total as f64).sqrt()
+        } else {
+            f64::NAN
+        },
         delta_bic,
         p_value,
     }

@@ -38,20 +38,32 @@ pub struct ResidualStats {
 pub fn residual_stats(y: &[f64], r: &[f64], n_params: usize) -> ResidualStats {
     let n = r.len().max(1);
     let rms_um = (r.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
-    let (lo, hi) = r.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let (lo, hi) = r
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(*v), hi.max(*v))
+        });
     let mean_y = y.iter().sum::<f64>() / y.len().max(1) as f64;
     let norm_dev = y.iter().map(|v| (v - mean_y).powi(2)).sum::<f64>().sqrt();
     let norm_r = r.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let fit_percent = if norm_dev > 0.0 { 100.0 * (1.0 - norm_r / norm_dev) } else { f64::NAN };
+    let fit_percent = if norm_dev > 0.0 {
+        100.0 * (1.0 - norm_r / norm_dev)
+    } else {
+        f64::NAN
+    };
     let lags = 20.min(n / 4).max(1);
     let acf = autocorrelation(r, 200.min(n.saturating_sub(1)));
     let q: f64 = (1..=lags.min(acf.len().saturating_sub(1)))
         .map(|k| acf[k] * acf[k] / (n - k) as f64)
         .sum::<f64>()
-        * (n as f64) * (n as f64 + 2.0);
+        * (n as f64)
+        * (n as f64 + 2.0);
     let dof = lags.saturating_sub(n_params.min(lags - 1)).max(1);
-    let whiteness_p = ChiSquared::new(dof as f64).map(|d| 1.0 - d.cdf(q)).unwrap_or(f64::NAN);
-    let (cumulative_periodogram, periodogram_freq_per_sample, periodogram_band) = cumulative_periodogram(r);
+    let whiteness_p = ChiSquared::new(dof as f64)
+        .map(|d| 1.0 - d.cdf(q))
+        .unwrap_or(f64::NAN);
+    let (cumulative_periodogram, periodogram_freq_per_sample, periodogram_band) =
+        cumulative_periodogram(r);
     ResidualStats {
         rms_um,
         peak_to_valley_um: if hi >= lo { hi - lo } else { 0.0 },
@@ -84,20 +96,35 @@ fn cumulative_periodogram(r: &[f64]) -> (Vec<f64>, Vec<f64>, f64) {
     if fft.process(&mut buf, &mut spec).is_err() {
         return (Vec::new(), Vec::new(), f64::NAN);
     }
-    let power: Vec<f64> = spec.iter().skip(1).take(n / 2).map(|c| c.norm_sqr()).collect();
+    let power: Vec<f64> = spec
+        .iter()
+        .skip(1)
+        .take(n / 2)
+        .map(|c| c.norm_sqr())
+        .collect();
     let total: f64 = power.iter().sum();
     if !(total > 0.0) {
         return (Vec::new(), Vec::new(), f64::NAN);
     }
     let mut acc = 0.0;
-    let cum: Vec<f64> = power.iter().map(|p| {
-        acc += p;
-        acc / total
-    }).collect();
+    let cum: Vec<f64> = power
+        .iter()
+        .map(|p| {
+            acc += p;
+            acc / total
+        })
+        .collect();
     let stride = cum.len().div_ceil(512).max(1);
     let thinned = cum.iter().step_by(stride).copied().collect();
-    let freqs = (0..cum.len()).step_by(stride).map(|k| (k + 1) as f64 / n as f64).collect();
-    (thinned, freqs, 1.36 / ((power.len() as f64 - 1.0).max(1.0)).sqrt())
+    let freqs = (0..cum.len())
+        .step_by(stride)
+        .map(|k| (k + 1) as f64 / n as f64)
+        .collect();
+    (
+        thinned,
+        freqs,
+        1.36 / ((power.len() as f64 - 1.0).max(1.0)).sqrt(),
+    )
 }
 
 #[cfg(test)]
@@ -109,10 +136,15 @@ mod tests {
         (0..n)
             .map(|_| {
                 // Sum of uniforms: close enough to Gaussian for a whiteness test.
-                (0..12).map(|_| {
-                    s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                    (s >> 11) as f64 / (1u64 << 53) as f64
-                }).sum::<f64>() - 6.0
+                (0..12)
+                    .map(|_| {
+                        s = s
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        (s >> 11) as f64 / (1u64 << 53) as f64
+                    })
+                    .sum::<f64>()
+                    - 6.0
             })
             .collect()
     }
@@ -121,8 +153,16 @@ mod tests {
     fn white_noise_passes_and_a_sine_fails() {
         let r = noise(5000, 7);
         let st = residual_stats(&r, &r, 0);
-        assert!(st.whiteness_p > 0.01, "white noise rejected: p = {}", st.whiteness_p);
-        let sine: Vec<f64> = r.iter().enumerate().map(|(i, v)| v * 0.1 + (i as f64 / 50.0).sin()).collect();
+        assert!(
+            st.whiteness_p > 0.01,
+            "white noise rejected: p = {}",
+            st.whiteness_p
+        );
+        let sine: Vec<f64> = r
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v * 0.1 + (i as f64 / 50.0).sin())
+            .collect();
         let st = residual_stats(&sine, &sine, 0);
         assert!(st.whiteness_p < 1e-6);
         assert!(st.correlation_time_samples > 10.0);

@@ -56,7 +56,10 @@ pub(crate) fn parquet_files(folder: &Path) -> Result<Vec<PathBuf>, IngestError> 
     if !folder.is_dir() {
         return Ok(Vec::new());
     }
-    let io_err = |e: std::io::Error| IngestError::Io { path: folder.to_path_buf(), message: e.to_string() };
+    let io_err = |e: std::io::Error| IngestError::Io {
+        path: folder.to_path_buf(),
+        message: e.to_string(),
+    };
     let mut files = Vec::new();
     for entry in std::fs::read_dir(folder).map_err(io_err)? {
         let path = entry.map_err(io_err)?.path();
@@ -80,7 +83,10 @@ pub(crate) fn hash_inputs(dir: &Path, files: &[PathBuf]) -> Result<Vec<InputFile
 }
 
 fn hash_file(dir: &Path, path: &Path) -> Result<InputFile, IngestError> {
-    let io_err = |e: std::io::Error| IngestError::Io { path: path.to_path_buf(), message: e.to_string() };
+    let io_err = |e: std::io::Error| IngestError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
     let mut file = std::fs::File::open(path).map_err(io_err)?;
     let mut hasher = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];
@@ -93,8 +99,16 @@ fn hash_file(dir: &Path, path: &Path) -> Result<InputFile, IngestError> {
         hasher.update(&buf[..n]);
         bytes += n as u64;
     }
-    let hex = hasher.finalize().iter().map(|b| format!("{b:02x}")).collect::<String>();
-    Ok(InputFile { path: relative_slash_path(dir, path), sha256: hex, bytes })
+    let hex = hasher
+        .finalize()
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect::<String>();
+    Ok(InputFile {
+        path: relative_slash_path(dir, path),
+        sha256: hex,
+        bytes,
+    })
 }
 
 fn relative_slash_path(dir: &Path, path: &Path) -> String {

@@ -33,13 +33,25 @@ pub enum IngestError {
     #[error(transparent)]
     Manifest(#[from] CampaignError),
     #[error("{}: no *.parquet files (the {table} table is required)", folder.display())]
-    MissingTable { folder: PathBuf, table: &'static str },
+    MissingTable {
+        folder: PathBuf,
+        table: &'static str,
+    },
     #[error("{}: not a valid parquet file: {reason}", path.display())]
     NotParquet { path: PathBuf, reason: String },
     #[error("{}: missing column `{column}` (found: {found})", path.display())]
-    MissingColumn { path: PathBuf, column: &'static str, found: String },
+    MissingColumn {
+        path: PathBuf,
+        column: &'static str,
+        found: String,
+    },
     #[error("{}: column `{column}` has type {found}, expected {expected}", path.display())]
-    WrongType { path: PathBuf, column: &'static str, found: String, expected: &'static str },
+    WrongType {
+        path: PathBuf,
+        column: &'static str,
+        found: String,
+        expected: &'static str,
+    },
     #[error(
         "{}: {rows} rows ({first} .. {last}) have {column} \"{id}\", which campaign.toml does not declare (known: {known})",
         path.display()
@@ -55,7 +67,11 @@ pub enum IngestError {
         known: String,
     },
     #[error("{}: column `{column}` has {count} null values", path.display())]
-    Nulls { path: PathBuf, column: &'static str, count: u64 },
+    Nulls {
+        path: PathBuf,
+        column: &'static str,
+        count: u64,
+    },
     /// A polars failure that none of the checks above predicted (e.g. a corrupt data page).
     #[error("{context}: {message}")]
     Polars { context: String, message: String },
@@ -85,7 +101,10 @@ pub fn read_campaign(dir: &Path) -> Result<CampaignLogs, IngestError> {
 
 /// Flattens a (possibly multi-line) message to one line.
 pub(crate) fn one_line(s: impl std::fmt::Display) -> String {
-    s.to_string().split_whitespace().collect::<Vec<_>>().join(" ")
+    s.to_string()
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// An RFC 3339 UTC rendering of nanoseconds since the epoch, for messages.

@@ -38,13 +38,23 @@ struct ColumnSpec {
 }
 
 const fn spec(name: &'static str, kind: Kind, nullable: bool) -> ColumnSpec {
-    ColumnSpec { name, kind, nullable }
+    ColumnSpec {
+        name,
+        kind,
+        nullable,
+    }
 }
 
-const ENCODER_COLUMNS: [ColumnSpec; 3] =
-    [spec("time", Kind::Time, false), spec("bar", Kind::Text, false), spec("counts", Kind::Count, false)];
-const TEMPERATURE_COLUMNS: [ColumnSpec; 3] =
-    [spec("time", Kind::Time, false), spec("sensor", Kind::Text, false), spec("celsius", Kind::Real, false)];
+const ENCODER_COLUMNS: [ColumnSpec; 3] = [
+    spec("time", Kind::Time, false),
+    spec("bar", Kind::Text, false),
+    spec("counts", Kind::Count, false),
+];
+const TEMPERATURE_COLUMNS: [ColumnSpec; 3] = [
+    spec("time", Kind::Time, false),
+    spec("sensor", Kind::Text, false),
+    spec("celsius", Kind::Real, false),
+];
 const EVENT_COLUMNS: [ColumnSpec; 4] = [
     spec("time", Kind::Time, false),
     spec("bar", Kind::Text, true),
@@ -77,7 +87,9 @@ impl Kind {
                 Some(c.cast(DataType::Int64) * lit(ns_per_unit))
             }
             (Kind::Text, DataType::String) => Some(c),
-            (Kind::Text, DataType::Categorical(..) | DataType::Enum(..)) => Some(c.cast(DataType::String)),
+            (Kind::Text, DataType::Categorical(..) | DataType::Enum(..)) => {
+                Some(c.cast(DataType::String))
+            }
             (
                 Kind::Count,
                 DataType::Int64
@@ -98,10 +110,14 @@ impl Kind {
 pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
     let path = dir.join(MANIFEST);
     if !path.is_file() {
-        return Err(IngestError::MissingManifest { dir: dir.to_path_buf() });
+        return Err(IngestError::MissingManifest {
+            dir: dir.to_path_buf(),
+        });
     }
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| IngestError::Io { path: path.clone(), message: e.to_string() })?;
+    let text = std::fs::read_to_string(&path).map_err(|e| IngestError::Io {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
     let file = path.display().to_string();
     let manifest = Manifest::from_toml_str(&text, &file)?;
     Ok(Campaign::from_manifest_at(manifest, &file)?)
@@ -114,15 +130,25 @@ pub(crate) struct Tables {
     pub events: Vec<Event>,
 }
 
-pub(crate) fn read_tables(files: &CampaignFiles, campaign: &Campaign) -> Result<Tables, IngestError> {
+pub(crate) fn read_tables(
+    files: &CampaignFiles,
+    campaign: &Campaign,
+) -> Result<Tables, IngestError> {
     let bar_ids: BTreeSet<&str> = campaign.bars.iter().map(|b| b.id.as_str()).collect();
     let sensor_ids: BTreeSet<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
 
     let clock = std::time::Instant::now();
     let temperatures = read_table(&files.temperatures, &TEMPERATURE_COLUMNS)?;
-    let readings = sensor_readings(&temperatures, &sensor_ids).map_err(polars_error("temperatures"))?;
+    let readings =
+        sensor_readings(&temperatures, &sensor_ids).map_err(polars_error("temperatures"))?;
     let matched = readings.values().map(DataFrame::height).sum();
-    check_all_rows_known(&temperatures, matched, &files.temperatures, "sensor", &sensor_ids)?;
+    check_all_rows_known(
+        &temperatures,
+        matched,
+        &files.temperatures,
+        "sensor",
+        &sensor_ids,
+    )?;
     drop(temperatures);
     tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
 
@@ -130,7 +156,8 @@ pub(crate) fn read_tables(files: &CampaignFiles, campaign: &Campaign) -> Result<
     tracing::debug!(elapsed = ?clock.elapsed(), rows = encoders.height(), "encoders scanned");
     let mut bars = BTreeMap::new();
     for bar in &bar_ids {
-        let log = bar_log(&encoders, bar, &readings).map_err(polars_error(&format!("encoders of bar \"{bar}\"")))?;
+        let log = bar_log(&encoders, bar, &readings)
+            .map_err(polars_error(&format!("encoders of bar \"{bar}\"")))?;
         bars.insert(bar.to_string(), log);
     }
     let matched = bars.values().map(|b: &BarLog| b.time_ns.len()).sum();
@@ -143,7 +170,11 @@ pub(crate) fn read_tables(files: &CampaignFiles, campaign: &Campaign) -> Result<
         .map(|(id, df)| Ok((id.clone(), sensor_log(df)?)))
         .collect::<PolarsResult<_>>()
         .map_err(polars_error("temperatures"))?;
-    Ok(Tables { bars, sensors, events: read_events(&files.events, &bar_ids)? })
+    Ok(Tables {
+        bars,
+        sensors,
+        events: read_events(&files.events, &bar_ids)?,
+    })
 }
 
 /// The rows of known ids were extracted (`matched` of them); if that is not every row, some id
@@ -162,12 +193,18 @@ fn check_all_rows_known(
     check_ids(df, files, id_column, known)?;
     Err(IngestError::Polars {
         context: id_column.to_string(),
-        message: format!("{matched} of {} rows have a declared id, but no undeclared id was found", df.height()),
+        message: format!(
+            "{matched} of {} rows have a declared id, but no undeclared id was found",
+            df.height()
+        ),
     })
 }
 
 fn polars_error(context: &str) -> impl Fn(PolarsError) -> IngestError + '_ {
-    move |e| IngestError::Polars { context: context.to_string(), message: one_line(e) }
+    move |e| IngestError::Polars {
+        context: context.to_string(),
+        message: one_line(e),
+    }
 }
 
 // ---------------------------------------------------------------- scanning
@@ -190,20 +227,34 @@ fn read_table(files: &[PathBuf], columns: &[ColumnSpec]) -> Result<DataFrame, In
 }
 
 fn not_parquet(path: &Path, e: PolarsError) -> IngestError {
-    IngestError::NotParquet { path: path.to_path_buf(), reason: one_line(e) }
+    IngestError::NotParquet {
+        path: path.to_path_buf(),
+        reason: one_line(e),
+    }
 }
 
 /// One file, projected to the spec's columns in canonical types.
 fn read_file(path: &Path, columns: &[ColumnSpec], index: usize) -> Result<DataFrame, IngestError> {
     let source = PlRefPath::try_from_path(path).map_err(|e| not_parquet(path, e))?;
-    let args = ScanArgsParquet { glob: false, ..Default::default() };
+    let args = ScanArgsParquet {
+        glob: false,
+        ..Default::default()
+    };
     let mut lazy = LazyFrame::scan_parquet(source, args).map_err(|e| not_parquet(path, e))?;
     let schema = lazy.collect_schema().map_err(|e| not_parquet(path, e))?;
     let mut exprs = Vec::with_capacity(columns.len() + 1);
     for spec in columns {
         let Some(dtype) = schema.get(spec.name) else {
-            let found = schema.iter_names().map(|n| n.to_string()).collect::<Vec<_>>().join(", ");
-            return Err(IngestError::MissingColumn { path: path.to_path_buf(), column: spec.name, found });
+            let found = schema
+                .iter_names()
+                .map(|n| n.to_string())
+                .collect::<Vec<_>>()
+                .join(", ");
+            return Err(IngestError::MissingColumn {
+                path: path.to_path_buf(),
+                column: spec.name,
+                found,
+            });
         };
         let Some(expr) = spec.kind.normalise(spec.name, dtype) else {
             return Err(IngestError::WrongType {
@@ -217,19 +268,31 @@ fn read_file(path: &Path, columns: &[ColumnSpec], index: usize) -> Result<DataFr
     }
     let index = u32::try_from(index).unwrap_or(u32::MAX);
     exprs.push(lit(index).cast(DataType::UInt32).alias(FILE_COL));
-    lazy.select(exprs).collect().map_err(|e| not_parquet(path, e))
+    lazy.select(exprs)
+        .collect()
+        .map_err(|e| not_parquet(path, e))
 }
 
 /// Rejects nulls in non-nullable columns, naming the first file that has some.
-fn check_nulls(df: &DataFrame, files: &[PathBuf], columns: &[ColumnSpec]) -> Result<(), IngestError> {
+fn check_nulls(
+    df: &DataFrame,
+    files: &[PathBuf],
+    columns: &[ColumnSpec],
+) -> Result<(), IngestError> {
     for spec in columns.iter().filter(|c| !c.nullable) {
-        let Ok(column) = df.column(spec.name) else { continue };
+        let Ok(column) = df.column(spec.name) else {
+            continue;
+        };
         if column.null_count() == 0 {
             continue;
         }
         let per_file = null_rows_per_file(df, spec.name).map_err(polars_error(spec.name))?;
         if let Some((&file, &count)) = per_file.iter().next() {
-            return Err(IngestError::Nulls { path: file_path(files, file), column: spec.name, count });
+            return Err(IngestError::Nulls {
+                path: file_path(files, file),
+                column: spec.name,
+                count,
+            });
         }
     }
     Ok(())
@@ -325,7 +388,10 @@ fn rows_of(df: &DataFrame, key: &str, id: &str, columns: [&str; 2]) -> PolarsRes
         .lazy()
         .filter(col(key).eq(lit(id)))
         .select([col(columns[0]), col(columns[1])])
-        .sort([columns[0]], SortMultipleOptions::default().with_maintain_order(true))
+        .sort(
+            [columns[0]],
+            SortMultipleOptions::default().with_maintain_order(true),
+        )
         .collect()?;
     // A two-key sort is several times slower than a one-key sort: only pay for it on ties.
     if has_ties(by_time.column(columns[0])?.i64()?) {
@@ -346,18 +412,33 @@ fn has_ties(sorted: &Int64Chunked) -> bool {
 }
 
 /// Sensor id -> its (time, celsius) frame sorted by time; every declared sensor is present.
-fn sensor_readings(temperatures: &DataFrame, sensor_ids: &BTreeSet<&str>) -> PolarsResult<BTreeMap<String, DataFrame>> {
+fn sensor_readings(
+    temperatures: &DataFrame,
+    sensor_ids: &BTreeSet<&str>,
+) -> PolarsResult<BTreeMap<String, DataFrame>> {
     sensor_ids
         .iter()
-        .map(|id| Ok((id.to_string(), rows_of(temperatures, "sensor", id, ["time", "celsius"])?)))
+        .map(|id| {
+            Ok((
+                id.to_string(),
+                rows_of(temperatures, "sensor", id, ["time", "celsius"])?,
+            ))
+        })
         .collect()
 }
 
 fn sensor_log(readings: &DataFrame) -> PolarsResult<SensorLog> {
-    Ok(SensorLog { time_ns: i64_values(readings, "time")?, celsius: f64_values(readings, "celsius")? })
+    Ok(SensorLog {
+        time_ns: i64_values(readings, "time")?,
+        celsius: f64_values(readings, "celsius")?,
+    })
 }
 
-fn bar_log(encoders: &DataFrame, bar: &str, readings: &BTreeMap<String, DataFrame>) -> PolarsResult<BarLog> {
+fn bar_log(
+    encoders: &DataFrame,
+    bar: &str,
+    readings: &BTreeMap<String, DataFrame>,
+) -> PolarsResult<BarLog> {
     let rows = rows_of(encoders, "bar", bar, ["time", "counts"])?;
     let times = rows.select(["time"])?;
     let mut celsius = BTreeMap::new();
@@ -367,7 +448,11 @@ fn bar_log(encoders: &DataFrame, bar: &str, readings: &BTreeMap<String, DataFram
         }
         celsius.insert(sensor.clone(), celsius_at(&times, sensor_rows)?);
     }
-    Ok(BarLog { time_ns: i64_values(&rows, "time")?, counts: i64_values(&rows, "counts")?, celsius })
+    Ok(BarLog {
+        time_ns: i64_values(&rows, "time")?,
+        counts: i64_values(&rows, "counts")?,
+        celsius,
+    })
 }
 
 /// A sensor's temperature at each of `times` (sorted): backward as-of join (latest reading at
@@ -395,7 +480,12 @@ fn celsius_at(times: &DataFrame, sensor_rows: &DataFrame) -> PolarsResult<Vec<f6
 
 /// Values of a column checked free of nulls (a null, which cannot occur here, would read NaN).
 fn f64_values(df: &DataFrame, name: &str) -> PolarsResult<Vec<f64>> {
-    Ok(df.column(name)?.f64()?.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+    Ok(df
+        .column(name)?
+        .f64()?
+        .iter()
+        .map(|v| v.unwrap_or(f64::NAN))
+        .collect())
 }
 
 /// Values of a column checked free of nulls by [`check_nulls`].
@@ -418,7 +508,10 @@ fn events_sorted(table: DataFrame) -> PolarsResult<Vec<Event>> {
     let sorted = table
         .lazy()
         .select([col("time"), col("bar"), col("kind"), col("value")])
-        .sort(["time", "bar", "kind", "value"], SortMultipleOptions::default())
+        .sort(
+            ["time", "bar", "kind", "value"],
+            SortMultipleOptions::default(),
+        )
         .collect()?;
     let time = sorted.column("time")?.i64()?;
     let bar = sorted.column("bar")?.str()?;

@@ -41,7 +41,9 @@ impl Column {
             Column::OptF64(v) => pl::Series::new(name, v.as_slice()).into_column(),
             Column::I64(v) => pl::Series::new(name, v.as_slice()).into_column(),
             Column::Str(v) => pl::Series::new(name, v.as_slice()).into_column(),
-            Column::TimeNs(v) => pl::Int64Chunked::from_vec(name, v.clone()).into_datetime(pl::TimeUnit::Nanoseconds, None).into_column(),
+            Column::TimeNs(v) => pl::Int64Chunked::from_vec(name, v.clone())
+                .into_datetime(pl::TimeUnit::Nanoseconds, None)
+                .into_column(),
         }
     }
 }
@@ -83,11 +85,20 @@ pub fn write_table(path: &Path, table: &Table) -> Result<(), WriteError> {
             });
         }
         if !names.insert(name.as_str()) {
-            return Err(WriteError::DuplicateColumn { path: path.to_path_buf(), column: name.clone() });
+            return Err(WriteError::DuplicateColumn {
+                path: path.to_path_buf(),
+                column: name.clone(),
+            });
         }
     }
-    let columns = table.columns.iter().map(|(name, c)| c.to_polars(name)).collect();
-    let mut df = pl::DataFrame::new(height, columns)
-        .map_err(|e| WriteError::Polars { path: path.to_path_buf(), message: super::one_line(e) })?;
+    let columns = table
+        .columns
+        .iter()
+        .map(|(name, c)| c.to_polars(name))
+        .collect();
+    let mut df = pl::DataFrame::new(height, columns).map_err(|e| WriteError::Polars {
+        path: path.to_path_buf(),
+        message: super::one_line(e),
+    })?;
     write_parquet(path, &mut df)
 }

@@ -7,7 +7,9 @@ use std::path::Path;
 use polars::prelude as pl;
 use polars::prelude::{DataType, IntoColumn, NewChunkedArray, SerReader, TimeZone};
 
-use super::{read_campaign, write_campaign, write_table, Column, IngestError, Table, TimeUnit, WriteOptions};
+use super::{
+    read_campaign, write_campaign, write_table, Column, IngestError, Table, TimeUnit, WriteOptions,
+};
 use crate::campaign::{Campaign, Manifest};
 use crate::series::{CampaignTables, EncoderLog, Event, SensorLog};
 
@@ -69,7 +71,9 @@ fn campaign_dir() -> tempfile::TempDir {
 fn write_df(path: &Path, mut df: pl::DataFrame) {
     std::fs::create_dir_all(path.parent().expect("parent")).expect("mkdir");
     let file = std::fs::File::create(path).expect("create");
-    pl::ParquetWriter::new(file).finish(&mut df).expect("write parquet");
+    pl::ParquetWriter::new(file)
+        .finish(&mut df)
+        .expect("write parquet");
 }
 
 /// A timestamp column from ns values, in `unit` (floored) and zone `tz`.
@@ -81,7 +85,9 @@ fn time_col(ns: &[i64], unit: pl::TimeUnit, tz: Option<&str>) -> pl::Column {
     };
     let values: Vec<i64> = ns.iter().map(|t| t.div_euclid(per)).collect();
     let tz = TimeZone::opt_try_new(tz).expect("zone");
-    pl::Int64Chunked::from_vec("time".into(), values).into_datetime(unit, tz).into_column()
+    pl::Int64Chunked::from_vec("time".into(), values)
+        .into_datetime(unit, tz)
+        .into_column()
 }
 
 fn str_col(name: &str, values: &[&str]) -> pl::Column {
@@ -141,13 +147,24 @@ fn reads_any_unit_zone_dictionary_int32_over_unsorted_files() {
     let d = dir.path();
     write_t1(d);
     // ns, naive, plain strings, int64, rows out of order.
-    write_df(&d.join("encoders/a.parquet"), encoders(&[T0 + 3 * S, T0 + S, T0 + 2 * S], &["B01", "B01", "B02"], &[30, 10, 200]));
+    write_df(
+        &d.join("encoders/a.parquet"),
+        encoders(
+            &[T0 + 3 * S, T0 + S, T0 + 2 * S],
+            &["B01", "B01", "B02"],
+            &[30, 10, 200],
+        ),
+    );
     // us, UTC, dictionary strings, int32, an extra column.
     write_df(
         &d.join("encoders/b.parquet"),
         df(vec![
             pl::Column::new("junk".into(), [1.0f64, 2.0]),
-            time_col(&[T0 + 2 * S, T0 + S], pl::TimeUnit::Microseconds, Some("UTC")),
+            time_col(
+                &[T0 + 2 * S, T0 + S],
+                pl::TimeUnit::Microseconds,
+                Some("UTC"),
+            ),
             dict_col("bar", &["B01", "B02"]),
             pl::Int32Chunked::from_vec("counts".into(), vec![20, 100]).into_column(),
         ]),
@@ -156,14 +173,21 @@ fn reads_any_unit_zone_dictionary_int32_over_unsorted_files() {
     write_df(
         &d.join("encoders/c.parquet"),
         df(vec![
-            time_col(&[T0 + 4 * S + 5_000_000], pl::TimeUnit::Milliseconds, Some("Europe/Berlin")),
+            time_col(
+                &[T0 + 4 * S + 5_000_000],
+                pl::TimeUnit::Milliseconds,
+                Some("Europe/Berlin"),
+            ),
             str_col("bar", &["B01"]),
             pl::Column::new("counts".into(), [40i64]),
         ]),
     );
     let logs = read_campaign(d).expect("read");
     let b01 = &logs.bars["B01"];
-    assert_eq!(b01.time_ns, vec![T0 + S, T0 + 2 * S, T0 + 3 * S, T0 + 4 * S + 5_000_000]);
+    assert_eq!(
+        b01.time_ns,
+        vec![T0 + S, T0 + 2 * S, T0 + 3 * S, T0 + 4 * S + 5_000_000]
+    );
     assert_eq!(b01.counts, vec![10, 20, 30, 40]);
     let t1_at: Vec<f64> = (1..=4).map(|i| 20.0 + i as f64 / 10.0).collect();
     assert_eq!(b01.celsius["T1"], t1_at);
@@ -189,15 +213,31 @@ fn asof_takes_latest_reading_at_or_before_and_first_reading_before_start() {
             pl::Column::new("celsius".into(), [3.0f64, 1.0, 2.0]),
         ]),
     );
-    let times = [T0 + 35 * S, T0 + 5 * S, T0 + 10 * S, T0 + 15 * S, T0 + 25 * S, T0 + 30 * S];
-    write_df(&d.join("encoders/e.parquet"), encoders(&times, &["B02"; 6], &[6, 1, 2, 3, 4, 5]));
+    let times = [
+        T0 + 35 * S,
+        T0 + 5 * S,
+        T0 + 10 * S,
+        T0 + 15 * S,
+        T0 + 25 * S,
+        T0 + 30 * S,
+    ];
+    write_df(
+        &d.join("encoders/e.parquet"),
+        encoders(&times, &["B02"; 6], &[6, 1, 2, 3, 4, 5]),
+    );
     let logs = read_campaign(d).expect("read");
     let b02 = &logs.bars["B02"];
     assert_eq!(b02.counts, vec![1, 2, 3, 4, 5, 6]);
     assert_eq!(b02.celsius["T2"], vec![1.0, 1.0, 1.0, 2.0, 3.0, 3.0]);
     assert_eq!(logs.sensors["T2"].celsius, vec![1.0, 2.0, 3.0]);
-    assert!(logs.bars["B01"].time_ns.is_empty(), "every manifest bar has an entry");
-    assert!(logs.sensors["T1"].time_ns.is_empty(), "every manifest sensor has an entry");
+    assert!(
+        logs.bars["B01"].time_ns.is_empty(),
+        "every manifest bar has an entry"
+    );
+    assert!(
+        logs.sensors["T1"].time_ns.is_empty(),
+        "every manifest sensor has an entry"
+    );
 }
 
 #[test]
@@ -205,7 +245,10 @@ fn reads_events_sorted_keeping_unknown_kinds_and_hashes_inputs() {
     let dir = campaign_dir();
     let d = dir.path();
     write_t1(d);
-    write_df(&d.join("encoders/e.parquet"), encoders(&[T0], &["B01"], &[0]));
+    write_df(
+        &d.join("encoders/e.parquet"),
+        encoders(&[T0], &["B01"], &[0]),
+    );
     write_df(
         &d.join("events/ev.parquet"),
         df(vec![
@@ -219,18 +262,40 @@ fn reads_events_sorted_keeping_unknown_kinds_and_hashes_inputs() {
     assert_eq!(
         logs.events,
         vec![
-            Event { time_ns: T0 + S, bar: None, kind: "head_power".into(), value: Some(1.0) },
-            Event { time_ns: T0 + 2 * S, bar: Some("B01".into()), kind: "door_opened".into(), value: None },
+            Event {
+                time_ns: T0 + S,
+                bar: None,
+                kind: "head_power".into(),
+                value: Some(1.0)
+            },
+            Event {
+                time_ns: T0 + 2 * S,
+                bar: Some("B01".into()),
+                kind: "door_opened".into(),
+                value: None
+            },
         ]
     );
     let paths: Vec<&str> = logs.inputs.iter().map(|f| f.path.as_str()).collect();
-    assert_eq!(paths, vec!["campaign.toml", "encoders/e.parquet", "events/ev.parquet", "temperatures/t1.parquet"]);
+    assert_eq!(
+        paths,
+        vec![
+            "campaign.toml",
+            "encoders/e.parquet",
+            "events/ev.parquet",
+            "temperatures/t1.parquet"
+        ]
+    );
     use sha2::Digest;
     let expected = sha2::Sha256::digest(MANIFEST.as_bytes());
     let hex: String = expected.iter().map(|b| format!("{b:02x}")).collect();
     assert_eq!(logs.inputs[0].sha256, hex);
     assert_eq!(logs.inputs[0].bytes, MANIFEST.len() as u64);
-    assert_eq!(logs.campaign, Campaign::from_manifest(Manifest::from_toml_str(MANIFEST, "m").expect("toml")).expect("valid"));
+    assert_eq!(
+        logs.campaign,
+        Campaign::from_manifest(Manifest::from_toml_str(MANIFEST, "m").expect("toml"))
+            .expect("valid")
+    );
 }
 
 #[test]
@@ -238,8 +303,14 @@ fn equal_times_are_ordered_by_value_whatever_the_file_order() {
     let dir = campaign_dir();
     let d = dir.path();
     write_t1(d);
-    write_df(&d.join("encoders/a.parquet"), encoders(&[T0 + S, T0], &["B01", "B01"], &[7, 0]));
-    write_df(&d.join("encoders/b.parquet"), encoders(&[T0 + S, T0 + 2 * S], &["B01", "B01"], &[3, 9]));
+    write_df(
+        &d.join("encoders/a.parquet"),
+        encoders(&[T0 + S, T0], &["B01", "B01"], &[7, 0]),
+    );
+    write_df(
+        &d.join("encoders/b.parquet"),
+        encoders(&[T0 + S, T0 + 2 * S], &["B01", "B01"], &[3, 9]),
+    );
     let b01 = &read_campaign(d).expect("read").bars["B01"];
     assert_eq!(b01.time_ns, vec![T0, T0 + S, T0 + S, T0 + 2 * S]);
     assert_eq!(b01.counts, vec![0, 3, 7, 9]);
@@ -261,7 +332,10 @@ fn manifest_errors_name_file_and_key() {
     std::fs::write(dir.path().join("campaign.toml"), text).expect("write");
     let msg = read_err(dir.path());
     assert!(msg.contains("campaign.toml: mount[0] (bar \"B01\"): length \"huge\" is not a plate length (known: min, max)"), "{msg}");
-    assert!(matches!(read_campaign(dir.path()), Err(IngestError::Manifest(_))));
+    assert!(matches!(
+        read_campaign(dir.path()),
+        Err(IngestError::Manifest(_))
+    ));
 }
 
 #[test]
@@ -269,20 +343,36 @@ fn missing_or_empty_table_folders_are_named() {
     let dir = campaign_dir();
     write_t1(dir.path());
     let msg = read_err(dir.path());
-    assert!(msg.contains("encoders") && msg.contains("no *.parquet"), "{msg}");
+    assert!(
+        msg.contains("encoders") && msg.contains("no *.parquet"),
+        "{msg}"
+    );
     std::fs::remove_dir_all(dir.path().join("temperatures")).expect("rm");
-    write_df(&dir.path().join("encoders/e.parquet"), encoders(&[T0], &["B01"], &[0]));
+    write_df(
+        &dir.path().join("encoders/e.parquet"),
+        encoders(&[T0], &["B01"], &[0]),
+    );
     let msg = read_err(dir.path());
-    assert!(msg.contains("temperatures") && msg.contains("the temperatures table is required"), "{msg}");
+    assert!(
+        msg.contains("temperatures") && msg.contains("the temperatures table is required"),
+        "{msg}"
+    );
 }
 
 #[test]
 fn a_file_that_is_not_parquet_is_named() {
     let dir = campaign_dir();
     write_t1(dir.path());
-    std::fs::write(dir.path().join("encoders/broken.parquet"), b"time,bar,counts\n1,B01,2\n").expect("write");
+    std::fs::write(
+        dir.path().join("encoders/broken.parquet"),
+        b"time,bar,counts\n1,B01,2\n",
+    )
+    .expect("write");
     let msg = read_err(dir.path());
-    assert!(msg.contains("broken.parquet") && msg.contains("not a valid parquet file"), "{msg}");
+    assert!(
+        msg.contains("broken.parquet") && msg.contains("not a valid parquet file"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -291,10 +381,16 @@ fn missing_column_is_named() {
     write_t1(dir.path());
     write_df(
         &dir.path().join("encoders/nocounts.parquet"),
-        df(vec![time_col(&[T0], pl::TimeUnit::Nanoseconds, None), str_col("bar", &["B01"])]),
+        df(vec![
+            time_col(&[T0], pl::TimeUnit::Nanoseconds, None),
+            str_col("bar", &["B01"]),
+        ]),
     );
     let msg = read_err(dir.path());
-    assert!(msg.contains("nocounts.parquet: missing column `counts` (found: time, bar)"), "{msg}");
+    assert!(
+        msg.contains("nocounts.parquet: missing column `counts` (found: time, bar)"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -310,34 +406,59 @@ fn wrong_column_types_are_named() {
         ]),
     );
     let msg = read_err(dir.path());
-    assert!(msg.contains("float.parquet: column `counts` has type f64, expected int64 or int32"), "{msg}");
+    assert!(
+        msg.contains("float.parquet: column `counts` has type f64, expected int64 or int32"),
+        "{msg}"
+    );
 
     write_df(
         &dir.path().join("encoders/float.parquet"),
-        df(vec![pl::Column::new("time".into(), [T0]), str_col("bar", &["B01"]), pl::Column::new("counts".into(), [1i64])]),
+        df(vec![
+            pl::Column::new("time".into(), [T0]),
+            str_col("bar", &["B01"]),
+            pl::Column::new("counts".into(), [1i64]),
+        ]),
     );
     let msg = read_err(dir.path());
-    assert!(msg.contains("float.parquet: column `time` has type i64, expected a timestamp"), "{msg}");
+    assert!(
+        msg.contains("float.parquet: column `time` has type i64, expected a timestamp"),
+        "{msg}"
+    );
 }
 
 #[test]
 fn unknown_bar_is_named_with_file_rows_and_times() {
     let dir = campaign_dir();
     write_t1(dir.path());
-    write_df(&dir.path().join("encoders/a.parquet"), encoders(&[T0], &["B01"], &[0]));
+    write_df(
+        &dir.path().join("encoders/a.parquet"),
+        encoders(&[T0], &["B01"], &[0]),
+    );
     write_df(
         &dir.path().join("encoders/b.parquet"),
-        encoders(&[T0 + S, T0, T0 + 2 * S], &["B99", "B01", "B99"], &[1, 2, 3]),
+        encoders(
+            &[T0 + S, T0, T0 + 2 * S],
+            &["B99", "B01", "B99"],
+            &[1, 2, 3],
+        ),
     );
     let msg = read_err(dir.path());
-    assert!(msg.contains("b.parquet: 2 rows (2026-11-01T00:00:01Z .. 2026-11-01T00:00:02Z) have bar \"B99\""), "{msg}");
+    assert!(
+        msg.contains(
+            "b.parquet: 2 rows (2026-11-01T00:00:01Z .. 2026-11-01T00:00:02Z) have bar \"B99\""
+        ),
+        "{msg}"
+    );
     assert!(msg.contains("known: B01, B02"), "{msg}");
 }
 
 #[test]
 fn unknown_sensor_is_named() {
     let dir = campaign_dir();
-    write_df(&dir.path().join("encoders/a.parquet"), encoders(&[T0], &["B01"], &[0]));
+    write_df(
+        &dir.path().join("encoders/a.parquet"),
+        encoders(&[T0], &["B01"], &[0]),
+    );
     write_df(
         &dir.path().join("temperatures/t.parquet"),
         df(vec![
@@ -347,7 +468,10 @@ fn unknown_sensor_is_named() {
         ]),
     );
     let msg = read_err(dir.path());
-    assert!(msg.contains("t.parquet: 1 rows") && msg.contains("have sensor \"T9\""), "{msg}");
+    assert!(
+        msg.contains("t.parquet: 1 rows") && msg.contains("have sensor \"T9\""),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -359,10 +483,17 @@ fn null_times_and_counts_are_named() {
         .into_column();
     write_df(
         &dir.path().join("encoders/nulltime.parquet"),
-        df(vec![times, str_col("bar", &["B01", "B01"]), pl::Column::new("counts".into(), [1i64, 2])]),
+        df(vec![
+            times,
+            str_col("bar", &["B01", "B01"]),
+            pl::Column::new("counts".into(), [1i64, 2]),
+        ]),
     );
     let msg = read_err(dir.path());
-    assert!(msg.contains("nulltime.parquet: column `time` has 1 null values"), "{msg}");
+    assert!(
+        msg.contains("nulltime.parquet: column `time` has 1 null values"),
+        "{msg}"
+    );
 
     std::fs::remove_file(dir.path().join("encoders/nulltime.parquet")).expect("rm");
     write_df(
@@ -374,7 +505,10 @@ fn null_times_and_counts_are_named() {
         ]),
     );
     let msg = read_err(dir.path());
-    assert!(msg.contains("nullcounts.parquet: column `counts` has 1 null values"), "{msg}");
+    assert!(
+        msg.contains("nullcounts.parquet: column `counts` has 1 null values"),
+        "{msg}"
+    );
 }
 
 // ---------------------------------------------------------------- writing
@@ -383,18 +517,50 @@ fn sample_tables() -> CampaignTables {
     let mut encoders = BTreeMap::new();
     // Three days, irregular sub-millisecond times, descending counts for B02.
     let b01: Vec<i64> = (0..50).map(|i| T0 + i * 3_600 * S + i * 123_457).collect();
-    encoders.insert("B01".to_string(), EncoderLog { counts: (0..50).collect(), time_ns: b01 });
+    encoders.insert(
+        "B01".to_string(),
+        EncoderLog {
+            counts: (0..50).collect(),
+            time_ns: b01,
+        },
+    );
     let b02: Vec<i64> = (0..30).map(|i| T0 + i * 7_000 * S + 999).collect();
-    encoders.insert("B02".to_string(), EncoderLog { counts: (0..30).map(|i| 1000 - i).collect(), time_ns: b02 });
+    encoders.insert(
+        "B02".to_string(),
+        EncoderLog {
+            counts: (0..30).map(|i| 1000 - i).collect(),
+            time_ns: b02,
+        },
+    );
     let mut temperatures = BTreeMap::new();
     let t1: Vec<i64> = (0..80).map(|i| T0 - S + i * 3_000 * S).collect();
-    temperatures.insert("T1".to_string(), SensorLog { celsius: (0..80).map(|i| 20.0 + i as f64 * 0.01).collect(), time_ns: t1 });
+    temperatures.insert(
+        "T1".to_string(),
+        SensorLog {
+            celsius: (0..80).map(|i| 20.0 + i as f64 * 0.01).collect(),
+            time_ns: t1,
+        },
+    );
     temperatures.insert("T2".to_string(), SensorLog::default());
     let events = vec![
-        Event { time_ns: T0 + 5 * S, bar: Some("B01".into()), kind: "rezero".into(), value: None },
-        Event { time_ns: T0 + S, bar: None, kind: "tilt".into(), value: Some(45.0) },
+        Event {
+            time_ns: T0 + 5 * S,
+            bar: Some("B01".into()),
+            kind: "rezero".into(),
+            value: None,
+        },
+        Event {
+            time_ns: T0 + S,
+            bar: None,
+            kind: "tilt".into(),
+            value: Some(45.0),
+        },
     ];
-    CampaignTables { encoders, temperatures, events }
+    CampaignTables {
+        encoders,
+        temperatures,
+        events,
+    }
 }
 
 fn floored(ns: &[i64], unit: TimeUnit) -> Vec<i64> {
@@ -409,11 +575,17 @@ fn floored(ns: &[i64], unit: TimeUnit) -> Vec<i64> {
 fn all_files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     let mut files = BTreeMap::new();
     for sub in ["", "encoders", "temperatures", "events"] {
-        let Ok(entries) = std::fs::read_dir(dir.join(sub)) else { continue };
+        let Ok(entries) = std::fs::read_dir(dir.join(sub)) else {
+            continue;
+        };
         for entry in entries {
             let path = entry.expect("entry").path();
             if path.is_file() {
-                let rel = path.strip_prefix(dir).expect("prefix").to_string_lossy().into_owned();
+                let rel = path
+                    .strip_prefix(dir)
+                    .expect("prefix")
+                    .to_string_lossy()
+                    .into_owned();
                 files.insert(rel, std::fs::read(&path).expect("read"));
             }
         }
@@ -427,28 +599,58 @@ fn write_then_read_round_trips_under_every_layout() {
     let tables = sample_tables();
     let layouts = [
         WriteOptions::default(),
-        WriteOptions { split_by_day: true, time_unit: TimeUnit::Us, shuffle_rows: true, dictionary_strings: true, seed: 7 },
-        WriteOptions { split_by_day: true, time_unit: TimeUnit::Ms, shuffle_rows: false, dictionary_strings: false, seed: 0 },
+        WriteOptions {
+            split_by_day: true,
+            time_unit: TimeUnit::Us,
+            shuffle_rows: true,
+            dictionary_strings: true,
+            seed: 7,
+        },
+        WriteOptions {
+            split_by_day: true,
+            time_unit: TimeUnit::Ms,
+            shuffle_rows: false,
+            dictionary_strings: false,
+            seed: 0,
+        },
     ];
     for opts in layouts {
         let dir = tempfile::tempdir().expect("tempdir");
         write_campaign(dir.path(), &manifest, &tables, &opts).expect("write");
         let logs = read_campaign(dir.path()).expect("read");
-        assert_eq!(logs.campaign, Campaign::from_manifest(manifest.clone()).expect("valid"));
+        assert_eq!(
+            logs.campaign,
+            Campaign::from_manifest(manifest.clone()).expect("valid")
+        );
         for (bar, written) in &tables.encoders {
             let read = &logs.bars[bar];
-            assert_eq!(read.time_ns, floored(&written.time_ns, opts.time_unit), "{opts:?}");
+            assert_eq!(
+                read.time_ns,
+                floored(&written.time_ns, opts.time_unit),
+                "{opts:?}"
+            );
             assert_eq!(read.counts, written.counts, "{opts:?}");
             assert_eq!(read.celsius["T1"].len(), written.time_ns.len());
         }
         for (sensor, written) in &tables.temperatures {
-            assert_eq!(logs.sensors[sensor].time_ns, floored(&written.time_ns, opts.time_unit));
+            assert_eq!(
+                logs.sensors[sensor].time_ns,
+                floored(&written.time_ns, opts.time_unit)
+            );
             assert_eq!(logs.sensors[sensor].celsius, written.celsius);
         }
         assert_eq!(logs.events.len(), 2);
         assert_eq!(logs.events[0].kind, "tilt");
-        let n_encoder_files = logs.inputs.iter().filter(|f| f.path.starts_with("encoders/")).count();
-        assert_eq!(n_encoder_files, if opts.split_by_day { 3 } else { 1 }, "{opts:?}");
+        let n_encoder_files = logs
+            .inputs
+            .iter()
+            .filter(|f| f.path.starts_with("encoders/"))
+            .count();
+        assert_eq!(
+            n_encoder_files,
+            if opts.split_by_day { 3 } else { 1 },
+            "{opts:?}"
+        );
     }
 }
 
@@ -456,7 +658,13 @@ fn write_then_read_round_trips_under_every_layout() {
 fn writing_is_deterministic_and_leaves_no_stale_files() {
     let manifest = Manifest::from_toml_str(MANIFEST, "m").expect("toml");
     let tables = sample_tables();
-    let opts = WriteOptions { split_by_day: true, time_unit: TimeUnit::Us, shuffle_rows: true, dictionary_strings: true, seed: 3 };
+    let opts = WriteOptions {
+        split_by_day: true,
+        time_unit: TimeUnit::Us,
+        shuffle_rows: true,
+        dictionary_strings: true,
+        seed: 3,
+    };
     let a = tempfile::tempdir().expect("tempdir");
     let b = tempfile::tempdir().expect("tempdir");
     write_campaign(a.path(), &manifest, &tables, &opts).expect("write a");
@@ -467,7 +675,12 @@ fn writing_is_deterministic_and_leaves_no_stale_files() {
     let names: Vec<String> = all_files(a.path()).into_keys().collect();
     assert_eq!(
         names,
-        vec!["campaign.toml", "encoders/encoders.parquet", "events/events.parquet", "temperatures/temperatures.parquet"]
+        vec![
+            "campaign.toml",
+            "encoders/encoders.parquet",
+            "events/events.parquet",
+            "temperatures/temperatures.parquet"
+        ]
     );
 }
 
@@ -482,17 +695,32 @@ fn write_table_is_readable_deterministic_and_checks_lengths() {
     let (p1, p2) = (dir.path().join("a.parquet"), dir.path().join("b.parquet"));
     write_table(&p1, &table).expect("write");
     write_table(&p2, &table).expect("write");
-    assert_eq!(std::fs::read(&p1).expect("read"), std::fs::read(&p2).expect("read"));
+    assert_eq!(
+        std::fs::read(&p1).expect("read"),
+        std::fs::read(&p2).expect("read")
+    );
 
-    let back = pl::ParquetReader::new(std::fs::File::open(&p1).expect("open")).finish().expect("parquet");
+    let back = pl::ParquetReader::new(std::fs::File::open(&p1).expect("open"))
+        .finish()
+        .expect("parquet");
     let names: Vec<&str> = back.get_column_names().iter().map(|n| n.as_str()).collect();
     assert_eq!(names, vec!["bar", "gain_um_per_k", "tau_s", "n"]);
-    let tau: Vec<Option<f64>> = back.column("tau_s").expect("col").f64().expect("f64").iter().collect();
+    let tau: Vec<Option<f64>> = back
+        .column("tau_s")
+        .expect("col")
+        .f64()
+        .expect("f64")
+        .iter()
+        .collect();
     assert_eq!(tau, vec![Some(600.0), None]);
 
     let ragged = table.with("short", Column::I64(vec![1]));
     let err = write_table(&p1, &ragged).expect_err("ragged");
-    assert!(err.to_string().contains("column `short` has 1 rows, expected 2"), "{err}");
+    assert!(
+        err.to_string()
+            .contains("column `short` has 1 rows, expected 2"),
+        "{err}"
+    );
 }
 
 /// Timing on a campaign of realistic size (~31 M encoder rows). Run by hand:
@@ -500,7 +728,10 @@ fn write_table_is_readable_deterministic_and_checks_lengths() {
 #[test]
 #[ignore]
 fn large_campaign_write_and_read_timing() {
-    let _ = tracing_subscriber::fmt().with_max_level(tracing::Level::DEBUG).with_test_writer().try_init();
+    let _ = tracing_subscriber::fmt()
+        .with_max_level(tracing::Level::DEBUG)
+        .with_test_writer()
+        .try_init();
     let manifest = Manifest::from_toml_str(MANIFEST, "m").expect("toml");
     let rows_per_bar = 15_500_000i64; // 2 bars: 31 M rows, one reading every ~170 ms over 30 days
     let step = 30 * 86_400 * S / rows_per_bar;
@@ -508,18 +739,32 @@ fn large_campaign_write_and_read_timing() {
     for bar in ["B01", "B02"] {
         tables.encoders.insert(
             bar.to_string(),
-            EncoderLog { time_ns: (0..rows_per_bar).map(|i| T0 + i * step).collect(), counts: (0..rows_per_bar).collect() },
+            EncoderLog {
+                time_ns: (0..rows_per_bar).map(|i| T0 + i * step).collect(),
+                counts: (0..rows_per_bar).collect(),
+            },
         );
     }
     for sensor in ["T1", "T2"] {
         let n = 30 * 1440;
         tables.temperatures.insert(
             sensor.to_string(),
-            SensorLog { time_ns: (0..n).map(|i| T0 + i * 60 * S).collect(), celsius: (0..n).map(|i| 20.0 + (i % 100) as f64 / 100.0).collect() },
+            SensorLog {
+                time_ns: (0..n).map(|i| T0 + i * 60 * S).collect(),
+                celsius: (0..n).map(|i| 20.0 + (i % 100) as f64 / 100.0).collect(),
+            },
         );
     }
     let dir = tempfile::tempdir().expect("tempdir");
-    for opts in [WriteOptions::default(), WriteOptions { split_by_day: true, shuffle_rows: true, dictionary_strings: true, ..Default::default() }] {
+    for opts in [
+        WriteOptions::default(),
+        WriteOptions {
+            split_by_day: true,
+            shuffle_rows: true,
+            dictionary_strings: true,
+            ..Default::default()
+        },
+    ] {
         let t = std::time::Instant::now();
         write_campaign(dir.path(), &manifest, &tables, &opts).expect("write");
         let written = t.elapsed();

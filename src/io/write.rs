@@ -63,7 +63,12 @@ pub enum WriteError {
     #[error("{}: cannot serialise the manifest: {message}", path.display())]
     Manifest { path: PathBuf, message: String },
     #[error("{}: column `{column}` has {rows} rows, expected {expected}", path.display())]
-    RaggedTable { path: PathBuf, column: String, rows: usize, expected: usize },
+    RaggedTable {
+        path: PathBuf,
+        column: String,
+        rows: usize,
+        expected: usize,
+    },
     #[error("{}: column `{column}` appears twice", path.display())]
     DuplicateColumn { path: PathBuf, column: String },
     #[error("{}: more rows than polars can index ({rows})", path.display())]
@@ -95,19 +100,33 @@ pub fn write_campaign(
 }
 
 fn create_dir(dir: &Path) -> Result<(), WriteError> {
-    std::fs::create_dir_all(dir).map_err(|e| WriteError::Io { path: dir.to_path_buf(), message: e.to_string() })
+    std::fs::create_dir_all(dir).map_err(|e| WriteError::Io {
+        path: dir.to_path_buf(),
+        message: e.to_string(),
+    })
 }
 
 fn write_manifest(path: &Path, manifest: &Manifest) -> Result<(), WriteError> {
-    let text = toml::to_string(manifest)
-        .map_err(|e| WriteError::Manifest { path: path.to_path_buf(), message: one_line(e) })?;
-    std::fs::write(path, text).map_err(|e| WriteError::Io { path: path.to_path_buf(), message: e.to_string() })
+    let text = toml::to_string(manifest).map_err(|e| WriteError::Manifest {
+        path: path.to_path_buf(),
+        message: one_line(e),
+    })?;
+    std::fs::write(path, text).map_err(|e| WriteError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
 }
 
 fn clear_parquet(folder: &Path) -> Result<(), WriteError> {
-    let stale = parquet_files(folder).map_err(|e| WriteError::Io { path: folder.to_path_buf(), message: one_line(e) })?;
+    let stale = parquet_files(folder).map_err(|e| WriteError::Io {
+        path: folder.to_path_buf(),
+        message: one_line(e),
+    })?;
     for file in stale {
-        std::fs::remove_file(&file).map_err(|e| WriteError::Io { path: file.clone(), message: e.to_string() })?;
+        std::fs::remove_file(&file).map_err(|e| WriteError::Io {
+            path: file.clone(),
+            message: e.to_string(),
+        })?;
     }
     Ok(())
 }
@@ -123,10 +142,17 @@ struct Frame {
 const NS_PER_DAY: i64 = 86_400_000_000_000;
 
 fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
-    move |e| WriteError::Polars { path: path.to_path_buf(), message: one_line(e) }
+    move |e| WriteError::Polars {
+        path: path.to_path_buf(),
+        message: one_line(e),
+    }
 }
 
-fn time_column(time_ns: impl Iterator<Item = i64>, unit: TimeUnit, rows: usize) -> (Column, Vec<i64>) {
+fn time_column(
+    time_ns: impl Iterator<Item = i64>,
+    unit: TimeUnit,
+    rows: usize,
+) -> (Column, Vec<i64>) {
     let mut values = Vec::with_capacity(rows);
     let mut day = Vec::with_capacity(rows);
     let per = unit.ns_per_unit();
@@ -134,7 +160,9 @@ fn time_column(time_ns: impl Iterator<Item = i64>, unit: TimeUnit, rows: usize) 
         values.push(t.div_euclid(per));
         day.push(t.div_euclid(NS_PER_DAY));
     }
-    let column = Int64Chunked::from_vec("time".into(), values).into_datetime(unit.polars(), None).into_column();
+    let column = Int64Chunked::from_vec("time".into(), values)
+        .into_datetime(unit.polars(), None)
+        .into_column();
     (column, day)
 }
 
@@ -157,14 +185,28 @@ fn check_len(path: &Path, column: &str, rows: usize, expected: usize) -> Result<
     if rows == expected {
         Ok(())
     } else {
-        Err(WriteError::RaggedTable { path: path.to_path_buf(), column: column.to_string(), rows, expected })
+        Err(WriteError::RaggedTable {
+            path: path.to_path_buf(),
+            column: column.to_string(),
+            rows,
+            expected,
+        })
     }
 }
 
-fn encoder_frame(path: &Path, tables: &CampaignTables, opts: &WriteOptions) -> Result<Frame, WriteError> {
+fn encoder_frame(
+    path: &Path,
+    tables: &CampaignTables,
+    opts: &WriteOptions,
+) -> Result<Frame, WriteError> {
     let logs = &tables.encoders;
     for (bar, log) in logs {
-        check_len(path, &format!("counts of bar {bar}"), log.counts.len(), log.time_ns.len())?;
+        check_len(
+            path,
+            &format!("counts of bar {bar}"),
+            log.counts.len(),
+            log.time_ns.len(),
+        )?;
     }
     let rows: usize = logs.values().map(|l| l.time_ns.len()).sum();
     let times = logs.values().flat_map(|l| l.time_ns.iter().copied());
@@ -172,16 +214,26 @@ fn encoder_frame(path: &Path, tables: &CampaignTables, opts: &WriteOptions) -> R
     let ids = logs.iter().map(|(id, l)| (id.as_str(), l.time_ns.len()));
     let bar = id_column("bar", ids, opts.dictionary_strings).map_err(polars_err(path))?;
     let mut counts = Vec::with_capacity(rows);
-    logs.values().for_each(|l| counts.extend_from_slice(&l.counts));
+    logs.values()
+        .for_each(|l| counts.extend_from_slice(&l.counts));
     let counts = Int64Chunked::from_vec("counts".into(), counts).into_column();
     let df = DataFrame::new(rows, vec![time, bar, counts]).map_err(polars_err(path))?;
     Ok(Frame { df, day })
 }
 
-fn temperature_frame(path: &Path, tables: &CampaignTables, opts: &WriteOptions) -> Result<Frame, WriteError> {
+fn temperature_frame(
+    path: &Path,
+    tables: &CampaignTables,
+    opts: &WriteOptions,
+) -> Result<Frame, WriteError> {
     let logs = &tables.temperatures;
     for (sensor, log) in logs {
-        check_len(path, &format!("celsius of sensor {sensor}"), log.celsius.len(), log.time_ns.len())?;
+        check_len(
+            path,
+            &format!("celsius of sensor {sensor}"),
+            log.celsius.len(),
+            log.time_ns.len(),
+        )?;
     }
     let rows: usize = logs.values().map(|l| l.time_ns.len()).sum();
     let times = logs.values().flat_map(|l| l.time_ns.iter().copied());
@@ -189,7 +241,8 @@ fn temperature_frame(path: &Path, tables: &CampaignTables, opts: &WriteOptions) 
     let ids = logs.iter().map(|(id, l)| (id.as_str(), l.time_ns.len()));
     let sensor = id_column("sensor", ids, opts.dictionary_strings).map_err(polars_err(path))?;
     let mut celsius = Vec::with_capacity(rows);
-    logs.values().for_each(|l| celsius.extend_from_slice(&l.celsius));
+    logs.values()
+        .for_each(|l| celsius.extend_from_slice(&l.celsius));
     let celsius = Float64Chunked::from_vec("celsius".into(), celsius).into_column();
     let df = DataFrame::new(rows, vec![time, sensor, celsius]).map_err(polars_err(path))?;
     Ok(Frame { df, day })
@@ -199,9 +252,14 @@ fn event_frame(path: &Path, tables: &CampaignTables, unit: TimeUnit) -> Result<F
     let events = &tables.events;
     let rows = events.len();
     let (time, day) = time_column(events.iter().map(|e| e.time_ns), unit, rows);
-    let bar = StringChunked::from_iter_options("bar".into(), events.iter().map(|e| e.bar.as_deref())).into_column();
-    let kind = StringChunked::from_iter_values("kind".into(), events.iter().map(|e| e.kind.as_str())).into_column();
-    let value = Float64Chunked::from_iter_options("value".into(), events.iter().map(|e| e.value)).into_column();
+    let bar =
+        StringChunked::from_iter_options("bar".into(), events.iter().map(|e| e.bar.as_deref()))
+            .into_column();
+    let kind =
+        StringChunked::from_iter_values("kind".into(), events.iter().map(|e| e.kind.as_str()))
+            .into_column();
+    let value = Float64Chunked::from_iter_options("value".into(), events.iter().map(|e| e.value))
+        .into_column();
     let df = DataFrame::new(rows, vec![time, bar, kind, value]).map_err(polars_err(path))?;
     Ok(Frame { df, day })
 }
@@ -223,7 +281,8 @@ fn write_table_files(
         let mut df = frame.df;
         return write_parquet(&folder.join(format!("{table}.parquet")), &mut df);
     }
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(31).wrapping_add(salt));
+    let mut rng =
+        rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(31).wrapping_add(salt));
     for (name, mut rows) in file_rows(&frame.day, opts.split_by_day, table) {
         let path = folder.join(format!("{name}.parquet"));
         if opts.shuffle_rows {
@@ -245,7 +304,10 @@ fn file_rows(day: &[i64], split_by_day: bool, table: &str) -> BTreeMap<String, V
     for (row, &d) in day.iter().enumerate() {
         by_day.entry(d).or_default().push(row);
     }
-    by_day.into_iter().map(|(d, rows)| (day_name(d), rows)).collect()
+    by_day
+        .into_iter()
+        .map(|(d, rows)| (day_name(d), rows))
+        .collect()
 }
 
 fn day_name(day: i64) -> String {
@@ -263,16 +325,28 @@ fn take_rows(path: &Path, df: &DataFrame, rows: Vec<usize>) -> Result<DataFrame,
         .into_iter()
         .map(IdxSize::try_from)
         .collect::<Result<_, _>>()
-        .map_err(|_| WriteError::TooManyRows { path: path.to_path_buf(), rows: n })?;
-    df.take(&IdxCa::from_vec("idx".into(), idx)).map_err(polars_err(path))
+        .map_err(|_| WriteError::TooManyRows {
+            path: path.to_path_buf(),
+            rows: n,
+        })?;
+    df.take(&IdxCa::from_vec("idx".into(), idx))
+        .map_err(polars_err(path))
 }
 
 /// Writes one parquet file (zstd, statistics on; polars embeds no timestamp, so the bytes
 /// depend only on the frame).
 pub(crate) fn write_parquet(path: &Path, df: &mut DataFrame) -> Result<(), WriteError> {
-    let file = std::fs::File::create(path).map_err(|e| WriteError::Io { path: path.to_path_buf(), message: e.to_string() })?;
+    let file = std::fs::File::create(path).map_err(|e| WriteError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
     let mut writer = std::io::BufWriter::new(file);
-    ParquetWriter::new(&mut writer).finish(df).map_err(polars_err(path))?;
+    ParquetWriter::new(&mut writer)
+        .finish(df)
+        .map_err(polars_err(path))?;
     use std::io::Write;
-    writer.flush().map_err(|e| WriteError::Io { path: path.to_path_buf(), message: e.to_string() })
+    writer.flush().map_err(|e| WriteError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
 }

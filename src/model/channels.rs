@@ -18,7 +18,11 @@ pub enum Channel {
     Impulses(Vec<f64>),
     /// A piecewise-constant input switching to `values[j]` at `switch_s[j]` (from events that
     /// carry values), held between switches even where no sample was logged.
-    Held { switch_s: Vec<f64>, values: Vec<f64>, at_samples: Vec<f64> },
+    Held {
+        switch_s: Vec<f64>,
+        values: Vec<f64>,
+        at_samples: Vec<f64>,
+    },
 }
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -35,11 +39,18 @@ pub enum ChannelError {
 
 impl Channel {
     /// First-order lag of the channel (impulses: their unit responses).
-    pub fn lag(&self, t_s: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+    pub fn lag(
+        &self,
+        t_s: &[f64],
+        tau_s: f64,
+        with_derivative: bool,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
         match self {
             Channel::Sampled(u) => lag::lag(t_s, u, tau_s, with_derivative),
             Channel::Impulses(e) => lag::impulse_lag(t_s, e, tau_s, with_derivative),
-            Channel::Held { switch_s, values, .. } => lag::held_lag(t_s, switch_s, values, tau_s, with_derivative),
+            Channel::Held {
+                switch_s, values, ..
+            } => lag::held_lag(t_s, switch_s, values, tau_s, with_derivative),
         }
     }
 
@@ -60,7 +71,9 @@ pub fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> 
     }
     if let Some((a, b)) = name.split_once('-') {
         if let (Some(a), Some(b)) = (series.celsius.get(a), series.celsius.get(b)) {
-            return Ok(Channel::Sampled(a.iter().zip(b).map(|(a, b)| a - b).collect()));
+            return Ok(Channel::Sampled(
+                a.iter().zip(b).map(|(a, b)| a - b).collect(),
+            ));
         }
     }
     if let Some(kind) = name.strip_prefix("event:") {
@@ -76,11 +89,19 @@ pub fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> 
         )),
         "time_of_day_h" => {
             let t0_s = series.t0_ns as f64 * 1e-9;
-            Ok(Channel::Sampled(t.iter().map(|t| ((t0_s + t) / 3600.0).rem_euclid(24.0)).collect()))
+            Ok(Channel::Sampled(
+                t.iter()
+                    .map(|t| ((t0_s + t) / 3600.0).rem_euclid(24.0))
+                    .collect(),
+            ))
         }
         "length_mm" => Ok(Channel::Sampled(series.i_p_mm())),
         "tilt_deg" => Ok(Channel::Sampled(
-            series.mount_of.iter().map(|m| m.map_or(0.0, |m| series.mounts[m as usize].tilt_deg)).collect(),
+            series
+                .mount_of
+                .iter()
+                .map(|m| m.map_or(0.0, |m| series.mounts[m as usize].tilt_deg))
+                .collect(),
         )),
         _ => Err(ChannelError::Unknown(name.to_string())),
     }
@@ -88,7 +109,12 @@ pub fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> 
 
 /// Events of one kind for the bar: a held series when they carry values, impulses otherwise.
 pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelError> {
-    let events: Vec<(f64, Option<f64>)> = series.events.iter().filter(|(_, e)| e.kind == kind).map(|(t, e)| (*t, e.value)).collect();
+    let events: Vec<(f64, Option<f64>)> = series
+        .events
+        .iter()
+        .filter(|(_, e)| e.kind == kind)
+        .map(|(t, e)| (*t, e.value))
+        .collect();
     if events.is_empty() {
         return Err(ChannelError::NoEvents(kind.to_string()));
     }
@@ -105,7 +131,10 @@ pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelE
         values.push(value);
     }
     // Before the first event the input is 0 (e.g. the head not yet powered).
-    switch_s.insert(0, series.t_s.first().copied().unwrap_or(0.0).min(switch_s[0]) - 1.0);
+    switch_s.insert(
+        0,
+        series.t_s.first().copied().unwrap_or(0.0).min(switch_s[0]) - 1.0,
+    );
     values.insert(0, 0.0);
     let mut at_samples = Vec::with_capacity(series.t_s.len());
     let mut next = 0;
@@ -117,7 +146,11 @@ pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelE
         }
         at_samples.push(current);
     }
-    Ok(Channel::Held { switch_s, values, at_samples })
+    Ok(Channel::Held {
+        switch_s,
+        values,
+        at_samples,
+    })
 }
 
 /// Mean of the other air sensors minus the bar's own.
@@ -135,13 +168,20 @@ pub fn air_gradient(series: &BarSeries) -> Result<Channel, ChannelError> {
     }
     let k = others.len() as f64;
     Ok(Channel::Sampled(
-        (0..own_c.len()).map(|i| others.iter().map(|c| c[i]).sum::<f64>() / k - own_c[i]).collect(),
+        (0..own_c.len())
+            .map(|i| others.iter().map(|c| c[i]).sum::<f64>() / k - own_c[i])
+            .collect(),
     ))
 }
 
 /// The plate sensor's temperature.
 pub fn plate_temperature(series: &BarSeries) -> Result<Vec<f64>, ChannelError> {
-    series.plate_sensor_id.as_ref().and_then(|id| series.celsius.get(id)).cloned().ok_or(ChannelError::NoPlateSensor)
+    series
+        .plate_sensor_id
+        .as_ref()
+        .and_then(|id| series.celsius.get(id))
+        .cloned()
+        .ok_or(ChannelError::NoPlateSensor)
 }
 
 /// Every channel the diagnosis can offer for this bar (names accepted by [`resolve`]).
@@ -157,6 +197,14 @@ pub fn available(series: &BarSeries) -> Vec<String> {
     kinds.sort();
     kinds.dedup();
     names.extend(kinds.into_iter().map(|k| format!("event:{k}")));
-    names.extend(["time_since_mount_h", "time_of_day_h", "length_mm", "tilt_deg"].map(String::from));
+    names.extend(
+        [
+            "time_since_mount_h",
+            "time_of_day_h",
+            "length_mm",
+            "tilt_deg",
+        ]
+        .map(String::from),
+    );
     names
 }

@@ -14,7 +14,12 @@
 //! The state starts in equilibrium with the first input (`x0 = u0`).
 
 /// The lag `x` of `u` sampled at `t_s`, and optionally `dx/d ln tau`.
-pub fn lag(t_s: &[f64], u: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+pub fn lag(
+    t_s: &[f64],
+    u: &[f64],
+    tau_s: f64,
+    with_derivative: bool,
+) -> (Vec<f64>, Option<Vec<f64>>) {
     let n = t_s.len().min(u.len());
     let mut x = Vec::with_capacity(n);
     let mut d = with_derivative.then(|| Vec::with_capacity(n));
@@ -52,7 +57,12 @@ pub fn lag(t_s: &[f64], u: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f6
 
 /// Response of a unit first-order system to unit impulses at `events_s` (sorted), sampled at
 /// `t_s`: `x(t) = Σ_{e ≤ t} exp(-(t - e)/tau)`, and optionally `dx/d ln tau`.
-pub fn impulse_lag(t_s: &[f64], events_s: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+pub fn impulse_lag(
+    t_s: &[f64],
+    events_s: &[f64],
+    tau_s: f64,
+    with_derivative: bool,
+) -> (Vec<f64>, Option<Vec<f64>>) {
     let n = t_s.len();
     let mut x = Vec::with_capacity(n);
     let mut d = with_derivative.then(|| Vec::with_capacity(n));
@@ -86,7 +96,13 @@ pub fn impulse_lag(t_s: &[f64], events_s: &[f64], tau_s: f64, with_derivative: b
 /// sampled at `t_s`, and optionally `dx/d ln tau`. Exact at any sampling: the switches are
 /// integrated at their own times, so an input that changes while no sample is logged (a read
 /// head switched off between readings) is still seen. Starts in equilibrium.
-pub fn held_lag(t_s: &[f64], switch_s: &[f64], values: &[f64], tau_s: f64, with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+pub fn held_lag(
+    t_s: &[f64],
+    switch_s: &[f64],
+    values: &[f64],
+    tau_s: f64,
+    with_derivative: bool,
+) -> (Vec<f64>, Option<Vec<f64>>) {
     let n = t_s.len();
     let mut x = Vec::with_capacity(n);
     let mut d = with_derivative.then(|| Vec::with_capacity(n));
@@ -94,7 +110,11 @@ pub fn held_lag(t_s: &[f64], switch_s: &[f64], values: &[f64], tau_s: f64, with_
         return (vec![0.0; n], d.map(|_| vec![0.0; n]));
     };
     let (mut xs, mut ds, mut u) = (u0, 0.0, u0);
-    let mut t_prev = t_s.first().copied().unwrap_or(0.0).min(switch_s.first().copied().unwrap_or(f64::INFINITY));
+    let mut t_prev = t_s
+        .first()
+        .copied()
+        .unwrap_or(0.0)
+        .min(switch_s.first().copied().unwrap_or(f64::INFINITY));
     let mut next = 0;
     let advance = |to: f64, xs: &mut f64, ds: &mut f64, u: f64, t_prev: &mut f64| {
         let dt = (to - *t_prev).max(0.0);
@@ -154,8 +174,13 @@ mod tests {
 
     #[test]
     fn derivative_matches_finite_difference() {
-        let t: Vec<f64> = (0..300).map(|i| i as f64 * 10.0 + ((i * 7) % 3) as f64).collect();
-        let u: Vec<f64> = t.iter().map(|t| (t / 500.0).sin() + 0.3 * (t / 77.0).cos()).collect();
+        let t: Vec<f64> = (0..300)
+            .map(|i| i as f64 * 10.0 + ((i * 7) % 3) as f64)
+            .collect();
+        let u: Vec<f64> = t
+            .iter()
+            .map(|t| (t / 500.0).sin() + 0.3 * (t / 77.0).cos())
+            .collect();
         let tau: f64 = 420.0;
         let (_, d) = lag(&t, &u, tau, true);
         let h = 1e-6;
@@ -176,10 +201,25 @@ mod tests {
         assert!((x[3] - off).abs() < 1e-12, "{x:?}");
         assert!((x[4] - (1.0 - (1.0 - off) * (-100.0f64 / 300.0).exp())).abs() < 1e-12);
         let h = 1e-6;
-        let (xp, _) = held_lag(&t, &[0.0, 100.0, 1000.0], &[1.0, 0.0, 1.0], (300f64.ln() + h).exp(), false);
-        let (xm, _) = held_lag(&t, &[0.0, 100.0, 1000.0], &[1.0, 0.0, 1.0], (300f64.ln() - h).exp(), false);
+        let (xp, _) = held_lag(
+            &t,
+            &[0.0, 100.0, 1000.0],
+            &[1.0, 0.0, 1.0],
+            (300f64.ln() + h).exp(),
+            false,
+        );
+        let (xm, _) = held_lag(
+            &t,
+            &[0.0, 100.0, 1000.0],
+            &[1.0, 0.0, 1.0],
+            (300f64.ln() - h).exp(),
+            false,
+        );
         for k in 0..t.len() {
-            assert!((d.as_ref().unwrap()[k] - (xp[k] - xm[k]) / (2.0 * h)).abs() < 1e-6, "k={k}");
+            assert!(
+                (d.as_ref().unwrap()[k] - (xp[k] - xm[k]) / (2.0 * h)).abs() < 1e-6,
+                "k={k}"
+            );
         }
     }
 

@@ -61,7 +61,11 @@ pub enum Effect {
     /// Slow linear trend independent of temperature (µm/day).
     Creep,
     /// Generic term: `transform` of a named channel (see [`channels`]).
-    Channel { transform: Transform, channel: String, tau0_s: Option<f64> },
+    Channel {
+        transform: Transform,
+        channel: String,
+        tau0_s: Option<f64>,
+    },
 }
 
 /// The named effects of the catalogue (`physics.md`), in display order.
@@ -105,7 +109,9 @@ impl Effect {
         if let Some(e) = named {
             return Ok(e);
         }
-        let (head, channel) = s.split_once(':').ok_or_else(|| UnknownEffect(s.to_string()))?;
+        let (head, channel) = s
+            .split_once(':')
+            .ok_or_else(|| UnknownEffect(s.to_string()))?;
         let transform = match head {
             "lag" => Transform::Lag,
             "rate" => Transform::Rate,
@@ -125,7 +131,11 @@ impl Effect {
         if channel.is_empty() {
             return Err(UnknownEffect(s.to_string()));
         }
-        Ok(Effect::Channel { transform, channel: channel.to_string(), tau0_s })
+        Ok(Effect::Channel {
+            transform,
+            channel: channel.to_string(),
+            tau0_s,
+        })
     }
 
     /// The effect's name; `Effect::parse(&e.name()) == e`.
@@ -139,7 +149,11 @@ impl Effect {
             Effect::PlateExpansion => "plate_expansion".into(),
             Effect::Settling => "settling".into(),
             Effect::Creep => "creep".into(),
-            Effect::Channel { transform, channel, tau0_s } => match tau0_s {
+            Effect::Channel {
+                transform,
+                channel,
+                tau0_s,
+            } => match tau0_s {
                 Some(t) => format!("{}:{channel}@{t}", transform.as_str()),
                 None => format!("{}:{channel}", transform.as_str()),
             },
@@ -157,7 +171,9 @@ impl Effect {
             Effect::PlateExpansion => "plate_cte_ppm_per_k".into(),
             Effect::Settling => "settling_um".into(),
             Effect::Creep => "creep_um_per_day".into(),
-            Effect::Channel { transform, channel, .. } => format!("{}_{channel}_gain_um_per_unit", transform.as_str()),
+            Effect::Channel {
+                transform, channel, ..
+            } => format!("{}_{channel}_gain_um_per_unit", transform.as_str()),
         }
     }
 
@@ -171,8 +187,13 @@ impl Effect {
             Effect::AirGradient => Some("tau_gradient_s".into()),
             Effect::Settling => Some("tau_settling_s".into()),
             Effect::PlateExpansion | Effect::Creep => None,
-            Effect::Channel { transform: Transform::Level, .. } => None,
-            Effect::Channel { transform, channel, .. } => Some(format!("{}_{channel}_tau_s", transform.as_str())),
+            Effect::Channel {
+                transform: Transform::Level,
+                ..
+            } => None,
+            Effect::Channel {
+                transform, channel, ..
+            } => Some(format!("{}_{channel}_tau_s", transform.as_str())),
         }
     }
 
@@ -227,16 +248,29 @@ pub struct ThermalProblem<'a> {
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum ModelError {
     #[error("effect {effect}: {source}")]
-    Channel { effect: String, source: ChannelError },
+    Channel {
+        effect: String,
+        source: ChannelError,
+    },
 }
 
 impl<'a> ThermalProblem<'a> {
     pub fn new(series: &'a BarSeries, effects: &[Effect]) -> Result<Self, ModelError> {
         let terms = effects
             .iter()
-            .map(|e| bind(series, e).map_err(|source| ModelError::Channel { effect: e.name(), source }))
+            .map(|e| {
+                bind(series, e).map_err(|source| ModelError::Channel {
+                    effect: e.name(),
+                    source,
+                })
+            })
             .collect::<Result<Vec<_>, _>>()?;
-        let tau_terms = terms.iter().enumerate().filter(|(_, t)| t.effect.tau_name().is_some()).map(|(i, _)| i).collect();
+        let tau_terms = terms
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.effect.tau_name().is_some())
+            .map(|(i, _)| i)
+            .collect();
         let y = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
         let mut fitted = vec![false; series.n_zero_segments];
         for &i in &series.fit_index {
@@ -254,7 +288,14 @@ impl<'a> ThermalProblem<'a> {
                 })
             })
             .collect();
-        Ok(ThermalProblem { series, terms, tau_terms, y, zero_columns, n_zero_columns })
+        Ok(ThermalProblem {
+            series,
+            terms,
+            tau_terms,
+            y,
+            zero_columns,
+            n_zero_columns,
+        })
     }
 
     /// Fit these observations (one per fitted sample) instead of the bar's reading: the
@@ -267,7 +308,10 @@ impl<'a> ThermalProblem<'a> {
 
     /// `theta0`: `ln tau` of every term with a time constant.
     pub fn theta0(&self) -> Vec<f64> {
-        self.tau_terms.iter().map(|&i| self.terms[i].effect.tau0_s().ln()).collect()
+        self.tau_terms
+            .iter()
+            .map(|&i| self.terms[i].effect.tau0_s().ln())
+            .collect()
     }
 
     pub fn effects(&self) -> Vec<Effect> {
@@ -323,7 +367,9 @@ impl<'a> ThermalProblem<'a> {
     /// The model's gain columns for every sample of the bar (not only the fitted ones), for
     /// plotting and for evaluating the model outside its fit mounts.
     pub fn full_columns(&self, theta: &[f64]) -> Vec<Vec<f64>> {
-        let per_term: Vec<Vec<f64>> = (0..self.terms.len()).map(|j| self.term_column(j, theta, false).0).collect();
+        let per_term: Vec<Vec<f64>> = (0..self.terms.len())
+            .map(|j| self.term_column(j, theta, false).0)
+            .collect();
         self.gain_columns()
             .into_iter()
             .map(|(j, k)| {
@@ -339,11 +385,19 @@ impl<'a> ThermalProblem<'a> {
     /// Time constant of term `j`, kept within 1 s .. 1e9 s so that a solver wandering off to an
     /// unidentifiable extreme never produces infinities.
     fn tau_of(&self, j: usize, theta: &[f64]) -> Option<f64> {
-        self.tau_terms.iter().position(|&i| i == j).map(|k| theta[k].clamp(0.0, 1e9f64.ln()).exp())
+        self.tau_terms
+            .iter()
+            .position(|&i| i == j)
+            .map(|k| theta[k].clamp(0.0, 1e9f64.ln()).exp())
     }
 
     /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`.
-    fn term_column(&self, j: usize, theta: &[f64], with_derivative: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+    fn term_column(
+        &self,
+        j: usize,
+        theta: &[f64],
+        with_derivative: bool,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
         let term = &self.terms[j];
         let t = &self.series.t_s;
         let tau = self.tau_of(j, theta);
@@ -352,7 +406,10 @@ impl<'a> ThermalProblem<'a> {
             (TermKind::Rate, Some(tau)) => {
                 let (l, dl) = term.input.lag(t, tau, with_derivative);
                 let u = term.input.level(t.len());
-                (u.iter().zip(&l).map(|(u, l)| u - l).collect(), dl.map(|d| d.into_iter().map(|v| -v).collect()))
+                (
+                    u.iter().zip(&l).map(|(u, l)| u - l).collect(),
+                    dl.map(|d| d.into_iter().map(|v| -v).collect()),
+                )
             }
             (TermKind::Settling, Some(tau)) => settling(self.series, tau, with_derivative),
             _ => (term.input.level(t.len()), None),
@@ -399,21 +456,47 @@ fn bind(series: &BarSeries, effect: &Effect) -> Result<BoundTerm, ChannelError> 
     let air = || Channel::Sampled(series.air_c.iter().map(|t| t - t0).collect());
     let (input, scale, kind) = match effect {
         Effect::FixedPart | Effect::SecondPath => (air(), minus_i_min, TermKind::Lag),
-        Effect::Scale => (air(), Some(series.i_p_mm().iter().map(|ip| -ip * 1e-3).collect()), TermKind::Lag),
-        Effect::HeadHeating => (channels::event_channel(series, "head_power")?, Some(vec![-1.0; series.t_s.len()]), TermKind::Lag),
+        Effect::Scale => (
+            air(),
+            Some(series.i_p_mm().iter().map(|ip| -ip * 1e-3).collect()),
+            TermKind::Lag,
+        ),
+        Effect::HeadHeating => (
+            channels::event_channel(series, "head_power")?,
+            Some(vec![-1.0; series.t_s.len()]),
+            TermKind::Lag,
+        ),
         Effect::AirGradient => (channels::air_gradient(series)?, minus_i_min, TermKind::Lag),
         Effect::PlateExpansion => {
             let plate = channels::plate_temperature(series)?;
             let length: Vec<f64> = series
                 .mount_of
                 .iter()
-                .map(|m| m.and_then(|m| series.mounts[m as usize].length_mm).unwrap_or(0.0) * 1e-3)
+                .map(|m| {
+                    m.and_then(|m| series.mounts[m as usize].length_mm)
+                        .unwrap_or(0.0)
+                        * 1e-3
+                })
                 .collect();
-            (Channel::Sampled(plate.iter().map(|t| t - t0).collect()), Some(length), TermKind::Level)
+            (
+                Channel::Sampled(plate.iter().map(|t| t - t0).collect()),
+                Some(length),
+                TermKind::Level,
+            )
         }
-        Effect::Settling => (Channel::Sampled(vec![0.0; series.t_s.len()]), None, TermKind::Settling),
-        Effect::Creep => (Channel::Sampled(series.t_s.iter().map(|t| t / 86400.0).collect()), None, TermKind::Level),
-        Effect::Channel { transform, channel, .. } => {
+        Effect::Settling => (
+            Channel::Sampled(vec![0.0; series.t_s.len()]),
+            None,
+            TermKind::Settling,
+        ),
+        Effect::Creep => (
+            Channel::Sampled(series.t_s.iter().map(|t| t / 86400.0).collect()),
+            None,
+            TermKind::Level,
+        ),
+        Effect::Channel {
+            transform, channel, ..
+        } => {
             let input = channels::resolve(series, channel)?;
             let kind = match transform {
                 Transform::Lag => TermKind::Lag,
@@ -423,7 +506,12 @@ fn bind(series: &BarSeries, effect: &Effect) -> Result<BoundTerm, ChannelError> 
             (input, None, kind)
         }
     };
-    Ok(BoundTerm { effect: effect.clone(), input, scale, kind })
+    Ok(BoundTerm {
+        effect: effect.clone(),
+        input,
+        scale,
+        kind,
+    })
 }
 
 impl Separable for ThermalProblem<'_> {
@@ -432,12 +520,21 @@ impl Separable for ThermalProblem<'_> {
     }
 
     fn nonlinear_names(&self) -> Vec<String> {
-        self.tau_terms.iter().map(|&i| format!("ln_{}", self.terms[i].effect.tau_name().unwrap_or_default())).collect()
+        self.tau_terms
+            .iter()
+            .map(|&i| format!("ln_{}", self.terms[i].effect.tau_name().unwrap_or_default()))
+            .collect()
     }
 
     fn linear_names(&self) -> Vec<String> {
         let mut names = self.gain_names();
-        names.extend(self.zero_columns.iter().enumerate().filter(|(_, c)| c.is_some()).map(|(k, _)| format!("zero_{k}_um")));
+        names.extend(
+            self.zero_columns
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.is_some())
+                .map(|(k, _)| format!("zero_{k}_um")),
+        );
         names
     }
 
@@ -452,7 +549,8 @@ impl Separable for ThermalProblem<'_> {
         }
         let base = columns.len();
         for (r, &i) in self.series.fit_index.iter().enumerate() {
-            if let Some(c) = self.series.zero_segment[i].and_then(|s| self.zero_columns[s as usize]) {
+            if let Some(c) = self.series.zero_segment[i].and_then(|s| self.zero_columns[s as usize])
+            {
                 phi[(r, base + c)] = 1.0;
             }
         }

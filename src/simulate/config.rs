@@ -418,7 +418,11 @@ impl Default for SimConfig {
 
 impl Default for PlateConfig {
     fn default() -> Self {
-        let length = |id: &str, mm: f64, u_um: f64| PlateLength { id: id.into(), mm, u_um };
+        let length = |id: &str, mm: f64, u_um: f64| PlateLength {
+            id: id.into(),
+            mm,
+            u_um,
+        };
         Self {
             material: "zerodur".into(),
             cte_ppm_per_k: 0.0,
@@ -492,49 +496,84 @@ impl Default for ScheduleConfig {
 
 impl Default for CalibrationPhase {
     fn default() -> Self {
-        Self { tilts_deg: vec![30.0, 60.0, 90.0], mount_hours: 3.0 }
+        Self {
+            tilts_deg: vec![30.0, 60.0, 90.0],
+            mount_hours: 3.0,
+        }
     }
 }
 
 impl Default for SagConfig {
     fn default() -> Self {
-        Self { amplitude_um: 0.0, spread: 0.0, form: SagForm::Cos, ref_mm: 400.0, exponent: 2.0 }
+        Self {
+            amplitude_um: 0.0,
+            spread: 0.0,
+            form: SagForm::Cos,
+            ref_mm: 400.0,
+            exponent: 2.0,
+        }
     }
 }
 
 impl Default for HeadHeating {
     fn default() -> Self {
-        Self { enabled: false, amplitude_um: 1.5, tau_s: 900.0, spread: 0.2, mean_on_h: 18.0, mean_off_h: 2.0 }
+        Self {
+            enabled: false,
+            amplitude_um: 1.5,
+            tau_s: 900.0,
+            spread: 0.2,
+            mean_on_h: 18.0,
+            mean_off_h: 2.0,
+        }
     }
 }
 
 impl Default for SecondPath {
     fn default() -> Self {
-        Self { enabled: false, gain_ppm_per_k: 0.8, tau_s: 300.0, spread: 0.2 }
+        Self {
+            enabled: false,
+            gain_ppm_per_k: 0.8,
+            tau_s: 300.0,
+            spread: 0.2,
+        }
     }
 }
 
 impl Default for SensorGradient {
     fn default() -> Self {
-        Self { enabled: false, weight_t2: 0.5 }
+        Self {
+            enabled: false,
+            weight_t2: 0.5,
+        }
     }
 }
 
 impl Default for Settling {
     fn default() -> Self {
-        Self { enabled: false, amplitude_um: 1.0, tau_s: 1800.0 }
+        Self {
+            enabled: false,
+            amplitude_um: 1.0,
+            tau_s: 1800.0,
+        }
     }
 }
 
 impl Default for PlateExpansion {
     fn default() -> Self {
-        Self { enabled: false, cte_ppm_per_k: 1.0 }
+        Self {
+            enabled: false,
+            cte_ppm_per_k: 1.0,
+        }
     }
 }
 
 impl Default for Creep {
     fn default() -> Self {
-        Self { enabled: false, rate_um_per_day: 0.1, spread: 0.3 }
+        Self {
+            enabled: false,
+            rate_um_per_day: 0.1,
+            spread: 0.3,
+        }
     }
 }
 
@@ -568,8 +607,10 @@ impl SimConfig {
 
     /// Read, parse and validate a TOML file.
     pub fn load(path: &Path) -> Result<Self, SimError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| SimError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Self::from_toml_str(&text)
     }
 
@@ -621,7 +662,12 @@ impl SimConfig {
         if !self.bars.is_empty() && self.fleet.is_some() {
             return Err(invalid("fleet", "give either `bars` or `fleet`, not both"));
         }
-        let min_mm = self.plate.length.iter().map(|l| l.mm).fold(f64::INFINITY, f64::min);
+        let min_mm = self
+            .plate
+            .length
+            .iter()
+            .map(|l| l.mm)
+            .fold(f64::INFINITY, f64::min);
         for (i, b) in self.bars.iter().enumerate() {
             let key = |f: &str| format!("bars[{i}].{f}");
             if b.id.is_empty() {
@@ -629,7 +675,10 @@ impl SimConfig {
             }
             positive(&key("fixed_length_mm"), b.fixed_length_mm)?;
             if b.fixed_length_mm >= min_mm {
-                return Err(invalid(&key("fixed_length_mm"), "not below the shortest plate length"));
+                return Err(invalid(
+                    &key("fixed_length_mm"),
+                    "not below the shortest plate length",
+                ));
             }
             finite(&key("alpha_ppm_per_k"), b.alpha_ppm_per_k)?;
             finite(&key("beta_ppm_per_k"), b.beta_ppm_per_k)?;
@@ -651,7 +700,10 @@ impl SimConfig {
         positive("fleet.fixed_length_mm", f.fixed_length_mm)?;
         non_negative("fleet.fixed_length_sd_mm", f.fixed_length_sd_mm)?;
         if f.fixed_length_mm + 5.0 * f.fixed_length_sd_mm >= min_mm {
-            return Err(invalid("fleet.fixed_length_mm", "too close to the shortest plate length"));
+            return Err(invalid(
+                "fleet.fixed_length_mm",
+                "too close to the shortest plate length",
+            ));
         }
         finite("fleet.alpha_ppm_per_k", f.alpha_ppm_per_k)?;
         non_negative("fleet.alpha_sd_ppm_per_k", f.alpha_sd_ppm_per_k)?;
@@ -691,7 +743,10 @@ impl SimConfig {
             return Err(invalid("room.door_rate_per_day", "more than one a minute"));
         }
         if !(r.temperature_sample_s >= 0.1) {
-            return Err(invalid("room.temperature_sample_s", "must be at least 0.1 s"));
+            return Err(invalid(
+                "room.temperature_sample_s",
+                "must be at least 0.1 s",
+            ));
         }
         Ok(())
     }
@@ -707,10 +762,16 @@ impl SimConfig {
         }
         for (i, r) in s.reference.iter().enumerate() {
             if !self.plate.length.iter().any(|l| l.id == r.length) {
-                return Err(invalid(&format!("schedule.reference[{i}].length"), "no such plate length"));
+                return Err(invalid(
+                    &format!("schedule.reference[{i}].length"),
+                    "no such plate length",
+                ));
             }
         }
-        unique("schedule.reference.bar", s.reference.iter().map(|r| r.bar.as_str()))
+        unique(
+            "schedule.reference.bar",
+            s.reference.iter().map(|r| r.bar.as_str()),
+        )
     }
 
     /// The calibration phase and the working layout.
@@ -725,12 +786,18 @@ impl SimConfig {
             }
             positive("schedule.calibration.mount_hours", c.mount_hours)?;
             if c.mount_hours < 1.0 / 60.0 {
-                return Err(invalid("schedule.calibration.mount_hours", "shorter than a minute"));
+                return Err(invalid(
+                    "schedule.calibration.mount_hours",
+                    "shorter than a minute",
+                ));
             }
             let rounds = (c.tilts_deg.len() * self.plate.length.len()) as f64;
             let phase_s = rounds * (c.mount_hours * 3600.0 + s.gap_minutes.max(1.0 / 60.0) * 60.0);
             if phase_s >= self.duration_days * 86400.0 {
-                return Err(invalid("schedule.calibration", "the calibration phase does not end before the campaign"));
+                return Err(invalid(
+                    "schedule.calibration",
+                    "the calibration phase does not end before the campaign",
+                ));
             }
         }
         let Some(w) = &s.working else { return Ok(()) };
@@ -738,19 +805,40 @@ impl SimConfig {
             return Err(invalid("schedule.working.length", "no such plate length"));
         }
         if w.purpose == crate::campaign::Purpose::Reference {
-            return Err(invalid("schedule.working.purpose", "must be check or calibration (references go in schedule.reference)"));
+            return Err(invalid(
+                "schedule.working.purpose",
+                "must be check or calibration (references go in schedule.reference)",
+            ));
         }
         let Some(d) = &w.device else { return Ok(()) };
         if d.id.trim().is_empty() {
             return Err(invalid("schedule.working.device.id", "empty"));
         }
-        unique("schedule.working.device.bars", d.bars.iter().map(String::as_str))?;
-        if let Some(b) = d.bars.iter().find(|b| s.reference.iter().any(|r| &r.bar == *b)) {
-            return Err(invalid("schedule.working.device.bars", &format!("`{b}` is also a reference bar")));
+        unique(
+            "schedule.working.device.bars",
+            d.bars.iter().map(String::as_str),
+        )?;
+        if let Some(b) = d
+            .bars
+            .iter()
+            .find(|b| s.reference.iter().any(|r| &r.bar == *b))
+        {
+            return Err(invalid(
+                "schedule.working.device.bars",
+                &format!("`{b}` is also a reference bar"),
+            ));
         }
-        let min_mm = self.plate.length.iter().map(|l| l.mm).fold(f64::INFINITY, f64::min);
+        let min_mm = self
+            .plate
+            .length
+            .iter()
+            .map(|l| l.mm)
+            .fold(f64::INFINITY, f64::min);
         if !(d.distance_mm.is_finite() && d.distance_mm >= min_mm) {
-            return Err(invalid("schedule.working.device.distance_mm", "must be at least the shortest plate length"));
+            return Err(invalid(
+                "schedule.working.device.distance_mm",
+                "must be at least the shortest plate length",
+            ));
         }
         tilt("schedule.working.device.tilt_deg", d.tilt_deg)
     }
@@ -758,11 +846,29 @@ impl SimConfig {
     fn validate_geometry(&self) -> Result<(), SimError> {
         let g = &self.geometry;
         bounded("geometry.scale_ppm", g.scale_ppm, g.scale_sd_ppm, 1000.0)?;
-        bounded("geometry.nonlinearity_ppm_per_mm", g.nonlinearity_ppm_per_mm, g.nonlinearity_sd_ppm_per_mm, 1.0)?;
-        bounded("geometry.cosine_mrad", g.cosine_mrad, g.cosine_sd_mrad, 100.0)?;
-        bounded("geometry.zero_offset_um", g.zero_offset_um, g.zero_offset_sd_um, 1000.0)?;
+        bounded(
+            "geometry.nonlinearity_ppm_per_mm",
+            g.nonlinearity_ppm_per_mm,
+            g.nonlinearity_sd_ppm_per_mm,
+            1.0,
+        )?;
+        bounded(
+            "geometry.cosine_mrad",
+            g.cosine_mrad,
+            g.cosine_sd_mrad,
+            100.0,
+        )?;
+        bounded(
+            "geometry.zero_offset_um",
+            g.zero_offset_um,
+            g.zero_offset_sd_um,
+            1000.0,
+        )?;
         non_negative("geometry.scale_sd_ppm", g.scale_sd_ppm)?;
-        non_negative("geometry.nonlinearity_sd_ppm_per_mm", g.nonlinearity_sd_ppm_per_mm)?;
+        non_negative(
+            "geometry.nonlinearity_sd_ppm_per_mm",
+            g.nonlinearity_sd_ppm_per_mm,
+        )?;
         non_negative("geometry.cosine_sd_mrad", g.cosine_sd_mrad)?;
         non_negative("geometry.zero_offset_sd_um", g.zero_offset_sd_um)?;
         let sag = &g.sag;
@@ -772,7 +878,10 @@ impl SimConfig {
         }
         non_negative("geometry.sag.spread", sag.spread)?;
         if sag.spread > 1.0 {
-            return Err(invalid("geometry.sag.spread", "above 1 (log-normal relative spread)"));
+            return Err(invalid(
+                "geometry.sag.spread",
+                "above 1 (log-normal relative spread)",
+            ));
         }
         positive("geometry.sag.ref_mm", sag.ref_mm)?;
         if !(sag.exponent.is_finite() && sag.exponent.abs() <= 10.0) {
@@ -799,7 +908,10 @@ impl SimConfig {
                 }
             }
             if !(m.tau_r_factor > 0.0 && m.tau_s_factor > 0.0) {
-                return Err(invalid(&key("tau_r_factor"), "time-constant factors must be positive"));
+                return Err(invalid(
+                    &key("tau_r_factor"),
+                    "time-constant factors must be positive",
+                ));
             }
         }
         unique("mismatch.bar", self.mismatch.iter().map(|m| m.bar.as_str()))
@@ -813,16 +925,25 @@ impl SimConfig {
         non_negative("effects.head_heating.spread", h.spread)?;
         positive("effects.head_heating.mean_on_h", h.mean_on_h)?;
         positive("effects.head_heating.mean_off_h", h.mean_off_h)?;
-        finite("effects.second_path.gain_ppm_per_k", e.second_path.gain_ppm_per_k)?;
+        finite(
+            "effects.second_path.gain_ppm_per_k",
+            e.second_path.gain_ppm_per_k,
+        )?;
         positive("effects.second_path.tau_s", e.second_path.tau_s)?;
         non_negative("effects.second_path.spread", e.second_path.spread)?;
         let w = e.sensor_gradient.weight_t2;
         if !(0.0..=1.0).contains(&w) {
-            return Err(invalid("effects.sensor_gradient.weight_t2", "must be in [0, 1]"));
+            return Err(invalid(
+                "effects.sensor_gradient.weight_t2",
+                "must be in [0, 1]",
+            ));
         }
         finite("effects.settling.amplitude_um", e.settling.amplitude_um)?;
         positive("effects.settling.tau_s", e.settling.tau_s)?;
-        finite("effects.plate_expansion.cte_ppm_per_k", e.plate_expansion.cte_ppm_per_k)?;
+        finite(
+            "effects.plate_expansion.cte_ppm_per_k",
+            e.plate_expansion.cte_ppm_per_k,
+        )?;
         finite("effects.creep.rate_um_per_day", e.creep.rate_um_per_day)?;
         non_negative("effects.creep.spread", e.creep.spread)?;
         self.validate_hidden()
@@ -831,7 +952,10 @@ impl SimConfig {
     fn validate_hidden(&self) -> Result<(), SimError> {
         let h = &self.effects.hidden_channel;
         if h.sensor_id.is_empty() || ["T1", "T2", "P1"].contains(&h.sensor_id.as_str()) {
-            return Err(invalid("effects.hidden_channel.sensor_id", "empty or taken (T1, T2, P1)"));
+            return Err(invalid(
+                "effects.hidden_channel.sensor_id",
+                "empty or taken (T1, T2, P1)",
+            ));
         }
         finite("effects.hidden_channel.base_c", h.base_c)?;
         finite("effects.hidden_channel.amplitude_k", h.amplitude_k)?;
@@ -846,30 +970,53 @@ impl SimConfig {
 }
 
 fn invalid(key: &str, reason: &str) -> SimError {
-    SimError::Invalid { key: key.into(), reason: reason.into() }
+    SimError::Invalid {
+        key: key.into(),
+        reason: reason.into(),
+    }
 }
 
 fn finite(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() { Ok(()) } else { Err(invalid(key, "not a finite number")) }
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(key, "not a finite number"))
+    }
 }
 
 fn positive(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() && v > 0.0 { Ok(()) } else { Err(invalid(key, "must be positive")) }
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(key, "must be positive"))
+    }
 }
 
 fn non_negative(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() && v >= 0.0 { Ok(()) } else { Err(invalid(key, "must be >= 0")) }
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(key, "must be >= 0"))
+    }
 }
 
 /// A tilt from horizontal in [0, 90] degrees.
 fn tilt(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() && (0.0..=90.0).contains(&v) { Ok(()) } else { Err(invalid(key, "must be in [0, 90] degrees")) }
+    if v.is_finite() && (0.0..=90.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(invalid(key, "must be in [0, 90] degrees"))
+    }
 }
 
 /// A fleet mean and spread with `|mean| + 5 sd <= limit`.
 fn bounded(key: &str, mean: f64, sd: f64, limit: f64) -> Result<(), SimError> {
     finite(key, mean)?;
-    if mean.abs() + 5.0 * sd.abs() <= limit { Ok(()) } else { Err(invalid(key, &format!("mean + 5 sd beyond {limit}"))) }
+    if mean.abs() + 5.0 * sd.abs() <= limit {
+        Ok(())
+    } else {
+        Err(invalid(key, &format!("mean + 5 sd beyond {limit}")))
+    }
 }
 
 fn unique<'a>(key: &str, ids: impl Iterator<Item = &'a str>) -> Result<(), SimError> {
@@ -895,10 +1042,16 @@ mod start_time {
         let text = match toml::Value::deserialize(d)? {
             toml::Value::Datetime(dt) => dt.to_string(),
             toml::Value::String(s) => s,
-            other => return Err(D::Error::custom(format!("start: expected a datetime, got {other}"))),
+            other => {
+                return Err(D::Error::custom(format!(
+                    "start: expected a datetime, got {other}"
+                )))
+            }
         };
         DateTime::parse_from_rfc3339(&text)
             .map(|t| t.with_timezone(&Utc))
-            .map_err(|e| D::Error::custom(format!("start `{text}`: {e} (give a full UTC datetime)")))
+            .map_err(|e| {
+                D::Error::custom(format!("start `{text}`: {e} (give a full UTC datetime)"))
+            })
     }
 }

@@ -60,10 +60,20 @@ impl ThermalState {
         let w_high = bar.seen_weights.get(AIR_HIGH).copied().unwrap_or(0.0);
         let t0_c = setup.reference_temperature_c;
         let u0 = w_low * env.t1_c[0] + w_high * env.t2_c[0] - t0_c;
-        let second = bar.second_path.as_ref().map(|s| (FirstOrderLag::new(s.tau_s, step_s, u0), s.gain_ppm_per_k));
-        let head = bar.head_heating.as_ref().map(|h| (FirstOrderLag::new(h.tau_s, step_s, 0.0), h.amplitude_um));
+        let second = bar
+            .second_path
+            .as_ref()
+            .map(|s| (FirstOrderLag::new(s.tau_s, step_s, u0), s.gain_ppm_per_k));
+        let head = bar
+            .head_heating
+            .as_ref()
+            .map(|h| (FirstOrderLag::new(h.tau_s, step_s, 0.0), h.amplitude_um));
         let hidden = match (&bar.hidden_channel, &env.hidden_c) {
-            (Some(c), Some(h)) => Some((FirstOrderLag::new(c.tau_s, step_s, h[0] - c.base_c), c.gain_um_per_k, c.base_c)),
+            (Some(c), Some(h)) => Some((
+                FirstOrderLag::new(c.tau_s, step_s, h[0] - c.base_c),
+                c.gain_um_per_k,
+                c.base_c,
+            )),
             _ => None,
         };
         Self {
@@ -101,7 +111,8 @@ impl ThermalState {
     /// Growth `dD` of the bar, µm, at scale travel `travel_mm` (`I_p`).
     fn growth_um(&self, bar: &BarTruth, travel_mm: f64) -> f64 {
         let i_min = bar.fixed_length_mm;
-        let mut ppm_mm = bar.alpha_ppm_per_k * i_min * self.fixed.state + bar.beta_ppm_per_k * travel_mm * self.scale.state;
+        let mut ppm_mm = bar.alpha_ppm_per_k * i_min * self.fixed.state
+            + bar.beta_ppm_per_k * travel_mm * self.scale.state;
         if let Some((lag, gain)) = &self.second {
             ppm_mm += gain * i_min * lag.state;
         }
@@ -125,9 +136,17 @@ struct HeadPower {
 
 impl HeadPower {
     fn new(plan: &BarPlan, grid: &Grid) -> Self {
-        let toggles = plan.head_toggles_ns.iter().map(|&t| (t / grid.sample_ns) as usize * grid.steps_per_sample).collect();
+        let toggles = plan
+            .head_toggles_ns
+            .iter()
+            .map(|&t| (t / grid.sample_ns) as usize * grid.steps_per_sample)
+            .collect();
         // Without the effect the head is always on; with it the first toggle (at 0) turns it on.
-        Self { toggles, next: 0, on: plan.head_toggles_ns.is_empty() }
+        Self {
+            toggles,
+            next: 0,
+            on: plan.head_toggles_ns.is_empty(),
+        }
     }
 
     /// The power state from grid point `i` on.
@@ -143,12 +162,20 @@ impl HeadPower {
 /// Simulate one bar over the whole campaign (one encoder row per sample while its head is on).
 pub(crate) fn simulate_bar(setup: &BarSetup, env: &Environment, grid: &Grid) -> BarRun {
     let mut rng = stream_rng(setup.seed, streams::BAR_NOISE + setup.index as u64);
-    let noise = Normal::new(0.0, setup.noise_um).unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sd"));
+    let noise = Normal::new(0.0, setup.noise_um)
+        .unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sd"));
     let mut state = ThermalState::new(setup, env, grid.step_s);
     let mut power = HeadPower::new(setup.plan, grid);
     let mut run = BarRun {
-        log: EncoderLog { time_ns: Vec::with_capacity(grid.n_samples), counts: Vec::with_capacity(grid.n_samples) },
-        true_error_um: Vec::with_capacity(if setup.record_true_error { grid.n_samples } else { 0 }),
+        log: EncoderLog {
+            time_ns: Vec::with_capacity(grid.n_samples),
+            counts: Vec::with_capacity(grid.n_samples),
+        },
+        true_error_um: Vec::with_capacity(if setup.record_true_error {
+            grid.n_samples
+        } else {
+            0
+        }),
     };
     let mut cursor = 0;
     let m = grid.steps_per_sample;
@@ -169,7 +196,9 @@ pub(crate) fn simulate_bar(setup: &BarSetup, env: &Environment, grid: &Grid) -> 
         let (true_mm, error_um, tilt_deg) = distance_and_error(setup, &state, env, i, t_ns, place);
         let reading_um = (true_mm - setup.bar.d_zero_mm) * 1e3 + error_um + noise_um;
         run.log.time_ns.push(setup.start_ns + t_ns);
-        run.log.counts.push(counts_of(setup.bar, reading_um, tilt_deg));
+        run.log
+            .counts
+            .push(counts_of(setup.bar, reading_um, tilt_deg));
         if setup.record_true_error {
             run.true_error_um.push(error_um);
         }
@@ -183,17 +212,36 @@ fn counts_of(bar: &BarTruth, reading_um: f64, tilt_deg: f64) -> i64 {
     if bar.geometry.is_ideal() {
         return (reading_um * 1e3 / bar.resolution_nm).round() as i64;
     }
-    let travel_mm = bar.geometry.indicated_travel_mm(reading_um * 1e-3, tilt_deg, bar.d_zero_mm);
+    let travel_mm = bar
+        .geometry
+        .indicated_travel_mm(reading_um * 1e-3, tilt_deg, bar.d_zero_mm);
     (travel_mm * 1e6 / bar.resolution_nm).round() as i64
 }
 
 /// True centre distance (mm), thermal error (µm) and tilt (degrees) at grid point `i`, time `t_ns`.
-fn distance_and_error(setup: &BarSetup, state: &ThermalState, env: &Environment, i: usize, t_ns: i64, place: Place) -> (f64, f64, f64) {
+fn distance_and_error(
+    setup: &BarSetup,
+    state: &ThermalState,
+    env: &Environment,
+    i: usize,
+    t_ns: i64,
+    place: Place,
+) -> (f64, f64, f64) {
     let bar = setup.bar;
     let (true_mm, nominal_mm, settling_um, tilt_deg) = match place {
-        Place::Mounted { nominal_mm, on_plate, tilt_deg, from_ns, settling_um } => {
+        Place::Mounted {
+            nominal_mm,
+            on_plate,
+            tilt_deg,
+            from_ns,
+            settling_um,
+        } => {
             let plate_dt = env.plate_c[i] - setup.reference_temperature_c;
-            let cte = if on_plate { setup.plate_cte_ppm_per_k } else { 0.0 };
+            let cte = if on_plate {
+                setup.plate_cte_ppm_per_k
+            } else {
+                0.0
+            };
             let true_mm = nominal_mm * (1.0 + cte * 1e-6 * plate_dt);
             let settling = match bar.settling_tau_s {
                 Some(tau_s) => settling_um * (-((t_ns - from_ns) as f64 * 1e-9) / tau_s).exp(),
@@ -201,9 +249,18 @@ fn distance_and_error(setup: &BarSetup, state: &ThermalState, env: &Environment,
             };
             (true_mm, nominal_mm, settling, tilt_deg)
         }
-        Place::Handling { position_mm, tilt_deg } => (position_mm, position_mm, 0.0, tilt_deg),
+        Place::Handling {
+            position_mm,
+            tilt_deg,
+        } => (position_mm, position_mm, 0.0, tilt_deg),
     };
     let travel_mm = nominal_mm - bar.fixed_length_mm;
-    let creep_um = bar.creep_um_per_day.map_or(0.0, |rate| rate * t_ns as f64 * 1e-9 / 86400.0);
-    (true_mm, -state.growth_um(bar, travel_mm) + settling_um + creep_um, tilt_deg)
+    let creep_um = bar
+        .creep_um_per_day
+        .map_or(0.0, |rate| rate * t_ns as f64 * 1e-9 / 86400.0);
+    (
+        true_mm,
+        -state.growth_um(bar, travel_mm) + settling_um + creep_um,
+        tilt_deg,
+    )
 }

@@ -51,7 +51,10 @@ impl Sinusoids {
     }
 
     fn at(&self, t_s: f64) -> f64 {
-        self.0.iter().map(|&(a, w, phi)| a * (w * t_s + phi).sin()).sum()
+        self.0
+            .iter()
+            .map(|&(a, w, phi)| a * (w * t_s + phi).sin())
+            .sum()
     }
 }
 
@@ -103,16 +106,30 @@ impl Environment {
             .hidden_channel
             .enabled
             .then(|| hidden_signal(cfg.seed, &cfg.effects.hidden_channel, grid));
-        Self { t1_c, t2_c, plate_c, hidden_c, door_times_s }
+        Self {
+            t1_c,
+            t2_c,
+            plate_c,
+            hidden_c,
+            door_times_s,
+        }
     }
 
     /// The logged temperature sensors: T1, T2, optionally P1 and the hidden channel, each with
     /// white Gaussian noise, sampled every `room.temperature_sample_s`.
-    pub fn sensor_logs(&self, cfg: &SimConfig, grid: &Grid, start_ns: i64) -> BTreeMap<String, SensorLog> {
+    pub fn sensor_logs(
+        &self,
+        cfg: &SimConfig,
+        grid: &Grid,
+        start_ns: i64,
+    ) -> BTreeMap<String, SensorLog> {
         let mut logs = BTreeMap::new();
         let noise = cfg.room.sensor_noise_k;
         let mut add = |id: &str, series: &[f64], noise_k: f64, stream: u64| {
-            logs.insert(id.to_string(), sample_sensor(series, noise_k, cfg, grid, start_ns, stream));
+            logs.insert(
+                id.to_string(),
+                sample_sensor(series, noise_k, cfg, grid, start_ns, stream),
+            );
         };
         add(AIR_LOW, &self.t1_c, noise, streams::SENSOR);
         add(AIR_HIGH, &self.t2_c, noise, streams::SENSOR + 1);
@@ -143,7 +160,9 @@ fn door_times(rng: &mut impl Rng, room: &RoomConfig, duration_s: f64) -> Vec<f64
     if room.door_rate_per_day <= 0.0 {
         return times;
     }
-    let Ok(gap) = Exp::new(room.door_rate_per_day / DAY_S) else { return times };
+    let Ok(gap) = Exp::new(room.door_rate_per_day / DAY_S) else {
+        return times;
+    };
     let mut t = gap.sample(rng);
     while t < duration_s {
         times.push(t.round());
@@ -159,7 +178,12 @@ fn add_doors(t1: &mut [f64], t2: &mut [f64], doors_s: &[f64], room: &RoomConfig,
         let first = (door / step_s).ceil() as usize;
         let last = (((door + window_s) / step_s) as usize).min(t1.len().saturating_sub(1));
         for i in first..=last {
-            let bump = room.door_amplitude_k * door_bump(i as f64 * step_s - door, room.door_rise_s, room.door_decay_s);
+            let bump = room.door_amplitude_k
+                * door_bump(
+                    i as f64 * step_s - door,
+                    room.door_rise_s,
+                    room.door_decay_s,
+                );
             t1[i] += bump;
             t2[i] += bump;
         }
@@ -168,7 +192,9 @@ fn add_doors(t1: &mut [f64], t2: &mut [f64], doors_s: &[f64], room: &RoomConfig,
 
 /// `series` lagged by `tau_s`, starting in equilibrium.
 fn lagged(series: &[f64], tau_s: f64, step_s: f64) -> Vec<f64> {
-    let Some(&first) = series.first() else { return Vec::new() };
+    let Some(&first) = series.first() else {
+        return Vec::new();
+    };
     let mut lag = FirstOrderLag::new(tau_s, step_s, first);
     let mut out = Vec::with_capacity(series.len());
     out.push(first);
@@ -199,7 +225,12 @@ fn hidden_signal(seed: u64, h: &HiddenChannel, grid: &Grid) -> Vec<f64> {
 
 /// Alternating durations (first `first_mean_h`, then `second_mean_h`, ...), exponential with a
 /// floor of 5 minutes: the toggle times in seconds, below `duration_s`.
-pub(crate) fn on_off_toggles(rng: &mut impl Rng, first_mean_h: f64, second_mean_h: f64, duration_s: f64) -> Vec<f64> {
+pub(crate) fn on_off_toggles(
+    rng: &mut impl Rng,
+    first_mean_h: f64,
+    second_mean_h: f64,
+    duration_s: f64,
+) -> Vec<f64> {
     let mut toggles = Vec::new();
     let mut t = 0.0;
     let mut first = true;
@@ -216,12 +247,23 @@ pub(crate) fn on_off_toggles(rng: &mut impl Rng, first_mean_h: f64, second_mean_
 }
 
 /// A sensor's readings: `series` interpolated at each logging time, plus noise.
-fn sample_sensor(series: &[f64], noise_k: f64, cfg: &SimConfig, grid: &Grid, start_ns: i64, stream: u64) -> SensorLog {
+fn sample_sensor(
+    series: &[f64],
+    noise_k: f64,
+    cfg: &SimConfig,
+    grid: &Grid,
+    start_ns: i64,
+    stream: u64,
+) -> SensorLog {
     let mut rng = stream_rng(cfg.seed, stream);
-    let normal = Normal::new(0.0, noise_k).unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sd"));
+    let normal =
+        Normal::new(0.0, noise_k).unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("zero sd"));
     let period_ns = (cfg.room.temperature_sample_s * 1e9).round().max(1.0) as i64;
     let n = ((grid.duration_ns + period_ns - 1) / period_ns) as usize;
-    let mut log = SensorLog { time_ns: Vec::with_capacity(n), celsius: Vec::with_capacity(n) };
+    let mut log = SensorLog {
+        time_ns: Vec::with_capacity(n),
+        celsius: Vec::with_capacity(n),
+    };
     for k in 0..n as i64 {
         let offset_ns = k * period_ns;
         let value = interpolate(series, offset_ns as f64 * 1e-9 / grid.step_s);
@@ -249,7 +291,9 @@ mod tests {
     #[test]
     fn door_bump_peaks_at_one() {
         let (rise, decay) = (60.0, 600.0);
-        let peak = (0..20000).map(|i| door_bump(i as f64 * 0.1, rise, decay)).fold(0.0, f64::max);
+        let peak = (0..20000)
+            .map(|i| door_bump(i as f64 * 0.1, rise, decay))
+            .fold(0.0, f64::max);
         assert!((peak - 1.0).abs() < 1e-6);
         assert_eq!(door_bump(0.0, rise, decay), 0.0);
     }

@@ -15,14 +15,26 @@ use super::{stream_rng, streams};
 
 /// Every bar's truth, in configuration order.
 pub(crate) fn bar_truths(cfg: &SimConfig) -> Vec<BarTruth> {
-    let base = if cfg.bars.is_empty() { fleet_bars(cfg.seed, &cfg.fleet_or_default()) } else { explicit_bars(cfg) };
+    let base = if cfg.bars.is_empty() {
+        fleet_bars(cfg.seed, &cfg.fleet_or_default())
+    } else {
+        explicit_bars(cfg)
+    };
     base.into_iter()
         .enumerate()
         .map(|(i, bar)| with_mismatch(cfg, with_geometry(cfg, i, with_effects(cfg, i, bar))))
         .collect()
 }
 
-fn plain_bar(cfg: &SimConfig, id: String, fixed_length_mm: f64, alpha: f64, beta: f64, tau_r_s: f64, tau_s_s: f64) -> BarTruth {
+fn plain_bar(
+    cfg: &SimConfig,
+    id: String,
+    fixed_length_mm: f64,
+    alpha: f64,
+    beta: f64,
+    tau_r_s: f64,
+    tau_s_s: f64,
+) -> BarTruth {
     BarTruth {
         id,
         fixed_length_mm,
@@ -47,14 +59,27 @@ fn plain_bar(cfg: &SimConfig, id: String, fixed_length_mm: f64, alpha: f64, beta
 fn explicit_bars(cfg: &SimConfig) -> Vec<BarTruth> {
     cfg.bars
         .iter()
-        .map(|b| plain_bar(cfg, b.id.clone(), b.fixed_length_mm, b.alpha_ppm_per_k, b.beta_ppm_per_k, b.tau_r_s, b.tau_s_s))
+        .map(|b| {
+            plain_bar(
+                cfg,
+                b.id.clone(),
+                b.fixed_length_mm,
+                b.alpha_ppm_per_k,
+                b.beta_ppm_per_k,
+                b.tau_r_s,
+                b.tau_s_s,
+            )
+        })
         .collect()
 }
 
 /// `n_bars` bars around the fleet mean: lengths and expansions normal, taus log-normal.
 fn fleet_bars(seed: u64, f: &FleetConfig) -> Vec<BarTruth> {
     let mut rng = stream_rng(seed, streams::FLEET);
-    let cfg = SimConfig { resolution_nm: 0.0, ..SimConfig::default() };
+    let cfg = SimConfig {
+        resolution_nm: 0.0,
+        ..SimConfig::default()
+    };
     (0..f.n_bars)
         .map(|i| {
             let z: [f64; 5] = std::array::from_fn(|_| rng.sample(StandardNormal));
@@ -114,7 +139,8 @@ fn with_effects(cfg: &SimConfig, index: usize, mut bar: BarTruth) -> BarTruth {
     }
     if e.sensor_gradient.enabled {
         let w = e.sensor_gradient.weight_t2;
-        bar.seen_weights = BTreeMap::from([(AIR_LOW.to_string(), 1.0 - w), (AIR_HIGH.to_string(), w)]);
+        bar.seen_weights =
+            BTreeMap::from([(AIR_LOW.to_string(), 1.0 - w), (AIR_HIGH.to_string(), w)]);
     }
     if e.settling.enabled {
         bar.settling_tau_s = Some(e.settling.tau_s);
@@ -144,7 +170,9 @@ fn with_geometry(cfg: &SimConfig, index: usize, mut bar: BarTruth) -> BarTruth {
 
 /// Apply the bar's `[[mismatch]]` factors, if it has one.
 fn with_mismatch(cfg: &SimConfig, mut bar: BarTruth) -> BarTruth {
-    let Some(m) = cfg.mismatch.iter().find(|m| m.bar == bar.id) else { return bar };
+    let Some(m) = cfg.mismatch.iter().find(|m| m.bar == bar.id) else {
+        return bar;
+    };
     bar.alpha_ppm_per_k *= m.alpha_factor;
     bar.beta_ppm_per_k *= m.beta_factor;
     bar.tau_r_s *= m.tau_r_factor;

@@ -39,7 +39,10 @@ const NEWTON_TOL_MM: f64 = 1e-13;
 impl BarGeometry {
     /// No term at all: `D = D_zero + k n` exactly.
     pub fn is_ideal(&self) -> bool {
-        self.scale_ppm == 0.0 && self.nonlinearity_ppm_per_mm == 0.0 && self.cosine_mrad == 0.0 && self.sag_um == 0.0
+        self.scale_ppm == 0.0
+            && self.nonlinearity_ppm_per_mm == 0.0
+            && self.cosine_mrad == 0.0
+            && self.sag_um == 0.0
     }
 
     /// Sag at tilt `tilt_deg` and centre distance `length_mm`, µm (reading long by this).
@@ -47,12 +50,15 @@ impl BarGeometry {
         if self.sag_um == 0.0 {
             return 0.0;
         }
-        self.sag_um * self.sag_form.factor(tilt_deg) * (length_mm / self.sag_ref_mm).powf(self.sag_exponent)
+        self.sag_um
+            * self.sag_form.factor(tilt_deg)
+            * (length_mm / self.sag_ref_mm).powf(self.sag_exponent)
     }
 
     /// `D(x, A) - D_zero`, mm, for the indicated travel `travel_mm = k n`.
     pub fn true_travel_mm(&self, travel_mm: f64, tilt_deg: f64, d_zero_mm: f64) -> f64 {
-        let scale = travel_mm * (1.0 + self.scale_ppm * 1e-6) + self.nonlinearity_ppm_per_mm * 1e-6 * travel_mm * travel_mm;
+        let scale = travel_mm * (1.0 + self.scale_ppm * 1e-6)
+            + self.nonlinearity_ppm_per_mm * 1e-6 * travel_mm * travel_mm;
         scale / self.cos_theta() - self.sag_at_um(tilt_deg, d_zero_mm + travel_mm) * 1e-3
     }
 
@@ -77,7 +83,11 @@ impl BarGeometry {
     fn slope(&self, x: f64, tilt_deg: f64, d_zero_mm: f64) -> f64 {
         let scale = 1.0 + self.scale_ppm * 1e-6 + 2.0 * self.nonlinearity_ppm_per_mm * 1e-6 * x;
         let length_mm = d_zero_mm + x;
-        let sag = if length_mm > 0.0 { self.sag_at_um(tilt_deg, length_mm) * 1e-3 * self.sag_exponent / length_mm } else { 0.0 };
+        let sag = if length_mm > 0.0 {
+            self.sag_at_um(tilt_deg, length_mm) * 1e-3 * self.sag_exponent / length_mm
+        } else {
+            0.0
+        };
         scale / self.cos_theta() - sag
     }
 
@@ -109,7 +119,10 @@ mod tests {
         for tilt in [0.0, 30.0, 60.0, 90.0] {
             for y in [0.0, 20.0, 95.0, 170.0] {
                 let x = g.indicated_travel_mm(y, tilt, 230.0);
-                assert!((g.true_travel_mm(x, tilt, 230.0) - y).abs() < 1e-12, "tilt {tilt} y {y}");
+                assert!(
+                    (g.true_travel_mm(x, tilt, 230.0) - y).abs() < 1e-12,
+                    "tilt {tilt} y {y}"
+                );
             }
         }
     }
@@ -120,12 +133,25 @@ mod tests {
         assert!((g.sag_at_um(0.0, 400.0) - 1.0).abs() < 1e-15);
         assert!((g.sag_at_um(60.0, 400.0) - 0.5).abs() < 1e-12);
         assert!(g.sag_at_um(90.0, 400.0).abs() < 1e-15);
-        assert!((g.sag_at_um(0.0, 200.0) - 0.25).abs() < 1e-15, "(L / L_ref)^2");
-        let cos2 = BarGeometry { sag_form: SagForm::Cos2, ..g };
+        assert!(
+            (g.sag_at_um(0.0, 200.0) - 0.25).abs() < 1e-15,
+            "(L / L_ref)^2"
+        );
+        let cos2 = BarGeometry {
+            sag_form: SagForm::Cos2,
+            ..g
+        };
         assert!((cos2.sag_at_um(60.0, 400.0) - 0.25).abs() < 1e-12);
         // Sag makes the reading long: at a fixed true distance the indicated travel grows.
-        let (flat, upright) = (g.indicated_travel_mm(170.0, 0.0, 230.0), g.indicated_travel_mm(170.0, 90.0, 230.0));
-        assert!(((flat - upright) * 1e3 - 1.0).abs() < 0.01, "{}", (flat - upright) * 1e3);
+        let (flat, upright) = (
+            g.indicated_travel_mm(170.0, 0.0, 230.0),
+            g.indicated_travel_mm(170.0, 90.0, 230.0),
+        );
+        assert!(
+            ((flat - upright) * 1e3 - 1.0).abs() < 0.01,
+            "{}",
+            (flat - upright) * 1e3
+        );
     }
 
     #[test]

@@ -24,8 +24,17 @@ impl FirstOrderLag {
         let decay = (-ratio).exp();
         // 1 - e, accurate for small ratios.
         let one_minus_decay = -(-ratio).exp_m1();
-        let g = if ratio < 1e-6 { 0.5 * ratio } else { 1.0 - one_minus_decay / ratio };
-        Self { decay, gain_u0: one_minus_decay - g, gain_u1: g, state: input }
+        let g = if ratio < 1e-6 {
+            0.5 * ratio
+        } else {
+            1.0 - one_minus_decay / ratio
+        };
+        Self {
+            decay,
+            gain_u0: one_minus_decay - g,
+            gain_u1: g,
+            state: input,
+        }
     }
 
     /// Advance one step with the input going linearly from `u0` to `u1`.

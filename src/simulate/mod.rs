@@ -34,16 +34,21 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use crate::campaign::{BarDecl, CampaignSection, Manifest, MountDecl, PlateSection, SensorDecl, SensorKind};
+use crate::campaign::{
+    BarDecl, CampaignSection, Manifest, MountDecl, PlateSection, SensorDecl, SensorKind,
+};
 use crate::series::{CampaignTables, Event};
 
 pub use config::{
-    BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig, FleetConfig, GeometryConfig, HeadHeating,
-    HiddenChannel, Mismatch, PlateConfig, PlateExpansion, ReferenceMount, RoomConfig, SagConfig, SagForm,
-    ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig, WorkingLayout,
+    BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig, FleetConfig, GeometryConfig,
+    HeadHeating, HiddenChannel, Mismatch, PlateConfig, PlateExpansion, ReferenceMount, RoomConfig,
+    SagConfig, SagForm, ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig,
+    WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
-pub use truth::{BarGeometry, BarTruth, ChannelTruth, HeadTruth, MountTruth, PlateTruth, SecondPathTruth, Truth};
+pub use truth::{
+    BarGeometry, BarTruth, ChannelTruth, HeadTruth, MountTruth, PlateTruth, SecondPathTruth, Truth,
+};
 
 use encoder::{BarRun, BarSetup};
 use environment::Environment;
@@ -60,7 +65,11 @@ pub enum SimError {
     #[error("simulation config: {0}")]
     Toml(#[from] toml::de::Error),
     #[error("{path}: {source}")]
-    Io { path: String, #[source] source: std::io::Error },
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("truth.json: {0}")]
     Json(#[from] serde_json::Error),
     #[error("time {0} ns outside the representable range")]
@@ -117,7 +126,10 @@ impl Grid {
         let duration_ns = (cfg.duration_days * 86400.0).round() as i64 * 1_000_000_000;
         let sample_ns = (cfg.sample_s * 1e9).round() as i64;
         if duration_ns <= 0 || sample_ns <= 0 {
-            return Err(SimError::Invalid { key: "duration_days".into(), reason: "shorter than a second".into() });
+            return Err(SimError::Invalid {
+                key: "duration_days".into(),
+                reason: "shorter than a second".into(),
+            });
         }
         let steps_per_sample = (cfg.sample_s / cfg.max_internal_step_s).ceil().max(1.0) as usize;
         let n_samples = ((duration_ns + sample_ns - 1) / sample_ns) as usize;
@@ -129,13 +141,18 @@ impl Grid {
             duration_ns,
         };
         if grid.n_points() > MAX_GRID_POINTS {
-            return Err(SimError::Invalid { key: "max_internal_step_s".into(), reason: "internal grid too fine for the duration".into() });
+            return Err(SimError::Invalid {
+                key: "max_internal_step_s".into(),
+                reason: "internal grid too fine for the duration".into(),
+            });
         }
         Ok(grid)
     }
 
     pub fn n_points(&self) -> usize {
-        self.n_samples.saturating_mul(self.steps_per_sample).saturating_add(1)
+        self.n_samples
+            .saturating_mul(self.steps_per_sample)
+            .saturating_add(1)
     }
 
     pub fn duration_s(&self) -> f64 {
@@ -149,17 +166,28 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
     let grid = Grid::new(cfg)?;
     let bars = fleet::bar_truths(cfg);
     if grid.n_samples.saturating_mul(bars.len()) > MAX_ENCODER_ROWS {
-        return Err(SimError::Invalid { key: "sample_s".into(), reason: "more than 5e8 encoder rows".into() });
+        return Err(SimError::Invalid {
+            key: "sample_s".into(),
+            reason: "more than 5e8 encoder rows".into(),
+        });
     }
     validate_named_bars(cfg, &bars)?;
     let start_ns = start_ns(cfg)?;
     let env = Environment::build(cfg, &grid);
-    let plans: Vec<BarPlan> = bars.iter().enumerate().map(|(i, b)| schedule::plan_bar(cfg, &grid, i, &b.id)).collect();
+    let plans: Vec<BarPlan> = bars
+        .iter()
+        .enumerate()
+        .map(|(i, b)| schedule::plan_bar(cfg, &grid, i, &b.id))
+        .collect();
     let runs = run_bars(cfg, &grid, &env, &bars, &plans, start_ns);
     let manifest = build_manifest(cfg, &bars, &plans, start_ns)?;
     let events = build_events(cfg, &grid, &env, &bars, &plans, start_ns);
     let truth = build_truth(cfg, &bars, &plans, &env, &runs, start_ns)?;
-    let mut tables = CampaignTables { encoders: BTreeMap::new(), temperatures: env.sensor_logs(cfg, &grid, start_ns), events };
+    let mut tables = CampaignTables {
+        encoders: BTreeMap::new(),
+        temperatures: env.sensor_logs(cfg, &grid, start_ns),
+        events,
+    };
     let mut true_error_um = BTreeMap::new();
     for (bar, run) in bars.iter().zip(runs) {
         if cfg.record_true_error {
@@ -167,23 +195,45 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
         }
         tables.encoders.insert(bar.id.clone(), run.log);
     }
-    Ok(Simulation { manifest, tables, truth, true_error_um })
+    Ok(Simulation {
+        manifest,
+        tables,
+        truth,
+        true_error_um,
+    })
 }
 
 /// Every bar named in the schedule or a mismatch exists.
 fn validate_named_bars(cfg: &SimConfig, bars: &[BarTruth]) -> Result<(), SimError> {
-    let device_bars = cfg.schedule.working.iter().flat_map(|w| w.device.iter()).flat_map(|d| d.bars.iter());
+    let device_bars = cfg
+        .schedule
+        .working
+        .iter()
+        .flat_map(|w| w.device.iter())
+        .flat_map(|d| d.bars.iter());
     let named = cfg
         .schedule
         .reference
         .iter()
         .enumerate()
         .map(|(i, r)| (format!("schedule.reference[{i}].bar"), &r.bar))
-        .chain(device_bars.enumerate().map(|(i, b)| (format!("schedule.working.device.bars[{i}]"), b)))
-        .chain(cfg.mismatch.iter().enumerate().map(|(i, m)| (format!("mismatch[{i}].bar"), &m.bar)));
+        .chain(
+            device_bars
+                .enumerate()
+                .map(|(i, b)| (format!("schedule.working.device.bars[{i}]"), b)),
+        )
+        .chain(
+            cfg.mismatch
+                .iter()
+                .enumerate()
+                .map(|(i, m)| (format!("mismatch[{i}].bar"), &m.bar)),
+        );
     for (key, id) in named {
         if !bars.iter().any(|b| &b.id == id) {
-            return Err(SimError::Invalid { key, reason: format!("no bar `{id}`") });
+            return Err(SimError::Invalid {
+                key,
+                reason: format!("no bar `{id}`"),
+            });
         }
     }
     Ok(())
@@ -192,11 +242,21 @@ fn validate_named_bars(cfg: &SimConfig, bars: &[BarTruth]) -> Result<(), SimErro
 fn start_ns(cfg: &SimConfig) -> Result<i64, SimError> {
     cfg.start
         .timestamp_nanos_opt()
-        .ok_or_else(|| SimError::Invalid { key: "start".into(), reason: "outside 1677..2262".into() })
+        .ok_or_else(|| SimError::Invalid {
+            key: "start".into(),
+            reason: "outside 1677..2262".into(),
+        })
 }
 
 /// Every bar in parallel (each has its own random streams: the order does not matter).
-fn run_bars(cfg: &SimConfig, grid: &Grid, env: &Environment, bars: &[BarTruth], plans: &[BarPlan], start_ns: i64) -> Vec<BarRun> {
+fn run_bars(
+    cfg: &SimConfig,
+    grid: &Grid,
+    env: &Environment,
+    bars: &[BarTruth],
+    plans: &[BarPlan],
+    start_ns: i64,
+) -> Vec<BarRun> {
     let lengths_mm: Vec<f64> = cfg.plate.length.iter().map(|l| l.mm).collect();
     let plate_cte_ppm_per_k = true_plate_cte(cfg);
     bars.par_iter()
@@ -228,14 +288,20 @@ fn true_plate_cte(cfg: &SimConfig) -> f64 {
 
 /// RFC 3339 (UTC, `Z`) of an absolute time in ns.
 fn rfc3339(t_ns: i64) -> String {
-    chrono::DateTime::from_timestamp_nanos(t_ns).to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true)
+    chrono::DateTime::from_timestamp_nanos(t_ns)
+        .to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true)
 }
 
 fn toml_datetime(t_ns: i64) -> Result<toml::value::Datetime, SimError> {
     rfc3339(t_ns).parse().map_err(|_| SimError::Time(t_ns))
 }
 
-fn build_manifest(cfg: &SimConfig, bars: &[BarTruth], plans: &[BarPlan], start_ns: i64) -> Result<Manifest, SimError> {
+fn build_manifest(
+    cfg: &SimConfig,
+    bars: &[BarTruth],
+    plans: &[BarPlan],
+    start_ns: i64,
+) -> Result<Manifest, SimError> {
     // Campaigns with a calibration phase or a working layout state every mount's tilt.
     let explicit_tilts = cfg.schedule.calibration.is_some() || cfg.schedule.working.is_some();
     let mut mount = Vec::new();
@@ -246,7 +312,8 @@ fn build_manifest(cfg: &SimConfig, bars: &[BarTruth], plans: &[BarPlan], start_n
                 bar: bar.id.clone(),
                 length,
                 device,
-                tilt_deg: (explicit_tilts || m.tilt_deg != cfg.plate.tilt_deg).then_some(m.tilt_deg),
+                tilt_deg: (explicit_tilts || m.tilt_deg != cfg.plate.tilt_deg)
+                    .then_some(m.tilt_deg),
                 purpose: Some(m.purpose),
                 from: toml_datetime(start_ns + m.from_ns)?,
                 to: toml_datetime(start_ns + m.to_ns)?,
@@ -254,7 +321,10 @@ fn build_manifest(cfg: &SimConfig, bars: &[BarTruth], plans: &[BarPlan], start_n
         }
     }
     Ok(Manifest {
-        campaign: CampaignSection { id: cfg.campaign_id.clone(), reference_temperature_c: cfg.reference_temperature_c },
+        campaign: CampaignSection {
+            id: cfg.campaign_id.clone(),
+            reference_temperature_c: cfg.reference_temperature_c,
+        },
         plate: PlateSection {
             material: cfg.plate.material.clone(),
             cte_ppm_per_k: cfg.plate.cte_ppm_per_k,
@@ -284,30 +354,58 @@ fn site_names(cfg: &SimConfig, m: &PlannedMount) -> (Option<String>, Option<Stri
 }
 
 fn sensor_decls(cfg: &SimConfig) -> Vec<SensorDecl> {
-    let decl = |id: &str, kind| SensorDecl { id: id.into(), kind };
-    let mut sensors = vec![decl(AIR_LOW, SensorKind::Air), decl(AIR_HIGH, SensorKind::Air)];
+    let decl = |id: &str, kind| SensorDecl {
+        id: id.into(),
+        kind,
+    };
+    let mut sensors = vec![
+        decl(AIR_LOW, SensorKind::Air),
+        decl(AIR_HIGH, SensorKind::Air),
+    ];
     if environment::logs_plate_sensor(cfg) {
         sensors.push(decl(PLATE, SensorKind::Plate));
     }
     if cfg.effects.hidden_channel.enabled {
-        sensors.push(decl(&cfg.effects.hidden_channel.sensor_id, SensorKind::Other));
+        sensors.push(decl(
+            &cfg.effects.hidden_channel.sensor_id,
+            SensorKind::Other,
+        ));
     }
     sensors
 }
 
 /// Door openings and plate re-tilts (whole setup), handling gaps and head power switches (per
 /// bar), sorted by time.
-fn build_events(cfg: &SimConfig, grid: &Grid, env: &Environment, bars: &[BarTruth], plans: &[BarPlan], start_ns: i64) -> Vec<Event> {
+fn build_events(
+    cfg: &SimConfig,
+    grid: &Grid,
+    env: &Environment,
+    bars: &[BarTruth],
+    plans: &[BarPlan],
+    start_ns: i64,
+) -> Vec<Event> {
     let event = |t_ns: i64, bar: Option<&str>, kind: &str, value: Option<f64>| Event {
         time_ns: start_ns + t_ns,
         bar: bar.map(str::to_string),
         kind: kind.into(),
         value,
     };
-    let mut events: Vec<Event> = env.door_times_s.iter().map(|&t| event((t * 1e9) as i64, None, "door", None)).collect();
-    events.extend(schedule::plate_tilts(cfg, grid).into_iter().map(|(t, tilt)| event(t, None, "tilt", Some(tilt))));
+    let mut events: Vec<Event> = env
+        .door_times_s
+        .iter()
+        .map(|&t| event((t * 1e9) as i64, None, "door", None))
+        .collect();
+    events.extend(
+        schedule::plate_tilts(cfg, grid)
+            .into_iter()
+            .map(|(t, tilt)| event(t, None, "tilt", Some(tilt))),
+    );
     for (bar, plan) in bars.iter().zip(plans) {
-        events.extend(plan.handling_ns.iter().map(|&t| event(t, Some(&bar.id), "handling", None)));
+        events.extend(
+            plan.handling_ns
+                .iter()
+                .map(|&t| event(t, Some(&bar.id), "handling", None)),
+        );
         events.extend(plan.head_toggles_ns.iter().enumerate().map(|(k, &t)| {
             let value = if k % 2 == 0 { 1.0 } else { 0.0 };
             event(t, Some(&bar.id), "head_power", Some(value))
@@ -317,7 +415,14 @@ fn build_events(cfg: &SimConfig, grid: &Grid, env: &Environment, bars: &[BarTrut
     events
 }
 
-fn build_truth(cfg: &SimConfig, bars: &[BarTruth], plans: &[BarPlan], env: &Environment, runs: &[BarRun], start_ns: i64) -> Result<Truth, SimError> {
+fn build_truth(
+    cfg: &SimConfig,
+    bars: &[BarTruth],
+    plans: &[BarPlan],
+    env: &Environment,
+    runs: &[BarRun],
+    start_ns: i64,
+) -> Result<Truth, SimError> {
     let lengths_mm: Vec<f64> = cfg.plate.length.iter().map(|l| l.mm).collect();
     let mut mounts = Vec::new();
     for (bar, plan) in bars.iter().zip(plans) {
@@ -380,14 +485,20 @@ pub fn write(sim: &Simulation, dir: &Path, opts: &crate::io::WriteOptions) -> Re
 
 /// Write `truth.json` (pretty) in `dir`, creating the directory.
 pub fn write_truth(truth: &Truth, dir: &Path) -> Result<(), SimError> {
-    let io_err = |source| SimError::Io { path: dir.display().to_string(), source };
+    let io_err = |source| SimError::Io {
+        path: dir.display().to_string(),
+        source,
+    };
     std::fs::create_dir_all(dir).map_err(io_err)?;
     let path = dir.join("truth.json");
     let text = serde_json::to_string_pretty(truth)?;
-    std::fs::write(&path, text).map_err(|source| SimError::Io { path: path.display().to_string(), source })
+    std::fs::write(&path, text).map_err(|source| SimError::Io {
+        path: path.display().to_string(),
+        source,
+    })
 }
 
 #[cfg(test)]
-mod tests;
-#[cfg(test)]
 mod acceptance_tests;
+#[cfg(test)]
+mod tests;

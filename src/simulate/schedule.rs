@@ -71,7 +71,13 @@ pub(crate) struct BarPlan {
 pub(crate) enum Place {
     /// On a mount of nominal distance `nominal_mm` (on the plate, or on a device), at
     /// `tilt_deg`, mounted since `from_ns`, with the mount's settling amplitude.
-    Mounted { nominal_mm: f64, on_plate: bool, tilt_deg: f64, from_ns: i64, settling_um: f64 },
+    Mounted {
+        nominal_mm: f64,
+        on_plate: bool,
+        tilt_deg: f64,
+        from_ns: i64,
+        settling_um: f64,
+    },
     /// In someone's hands, at this nominal centre distance (mm) and tilt.
     Handling { position_mm: f64, tilt_deg: f64 },
 }
@@ -134,50 +140,110 @@ pub(crate) fn plan_bar(cfg: &SimConfig, grid: &Grid, index: usize, bar_id: &str)
     while t + gap_ns < grid.duration_ns {
         let from_ns = t + gap_ns;
         let (site, tilt_deg, purpose, to_ns) = match &role {
-            Role::Reference(i) => (Site::Length(*i), cfg.plate.tilt_deg, Purpose::Reference, grid.duration_ns),
+            Role::Reference(i) => (
+                Site::Length(*i),
+                cfg.plate.tilt_deg,
+                Purpose::Reference,
+                grid.duration_ns,
+            ),
             Role::Working(site, tilt, purpose) => (site.clone(), *tilt, *purpose, grid.duration_ns),
             Role::Rotate => {
                 let i = (index + mounts.len() - n_calibration) % n_lengths;
-                (Site::Length(i), cfg.plate.tilt_deg, Purpose::Calibration, (from_ns + mount_ns).min(grid.duration_ns))
+                (
+                    Site::Length(i),
+                    cfg.plate.tilt_deg,
+                    Purpose::Calibration,
+                    (from_ns + mount_ns).min(grid.duration_ns),
+                )
             }
         };
         if to_ns - from_ns < (3600 * SECOND_NS).min(mount_ns) {
             break;
         }
-        mounts.push(PlannedMount { site, tilt_deg, purpose, from_ns, to_ns, settling_um: 0.0 });
+        mounts.push(PlannedMount {
+            site,
+            tilt_deg,
+            purpose,
+            from_ns,
+            to_ns,
+            settling_um: 0.0,
+        });
         t = to_ns;
     }
     for m in &mut mounts {
         let amplitude = rng.gen_range(0.5..1.5) * cfg.effects.settling.amplitude_um;
-        m.settling_um = if cfg.effects.settling.enabled { amplitude } else { 0.0 };
+        m.settling_um = if cfg.effects.settling.enabled {
+            amplitude
+        } else {
+            0.0
+        };
     }
     let n_gaps = mounts.len() + 1;
     let offset = s.handling_offset_mm;
-    let handling_offset_mm = (0..n_gaps).map(|_| if offset > 0.0 { rng.gen_range(-offset..offset) } else { 0.0 }).collect();
+    let handling_offset_mm = (0..n_gaps)
+        .map(|_| {
+            if offset > 0.0 {
+                rng.gen_range(-offset..offset)
+            } else {
+                0.0
+            }
+        })
+        .collect();
     let first_gap_ns = if n_calibration > 0 { 0 } else { stagger_ns };
     let handling_ns = gap_starts(&mounts, first_gap_ns, grid.duration_ns);
     let head_toggles_ns = head_toggles(cfg, grid, index);
-    BarPlan { mounts, handling_offset_mm, handling_ns, head_toggles_ns, rest_tilt_deg: cfg.plate.tilt_deg }
+    BarPlan {
+        mounts,
+        handling_offset_mm,
+        handling_ns,
+        head_toggles_ns,
+        rest_tilt_deg: cfg.plate.tilt_deg,
+    }
 }
 
 /// The bar's role after the calibration phase.
 fn role_of(cfg: &SimConfig, bar_id: &str) -> Role {
     let s = &cfg.schedule;
-    let length_index = |id: &str| cfg.plate.length.iter().position(|l| l.id == id).unwrap_or(0);
+    let length_index = |id: &str| {
+        cfg.plate
+            .length
+            .iter()
+            .position(|l| l.id == id)
+            .unwrap_or(0)
+    };
     if let Some(r) = s.reference.iter().find(|r| r.bar == bar_id) {
         return Role::Reference(length_index(&r.length));
     }
-    let Some(w) = &s.working else { return Role::Rotate };
-    match w.device.as_ref().filter(|d| d.bars.iter().any(|b| b == bar_id)) {
-        Some(d) => Role::Working(Site::Device { id: d.id.clone(), distance_mm: d.distance_mm }, d.tilt_deg, w.purpose),
-        None => Role::Working(Site::Length(length_index(&w.length)), cfg.plate.tilt_deg, w.purpose),
+    let Some(w) = &s.working else {
+        return Role::Rotate;
+    };
+    match w
+        .device
+        .as_ref()
+        .filter(|d| d.bars.iter().any(|b| b == bar_id))
+    {
+        Some(d) => Role::Working(
+            Site::Device {
+                id: d.id.clone(),
+                distance_mm: d.distance_mm,
+            },
+            d.tilt_deg,
+            w.purpose,
+        ),
+        None => Role::Working(
+            Site::Length(length_index(&w.length)),
+            cfg.plate.tilt_deg,
+            w.purpose,
+        ),
     }
 }
 
 /// The calibration phase of bar `index`: round `r` at tilt `tilts[r / n_lengths]` on length
 /// `(index + r) mod n_lengths`, so each bar visits every (length, tilt) pair once.
 fn calibration_mounts(cfg: &SimConfig, grid: &Grid, index: usize) -> Vec<PlannedMount> {
-    let (Some(c), Some(timing)) = (&cfg.schedule.calibration, CalibrationTiming::of(cfg)) else { return Vec::new() };
+    let (Some(c), Some(timing)) = (&cfg.schedule.calibration, CalibrationTiming::of(cfg)) else {
+        return Vec::new();
+    };
     let n_lengths = cfg.plate.length.len();
     (0..timing.rounds)
         .map(|r| {
@@ -199,11 +265,17 @@ fn calibration_mounts(cfg: &SimConfig, grid: &Grid, index: usize) -> Vec<Planned
 /// calibration phase (every bar is in its handling gap), and the return to `plate.tilt_deg`
 /// mid-gap after the phase. Empty without a calibration phase.
 pub(crate) fn plate_tilts(cfg: &SimConfig, grid: &Grid) -> Vec<(i64, f64)> {
-    let (Some(c), Some(timing)) = (&cfg.schedule.calibration, CalibrationTiming::of(cfg)) else { return Vec::new() };
+    let (Some(c), Some(timing)) = (&cfg.schedule.calibration, CalibrationTiming::of(cfg)) else {
+        return Vec::new();
+    };
     let n_lengths = cfg.plate.length.len();
     let mid_gap = |start_ns: i64| start_ns + timing.gap_ns / 2;
-    let mut tilts: Vec<(i64, f64)> =
-        c.tilts_deg.iter().enumerate().map(|(b, &t)| (mid_gap(timing.round_start_ns(b * n_lengths)), t)).collect();
+    let mut tilts: Vec<(i64, f64)> = c
+        .tilts_deg
+        .iter()
+        .enumerate()
+        .map(|(b, &t)| (mid_gap(timing.round_start_ns(b * n_lengths)), t))
+        .collect();
     tilts.push((mid_gap(timing.end_ns()), cfg.plate.tilt_deg));
     tilts.retain(|&(t, _)| t < grid.duration_ns);
     tilts
@@ -256,8 +328,15 @@ impl BarPlan {
                 settling_um: m.settling_um,
             };
         }
-        let tilt_deg = self.mounts.get(k).or(k.checked_sub(1).and_then(|p| self.mounts.get(p))).map_or(self.rest_tilt_deg, |m| m.tilt_deg);
-        Place::Handling { position_mm: self.handling_position_mm(k, t_ns, lengths_mm), tilt_deg }
+        let tilt_deg = self
+            .mounts
+            .get(k)
+            .or(k.checked_sub(1).and_then(|p| self.mounts.get(p)))
+            .map_or(self.rest_tilt_deg, |m| m.tilt_deg);
+        Place::Handling {
+            position_mm: self.handling_position_mm(k, t_ns, lengths_mm),
+            tilt_deg,
+        }
     }
 
     /// In gap `k` the bar travels linearly from the previous site distance to the next one,
@@ -287,14 +366,20 @@ mod tests {
 
     fn plans(cfg: &SimConfig) -> Vec<BarPlan> {
         let grid = Grid::new(cfg).unwrap();
-        (0..6).map(|i| plan_bar(cfg, &grid, i, &format!("B{:02}", i + 1))).collect()
+        (0..6)
+            .map(|i| plan_bar(cfg, &grid, i, &format!("B{:02}", i + 1)))
+            .collect()
     }
 
     #[test]
     fn rotating_bars_visit_all_lengths_with_gaps() {
         let cfg = SimConfig::default();
         for plan in plans(&cfg) {
-            let mut seen: Vec<usize> = plan.mounts.iter().filter_map(|m| m.length_index()).collect();
+            let mut seen: Vec<usize> = plan
+                .mounts
+                .iter()
+                .filter_map(|m| m.length_index())
+                .collect();
             seen.sort();
             seen.dedup();
             assert_eq!(seen, vec![0, 1, 2]);
@@ -304,7 +389,13 @@ mod tests {
                 assert_ne!(pair[0].site, pair[1].site);
             }
             assert!(plan.mounts[0].from_ns > 0, "starts with a gap");
-            assert_eq!(plan.handling_ns.len(), plan.mounts.len() + usize::from(plan.mounts.last().unwrap().to_ns < Grid::new(&cfg).unwrap().duration_ns));
+            assert_eq!(
+                plan.handling_ns.len(),
+                plan.mounts.len()
+                    + usize::from(
+                        plan.mounts.last().unwrap().to_ns < Grid::new(&cfg).unwrap().duration_ns
+                    )
+            );
         }
     }
 
@@ -316,16 +407,23 @@ mod tests {
         let mut cursor = 0;
         let m = &plan.mounts[1];
         let inside = plan.place_at(m.from_ns + 1000, &lengths, &mut cursor);
-        assert!(matches!(inside, Place::Mounted { nominal_mm, on_plate: true, .. } if nominal_mm == m.nominal_mm(&lengths)));
+        assert!(
+            matches!(inside, Place::Mounted { nominal_mm, on_plate: true, .. } if nominal_mm == m.nominal_mm(&lengths))
+        );
         let in_gap = plan.place_at(m.to_ns + 60 * SECOND_NS, &lengths, &mut cursor);
-        let Place::Handling { position_mm, .. } = in_gap else { panic!("expected handling") };
+        let Place::Handling { position_mm, .. } = in_gap else {
+            panic!("expected handling")
+        };
         assert!(lengths.iter().all(|l| (l - position_mm).abs() > 1e-6));
     }
 
     #[test]
     fn reference_bar_stays_on_its_length() {
         let mut cfg = SimConfig::default();
-        cfg.schedule.reference = vec![ReferenceMount { bar: "B03".into(), length: "max".into() }];
+        cfg.schedule.reference = vec![ReferenceMount {
+            bar: "B03".into(),
+            length: "max".into(),
+        }];
         let plan = &plans(&cfg)[2];
         assert_eq!(plan.mounts.len(), 1);
         assert_eq!(plan.mounts[0].site, Site::Length(2));

@@ -12,7 +12,10 @@ fn quiet(mean_c: f64) -> SimConfig {
         duration_days: 2.0,
         noise_um: 0.0,
         record_true_error: true,
-        fleet: Some(FleetConfig { n_bars: 3, ..FleetConfig::default() }),
+        fleet: Some(FleetConfig {
+            n_bars: 3,
+            ..FleetConfig::default()
+        }),
         room: RoomConfig {
             mean_c,
             daily_amplitude_k: 0.0,
@@ -36,8 +39,14 @@ fn lively() -> SimConfig {
         duration_days: 2.0,
         noise_um: 0.0,
         record_true_error: true,
-        fleet: Some(FleetConfig { n_bars: 3, ..FleetConfig::default() }),
-        room: RoomConfig { door_rate_per_day: 6.0, ..RoomConfig::default() },
+        fleet: Some(FleetConfig {
+            n_bars: 3,
+            ..FleetConfig::default()
+        }),
+        room: RoomConfig {
+            door_rate_per_day: 6.0,
+            ..RoomConfig::default()
+        },
         ..SimConfig::default()
     }
 }
@@ -49,7 +58,14 @@ fn errors_by_time(sim: &Simulation) -> BTreeMap<String, BTreeMap<i64, f64>> {
         .iter()
         .map(|(id, log)| {
             let errors = &sim.true_error_um[id];
-            (id.clone(), log.time_ns.iter().copied().zip(errors.iter().copied()).collect())
+            (
+                id.clone(),
+                log.time_ns
+                    .iter()
+                    .copied()
+                    .zip(errors.iter().copied())
+                    .collect(),
+            )
         })
         .collect()
 }
@@ -60,13 +76,19 @@ fn effect_delta(base: &SimConfig, with: &SimConfig) -> BTreeMap<String, Vec<(i64
     let on = errors_by_time(&generate(with).unwrap());
     on.iter()
         .map(|(id, rows)| {
-            let deltas = rows.iter().filter_map(|(t, e)| off[id].get(t).map(|e0| (*t, e - e0))).collect();
+            let deltas = rows
+                .iter()
+                .filter_map(|(t, e)| off[id].get(t).map(|e0| (*t, e - e0)))
+                .collect();
             (id.clone(), deltas)
         })
         .collect()
 }
 
-fn mounted_rows<'a>(sim: &'a Simulation, bar: &'a str) -> impl Iterator<Item = (usize, &'a MountTruth)> + 'a {
+fn mounted_rows<'a>(
+    sim: &'a Simulation,
+    bar: &'a str,
+) -> impl Iterator<Item = (usize, &'a MountTruth)> + 'a {
     let log = &sim.tables.encoders[bar];
     let mounts: Vec<(i64, i64, &MountTruth)> = sim
         .truth
@@ -76,12 +98,18 @@ fn mounted_rows<'a>(sim: &'a Simulation, bar: &'a str) -> impl Iterator<Item = (
         .map(|m| (parse_ns(&m.from), parse_ns(&m.to), m))
         .collect();
     log.time_ns.iter().enumerate().filter_map(move |(row, t)| {
-        mounts.iter().find(|(from, to, _)| from <= t && t <= to).map(|(_, _, m)| (row, *m))
+        mounts
+            .iter()
+            .find(|(from, to, _)| from <= t && t <= to)
+            .map(|(_, _, m)| (row, *m))
     })
 }
 
 fn parse_ns(rfc3339: &str) -> i64 {
-    chrono::DateTime::parse_from_rfc3339(rfc3339).unwrap().timestamp_nanos_opt().unwrap()
+    chrono::DateTime::parse_from_rfc3339(rfc3339)
+        .unwrap()
+        .timestamp_nanos_opt()
+        .unwrap()
 }
 
 #[test]
@@ -107,7 +135,11 @@ fn constant_room_at_t0_reads_the_plate_lengths() {
         let log = &sim.tables.encoders[&bar.id];
         let mut n = 0;
         for (row, mount) in mounted_rows(&sim, &bar.id) {
-            assert_eq!(log.counts[row], mount.zero_counts.round() as i64, "quantized to the nearest count");
+            assert_eq!(
+                log.counts[row],
+                mount.zero_counts.round() as i64,
+                "quantized to the nearest count"
+            );
             n += 1;
         }
         assert!(n > 1000);
@@ -123,12 +155,21 @@ fn warm_room_reads_short_by_alpha_and_beta() {
         let log = &sim.tables.encoders[&bar.id];
         for (row, mount) in mounted_rows(&sim, &bar.id) {
             let travel_mm = mount.length_mm - bar.fixed_length_mm;
-            let expected = -(bar.alpha_ppm_per_k * bar.fixed_length_mm + bar.beta_ppm_per_k * travel_mm) * 1e-3;
-            assert!((errors[row] - expected).abs() < 1e-9, "{} vs {expected}", errors[row]);
+            let expected = -(bar.alpha_ppm_per_k * bar.fixed_length_mm
+                + bar.beta_ppm_per_k * travel_mm)
+                * 1e-3;
+            assert!(
+                (errors[row] - expected).abs() < 1e-9,
+                "{} vs {expected}",
+                errors[row]
+            );
             let counts = mount.zero_counts + expected * 1e3 / bar.resolution_nm;
             assert!((log.counts[row] as f64 - counts).abs() <= 0.5 + 1e-6);
         }
-        assert!(errors.iter().all(|e| *e < -0.4), "the reading falls when warm");
+        assert!(
+            errors.iter().all(|e| *e < -0.4),
+            "the reading falls when warm"
+        );
     }
 }
 
@@ -139,17 +180,35 @@ fn handling_gaps_are_logged_off_socket() {
     for bar in &sim.truth.bars {
         let log = &sim.tables.encoders[&bar.id];
         let mounted: Vec<usize> = mounted_rows(&sim, &bar.id).map(|(row, _)| row).collect();
-        assert!(mounted.len() < log.counts.len(), "some rows outside the mounts");
+        assert!(
+            mounted.len() < log.counts.len(),
+            "some rows outside the mounts"
+        );
         let mut in_mount = vec![false; log.counts.len()];
         mounted.iter().for_each(|&r| in_mount[r] = true);
-        let zeros: Vec<f64> = lengths.iter().filter(|m| m.bar == bar.id).map(|m| m.zero_counts).collect();
+        let zeros: Vec<f64> = lengths
+            .iter()
+            .filter(|m| m.bar == bar.id)
+            .map(|m| m.zero_counts)
+            .collect();
         for (row, _) in in_mount.iter().enumerate().filter(|(_, m)| !**m) {
             let c = log.counts[row] as f64;
-            assert!(zeros.iter().all(|z| (c - z).abs() > 100.0), "gap reading off every socket");
+            assert!(
+                zeros.iter().all(|z| (c - z).abs() > 100.0),
+                "gap reading off every socket"
+            );
         }
-        let used: std::collections::BTreeSet<&str> =
-            sim.truth.mounts.iter().filter(|m| m.bar == bar.id).map(|m| m.length.as_str()).collect();
-        assert!(used.len() >= 2, "rotates over the plate lengths (all three over 3+ days)");
+        let used: std::collections::BTreeSet<&str> = sim
+            .truth
+            .mounts
+            .iter()
+            .filter(|m| m.bar == bar.id)
+            .map(|m| m.length.as_str())
+            .collect();
+        assert!(
+            used.len() >= 2,
+            "rotates over the plate lengths (all three over 3+ days)"
+        );
     }
     assert!(sim.tables.events.iter().any(|e| e.kind == "handling"));
 }
@@ -162,7 +221,13 @@ fn creep_adds_its_rate_times_time() {
     let truth = generate(&with).unwrap().truth;
     let start = parse_ns(&truth.config.start.to_rfc3339());
     for (id, deltas) in effect_delta(&base, &with) {
-        let rate = truth.bars.iter().find(|b| b.id == id).unwrap().creep_um_per_day.unwrap();
+        let rate = truth
+            .bars
+            .iter()
+            .find(|b| b.id == id)
+            .unwrap()
+            .creep_um_per_day
+            .unwrap();
         for (t, d) in deltas {
             let days = (t - start) as f64 * 1e-9 / 86400.0;
             assert!((d - rate * days).abs() < 1e-9);
@@ -178,7 +243,8 @@ fn second_path_adds_its_gain_at_steady_state() {
     let truth = generate(&with).unwrap().truth;
     for (id, deltas) in effect_delta(&base, &with) {
         let bar = truth.bars.iter().find(|b| b.id == id).unwrap();
-        let expected = -bar.second_path.as_ref().unwrap().gain_ppm_per_k * bar.fixed_length_mm * 1e-3;
+        let expected =
+            -bar.second_path.as_ref().unwrap().gain_ppm_per_k * bar.fixed_length_mm * 1e-3;
         assert!(deltas.iter().all(|(_, d)| (d - expected).abs() < 1e-9));
     }
 }
@@ -195,7 +261,10 @@ fn sensor_gradient_shifts_the_seen_temperature() {
     for bar in &sim.truth.bars {
         for (row, mount) in mounted_rows(&sim, &bar.id) {
             let travel = mount.length_mm - bar.fixed_length_mm;
-            let expected = -(bar.alpha_ppm_per_k * bar.fixed_length_mm + bar.beta_ppm_per_k * travel) * 1e-3 * dt_k;
+            let expected = -(bar.alpha_ppm_per_k * bar.fixed_length_mm
+                + bar.beta_ppm_per_k * travel)
+                * 1e-3
+                * dt_k;
             let t = sim.tables.encoders[&bar.id].time_ns[row];
             let delta = sim.true_error_um[&bar.id][row] - errors[&bar.id][&t];
             assert!((delta - expected).abs() < 1e-9, "{delta} vs {expected}");
@@ -228,14 +297,17 @@ fn plate_expansion_moves_the_true_distance_and_logs_the_plate() {
     let mut with = base.clone();
     with.effects.plate_expansion.enabled = true;
     let (off, on) = (generate(&base).unwrap(), generate(&with).unwrap());
-    assert!(on.tables.temperatures.contains_key(PLATE) && !off.tables.temperatures.contains_key(PLATE));
+    assert!(
+        on.tables.temperatures.contains_key(PLATE) && !off.tables.temperatures.contains_key(PLATE)
+    );
     assert_eq!(on.truth.plate.declared_cte_ppm_per_k, 0.0);
     let cte = with.effects.plate_expansion.cte_ppm_per_k;
     for bar in &on.truth.bars {
         for (row, mount) in mounted_rows(&on, &bar.id) {
             // L [mm] * cte [ppm/K] * 1 K = L * cte nm.
             let expected = mount.length_mm * cte / bar.resolution_nm;
-            let delta = (on.tables.encoders[&bar.id].counts[row] - off.tables.encoders[&bar.id].counts[row]) as f64;
+            let delta = (on.tables.encoders[&bar.id].counts[row]
+                - off.tables.encoders[&bar.id].counts[row]) as f64;
             assert!((delta - expected).abs() <= 1.0, "{delta} vs {expected}");
         }
     }
@@ -247,16 +319,35 @@ fn head_heating_lowers_the_reading_by_up_to_its_amplitude() {
     let mut with = base.clone();
     with.effects.head_heating.enabled = true;
     let sim = generate(&with).unwrap();
-    assert!(sim.tables.events.iter().any(|e| e.kind == "head_power" && e.value == Some(1.0)));
+    assert!(sim
+        .tables
+        .events
+        .iter()
+        .any(|e| e.kind == "head_power" && e.value == Some(1.0)));
     for (id, deltas) in effect_delta(&base, &with) {
-        let head = sim.truth.bars.iter().find(|b| b.id == id).unwrap().head_heating.clone().unwrap();
+        let head = sim
+            .truth
+            .bars
+            .iter()
+            .find(|b| b.id == id)
+            .unwrap()
+            .head_heating
+            .clone()
+            .unwrap();
         let deepest = deltas.iter().map(|(_, d)| *d).fold(0.0, f64::min);
         assert!(deltas.iter().all(|(_, d)| *d <= 1e-12), "reading falls");
-        assert!(-deepest <= head.amplitude_um && -deepest > 0.9 * head.amplitude_um, "{deepest} vs {head:?}");
+        assert!(
+            -deepest <= head.amplitude_um && -deepest > 0.9 * head.amplitude_um,
+            "{deepest} vs {head:?}"
+        );
         // First-order rise after power-on at the start.
         let start = deltas[0].0;
-        let (t, d) = deltas.iter().find(|(t, _)| (t - start) as f64 * 1e-9 >= head.tau_s).unwrap();
-        let expected = -head.amplitude_um * (1.0 - (-((t - start) as f64 * 1e-9) / head.tau_s).exp());
+        let (t, d) = deltas
+            .iter()
+            .find(|(t, _)| (t - start) as f64 * 1e-9 >= head.tau_s)
+            .unwrap();
+        let expected =
+            -head.amplitude_um * (1.0 - (-((t - start) as f64 * 1e-9) / head.tau_s).exp());
         assert!((d - expected).abs() < 1e-9, "{d} vs {expected}");
     }
 }
@@ -268,22 +359,46 @@ fn hidden_channel_drives_the_bars_and_is_logged_as_other() {
     with.effects.hidden_channel.enabled = true;
     let sim = generate(&with).unwrap();
     let h = &with.effects.hidden_channel;
-    let decl = sim.manifest.sensor.iter().find(|s| s.id == h.sensor_id).unwrap();
+    let decl = sim
+        .manifest
+        .sensor
+        .iter()
+        .find(|s| s.id == h.sensor_id)
+        .unwrap();
     assert_eq!(decl.kind, crate::campaign::SensorKind::Other);
     let off = generate(&base).unwrap();
-    assert_eq!(off.tables.temperatures[AIR_LOW], sim.tables.temperatures[AIR_LOW], "other channels untouched");
+    assert_eq!(
+        off.tables.temperatures[AIR_LOW], sim.tables.temperatures[AIR_LOW],
+        "other channels untouched"
+    );
     for (id, deltas) in effect_delta(&base, &with) {
-        let c = sim.truth.bars.iter().find(|b| b.id == id).unwrap().hidden_channel.clone().unwrap();
+        let c = sim
+            .truth
+            .bars
+            .iter()
+            .find(|b| b.id == id)
+            .unwrap()
+            .hidden_channel
+            .clone()
+            .unwrap();
         let deepest = deltas.iter().map(|(_, d)| *d).fold(0.0, f64::min);
         assert!(deltas.iter().all(|(_, d)| *d <= 1e-12));
-        assert!(-deepest <= c.gain_um_per_k * h.amplitude_k && -deepest > 0.2 * c.gain_um_per_k * h.amplitude_k);
+        assert!(
+            -deepest <= c.gain_um_per_k * h.amplitude_k
+                && -deepest > 0.2 * c.gain_um_per_k * h.amplitude_k
+        );
     }
 }
 
 #[test]
 fn doors_are_events_and_bump_the_air() {
     let sim = generate(&lively()).unwrap();
-    let doors: Vec<&Event> = sim.tables.events.iter().filter(|e| e.kind == "door").collect();
+    let doors: Vec<&Event> = sim
+        .tables
+        .events
+        .iter()
+        .filter(|e| e.kind == "door")
+        .collect();
     assert!(!doors.is_empty() && doors.iter().all(|e| e.bar.is_none()));
     assert_eq!(doors.len(), sim.truth.n_door_events);
 }
@@ -296,11 +411,20 @@ fn config_round_trips_and_rejects_bad_input() {
     assert_eq!(SimConfig::from_toml_str("").unwrap(), cfg);
     let native = SimConfig::from_toml_str("start = 2026-12-01T06:00:00Z").unwrap();
     assert_eq!(native.start.to_rfc3339(), "2026-12-01T06:00:00+00:00");
-    assert!(matches!(SimConfig::from_toml_str("bogus = 1"), Err(SimError::Toml(_))));
+    assert!(matches!(
+        SimConfig::from_toml_str("bogus = 1"),
+        Err(SimError::Toml(_))
+    ));
     let bad = SimConfig::from_toml_str("[effects.head_heating]\nenabled = true\ntau_s = -5.0");
-    assert!(matches!(bad, Err(SimError::Invalid { ref key, .. }) if key == "effects.head_heating.tau_s"), "{bad:?}");
+    assert!(
+        matches!(bad, Err(SimError::Invalid { ref key, .. }) if key == "effects.head_heating.tau_s"),
+        "{bad:?}"
+    );
     let too_long = "[fleet]\nfixed_length_mm = 260.0";
-    assert!(matches!(SimConfig::from_toml_str(too_long), Err(SimError::Invalid { .. })));
+    assert!(matches!(
+        SimConfig::from_toml_str(too_long),
+        Err(SimError::Invalid { .. })
+    ));
     let json = serde_json::to_string(&generate(&quiet(20.0)).unwrap().truth).unwrap();
     let back: Truth = serde_json::from_str(&json).unwrap();
     assert_eq!(back.config, quiet(20.0));
@@ -323,8 +447,14 @@ fn large_campaign_is_fast() {
     let cfg = SimConfig {
         duration_days: 30.0,
         sample_s: 1.0,
-        fleet: Some(FleetConfig { n_bars: 12, ..FleetConfig::default() }),
-        schedule: ScheduleConfig { mount_days: 3.0, ..ScheduleConfig::default() },
+        fleet: Some(FleetConfig {
+            n_bars: 12,
+            ..FleetConfig::default()
+        }),
+        schedule: ScheduleConfig {
+            mount_days: 3.0,
+            ..ScheduleConfig::default()
+        },
         ..SimConfig::default()
     };
     let t = std::time::Instant::now();
@@ -346,13 +476,19 @@ fn manifest_validates_with_every_effect_on() {
     e.plate_expansion.enabled = true;
     e.creep.enabled = true;
     e.hidden_channel.enabled = true;
-    cfg.schedule.reference = vec![ReferenceMount { bar: "B02".into(), length: "min".into() }];
+    cfg.schedule.reference = vec![ReferenceMount {
+        bar: "B02".into(),
+        length: "min".into(),
+    }];
     let sim = generate(&cfg).unwrap();
     let campaign = crate::campaign::Campaign::from_manifest(sim.manifest.clone()).unwrap();
     assert_eq!(campaign.bars.len(), 3);
     assert_eq!(sim.truth.effects_on.len(), 7);
     let text = sim.manifest.to_toml_string().unwrap();
-    assert_eq!(Manifest::from_toml_str(&text, "campaign.toml").unwrap(), sim.manifest);
+    assert_eq!(
+        Manifest::from_toml_str(&text, "campaign.toml").unwrap(),
+        sim.manifest
+    );
 }
 
 #[test]
@@ -360,12 +496,20 @@ fn write_puts_truth_next_to_the_campaign() {
     let sim = generate(&quiet(20.0)).unwrap();
     let dir = tempfile::tempdir().unwrap();
     write(&sim, dir.path(), &crate::io::WriteOptions::default()).unwrap();
-    let truth: Truth = serde_json::from_str(&std::fs::read_to_string(dir.path().join("truth.json")).unwrap()).unwrap();
+    let truth: Truth =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("truth.json")).unwrap())
+            .unwrap();
     // serde_json parses floats to within an ulp or so (no `float_roundtrip` feature).
-    assert_eq!((truth.config, truth.mounts.len()), (sim.truth.config.clone(), sim.truth.mounts.len()));
+    assert_eq!(
+        (truth.config, truth.mounts.len()),
+        (sim.truth.config.clone(), sim.truth.mounts.len())
+    );
     for (a, b) in truth.bars.iter().zip(&sim.truth.bars) {
         assert_eq!(a.id, b.id);
-        assert!((a.alpha_ppm_per_k - b.alpha_ppm_per_k).abs() < 1e-12 && (a.tau_r_s - b.tau_r_s).abs() < 1e-9);
+        assert!(
+            (a.alpha_ppm_per_k - b.alpha_ppm_per_k).abs() < 1e-12
+                && (a.tau_r_s - b.tau_r_s).abs() < 1e-9
+        );
     }
     assert!(dir.path().join("campaign.toml").exists());
 }
@@ -380,6 +524,9 @@ fn written_campaign_reads_back() {
         assert_eq!(logs.bars[id].time_ns, log.time_ns);
         assert_eq!(logs.bars[id].counts, log.counts);
     }
-    assert_eq!(logs.sensors[AIR_LOW].celsius, sim.tables.temperatures[AIR_LOW].celsius);
+    assert_eq!(
+        logs.sensors[AIR_LOW].celsius,
+        sim.tables.temperatures[AIR_LOW].celsius
+    );
     assert_eq!(logs.events.len(), sim.tables.events.len());
 }

@@ -87,13 +87,20 @@ impl BarTruth {
     /// (`physics.md`: the centre distance function `D(n, A)`).
     pub fn true_distance_mm(&self, counts: f64, tilt_deg: f64) -> f64 {
         let travel_mm = counts * self.resolution_nm * 1e-6;
-        self.d_zero_mm + self.geometry.true_travel_mm(travel_mm, tilt_deg, self.d_zero_mm)
+        self.d_zero_mm
+            + self
+                .geometry
+                .true_travel_mm(travel_mm, tilt_deg, self.d_zero_mm)
     }
 
     /// Counts (unrounded) the bar reads at true distance `distance_mm` and tilt `tilt_deg` with
     /// no thermal error: the inverse of [`Self::true_distance_mm`].
     pub fn counts_at(&self, distance_mm: f64, tilt_deg: f64) -> f64 {
-        let travel_mm = self.geometry.indicated_travel_mm(distance_mm - self.d_zero_mm, tilt_deg, self.d_zero_mm);
+        let travel_mm = self.geometry.indicated_travel_mm(
+            distance_mm - self.d_zero_mm,
+            tilt_deg,
+            self.d_zero_mm,
+        );
         travel_mm * 1e6 / self.resolution_nm
     }
 }

@@ -14,7 +14,10 @@ fn small_campaign(root: &Path, name: &str) -> std::path::PathBuf {
         campaign_id: name.into(),
         duration_days: 1.0,
         sample_s: 60.0,
-        fleet: Some(FleetConfig { n_bars: 2, ..FleetConfig::default() }),
+        fleet: Some(FleetConfig {
+            n_bars: 2,
+            ..FleetConfig::default()
+        }),
         ..SimConfig::default()
     };
     simulate_campaign(root, name, &cfg).0
@@ -22,7 +25,10 @@ fn small_campaign(root: &Path, name: &str) -> std::path::PathBuf {
 
 fn encoder_table(bar: &str, counts: Column) -> Table {
     Table::new()
-        .with("time", Column::TimeNs(vec![1_793_491_200_000_000_000, 1_793_491_260_000_000_000]))
+        .with(
+            "time",
+            Column::TimeNs(vec![1_793_491_200_000_000_000, 1_793_491_260_000_000_000]),
+        )
         .with("bar", Column::Str(vec![bar.into(), bar.into()]))
         .with("counts", counts)
 }
@@ -30,8 +36,18 @@ fn encoder_table(bar: &str, counts: Column) -> Table {
 /// Run the nightly pipeline on `dir`; expect exit 3, one line containing every `needles`, and
 /// no output folder.
 fn check(dir: &Path, needles: &[&str]) {
-    let out = dir.parent().unwrap().join(format!("{}-out", dir.file_name().unwrap().to_str().unwrap()));
-    let (code, _stdout, stderr) = run_cli(&["run", "pipelines/nightly.toml", "--campaign", dir.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let out = dir.parent().unwrap().join(format!(
+        "{}-out",
+        dir.file_name().unwrap().to_str().unwrap()
+    ));
+    let (code, _stdout, stderr) = run_cli(&[
+        "run",
+        "pipelines/nightly.toml",
+        "--campaign",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(code, 3, "exit code for {}: stderr {stderr}", dir.display());
     let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
     assert_eq!(lines.len(), 1, "one line expected, got: {stderr}");
@@ -40,7 +56,11 @@ fn check(dir: &Path, needles: &[&str]) {
     }
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(!out.exists(), "an output folder was left behind");
-    let leftovers: Vec<_> = std::fs::read_dir(dir.parent().unwrap()).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains("partial")).collect();
+    let leftovers: Vec<_> = std::fs::read_dir(dir.parent().unwrap())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+        .collect();
     assert!(leftovers.is_empty(), "partial output left: {leftovers:?}");
 }
 
@@ -50,19 +70,37 @@ fn bad_inputs_give_one_clear_line_and_no_output() {
     let root = tmp.path();
 
     let d = small_campaign(root, "missing-column");
-    write_table(&d.join("encoders/extra.parquet"), &Table::new().with("time", Column::TimeNs(vec![1_793_491_200_000_000_000])).with("bar", Column::Str(vec!["B01".into()]))).unwrap();
+    write_table(
+        &d.join("encoders/extra.parquet"),
+        &Table::new()
+            .with("time", Column::TimeNs(vec![1_793_491_200_000_000_000]))
+            .with("bar", Column::Str(vec!["B01".into()])),
+    )
+    .unwrap();
     check(&d, &["extra.parquet", "counts"]);
 
     let d = small_campaign(root, "wrong-type");
-    write_table(&d.join("encoders/strings.parquet"), &encoder_table("B01", Column::Str(vec!["12".into(), "13".into()]))).unwrap();
+    write_table(
+        &d.join("encoders/strings.parquet"),
+        &encoder_table("B01", Column::Str(vec!["12".into(), "13".into()])),
+    )
+    .unwrap();
     check(&d, &["strings.parquet", "counts"]);
 
     let d = small_campaign(root, "unknown-bar");
-    write_table(&d.join("encoders/ghost.parquet"), &encoder_table("B99", Column::I64(vec![1, 2]))).unwrap();
+    write_table(
+        &d.join("encoders/ghost.parquet"),
+        &encoder_table("B99", Column::I64(vec![1, 2])),
+    )
+    .unwrap();
     check(&d, &["ghost.parquet", "B99"]);
 
     let d = small_campaign(root, "corrupt");
-    std::fs::write(d.join("encoders/broken.parquet"), b"PAR1 this is not a parquet file").unwrap();
+    std::fs::write(
+        d.join("encoders/broken.parquet"),
+        b"PAR1 this is not a parquet file",
+    )
+    .unwrap();
     check(&d, &["broken.parquet"]);
 
     let d = small_campaign(root, "empty-folder");
@@ -73,7 +111,9 @@ fn bad_inputs_give_one_clear_line_and_no_output() {
 
     let d = small_campaign(root, "unknown-length");
     let manifest = std::fs::read_to_string(d.join("campaign.toml")).unwrap();
-    let first = manifest.find("length = \"").expect("a mount on a plate length");
+    let first = manifest
+        .find("length = \"")
+        .expect("a mount on a plate length");
     let end = first + manifest[first + 10..].find('"').unwrap() + 10;
     let broken = format!("{}length = \"huge{}", &manifest[..first], &manifest[end..]);
     std::fs::write(d.join("campaign.toml"), broken).unwrap();
@@ -89,9 +129,17 @@ fn a_bar_without_data_fails_alone_with_exit_code_2() {
     manifest.push_str("\n[[bar]]\nid = \"B77\"\nresolution_nm = 5.0\nfixed_length_mm = 230.0\n");
     std::fs::write(d.join("campaign.toml"), manifest).unwrap();
     let out = tmp.path().join("out");
-    let (code, _, stderr) = run_cli(&["run", "pipelines/nightly.toml", "--campaign", d.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let (code, _, stderr) = run_cli(&[
+        "run",
+        "pipelines/nightly.toml",
+        "--campaign",
+        d.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert_eq!(code, 2, "{stderr}");
-    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["bars"].as_array().unwrap().len(), 2);
     assert_eq!(summary["failed_bars"][0]["bar"], "B77");
 }

@@ -6,7 +6,10 @@ use dbbcal::simulate::{FleetConfig, SimConfig};
 use crate::support::{run_cli, simulate_campaign};
 
 fn read_json(path: &std::path::Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))).unwrap()
+    serde_json::from_str(
+        &std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -14,29 +17,56 @@ fn sample_pipeline_runs_and_is_byte_reproducible() {
     let tmp = tempfile::tempdir().unwrap();
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     for out in [&a, &b] {
-        let (code, _, stderr) = run_cli(&["run", "pipelines/reference-match.toml", "--out", out.to_str().unwrap()]);
+        let (code, _, stderr) = run_cli(&[
+            "run",
+            "pipelines/reference-match.toml",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
         assert_eq!(code, 0, "{stderr}");
     }
-    for f in ["summary.json", "inputs.json", "match_study.json", "models.parquet"] {
-        let (x, y) = (std::fs::read(a.join(f)).unwrap(), std::fs::read(b.join(f)).unwrap());
+    for f in [
+        "summary.json",
+        "inputs.json",
+        "match_study.json",
+        "models.parquet",
+    ] {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
         assert!(x == y, "{f} differs between two identical runs");
     }
     let s = read_json(&a.join("summary.json"));
     assert_eq!(s["campaign"], "sim-sample");
-    assert_eq!(s["model"]["effects"], serde_json::json!(["fixed_part", "scale"]));
+    assert_eq!(
+        s["model"]["effects"],
+        serde_json::json!(["fixed_part", "scale"])
+    );
     let bars = s["bars"].as_array().unwrap();
     assert_eq!(bars.len(), 6);
     for bar in bars {
         for p in ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"] {
-            assert!(bar["params"][p]["value"].as_f64().unwrap() > 0.0, "{p} of {}", bar["bar"]);
+            assert!(
+                bar["params"][p]["value"].as_f64().unwrap() > 0.0,
+                "{p} of {}",
+                bar["bar"]
+            );
             assert!(bar["params"][p]["u"].as_f64().unwrap() > 0.0);
         }
         assert!(bar["rms_um"].as_f64().unwrap() < 0.03);
     }
     let reference = s["reference"]["bar"].as_str().unwrap();
     assert_eq!(s["reference"]["mismatch_um"].as_object().unwrap().len(), 5);
-    assert!(!s["reference"]["mismatch_um"].as_object().unwrap().contains_key(reference));
-    assert!(s["inputs"].as_array().unwrap().iter().all(|f| f["sha256"].as_str().unwrap().len() == 64));
+    assert!(!s["reference"]["mismatch_um"]
+        .as_object()
+        .unwrap()
+        .contains_key(reference));
+    assert!(s["inputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|f| f["sha256"].as_str().unwrap().len() == 64));
     for fig in ["fleet.png", "match-study.png", "bar-B01.png"] {
         assert!(a.join("figures").join(fig).is_file(), "{fig}");
     }
@@ -52,13 +82,30 @@ fn adding_an_effect_on_the_command_line_makes_the_error_fall() {
         campaign_id: "cli-head".into(),
         duration_days: 4.0,
         sample_s: 30.0,
-        fleet: Some(FleetConfig { n_bars: 3, ..FleetConfig::default() }),
-        effects: dbbcal::simulate::EffectsConfig { head_heating: dbbcal::simulate::HeadHeating { enabled: true, ..Default::default() }, ..Default::default() },
+        fleet: Some(FleetConfig {
+            n_bars: 3,
+            ..FleetConfig::default()
+        }),
+        effects: dbbcal::simulate::EffectsConfig {
+            head_heating: dbbcal::simulate::HeadHeating {
+                enabled: true,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
         ..SimConfig::default()
     };
     let (dir, _) = simulate_campaign(tmp.path(), "c", &cfg);
     let out = tmp.path().join("out");
-    let (code, _, stderr) = run_cli(&["identify", "--campaign", dir.to_str().unwrap(), "--out", out.to_str().unwrap(), "--add-effect", "head_heating"]);
+    let (code, _, stderr) = run_cli(&[
+        "identify",
+        "--campaign",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--add-effect",
+        "head_heating",
+    ]);
     assert_eq!(code, 0, "{stderr}");
     let ba = read_json(&out.join("before_after.json"));
     let before = ba["fleet_rms_before_um"].as_f64().unwrap();
@@ -66,10 +113,29 @@ fn adding_an_effect_on_the_command_line_makes_the_error_fall() {
     assert!(after < 0.5 * before, "fleet RMS {before} -> {after}");
     assert!(after < 1.2 * cfg.noise_um, "fleet RMS after {after}");
     let s = read_json(&out.join("summary.json"));
-    assert_eq!(s["model"]["effects"], serde_json::json!(["fixed_part", "scale", "head_heating"]));
-    assert!(s["bars"][0]["params"]["head_growth_um"]["value"].as_f64().unwrap() > 0.3);
+    assert_eq!(
+        s["model"]["effects"],
+        serde_json::json!(["fixed_part", "scale", "head_heating"])
+    );
+    assert!(
+        s["bars"][0]["params"]["head_growth_um"]["value"]
+            .as_f64()
+            .unwrap()
+            > 0.3
+    );
 
-    let (code, _, stderr) = run_cli(&["identify", "--campaign", dir.to_str().unwrap(), "--out", out.to_str().unwrap(), "--add-effect", "warp_drive"]);
+    let (code, _, stderr) = run_cli(&[
+        "identify",
+        "--campaign",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--add-effect",
+        "warp_drive",
+    ]);
     assert_eq!(code, 3);
-    assert!(stderr.contains("warp_drive") && stderr.lines().count() == 1, "{stderr}");
+    assert!(
+        stderr.contains("warp_drive") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
 }

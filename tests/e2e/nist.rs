@@ -28,7 +28,15 @@ fn nist_dir() -> PathBuf {
 /// data block after `Data:` (columns `y x`).
 fn load(name: &str) -> Certified {
     let text = std::fs::read_to_string(nist_dir().join(format!("{name}.dat"))).expect("NIST file");
-    let mut c = Certified { start1: vec![], start2: vec![], value: vec![], sd: vec![], rss: f64::NAN, x: vec![], y: vec![] };
+    let mut c = Certified {
+        start1: vec![],
+        start2: vec![],
+        value: vec![],
+        sd: vec![],
+        rss: f64::NAN,
+        x: vec![],
+        y: vec![],
+    };
     let mut in_data = false;
     for line in text.lines() {
         let f: Vec<&str> = line.split_whitespace().collect();
@@ -76,7 +84,9 @@ impl Separable for NistProblem {
         (0..self.n_linear).map(|k| format!("c{k}")).collect()
     }
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
-        DMatrix::from_fn(self.x.len(), self.n_linear, |i, j| (self.basis)(self.x[i], theta)[j])
+        DMatrix::from_fn(self.x.len(), self.n_linear, |i, j| {
+            (self.basis)(self.x[i], theta)[j]
+        })
     }
     fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
         // Central difference, relative step: accurate to ~1e-10, ample for 6 certified digits.
@@ -95,19 +105,45 @@ impl Separable for NistProblem {
 fn check(name: &str, linear: &[usize], nonlinear: &[usize], basis: BasisFn) {
     let c = load(name);
     for (label, start) in [("start 1", &c.start1), ("start 2", &c.start2)] {
-        let problem = NistProblem { x: c.x.clone(), y: c.y.clone(), n_nonlinear: nonlinear.len(), n_linear: linear.len(), basis };
+        let problem = NistProblem {
+            x: c.x.clone(),
+            y: c.y.clone(),
+            n_nonlinear: nonlinear.len(),
+            n_linear: linear.len(),
+            basis,
+        };
         let theta0: Vec<f64> = nonlinear.iter().map(|&i| start[i]).collect();
-        let options = FitOptions { brent_start: false, hac_batch_len: Some(1) };
+        let options = FitOptions {
+            brent_start: false,
+            hac_batch_len: Some(1),
+        };
         let f = fit(&problem, &theta0, &options).unwrap_or_else(|e| panic!("{name} {label}: {e}"));
         let order: Vec<usize> = linear.iter().chain(nonlinear).copied().collect();
         for (slot, &b) in order.iter().enumerate() {
             let rel = (f.values[slot] - c.value[b]).abs() / c.value[b].abs();
-            assert!(rel < 1e-6, "{name} {label}: b{} = {:.10e}, certified {:.10e} (rel {rel:.1e})", b + 1, f.values[slot], c.value[b]);
+            assert!(
+                rel < 1e-6,
+                "{name} {label}: b{} = {:.10e}, certified {:.10e} (rel {rel:.1e})",
+                b + 1,
+                f.values[slot],
+                c.value[b]
+            );
             let rel_sd = (f.se_naive(slot) - c.sd[b]).abs() / c.sd[b];
-            assert!(rel_sd < 1e-4, "{name} {label}: sd(b{}) = {:.6e}, certified {:.6e}", b + 1, f.se_naive(slot), c.sd[b]);
+            assert!(
+                rel_sd < 1e-4,
+                "{name} {label}: sd(b{}) = {:.6e}, certified {:.6e}",
+                b + 1,
+                f.se_naive(slot),
+                c.sd[b]
+            );
         }
         let rel_rss = (f.rss - c.rss).abs() / c.rss;
-        assert!(rel_rss < 1e-8, "{name} {label}: RSS {:.10e} vs certified {:.10e}", f.rss, c.rss);
+        assert!(
+            rel_rss < 1e-8,
+            "{name} {label}: RSS {:.10e} vs certified {:.10e}",
+            f.rss,
+            c.rss
+        );
     }
 }
 
@@ -123,22 +159,32 @@ fn boxbod_first_order_step_higher_difficulty() {
 
 #[test]
 fn misra1b() {
-    check("Misra1b", &[0], &[1], |x, t| vec![1.0 - (1.0 + t[0] * x / 2.0).powi(-2)]);
+    check("Misra1b", &[0], &[1], |x, t| {
+        vec![1.0 - (1.0 + t[0] * x / 2.0).powi(-2)]
+    });
 }
 
 #[test]
 fn misra1c_and_misra1d() {
-    check("Misra1c", &[0], &[1], |x, t| vec![1.0 - (1.0 + 2.0 * t[0] * x).powf(-0.5)]);
-    check("Misra1d", &[0], &[1], |x, t| vec![t[0] * x / (1.0 + t[0] * x)]);
+    check("Misra1c", &[0], &[1], |x, t| {
+        vec![1.0 - (1.0 + 2.0 * t[0] * x).powf(-0.5)]
+    });
+    check("Misra1d", &[0], &[1], |x, t| {
+        vec![t[0] * x / (1.0 + t[0] * x)]
+    });
 }
 
 #[test]
 fn danwood_and_rat42() {
     check("DanWood", &[0], &[1], |x, t| vec![x.powf(t[0])]);
-    check("Rat42", &[0], &[1, 2], |x, t| vec![1.0 / (1.0 + (t[0] - t[1] * x).exp())]);
+    check("Rat42", &[0], &[1, 2], |x, t| {
+        vec![1.0 / (1.0 + (t[0] - t[1] * x).exp())]
+    });
 }
 
 #[test]
 fn lanczos3_three_exponentials() {
-    check("Lanczos3", &[0, 2, 4], &[1, 3, 5], |x, t| vec![(-t[0] * x).exp(), (-t[1] * x).exp(), (-t[2] * x).exp()]);
+    check("Lanczos3", &[0, 2, 4], &[1, 3, 5], |x, t| {
+        vec![(-t[0] * x).exp(), (-t[1] * x).exp(), (-t[2] * x).exp()]
+    });
 }

@@ -9,7 +9,8 @@ use dbbcal::simulate::{self, SimConfig, Truth};
 pub fn simulate_campaign(root: &Path, name: &str, cfg: &SimConfig) -> (PathBuf, Truth) {
     let dir = root.join(name);
     let sim = simulate::generate(cfg).unwrap_or_else(|e| panic!("simulate {name}: {e}"));
-    simulate::write(&sim, &dir, &dbbcal::io::WriteOptions::default()).unwrap_or_else(|e| panic!("write {name}: {e}"));
+    simulate::write(&sim, &dir, &dbbcal::io::WriteOptions::default())
+        .unwrap_or_else(|e| panic!("write {name}: {e}"));
     (dir, sim.truth)
 }
 
@@ -17,7 +18,8 @@ pub fn simulate_campaign(root: &Path, name: &str, cfg: &SimConfig) -> (PathBuf, 
 pub fn analyse_campaign(dir: &Path, stage: Stage, effects: &[&str]) -> RunResults {
     let effects: Vec<String> = effects.iter().map(|s| s.to_string()).collect();
     let plan = RunPlan::for_stage(stage, dir.to_path_buf(), None, &effects).expect("plan");
-    let logs = dbbcal::io::read_campaign(dir).unwrap_or_else(|e| panic!("ingest {}: {e}", dir.display()));
+    let logs =
+        dbbcal::io::read_campaign(dir).unwrap_or_else(|e| panic!("ingest {}: {e}", dir.display()));
     analyse(&plan, logs)
 }
 
@@ -34,5 +36,9 @@ pub fn run_cli(args: &[&str]) -> (i32, String, String) {
         .env("CI", "1")
         .output()
         .expect("run dbbcal");
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
