@@ -6,8 +6,11 @@ ingest + identify for the base model (``../shared/spec/physics.md``, ``ARCHITECT
 
 1. read ``campaign.toml`` (tomllib) and ``encoders/*.parquet`` / ``temperatures/*.parquet`` /
    ``events/*.parquet`` (polars, lazily, only the spec's columns; timestamps -> int ns UTC);
-2. per bar: sort by time, as-of join (backward, then back-filled) every sensor onto the encoder
-   times; air = the bar's declared sensor, else the mean of the air sensors;
+2. per bar: sort by time, every sensor's log linearly interpolated onto the encoder times
+   (``numpy.interp``; the nearest reading outside a sensor's log), as dbbcal does since it dropped
+   the backward as-of join (a hold of half a sensor period biases the time constants);
+   ``--asof`` restores the as-of join (backward, then back-filled) of earlier dbbcal versions;
+   air = the bar's declared sensor, else the mean of the air sensors;
 3. y = counts * resolution_nm / 1000 (µm), minus the declared plate expansion if any, centred on
    each zero segment's median (as dbbcal does; it keeps the finite-difference Jacobian clean); readings
    outside the bar's mounts on plate lengths (or on ``check`` mounts) are dropped from the fit,
@@ -234,7 +237,7 @@ def fit_bar(problem: BarProblem, project_zeros: bool) -> dict:
 # ----------------------------------------------------------------------------- pipeline
 
 
-def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, log=print) -> dict:
+def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, asof: bool = False, log=print) -> dict:
     t_start = time.perf_counter()
     man = read_manifest(campaign)
     enc = scan(campaign, "encoders", {"time": "time", "bar": "str", "counts": "i64"})
@@ -265,8 +268,15 @@ def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, log=pri
             log(f"{b}: no readings")
             continue
         df = df.sort(["time", "counts"])
-        for s, sdf in per_sensor.items():
-            df = df.join_asof(sdf, on="time", strategy="backward").with_columns(pl.col(s).fill_null(strategy="backward"))
+        if asof:
+            for s, sdf in per_sensor.items():
+                df = df.join_asof(sdf, on="time", strategy="backward").with_columns(pl.col(s).fill_null(strategy="backward"))
+        else:
+            t_rel = (df["time"].to_numpy() - t0_ns).astype(np.float64)
+            df = df.with_columns(
+                pl.Series(s, np.interp(t_rel, (sdf["time"].to_numpy() - t0_ns).astype(np.float64), sdf[s].to_numpy()))
+                for s, sdf in per_sensor.items()
+            )
         ids = [bar["sensor"]] if bar.get("sensor") else air_ids
         air = df.select(pl.mean_horizontal(ids)).to_series().to_numpy()
         plate = df[plate_ids[0]].to_numpy() if plate_ids else None
@@ -290,7 +300,7 @@ def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, log=pri
     total = time.perf_counter() - t_start
     return {
         "campaign": man["campaign"]["id"],
-        "mode": "project-zeros" if project_zeros else "dense-lstsq",
+        "mode": ("project-zeros" if project_zeros else "dense-lstsq") + (", as-of temperatures" if asof else ""),
         "read_s": t_read,
         "total_s": total,
         "bars": results,
@@ -326,12 +336,13 @@ def main() -> int:
     ap.add_argument("campaign")
     ap.add_argument("--bars", help="comma-separated bar ids (default: all); for timing a subset")
     ap.add_argument("--project-zeros", action="store_true", help="FWL shortcut instead of the dense one-hot lstsq")
+    ap.add_argument("--asof", action="store_true", help="as-of join of the temperatures (dbbcal before 2026-11-22) instead of interpolation")
     ap.add_argument("--json", help="write the estimates and timings here")
     ap.add_argument("--compare", metavar="SUMMARY_JSON", help="dbbcal summary.json to compare the estimates with")
     ap.add_argument("--rtol", type=float, default=1e-3, help="tolerance of --compare (default 1e-3)")
     args = ap.parse_args()
     only = args.bars.split(",") if args.bars else None
-    out = run(args.campaign, only, args.project_zeros)
+    out = run(args.campaign, only, args.project_zeros, args.asof)
     print(f"total {out['total_s']:.2f} s ({len(out['bars'])} of {out['n_bars_in_campaign']} bars, read {out['read_s']:.2f} s, {out['mode']})")
     if args.json:
         with open(args.json, "w") as f:

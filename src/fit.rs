@@ -133,6 +133,9 @@ pub struct FitOptions {
     pub brent_start: bool,
     /// Batch length for the HAC covariance; `None` chooses it from the residual autocorrelation.
     pub hac_batch_len: Option<usize>,
+    /// Linear parameters the problem projected out before the engine saw it (e.g. mount zeros):
+    /// they count in every degrees-of-freedom correction.
+    pub absorbed_params: usize,
 }
 
 impl Default for FitOptions {
@@ -140,6 +143,7 @@ impl Default for FitOptions {
         Self {
             brent_start: true,
             hac_batch_len: None,
+            absorbed_params: 0,
         }
     }
 }
@@ -182,9 +186,16 @@ pub fn fit<P: Separable>(
     names.extend(problem.nonlinear_names());
     let mut values: Vec<f64> = coef.iter().copied().collect();
     values.extend(&theta);
-    let (cov_naive, cov_hac, hac_batch_len) = covariances(&jac, &residuals, options.hac_batch_len)
-        .ok_or_else(|| FitError::Singular(names.join(", ")))?;
-    let hac_dof = n_batches(y.len(), hac_batch_len).saturating_sub(p).max(1);
+    let (cov_naive, cov_hac, hac_batch_len) = covariances(
+        &jac,
+        &residuals,
+        options.hac_batch_len,
+        options.absorbed_params,
+    )
+    .ok_or_else(|| FitError::Singular(names.join(", ")))?;
+    let hac_dof = n_batches(y.len(), hac_batch_len)
+        .saturating_sub(p + options.absorbed_params)
+        .max(1);
     Ok(Fit {
         hac_dof,
         names,
@@ -412,15 +423,17 @@ fn covariances(
     jac: &DMatrix<f64>,
     residuals: &[f64],
     batch_len: Option<usize>,
+    absorbed: usize,
 ) -> Option<(DMatrix<f64>, DMatrix<f64>, usize)> {
     let (n, p) = jac.shape();
+    let p_total = p + absorbed;
     let jtj = jac.tr_mul(jac);
     let jtj_inv = jtj
         .clone()
         .try_inverse()
         .or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
     let rss: f64 = residuals.iter().map(|r| r * r).sum();
-    let s2 = rss / (n.saturating_sub(p).max(1)) as f64;
+    let s2 = rss / (n.saturating_sub(p_total).max(1)) as f64;
     let cov_naive = &jtj_inv * s2;
     let batch = batch_len
         .unwrap_or_else(|| hac_batch_length(residuals))
@@ -440,7 +453,7 @@ fn covariances(
     // batch sums sum to zero in p directions (for mount zeros, within each mount), so the raw
     // sum of squares underestimates the long-run variance (the batch analogue of HC1's n/(n-p)).
     let b = n_batches(n, batch) as f64;
-    meat *= b / (b - p as f64).max(1.0);
+    meat *= b / (b - p_total as f64).max(1.0);
     // Batch sums miss the correlation across batch edges: relative bias -2 Σ k ρ_k / (L τ_int)
     // (ρ_k the residual autocorrelation); undo it.
     meat /= (1.0 - batch_edge_bias(residuals, batch)).max(0.5);
@@ -576,6 +589,7 @@ mod tests {
             &FitOptions {
                 brent_start: false,
                 hac_batch_len: None,
+                absorbed_params: 0,
             },
         )
         .unwrap();

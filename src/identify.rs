@@ -89,11 +89,13 @@ pub fn identify_from(
     if let Some(start) = start {
         warm_start(&problem, start, &mut theta0);
     }
-    let fit = fit::fit(&problem, &theta0, &FitOptions::default()).map_err(|source| {
-        IdentifyError::Fit {
-            bar: bar.clone(),
-            source,
-        }
+    let options = FitOptions {
+        absorbed_params: problem.n_zeros(),
+        ..FitOptions::default()
+    };
+    let fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
+        bar: bar.clone(),
+        source,
     })?;
     let mut model = to_bar_model(series, &problem, &fit);
     canonical_thermal_paths(&mut model);
@@ -198,11 +200,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
             .for_each(|(m, c)| *m += fit.values[j] * c);
     }
     // One zero per zero segment; a segment without fitted samples (a check mount) has none: 0.
-    let zeros_um: Vec<f64> = problem
-        .zero_columns()
-        .iter()
-        .map(|c| c.map_or(0.0, |c| fit.values[n_gains + c]))
-        .collect();
+    let zeros_um = problem.zeros_um(&theta, &fit.values[..n_gains]);
     let model_um = thermal_um
         .iter()
         .zip(&series.zero_segment)

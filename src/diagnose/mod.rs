@@ -109,7 +109,11 @@ fn score_channel(series: &BarSeries, residual: &[f64], channel: &str) -> Option<
         .ok()?
         .with_observations(residual.to_vec());
     let rss0: f64 = residual.iter().map(|r| r * r).sum();
-    let fit = fit::fit(&problem, &problem.theta0(), &FitOptions::default()).ok()?;
+    let options = FitOptions {
+        absorbed_params: problem.n_zeros(),
+        ..FitOptions::default()
+    };
+    let fit = fit::fit(&problem, &problem.theta0(), &options).ok()?;
     let explained_fraction = if rss0 > 0.0 {
         (1.0 - fit.rss / rss0).max(0.0)
     } else {

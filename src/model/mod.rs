@@ -271,7 +271,7 @@ impl<'a> ThermalProblem<'a> {
             .filter(|(_, t)| t.effect.tau_name().is_some())
             .map(|(i, _)| i)
             .collect();
-        let y = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
+        let y_raw: Vec<f64> = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
         let mut fitted = vec![false; series.n_zero_segments];
         for &i in &series.fit_index {
             if let Some(s) = series.zero_segment[i] {
@@ -288,22 +288,78 @@ impl<'a> ThermalProblem<'a> {
                 })
             })
             .collect();
-        Ok(ThermalProblem {
+        let mut problem = ThermalProblem {
             series,
             terms,
             tau_terms,
-            y,
+            y: Vec::new(),
             zero_columns,
             n_zero_columns,
-        })
+        };
+        problem.y = problem.demean(&y_raw);
+        Ok(problem)
     }
 
     /// Fit these observations (one per fitted sample) instead of the bar's reading: the
     /// diagnosis explains a residual with a single channel this way.
     pub fn with_observations(mut self, y: Vec<f64>) -> Self {
         assert_eq!(y.len(), self.y.len(), "one observation per fitted sample");
-        self.y = y;
+        self.y = self.demean(&y);
         self
+    }
+
+    /// Zero column of each fitted sample (`None`: a sample whose segment has no zero).
+    fn fit_row_zero(&self, r: usize) -> Option<usize> {
+        self.series.zero_segment[self.series.fit_index[r]]
+            .and_then(|s| self.zero_columns[s as usize])
+    }
+
+    /// Subtract each zero segment's mean over the fitted samples (`v` indexed by fitted sample).
+    ///
+    /// The zeros are projected out (Frisch-Waugh-Lovell): fitting demeaned observations with
+    /// demeaned gain columns gives exactly the gains, residuals and gain covariance of the fit
+    /// with one indicator column per zero, at a cost that does not grow with the number of
+    /// mounts. The zeros follow from the residual means ([`ThermalProblem::zeros_um`]).
+    fn demean(&self, v: &[f64]) -> Vec<f64> {
+        let mut sum = vec![0.0; self.n_zero_columns];
+        let mut count = vec![0usize; self.n_zero_columns];
+        for (r, x) in v.iter().enumerate() {
+            if let Some(k) = self.fit_row_zero(r) {
+                sum[k] += x;
+                count[k] += 1;
+            }
+        }
+        v.iter()
+            .enumerate()
+            .map(|(r, x)| {
+                self.fit_row_zero(r)
+                    .map_or(*x, |k| x - sum[k] / count[k].max(1) as f64)
+            })
+            .collect()
+    }
+
+    /// Number of zeros projected out of the problem (parameters the engine does not see).
+    pub fn n_zeros(&self) -> usize {
+        self.n_zero_columns
+    }
+
+    /// The zeros (µm) of a fit with `gains` at `theta`: each segment's mean of reading minus
+    /// thermal model over its fitted samples; 0 for a segment without fitted samples.
+    pub fn zeros_um(&self, theta: &[f64], gains: &[f64]) -> Vec<f64> {
+        let columns = self.full_columns(theta);
+        let mut sum = vec![0.0; self.n_zero_columns];
+        let mut count = vec![0usize; self.n_zero_columns];
+        for (r, &i) in self.series.fit_index.iter().enumerate() {
+            if let Some(k) = self.fit_row_zero(r) {
+                let thermal: f64 = columns.iter().zip(gains).map(|(c, g)| c[i] * g).sum();
+                sum[k] += self.series.y_um[i] - thermal;
+                count[k] += 1;
+            }
+        }
+        self.zero_columns
+            .iter()
+            .map(|c| c.map_or(0.0, |k| sum[k] / count[k].max(1) as f64))
+            .collect()
     }
 
     /// `theta0`: `ln tau` of every term with a time constant.
@@ -527,31 +583,17 @@ impl Separable for ThermalProblem<'_> {
     }
 
     fn linear_names(&self) -> Vec<String> {
-        let mut names = self.gain_names();
-        names.extend(
-            self.zero_columns
-                .iter()
-                .enumerate()
-                .filter(|(_, c)| c.is_some())
-                .map(|(k, _)| format!("zero_{k}_um")),
-        );
-        names
+        self.gain_names()
     }
 
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
         let n = self.y.len();
         let columns = self.full_columns(theta);
-        let mut phi = DMatrix::zeros(n, columns.len() + self.n_zero_columns);
+        let mut phi = DMatrix::zeros(n, columns.len());
         for (c, col) in columns.iter().enumerate() {
-            for (r, v) in self.gather(col).enumerate() {
+            let gathered: Vec<f64> = self.gather(col).collect();
+            for (r, v) in self.demean(&gathered).into_iter().enumerate() {
                 phi[(r, c)] = v;
-            }
-        }
-        let base = columns.len();
-        for (r, &i) in self.series.fit_index.iter().enumerate() {
-            if let Some(c) = self.series.zero_segment[i].and_then(|s| self.zero_columns[s as usize])
-            {
-                phi[(r, base + c)] = 1.0;
             }
         }
         phi
@@ -560,7 +602,7 @@ impl Separable for ThermalProblem<'_> {
     fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
         let n = self.y.len();
         let gains = self.gain_columns();
-        let mut d = DMatrix::zeros(n, gains.len() + self.n_zero_columns);
+        let mut d = DMatrix::zeros(n, gains.len());
         let j = self.tau_terms[k];
         if let (_, Some(full)) = self.term_column(j, theta, true) {
             for (c, (_, seg)) in gains.iter().enumerate().filter(|(_, (term, _))| *term == j) {
@@ -568,7 +610,8 @@ impl Separable for ThermalProblem<'_> {
                 if let Some(seg) = seg {
                     self.mask_to(&mut col, *seg);
                 }
-                for (r, v) in self.gather(&col).enumerate() {
+                let gathered: Vec<f64> = self.gather(&col).collect();
+                for (r, v) in self.demean(&gathered).into_iter().enumerate() {
                     d[(r, c)] = v;
                 }
             }
