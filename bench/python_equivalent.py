@@ -39,7 +39,8 @@ have to resample or reach for numba -- this script would be much slower on such 
 ``--project-zeros`` swaps the dense one-hot lstsq for the equivalent Frisch-Waugh-Lovell shortcut
 (demean y and the two lag columns within each segment, lstsq on n x 2): same estimates, much
 faster. It is NOT the default yardstick (the brief asks for the linear parameters by lstsq); it
-is offered to show how much of the Python time is the dense solve.
+is offered to show how much of the Python time is the dense solve. ``--bin-s S`` fits bin means
+like ``dbbcal identify --bin-s S``, so a binned dbbcal run is compared with a binned Python run.
 
     python3 bench/python_equivalent.py CAMPAIGN [--bars B01,B02] [--json OUT] [--compare summary.json]
 """
@@ -140,18 +141,14 @@ def constant_step_runs(dt_ns: np.ndarray) -> list[tuple[int, int]]:
 class BarProblem:
     """One bar's data, as dbbcal's BarSeries + ThermalProblem (base model)."""
 
-    def __init__(self, t_ns, counts, air_c, man, bar, mounts, rezero_ns, plate_c, t0_ns):
+    def __init__(self, t_ns, counts, air_c, man, bar, mounts, rezero_ns, plate_c, t0_ns, bin_s=0.0):
         T0 = man["campaign"]["reference_temperature_c"]
         lengths = {l["id"]: l["mm"] for l in man["plate"]["length"]}
         self.bar = bar["id"]
         self.i_min_mm = bar["fixed_length_mm"]
-        self.n_total = t_ns.size
-        self.dt_ns = np.diff(t_ns)
-        self.runs = constant_step_runs(self.dt_ns)
-        self.u = air_c - T0
         t_rel = t_ns - t0_ns
 
-        # mount of each sample ([from, to)), segment = (mount, rezeros passed)
+        # mount of each sample ([from, to)), zero segment = (mount, rezeros passed), -1 outside mounts
         mount_of = np.full(t_ns.size, -1)
         for k, m in enumerate(mounts):
             lo, hi = np.searchsorted(t_rel, [m["from_ns"] - t0_ns, m["to_ns"] - t0_ns], side="left")
@@ -159,19 +156,50 @@ class BarProblem:
         self.dropped_outside_mounts = int((mount_of < 0).sum())
         length_mm = np.array([lengths[m["length"]] if "length" in m else np.nan for m in mounts] + [np.nan])
         fitted_mount = np.array([("length" in m) and m.get("purpose", "calibration") != "check" for m in mounts] + [False])
-        i_p_mm = np.where(mount_of >= 0, length_mm[mount_of] - self.i_min_mm, 0.0)
-        self.i_p_mm = np.nan_to_num(i_p_mm, nan=0.0)  # device mounts: 0
-        self.fit = np.flatnonzero(fitted_mount[mount_of])
         passed = np.searchsorted(np.sort(np.asarray(rezero_ns, dtype=np.int64)), t_ns, side="right")
-        seg_key = mount_of[self.fit].astype(np.int64) * (len(rezero_ns) + 1) + passed[self.fit]
-        _, self.segment = np.unique(seg_key, return_inverse=True)  # zero segment of each fitted row
-        self.n_segments = int(self.segment.max()) + 1 if self.segment.size else 0
+        seg_full = np.where(mount_of >= 0, mount_of.astype(np.int64) * (len(rezero_ns) + 1) + passed, -1)
 
         y = counts.astype(np.float64) * (bar["resolution_nm"] * 1e-3)
         cte = man["plate"].get("cte_ppm_per_k", 0.0)
         if cte != 0.0 and plate_c is not None:
             on_length = np.isfinite(length_mm[mount_of]) & (mount_of >= 0)
             y = y - np.where(on_length, cte * np.nan_to_num(length_mm[mount_of]) * 1e-3 * (plate_c - T0), 0.0)
+        u = air_c - T0
+
+        if bin_s > 0:
+            # dbbcal's BarSeries::binned: means over bins of bin_s seconds that never cross a mount or
+            # zero-segment boundary. Here the bins are aligned on each run's first sample
+            # (floor((t - t_run) / bin_s)); dbbcal closes a bin at the first sample >= bin_s after its
+            # start -- the same bins for regular sampling, except that dbbcal compares float seconds,
+            # so ~0.2 % of its bins take one sample more (t[i] - t[start] = 59.999999 < 60): on the
+            # sample campaign with 60-s bins that moves tau_S by up to 4e-3 relative (with dbbcal's
+            # exact rule emulated, the two agree to 1e-6).
+            n = t_rel.size
+            change = np.flatnonzero((np.diff(mount_of) != 0) | (np.diff(seg_full) != 0)) + 1
+            run_of = np.zeros(n, dtype=np.int64)
+            run_of[change] = 1
+            run_of = np.cumsum(run_of)
+            run_start = np.concatenate(([0], change))
+            k = (t_rel - t_rel[run_start][run_of]) // int(round(bin_s * 1e9))
+            new_bin = np.ones(n, dtype=bool)
+            new_bin[1:] = (run_of[1:] != run_of[:-1]) | (k[1:] != k[:-1])
+            starts = np.flatnonzero(new_bin)
+            size = np.diff(np.append(starts, n))
+            t_rel = np.add.reduceat(t_rel, starts) // size  # int64 sums: exact mean times (to 1 ns)
+            y = np.add.reduceat(y, starts) / size
+            u = np.add.reduceat(u, starts) / size
+            mount_of, seg_full = mount_of[starts], seg_full[starts]
+
+        self.n_total = t_rel.size
+        self.dt_ns = np.diff(t_rel)
+        self.runs = constant_step_runs(self.dt_ns)
+        self.u = u
+        i_p_mm = np.where(mount_of >= 0, length_mm[mount_of] - self.i_min_mm, 0.0)
+        self.i_p_mm = np.nan_to_num(i_p_mm, nan=0.0)  # device mounts: 0
+        self.fit = np.flatnonzero(fitted_mount[mount_of])
+        _, self.segment = np.unique(seg_full[self.fit], return_inverse=True)  # zero segment of each fitted row
+        self.n_segments = int(self.segment.max()) + 1 if self.segment.size else 0
+
         # Centre each segment on its median, as dbbcal does: raw readings are ~1e5 um, and without
         # this the lstsq rounding noise swamps least_squares' finite-difference Jacobian.
         self.y = y[self.fit]
@@ -237,7 +265,7 @@ def fit_bar(problem: BarProblem, project_zeros: bool) -> dict:
 # ----------------------------------------------------------------------------- pipeline
 
 
-def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, asof: bool = False, log=print) -> dict:
+def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, asof: bool = False, bin_s: float = 0.0, log=print) -> dict:
     t_start = time.perf_counter()
     man = read_manifest(campaign)
     enc = scan(campaign, "encoders", {"time": "time", "bar": "str", "counts": "i64"})
@@ -286,7 +314,7 @@ def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, asof: b
             rezero = rz["time"].to_list()
         mounts = [m for m in mounts_ns if m["bar"] == b]
         mounts.sort(key=lambda m: m["from_ns"])
-        problem = BarProblem(df["time"].to_numpy(), df["counts"].to_numpy(), air, man, bar, mounts, rezero, plate, t0_ns)
+        problem = BarProblem(df["time"].to_numpy(), df["counts"].to_numpy(), air, man, bar, mounts, rezero, plate, t0_ns, bin_s)
         del df
         r = fit_bar(problem, project_zeros)
         r["seconds"] = time.perf_counter() - t_bar
@@ -300,7 +328,8 @@ def run(campaign: str, only_bars: list[str] | None, project_zeros: bool, asof: b
     total = time.perf_counter() - t_start
     return {
         "campaign": man["campaign"]["id"],
-        "mode": ("project-zeros" if project_zeros else "dense-lstsq") + (", as-of temperatures" if asof else ""),
+        "mode": ("project-zeros" if project_zeros else "dense-lstsq") + (", as-of temperatures" if asof else "")
+        + (f", {bin_s:g}-s bins" if bin_s > 0 else ""),
         "read_s": t_read,
         "total_s": total,
         "bars": results,
@@ -337,12 +366,13 @@ def main() -> int:
     ap.add_argument("--bars", help="comma-separated bar ids (default: all); for timing a subset")
     ap.add_argument("--project-zeros", action="store_true", help="FWL shortcut instead of the dense one-hot lstsq")
     ap.add_argument("--asof", action="store_true", help="as-of join of the temperatures (dbbcal before 2026-11-22) instead of interpolation")
+    ap.add_argument("--bin-s", type=float, default=0.0, help="fit on bin means of this many seconds, as dbbcal --bin-s (default 0: every sample)")
     ap.add_argument("--json", help="write the estimates and timings here")
     ap.add_argument("--compare", metavar="SUMMARY_JSON", help="dbbcal summary.json to compare the estimates with")
     ap.add_argument("--rtol", type=float, default=1e-3, help="tolerance of --compare (default 1e-3)")
     args = ap.parse_args()
     only = args.bars.split(",") if args.bars else None
-    out = run(args.campaign, only, args.project_zeros, args.asof)
+    out = run(args.campaign, only, args.project_zeros, args.asof, args.bin_s)
     print(f"total {out['total_s']:.2f} s ({len(out['bars'])} of {out['n_bars_in_campaign']} bars, read {out['read_s']:.2f} s, {out['mode']})")
     if args.json:
         with open(args.json, "w") as f:

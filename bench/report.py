@@ -98,6 +98,13 @@ def main():
 
     w("## Timings")
     w("")
+    bin_s = float(machine.get("bin_s", "0") or 0)
+    if bin_s > 0:
+        w(f"**Fits on {bin_s:g}-s bin means**: `dbbcal identify --bin-s {bin_s:g}` and `python_equivalent.py --bin-s {bin_s:g}` "
+          "(both read and join every sample, then fit bin means). With `BIN_S=0` both fit every sample.")
+    else:
+        w("Fits on every sample (no binning) in both dbbcal and the Python equivalent.")
+    w("")
     w("Wall time and peak RSS from `/usr/bin/time -v` of the whole process (MB = 10^6 bytes). The bare scan's time is its "
       "best of 3 in-process runs (no interpreter start-up), its peak RSS that of the process. `dbbcal identify` is ingest + "
       "identify (it also hashes the inputs and writes summary.json + models.parquet); `dbbcal ingest` alone is shown "

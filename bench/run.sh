@@ -11,7 +11,7 @@
 #      dbbcal ingest, dbbcal identify (= ingest + identify), bench/bare_scan.py (best of 3),
 #    and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
 #    PY_BARS bars, extrapolated to all 12 -- plus the --project-zeros variant on all bars;
-# 5. writes bench/results.md (bench/report.py).
+# 5. writes bench/results.md (bench/report.py); with BIN_S=N, bench/results-binNs.md.
 #
 # The binary is copied to bench/out/dbbcal first, so a rebuild by someone else during the run
 # cannot mix two versions; results.md records a hash of src/ and Cargo.lock.
@@ -24,6 +24,8 @@
 #                              ingest(all 12) + (identify - ingest)(N bars) x 12/N  (labelled in results.md)
 #   PY_BARS=2                  bars of the dense Python run ("all" for every bar; ~4 min a bar on 2 cores)
 #   PY_FAST=1                  also run python_equivalent.py --project-zeros on all bars (0 to skip)
+#   BIN_S=0                    fit on bin means of BIN_S seconds: `dbbcal identify --bin-s BIN_S` and
+#                              `python_equivalent.py --bin-s BIN_S` (0: every sample; e.g. 30 for 1 Hz logs)
 #   SKIP_PYTHON=1              skip the Python equivalent
 #   WAIT_IDLE=1                before each measurement wait (up to 15 min) for the 1-min load < IDLE_LOAD
 #   IDLE_LOAD=0.7
@@ -35,6 +37,7 @@ export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/dbbcal-target}
 SIZES=${SIZES:-quarter half full}
 REPEAT=${REPEAT:-1}
 DBBCAL_BARS=${DBBCAL_BARS:-all}
+BIN_S=${BIN_S:-0}
 PY_BARS=${PY_BARS:-2}
 PY_FAST=${PY_FAST:-1}
 SKIP_PYTHON=${SKIP_PYTHON:-0}
@@ -117,6 +120,7 @@ measure() {
     echo "python	$(python3 -c 'import sys, polars, numpy, scipy; print(sys.version.split()[0], "polars", polars.__version__, "numpy", numpy.__version__, "scipy", scipy.__version__)')"
     echo "dbbcal	$("$BIN" --version), built $(date -u -r "$CARGO_TARGET_DIR/release/dbbcal" +%Y-%m-%dT%H:%M:%SZ), sha256(src/ + Cargo.lock) $(find src Cargo.lock -type f | LC_ALL=C sort | xargs cat | sha256sum | cut -c1-12)"
     echo "date	$(date -u +%Y-%m-%dT%H:%M:%SZ)"
+    echo "bin_s	$BIN_S"
 } >"$OUT/machine.tsv"
 
 say "correctness: python_equivalent.py vs dbbcal identify on the sample campaign"
@@ -138,9 +142,9 @@ for size in $SIZES; do
                 python3 bench/subset_campaign.py "$camp" "$sub" --bars "$bars"
             fi
             measure "dbbcal-ingest-full-sub-$r" full-sub "$BIN" ingest --campaign "$sub" --out "$OUT/res-full-sub-ingest"
-            measure "dbbcal-identify-full-sub-$r" full-sub "$BIN" identify --campaign "$sub" --out "$OUT/res-full-sub-identify"
+            measure "dbbcal-identify-full-sub-$r" full-sub "$BIN" identify --campaign "$sub" --out "$OUT/res-full-sub-identify" --bin-s "$BIN_S"
         else
-            measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify"
+            measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify" --bin-s "$BIN_S"
         fi
     done
 done
@@ -155,14 +159,16 @@ if [ "$SKIP_PYTHON" != 1 ]; then
     fi
     say "timing the Python equivalent (dense lstsq) on ${bars:-all bars}"
     measure "python-dense-full" full python3 bench/python_equivalent.py "$camp" ${bars:+--bars "$bars"} \
-        --json "$OUT/py-dense-full.json" --compare "$FULL_SUMMARY"
+        --bin-s "$BIN_S" --json "$OUT/py-dense-full.json" --compare "$FULL_SUMMARY"
     if [ "$PY_FAST" = 1 ]; then
         say "timing the Python equivalent (--project-zeros) on all bars"
         measure "python-fwl-full" full python3 bench/python_equivalent.py "$camp" --project-zeros \
-            --json "$OUT/py-fwl-full.json" --compare "$FULL_SUMMARY"
+            --bin-s "$BIN_S" --json "$OUT/py-fwl-full.json" --compare "$FULL_SUMMARY"
     fi
 fi
 
-say "writing bench/results.md"
-python3 bench/report.py --out-dir "$OUT" --results bench/results.md --dbbcal-bars "$DBBCAL_BARS"
-cat bench/results.md
+RESULTS=bench/results.md
+[ "$BIN_S" = 0 ] || RESULTS=bench/results-bin${BIN_S}s.md
+say "writing $RESULTS"
+python3 bench/report.py --out-dir "$OUT" --results "$RESULTS" --dbbcal-bars "$DBBCAL_BARS"
+cat "$RESULTS"
