@@ -33,6 +33,12 @@ pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()
         if d.ledger.len() > 1 {
             report::render_ledger(&ledger(&d.ledger), &dir.join("ledger.png"))?;
         }
+        for bl in d.bar_ledgers.iter().filter(|bl| bl.steps.len() > 1) {
+            report::render_ledger(
+                &bar_ledger(bl),
+                &dir.join(format!("ledger-{}.png", file_safe(&bl.bar))),
+            )?;
+        }
     }
     if let Some(ba) = &results.before_after {
         report::render_before_after(&before_after(ba), &dir.join("before-after.png"))?;
@@ -389,6 +395,22 @@ fn ledger(steps: &[LedgerStep]) -> report::LedgerFigure {
             })
             .collect(),
         fleet_rms_um: steps.iter().map(|s| s.fleet_rms_um).collect(),
+        noise_um: None,
+        log_y: true,
+    }
+}
+
+/// One bar's own forward selection: its RMS after each of its own steps.
+fn bar_ledger(bl: &crate::diagnose::BarLedger) -> report::LedgerFigure {
+    report::LedgerFigure {
+        title: format!("Forward selection for bar {} alone", bl.bar),
+        subtitle: "Each step adds the candidate with the best ΔBIC on this bar that is significant on this bar (likelihood-ratio test, Bonferroni over candidates).".into(),
+        steps: bl.steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
+        bars: vec![report::NamedValues {
+            name: bl.bar.clone(),
+            values: bl.steps.iter().map(|s| s.fleet_rms_um).collect(),
+        }],
+        fleet_rms_um: Vec::new(),
         noise_um: None,
         log_y: true,
     }

@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 use crate::fit::{self, Fit, FitError, FitOptions};
-use crate::model::{Effect, ModelError, ThermalProblem};
+use crate::model::{base_effects, Effect, ModelError, ThermalProblem};
 use crate::series::BarSeries;
 
 /// One estimated parameter.
@@ -75,7 +75,33 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 }
 
 /// Fit `effects` to one bar, starting the time constants that `start` names from its values.
+///
+/// Without a `start`, a model with effects beyond the leading base effects is also fitted in
+/// stages (the model without its last effect first, then the full model started from it), and
+/// the better of the two fits is kept. A lagged channel's time constant started from its
+/// default can trap a direct fit in a local minimum worse than the smaller model; the staged
+/// fit cannot be worse than the smaller model (the new gain may stay zero), so adding an effect
+/// never raises the RMS, and `--add-effect X` finds at least what the diagnosis reported.
 pub fn identify_from(
+    series: &BarSeries,
+    effects: &[Effect],
+    start: Option<&BarModel>,
+) -> Result<BarModel, IdentifyError> {
+    if start.is_some() {
+        return fit_from(series, effects, start);
+    }
+    let direct = fit_from(series, effects, None);
+    let Some(smaller) = staged_start(series, effects) else {
+        return direct;
+    };
+    match (direct, fit_from(series, effects, Some(&smaller))) {
+        (Ok(d), Ok(s)) => Ok(if s.rms_um < d.rms_um { s } else { d }),
+        (Ok(d), Err(_)) => Ok(d),
+        (Err(_), staged) => staged,
+    }
+}
+
+fn fit_from(
     series: &BarSeries,
     effects: &[Effect],
     start: Option<&BarModel>,
@@ -100,6 +126,17 @@ pub fn identify_from(
     let mut model = to_bar_model(series, &problem, &fit);
     canonical_thermal_paths(&mut model);
     Ok(model)
+}
+
+/// The model without the last of `effects`, if `effects` goes beyond its leading base effects
+/// and that smaller model can be fitted.
+fn staged_start(series: &BarSeries, effects: &[Effect]) -> Option<BarModel> {
+    let base = base_effects();
+    let leading_base = effects.iter().take_while(|e| base.contains(e)).count();
+    if effects.len() <= leading_base.max(1) {
+        return None;
+    }
+    identify_from(series, &effects[..effects.len() - 1], None).ok()
 }
 
 /// Two lags on `I_min` (`fixed_part` and `second_path`) are the same model with their labels

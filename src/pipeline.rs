@@ -429,6 +429,8 @@ pub struct Diagnosis {
     pub candidates: Vec<Candidate>,
     pub unavailable: Vec<diagnose::Unavailable>,
     pub ledger: Vec<LedgerStep>,
+    /// Each bar's own forward selection, same order as `bars`.
+    pub bar_ledgers: Vec<diagnose::BarLedger>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -989,11 +991,24 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
     let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
     let (ledger, _) =
         diagnose::forward_selection(&series, models, &candidates, plan.diagnose.forward_steps);
+    let bar_ledgers = bars
+        .par_iter()
+        .zip(&diagnoses)
+        .map(|(o, d)| {
+            diagnose::forward_selection_of_bar(
+                &o.series,
+                o.model.clone(),
+                d,
+                plan.diagnose.forward_steps,
+            )
+        })
+        .collect();
     Diagnosis {
         bars: diagnoses,
         candidates,
         unavailable,
         ledger,
+        bar_ledgers,
     }
 }
 
@@ -1008,7 +1023,10 @@ pub struct DiagnosisRecord<'a> {
     pub candidates: &'a [Candidate],
     /// Candidates that could not be fitted on any bar, with the reason.
     pub unavailable: &'a [diagnose::Unavailable],
+    /// Fleet-wide forward selection: one model for every bar.
     pub ledger: &'a [LedgerStep],
+    /// Each bar's own forward selection.
+    pub bar_ledgers: &'a [diagnose::BarLedger],
 }
 
 #[derive(Debug, Serialize)]
@@ -1069,5 +1087,6 @@ pub fn diagnosis_record<'a>(
         candidates: &d.candidates,
         unavailable: &d.unavailable,
         ledger: &d.ledger,
+        bar_ledgers: &d.bar_ledgers,
     }
 }

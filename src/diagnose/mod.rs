@@ -6,7 +6,10 @@
 //! that explain the most, is added in turn and fitted; candidates are ranked by the fleet's
 //! ΔBIC with a likelihood-ratio test whose statistic is deflated by the extended model's residual
 //! correlation time (so autocorrelated residuals do not make everything "significant").
-//! [`forward_selection`] repeats that, adding the best significant candidate until none is left.
+//! [`forward_selection`] repeats that, adding the best significant candidate until none is left;
+//! [`forward_selection_of_bar`] does the same for one bar on its own channels and tests (bars
+//! that are different physical objects, like the displacement axes of a machine tool, need
+//! different terms).
 //!
 //! Everything here is computation on plain data; the pipeline writes and draws the results.
 
@@ -23,8 +26,11 @@ use crate::model::{channels, Effect, ThermalProblem, Transform, CATALOGUE};
 use crate::series::BarSeries;
 use residual::{residual_stats, ResidualStats};
 
-/// Significance level of one candidate before the Bonferroni correction over candidates.
-pub const ALPHA: f64 = 0.01;
+/// Family-wise significance level of one selection step: each candidate is tested at
+/// `ALPHA / number of candidates` (Bonferroni). 5 %, the level of CTSM-R's likelihood-ratio
+/// tests; the statistic is already deflated by the residual correlation time, so autocorrelated
+/// residuals do not make everything significant (the base-only campaign raises no alarm).
+pub const ALPHA: f64 = 0.05;
 /// How many of the best-explaining channels get a generic `lag:` candidate.
 pub const CHANNEL_CANDIDATES: usize = 5;
 
@@ -79,9 +85,10 @@ pub struct Candidate {
 pub fn diagnose_bar(series: &BarSeries, model: &BarModel) -> BarDiagnosis {
     let y: Vec<f64> = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
     let stats = residual_stats(&y, &model.residuals_um, model.n_params);
+    let directions = model_directions(series, model);
     let mut channels: Vec<ChannelScore> = channels::available(series)
         .into_iter()
-        .filter_map(|ch| score_channel(series, &model.residuals_um, &ch))
+        .filter_map(|ch| score_channel(series, &model.residuals_um, directions.as_ref(), &ch))
         .collect();
     channels.sort_by(|a, b| {
         b.explained_fraction
@@ -98,8 +105,22 @@ pub fn diagnose_bar(series: &BarSeries, model: &BarModel) -> BarDiagnosis {
     }
 }
 
-/// Variance of the residual explained by the channel's best lag (zeros per segment refitted).
-fn score_channel(series: &BarSeries, residual: &[f64], channel: &str) -> Option<ChannelScore> {
+/// The directions a refit of `model` can move in on the fitted samples: its Jacobian in all its
+/// parameters (zeros projected out), `None` if it cannot be formed.
+fn model_directions(series: &BarSeries, model: &BarModel) -> Option<nalgebra::DMatrix<f64>> {
+    let problem = ThermalProblem::new(series, &model.effects).ok()?;
+    fit::jacobian_at(&problem, &model.theta)
+}
+
+/// Fraction of the residual variance removed by the channel's best lag when the model is
+/// refitted with it (linearised: the channel's column is taken orthogonal to the model's
+/// Jacobian `directions`; zeros per segment refitted). Without `directions`, the residual alone.
+fn score_channel(
+    series: &BarSeries,
+    residual: &[f64],
+    directions: Option<&nalgebra::DMatrix<f64>>,
+    channel: &str,
+) -> Option<ChannelScore> {
     let effect = Effect::Channel {
         transform: Transform::Lag,
         channel: channel.to_string(),
@@ -113,7 +134,12 @@ fn score_channel(series: &BarSeries, residual: &[f64], channel: &str) -> Option<
         absorbed_params: problem.n_zeros(),
         ..FitOptions::default()
     };
-    let fit = fit::fit(&problem, &problem.theta0(), &options).ok()?;
+    let theta0 = problem.theta0();
+    let fit = match directions {
+        Some(d) => fit::fit(&fit::Orthogonalised::new(&problem, d), &theta0, &options),
+        None => fit::fit(&problem, &theta0, &options),
+    }
+    .ok()?;
     let explained_fraction = if rss0 > 0.0 {
         (1.0 - fit.rss / rss0).max(0.0)
     } else {
@@ -409,6 +435,28 @@ pub fn forward_selection(
         ));
     }
     (ledger, models)
+}
+
+/// One bar's own forward selection.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct BarLedger {
+    pub bar: String,
+    pub steps: Vec<LedgerStep>,
+}
+
+/// Forward selection on one bar alone: candidates from its own channel ranking (`diagnosis`
+/// of `model`), significance from its own likelihood-ratio tests.
+pub fn forward_selection_of_bar(
+    series: &BarSeries,
+    model: BarModel,
+    diagnosis: &BarDiagnosis,
+    max_steps: usize,
+) -> BarLedger {
+    let candidates = candidate_effects(&model.effects, std::slice::from_ref(diagnosis));
+    let (first, _) = evaluate_candidates(&[(series, &model)], &candidates);
+    let bar = model.bar.clone();
+    let (steps, _) = forward_selection(&[series], vec![model], &first, max_steps);
+    BarLedger { bar, steps }
 }
 
 fn ledger_step(added: String, models: &[BarModel], delta_bic: f64, p_value: f64) -> LedgerStep {
