@@ -720,3 +720,6 @@ impl Separable for ThermalProblem<'_> {
         Some((60f64.ln(), (30.0 * 86400f64).ln()))
     }
 }
+
+#[cfg(test)]
+mod tests;
