@@ -191,7 +191,7 @@ impl BarSeries {
             .iter()
             .map(|&c| c as f64 * bar.resolution_nm * 1e-3)
             .collect();
-        subtract_plate_expansion(campaign, &log, &mount_of, &mounts, &mut y_um);
+        subtract_plate_expansion(campaign, &log, &t_s, &mount_of, &mounts, &mut y_um);
         let segment_offset_um = centre_segments(&mut y_um, &zero_segment, n_zero_segments);
         let fit_index: Vec<usize> = (0..t_s.len())
             .filter(|&i| mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted()))
@@ -454,10 +454,12 @@ fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f
 }
 
 /// Remove the known plate expansion from the reading (only when the manifest gives a CTE and
-/// a plate sensor exists).
+/// a plate sensor exists), with the plate temperature the `plate_expansion` term uses
+/// ([`crate::model::plate_temperature`]: the sensor smoothed without delay).
 fn subtract_plate_expansion(
     campaign: &Campaign,
     log: &BarLog,
+    t_s: &[f64],
     mount_of: &[Option<u32>],
     mounts: &[MountSpan],
     y_um: &mut [f64],
@@ -476,6 +478,7 @@ fn subtract_plate_expansion(
     let Some(tp) = log.celsius.get(&plate.id) else {
         return;
     };
+    let tp = crate::model::plate_temperature(t_s, tp);
     for (i, y) in y_um.iter_mut().enumerate() {
         if let Some(mm) = mount_of[i].and_then(|m| mounts[m as usize].length_mm) {
             *y -= cte * mm * 1e-3 * (tp[i] - campaign.reference_temperature_c);

@@ -2,8 +2,9 @@
 //!
 //! A model is a list of [`Effect`]s (the base model is `fixed_part` + `scale`, `physics.md`'s
 //! first-order model) plus one zero per zero segment. Each effect contributes basis columns
-//! (linear gains) and at most one time constant; [`ThermalProblem`] assembles them for the one
-//! fitting engine ([`crate::fit`]). Effects are named by strings — exactly the strings the
+//! (linear gains) and at most one time constant of its own; a column may also share another
+//! effect's time constant (`air_gradient` acts through the base paths with `tau_R` and `tau_S`).
+//! [`ThermalProblem`] assembles them for the one fitting engine ([`crate::fit`]). Effects are named by strings — exactly the strings the
 //! diagnosis prints and `--add-effect` accepts (see [`Effect::parse`]).
 //!
 //! Sign convention (`physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
@@ -52,9 +53,16 @@ pub enum Effect {
     HeadHeating,
     /// A second thermal path on `I_min` with its own time constant (ppm/K, tau).
     SecondPath,
-    /// Gradient between the other air sensors and the bar's own, seen through a lag on `I_min`.
+    /// The bar's effective air temperature is its own sensor plus a share of the difference to
+    /// the other air sensors, `T_own + w dT_grad` (`physics.md`, "sensor placement"). Being
+    /// linear, the lag splits: `-(alpha I_min lag(T_own; tau_R) + beta I_p lag(T_own; tau_S))`
+    /// gains `-(g_R I_min lag(dT_grad; tau_R) + g_S I_p lag(dT_grad; tau_S))` with
+    /// `g_R = alpha w_R`, `g_S = beta w_S` (ppm/K per K of sensor difference; `w_R = w_S` when the
+    /// whole bar sits in the same air). Two linear gains, the base paths' time constants.
     AirGradient,
-    /// Plate expansion: plate temperature times plate length (ppm/K).
+    /// Plate expansion (`physics.md`, "plate expansion"; `campaign-format.md`: true distance
+    /// `mm (1 + cte (T_plate - T0))`): `+cte L (T_plate - T0)` on plate mounts (ppm/K), with
+    /// `T_plate` the plate sensor smoothed without delay ([`plate_temperature`]).
     PlateExpansion,
     /// Exponential settling after each mount (µm, tau).
     Settling,
@@ -160,14 +168,15 @@ impl Effect {
         }
     }
 
-    /// Name of the linear gain and its unit.
+    /// Name of the linear gain and its unit (for `air_gradient`, which has two gains, the gain on
+    /// the fixed part; see [`Effect::gain_names`]).
     pub fn gain_name(&self) -> String {
         match self {
             Effect::FixedPart => "alpha_ppm_per_k".into(),
             Effect::Scale => "beta_ppm_per_k".into(),
             Effect::HeadHeating => "head_growth_um".into(),
             Effect::SecondPath => "alpha2_ppm_per_k".into(),
-            Effect::AirGradient => "gradient_ppm_per_k".into(),
+            Effect::AirGradient => "gradient_fixed_ppm_per_k".into(),
             Effect::PlateExpansion => "plate_cte_ppm_per_k".into(),
             Effect::Settling => "settling_um".into(),
             Effect::Creep => "creep_um_per_day".into(),
@@ -177,16 +186,28 @@ impl Effect {
         }
     }
 
-    /// Name of the time constant, if the effect has one.
+    /// Names of the effect's linear gains, one per column it adds (`settling`, whose amplitudes
+    /// are per zero segment, is named `settling_K_um` by the problem).
+    pub fn gain_names(&self) -> Vec<String> {
+        match self {
+            Effect::AirGradient => vec![
+                "gradient_fixed_ppm_per_k".into(),
+                "gradient_scale_ppm_per_k".into(),
+            ],
+            _ => vec![self.gain_name()],
+        }
+    }
+
+    /// Name of the effect's own time constant, if it has one (`air_gradient` shares the base
+    /// paths' `tau_r_s` and `tau_s_s`).
     pub fn tau_name(&self) -> Option<String> {
         match self {
             Effect::FixedPart => Some("tau_r_s".into()),
             Effect::Scale => Some("tau_s_s".into()),
             Effect::HeadHeating => Some("tau_head_s".into()),
             Effect::SecondPath => Some("tau_2_s".into()),
-            Effect::AirGradient => Some("tau_gradient_s".into()),
             Effect::Settling => Some("tau_settling_s".into()),
-            Effect::PlateExpansion | Effect::Creep => None,
+            Effect::AirGradient | Effect::PlateExpansion | Effect::Creep => None,
             Effect::Channel {
                 transform: Transform::Level,
                 ..
@@ -204,22 +225,26 @@ impl Effect {
             Effect::Scale => 3600.0,
             Effect::HeadHeating => 900.0,
             Effect::SecondPath => 10800.0,
-            Effect::AirGradient => 1800.0,
             Effect::Settling => 3600.0,
             Effect::Channel { tau0_s, .. } => tau0_s.unwrap_or(1800.0),
-            Effect::PlateExpansion | Effect::Creep => f64::NAN,
+            Effect::AirGradient | Effect::PlateExpansion | Effect::Creep => f64::NAN,
         }
     }
 }
 
-/// An effect bound to one bar's data: its input channel and its column scale.
+/// One column source of an effect bound to one bar's data: its input channel and its column
+/// scale. An effect binds to one term, `air_gradient` to one per base path.
 #[derive(Debug, Clone)]
 struct BoundTerm {
     effect: Effect,
+    /// Name of the term's gain (with its unit).
+    gain_name: String,
     input: Channel,
     /// Multiplies the (lagged) input per sample, e.g. `-I_min / 1000`; `None` = 1.
     scale: Option<Vec<f64>>,
     kind: TermKind,
+    /// The term uses the time constant of another effect's term instead of its own.
+    shares_tau_of: Option<Effect>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -234,9 +259,13 @@ enum TermKind {
 /// One bar's thermal model, ready for the fitting engine.
 pub struct ThermalProblem<'a> {
     series: &'a BarSeries,
+    effects: Vec<Effect>,
     terms: Vec<BoundTerm>,
-    /// Indices (into `terms`) of the terms with a time constant, in `theta` order.
+    /// Indices (into `terms`) of the terms with a time constant of their own, in `theta` order.
     tau_terms: Vec<usize>,
+    /// Per term: index (into `terms`) of the term whose time constant it uses (itself for a
+    /// term with its own; `None` for a term without one).
+    tau_source: Vec<Option<usize>>,
     y: Vec<f64>,
     /// Zero column of each zero segment: only segments with fitted samples get one (a check
     /// mount is a zero segment without fitted samples; its column would be all zeros).
@@ -252,24 +281,39 @@ pub enum ModelError {
         effect: String,
         source: ChannelError,
     },
+    #[error("effect {effect} acts through the base paths: add fixed_part or scale to the model")]
+    NoBasePath { effect: String },
 }
 
 impl<'a> ThermalProblem<'a> {
     pub fn new(series: &'a BarSeries, effects: &[Effect]) -> Result<Self, ModelError> {
-        let terms = effects
-            .iter()
-            .map(|e| {
-                bind(series, e).map_err(|source| ModelError::Channel {
-                    effect: e.name(),
-                    source,
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let tau_terms = terms
+        let mut terms = Vec::with_capacity(effects.len() + 1);
+        for e in effects {
+            let bound = bind(series, e, effects).map_err(|source| ModelError::Channel {
+                effect: e.name(),
+                source,
+            })?;
+            if bound.is_empty() {
+                return Err(ModelError::NoBasePath { effect: e.name() });
+            }
+            terms.extend(bound);
+        }
+        let tau_terms: Vec<usize> = terms
             .iter()
             .enumerate()
-            .filter(|(_, t)| t.effect.tau_name().is_some())
+            .filter(|(_, t)| t.shares_tau_of.is_none() && t.effect.tau_name().is_some())
             .map(|(i, _)| i)
+            .collect();
+        let tau_source = terms
+            .iter()
+            .enumerate()
+            .map(|(j, t)| match &t.shares_tau_of {
+                None => tau_terms.contains(&j).then_some(j),
+                Some(owner) => tau_terms
+                    .iter()
+                    .copied()
+                    .find(|&i| terms[i].effect == *owner),
+            })
             .collect();
         let y_raw: Vec<f64> = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
         let mut fitted = vec![false; series.n_zero_segments];
@@ -290,8 +334,10 @@ impl<'a> ThermalProblem<'a> {
             .collect();
         let mut problem = ThermalProblem {
             series,
+            effects: effects.to_vec(),
             terms,
             tau_terms,
+            tau_source,
             y: Vec::new(),
             zero_columns,
             n_zero_columns,
@@ -371,7 +417,7 @@ impl<'a> ThermalProblem<'a> {
     }
 
     pub fn effects(&self) -> Vec<Effect> {
-        self.terms.iter().map(|t| t.effect.clone()).collect()
+        self.effects.clone()
     }
 
     /// Zero column (after the gains) of each zero segment; `None` for a segment without fitted
@@ -406,7 +452,7 @@ impl<'a> ThermalProblem<'a> {
             .into_iter()
             .map(|(j, k)| match k {
                 Some(k) => format!("settling_{k}_um"),
-                None => self.terms[j].effect.gain_name(),
+                None => self.terms[j].gain_name.clone(),
             })
             .collect()
     }
@@ -438,12 +484,13 @@ impl<'a> ThermalProblem<'a> {
             .collect()
     }
 
-    /// Time constant of term `j`, kept within 1 s .. 1e9 s so that a solver wandering off to an
-    /// unidentifiable extreme never produces infinities.
+    /// Time constant of term `j` (its own or the one it shares), kept within 1 s .. 1e9 s so
+    /// that a solver wandering off to an unidentifiable extreme never produces infinities.
     fn tau_of(&self, j: usize, theta: &[f64]) -> Option<f64> {
+        let owner = self.tau_source[j]?;
         self.tau_terms
             .iter()
-            .position(|&i| i == j)
+            .position(|&i| i == owner)
             .map(|k| theta[k].clamp(0.0, 1e9f64.ln()).exp())
     }
 
@@ -505,26 +552,77 @@ fn settling(series: &BarSeries, tau: f64, with_derivative: bool) -> (Vec<f64>, O
     (x, d)
 }
 
-/// Bind an effect to a bar's data: find its input channel and its per-sample scale.
-fn bind(series: &BarSeries, effect: &Effect) -> Result<BoundTerm, ChannelError> {
+/// Time constant of the zero-phase smoothing of the plate sensor, seconds.
+pub const PLATE_SMOOTHING_S: f64 = 300.0;
+
+/// The plate temperature the expansion follows: its sensor smoothed forward and backward with
+/// [`PLATE_SMOOTHING_S`] ([`lag::zero_phase_lag`]).
+///
+/// The plate is a massive, slow body (hours), its sensor noisy. Taken raw, the sensor's white
+/// noise is an error in the regressor: it biases the expansion gain towards zero, and with it
+/// every gain correlated with it (the plate follows the same air as the bar's lags, so alpha and
+/// beta take several standard uncertainties of bias). A causal lag would delay the plate by its
+/// time constant and is not separable from the bar's own lags; smoothing both ways removes the
+/// noise without delay (a daily cycle keeps 99.98 % of its amplitude).
+/// A gap in the readings (non-finite values) is left as it is: smoothing would spread it.
+pub fn plate_temperature(t_s: &[f64], sensor_c: &[f64]) -> Vec<f64> {
+    if sensor_c.iter().any(|v| !v.is_finite()) {
+        return sensor_c.to_vec();
+    }
+    lag::zero_phase_lag(t_s, sensor_c, PLATE_SMOOTHING_S)
+}
+
+/// Bind an effect to a bar's data: its input channel and per-sample scale, one term per column
+/// (`air_gradient`: one per base path of `model`, none when the model has neither).
+fn bind(
+    series: &BarSeries,
+    effect: &Effect,
+    model: &[Effect],
+) -> Result<Vec<BoundTerm>, ChannelError> {
     let t0 = series.reference_temperature_c;
-    let minus_i_min = Some(vec![-series.bar.fixed_length_mm * 1e-3; series.t_s.len()]);
+    let minus_i_min = || Some(vec![-series.bar.fixed_length_mm * 1e-3; series.t_s.len()]);
+    let minus_i_p = || Some(series.i_p_mm().iter().map(|ip| -ip * 1e-3).collect());
     let air = || Channel::Sampled(series.air_c.iter().map(|t| t - t0).collect());
-    let (input, scale, kind) = match effect {
-        Effect::FixedPart | Effect::SecondPath => (air(), minus_i_min, TermKind::Lag),
-        Effect::Scale => (
-            air(),
-            Some(series.i_p_mm().iter().map(|ip| -ip * 1e-3).collect()),
-            TermKind::Lag,
-        ),
-        Effect::HeadHeating => (
+    let term = |input, scale, kind| BoundTerm {
+        effect: effect.clone(),
+        gain_name: effect.gain_name(),
+        input,
+        scale,
+        kind,
+        shares_tau_of: None,
+    };
+    let single = match effect {
+        Effect::FixedPart | Effect::SecondPath => term(air(), minus_i_min(), TermKind::Lag),
+        Effect::Scale => term(air(), minus_i_p(), TermKind::Lag),
+        Effect::HeadHeating => term(
             channels::event_channel(series, "head_power")?,
             Some(vec![-1.0; series.t_s.len()]),
             TermKind::Lag,
         ),
-        Effect::AirGradient => (channels::air_gradient(series)?, minus_i_min, TermKind::Lag),
+        Effect::AirGradient => {
+            // `physics.md` model with `T = T_own + w dT_grad`: the gradient's share through each
+            // base path, on that path's length and with that path's time constant.
+            let gradient = channels::air_gradient(series)?;
+            let names = effect.gain_names();
+            let paths = [
+                (Effect::FixedPart, minus_i_min(), &names[0]),
+                (Effect::Scale, minus_i_p(), &names[1]),
+            ];
+            return Ok(paths
+                .into_iter()
+                .filter(|(path, ..)| model.contains(path))
+                .map(|(path, scale, name)| BoundTerm {
+                    gain_name: name.clone(),
+                    shares_tau_of: Some(path),
+                    ..term(gradient.clone(), scale, TermKind::Lag)
+                })
+                .collect());
+        }
         Effect::PlateExpansion => {
-            let plate = channels::plate_temperature(series)?;
+            // `campaign-format.md`: the true distance is `mm (1 + cte (T_plate - T0))`, so an
+            // undeclared expansion raises the reading by `cte L (T_plate - T0)` (µm: mm · ppm/K ·
+            // K · 1e-3).
+            let plate = plate_temperature(&series.t_s, &channels::plate_temperature(series)?);
             let length: Vec<f64> = series
                 .mount_of
                 .iter()
@@ -534,18 +632,18 @@ fn bind(series: &BarSeries, effect: &Effect) -> Result<BoundTerm, ChannelError> 
                         * 1e-3
                 })
                 .collect();
-            (
+            term(
                 Channel::Sampled(plate.iter().map(|t| t - t0).collect()),
                 Some(length),
                 TermKind::Level,
             )
         }
-        Effect::Settling => (
+        Effect::Settling => term(
             Channel::Sampled(vec![0.0; series.t_s.len()]),
             None,
             TermKind::Settling,
         ),
-        Effect::Creep => (
+        Effect::Creep => term(
             Channel::Sampled(series.t_s.iter().map(|t| t / 86400.0).collect()),
             None,
             TermKind::Level,
@@ -559,15 +657,10 @@ fn bind(series: &BarSeries, effect: &Effect) -> Result<BoundTerm, ChannelError> 
                 Transform::Rate => TermKind::Rate,
                 Transform::Level => TermKind::Level,
             };
-            (input, None, kind)
+            term(input, None, kind)
         }
     };
-    Ok(BoundTerm {
-        effect: effect.clone(),
-        input,
-        scale,
-        kind,
-    })
+    Ok(vec![single])
 }
 
 impl Separable for ThermalProblem<'_> {
@@ -603,8 +696,12 @@ impl Separable for ThermalProblem<'_> {
         let n = self.y.len();
         let gains = self.gain_columns();
         let mut d = DMatrix::zeros(n, gains.len());
-        let j = self.tau_terms[k];
-        if let (_, Some(full)) = self.term_column(j, theta, true) {
+        let owner = self.tau_terms[k];
+        // Every term on this time constant: the owner and the terms sharing it.
+        for j in (0..self.terms.len()).filter(|&j| self.tau_source[j] == Some(owner)) {
+            let (_, Some(full)) = self.term_column(j, theta, true) else {
+                continue;
+            };
             for (c, (_, seg)) in gains.iter().enumerate().filter(|(_, (term, _))| *term == j) {
                 let mut col = full.clone();
                 if let Some(seg) = seg {
@@ -623,3 +720,6 @@ impl Separable for ThermalProblem<'_> {
         Some((60f64.ln(), (30.0 * 86400f64).ln()))
     }
 }
+
+#[cfg(test)]
+mod tests;

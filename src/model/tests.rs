@@ -1,0 +1,183 @@
+//! Unit tests of the model terms that do more than one column per effect or share a time
+//! constant (`air_gradient`), and of the plate term's input.
+
+use std::collections::BTreeMap;
+
+use super::*;
+use crate::campaign::{Bar, Purpose};
+use crate::fit::Separable;
+use crate::series::MountSpan;
+
+const I_MIN: f64 = 230.0;
+
+/// Three days at 60 s on three one-day plate mounts (I_p 20, 170, 95 mm); T1 (the bar's own
+/// sensor) and T2 (above it, a gradient with its own rhythm). `y_um`: the bar seeing
+/// `T1 + w (T2 - T1)` through both paths (`physics.md`), noise-free.
+fn gradient_bar(w: f64) -> BarSeries {
+    let n = 3 * 1440;
+    let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 60.0).collect();
+    let tau = std::f64::consts::TAU;
+    let t1: Vec<f64> = t_s
+        .iter()
+        .map(|t| 20.3 + 0.5 * (tau * t / 86400.0).sin() + 0.1 * (tau * t / 1500.0).sin())
+        .collect();
+    let t2: Vec<f64> = t1
+        .iter()
+        .zip(&t_s)
+        .map(|(a, t)| a + 0.3 + 0.2 * (tau * t / 30000.0).cos() + 0.05 * (tau * t / 4000.0).sin())
+        .collect();
+    let mounts: Vec<MountSpan> = [250.0, 400.0, 325.0]
+        .iter()
+        .enumerate()
+        .map(|(k, mm)| MountSpan {
+            campaign_index: k,
+            length_id: Some(format!("L{k}")),
+            length_mm: Some(*mm),
+            i_p_mm: mm - I_MIN,
+            tilt_deg: 60.0,
+            purpose: Purpose::Calibration,
+            device: None,
+            from_s: k as f64 * 86400.0,
+            to_s: (k + 1) as f64 * 86400.0,
+        })
+        .collect();
+    let seen: Vec<f64> = t1
+        .iter()
+        .zip(&t2)
+        .map(|(a, b)| a + w * (b - a) - 20.0)
+        .collect();
+    let (lr, _) = lag::lag(&t_s, &seen, 3000.0, false);
+    let (ls, _) = lag::lag(&t_s, &seen, 1500.0, false);
+    let y_um: Vec<f64> = (0..n)
+        .map(|i| {
+            let m = (i / 1440).min(2);
+            -(2.0 * I_MIN * lr[i] + 0.6 * mounts[m].i_p_mm * ls[i]) * 1e-3 + 0.1 * m as f64
+        })
+        .collect();
+    let bar = Bar {
+        id: "G".into(),
+        resolution_nm: 1.0,
+        fixed_length_mm: I_MIN,
+        sensor: Some("T1".into()),
+    };
+    let mut s = BarSeries::from_vectors(bar, 20.0, t_s, y_um, t1.clone(), mounts);
+    s.celsius = BTreeMap::from([("T1".to_string(), t1), ("T2".to_string(), t2)]);
+    s.air_sensor_ids = vec!["T1".into(), "T2".into()];
+    s
+}
+
+fn effects(names: &[&str]) -> Vec<Effect> {
+    names.iter().map(|n| Effect::parse(n).unwrap()).collect()
+}
+
+#[test]
+fn air_gradient_has_two_gains_on_the_base_time_constants() {
+    let s = gradient_bar(0.5);
+    let p = ThermalProblem::new(&s, &effects(&["fixed_part", "scale", "air_gradient"])).unwrap();
+    assert_eq!(
+        p.gain_names(),
+        [
+            "alpha_ppm_per_k",
+            "beta_ppm_per_k",
+            "gradient_fixed_ppm_per_k",
+            "gradient_scale_ppm_per_k"
+        ]
+    );
+    assert_eq!(p.nonlinear_names(), ["ln_tau_r_s", "ln_tau_s_s"]);
+    assert_eq!(Effect::AirGradient.tau_name(), None);
+    assert_eq!(
+        Effect::parse("air_gradient").unwrap().name(),
+        "air_gradient"
+    );
+
+    // The shared time constants move the gradient's columns too: the derivative matches finite
+    // differences in every column.
+    let theta = [2500f64.ln(), 1800f64.ln()];
+    let h = 1e-6;
+    for k in 0..2 {
+        let d = p.basis_derivative(&theta, k);
+        let (mut tp, mut tm) = (theta, theta);
+        tp[k] += h;
+        tm[k] -= h;
+        let fd = (p.basis(&tp) - p.basis(&tm)) / (2.0 * h);
+        let scale = fd.amax().max(1e-12);
+        assert!((d.clone() - &fd).amax() < 1e-5 * scale, "theta {k}");
+        // The gradient column of this path depends on the time constant, the other does not.
+        let (own, other) = if k == 0 { (2, 3) } else { (3, 2) };
+        assert!(
+            d.column(own).amax() > 1e-6 * scale,
+            "theta {k}: column {own}"
+        );
+        assert_eq!(d.column(other).amax(), 0.0, "theta {k}: column {other}");
+    }
+}
+
+#[test]
+fn air_gradient_recovers_the_weight_through_both_paths() {
+    let s = gradient_bar(0.5);
+    let m =
+        crate::identify::identify(&s, &effects(&["fixed_part", "scale", "air_gradient"])).unwrap();
+    let v = |n: &str| m.value(n).unwrap();
+    assert!(m.rms_um < 1e-5, "rms {}", m.rms_um);
+    for (name, truth) in [
+        ("alpha_ppm_per_k", 2.0),
+        ("beta_ppm_per_k", 0.6),
+        ("gradient_fixed_ppm_per_k", 2.0 * 0.5),
+        ("gradient_scale_ppm_per_k", 0.6 * 0.5),
+        ("tau_r_s", 3000.0),
+        ("tau_s_s", 1500.0),
+    ] {
+        assert!((v(name) - truth).abs() < 1e-3 * truth, "{name} {}", v(name));
+    }
+}
+
+#[test]
+fn air_gradient_follows_the_base_paths_present() {
+    let s = gradient_bar(0.5);
+    let p = ThermalProblem::new(&s, &effects(&["fixed_part", "air_gradient"])).unwrap();
+    assert_eq!(
+        p.gain_names(),
+        ["alpha_ppm_per_k", "gradient_fixed_ppm_per_k"]
+    );
+    assert_eq!(p.nonlinear_names(), ["ln_tau_r_s"]);
+    let err = ThermalProblem::new(&s, &effects(&["creep", "air_gradient"]))
+        .err()
+        .unwrap();
+    assert_eq!(
+        err,
+        ModelError::NoBasePath {
+            effect: "air_gradient".into()
+        }
+    );
+    // Without a second air sensor there is no gradient: a typed error, not a panic.
+    let mut lone = gradient_bar(0.5);
+    lone.celsius.remove("T2");
+    lone.air_sensor_ids = vec!["T1".into()];
+    assert!(matches!(
+        ThermalProblem::new(&lone, &effects(&["fixed_part", "scale", "air_gradient"])),
+        Err(ModelError::Channel { .. })
+    ));
+}
+
+#[test]
+fn plate_temperature_is_smoothed_without_delay() {
+    // A slow plate (daily swing) read with alternating sensor noise: the noise goes, the swing
+    // stays where it was.
+    let t: Vec<f64> = (0..4 * 2880).map(|i| i as f64 * 30.0).collect();
+    let w = std::f64::consts::TAU / 86400.0;
+    let truth: Vec<f64> = t.iter().map(|t| 20.0 + 0.4 * (w * t).sin()).collect();
+    let sensor: Vec<f64> = truth
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + if k % 2 == 0 { 0.01 } else { -0.01 })
+        .collect();
+    let plate = plate_temperature(&t, &sensor);
+    for k in 100..t.len() - 100 {
+        assert!((plate[k] - truth[k]).abs() < 2e-4, "k={k}");
+    }
+    // A gap in the readings is left alone rather than spread.
+    let mut gappy = sensor.clone();
+    gappy[10] = f64::NAN;
+    let out = plate_temperature(&t, &gappy);
+    assert!(out[10].is_nan() && out[11] == sensor[11]);
+}
