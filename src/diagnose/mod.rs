@@ -32,7 +32,7 @@ use residual::{residual_stats, ResidualStats};
 /// residuals do not make everything significant (the base-only campaign raises no alarm).
 pub const ALPHA: f64 = 0.05;
 /// How many of the best-explaining channels get a generic `lag:` candidate.
-pub const CHANNEL_CANDIDATES: usize = 5;
+pub const CHANNEL_CANDIDATES: usize = 10;
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ChannelScore {

@@ -227,18 +227,18 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
         "fleet forward selection should beat the single best term on ch3"
     );
     // The issue asks 5x on ch3 within three terms. Measured: the fleet's selection reaches
-    // 7.47 -> 1.72 µm (4.35x; the fleet RMS 6.34 -> 1.55 µm, 4.1x). ch3's own selection stops
+    // 7.47 -> 1.64 µm (4.54x; the fleet RMS 6.34 -> 1.44 µm, 4.4x). ch3's own selection stops
     // after one term: with a residual correlation time of hours in a 46-h run, the next terms
     // (ch3 2.11 -> 1.72 µm) have likelihood-ratio p ≈ 0.03 before the Bonferroni correction.
     // Asserted as measured, so that a regression shows.
     let fleet_base = d.ledger[0].fleet_rms_um;
     let fleet_end = d.ledger.last().unwrap().fleet_rms_um;
     assert!(
-        fleet_base / fleet_end >= 4.0,
+        fleet_base / fleet_end >= 4.3,
         "fleet forward selection: {fleet_base:.2} -> {fleet_end:.2} µm"
     );
     assert!(
-        base_rms / fleet3 >= 4.3,
+        base_rms / fleet3 >= 4.5,
         "fleet forward selection on ch3: {base_rms:.2} -> {fleet3:.2} µm"
     );
     let own = &d.bar_ledgers.iter().find(|b| b.bar == "ch3").unwrap().steps;
