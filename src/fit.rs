@@ -678,6 +678,41 @@ mod tests {
         assert!((f.values[1] - 0.07).abs() < 1e-11, "{:?}", f.values);
     }
 
+    /// A term fitted beyond fixed directions recovers its own parameters exactly when the rest of
+    /// the signal lies in their span, even with a rank-deficient set of directions.
+    #[test]
+    fn orthogonalised_fit_sees_only_what_the_directions_cannot_explain() {
+        let x: Vec<f64> = (0..200).map(|i| i as f64).collect();
+        let d1: Vec<f64> = x.iter().map(|x| (x / 5.0).sin()).collect();
+        let d2: Vec<f64> = x.iter().map(|x| x / 50.0).collect();
+        let y = x
+            .iter()
+            .zip(d1.iter().zip(&d2))
+            .map(|(x, (a, b))| 3.0 * (1.0 - (-0.07 * x).exp()) + 2.0 * a + 0.5 * b)
+            .collect();
+        let p = Exponential { x, y };
+        let mut directions = DMatrix::zeros(200, 3);
+        for r in 0..200 {
+            directions[(r, 0)] = d1[r];
+            directions[(r, 1)] = 2.0 * d1[r];
+            directions[(r, 2)] = d2[r];
+        }
+        let o = Orthogonalised::new(&p, &directions);
+        let along: f64 = o.observations().iter().zip(&d2).map(|(y, d)| y * d).sum();
+        assert!(along.abs() < 1e-9, "observations keep {along} along d2");
+        let options = FitOptions {
+            brent_start: false,
+            hac_batch_len: None,
+            absorbed_params: 0,
+        };
+        let f = fit(&o, &[0.2], &options).unwrap();
+        assert!((f.values[0] - 3.0).abs() < 1e-8, "{:?}", f.values);
+        assert!((f.values[1] - 0.07).abs() < 1e-10, "{:?}", f.values);
+        assert!(f.rss < 1e-16, "rss {}", f.rss);
+        // Without the directions the same term cannot fit the signal.
+        assert!(fit(&p, &[0.2], &options).unwrap().rss > 1.0);
+    }
+
     #[test]
     fn acf_of_white_noise_is_small() {
         let mut state = 12345u64;
