@@ -320,6 +320,31 @@ impl BarSeries {
         if groups.len() == self.t_s.len() {
             return self;
         }
+        self.averaged(&groups)
+    }
+
+    /// A binned copy ([`BarSeries::binned`]) that leaves `self` as it is: e.g. a coarse copy
+    /// to start a fit's time constants on.
+    pub fn binned_copy(&self, bin_s: f64) -> BarSeries {
+        let time_ns: Vec<TimeNs> = self
+            .t_s
+            .iter()
+            .map(|&t| (t * 1e9).round() as TimeNs)
+            .collect();
+        let bin_ns = (bin_s * 1e9).round() as TimeNs;
+        if !(bin_s > 0.0) || self.t_s.len() < 2 {
+            return self.clone();
+        }
+        self.averaged(&bin_groups(
+            &time_ns,
+            &self.mount_of,
+            &self.zero_segment,
+            bin_ns,
+        ))
+    }
+
+    /// Means over the sample ranges `groups` (see [`bin_groups`]).
+    fn averaged(&self, groups: &[(usize, usize)]) -> BarSeries {
         let mean = |v: &[f64]| -> Vec<f64> {
             groups
                 .iter()
@@ -333,18 +358,27 @@ impl BarSeries {
             .filter(|&i| mount_of[i].is_some_and(|m| self.mounts[m as usize].is_fitted()))
             .collect();
         BarSeries {
+            bar: self.bar.clone(),
+            reference_temperature_c: self.reference_temperature_c,
+            t0_ns: self.t0_ns,
             t_s: mean(&self.t_s),
             y_um: mean(&self.y_um),
             zero_segment: pick(&self.zero_segment),
+            n_zero_segments: self.n_zero_segments,
+            segment_offset_um: self.segment_offset_um.clone(),
+            mounts: self.mounts.clone(),
             air_c: mean(&self.air_c),
             celsius: self
                 .celsius
                 .iter()
                 .map(|(k, v)| (k.clone(), mean(v)))
                 .collect(),
+            air_sensor_ids: self.air_sensor_ids.clone(),
+            plate_sensor_id: self.plate_sensor_id.clone(),
             mount_of,
             fit_index,
-            ..self
+            dropped_outside_mounts: self.dropped_outside_mounts,
+            events: self.events.clone(),
         }
     }
 
@@ -431,7 +465,8 @@ fn mount_spans(campaign: &Campaign, bar: &Bar, to_s: &dyn Fn(TimeNs) -> f64) -> 
 }
 
 /// Mount index of each sample (mounts of one bar never overlap, `Campaign` checks it;
-/// intervals are `[from, to)`): a binary search over the mounts by start, O(samples log mounts).
+/// intervals are `[from, to)`): one sweep over the mounts by start for sorted times, else a binary
+/// search per sample; never O(samples × mounts).
 fn assign_mounts(t_s: &[f64], mounts: &[MountSpan]) -> Vec<Option<u32>> {
     let mut by_start: Vec<usize> = (0..mounts.len()).collect();
     by_start.sort_by(|&a, &b| {
@@ -440,9 +475,18 @@ fn assign_mounts(t_s: &[f64], mounts: &[MountSpan]) -> Vec<Option<u32>> {
             .total_cmp(&mounts[b].from_s)
             .then(a.cmp(&b))
     });
+    // Sorted times (every series `build` makes) sweep the mounts once.
+    let sorted = t_s.windows(2).all(|w| w[0] <= w[1]);
+    let mut k = 0; // mounts starting at or before t
     t_s.iter()
         .map(|&t| {
-            let k = by_start.partition_point(|&i| mounts[i].from_s <= t);
+            if sorted {
+                while k < by_start.len() && mounts[by_start[k]].from_s <= t {
+                    k += 1;
+                }
+            } else {
+                k = by_start.partition_point(|&i| mounts[i].from_s <= t);
+            }
             let i = *by_start.get(k.checked_sub(1)?)?;
             (t < mounts[i].to_s).then_some(i as u32)
         })
