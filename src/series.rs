@@ -382,6 +382,22 @@ impl BarSeries {
         }
     }
 
+    /// The series without its samples (every per-sample vector emptied): the bar, its mounts,
+    /// zero-segment offsets and `dropped_outside_mounts` stay. For runs that need nothing of a
+    /// bar but its fitted model once it is identified.
+    pub fn without_samples(self) -> BarSeries {
+        BarSeries {
+            t_s: Vec::new(),
+            y_um: Vec::new(),
+            mount_of: Vec::new(),
+            zero_segment: Vec::new(),
+            air_c: Vec::new(),
+            celsius: BTreeMap::new(),
+            fit_index: Vec::new(),
+            ..self
+        }
+    }
+
     /// `I_p` of each sample (0 outside mounts).
     pub fn i_p_mm(&self) -> Vec<f64> {
         self.mount_of
