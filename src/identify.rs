@@ -115,10 +115,14 @@ fn fit_from(
     if let Some(start) = start {
         warm_start(&problem, start, &mut theta0);
     }
-    let options = FitOptions {
+    let mut options = FitOptions {
         absorbed_params: problem.n_zeros(),
         ..FitOptions::default()
     };
+    if let Some(theta) = coarse_start(series, effects, &theta0) {
+        theta0 = theta;
+        options.brent_start = false;
+    }
     let fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
         bar: bar.clone(),
         source,
@@ -137,6 +141,38 @@ fn staged_start(series: &BarSeries, effects: &[Effect]) -> Option<BarModel> {
         return None;
     }
     identify_from(series, &effects[..effects.len() - 1], None).ok()
+}
+
+/// Series with at least this many fitted samples start their time constants on a coarse copy
+/// (below it the engine's own Brent start costs well under a second).
+const COARSE_START_MIN_SAMPLES: usize = 50_000;
+/// Bin of the coarse copy: a fifth or less of the shortest time constants of `physics.md`
+/// (15 min to 2 h), so the start lands in the fine fit's basin.
+const COARSE_START_BIN_S: f64 = 300.0;
+
+/// The time constants fitted (Brent start + Levenberg-Marquardt) on 300-s bin means of a long
+/// series, to start the fit of the series itself with Levenberg-Marquardt alone. The Brent
+/// sweep evaluates the projected residual some 40 times; on the full series that was about
+/// half of the fit (`bench/results.md`), on the coarse copy it is a few per cent. `None`: the
+/// series is short, the copy would not be much shorter, or the coarse fit failed (the engine
+/// then starts as usual).
+fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Option<Vec<f64>> {
+    if theta0.is_empty() || series.fit_index.len() < COARSE_START_MIN_SAMPLES {
+        return None;
+    }
+    let coarse = series.binned_copy(COARSE_START_BIN_S);
+    if coarse.fit_index.len() * 4 > series.fit_index.len() {
+        return None;
+    }
+    let problem = ThermalProblem::new(&coarse, effects).ok()?;
+    let options = FitOptions {
+        absorbed_params: problem.n_zeros(),
+        ..FitOptions::default()
+    };
+    let fit = fit::fit(&problem, theta0, &options).ok()?;
+    let theta = fit.values[fit.n_linear..].to_vec();
+    tracing::debug!(bar = %series.bar.id, ?theta, n = coarse.fit_index.len(), "identify: coarse start");
+    theta.iter().all(|t| t.is_finite()).then_some(theta)
 }
 
 /// Two lags on `I_min` (`fixed_part` and `second_path`) are the same model with their labels
@@ -283,10 +319,15 @@ mod tests {
     /// daily swing, an air-conditioning cycle and a random walk, and AR(1) noise (phi = 0.9):
     /// residuals as correlated as real ones.
     fn synthetic_bar(seed: u64) -> BarSeries {
+        synthetic_bar_every(seed, 60)
+    }
+
+    /// [`synthetic_bar`] sampled every `step_s` seconds.
+    fn synthetic_bar_every(seed: u64, step_s: usize) -> BarSeries {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let unit = Normal::new(0.0, 1.0).unwrap();
-        let n = 8 * 1440;
-        let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 60.0).collect();
+        let n = 8 * 86400 / step_s;
+        let t_s: Vec<f64> = (0..n).map(|i| (i * step_s) as f64).collect();
         let mut walk = 0.0;
         let air_c: Vec<f64> = t_s
             .iter()
@@ -322,7 +363,7 @@ mod tests {
         let sigma_innov = 0.02 * (1.0 - phi * phi).sqrt();
         let y_um: Vec<f64> = (0..n)
             .map(|i| {
-                let m = i / 2880;
+                let m = i / (2 * 86400 / step_s);
                 ar = phi * ar + sigma_innov * unit.sample(&mut rng);
                 -(TRUTH[0].1 * i_min * lr[i] + TRUTH[1].1 * mounts[m].i_p_mm * ls[i]) * 1e-3
                     + 0.3 * m as f64
@@ -336,6 +377,35 @@ mod tests {
             sensor: None,
         };
         BarSeries::from_vectors(bar, 20.0, t_s, y_um, air_c, mounts)
+    }
+
+    #[test]
+    fn a_long_series_started_on_a_coarse_copy_reaches_the_brent_started_optimum() {
+        let series = synthetic_bar_every(11, 10); // 69 120 samples: above the threshold
+        assert!(series.fit_index.len() >= COARSE_START_MIN_SAMPLES);
+        let effects = crate::model::base_effects();
+        let theta0 = ThermalProblem::new(&series, &effects).unwrap().theta0();
+        assert!(coarse_start(&series, &effects, &theta0).is_some());
+        let model = identify(&series, &effects).expect("coarse-started fit");
+        // The engine's own start (Brent sweep + LM) on the full series, as before.
+        let problem = ThermalProblem::new(&series, &effects).unwrap();
+        let options = FitOptions {
+            absorbed_params: problem.n_zeros(),
+            ..FitOptions::default()
+        };
+        let brent = fit::fit(&problem, &problem.theta0(), &options).expect("Brent-started fit");
+        let reference = to_bar_model(&series, &problem, &brent);
+        for (name, truth) in TRUTH {
+            let (a, b) = (model.value(name).unwrap(), reference.value(name).unwrap());
+            assert!((a - b).abs() <= 1e-6 * b.abs(), "{name}: {a} vs {b}");
+            assert!(
+                (a - truth).abs() < 0.1 * truth,
+                "{name}: {a} vs truth {truth}"
+            );
+        }
+        // Short series keep the engine's start.
+        let short = synthetic_bar(11);
+        assert!(coarse_start(&short, &effects, &theta0).is_none());
     }
 
     #[test]

@@ -492,6 +492,21 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
             acceptance: None,
         };
     }
+    // Every stage past identify reads the bars' samples, and so does the before/after
+    // comparison of an extended model; a plain identify run keeps only the models and counts,
+    // so it never holds the campaign's series at full rate.
+    let samples_needed = plan.effects != crate::model::base_effects()
+        || [
+            Stage::Match,
+            Stage::MatchStudy,
+            Stage::Diagnose,
+            Stage::Calibrate,
+            Stage::Compensate,
+            Stage::Acceptance,
+            Stage::Report,
+        ]
+        .into_iter()
+        .any(|s| plan.runs(s));
     let progress = crate::progress::bar(bars.len() as u64, "identify");
     let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
         .into_iter()
@@ -499,11 +514,15 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .into_par_iter()
         .map(|(id, mut log)| {
             crate::series::interpolate_temperatures(&mut log, &sensors);
-            let r = BarSeries::build(&campaign, &events, &id, log, t0)
-                .map(|s| s.binned(plan.bin_s))
+            let r = BarSeries::build_binned(&campaign, &events, &id, log, t0, plan.bin_s)
                 .map_err(|e| e.to_string())
                 .and_then(|series| {
                     let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
+                    let series = if samples_needed {
+                        series
+                    } else {
+                        series.without_samples()
+                    };
                     Ok(BarOutcome { series, model })
                 });
             progress.inc(1);

@@ -29,7 +29,7 @@ pub struct Event {
 }
 
 /// A bar's encoder log, sorted by time, with every sensor's temperature at the same instants
-/// (as-of join: the latest reading at or before each encoder time, else the first one after).
+/// once [`interpolate_temperatures`] has run (ingest leaves `celsius` empty).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarLog {
     pub time_ns: Vec<TimeNs>,
@@ -163,6 +163,32 @@ impl BarSeries {
         log: BarLog,
         t0_ns: TimeNs,
     ) -> Result<BarSeries, SeriesError> {
+        Self::build_keeping_times(campaign, events, bar_id, log, t0_ns).map(|(s, _)| s)
+    }
+
+    /// [`BarSeries::build`] then [`BarSeries::binned`], with the bins cut on the log's integer
+    /// nanosecond times (`bin_s <= 0`: every sample). The full-rate series lives only inside
+    /// this call, so bars binned one after another never hold the campaign at full rate.
+    pub fn build_binned(
+        campaign: &Campaign,
+        events: &[Event],
+        bar_id: &str,
+        log: BarLog,
+        t0_ns: TimeNs,
+        bin_s: f64,
+    ) -> Result<BarSeries, SeriesError> {
+        let (series, time_ns) = Self::build_keeping_times(campaign, events, bar_id, log, t0_ns)?;
+        Ok(series.binned_on(&time_ns, bin_s))
+    }
+
+    /// The series and the log's times (ns), which `t_s` only approximates.
+    fn build_keeping_times(
+        campaign: &Campaign,
+        events: &[Event],
+        bar_id: &str,
+        log: BarLog,
+        t0_ns: TimeNs,
+    ) -> Result<(BarSeries, Vec<TimeNs>), SeriesError> {
         let bar = campaign
             .bar(bar_id)
             .cloned()
@@ -201,7 +227,7 @@ impl BarSeries {
                 bar: bar_id.to_string(),
             });
         }
-        Ok(BarSeries {
+        let series = BarSeries {
             bar,
             reference_temperature_c: campaign.reference_temperature_c,
             t0_ns,
@@ -223,7 +249,8 @@ impl BarSeries {
             fit_index,
             dropped_outside_mounts,
             events,
-        })
+        };
+        Ok((series, log.time_ns))
     }
 
     /// A series from plain vectors (no campaign files): for tests and tools that make their own
@@ -269,14 +296,55 @@ impl BarSeries {
     /// are 15 min to 2 h (`physics.md`), so 10-60 s bins keep the dynamics while a 1 Hz log
     /// shrinks 10-60x; the lag's first-order hold between bin means is exact to O((bin/tau)^2).
     /// Residual statistics of a binned fit are those of bin means. `bin_s <= 0`: unchanged.
+    ///
+    /// Bin edges are decided on integer nanoseconds (`t_s` rounded to ns here; exact for the
+    /// series [`BarSeries::build`] makes from ns times up to ~45 days from the origin, and
+    /// [`BarSeries::build_binned`] uses the log's own ns times), so a 1 Hz log gives bins of
+    /// exactly `bin_s` samples: comparing float seconds let ~0.2 % of the bins take one more.
     pub fn binned(self, bin_s: f64) -> BarSeries {
+        let time_ns: Vec<TimeNs> = self
+            .t_s
+            .iter()
+            .map(|&t| (t * 1e9).round() as TimeNs)
+            .collect();
+        self.binned_on(&time_ns, bin_s)
+    }
+
+    /// [`BarSeries::binned`] with the samples' times in ns (any origin).
+    fn binned_on(self, time_ns: &[TimeNs], bin_s: f64) -> BarSeries {
         if !(bin_s > 0.0) || self.t_s.len() < 2 {
             return self;
         }
-        let groups = bin_groups(&self.t_s, &self.mount_of, &self.zero_segment, bin_s);
+        let bin_ns = (bin_s * 1e9).round() as TimeNs;
+        let groups = bin_groups(time_ns, &self.mount_of, &self.zero_segment, bin_ns);
         if groups.len() == self.t_s.len() {
             return self;
         }
+        self.averaged(&groups)
+    }
+
+    /// A binned copy ([`BarSeries::binned`]) that leaves `self` as it is: e.g. a coarse copy
+    /// to start a fit's time constants on.
+    pub fn binned_copy(&self, bin_s: f64) -> BarSeries {
+        let time_ns: Vec<TimeNs> = self
+            .t_s
+            .iter()
+            .map(|&t| (t * 1e9).round() as TimeNs)
+            .collect();
+        let bin_ns = (bin_s * 1e9).round() as TimeNs;
+        if !(bin_s > 0.0) || self.t_s.len() < 2 {
+            return self.clone();
+        }
+        self.averaged(&bin_groups(
+            &time_ns,
+            &self.mount_of,
+            &self.zero_segment,
+            bin_ns,
+        ))
+    }
+
+    /// Means over the sample ranges `groups` (see [`bin_groups`]).
+    fn averaged(&self, groups: &[(usize, usize)]) -> BarSeries {
         let mean = |v: &[f64]| -> Vec<f64> {
             groups
                 .iter()
@@ -290,17 +358,42 @@ impl BarSeries {
             .filter(|&i| mount_of[i].is_some_and(|m| self.mounts[m as usize].is_fitted()))
             .collect();
         BarSeries {
+            bar: self.bar.clone(),
+            reference_temperature_c: self.reference_temperature_c,
+            t0_ns: self.t0_ns,
             t_s: mean(&self.t_s),
             y_um: mean(&self.y_um),
             zero_segment: pick(&self.zero_segment),
+            n_zero_segments: self.n_zero_segments,
+            segment_offset_um: self.segment_offset_um.clone(),
+            mounts: self.mounts.clone(),
             air_c: mean(&self.air_c),
             celsius: self
                 .celsius
                 .iter()
                 .map(|(k, v)| (k.clone(), mean(v)))
                 .collect(),
+            air_sensor_ids: self.air_sensor_ids.clone(),
+            plate_sensor_id: self.plate_sensor_id.clone(),
             mount_of,
             fit_index,
+            dropped_outside_mounts: self.dropped_outside_mounts,
+            events: self.events.clone(),
+        }
+    }
+
+    /// The series without its samples (every per-sample vector emptied): the bar, its mounts,
+    /// zero-segment offsets and `dropped_outside_mounts` stay. For runs that need nothing of a
+    /// bar but its fitted model once it is identified.
+    pub fn without_samples(self) -> BarSeries {
+        BarSeries {
+            t_s: Vec::new(),
+            y_um: Vec::new(),
+            mount_of: Vec::new(),
+            zero_segment: Vec::new(),
+            air_c: Vec::new(),
+            celsius: BTreeMap::new(),
+            fit_index: Vec::new(),
             ..self
         }
     }
@@ -314,18 +407,20 @@ impl BarSeries {
     }
 }
 
-/// Replace the as-of (latest reading) temperatures of `log` by linear interpolation of each
-/// sensor's own log at the encoder times. A backward as-of join holds each reading until the
-/// next one, a delay of half the sensor period on average (15 s at 30 s) that would bias every
-/// fitted time constant by about that much; interpolation removes it. Outside a sensor's log
-/// the nearest reading is used.
+/// Every sensor's temperature at the encoder times of `log`, by linear interpolation of the
+/// sensor's own log (replacing any column already there). Linear, not as-of: a backward as-of
+/// join holds each reading until the next one, a delay of half the sensor period on average
+/// (15 s at 30 s) that would bias every fitted time constant by about that much. Outside a
+/// sensor's log the nearest reading is used; a sensor without readings gets no column.
 pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, SensorLog>) {
-    for (id, column) in log.celsius.iter_mut() {
-        let Some(sensor) = sensors.get(id).filter(|s| s.time_ns.len() >= 2) else {
+    for (id, sensor) in sensors {
+        if sensor.time_ns.is_empty() {
+            log.celsius.remove(id);
             continue;
-        };
+        }
+        let mut column = Vec::with_capacity(log.time_ns.len());
         let mut j = 0;
-        for (value, &t) in column.iter_mut().zip(&log.time_ns) {
+        for &t in &log.time_ns {
             while j + 1 < sensor.time_ns.len() && sensor.time_ns[j + 1] <= t {
                 j += 1;
             }
@@ -337,13 +432,14 @@ pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, Sen
                     .copied()
                     .unwrap_or(sensor.time_ns[j]),
             );
-            *value = if t <= t0 || t1 <= t0 {
+            column.push(if t <= t0 || t1 <= t0 {
                 sensor.celsius[j]
             } else {
                 let w = (t - t0) as f64 / (t1 - t0) as f64;
                 sensor.celsius[j] + w * (sensor.celsius[j + 1] - sensor.celsius[j])
-            };
+            });
         }
+        log.celsius.insert(id.clone(), column);
     }
 }
 
@@ -384,14 +480,31 @@ fn mount_spans(campaign: &Campaign, bar: &Bar, to_s: &dyn Fn(TimeNs) -> f64) -> 
         .collect()
 }
 
-/// Mount index of each sample (mounts of one bar never overlap; intervals are `[from, to)`).
+/// Mount index of each sample (mounts of one bar never overlap, `Campaign` checks it;
+/// intervals are `[from, to)`): one sweep over the mounts by start for sorted times, else a binary
+/// search per sample; never O(samples × mounts).
 fn assign_mounts(t_s: &[f64], mounts: &[MountSpan]) -> Vec<Option<u32>> {
+    let mut by_start: Vec<usize> = (0..mounts.len()).collect();
+    by_start.sort_by(|&a, &b| {
+        mounts[a]
+            .from_s
+            .total_cmp(&mounts[b].from_s)
+            .then(a.cmp(&b))
+    });
+    // Sorted times (every series `build` makes) sweep the mounts once.
+    let sorted = t_s.windows(2).all(|w| w[0] <= w[1]);
+    let mut k = 0; // mounts starting at or before t
     t_s.iter()
         .map(|&t| {
-            mounts
-                .iter()
-                .position(|m| t >= m.from_s && t < m.to_s)
-                .map(|i| i as u32)
+            if sorted {
+                while k < by_start.len() && mounts[by_start[k]].from_s <= t {
+                    k += 1;
+                }
+            } else {
+                k = by_start.partition_point(|&i| mounts[i].from_s <= t);
+            }
+            let i = *by_start.get(k.checked_sub(1)?)?;
+            (t < mounts[i].to_s).then_some(i as u32)
         })
         .collect()
 }
@@ -515,20 +628,22 @@ fn centre_segments(y_um: &mut [f64], segment: &[Option<u32>], n_segments: usize)
     medians
 }
 
-/// Sample ranges `[a, b)` of the bins of [`BarSeries::binned`].
+/// Sample ranges `[a, b)` of the bins of [`BarSeries::binned`]: a bin starts at a sample and
+/// takes the following ones while they are in the same mount and zero segment and less than
+/// `bin_ns` after its first sample (integer ns: no rounding decides a bin edge).
 fn bin_groups(
-    t_s: &[f64],
+    time_ns: &[TimeNs],
     mount_of: &[Option<u32>],
     segment: &[Option<u32>],
-    bin_s: f64,
+    bin_ns: TimeNs,
 ) -> Vec<(usize, usize)> {
-    let mut groups = Vec::with_capacity(t_s.len() / 4 + 1);
+    let mut groups = Vec::with_capacity(time_ns.len() / 4 + 1);
     let mut start = 0;
-    for i in 1..=t_s.len() {
-        let closes = i == t_s.len()
+    for i in 1..=time_ns.len() {
+        let closes = i == time_ns.len()
             || mount_of[i] != mount_of[start]
             || segment[i] != segment[start]
-            || t_s[i] - t_s[start] >= bin_s;
+            || time_ns[i] - time_ns[start] >= bin_ns;
         if closes {
             groups.push((start, i));
             start = i;
@@ -536,3 +651,6 @@ fn bin_groups(
     }
     groups
 }
+
+#[cfg(test)]
+mod tests;

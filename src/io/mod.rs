@@ -80,11 +80,11 @@ pub enum IngestError {
 /// Reads a campaign directory (see `shared/spec/campaign-format.md`): the manifest, every
 /// `encoders/*.parquet` and `temperatures/*.parquet`, and `events/*.parquet` if present.
 ///
-/// Files may be split in any way and rows may be in any order; the result is sorted by time.
-/// Each bar's log carries every sensor's temperature at the encoder times, found with a
-/// backward as-of join (the latest reading at or before the encoder time; encoder times before
-/// a sensor's first reading get that first reading). A sensor without any reading is absent
-/// from [`crate::series::BarLog::celsius`] rather than filled with NaN.
+/// Files may be split in any way and rows may be in any order; the result is sorted by time
+/// (ties by value). Bar logs come with an empty [`crate::series::BarLog::celsius`]:
+/// [`crate::series::interpolate_temperatures`] puts each sensor's log onto a bar's encoder
+/// times when that bar is processed, so the temperatures of every bar at every encoder time
+/// are never held at once.
 pub fn read_campaign(dir: &Path) -> Result<CampaignLogs, IngestError> {
     let campaign = read::read_manifest(dir)?;
     let files = inputs::CampaignFiles::list(dir)?;

@@ -4,10 +4,18 @@
 //! columns the spec defines and normalised: timestamps in any unit and zone become `i64` ns UTC,
 //! dictionary/categorical ids become strings, integer counts become `i64`. The per-file frames
 //! are stacked, validated (nulls, unknown ids), then split per bar / sensor and sorted by time.
+//!
+//! The encoder table (tens of millions of rows) is never stacked: each file is streamed
+//! (`sink_batches` on the streaming engine) and every batch is split into per-bar `time` /
+//! `counts` buffers as it arrives, so ingest holds the per-bar logs and one batch, not the
+//! table beside them. Temperatures are not joined onto the encoder times here: `series`
+//! interpolates each sensor's log per bar (`interpolate_temperatures`), one bar at a time.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
+use polars::lazy::dsl::Engine;
 use polars::prelude::*;
 
 use super::inputs::{CampaignFiles, MANIFEST};
@@ -152,17 +160,7 @@ pub(crate) fn read_tables(
     drop(temperatures);
     tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
 
-    let encoders = read_table(&files.encoders, &ENCODER_COLUMNS)?;
-    tracing::debug!(elapsed = ?clock.elapsed(), rows = encoders.height(), "encoders scanned");
-    let mut bars = BTreeMap::new();
-    for bar in &bar_ids {
-        let log = bar_log(&encoders, bar, &readings)
-            .map_err(polars_error(&format!("encoders of bar \"{bar}\"")))?;
-        bars.insert(bar.to_string(), log);
-    }
-    let matched = bars.values().map(|b: &BarLog| b.time_ns.len()).sum();
-    check_all_rows_known(&encoders, matched, &files.encoders, "bar", &bar_ids)?;
-    drop(encoders);
+    let bars = read_encoders(&files.encoders, &bar_ids)?;
     tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
 
     let sensors: BTreeMap<String, SensorLog> = readings
@@ -235,6 +233,16 @@ fn not_parquet(path: &Path, e: PolarsError) -> IngestError {
 
 /// One file, projected to the spec's columns in canonical types.
 fn read_file(path: &Path, columns: &[ColumnSpec], index: usize) -> Result<DataFrame, IngestError> {
+    let index = u32::try_from(index).unwrap_or(u32::MAX);
+    scan_file(path, columns)?
+        .with_column(lit(index).cast(DataType::UInt32).alias(FILE_COL))
+        .collect()
+        .map_err(|e| not_parquet(path, e))
+}
+
+/// One file's lazy scan, projected to the spec's columns in canonical types; schema errors
+/// (missing column, wrong type) are raised here, before any row is read.
+fn scan_file(path: &Path, columns: &[ColumnSpec]) -> Result<LazyFrame, IngestError> {
     let source = PlRefPath::try_from_path(path).map_err(|e| not_parquet(path, e))?;
     let args = ScanArgsParquet {
         glob: false,
@@ -266,11 +274,176 @@ fn read_file(path: &Path, columns: &[ColumnSpec], index: usize) -> Result<DataFr
         };
         exprs.push(expr.alias(spec.name));
     }
-    let index = u32::try_from(index).unwrap_or(u32::MAX);
-    exprs.push(lit(index).cast(DataType::UInt32).alias(FILE_COL));
-    lazy.select(exprs)
-        .collect()
-        .map_err(|e| not_parquet(path, e))
+    Ok(lazy.select(exprs))
+}
+
+// ---------------------------------------------------------------- encoders, streamed
+
+/// Rows of one bar gathered from every file and batch (in arrival order).
+#[derive(Default)]
+struct BarRows {
+    time_ns: Vec<i64>,
+    counts: Vec<i64>,
+}
+
+/// Rows and time range of an undeclared bar id in one file.
+struct Unknown {
+    rows: u64,
+    first_ns: i64,
+    last_ns: i64,
+}
+
+/// What the streamed encoder batches leave behind: per-bar rows of declared bars, and what the
+/// checks need (nulls per column and file, undeclared ids per file).
+#[derive(Default)]
+struct EncoderSink {
+    /// Index of the file being streamed.
+    file: u32,
+    bars: BTreeMap<String, BarRows>,
+    /// (index into [`ENCODER_COLUMNS`], file) -> null values.
+    nulls: BTreeMap<(usize, u32), u64>,
+    /// (file, id) -> rows of an undeclared bar.
+    unknown: BTreeMap<(u32, String), Unknown>,
+}
+
+impl EncoderSink {
+    /// Split one batch into runs of equal `bar` and append each run to its bar's rows. A file
+    /// sorted or grouped by bar gives a few long runs; an interleaved one costs a map look-up per
+    /// row.
+    fn push(&mut self, batch: &DataFrame) -> PolarsResult<()> {
+        let time = batch.column("time")?.i64()?;
+        let bar = batch.column("bar")?.str()?;
+        let counts = batch.column("counts")?.i64()?;
+        let nulls = [time.null_count(), bar.null_count(), counts.null_count()];
+        if nulls.iter().any(|&n| n > 0) {
+            // The run fails on these nulls (reported after every file is read, as for the
+            // other tables); the rows themselves are not needed.
+            for (column, n) in nulls.into_iter().enumerate().filter(|&(_, n)| n > 0) {
+                *self.nulls.entry((column, self.file)).or_insert(0) += n as u64;
+            }
+            return Ok(());
+        }
+        let time = time.rechunk();
+        let counts = counts.rechunk();
+        let (time, counts) = (time.cont_slice()?, counts.cont_slice()?);
+        let mut start = 0;
+        let mut ids = bar.iter().map(Option::unwrap_or_default);
+        let Some(mut current) = ids.next() else {
+            return Ok(());
+        };
+        for (i, id) in ids.enumerate().map(|(i, id)| (i + 1, id)) {
+            if id != current {
+                self.append(current, &time[start..i], &counts[start..i]);
+                start = i;
+                current = id;
+            }
+        }
+        self.append(current, &time[start..], &counts[start..]);
+        Ok(())
+    }
+
+    fn append(&mut self, id: &str, time: &[i64], counts: &[i64]) {
+        if let Some(rows) = self.bars.get_mut(id) {
+            rows.time_ns.extend_from_slice(time);
+            rows.counts.extend_from_slice(counts);
+            return;
+        }
+        let first = time.iter().copied().min().unwrap_or(0);
+        let last = time.iter().copied().max().unwrap_or(0);
+        let entry = self
+            .unknown
+            .entry((self.file, id.to_string()))
+            .or_insert(Unknown {
+                rows: 0,
+                first_ns: first,
+                last_ns: last,
+            });
+        entry.rows += time.len() as u64;
+        entry.first_ns = entry.first_ns.min(first);
+        entry.last_ns = entry.last_ns.max(last);
+    }
+}
+
+/// Streams every encoder file (projection and type normalisation inside the scan) into per-bar
+/// logs sorted by (time, counts). Errors as [`read_table`] + [`check_nulls`] + [`check_ids`]
+/// report them: schema errors at the file, then the first column with nulls (first file), then
+/// the first file with an undeclared bar (first id).
+fn read_encoders(
+    files: &[PathBuf],
+    bar_ids: &BTreeSet<&str>,
+) -> Result<BTreeMap<String, BarLog>, IngestError> {
+    let sink = Arc::new(Mutex::new(EncoderSink {
+        bars: bar_ids
+            .iter()
+            .map(|id| (id.to_string(), BarRows::default()))
+            .collect(),
+        ..Default::default()
+    }));
+    for (index, path) in files.iter().enumerate() {
+        let lazy = scan_file(path, &ENCODER_COLUMNS)?;
+        lock(&sink).file = u32::try_from(index).unwrap_or(u32::MAX);
+        let batches = Arc::clone(&sink);
+        let callback = PlanCallback::new(move |batch: DataFrame| {
+            lock(&batches).push(&batch)?;
+            Ok(false) // keep going
+        });
+        lazy.sink_batches(callback, true, None)
+            .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
+            .map_err(|e| not_parquet(path, e))?;
+    }
+    let sink = std::mem::take(&mut *lock(&sink));
+    if let Some((&(column, file), &count)) = sink.nulls.iter().next() {
+        return Err(IngestError::Nulls {
+            path: file_path(files, file),
+            column: ENCODER_COLUMNS[column].name,
+            count,
+        });
+    }
+    if let Some(((file, id), u)) = sink.unknown.into_iter().next() {
+        return Err(IngestError::UnknownId {
+            path: file_path(files, file),
+            column: "bar",
+            id,
+            rows: u.rows,
+            first: format_ns(u.first_ns),
+            last: format_ns(u.last_ns),
+            known: bar_ids.iter().copied().collect::<Vec<_>>().join(", "),
+        });
+    }
+    Ok(sink
+        .bars
+        .into_iter()
+        .map(|(id, rows)| {
+            let (time_ns, counts) = sorted_by_time_then_value(rows.time_ns, rows.counts);
+            let log = BarLog {
+                time_ns,
+                counts,
+                celsius: BTreeMap::new(),
+            };
+            (id, log)
+        })
+        .collect())
+}
+
+fn lock(sink: &Mutex<EncoderSink>) -> std::sync::MutexGuard<'_, EncoderSink> {
+    // A panic while holding the lock leaves partial rows; the run fails on that panic anyway.
+    sink.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Rows sorted by time, ties by value, so that the order never depends on how the rows were
+/// split into files and batches. Already sorted rows (a logger's usual output) are only checked.
+fn sorted_by_time_then_value(time_ns: Vec<i64>, counts: Vec<i64>) -> (Vec<i64>, Vec<i64>) {
+    let sorted = time_ns
+        .windows(2)
+        .zip(counts.windows(2))
+        .all(|(t, c)| (t[0], c[0]) <= (t[1], c[1]));
+    if sorted {
+        return (time_ns, counts);
+    }
+    let mut rows: Vec<(i64, i64)> = time_ns.into_iter().zip(counts).collect();
+    // Equal (time, counts) pairs are indistinguishable, so an unstable sort is deterministic.
+    rows.sort_unstable();
+    rows.into_iter().unzip()
 }
 
 /// Rejects nulls in non-nullable columns, naming the first file that has some.
@@ -432,50 +605,6 @@ fn sensor_log(readings: &DataFrame) -> PolarsResult<SensorLog> {
         time_ns: i64_values(readings, "time")?,
         celsius: f64_values(readings, "celsius")?,
     })
-}
-
-fn bar_log(
-    encoders: &DataFrame,
-    bar: &str,
-    readings: &BTreeMap<String, DataFrame>,
-) -> PolarsResult<BarLog> {
-    let rows = rows_of(encoders, "bar", bar, ["time", "counts"])?;
-    let times = rows.select(["time"])?;
-    let mut celsius = BTreeMap::new();
-    for (sensor, sensor_rows) in readings {
-        if sensor_rows.height() == 0 {
-            continue;
-        }
-        celsius.insert(sensor.clone(), celsius_at(&times, sensor_rows)?);
-    }
-    Ok(BarLog {
-        time_ns: i64_values(&rows, "time")?,
-        counts: i64_values(&rows, "counts")?,
-        celsius,
-    })
-}
-
-/// A sensor's temperature at each of `times` (sorted): backward as-of join (latest reading at
-/// or before), then a backward fill so times before the first reading get the first reading.
-fn celsius_at(times: &DataFrame, sensor_rows: &DataFrame) -> PolarsResult<Vec<f64>> {
-    let options = AsOfOptions {
-        strategy: AsofStrategy::Backward,
-        allow_eq: true,
-        check_sortedness: true,
-        ..Default::default()
-    };
-    let joined = times
-        .clone()
-        .lazy()
-        .join_builder()
-        .with(sensor_rows.clone().lazy())
-        .left_on([col("time")])
-        .right_on([col("time")])
-        .how(JoinType::AsOf(Box::new(options)))
-        .finish()
-        .select([col("celsius").fill_null_with_strategy(FillNullStrategy::Backward(None))])
-        .collect()?;
-    f64_values(&joined, "celsius")
 }
 
 /// Values of a column checked free of nulls (a null, which cannot occur here, would read NaN).

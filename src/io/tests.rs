@@ -189,8 +189,15 @@ fn reads_any_unit_zone_dictionary_int32_over_unsorted_files() {
         vec![T0 + S, T0 + 2 * S, T0 + 3 * S, T0 + 4 * S + 5_000_000]
     );
     assert_eq!(b01.counts, vec![10, 20, 30, 40]);
+    assert!(b01.celsius.is_empty(), "ingest joins no temperatures");
+    let mut b01 = b01.clone();
+    crate::series::interpolate_temperatures(&mut b01, &logs.sensors);
     let t1_at: Vec<f64> = (1..=4).map(|i| 20.0 + i as f64 / 10.0).collect();
-    assert_eq!(b01.celsius["T1"], t1_at);
+    assert_eq!(b01.celsius["T1"][..3], t1_at[..3]);
+    assert!(
+        (b01.celsius["T1"][3] - 20.4005).abs() < 1e-12,
+        "between readings"
+    );
     let b02 = &logs.bars["B02"];
     assert_eq!(b02.time_ns, vec![T0 + S, T0 + 2 * S]);
     assert_eq!(b02.counts, vec![100, 200]);
@@ -201,7 +208,7 @@ fn reads_any_unit_zone_dictionary_int32_over_unsorted_files() {
 }
 
 #[test]
-fn asof_takes_latest_reading_at_or_before_and_first_reading_before_start() {
+fn temperatures_interpolate_between_readings_and_hold_the_nearest_outside() {
     let dir = campaign_dir();
     let d = dir.path();
     let sensor_times = [T0 + 30 * S, T0 + 10 * S, T0 + 20 * S];
@@ -228,7 +235,9 @@ fn asof_takes_latest_reading_at_or_before_and_first_reading_before_start() {
     let logs = read_campaign(d).expect("read");
     let b02 = &logs.bars["B02"];
     assert_eq!(b02.counts, vec![1, 2, 3, 4, 5, 6]);
-    assert_eq!(b02.celsius["T2"], vec![1.0, 1.0, 1.0, 2.0, 3.0, 3.0]);
+    let mut b02 = b02.clone();
+    crate::series::interpolate_temperatures(&mut b02, &logs.sensors);
+    assert_eq!(b02.celsius["T2"], vec![1.0, 1.0, 1.5, 2.5, 3.0, 3.0]);
     assert_eq!(logs.sensors["T2"].celsius, vec![1.0, 2.0, 3.0]);
     assert!(
         logs.bars["B01"].time_ns.is_empty(),
@@ -314,6 +323,36 @@ fn equal_times_are_ordered_by_value_whatever_the_file_order() {
     let b01 = &read_campaign(d).expect("read").bars["B01"];
     assert_eq!(b01.time_ns, vec![T0, T0 + S, T0 + S, T0 + 2 * S]);
     assert_eq!(b01.counts, vec![0, 3, 7, 9]);
+}
+
+#[test]
+fn interleaved_bars_over_many_batches_are_split_and_sorted() {
+    let dir = campaign_dir();
+    let d = dir.path();
+    write_t1(d);
+    // 300 000 rows alternating between the bars, times descending: several streamed batches,
+    // a run of one row each, every bar's rows out of order.
+    let n = 300_000i64;
+    let times: Vec<i64> = (0..n).map(|i| T0 + (n - i / 2) * S).collect();
+    let bars: Vec<&str> = (0..n)
+        .map(|i| if i % 2 == 0 { "B01" } else { "B02" })
+        .collect();
+    let counts: Vec<i64> = (0..n).map(|i| i % 2 * 1_000_000 + (n - i / 2)).collect();
+    write_df(
+        &d.join("encoders/a.parquet"),
+        encoders(&times, &bars, &counts),
+    );
+    let logs = read_campaign(d).expect("read");
+    for (bar, offset) in [("B01", 0), ("B02", 1_000_000)] {
+        let log = &logs.bars[bar];
+        let expected: Vec<i64> = (n / 2 + 1..=n).map(|k| T0 + k * S).collect();
+        assert_eq!(log.time_ns, expected, "{bar}");
+        assert!(log
+            .counts
+            .iter()
+            .zip(&expected)
+            .all(|(&c, &t)| c == offset + (t - T0) / S));
+    }
 }
 
 // ---------------------------------------------------------------- bad input
@@ -630,6 +669,8 @@ fn write_then_read_round_trips_under_every_layout() {
                 "{opts:?}"
             );
             assert_eq!(read.counts, written.counts, "{opts:?}");
+            let mut read = read.clone();
+            crate::series::interpolate_temperatures(&mut read, &logs.sensors);
             assert_eq!(read.celsius["T1"].len(), written.time_ns.len());
         }
         for (sensor, written) in &tables.temperatures {

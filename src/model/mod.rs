@@ -13,6 +13,8 @@
 pub mod channels;
 pub mod lag;
 
+use std::sync::Mutex;
+
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
@@ -271,6 +273,17 @@ pub struct ThermalProblem<'a> {
     /// mount is a zero segment without fitted samples; its column would be all zeros).
     zero_columns: Vec<Option<usize>>,
     n_zero_columns: usize,
+    /// The last column (and `ln tau` derivative) computed for each term with a time constant,
+    /// keyed by the bits of its tau: a solver asks for the basis and then its derivatives at the
+    /// same `theta`, and a 1-D search moves one time constant while the others stay put, so
+    /// most lag recursions (the cost of a fit) are repeats. Results are the same bits.
+    memo: Mutex<Vec<Option<TermMemo>>>,
+}
+
+struct TermMemo {
+    tau_bits: u64,
+    x: Vec<f64>,
+    d: Vec<f64>,
 }
 
 /// A model that cannot be built for a bar.
@@ -341,6 +354,7 @@ impl<'a> ThermalProblem<'a> {
             y: Vec::new(),
             zero_columns,
             n_zero_columns,
+            memo: Mutex::new(Vec::new()),
         };
         problem.y = problem.demean(&y_raw);
         Ok(problem)
@@ -494,16 +508,54 @@ impl<'a> ThermalProblem<'a> {
             .map(|k| theta[k].clamp(0.0, 1e9f64.ln()).exp())
     }
 
-    /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`.
+    /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`
+    /// (memoised per term: see [`ThermalProblem::memo`]; a term with a time constant is always
+    /// computed with its derivative, which costs no extra exponential).
     fn term_column(
         &self,
         j: usize,
         theta: &[f64],
         with_derivative: bool,
     ) -> (Vec<f64>, Option<Vec<f64>>) {
+        let Some(tau) = self.tau_of(j, theta) else {
+            return self.compute_term_column(j, None, with_derivative);
+        };
+        let bits = tau.to_bits();
+        {
+            let memo = self.memo.lock().unwrap_or_else(|p| p.into_inner());
+            if let Some(m) = memo
+                .get(j)
+                .and_then(Option::as_ref)
+                .filter(|m| m.tau_bits == bits)
+            {
+                return (m.x.clone(), with_derivative.then(|| m.d.clone()));
+            }
+        }
+        let (x, d) = self.compute_term_column(j, Some(tau), true);
+        let Some(d) = d else {
+            return (x, None);
+        };
+        let out = (x.clone(), with_derivative.then(|| d.clone()));
+        let mut memo = self.memo.lock().unwrap_or_else(|p| p.into_inner());
+        if memo.len() <= j {
+            memo.resize_with(j + 1, || None);
+        }
+        memo[j] = Some(TermMemo {
+            tau_bits: bits,
+            x,
+            d,
+        });
+        out
+    }
+
+    fn compute_term_column(
+        &self,
+        j: usize,
+        tau: Option<f64>,
+        with_derivative: bool,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
         let term = &self.terms[j];
         let t = &self.series.t_s;
-        let tau = self.tau_of(j, theta);
         let (mut x, mut d) = match (term.kind, tau) {
             (TermKind::Lag, Some(tau)) => term.input.lag(t, tau, with_derivative),
             (TermKind::Rate, Some(tau)) => {

@@ -1,0 +1,275 @@
+use std::collections::BTreeMap;
+
+use super::*;
+use crate::campaign::{Manifest, Purpose};
+
+const S: i64 = 1_000_000_000;
+/// 2026-11-01T00:00:00Z in ns.
+const T0: i64 = 1_793_491_200 * S;
+
+const MANIFEST: &str = r#"
+[campaign]
+id = "series"
+reference_temperature_c = 20.0
+
+[plate]
+material = "zerodur"
+tilt_deg = 60.0
+[[plate.length]]
+id = "min"
+mm = 250.0
+u_um = 0.1
+[[plate.length]]
+id = "max"
+mm = 400.0
+u_um = 0.2
+
+[[sensor]]
+id = "T1"
+kind = "air"
+[[sensor]]
+id = "T2"
+kind = "air"
+
+[[bar]]
+id = "B01"
+resolution_nm = 5.0
+fixed_length_mm = 230.0
+
+[[mount]]
+bar = "B01"
+length = "min"
+from = 2026-11-01T00:00:00Z
+to = 2026-11-01T01:00:00Z
+[[mount]]
+bar = "B01"
+length = "max"
+from = 2026-11-01T01:10:00Z
+to = 2026-11-01T03:00:00Z
+[[mount]]
+bar = "B01"
+device = "hexapod"
+from = 2026-11-01T03:00:00Z
+to = 2026-11-01T04:00:00Z
+"#;
+
+fn campaign() -> Campaign {
+    Campaign::from_manifest(Manifest::from_toml_str(MANIFEST, "m").expect("toml")).expect("valid")
+}
+
+/// A 1 Hz log over 4 h 10 min with a 7-s hole, a doubled reading and 0.3-s jitter in the last
+/// hour, and two sensors logged every 30 s (T2 offset by 10 s).
+fn log_and_sensors() -> (BarLog, BTreeMap<String, SensorLog>) {
+    let mut time_ns = Vec::new();
+    for i in 0..(4 * 3600 + 600) {
+        if (5000..5007).contains(&i) {
+            continue;
+        }
+        let jitter = if i >= 3 * 3600 {
+            (i % 3) * 300_000_000
+        } else {
+            0
+        };
+        time_ns.push(T0 - 300 * S + i * S + jitter);
+        if i == 6000 {
+            time_ns.push(T0 - 300 * S + i * S);
+        }
+    }
+    let counts = (0..time_ns.len() as i64)
+        .map(|i| 1000 + (i * 7919) % 61)
+        .collect();
+    let sensor = |offset_s: i64, phase: f64| SensorLog {
+        time_ns: (0..520)
+            .map(|k| T0 - 400 * S + (30 * k + offset_s) * S)
+            .collect(),
+        celsius: (0..520)
+            .map(|k| 20.0 + 0.3 * (k as f64 / 40.0 + phase).sin())
+            .collect(),
+    };
+    let sensors = BTreeMap::from([
+        ("T1".into(), sensor(0, 0.0)),
+        ("T2".into(), sensor(10, 1.0)),
+    ]);
+    let log = BarLog {
+        time_ns,
+        counts,
+        celsius: BTreeMap::new(),
+    };
+    (log, sensors)
+}
+
+fn rezero_at(seconds_after_t0: i64) -> Vec<Event> {
+    vec![Event {
+        time_ns: T0 + seconds_after_t0 * S,
+        bar: Some("B01".into()),
+        kind: "rezero".into(),
+        value: None,
+    }]
+}
+
+#[test]
+fn interpolation_is_linear_inside_and_nearest_outside_a_sensor_log() {
+    let mut log = BarLog {
+        time_ns: vec![5 * S, 10 * S, 15 * S, 25 * S, 30 * S, 35 * S],
+        counts: vec![0; 6],
+        celsius: BTreeMap::from([("T9".into(), vec![9.0; 6])]),
+    };
+    let sensors = BTreeMap::from([
+        (
+            "T1".to_string(),
+            SensorLog {
+                time_ns: vec![10 * S, 20 * S, 30 * S],
+                celsius: vec![1.0, 2.0, 3.0],
+            },
+        ),
+        (
+            "T2".to_string(),
+            SensorLog {
+                time_ns: vec![12 * S],
+                celsius: vec![4.0],
+            },
+        ),
+        ("T9".to_string(), SensorLog::default()),
+    ]);
+    interpolate_temperatures(&mut log, &sensors);
+    assert_eq!(log.celsius["T1"], vec![1.0, 1.0, 1.5, 2.5, 3.0, 3.0]);
+    assert_eq!(log.celsius["T2"], vec![4.0; 6]);
+    assert!(
+        !log.celsius.contains_key("T9"),
+        "a sensor without readings gets no column"
+    );
+}
+
+#[test]
+fn mounts_are_assigned_by_start_whatever_their_order() {
+    let span = |i: usize, from_s: f64, to_s: f64| MountSpan {
+        campaign_index: i,
+        length_id: None,
+        length_mm: Some(250.0),
+        i_p_mm: 20.0,
+        tilt_deg: 60.0,
+        purpose: Purpose::Calibration,
+        device: None,
+        from_s,
+        to_s,
+    };
+    let mounts = vec![span(0, 20.0, 30.0), span(1, 0.0, 10.0), span(2, 10.0, 15.0)];
+    let t = [
+        -1.0, 0.0, 9.999, 10.0, 14.0, 15.0, 19.0, 20.0, 29.0, 30.0, 40.0,
+    ];
+    let linear: Vec<Option<u32>> = t
+        .iter()
+        .map(|&t| {
+            mounts
+                .iter()
+                .position(|m| t >= m.from_s && t < m.to_s)
+                .map(|i| i as u32)
+        })
+        .collect();
+    let got = assign_mounts(&t, &mounts);
+    assert_eq!(got, linear);
+    assert_eq!(
+        got,
+        [
+            None,
+            Some(1),
+            Some(1),
+            Some(2),
+            Some(2),
+            None,
+            None,
+            Some(0),
+            Some(0),
+            None,
+            None
+        ]
+    );
+}
+
+#[test]
+fn one_hertz_bins_hold_exactly_bin_s_samples_far_from_the_origin() {
+    // 30 days at 1 Hz from the origin: float seconds near 2.6e6 s made t[i] - t[start] fall
+    // just short of 30 s for some bins, which then took a 31st sample.
+    let n = 30 * 86_400usize;
+    let t_s: Vec<f64> = (0..n as i64).map(|i| (i * S) as f64 * 1e-9).collect();
+    let mount_of = vec![Some(0u32); n];
+    let time_ns: Vec<TimeNs> = (0..n as i64).map(|i| i * S).collect();
+    let groups = bin_groups(&time_ns, &mount_of, &mount_of, 30 * S);
+    assert_eq!(groups.len(), n / 30);
+    assert!(groups.iter().all(|&(a, b)| b - a == 30));
+    let rounded: Vec<TimeNs> = t_s.iter().map(|&t| (t * 1e9).round() as TimeNs).collect();
+    assert_eq!(rounded, time_ns, "t_s rounds back to its ns times");
+}
+
+#[test]
+fn bins_never_cross_a_mount_a_rezero_or_a_gap() {
+    let c = campaign();
+    let (mut log, sensors) = log_and_sensors();
+    interpolate_temperatures(&mut log, &sensors);
+    let events = rezero_at(2 * 3600 + 15);
+    let full = BarSeries::build(&c, &events, "B01", log.clone(), T0).expect("series");
+    let time_ns = log.time_ns.clone();
+    let bin_ns = 30 * S;
+    let groups = bin_groups(&time_ns, &full.mount_of, &full.zero_segment, bin_ns);
+    let sizes: BTreeMap<usize, usize> = groups.iter().fold(BTreeMap::new(), |mut m, &(a, b)| {
+        *m.entry(b - a).or_insert(0) += 1;
+        m
+    });
+    assert!(sizes.keys().all(|&k| (1..=31).contains(&k)), "{sizes:?}");
+    for &(a, b) in &groups {
+        assert!(time_ns[b - 1] - time_ns[a] < bin_ns);
+        assert!((a..b).all(|i| full.mount_of[i] == full.mount_of[a]));
+        assert!((a..b).all(|i| full.zero_segment[i] == full.zero_segment[a]));
+    }
+    assert_eq!(
+        full.n_zero_segments, 4,
+        "min, max split at the rezero, device"
+    );
+}
+
+#[test]
+fn build_binned_equals_build_then_binned() {
+    let c = campaign();
+    let events = rezero_at(2 * 3600 + 15);
+    let (mut log, sensors) = log_and_sensors();
+    interpolate_temperatures(&mut log, &sensors);
+    let t0 = T0;
+    for bin_s in [0.0, 1.0, 10.0, 30.0, 60.0] {
+        let a = BarSeries::build(&c, &events, "B01", log.clone(), t0)
+            .expect("series")
+            .binned(bin_s);
+        let b =
+            BarSeries::build_binned(&c, &events, "B01", log.clone(), t0, bin_s).expect("series");
+        assert_eq!(a.t_s, b.t_s, "bin_s {bin_s}");
+        assert_eq!(a.y_um, b.y_um);
+        assert_eq!(a.air_c, b.air_c);
+        assert_eq!(a.celsius, b.celsius);
+        assert_eq!(a.mount_of, b.mount_of);
+        assert_eq!(a.zero_segment, b.zero_segment);
+        assert_eq!(a.fit_index, b.fit_index);
+        assert_eq!(a.segment_offset_um, b.segment_offset_um);
+        assert_eq!(a.dropped_outside_mounts, b.dropped_outside_mounts);
+        if bin_s >= 10.0 {
+            assert!(b.t_s.len() * 5 < log.time_ns.len(), "bin_s {bin_s}");
+        }
+    }
+}
+
+#[test]
+fn bin_means_are_means_of_the_samples() {
+    let c = campaign();
+    let (mut log, sensors) = log_and_sensors();
+    interpolate_temperatures(&mut log, &sensors);
+    let full = BarSeries::build(&c, &[], "B01", log.clone(), T0).expect("series");
+    let groups = bin_groups(&log.time_ns, &full.mount_of, &full.zero_segment, 30 * S);
+    let binned = full.clone().binned(30.0);
+    assert_eq!(binned.t_s.len(), groups.len());
+    for (k, &(a, b)) in groups.iter().enumerate().step_by(37) {
+        let mean = |v: &[f64]| v[a..b].iter().sum::<f64>() / (b - a) as f64;
+        assert_eq!(binned.t_s[k], mean(&full.t_s));
+        assert_eq!(binned.y_um[k], mean(&full.y_um));
+        assert_eq!(binned.celsius["T2"][k], mean(&full.celsius["T2"]));
+        assert_eq!(binned.mount_of[k], full.mount_of[a]);
+    }
+    assert_eq!(binned.dropped_outside_mounts, full.dropped_outside_mounts);
+}
