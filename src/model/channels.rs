@@ -130,12 +130,11 @@ pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelE
         switch_s.push(*t);
         values.push(value);
     }
-    // Before the first event the input is 0 (e.g. the head not yet powered).
     switch_s.insert(
         0,
         series.t_s.first().copied().unwrap_or(0.0).min(switch_s[0]) - 1.0,
     );
-    values.insert(0, 0.0);
+    values.insert(0, value_before_first_event(series, kind, values[0]));
     let mut at_samples = Vec::with_capacity(series.t_s.len());
     let mut next = 0;
     let mut current = 0.0;
@@ -151,6 +150,17 @@ pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelE
         values,
         at_samples,
     })
+}
+
+/// The input before a kind's first event: a head is off (`head_power` 0); the plate stands at
+/// the first mount's tilt (its own, else the plate's: `campaign-format.md`); any other kind is
+/// taken to hold its first value, so that the first event is not read as a step from 0.
+fn value_before_first_event(series: &BarSeries, kind: &str, first_value: f64) -> f64 {
+    match kind {
+        "head_power" => 0.0,
+        "tilt" => series.mounts.first().map_or(first_value, |m| m.tilt_deg),
+        _ => first_value,
+    }
 }
 
 /// Mean of the other air sensors minus the bar's own.

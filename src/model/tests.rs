@@ -181,3 +181,39 @@ fn plate_temperature_is_smoothed_without_delay() {
     let out = plate_temperature(&t, &gappy);
     assert!(out[10].is_nan() && out[11] == sensor[11]);
 }
+
+/// Held event inputs start where the physics says: a head off, the plate at the mount's tilt,
+/// any other kind at its first value (no spurious step at the first event).
+#[test]
+fn held_events_start_from_a_physical_value() {
+    use crate::series::Event;
+    let mut s = gradient_bar(0.0);
+    let t0 = s.t_s[0];
+    let event = |dt: f64, kind: &str, value: f64| {
+        (
+            t0 + dt,
+            Event {
+                time_ns: 0,
+                bar: None,
+                kind: kind.into(),
+                value: Some(value),
+            },
+        )
+    };
+    s.events = vec![
+        event(3600.0, "head_power", 1.0),
+        event(7200.0, "tilt", 30.0),
+        event(7200.0, "spindle", 1500.0),
+        event(9000.0, "spindle", 0.0),
+    ];
+    let level = |kind: &str| {
+        channels::event_channel(&s, kind)
+            .unwrap()
+            .level(s.t_s.len())
+    };
+    assert_eq!(level("head_power")[0], 0.0);
+    assert_eq!(level("tilt")[0], s.mounts[0].tilt_deg);
+    assert_eq!(level("tilt")[200], 30.0);
+    assert_eq!(level("spindle")[0], 1500.0);
+    assert_eq!(level("spindle")[200], 0.0);
+}
