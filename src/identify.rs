@@ -426,8 +426,9 @@ mod tests {
     /// Diagnosis of the coverage (not a check): per replicate, the fitted parameters in the
     /// fit's parametrisation (gains, ln taus), their HAC and naive standard errors, the
     /// linearised error `(JᵀJ)⁻¹Jᵀe` from the true noise at the true parameters, and the exact
-    /// standard error of that linearised estimator under the true AR(1) covariance. Written as
-    /// CSV to `$DBB_COVERAGE_CSV`.
+    /// standard error of that linearised estimator under the true AR(1) covariance, and the
+    /// reported (profile) intervals of the taus in `ln tau`. Written as CSV to
+    /// `$DBB_COVERAGE_CSV`, `$DBB_COVERAGE_REPS` replicates (300).
     /// `DBB_COVERAGE_CSV=/tmp/cov.csv cargo test --release --lib coverage_diagnosis -- --ignored`
     #[test]
     #[ignore]
@@ -479,7 +480,14 @@ mod tests {
                     }
                 }
                 let exact = &jtj_inv * jac.tr_mul(&sj) * &jtj_inv;
-                let mut row = format!("{seed},{},{}", f.hac_batch_len, f.hac_dof);
+                let m = identify(&series, &effects).unwrap();
+                let ln_ci = |name: &str| m.param(name).unwrap().ci95.map(f64::ln);
+                let [rl, rh] = ln_ci("tau_r_s");
+                let [sl, sh] = ln_ci("tau_s_s");
+                let mut row = format!(
+                    "{seed},{},{},{rl},{rh},{sl},{sh}",
+                    f.hac_batch_len, f.hac_dof
+                );
                 for k in 0..4 {
                     row += &format!(
                         ",{},{},{},{},{},{},{}",
@@ -495,7 +503,8 @@ mod tests {
                 row
             })
             .collect();
-        let mut out = String::from("seed,batch,dof");
+        let mut out =
+            String::from("seed,batch,dof,ln_tau_r_lo,ln_tau_r_hi,ln_tau_s_lo,ln_tau_s_hi");
         for k in ["alpha", "beta", "ln_tau_r", "ln_tau_s"] {
             out += &format!(",{k}_nu,{k}_t95,{k}_err,{k}_u,{k}_un,{k}_lin,{k}_uex");
         }
