@@ -37,6 +37,14 @@ pub trait Separable: Sync {
     fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
         None
     }
+    /// Group of each observation whose mean the problem projected out before the engine saw it
+    /// (e.g. the mount zeros: observations and every basis column already demeaned within each
+    /// group), `None` for an observation in no group; `None` altogether when nothing was
+    /// projected out. Used by the degrees of freedom of the HAC variance
+    /// ([`Fit::hac_dof_param`]); the count must match [`FitOptions::absorbed_params`].
+    fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
+        None
+    }
 }
 
 /// Why a fit could not be done.
@@ -69,9 +77,13 @@ pub struct Fit {
     pub cov_hac: DMatrix<f64>,
     /// Batch length (samples) used by the HAC estimate.
     pub hac_batch_len: usize,
-    /// Degrees of freedom of the HAC variance (number of batches − number of parameters):
-    /// intervals use Student's t with this many degrees of freedom.
+    /// Number of batches − number of parameters: the degrees of freedom the HAC variance would
+    /// have if every batch carried the same share of information.
     pub hac_dof: usize,
+    /// Effective (Satterthwaite) degrees of freedom of each parameter's HAC variance, same order
+    /// as `values`: at most about [`Fit::hac_dof`], fewer when a few batches carry most of that
+    /// parameter's information. Intervals use Student's t with these.
+    pub hac_dof_param: Vec<f64>,
     pub iterations: usize,
 }
 
@@ -91,13 +103,10 @@ impl Fit {
     pub fn se_hac(&self, i: usize) -> f64 {
         self.cov_hac[(i, i)].max(0.0).sqrt()
     }
-    /// Half-width factor of a 95 % interval from the HAC standard error: Student's t quantile
-    /// with [`Fit::hac_dof`] degrees of freedom.
-    pub fn t95(&self) -> f64 {
-        use statrs::distribution::{ContinuousCDF, StudentsT};
-        StudentsT::new(0.0, 1.0, self.hac_dof as f64)
-            .map(|t| t.inverse_cdf(0.975))
-            .unwrap_or(1.96)
+    /// Half-width factor of a 95 % interval from the HAC standard error of parameter `i`:
+    /// Student's t quantile with [`Fit::hac_dof_param`]`[i]` degrees of freedom.
+    pub fn t95(&self, i: usize) -> f64 {
+        t_quantile_975(self.hac_dof_param[i])
     }
 
     /// Gaussian log-likelihood at the ML variance `rss / n`.
@@ -196,8 +205,12 @@ pub fn fit<P: Separable>(
     let hac_dof = n_batches(y.len(), hac_batch_len)
         .saturating_sub(p + options.absorbed_params)
         .max(1);
+    let groups = problem.absorbed_groups();
+    let hac_dof_param = satterthwaite_dof(&jac, hac_batch_len, groups.as_deref())
+        .unwrap_or_else(|| vec![hac_dof as f64; p]);
     Ok(Fit {
         hac_dof,
+        hac_dof_param,
         names,
         values,
         n_linear: n_lin,
@@ -222,6 +235,238 @@ pub fn projected_rss<P: Separable>(problem: &P, theta: &[f64]) -> f64 {
             .map(|(f, y)| (y - f) * (y - f))
             .sum(),
         None => f64::INFINITY,
+    }
+}
+
+/// The profile RSS of nonlinear parameter `k` at `x`: the projected RSS minimised over the
+/// other nonlinear parameters with `θ_k = x`, started from `start` (`start[k]` ignored).
+///
+/// The refit is Gauss-Newton on all the other parameters (linear ones solved exactly at every
+/// trial, steps halved until the RSS falls), stopped once the step's predicted decrease
+/// `|J δ|²` is below `rss_tol`: from a start on the linearised profile trace one or two steps
+/// suffice, a fraction of the evaluations Levenberg-Marquardt spends on its own tolerances.
+/// Every trial is an upper bound of the profile. `None` when the basis is singular or
+/// non-finite at the start.
+pub fn profile_rss<P: Separable>(
+    problem: &P,
+    start: &[f64],
+    k: usize,
+    x: f64,
+    rss_tol: f64,
+) -> Option<f64> {
+    let mut theta = start.to_vec();
+    theta[k] = x;
+    let y = problem.observations();
+    let rss_of = |phi: &DMatrix<f64>| -> Option<(DVector<f64>, f64)> {
+        let c = solve_linear(phi, y)?;
+        let rss: f64 = (phi * &c)
+            .iter()
+            .zip(y)
+            .map(|(f, y)| (y - f) * (y - f))
+            .sum();
+        rss.is_finite().then_some((c, rss))
+    };
+    let mut phi = problem.basis(&theta);
+    let (mut coef, mut rss) = rss_of(&phi)?;
+    if theta.len() == 1 {
+        return Some(rss);
+    }
+    let fixed = FixedTheta {
+        inner: problem,
+        k,
+        value: x,
+    };
+    let mut rest = fixed.rest(&theta);
+    let m = phi.ncols();
+    for _ in 0..20 {
+        let jac = full_jacobian(&fixed, &rest, &phi, &coef);
+        let resid: Vec<f64> = (&phi * &coef).iter().zip(y).map(|(f, y)| y - f).collect();
+        let Some(delta) = solve_linear(&jac, &resid) else {
+            break;
+        };
+        // Gauss-Newton's predicted decrease, |J δ|²: converged when it is below `rss_tol`.
+        if (&jac * &delta).norm_squared() < rss_tol {
+            break;
+        }
+        let mut scale = 1.0;
+        let mut improved = None;
+        for _ in 0..8 {
+            let trial: Vec<f64> = rest
+                .iter()
+                .zip(delta.iter().skip(m))
+                .map(|(t, d)| t + scale * d)
+                .collect();
+            let phi_t = fixed.basis(&trial);
+            if phi_t.iter().all(|v| v.is_finite()) {
+                if let Some((c_t, rss_t)) = rss_of(&phi_t) {
+                    if rss_t < rss {
+                        improved = Some((trial, phi_t, c_t, rss_t));
+                        break;
+                    }
+                }
+            }
+            scale /= 2.0;
+        }
+        let Some((trial, phi_t, c_t, rss_t)) = improved else {
+            break;
+        };
+        (rest, phi, coef, rss) = (trial, phi_t, c_t, rss_t);
+    }
+    Some(rss)
+}
+
+/// Where the profile RSS of nonlinear parameter `k` rises `delta_rss` above `rss_min` (its value
+/// at the estimate `theta_hat`), below and above `theta_hat[k]`: `[low, high]`.
+///
+/// `step` is the expected half-width (the Wald one). Each side is bracketed from it, then the
+/// crossing of `√(P(x) − rss_min) − √delta_rss` (close to linear in `x` when the profile is
+/// close to quadratic, so about three profile points per side suffice) is found by the
+/// Illinois variant of regula falsi to `PROFILE_TOL · step`. A side that does not cross within
+/// the problem's start search interval (or 64 steps when it has none) ends there. `None` when a
+/// profile refit fails.
+pub fn profile_interval<P: Separable>(
+    problem: &P,
+    theta_hat: &[f64],
+    k: usize,
+    rss_min: f64,
+    delta_rss: f64,
+    step: f64,
+) -> Option<[f64; 2]> {
+    if !(delta_rss > 0.0 && step > 0.0 && step.is_finite()) {
+        return None;
+    }
+    let x0 = theta_hat[k];
+    let (lo_bound, hi_bound) = problem
+        .start_search_interval(k)
+        .map(|(lo, hi)| (lo.min(x0), hi.max(x0)))
+        .unwrap_or((x0 - 64.0 * step, x0 + 64.0 * step));
+    let target = delta_rss.sqrt();
+    // Start each refit on the linearised profile trace: the other parameters move with `θ_k` as
+    // their regression on it under `(JᵀJ)⁻¹`, which saves most Gauss-Newton steps.
+    let n_lin = problem.linear_names().len();
+    let slope: Vec<f64> = jacobian_at(problem, theta_hat)
+        .and_then(|j| j.tr_mul(&j).try_inverse())
+        .map(|c| {
+            let ckk = c[(n_lin + k, n_lin + k)];
+            (0..theta_hat.len())
+                .map(|j| c[(n_lin + j, n_lin + k)] / ckk)
+                .map(|v| if v.is_finite() { v } else { 0.0 })
+                .collect()
+        })
+        .unwrap_or_else(|| vec![0.0; theta_hat.len()]);
+    let h = |s: f64, dir: f64| -> Option<f64> {
+        let x = x0 + dir * s;
+        let start: Vec<f64> = theta_hat
+            .iter()
+            .zip(&slope)
+            .map(|(t, b)| t + b * (x - x0))
+            .collect();
+        let rss = profile_rss(problem, &start, k, x, PROFILE_RSS_TOL * delta_rss)?;
+        Some((rss - rss_min).max(0.0).sqrt() - target)
+    };
+    let mut out = [x0; 2];
+    for (side, dir) in [(0usize, -1.0f64), (1, 1.0)] {
+        let limit = if dir < 0.0 {
+            x0 - lo_bound
+        } else {
+            hi_bound - x0
+        };
+        // Bracket: h(0) = −target < 0. While h ≤ 0, step on to the secant's root (h is close
+        // to linear), at least 1.2 and at most 2 times as far.
+        let (mut a, mut fa) = (0.0, -target);
+        let mut b = step.min(limit);
+        let mut fb = h(b, dir)?;
+        while fb <= 0.0 && b < limit {
+            let secant = if fb > fa {
+                b - fb * (b - a) / (fb - fa)
+            } else {
+                2.0 * b
+            };
+            (a, fa) = (b, fb);
+            b = secant.clamp(1.2 * a, 2.0 * a).min(limit);
+            fb = h(b, dir)?;
+        }
+        if fb <= 0.0 {
+            out[side] = x0 + dir * limit;
+            continue;
+        }
+        // Illinois regula falsi on [a, b], until two successive estimates agree within `tol`.
+        let tol = PROFILE_TOL * step;
+        let mut last_side = 0i8;
+        let mut root = b - fb * (b - a) / (fb - fa);
+        for _ in 0..40 {
+            let fc = h(root, dir)?;
+            if fc > 0.0 {
+                (b, fb) = (root, fc);
+                if last_side == 1 {
+                    fa /= 2.0;
+                }
+                last_side = 1;
+            } else {
+                (a, fa) = (root, fc);
+                if last_side == -1 {
+                    fb /= 2.0;
+                }
+                last_side = -1;
+            }
+            let next = b - fb * (b - a) / (fb - fa);
+            let done = (next - root).abs() < tol;
+            root = next;
+            if done {
+                break;
+            }
+        }
+        out[side] = x0 + dir * root;
+    }
+    Some(out)
+}
+
+/// Accuracy of a profile interval's ends, relative to the Wald half-width: far below what
+/// matters for coverage, and reached in one or two regula falsi steps.
+const PROFILE_TOL: f64 = 5e-3;
+/// Accuracy of a profile RSS, relative to the rise that ends the interval: an error `ε` moves an
+/// end by about `ε / 2` of the half-width, so `2e-3` keeps it within `1e-3` of it.
+const PROFILE_RSS_TOL: f64 = 2e-3;
+
+/// `problem` with nonlinear parameter `k` held at `value`: the other nonlinear parameters are
+/// free (a profile refit).
+struct FixedTheta<'a, P> {
+    inner: &'a P,
+    k: usize,
+    value: f64,
+}
+
+impl<P: Separable> FixedTheta<'_, P> {
+    fn full(&self, rest: &[f64]) -> Vec<f64> {
+        let mut t = rest.to_vec();
+        t.insert(self.k, self.value);
+        t
+    }
+    fn rest(&self, full: &[f64]) -> Vec<f64> {
+        let mut t = full.to_vec();
+        t.remove(self.k);
+        t
+    }
+}
+
+impl<P: Separable> Separable for FixedTheta<'_, P> {
+    fn observations(&self) -> &[f64] {
+        self.inner.observations()
+    }
+    fn nonlinear_names(&self) -> Vec<String> {
+        let mut names = self.inner.nonlinear_names();
+        names.remove(self.k);
+        names
+    }
+    fn linear_names(&self) -> Vec<String> {
+        self.inner.linear_names()
+    }
+    fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
+        self.inner.basis(&self.full(theta))
+    }
+    fn basis_derivative(&self, theta: &[f64], j: usize) -> DMatrix<f64> {
+        let j = if j >= self.k { j + 1 } else { j };
+        self.inner.basis_derivative(&self.full(theta), j)
     }
 }
 
@@ -476,6 +721,9 @@ impl<P: Separable> Separable for Orthogonalised<'_, P> {
     fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
         self.inner.start_search_interval(k)
     }
+    fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
+        self.inner.absorbed_groups()
+    }
 }
 
 /// `J = [Φ | Σ_j c_j ∂φ_j/∂θ_k]`, the Jacobian of the model in all parameters.
@@ -540,6 +788,95 @@ fn covariances(
     meat /= (1.0 - batch_edge_bias(residuals, batch)).max(0.5);
     let cov_hac = &jtj_inv * meat * &jtj_inv;
     Some((cov_naive, cov_hac, batch))
+}
+
+/// Student's t quantile 0.975 with `dof` degrees of freedom (1.96 if `dof` is not usable).
+pub fn t_quantile_975(dof: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    StudentsT::new(0.0, 1.0, dof.max(1.0))
+        .map(|t| t.inverse_cdf(0.975))
+        .unwrap_or(1.96)
+}
+
+/// Effective degrees of freedom of each parameter's batch-means HAC variance (Satterthwaite, in
+/// the form Bell and McCaffrey (2002) give for cluster-robust variances, batches as clusters).
+///
+/// Parameter `k`'s HAC variance is `V = Σ_b (a_bᵀ r_b)²` with `a = J (JᵀJ)⁻¹ e_k` and `r_b` the
+/// residuals of batch `b`. With the residuals `r = (I − H) e` (`H` the projection on the
+/// Jacobian and on the absorbed group means) and batches independent with a common long-run
+/// variance per sample (the working model of batch means), `V` is a weighted sum of χ²₁
+/// variables with weights the eigenvalues of `M = (I − H) A (I − H)`, `A = blockdiag(a_b a_bᵀ)`,
+/// and Satterthwaite's `ν = (tr M)² / tr(M²)` matches its first two moments. `ν` equals the
+/// number of batches − parameters only when every batch carries the same share of `k`'s
+/// information; in thermal fits a few batches where the temperature moves fast carry most of
+/// it (for time constants even more than for gains), so `ν` is several times smaller and
+/// intervals on `B − p` degrees of freedom under-cover (simulated AR(1) residuals: the spread
+/// of `u_hac / u_true` was that of ~10-20 degrees of freedom, not ~56).
+///
+/// With `w_b = |a_b|²`, `u_b = [J_bᵀ a_b; Z_bᵀ a_b]` and `W = blockdiag((JᵀJ)⁻¹, (ZᵀZ)⁻¹)`
+/// (`Z` the group indicators; `J` is orthogonal to them because the problem demeaned it):
+/// `tr M = Σ w_b − Σ u_bᵀ W u_b`, `tr M² = Σ w_b² − 2 Σ w_b u_bᵀ W u_b + tr((W Σ u_b u_bᵀ)²)`.
+/// Cost `O(n p²)`, no refits. `None` when `JᵀJ` is singular.
+fn satterthwaite_dof(
+    jac: &DMatrix<f64>,
+    batch: usize,
+    groups: Option<&[Option<usize>]>,
+) -> Option<Vec<f64>> {
+    let (n, p) = jac.shape();
+    let k_inv = jac.tr_mul(jac).try_inverse()?;
+    let a_all = jac * &k_inv;
+    let n_groups = groups
+        .map(|g| g.iter().flatten().map(|&g| g + 1).max().unwrap_or(0))
+        .unwrap_or(0);
+    let mut group_size = vec![0usize; n_groups];
+    if let Some(g) = groups {
+        for &gi in g.iter().flatten() {
+            group_size[gi] += 1;
+        }
+    }
+    let q = p + n_groups;
+    let mut w_mat = DMatrix::<f64>::zeros(q, q);
+    w_mat.view_mut((0, 0), (p, p)).copy_from(&k_inv);
+    for (g, &size) in group_size.iter().enumerate() {
+        w_mat[(p + g, p + g)] = 1.0 / size.max(1) as f64;
+    }
+    let batch = batch.max(1);
+    let mut out = Vec::with_capacity(p);
+    for k in 0..p {
+        let a = a_all.column(k);
+        let (mut tr, mut w2, mut cross) = (0.0, 0.0, 0.0);
+        let mut big_p = DMatrix::<f64>::zeros(q, q);
+        let mut start = 0;
+        while start < n {
+            let end = (start + batch).min(n);
+            let mut u = DVector::<f64>::zeros(q);
+            let mut w = 0.0;
+            for i in start..end {
+                w += a[i] * a[i];
+                for j in 0..p {
+                    u[j] += jac[(i, j)] * a[i];
+                }
+                if let Some(Some(g)) = groups.map(|g| g[i]) {
+                    u[p + g] += a[i];
+                }
+            }
+            let uwu = (u.transpose() * &w_mat * &u)[(0, 0)];
+            tr += w - uwu;
+            w2 += w * w;
+            cross += w * uwu;
+            big_p.ger(1.0, &u, &u, 1.0);
+            start = end;
+        }
+        let wp = &w_mat * &big_p;
+        let tr2 = w2 - 2.0 * cross + (&wp * &wp).trace();
+        let nu = if tr2 > 0.0 && tr > 0.0 {
+            tr * tr / tr2
+        } else {
+            1.0
+        };
+        out.push(nu.max(1.0));
+    }
+    Some(out)
 }
 
 fn n_batches(n: usize, batch_len: usize) -> usize {
@@ -711,6 +1048,71 @@ mod tests {
         assert!(f.rss < 1e-16, "rss {}", f.rss);
         // Without the directions the same term cannot fit the signal.
         assert!(fit(&p, &[0.2], &options).unwrap().rss > 1.0);
+    }
+
+    #[test]
+    fn satterthwaite_dof_is_batches_minus_one_for_equal_batches_and_less_when_one_dominates() {
+        // One parameter (a mean): every batch carries the same information, ν = B − 1.
+        let jac = DMatrix::from_element(200, 1, 1.0);
+        let nu = satterthwaite_dof(&jac, 10, None).unwrap();
+        assert!((nu[0] - 19.0).abs() < 1e-9, "{nu:?}");
+        // A slope whose information sits at the ends: fewer effective batches.
+        let jac = DMatrix::from_fn(200, 2, |i, j| {
+            if j == 0 {
+                1.0
+            } else {
+                (i as f64 / 199.0 - 0.5).powi(3)
+            }
+        });
+        let nu = satterthwaite_dof(&jac, 10, None).unwrap();
+        assert!(nu[1] < 10.0 && nu[1] >= 1.0, "{nu:?}");
+        // The same with the mean absorbed as a group: the slope's ν is unchanged (the column is
+        // orthogonal to the mean), the projected-out mean still costs its degree of freedom.
+        let mut centred = jac.column(1).into_owned();
+        let m = centred.mean();
+        centred.add_scalar_mut(-m);
+        let groups: Vec<Option<usize>> = vec![Some(0); 200];
+        let nu_g =
+            satterthwaite_dof(&DMatrix::from_columns(&[centred]), 10, Some(&groups)).unwrap();
+        assert!((nu_g[0] - nu[1]).abs() < 1e-9 * nu[1], "{nu_g:?} {nu:?}");
+    }
+
+    #[test]
+    fn profile_interval_matches_wald_when_nearly_linear_and_follows_the_rss() {
+        // Exponential with small noise: the profile of b2 is close to quadratic, so the interval
+        // cut at delta = t² var / [(JᵀJ)⁻¹]_kk is close to b2 ± t u, and the RSS at its ends
+        // has risen by exactly delta.
+        let mut state = 7u64;
+        let x: Vec<f64> = (0..200).map(|i| i as f64 * 0.25).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .map(|x| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let e = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                3.0 * (1.0 - (-0.07 * x).exp()) + 0.01 * e
+            })
+            .collect();
+        let p = Exponential { x, y };
+        let f = fit(&p, &[0.2], &FitOptions::default()).unwrap();
+        let theta = [f.values[1]];
+        let (u, t) = (f.se_naive(1), 2.0);
+        let s2 = f.rss / (f.n_obs - 2) as f64;
+        let delta = t * t * u * u / (f.cov_naive[(1, 1)] / s2);
+        let [lo, hi] = profile_interval(&p, &theta, 0, f.rss, delta, t * u).unwrap();
+        assert!(
+            (theta[0] - lo - t * u).abs() < 0.03 * t * u,
+            "{lo} {theta:?} {u}"
+        );
+        assert!(
+            (hi - theta[0] - t * u).abs() < 0.03 * t * u,
+            "{hi} {theta:?} {u}"
+        );
+        for end in [lo, hi] {
+            let rise = projected_rss(&p, &[end]) - f.rss;
+            assert!((rise - delta).abs() < 0.02 * delta, "{rise} {delta}");
+        }
     }
 
     #[test]

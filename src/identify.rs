@@ -17,8 +17,11 @@ pub struct Estimate {
     pub u: f64,
     /// The textbook `s² (JᵀJ)⁻¹` standard error, valid only for white residuals.
     pub u_naive: f64,
-    /// 95 % interval from `u` with Student's t on the HAC degrees of freedom
-    /// (for taus: `exp(ln tau ± t u_ln)`, asymmetric).
+    /// 95 % interval. Gains: `value ± t u`, Student's t on the parameter's effective
+    /// (Satterthwaite) HAC degrees of freedom ([`BarModel::dof`]). Time constants from
+    /// [`identify`]: the adjusted profile-likelihood interval of `ln tau`, mapped to seconds
+    /// (asymmetric; the profile RSS cut where a linear model would give `ln tau ± t u_ln`);
+    /// from [`identify_from`] (diagnosis trial fits): the Wald interval `exp(ln tau ± t u_ln)`.
     pub ci95: [f64; 2],
 }
 
@@ -47,6 +50,11 @@ pub struct BarModel {
     /// Nonlinear parameters as fitted (`ln tau`), to restart related fits.
     pub theta: Vec<f64>,
     pub hac_batch_len: usize,
+    /// Effective degrees of freedom of each parameter's HAC variance (same order as `params`,
+    /// [`fit::Fit::hac_dof_param`]).
+    pub dof: Vec<f64>,
+    /// Index in `theta` of each parameter that is a time constant (same order as `params`).
+    theta_index: Vec<Option<usize>>,
 }
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -70,8 +78,66 @@ impl BarModel {
 }
 
 /// Fit `effects` to one bar.
+///
+/// The time constants get adjusted profile-likelihood intervals
+/// ([`profile_tau_intervals`]); [`identify_from`] (the diagnosis' many trial fits) keeps the
+/// cheaper Wald intervals.
 pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, IdentifyError> {
-    identify_from(series, effects, None)
+    let mut model = identify_from(series, effects, None)?;
+    profile_tau_intervals(series, &mut model);
+    Ok(model)
+}
+
+/// Replace each time constant's Wald interval `exp(ln tau ± t u)` by an adjusted
+/// profile-likelihood interval, calibrated for autocorrelated residuals.
+///
+/// Why: the Wald interval trusts the curvature of the RSS at the estimate over the whole
+/// interval. For a time constant it is not constant: the information about `ln tau` changes
+/// with `tau` itself (on simulated bars the HAC standard error of `ln tau_R` correlates −0.6
+/// with the estimate's error, and the errors of `ln tau_S` are skewed): on 1000 simulated bars
+/// with AR(1) residuals Wald intervals on the same `u` and `t` covered the true `tau_R` 92.8 %
+/// and `tau_S` 90.2 % of the time at nominal 95 %, the gains 94.6-94.8 %.
+///
+/// How: the profile RSS `P(x)` of `ln tau` (the other time constants refitted, the linear
+/// parameters solved, at each `x`) is cut at `P(x) − RSS_min = t² u_hac² / [(JᵀJ)⁻¹]_kk`. For a
+/// model linear near the estimate `P(x) − RSS_min = (x − x̂)² / [(JᵀJ)⁻¹]_kk`, so the cut
+/// reproduces exactly `x̂ ± t u_hac` (the HAC standard error and its Satterthwaite t, as for the
+/// gains); beyond it, the cut follows the real shape of the RSS. This is the one-parameter
+/// form of the "adjusted" profile likelihood of Chandler and Bate (2007): the likelihood-ratio
+/// statistic of a misspecified (here: autocorrelated) model rescaled by the ratio of the
+/// sandwich to the naive variance. `u` stays the HAC standard uncertainty at the estimate.
+///
+/// Cost: about three profile points per end (bracketing from the Wald half-width, then regula
+/// falsi on `√(P − RSS_min)`, close to linear in `x`), each one or two Gauss-Newton steps of the
+/// other time constants started on the linearised profile trace: for the base model about 1.3
+/// times the fit itself (simulated bars: 54 ms fit, 65 ms profiles). A failed profile keeps
+/// the Wald interval.
+fn profile_tau_intervals(series: &BarSeries, model: &mut BarModel) {
+    let Ok(problem) = ThermalProblem::new(series, &model.effects) else {
+        return;
+    };
+    let rss_min = fit::projected_rss(&problem, &model.theta);
+    let n_total = model.n_params + problem.n_zeros();
+    let s2 = rss_min / model.n_samples.saturating_sub(n_total).max(1) as f64;
+    for p in 0..model.params.len() {
+        let Some(k) = model.theta_index[p] else {
+            continue;
+        };
+        let est = &model.params[p];
+        if !(est.u > 0.0 && est.u_naive > 0.0) {
+            continue;
+        }
+        // In ln tau: u_ln = u / tau, and [(JᵀJ)⁻¹]_kk = u_naive_ln² / s².
+        let u_ln = est.u / est.value;
+        let ratio = est.u / est.u_naive;
+        let t = fit::t_quantile_975(model.dof[p]);
+        let delta = t * t * ratio * ratio * s2;
+        if let Some([lo, hi]) =
+            fit::profile_interval(&problem, &model.theta, k, rss_min, delta, t * u_ln)
+        {
+            model.params[p].ci95 = [lo.exp(), hi.exp()];
+        }
+    }
 }
 
 /// Fit `effects` to one bar, starting the time constants that `start` names from its values.
@@ -201,6 +267,8 @@ fn canonical_thermal_paths(model: &mut BarModel) {
             name: vj.name,
             ..vi
         };
+        model.dof.swap(i, j);
+        model.theta_index.swap(i, j);
         model.correlation.swap(i, j);
         for row in model.correlation.iter_mut() {
             row.swap(i, j);
@@ -232,12 +300,12 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
     let mut order: Vec<usize> = (0..n_gains).collect();
     order.extend(n_lin..fit.n_params());
     let tau_names: Vec<String> = effects.iter().filter_map(Effect::tau_name).collect();
-    let t95 = fit.t95();
     let params = order
         .iter()
         .map(|&i| {
             if i < n_gains {
                 let (v, u) = (fit.values[i], fit.se_hac(i));
+                let t95 = fit.t95(i);
                 Estimate {
                     name: gain_names[i].clone(),
                     value: v,
@@ -247,6 +315,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
                 }
             } else {
                 let (ln_tau, u_ln) = (fit.values[i], fit.se_hac(i));
+                let t95 = fit.t95(i);
                 let tau = ln_tau.clamp(0.0, 1e9f64.ln()).exp();
                 Estimate {
                     name: tau_names[i - n_lin].clone(),
@@ -295,6 +364,11 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         residuals_um: fit.residuals.clone(),
         theta,
         hac_batch_len: fit.hac_batch_len,
+        dof: order.iter().map(|&i| fit.hac_dof_param[i]).collect(),
+        theta_index: order
+            .iter()
+            .map(|&i| (i >= n_lin).then(|| i - n_lin))
+            .collect(),
     }
 }
 
@@ -302,6 +376,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
 mod tests {
     use super::*;
     use crate::campaign::{Bar, Purpose};
+    use crate::fit::Separable;
     use crate::model::lag::lag;
     use crate::series::MountSpan;
     use rand::SeedableRng;
@@ -319,11 +394,16 @@ mod tests {
     /// daily swing, an air-conditioning cycle and a random walk, and AR(1) noise (phi = 0.9):
     /// residuals as correlated as real ones.
     fn synthetic_bar(seed: u64) -> BarSeries {
-        synthetic_bar_every(seed, 60)
+        synthetic_bar_with_noise(seed, 60).0
     }
 
     /// [`synthetic_bar`] sampled every `step_s` seconds.
     fn synthetic_bar_every(seed: u64, step_s: usize) -> BarSeries {
+        synthetic_bar_with_noise(seed, step_s).0
+    }
+
+    /// [`synthetic_bar_every`] and its AR(1) noise (µm, one per sample).
+    fn synthetic_bar_with_noise(seed: u64, step_s: usize) -> (BarSeries, Vec<f64>) {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let unit = Normal::new(0.0, 1.0).unwrap();
         let n = 8 * 86400 / step_s;
@@ -361,10 +441,12 @@ mod tests {
         let mut ar = 0.0;
         let phi: f64 = 0.9;
         let sigma_innov = 0.02 * (1.0 - phi * phi).sqrt();
+        let mut noise = Vec::with_capacity(n);
         let y_um: Vec<f64> = (0..n)
             .map(|i| {
                 let m = i / (2 * 86400 / step_s);
                 ar = phi * ar + sigma_innov * unit.sample(&mut rng);
+                noise.push(ar);
                 -(TRUTH[0].1 * i_min * lr[i] + TRUTH[1].1 * mounts[m].i_p_mm * ls[i]) * 1e-3
                     + 0.3 * m as f64
                     + ar
@@ -376,7 +458,121 @@ mod tests {
             fixed_length_mm: i_min,
             sensor: None,
         };
-        BarSeries::from_vectors(bar, 20.0, t_s, y_um, air_c, mounts)
+        (
+            BarSeries::from_vectors(bar, 20.0, t_s, y_um, air_c, mounts),
+            noise,
+        )
+    }
+
+    /// Diagnosis of the coverage (not a check): per replicate, the fitted parameters in the
+    /// fit's parametrisation (gains, ln taus), their HAC and naive standard errors, the
+    /// linearised error `(JᵀJ)⁻¹Jᵀe` from the true noise at the true parameters, and the exact
+    /// standard error of that linearised estimator under the true AR(1) covariance, and the
+    /// reported (profile) intervals of the taus in `ln tau`. Written as CSV to
+    /// `$DBB_COVERAGE_CSV`, `$DBB_COVERAGE_REPS` replicates (300).
+    /// `DBB_COVERAGE_CSV=/tmp/cov.csv cargo test --release --lib coverage_diagnosis -- --ignored`
+    #[test]
+    #[ignore]
+    fn coverage_diagnosis() {
+        let reps: u64 = std::env::var("DBB_COVERAGE_REPS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(300);
+        let path = std::env::var("DBB_COVERAGE_CSV").unwrap_or("/tmp/coverage.csv".into());
+        let truth_theta = [TRUTH[2].1.ln(), TRUTH[3].1.ln()];
+        let truth = [TRUTH[0].1, TRUTH[1].1, truth_theta[0], truth_theta[1]];
+        let rows: Vec<String> = (0..reps)
+            .into_par_iter()
+            .map(|seed| {
+                let (series, noise) = synthetic_bar_with_noise(seed, 60);
+                let effects = crate::model::base_effects();
+                let problem = ThermalProblem::new(&series, &effects).unwrap();
+                let opts = FitOptions {
+                    absorbed_params: problem.n_zeros(),
+                    ..FitOptions::default()
+                };
+                let f = fit::fit(&problem, &problem.theta0(), &opts).unwrap();
+                let e_raw: Vec<f64> = series.fit_index.iter().map(|&i| noise[i]).collect();
+                let e_problem = ThermalProblem::new(&series, &effects)
+                    .unwrap()
+                    .with_observations(e_raw);
+                let e = nalgebra::DVector::from_column_slice(e_problem.observations());
+                // Jacobian at the truth (gains solved there, within noise of the true gains).
+                let jac = fit::jacobian_at(&problem, &truth_theta).unwrap();
+                let jtj_inv = jac.tr_mul(&jac).try_inverse().unwrap();
+                let lin = &jtj_inv * jac.tr_mul(&e);
+                // Exact covariance of e (stationary AR(1), phi 0.9, sd 0.02; demeaned per
+                // mount, which the fit's zeros absorb anyway): Σ J by a two-sided filter.
+                let (phi, var) = (0.9f64, 0.02f64 * 0.02);
+                let mut sj = jac.clone();
+                for c in 0..jac.ncols() {
+                    let col = jac.column(c);
+                    let n = col.len();
+                    let mut fwd = vec![0.0; n];
+                    let mut acc = 0.0;
+                    for i in 0..n {
+                        acc = phi * acc + col[i];
+                        fwd[i] = acc;
+                    }
+                    let mut acc = 0.0;
+                    for i in (0..n).rev() {
+                        acc = phi * acc + col[i];
+                        sj[(i, c)] = var * (fwd[i] + acc - col[i]);
+                    }
+                }
+                let exact = &jtj_inv * jac.tr_mul(&sj) * &jtj_inv;
+                let m = identify(&series, &effects).unwrap();
+                let ln_ci = |name: &str| m.param(name).unwrap().ci95.map(f64::ln);
+                let [rl, rh] = ln_ci("tau_r_s");
+                let [sl, sh] = ln_ci("tau_s_s");
+                let mut row = format!(
+                    "{seed},{},{},{rl},{rh},{sl},{sh}",
+                    f.hac_batch_len, f.hac_dof
+                );
+                for k in 0..4 {
+                    row += &format!(
+                        ",{},{},{},{},{},{},{}",
+                        f.hac_dof_param[k],
+                        f.t95(k),
+                        f.values[k] - truth[k],
+                        f.se_hac(k),
+                        f.se_naive(k),
+                        lin[k],
+                        exact[(k, k)].sqrt()
+                    );
+                }
+                row
+            })
+            .collect();
+        let mut out =
+            String::from("seed,batch,dof,ln_tau_r_lo,ln_tau_r_hi,ln_tau_s_lo,ln_tau_s_hi");
+        for k in ["alpha", "beta", "ln_tau_r", "ln_tau_s"] {
+            out += &format!(",{k}_nu,{k}_t95,{k}_err,{k}_u,{k}_un,{k}_lin,{k}_uex");
+        }
+        out.push('\n');
+        for r in rows {
+            out += &r;
+            out.push('\n');
+        }
+        std::fs::write(&path, out).unwrap();
+    }
+
+    /// Cost of the profile intervals against the fit itself, one thread:
+    /// `cargo test --release --lib profile_cost -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn profile_cost() {
+        let (mut t_fit, mut t_profile) = (0.0, 0.0);
+        for seed in 0..20 {
+            let series = synthetic_bar(seed);
+            let t0 = std::time::Instant::now();
+            let mut model = identify_from(&series, &crate::model::base_effects(), None).unwrap();
+            t_fit += t0.elapsed().as_secs_f64();
+            let t0 = std::time::Instant::now();
+            profile_tau_intervals(&series, &mut model);
+            t_profile += t0.elapsed().as_secs_f64();
+        }
+        eprintln!("20 bars: fit {t_fit:.2} s, profile intervals {t_profile:.2} s");
     }
 
     #[test]
@@ -410,78 +606,80 @@ mod tests {
 
     #[test]
     fn hac_intervals_cover_the_truth_at_their_nominal_rate() {
-        let reps = 300u64;
+        let reps: u64 = std::env::var("DBB_COVERAGE_REPS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(300);
+        let t0 = std::time::Instant::now();
         let fits: Vec<BarModel> = (0..reps)
             .into_par_iter()
             .map(|seed| identify(&synthetic_bar(seed), &crate::model::base_effects()).expect("fit"))
             .collect();
-        for (name, truth) in TRUTH {
-            let v: Vec<f64> = fits.iter().map(|m| m.value(name).unwrap()).collect();
-            let mean = v.iter().sum::<f64>() / v.len() as f64;
-            let sd =
-                (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt();
-            let u = fits.iter().map(|m| m.param(name).unwrap().u).sum::<f64>() / v.len() as f64;
-            let un = fits
-                .iter()
-                .map(|m| m.param(name).unwrap().u_naive)
-                .sum::<f64>()
-                / v.len() as f64;
-            eprintln!("{name}: truth {truth} mean {mean:.5} sd {sd:.5} mean u_hac {u:.5} mean u_naive {un:.5} batch {}", fits[0].hac_batch_len);
-        }
-        let hits: Vec<([bool; 4], [bool; 4])> = (0..reps)
-            .into_par_iter()
-            .map(|seed| {
-                let series = synthetic_bar(seed);
-                let m = identify(&series, &crate::model::base_effects()).expect("fit");
-                let mut hac = [false; 4];
-                let mut naive = [false; 4];
-                for (k, (name, truth)) in TRUTH.iter().enumerate() {
-                    let p = m.param(name).unwrap();
-                    hac[k] = p.ci95[0] <= *truth && *truth <= p.ci95[1];
-                    let (lo, hi) = if name.starts_with("tau") {
-                        let s = p.u_naive / p.value;
-                        (p.value * (-1.96 * s).exp(), p.value * (1.96 * s).exp())
-                    } else {
-                        (p.value - 1.96 * p.u_naive, p.value + 1.96 * p.u_naive)
-                    };
-                    naive[k] = lo <= *truth && *truth <= hi;
-                }
-                (hac, naive)
-            })
-            .collect();
-        let coverage = |k: usize| hits.iter().filter(|(h, _)| h[k]).count() as f64 / reps as f64;
-        for (k, (name, _)) in TRUTH.iter().enumerate() {
-            eprintln!("{name}: HAC coverage {:.1} %", coverage(k) * 100.0);
-        }
-        let naive = hits
-            .iter()
-            .map(|(_, n)| n.iter().filter(|b| **b).count())
-            .sum::<usize>() as f64
-            / (reps * 4) as f64;
         eprintln!(
-            "naive coverage, all four parameters: {:.1} %",
-            naive * 100.0
+            "{reps} identifications in {:.1} s",
+            t0.elapsed().as_secs_f64()
         );
-        // The linear gains are covered at the nominal rate. The time constants' intervals (from
-        // the linearised ln tau) fall short by a few points: the HAC standard error matches the
-        // spread for the gains but is ~10 % small for the taus, a nonlinearity effect. Asserted
-        // as measured, not widened: 93-97 % for the gains, at least 88 % for the taus.
-        for k in 0..2 {
-            assert!(
-                (0.93..=0.97).contains(&coverage(k)),
-                "{}: HAC coverage {:.1} %",
-                TRUTH[k].0,
-                coverage(k) * 100.0
+        let n = reps as f64;
+        // Per parameter: reported interval (HAC; profile for taus), Wald interval on the same u
+        // and t (the taus' intervals before the profile), naive interval (1.96 u_naive).
+        let mut covered = [[0usize; 3]; 4];
+        for (k, (name, truth)) in TRUTH.iter().enumerate() {
+            let is_tau = name.starts_with("tau");
+            // Standardised errors (in ln tau for the taus) against the HAC u.
+            let mut z = Vec::new();
+            for m in &fits {
+                let i = m.params.iter().position(|p| p.name == *name).unwrap();
+                let p = &m.params[i];
+                let t = fit::t_quantile_975(m.dof[i]);
+                let (wald, naive, zi) = if is_tau {
+                    let (s, sn) = (p.u / p.value, p.u_naive / p.value);
+                    let l = p.value.ln();
+                    (
+                        [(l - t * s).exp(), (l + t * s).exp()],
+                        [(l - 1.96 * sn).exp(), (l + 1.96 * sn).exp()],
+                        (l - truth.ln()) / s,
+                    )
+                } else {
+                    (
+                        [p.value - t * p.u, p.value + t * p.u],
+                        [p.value - 1.96 * p.u_naive, p.value + 1.96 * p.u_naive],
+                        (p.value - truth) / p.u,
+                    )
+                };
+                z.push(zi);
+                for (j, ci) in [p.ci95, wald, naive].iter().enumerate() {
+                    covered[k][j] += usize::from(ci[0] <= *truth && *truth <= ci[1]);
+                }
+            }
+            let mean = z.iter().sum::<f64>() / n;
+            let sd = (z.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            let tails = z.iter().filter(|x| x.abs() > 1.96).count() as f64 / n;
+            let dof = fits
+                .iter()
+                .map(|m| m.dof[m.params.iter().position(|p| p.name == *name).unwrap()])
+                .sum::<f64>()
+                / n;
+            eprintln!(
+                "{name}: z = err/u_hac mean {mean:+.3} sd {sd:.3} P(|z|>1.96) {:.1} %, mean dof {dof:.1}; \
+                 coverage reported {:.1} %, Wald {:.1} %, naive {:.1} %",
+                tails * 100.0,
+                covered[k][0] as f64 / n * 100.0,
+                covered[k][1] as f64 / n * 100.0,
+                covered[k][2] as f64 / n * 100.0
             );
         }
-        for k in 2..4 {
+        // Nominal 95 % within 93-97 % (binomial SE ~1.3 % at 300 replicates) for all four:
+        // gains `± t u` with the Satterthwaite t of `fit::satterthwaite_dof`, taus from the
+        // adjusted profile likelihood (`profile_tau_intervals`).
+        for (k, (name, _)) in TRUTH.iter().enumerate() {
+            let c = covered[k][0] as f64 / n;
             assert!(
-                coverage(k) >= 0.88,
-                "{}: HAC coverage {:.1} %",
-                TRUTH[k].0,
-                coverage(k) * 100.0
+                (0.93..=0.97).contains(&c),
+                "{name}: coverage {:.1} %",
+                c * 100.0
             );
         }
+        let naive = covered.iter().map(|c| c[2]).sum::<usize>() as f64 / (4.0 * n);
         assert!(
             naive < 0.6,
             "naive intervals should under-cover with AR(1) residuals: {:.1} %",

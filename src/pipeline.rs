@@ -15,7 +15,7 @@ use sha2::{Digest, Sha256};
 
 use crate::campaign::{Campaign, Place};
 use crate::diagnose::{self, BarDiagnosis, Candidate, LedgerStep};
-use crate::identify::{identify, BarModel, Estimate};
+use crate::identify::{identify, identify_from, BarModel, Estimate};
 use crate::matching::{
     self, MatchInput, MatchStudy, Mismatch, ReferenceChoice, TemperatureHistory,
 };
@@ -957,7 +957,8 @@ fn before_after(bars: &[BarOutcome]) -> BeforeAfter {
     let rows: Vec<BarBeforeAfter> = bars
         .par_iter()
         .filter_map(|o| {
-            let before = identify(&o.series, &base).ok()?;
+            // Values only: the trial-fit form, without the profile intervals of `identify`.
+            let before = identify_from(&o.series, &base, None).ok()?;
             let pick = |m: &BarModel| {
                 m.params
                     .iter()

@@ -771,6 +771,10 @@ impl Separable for ThermalProblem<'_> {
     fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
         Some((60f64.ln(), (30.0 * 86400f64).ln()))
     }
+
+    fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
+        Some((0..self.y.len()).map(|r| self.fit_row_zero(r)).collect())
+    }
 }
 
 #[cfg(test)]
