@@ -37,7 +37,8 @@ pub const CHANNEL_CANDIDATES: usize = 10;
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ChannelScore {
     pub channel: String,
-    /// Fraction of the residual variance explained by the channel's best first-order response.
+    /// Fraction of the residual variance its best first-order response removes when added to the
+    /// model (a linearised refit, see `score_channel`).
     pub explained_fraction: f64,
     /// Its time constant, s (NaN for impulse-free level channels that failed to fit).
     pub tau_s: f64,
