@@ -121,14 +121,10 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 /// the difference between the two estimates, so a linear model still gets exactly
 /// `x̂ ± t u_hac`. Checked against the full profile in this module's tests.
 fn profile_tau_intervals(series: &BarSeries, model: &mut BarModel) {
-    if series.fit_index.len() >= COARSE_START_MIN_SAMPLES {
-        let coarse = series.binned_copy(COARSE_START_BIN_S);
-        if coarse.fit_index.len() * 4 <= series.fit_index.len() {
-            profile_on_coarse_copy(&coarse, model);
-            return;
-        }
+    match coarse_copy(series) {
+        Some(coarse) => profile_on_coarse_copy(&coarse, model),
+        None => profile_on_series(series, model),
     }
-    profile_on_series(series, model);
 }
 
 /// [`profile_tau_intervals`] on a coarse copy of the series `model` was fitted to.
@@ -278,6 +274,17 @@ const COARSE_START_MIN_SAMPLES: usize = 50_000;
 /// (15 min to 2 h), so the start lands in the fine fit's basin.
 const COARSE_START_BIN_S: f64 = 300.0;
 
+/// The 300-s bin means of a long series, on which its fit starts and its time constants are
+/// profiled; `None` for a series short enough to work on directly (below
+/// [`COARSE_START_MIN_SAMPLES`], or whose copy would not be at least 4× shorter).
+fn coarse_copy(series: &BarSeries) -> Option<BarSeries> {
+    if series.fit_index.len() < COARSE_START_MIN_SAMPLES {
+        return None;
+    }
+    let coarse = series.binned_copy(COARSE_START_BIN_S);
+    (coarse.fit_index.len() * 4 <= series.fit_index.len()).then_some(coarse)
+}
+
 /// The time constants fitted (Brent start + Levenberg-Marquardt) on 300-s bin means of a long
 /// series, to start the fit of the series itself with Levenberg-Marquardt alone. The Brent
 /// sweep evaluates the projected residual some 40 times; on the full series that was about
@@ -285,13 +292,10 @@ const COARSE_START_BIN_S: f64 = 300.0;
 /// series is short, the copy would not be much shorter, or the coarse fit failed (the engine
 /// then starts as usual).
 fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Option<Vec<f64>> {
-    if theta0.is_empty() || series.fit_index.len() < COARSE_START_MIN_SAMPLES {
+    if theta0.is_empty() {
         return None;
     }
-    let coarse = series.binned_copy(COARSE_START_BIN_S);
-    if coarse.fit_index.len() * 4 > series.fit_index.len() {
-        return None;
-    }
+    let coarse = coarse_copy(series)?;
     let problem = ThermalProblem::new(&coarse, effects).ok()?;
     let options = FitOptions {
         absorbed_params: problem.n_zeros(),

@@ -460,6 +460,32 @@ pub struct ReferenceReport {
     pub mismatches: Vec<Mismatch>,
 }
 
+impl RunResults {
+    /// Identified bars, before any later stage has filled its result in.
+    fn before_stages(
+        campaign: Campaign,
+        inputs: Vec<InputFile>,
+        history: TemperatureHistory,
+        bars: Vec<BarOutcome>,
+        failed: Vec<(String, String)>,
+    ) -> Self {
+        RunResults {
+            campaign,
+            inputs,
+            bars,
+            failed,
+            reference: None,
+            study: None,
+            history,
+            diagnosis: None,
+            before_after: None,
+            calibration: None,
+            compensation: None,
+            acceptance: None,
+        }
+    }
+}
+
 /// Run the analysis stages on already-read logs (no output written).
 pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let CampaignLogs {
@@ -477,20 +503,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .unwrap_or_else(|| campaign_origin_from(&bars));
     let history = air_history(&campaign, &sensors, t0, 60.0);
     if !plan.runs(Stage::Identify) {
-        return RunResults {
-            campaign,
-            inputs,
-            bars: Vec::new(),
-            failed: Vec::new(),
-            reference: None,
-            study: None,
-            history,
-            diagnosis: None,
-            before_after: None,
-            calibration: None,
-            compensation: None,
-            acceptance: None,
-        };
+        return RunResults::before_stages(campaign, inputs, history, Vec::new(), Vec::new());
     }
     // Every stage past identify reads the bars' samples, and so does the before/after
     // comparison of an extended model; a plain identify run keeps only the models and counts,
@@ -541,20 +554,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
             }
         }
     }
-    let mut results = RunResults {
-        campaign,
-        inputs,
-        bars: ok,
-        failed,
-        reference: None,
-        study: None,
-        history,
-        diagnosis: None,
-        before_after: None,
-        calibration: None,
-        compensation: None,
-        acceptance: None,
-    };
+    let mut results = RunResults::before_stages(campaign, inputs, history, ok, failed);
     if plan.runs(Stage::Match) {
         run_match(plan, &mut results);
     }
