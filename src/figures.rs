@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use crate::diagnose::sensors::{channel_sensor_summaries, SensorProfile};
 use crate::diagnose::{BarDiagnosis, LedgerStep};
 use crate::pipeline::{BarOutcome, RunPlan, RunResults, Stage};
 use crate::report::{self, NamedSeries, ReportError};
@@ -31,11 +32,14 @@ pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()
             )?;
         }
         if d.ledger.len() > 1 {
-            report::render_ledger(&ledger(&d.ledger), &dir.join("ledger.png"))?;
+            report::render_ledger(
+                &ledger(&d.ledger, &d.sensors, plan.diagnose.beam),
+                &dir.join("ledger.png"),
+            )?;
         }
         for bl in d.bar_ledgers.iter().filter(|bl| bl.steps.len() > 1) {
             report::render_ledger(
-                &bar_ledger(bl),
+                &bar_ledger(bl, &d.sensors, plan.diagnose.beam),
                 &dir.join(format!("ledger-{}.png", file_safe(&bl.bar))),
             )?;
         }
@@ -381,11 +385,32 @@ fn median_step(t: &[f64]) -> f64 {
     *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
-fn ledger(steps: &[LedgerStep]) -> report::LedgerFigure {
+/// Subtitle lines naming what the sensors of the added channel terms plausibly are.
+fn sensor_lines(steps: &[LedgerStep], sensors: &[SensorProfile]) -> String {
+    let mut lines: Vec<String> = Vec::new();
+    for s in steps {
+        let Some(channel) = s
+            .added
+            .strip_prefix("lag:")
+            .or(s.added.strip_prefix("rate:"))
+            .or(s.added.strip_prefix("level:"))
+        else {
+            continue;
+        };
+        for line in channel_sensor_summaries(channel, sensors) {
+            if !lines.contains(&line) {
+                lines.push(line);
+            }
+        }
+    }
+    lines.iter().map(|l| format!("\n{l}")).collect()
+}
+
+fn ledger(steps: &[LedgerStep], sensors: &[SensorProfile], beam: usize) -> report::LedgerFigure {
     let bars: Vec<String> = steps[0].rms_um.iter().map(|(b, _)| b.clone()).collect();
     report::LedgerFigure {
         title: "Forward selection — RMS residual as effects are added".into(),
-        subtitle: "Each step adds the candidate with the best fleet ΔBIC that is significant (likelihood-ratio test, Bonferroni over candidates).".into(),
+        subtitle: format!("Each step adds a significant candidate (likelihood-ratio test with a residual noise model, Bonferroni over candidates); the best of {beam} paths by fleet ΔBIC.{}", sensor_lines(steps, sensors)),
         steps: steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
         bars: bars
             .iter()
@@ -401,10 +426,14 @@ fn ledger(steps: &[LedgerStep]) -> report::LedgerFigure {
 }
 
 /// One bar's own forward selection: its RMS after each of its own steps.
-fn bar_ledger(bl: &crate::diagnose::BarLedger) -> report::LedgerFigure {
+fn bar_ledger(
+    bl: &crate::diagnose::BarLedger,
+    sensors: &[SensorProfile],
+    beam: usize,
+) -> report::LedgerFigure {
     report::LedgerFigure {
         title: format!("Forward selection for bar {} alone", bl.bar),
-        subtitle: "Each step adds the candidate with the best ΔBIC on this bar that is significant on this bar (likelihood-ratio test, Bonferroni over candidates).".into(),
+        subtitle: format!("Each step adds a candidate significant on this bar (likelihood-ratio test with a residual noise model, Bonferroni over candidates); the best of {beam} paths by ΔBIC.{}", sensor_lines(&bl.steps, sensors)),
         steps: bl.steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
         bars: vec![report::NamedValues {
             name: bl.bar.clone(),

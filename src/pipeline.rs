@@ -112,17 +112,24 @@ pub struct DiagnoseSection {
     /// Forward selection adds at most this many effects (0: rank candidates only).
     #[serde(default = "default_forward_steps")]
     pub forward_steps: usize,
+    /// Forward selection keeps this many best paths at each step (1: plain greedy).
+    #[serde(default = "default_beam")]
+    pub beam: usize,
 }
 
 impl Default for DiagnoseSection {
     fn default() -> Self {
         Self {
             forward_steps: default_forward_steps(),
+            beam: default_beam(),
         }
     }
 }
 
 fn default_forward_steps() -> usize {
+    3
+}
+fn default_beam() -> usize {
     3
 }
 
@@ -426,6 +433,8 @@ pub struct CompensationStage {
 #[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
     pub bars: Vec<BarDiagnosis>,
+    /// What each temperature sensor plausibly measures (profiled on the first bar's timeline).
+    pub sensors: Vec<diagnose::sensors::SensorProfile>,
     pub candidates: Vec<Candidate>,
     pub unavailable: Vec<diagnose::Unavailable>,
     pub ledger: Vec<LedgerStep>,
@@ -1003,14 +1012,25 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
         .collect();
     progress.finish_and_clear();
     let pairs: Vec<(&BarSeries, &BarModel)> = bars.iter().map(|o| (&o.series, &o.model)).collect();
-    let (candidates, unavailable) = diagnose::evaluate_candidates(
+    let (mut candidates, unavailable) = diagnose::evaluate_candidates(
         &pairs,
         &diagnose::candidate_effects(&plan.effects, &diagnoses),
     );
+    // Sensors are the campaign's: profile them on the first bar's timeline.
+    let sensors = bars
+        .first()
+        .map(|o| diagnose::sensors::sensor_profiles(&o.series))
+        .unwrap_or_default();
+    diagnose::explain_candidates(&mut candidates, &sensors);
     let series: Vec<&BarSeries> = bars.iter().map(|o| &o.series).collect();
     let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
-    let (ledger, _) =
-        diagnose::forward_selection(&series, models, &candidates, plan.diagnose.forward_steps);
+    let (ledger, _) = diagnose::forward_selection(
+        &series,
+        models,
+        &candidates,
+        plan.diagnose.forward_steps,
+        plan.diagnose.beam,
+    );
     let bar_ledgers = bars
         .par_iter()
         .zip(&diagnoses)
@@ -1020,11 +1040,13 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
                 o.model.clone(),
                 d,
                 plan.diagnose.forward_steps,
+                plan.diagnose.beam,
             )
         })
         .collect();
     Diagnosis {
         bars: diagnoses,
+        sensors,
         candidates,
         unavailable,
         ledger,
@@ -1040,6 +1062,8 @@ pub struct DiagnosisRecord<'a> {
     pub model: ModelRecord,
     pub inputs: &'a [InputFile],
     pub bars: Vec<BarDiagnosisRecord<'a>>,
+    /// What each temperature sensor plausibly measures, judged from its signal.
+    pub sensors: &'a [diagnose::sensors::SensorProfile],
     pub candidates: &'a [Candidate],
     /// Candidates that could not be fitted on any bar, with the reason.
     pub unavailable: &'a [diagnose::Unavailable],
@@ -1099,11 +1123,14 @@ pub fn diagnosis_record<'a>(
                         channel: &c.channel,
                         explained_fraction: c.explained_fraction,
                         tau_s: c.tau_s,
-                        description: diagnose::explain::describe_channel(&c.channel),
+                        description: diagnose::sensors::describe_channel_with(
+                            &c.channel, &d.sensors,
+                        ),
                     })
                     .collect(),
             })
             .collect(),
+        sensors: &d.sensors,
         candidates: &d.candidates,
         unavailable: &d.unavailable,
         ledger: &d.ledger,

@@ -3,6 +3,20 @@
 
 use crate::model::{Effect, Transform};
 
+/// What an effect means physically and what to check; channel terms name what their sensors
+/// plausibly are (`profiles`, see [`super::sensors`]).
+pub fn explain_with(effect: &Effect, profiles: &[super::sensors::SensorProfile]) -> String {
+    match effect {
+        Effect::Channel {
+            transform, channel, ..
+        } => channel_explanation(
+            *transform,
+            &super::sensors::describe_channel_with(channel, profiles),
+        ),
+        other => explain(other),
+    }
+}
+
 /// What an effect means physically and what to check.
 pub fn explain(effect: &Effect) -> String {
     match effect {
@@ -14,17 +28,18 @@ pub fn explain(effect: &Effect) -> String {
         Effect::PlateExpansion => "The plate expands with its temperature: the true centre distance grows with plate temperature (its sensor) times length. Check: the plate material and its CTE in campaign.toml, the plate sensor.".into(),
         Effect::Settling => "Settling after each mount: the bar creeps into its sockets or warms from handling, decaying after the mount. Check: wait longer after mounting, use gloves, check the magnetic sockets.".into(),
         Effect::Creep => "Slow monotonic drift independent of temperature (creep, ageing, encoder drift). Check: the bar's history, mechanical stress, the logger's reference mark.".into(),
-        Effect::Channel { transform, channel, .. } => channel_explanation(*transform, channel),
+        Effect::Channel {
+            transform, channel, ..
+        } => channel_explanation(*transform, &describe_channel(channel)),
     }
 }
 
-fn channel_explanation(transform: Transform, channel: &str) -> String {
+fn channel_explanation(transform: Transform, what: &str) -> String {
     let how = match transform {
         Transform::Lag => "a first-order response (gain and time constant) to",
         Transform::Rate => "the rate of change of",
         Transform::Level => "the level of",
     };
-    let what = describe_channel(channel);
     format!("The reading follows {how} {what}; no catalogue effect explains it as well. Check what this channel measures and how it reaches the bar.")
 }
 

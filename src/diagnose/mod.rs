@@ -4,9 +4,11 @@
 //! offers by how much of the residual its best first-order response explains. Over the fleet:
 //! every catalogue effect not in the model, plus a generic `lag:CHANNEL` term for the channels
 //! that explain the most, is added in turn and fitted; candidates are ranked by the fleet's
-//! ΔBIC with a likelihood-ratio test whose statistic is deflated by the extended model's residual
-//! correlation time (so autocorrelated residuals do not make everything "significant").
-//! [`forward_selection`] repeats that, adding the best significant candidate until none is left;
+//! ΔBIC with a likelihood-ratio test in which each residual has its own AR(1)-plus-white-noise
+//! model ([`noise`]), so that a slow residual wander fitted by a smooth curve is not taken for
+//! an effect.
+//! [`forward_selection`] repeats that, adding the best significant candidate until none is left
+//! (keeping the few best paths, a beam, so that a greedy first step does not lock it in);
 //! [`forward_selection_of_bar`] does the same for one bar on its own channels and tests (bars
 //! that are different physical objects, like the displacement axes of a machine tool, need
 //! different terms).
@@ -14,7 +16,9 @@
 //! Everything here is computation on plain data; the pipeline writes and draws the results.
 
 pub mod explain;
+pub mod noise;
 pub mod residual;
+pub mod sensors;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -28,7 +32,7 @@ use residual::{residual_stats, ResidualStats};
 
 /// Family-wise significance level of one selection step: each candidate is tested at
 /// `ALPHA / number of candidates` (Bonferroni). 5 %, the level of CTSM-R's likelihood-ratio
-/// tests; the statistic is already deflated by the residual correlation time, so autocorrelated
+/// tests; the likelihoods carry a noise model of the residual ([`noise`]), so autocorrelated
 /// residuals do not make everything significant (the base-only campaign raises no alarm).
 pub const ALPHA: f64 = 0.05;
 /// How many of the best-explaining channels get a generic `lag:` candidate.
@@ -183,6 +187,15 @@ pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<
     out
 }
 
+/// Rewrite the channel candidates' explanations with what their sensors plausibly are.
+pub fn explain_candidates(candidates: &mut [Candidate], profiles: &[sensors::SensorProfile]) {
+    for c in candidates {
+        if let Ok(effect) = Effect::parse(&c.effect) {
+            c.explanation = explain::explain_with(&effect, profiles);
+        }
+    }
+}
+
 /// A candidate that could not be fitted on any bar (e.g. `head_heating` without `head_power`
 /// events), with the first bar's reason.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -199,12 +212,18 @@ pub fn evaluate_candidates(
 ) -> (Vec<Candidate>, Vec<Unavailable>) {
     let n_candidates = candidates.len().max(1);
     let threshold = ALPHA / n_candidates as f64;
+    // The current models' noise likelihoods, shared by every candidate's test.
+    let base_log_likelihood: Vec<f64> = bars
+        .par_iter()
+        .map(|(_, m)| noise::fit_noise(&m.residuals_um).log_likelihood)
+        .collect();
     let out: Vec<Candidate> = candidates
         .par_iter()
         .map(|effect| {
             let per_bar: Vec<CandidateOnBar> = bars
                 .iter()
-                .map(|(s, m)| candidate_on_bar(s, m, effect, threshold))
+                .zip(&base_log_likelihood)
+                .map(|((s, m), &l0)| candidate_on_bar(s, m, l0, effect, threshold))
                 .collect();
             summarise_candidate(effect, per_bar, threshold)
         })
@@ -235,6 +254,7 @@ pub fn evaluate_candidates(
 fn candidate_on_bar(
     series: &BarSeries,
     base: &BarModel,
+    base_log_likelihood: f64,
     effect: &Effect,
     threshold: f64,
 ) -> CandidateOnBar {
@@ -259,7 +279,7 @@ fn candidate_on_bar(
         ));
     }
     let added = extended.n_params.saturating_sub(base.n_params).max(1);
-    let p_value = lr_p_value(base, &extended, added);
+    let p_value = lr_p_value(base_log_likelihood, &extended, added);
     let delta_bic = extended.bic - base.bic;
     CandidateOnBar {
         bar: base.bar.clone(),
@@ -313,17 +333,19 @@ fn unidentifiable_pair(base: &BarModel, model: &BarModel) -> Option<(String, Str
     None
 }
 
-/// Likelihood-ratio test of nested Gaussian fits, `LR = n ln(RSS0/RSS1)`, deflated by the
-/// extended model's residual correlation time (effective sample size `n / tau_int`).
-pub fn lr_p_value(base: &BarModel, extended: &BarModel, added_params: usize) -> f64 {
-    let n = base.n_samples as f64;
-    let rss0 = base.rms_um.powi(2) * n;
-    let rss1 = extended.rms_um.powi(2) * n;
-    if !(rss1 > 0.0) || rss1 >= rss0 {
+/// Likelihood-ratio test of nested fits, each residual under its own maximum-likelihood
+/// AR(1)-plus-white-noise model ([`noise`]; `base_log_likelihood` is the base model's),
+/// `χ²` with the added parameters' degrees of freedom. The fits are least squares, not the
+/// noise model's generalised least squares, which makes the statistic smaller: the test errs on
+/// the side of "not significant". A term that lowers the RMS but makes the residual less
+/// predictable (it adds its channel's sensor noise, or fits a slow wander with a smooth curve
+/// that jumps elsewhere) gets `p = 1`.
+pub fn lr_p_value(base_log_likelihood: f64, extended: &BarModel, added_params: usize) -> f64 {
+    let l1 = noise::fit_noise(&extended.residuals_um).log_likelihood;
+    let lr = 2.0 * (l1 - base_log_likelihood);
+    if !(lr > 0.0) {
         return 1.0;
     }
-    let tau_int = crate::fit::integrated_autocorrelation_time(&extended.residuals_um).max(1.0);
-    let lr = n * (rss0 / rss1).ln() / tau_int;
     ChiSquared::new(added_params as f64)
         .map(|d| 1.0 - d.cdf(lr))
         .unwrap_or(f64::NAN)
@@ -381,61 +403,135 @@ pub struct LedgerStep {
     pub p_value: f64,
 }
 
+/// One path through forward selection: its ledger, its models and the sum of its steps' ΔBIC.
+#[derive(Clone)]
+struct SelectionPath {
+    ledger: Vec<LedgerStep>,
+    models: Vec<BarModel>,
+    delta_bic: f64,
+    /// No significant candidate was left at its last step.
+    finished: bool,
+}
+
 /// Forward selection: add the best significant candidate (fleet-wide) until none is left or
 /// `max_steps` effects were added. Returns the ledger and the final models.
+///
+/// With `beam > 1` it keeps the `beam` best paths at each step (each extended by its own best
+/// significant candidates, ranked by the path's total ΔBIC) and returns the best path at the
+/// end: a greedy first step that fits well alone can lead to a worse three-term model than the
+/// runner-up. `beam = 1` is plain greedy forward selection.
 /// `first_candidates` are the candidates already ranked for `start` (reused for the first step).
 pub fn forward_selection(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
     max_steps: usize,
+    beam: usize,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
-    let mut models = start;
-    let mut ledger = vec![ledger_step("base".into(), &models, f64::NAN, f64::NAN)];
+    let beam = beam.max(1);
+    let mut paths = vec![SelectionPath {
+        ledger: vec![ledger_step("base".into(), &start, f64::NAN, f64::NAN)],
+        models: start,
+        delta_bic: 0.0,
+        finished: false,
+    }];
     for step in 0..max_steps {
-        let effects = models
-            .first()
-            .map(|m| m.effects.clone())
-            .unwrap_or_default();
-        let candidates = if step == 0 {
-            first_candidates.to_vec()
-        } else {
-            let diagnoses: Vec<BarDiagnosis> = series
-                .par_iter()
-                .zip(models.par_iter())
-                .map(|(s, m)| diagnose_bar(s, m))
+        let mut next: Vec<SelectionPath> = paths.iter().filter(|p| p.finished).cloned().collect();
+        let mut extensions: Vec<(usize, Candidate)> = Vec::new();
+        for (i, path) in paths.iter().enumerate().filter(|(_, p)| !p.finished) {
+            let candidates = if step == 0 {
+                first_candidates.to_vec()
+            } else {
+                rank_candidates_for(series, &path.models)
+            };
+            let significant: Vec<Candidate> = candidates
+                .into_iter()
+                .filter(|c| c.significant && Effect::parse(&c.effect).is_ok())
+                .take(beam)
                 .collect();
-            let pairs: Vec<(&BarSeries, &BarModel)> =
-                series.iter().copied().zip(models.iter()).collect();
-            evaluate_candidates(&pairs, &candidate_effects(&effects, &diagnoses)).0
-        };
-        let Some(best) = candidates.into_iter().find(|c| c.significant) else {
+            if significant.is_empty() {
+                let mut done = path.clone();
+                done.finished = true;
+                next.push(done);
+            }
+            extensions.extend(significant.into_iter().map(|c| (i, c)));
+        }
+        if extensions.is_empty() {
+            paths = next;
             break;
-        };
-        let Ok(effect) = Effect::parse(&best.effect) else {
-            break;
-        };
-        let mut next_effects = effects.clone();
-        next_effects.push(effect);
-        let refit: Vec<Option<BarModel>> = series
-            .par_iter()
-            .zip(models.par_iter())
-            .map(|(s, m)| identify_from(s, &next_effects, Some(m)).ok())
-            .collect();
-        // A bar whose extended fit fails keeps its model (it is reported as not improved).
-        models = refit
+        }
+        extensions.sort_by(|(i, a), (j, b)| {
+            (paths[*i].delta_bic + a.delta_bic).total_cmp(&(paths[*j].delta_bic + b.delta_bic))
+        });
+        let mut seen: std::collections::BTreeSet<Vec<String>> = Default::default();
+        let chosen: Vec<(usize, Candidate)> = extensions
             .into_iter()
-            .zip(models)
-            .map(|(new, old)| new.unwrap_or(old))
+            .filter(|(i, c)| {
+                let mut set = paths[*i].models[0].effect_names();
+                set.push(c.effect.clone());
+                set.sort();
+                seen.insert(set)
+            })
+            .take(beam)
             .collect();
-        ledger.push(ledger_step(
-            best.effect.clone(),
-            &models,
-            best.delta_bic,
-            best.p_value,
-        ));
+        let extended: Vec<SelectionPath> = chosen
+            .into_par_iter()
+            .map(|(i, c)| extend_path(series, &paths[i], &c))
+            .collect();
+        next.extend(extended);
+        next.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+        next.truncate(beam);
+        paths = next;
     }
-    (ledger, models)
+    let best = paths
+        .into_iter()
+        .min_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
+        .expect("forward selection keeps at least one path");
+    (best.ledger, best.models)
+}
+
+/// The candidates for the fleet's current `models`, ranked best first.
+fn rank_candidates_for(series: &[&BarSeries], models: &[BarModel]) -> Vec<Candidate> {
+    let effects = models
+        .first()
+        .map(|m| m.effects.clone())
+        .unwrap_or_default();
+    let diagnoses: Vec<BarDiagnosis> = series
+        .par_iter()
+        .zip(models.par_iter())
+        .map(|(s, m)| diagnose_bar(s, m))
+        .collect();
+    let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
+    evaluate_candidates(&pairs, &candidate_effects(&effects, &diagnoses)).0
+}
+
+/// `path` with `candidate` added and every bar refitted.
+fn extend_path(
+    series: &[&BarSeries],
+    path: &SelectionPath,
+    candidate: &Candidate,
+) -> SelectionPath {
+    let mut effects = path.models[0].effects.clone();
+    effects.push(Effect::parse(&candidate.effect).expect("checked when chosen"));
+    // A bar whose extended fit fails keeps its model (it is reported as not improved).
+    let models: Vec<BarModel> = series
+        .par_iter()
+        .zip(path.models.par_iter())
+        .map(|(s, m)| identify_from(s, &effects, Some(m)).unwrap_or_else(|_| m.clone()))
+        .collect();
+    let mut ledger = path.ledger.clone();
+    ledger.push(ledger_step(
+        candidate.effect.clone(),
+        &models,
+        candidate.delta_bic,
+        candidate.p_value,
+    ));
+    SelectionPath {
+        ledger,
+        models,
+        delta_bic: path.delta_bic + candidate.delta_bic,
+        finished: false,
+    }
 }
 
 /// One bar's own forward selection.
@@ -452,11 +548,12 @@ pub fn forward_selection_of_bar(
     model: BarModel,
     diagnosis: &BarDiagnosis,
     max_steps: usize,
+    beam: usize,
 ) -> BarLedger {
     let candidates = candidate_effects(&model.effects, std::slice::from_ref(diagnosis));
     let (first, _) = evaluate_candidates(&[(series, &model)], &candidates);
     let bar = model.bar.clone();
-    let (steps, _) = forward_selection(&[series], vec![model], &first, max_steps);
+    let (steps, _) = forward_selection(&[series], vec![model], &first, max_steps, beam);
     BarLedger { bar, steps }
 }
 

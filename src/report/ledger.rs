@@ -77,6 +77,12 @@ fn draw(spec: &LedgerFigure, root: &Area<'_>) -> Result<(), DrawError> {
         p.line(&xs, &b.values, style::stroke(c, 2))?;
         p.points(&xs, &b.values, c, 4)?;
         p.legend_entry(&b.name, Mark::Line(c, 2));
+        // One bar alone: its values are the figure's message.
+        if spec.bars.len() == 1 && spec.fleet_rms_um.is_empty() {
+            for (x, v) in xs.iter().zip(&b.values) {
+                p.tag(*x, *v, &format_significant(*v))?;
+            }
+        }
     }
     if !spec.fleet_rms_um.is_empty() {
         p.line(&xs, &spec.fleet_rms_um, style::stroke(style::BLACK, 5))?;

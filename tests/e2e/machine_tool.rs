@@ -142,6 +142,10 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("fl");
     convert(&dir);
+    // To look at the reports: DBB_FL_CAMPAIGN=DIR keeps a copy of the converted campaign there.
+    if let Ok(keep) = std::env::var("DBB_FL_CAMPAIGN") {
+        convert(Path::new(&keep));
+    }
     let mut plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[]).unwrap();
     plan.diagnose.forward_steps = 3;
     let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
@@ -179,6 +183,28 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
             s.rms_um.iter().find(|(b, _)| b == "ch3").unwrap().1
         );
     }
+    // What the sensors plausibly are, against the data's README (its authors' inspection): t5 is
+    // the fastest, hottest sensor near the spindle; t4 has fast fluctuations of about ±1 °C.
+    for p in &d.sensors {
+        eprintln!(
+            "  sensor {}: {} (fast {:.3} K)",
+            p.sensor, p.description, p.fast_fluctuation_k
+        );
+    }
+    let sensor = |s: &str| d.sensors.iter().find(|p| p.sensor == s).unwrap();
+    assert!(
+        sensor("t5")
+            .description
+            .contains("heated by 'spindle' events"),
+        "{:?}",
+        sensor("t5")
+    );
+    assert!(
+        sensor("t4").description.contains("fast fluctuations"),
+        "{:?}",
+        sensor("t4")
+    );
+    assert!(sensor("t1").description.starts_with("air sensor"));
     assert!(
         base_rms > 5.0,
         "the base model should fail badly on ch3, RMS {base_rms:.2} µm"
@@ -226,11 +252,10 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
         fleet3 < best_channel_term,
         "fleet forward selection should beat the single best term on ch3"
     );
-    // The issue asks 5x on ch3 within three terms. Measured: the fleet's selection reaches
-    // 7.47 -> 1.64 µm (4.54x; the fleet RMS 6.34 -> 1.44 µm, 4.4x). ch3's own selection stops
-    // after one term: with a residual correlation time of hours in a 46-h run, the next terms
-    // (ch3 2.11 -> 1.72 µm) have likelihood-ratio p ≈ 0.03 before the Bonferroni correction.
-    // Asserted as measured, so that a regression shows.
+    // The issue asks 5x on ch3 within three terms. ch3's own selection (beam of 3, innovations
+    // likelihood-ratio tests) measured 7.47 -> 1.34 µm (5.56x: lag:t4-t1, lag:t8-t5,
+    // lag:t8-t4). The fleet's selection serves five different axes at once: ch3 7.47 -> 1.59 µm
+    // (4.69x), the fleet 6.34 -> 1.47 µm (4.3x); asserted as measured, so a regression shows.
     let fleet_base = d.ledger[0].fleet_rms_um;
     let fleet_end = d.ledger.last().unwrap().fleet_rms_um;
     assert!(
@@ -248,9 +273,9 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
         base_rms / own_end,
         own.len() - 1
     );
-    assert!(own.len() <= 4 && own.len() >= 2);
+    assert!(own.len() <= 4);
     assert!(
-        base_rms / own_end >= 3.0,
+        base_rms / own_end >= 5.0,
         "ch3's own forward selection: {base_rms:.2} -> {own_end:.2} µm"
     );
 }
