@@ -27,7 +27,7 @@ pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()
     if let Some(d) = &results.diagnosis {
         for (bd, o) in d.bars.iter().zip(&results.bars) {
             report::render_residual_diagnostics(
-                &residual_figure(bd, o),
+                &residual_figure(bd, o, &d.sensors),
                 &dir.join(format!("diagnosis-{}.png", file_safe(&bd.bar))),
             )?;
         }
@@ -353,7 +353,11 @@ fn heat_map(study: &crate::matching::MatchStudy) -> report::HeatMapFigure {
     }
 }
 
-fn residual_figure(d: &BarDiagnosis, o: &BarOutcome) -> report::ResidualDiagnosticsFigure {
+fn residual_figure(
+    d: &BarDiagnosis,
+    o: &BarOutcome,
+    sensors: &[SensorProfile],
+) -> report::ResidualDiagnosticsFigure {
     let dt = median_step(&o.series.t_s);
     let top: Vec<&crate::diagnose::ChannelScore> = d.channels.iter().take(12).collect();
     report::ResidualDiagnosticsFigure {
@@ -361,7 +365,7 @@ fn residual_figure(d: &BarDiagnosis, o: &BarOutcome) -> report::ResidualDiagnost
         subtitle: format!(
             "RMS {:.4} µm, peak-to-valley {:.3} µm, fit {:.1} %, Ljung-Box p = {:.2e} ({} lags), residual correlation time {:.0} s",
             d.stats.rms_um, d.stats.peak_to_valley_um, d.stats.fit_percent, d.whiteness_p, d.stats.ljung_box_lags, d.stats.correlation_time_samples * dt
-        ),
+        ) + &sensor_lines(top.iter().take(3).map(|c| c.channel.as_str()), sensors),
         acf: d.stats.acf.clone(),
         lag_step_s: dt,
         n_samples: o.model.n_samples,
@@ -385,18 +389,13 @@ fn median_step(t: &[f64]) -> f64 {
     *d.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
-/// Subtitle lines naming what the sensors of the added channel terms plausibly are.
-fn sensor_lines(steps: &[LedgerStep], sensors: &[SensorProfile]) -> String {
+/// Subtitle lines naming what the sensors of `channels` plausibly are (each sensor once).
+fn sensor_lines<'a>(
+    channels: impl IntoIterator<Item = &'a str>,
+    sensors: &[SensorProfile],
+) -> String {
     let mut lines: Vec<String> = Vec::new();
-    for s in steps {
-        let Some(channel) = s
-            .added
-            .strip_prefix("lag:")
-            .or(s.added.strip_prefix("rate:"))
-            .or(s.added.strip_prefix("level:"))
-        else {
-            continue;
-        };
+    for channel in channels {
         for line in channel_sensor_summaries(channel, sensors) {
             if !lines.contains(&line) {
                 lines.push(line);
@@ -406,11 +405,18 @@ fn sensor_lines(steps: &[LedgerStep], sensors: &[SensorProfile]) -> String {
     lines.iter().map(|l| format!("\n{l}")).collect()
 }
 
+/// The channel a generic term added at a ledger step reads (`lag:t4-t1` → `t4-t1`).
+fn term_channel(added: &str) -> Option<&str> {
+    ["lag:", "rate:", "level:"]
+        .iter()
+        .find_map(|prefix| added.strip_prefix(prefix))
+}
+
 fn ledger(steps: &[LedgerStep], sensors: &[SensorProfile], beam: usize) -> report::LedgerFigure {
     let bars: Vec<String> = steps[0].rms_um.iter().map(|(b, _)| b.clone()).collect();
     report::LedgerFigure {
         title: "Forward selection — RMS residual as effects are added".into(),
-        subtitle: format!("Each step adds a significant candidate (likelihood-ratio test with a residual noise model, Bonferroni over candidates); the best of {beam} paths by fleet ΔBIC.{}", sensor_lines(steps, sensors)),
+        subtitle: format!("Each step adds a significant candidate (likelihood-ratio test with a residual noise model, Bonferroni over candidates); the best of {beam} paths by fleet ΔBIC.{}", sensor_lines(steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
         steps: steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
         bars: bars
             .iter()
@@ -433,7 +439,7 @@ fn bar_ledger(
 ) -> report::LedgerFigure {
     report::LedgerFigure {
         title: format!("Forward selection for bar {} alone", bl.bar),
-        subtitle: format!("Each step adds a candidate significant on this bar (likelihood-ratio test with a residual noise model, Bonferroni over candidates); the best of {beam} paths by ΔBIC.{}", sensor_lines(&bl.steps, sensors)),
+        subtitle: format!("Each step adds a candidate significant on this bar (likelihood-ratio test with a residual noise model, Bonferroni over candidates); the best of {beam} paths by ΔBIC.{}", sensor_lines(bl.steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
         steps: bl.steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
         bars: vec![report::NamedValues {
             name: bl.bar.clone(),
