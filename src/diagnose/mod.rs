@@ -467,7 +467,7 @@ pub fn forward_selection(
         let chosen: Vec<(usize, Candidate)> = extensions
             .into_iter()
             .filter(|(i, c)| {
-                let mut set = paths[*i].models[0].effect_names();
+                let mut set = effect_names_of(&paths[*i].models);
                 set.push(c.effect.clone());
                 set.sort();
                 seen.insert(set)
@@ -488,6 +488,14 @@ pub fn forward_selection(
         .min_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
         .expect("forward selection keeps at least one path");
     (best.ledger, best.models)
+}
+
+/// The effect names of a fleet's models (one model for all bars).
+fn effect_names_of(models: &[BarModel]) -> Vec<String> {
+    models
+        .first()
+        .map(BarModel::effect_names)
+        .unwrap_or_default()
 }
 
 /// The candidates for the fleet's current `models`, ranked best first.
@@ -511,7 +519,11 @@ fn extend_path(
     path: &SelectionPath,
     candidate: &Candidate,
 ) -> SelectionPath {
-    let mut effects = path.models[0].effects.clone();
+    let mut effects = path
+        .models
+        .first()
+        .map(|m| m.effects.clone())
+        .unwrap_or_default();
     effects.push(Effect::parse(&candidate.effect).expect("checked when chosen"));
     // A bar whose extended fit fails keeps its model (it is reported as not improved).
     let models: Vec<BarModel> = series

@@ -2,10 +2,11 @@
 //!
 //! A campaign declares sensors as `air`, `plate` or `other` (`campaign-format.md`); an `other`
 //! sensor may sit on a motor, in a structure or in a draught, and the diagnosis must say what a
-//! channel it ranks plausibly is. Each sensor is explained by a first-order response to every
-//! the bar's air (the share of its variance the best time constant explains, on a grid of time
-//! constants), then what the air leaves by a first-order response to each event kind, and by
-//! its fast fluctuations (what a 10-min zero-phase smoothing removes). The drivers name it:
+//! channel it ranks plausibly is. Each sensor is explained by a first-order response to the
+//! bar's air (the share of its variance the best time constant explains, on a grid of time
+//! constants), then what the air leaves by a first-order response to each event kind (beside
+//! the air), and by its fast fluctuations (what a 10-min zero-phase smoothing removes). The
+//! drivers name it:
 //! "follows the air …; heated by 'spindle' events (92 % of what the air leaves, tau 16 min)".
 
 use serde::Serialize;
@@ -20,8 +21,8 @@ const TAU_GRID_S: [f64; 8] = [120.0, 240.0, 480.0, 960.0, 1920.0, 3840.0, 7680.0
 /// A driver "explains" a sensor when its best response removes at least this share of the
 /// sensor's variance.
 const DRIVEN_SHARE: f64 = 0.5;
-/// Zero-phase smoothing that separates fast fluctuations (air-conditioning, draughts) from the slow
-/// signal, s.
+/// Zero-phase smoothing that separates fast fluctuations (air-conditioning, draughts) from the
+/// slow signal, s.
 const FAST_SMOOTHING_S: f64 = 600.0;
 
 /// One sensor's profile.
