@@ -390,13 +390,13 @@ fn median_step(t: &[f64]) -> f64 {
 }
 
 /// Subtitle lines naming what the sensors of `channels` plausibly are (each sensor once).
-fn sensor_lines<'a>(
-    channels: impl IntoIterator<Item = &'a str>,
+fn sensor_lines<S: AsRef<str>>(
+    channels: impl IntoIterator<Item = S>,
     sensors: &[SensorProfile],
 ) -> String {
     let mut lines: Vec<String> = Vec::new();
     for channel in channels {
-        for line in channel_sensor_summaries(channel, sensors) {
+        for line in channel_sensor_summaries(channel.as_ref(), sensors) {
             if !lines.contains(&line) {
                 lines.push(line);
             }
@@ -406,10 +406,11 @@ fn sensor_lines<'a>(
 }
 
 /// The channel a generic term added at a ledger step reads (`lag:t4-t1` → `t4-t1`).
-fn term_channel(added: &str) -> Option<&str> {
-    ["lag:", "rate:", "level:"]
-        .iter()
-        .find_map(|prefix| added.strip_prefix(prefix))
+fn term_channel(added: &str) -> Option<String> {
+    match crate::model::Effect::parse(added) {
+        Ok(crate::model::Effect::Channel { channel, .. }) => Some(channel),
+        _ => None,
+    }
 }
 
 fn ledger(steps: &[LedgerStep], sensors: &[SensorProfile], beam: usize) -> report::LedgerFigure {

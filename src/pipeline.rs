@@ -304,6 +304,11 @@ impl RunPlan {
             &names,
             file.matching,
         )?;
+        if file.diagnose.beam == 0 {
+            return Err(perr(
+                "diagnose.beam must be at least 1 (1: plain greedy selection)".into(),
+            ));
+        }
         plan.diagnose = file.diagnose;
         if !(file.model.bin_s >= 0.0) {
             return Err(perr("model.bin_s must be zero or positive".into()));

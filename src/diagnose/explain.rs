@@ -28,9 +28,8 @@ pub fn explain(effect: &Effect) -> String {
         Effect::PlateExpansion => "The plate expands with its temperature: the true centre distance grows with plate temperature (its sensor) times length. Check: the plate material and its CTE in campaign.toml, the plate sensor.".into(),
         Effect::Settling => "Settling after each mount: the bar creeps into its sockets or warms from handling, decaying after the mount. Check: wait longer after mounting, use gloves, check the magnetic sockets.".into(),
         Effect::Creep => "Slow monotonic drift independent of temperature (creep, ageing, encoder drift). Check: the bar's history, mechanical stress, the logger's reference mark.".into(),
-        Effect::Channel {
-            transform, channel, ..
-        } => channel_explanation(*transform, &describe_channel(channel)),
+        // Without sensor profiles the channel is described by its name alone.
+        Effect::Channel { .. } => explain_with(effect, &[]),
     }
 }
 
