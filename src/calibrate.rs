@@ -307,9 +307,11 @@ pub fn calibration_points(
     campaign: &Campaign,
 ) -> Vec<CalibrationPoint> {
     let epochs = counter_epochs(series);
-    let mut groups: std::collections::BTreeMap<(usize, usize, i64), Vec<f64>> = Default::default();
+    let mut groups: std::collections::BTreeMap<(usize, usize, i64), Vec<(f64, f64)>> =
+        Default::default();
     for i in 0..series.t_s.len() {
-        let Some(m) = series.mount_of[i] else {
+        // Weight-0 samples (the lag grid of a compressed series) are not readings.
+        let Some(m) = series.mount_of[i].filter(|_| series.weight[i] > 0.0) else {
             continue;
         };
         let span = &series.mounts[m as usize];
@@ -322,7 +324,10 @@ pub fn calibration_points(
         let tilt_key = (tilt_at_deg(series, campaign, i) * 1000.0).round() as i64;
         let key = (m as usize, epochs[i], tilt_key);
         let value = reading_um(series, i) - thermal;
-        groups.entry(key).or_default().push(value);
+        groups
+            .entry(key)
+            .or_default()
+            .push((value, series.weight[i]));
     }
     groups
         .into_iter()
@@ -338,13 +343,18 @@ fn point(
     m: usize,
     epoch: usize,
     tilt_deg: f64,
-    values: &[f64],
+    weighted: &[(f64, f64)],
 ) -> Option<CalibrationPoint> {
     let span = &series.mounts[m];
     let length_id = span.length_id.clone()?;
     let length_mm = span.length_mm?;
+    // Samples are readings (weight 1) or compressed bins' nodes (weight: the readings they stand
+    // for); the spread and its correlation time are taken over the samples as they are.
+    let values: Vec<f64> = weighted.iter().map(|(v, _)| *v).collect();
+    let values = values.as_slice();
     let n = values.len();
-    let mean = values.iter().sum::<f64>() / n as f64;
+    let total_weight: f64 = weighted.iter().map(|(_, w)| w).sum();
+    let mean = weighted.iter().map(|(v, w)| v * w).sum::<f64>() / total_weight;
     let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
         / (n.saturating_sub(1).max(1)) as f64;
     let n_eff = n as f64 / fit::integrated_autocorrelation_time(values).max(1.0);
@@ -364,7 +374,7 @@ fn point(
         u_reading_um: (var / n_eff.max(1.0)).sqrt(),
         epoch,
         purpose: span.purpose,
-        n_samples: n,
+        n_samples: total_weight.round() as usize,
     })
 }
 

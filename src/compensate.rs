@@ -209,7 +209,11 @@ fn reference_tracks<'a>(b: &'a CompBar<'a>, campaign: &Campaign) -> Vec<RefTrack
             continue;
         }
         let idx: Vec<usize> = (0..s.t_s.len())
-            .filter(|&i| s.mount_of[i] == Some(m as u32) && b.model.thermal_um[i].is_finite())
+            .filter(|&i| {
+                s.mount_of[i] == Some(m as u32)
+                    && s.weight[i] > 0.0
+                    && b.model.thermal_um[i].is_finite()
+            })
             .collect();
         if idx.is_empty() {
             continue;
@@ -369,8 +373,9 @@ fn compensate_mount(
         .ok_or_else(|| CompensateError::NotCalibrated { bar: bar.clone() })?;
     let span = &s.mounts[m];
     let epochs = counter_epochs(s);
+    // Readings only: weight-0 samples are a compressed series' lag grid.
     let all: Vec<usize> = (0..s.t_s.len())
-        .filter(|&i| s.mount_of[i] == Some(m as u32))
+        .filter(|&i| s.mount_of[i] == Some(m as u32) && s.weight[i] > 0.0)
         .collect();
     if all.is_empty() {
         return Err(CompensateError::NoReadings { bar, mount: m });

@@ -45,6 +45,18 @@ pub trait Separable: Sync {
     fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
         None
     }
+    /// Residual sum of squares that no fit of this problem can change, added to every RSS the
+    /// engine reports: e.g. the scatter of compressed bins about their own straight lines
+    /// (`series::bins`). A problem whose observations are the samples themselves has none.
+    fn unexplained_rss(&self) -> f64 {
+        0.0
+    }
+    /// Number of samples the observations stand for (`n` of the RMS, the likelihood and the
+    /// BIC): more than `observations().len()` when each observation is a weighted node of a
+    /// compressed bin.
+    fn represented_samples(&self) -> usize {
+        self.observations().len()
+    }
 }
 
 /// Why a fit could not be done.
@@ -186,7 +198,8 @@ pub fn fit<P: Separable>(
     let phi = problem.basis(&theta);
     let coef = solve_linear(&phi, y).ok_or_else(|| singular_term(problem, &phi))?;
     let residuals: Vec<f64> = (&phi * &coef).iter().zip(y).map(|(f, y)| y - f).collect();
-    let rss: f64 = residuals.iter().map(|r| r * r).sum();
+    let rss: f64 = residuals.iter().map(|r| r * r).sum::<f64>() + problem.unexplained_rss();
+    let n_obs = problem.represented_samples();
     if !rss.is_finite() {
         return Err(FitError::NonFinite);
     }
@@ -198,6 +211,7 @@ pub fn fit<P: Separable>(
     let (cov_naive, cov_hac, hac_batch_len) = covariances(
         &jac,
         &residuals,
+        rss / n_obs.saturating_sub(p + options.absorbed_params).max(1) as f64,
         options.hac_batch_len,
         options.absorbed_params,
     )
@@ -216,7 +230,7 @@ pub fn fit<P: Separable>(
         n_linear: n_lin,
         residuals,
         rss,
-        n_obs: y.len(),
+        n_obs,
         cov_naive,
         cov_hac,
         hac_batch_len,
@@ -229,11 +243,14 @@ pub fn projected_rss<P: Separable>(problem: &P, theta: &[f64]) -> f64 {
     let phi = problem.basis(theta);
     let y = problem.observations();
     match solve_linear(&phi, y) {
-        Some(c) => (&phi * &c)
-            .iter()
-            .zip(y)
-            .map(|(f, y)| (y - f) * (y - f))
-            .sum(),
+        Some(c) => {
+            (&phi * &c)
+                .iter()
+                .zip(y)
+                .map(|(f, y)| (y - f) * (y - f))
+                .sum::<f64>()
+                + problem.unexplained_rss()
+        }
         None => f64::INFINITY,
     }
 }
@@ -263,7 +280,8 @@ pub fn profile_rss<P: Separable>(
             .iter()
             .zip(y)
             .map(|(f, y)| (y - f) * (y - f))
-            .sum();
+            .sum::<f64>()
+            + problem.unexplained_rss();
         rss.is_finite().then_some((c, rss))
     };
     let mut phi = problem.basis(&theta);
@@ -467,6 +485,15 @@ impl<P: Separable> Separable for FixedTheta<'_, P> {
     fn basis_derivative(&self, theta: &[f64], j: usize) -> DMatrix<f64> {
         let j = if j >= self.k { j + 1 } else { j };
         self.inner.basis_derivative(&self.full(theta), j)
+    }
+    fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
+        self.inner.absorbed_groups()
+    }
+    fn unexplained_rss(&self) -> f64 {
+        self.inner.unexplained_rss()
+    }
+    fn represented_samples(&self) -> usize {
+        self.inner.represented_samples()
     }
 }
 
@@ -724,6 +751,12 @@ impl<P: Separable> Separable for Orthogonalised<'_, P> {
     fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
         self.inner.absorbed_groups()
     }
+    fn unexplained_rss(&self) -> f64 {
+        self.inner.unexplained_rss()
+    }
+    fn represented_samples(&self) -> usize {
+        self.inner.represented_samples()
+    }
 }
 
 /// `J = [Φ | Σ_j c_j ∂φ_j/∂θ_k]`, the Jacobian of the model in all parameters.
@@ -743,7 +776,8 @@ fn full_jacobian<P: Separable>(
     jac
 }
 
-/// Naive and batch-means HAC covariances from the Jacobian and residuals.
+/// Naive and batch-means HAC covariances from the Jacobian and residuals; `s2` is the residual
+/// variance of the naive one (RSS over the represented samples' degrees of freedom).
 ///
 /// HAC: `(JᵀJ)⁻¹ (Σ_b G_b G_bᵀ) (JᵀJ)⁻¹` with `G_b = Σ_{i∈b} J_iᵀ r_i` summed over consecutive
 /// batches of length `L`: the scores of samples closer than `L` keep their correlation, batch
@@ -751,6 +785,7 @@ fn full_jacobian<P: Separable>(
 fn covariances(
     jac: &DMatrix<f64>,
     residuals: &[f64],
+    s2: f64,
     batch_len: Option<usize>,
     absorbed: usize,
 ) -> Option<(DMatrix<f64>, DMatrix<f64>, usize)> {
@@ -761,8 +796,6 @@ fn covariances(
         .clone()
         .try_inverse()
         .or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
-    let rss: f64 = residuals.iter().map(|r| r * r).sum();
-    let s2 = rss / (n.saturating_sub(p_total).max(1)) as f64;
     let cov_naive = &jtj_inv * s2;
     let batch = batch_len
         .unwrap_or_else(|| hac_batch_length(residuals))

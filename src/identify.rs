@@ -427,7 +427,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         n_params: fit.n_params(),
         model_um,
         thermal_um,
-        residuals_um: fit.residuals.clone(),
+        residuals_um: problem.unweighted(&fit.residuals),
         theta,
         hac_batch_len: fit.hac_batch_len,
         dof: order.iter().map(|&i| fit.hac_dof_param[i]).collect(),

@@ -539,9 +539,8 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .into_iter()
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|(id, mut log)| {
-            crate::series::interpolate_temperatures(&mut log, &sensors);
-            let r = BarSeries::build_binned(&campaign, &events, &id, log, t0, plan.bin_s)
+        .map(|(id, log)| {
+            let r = BarSeries::build_binned(&campaign, &events, &id, log, &sensors, t0, plan.bin_s)
                 .map_err(|e| e.to_string())
                 .and_then(|series| {
                     let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;

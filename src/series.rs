@@ -9,6 +9,11 @@ use std::collections::BTreeMap;
 
 use crate::campaign::{Bar, Campaign, TimeNs};
 
+mod bins;
+pub use bins::{
+    BarBins, BinAccumulator, BinGrid, BinKey, BinMoments, Node, Readings, Region, MAX_BIN_S,
+};
+
 /// One input file the run read, with its hash, for the output's provenance record.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct InputFile {
@@ -134,6 +139,13 @@ pub struct BarSeries {
     pub plate_sensor_id: Option<String>,
     /// Samples used by the thermal fit (inside fitted mounts), ascending.
     pub fit_index: Vec<usize>,
+    /// Number of readings each sample stands for: 1 for a logged reading, the node weight for a
+    /// compressed bin ([`bins`]), the sum of its parts for a bin mean. Fits are weighted by it.
+    pub weight: Vec<f64>,
+    /// Scatter (µm²) of the readings of the fitted compressed bins about each bin's straight
+    /// line: the part of a fit's RSS at full rate that the nodes do not carry ([`bins`]); 0 for
+    /// a series of logged readings.
+    pub within_bin_rss_um2: f64,
     /// Readings outside every mount of the bar (handling time), dropped from the fits.
     pub dropped_outside_mounts: usize,
     /// The bar's own events and the setup-wide ones, sorted by time, times in seconds.
@@ -154,8 +166,9 @@ pub enum SeriesError {
 }
 
 impl BarSeries {
-    /// Build bar `bar_id`'s series from its log (taken by value: the series owns the data, so a
-    /// large campaign is never held twice) and the campaign's events.
+    /// Build bar `bar_id`'s series from its log, every reading a sample (taken by value: the
+    /// series owns the data, so a large campaign is never held twice), with the temperatures
+    /// the log carries ([`interpolate_temperatures`]) and the campaign's events.
     pub fn build(
         campaign: &Campaign,
         events: &[Event],
@@ -163,71 +176,126 @@ impl BarSeries {
         log: BarLog,
         t0_ns: TimeNs,
     ) -> Result<BarSeries, SeriesError> {
-        Self::build_keeping_times(campaign, events, bar_id, log, t0_ns).map(|(s, _)| s)
+        let BarLog {
+            time_ns,
+            counts,
+            celsius,
+        } = log;
+        let n = time_ns.len();
+        let readings = Readings {
+            time_ns,
+            counts: counts.into_iter().map(|c| c as f64).collect(),
+            weight: vec![1.0; n],
+            line_rss_counts2: vec![0.0; n],
+        };
+        Self::from_readings(campaign, events, bar_id, readings, celsius, t0_ns)
     }
 
-    /// [`BarSeries::build`] then [`BarSeries::binned`], with the bins cut on the log's integer
-    /// nanosecond times (`bin_s <= 0`: every sample). The full-rate series lives only inside
-    /// this call, so bars binned one after another never hold the campaign at full rate.
+    /// Bar `bar_id`'s series from its log compressed into bins of `bin_s` seconds ([`bins`]:
+    /// two weighted nodes a bin, exact for a model that is a straight line within each bin);
+    /// `bin_s <= 0`: every reading, as [`BarSeries::build`]. Temperatures are interpolated from
+    /// `sensors` at the samples' times here. The full-rate log lives only inside this call.
     pub fn build_binned(
         campaign: &Campaign,
         events: &[Event],
         bar_id: &str,
-        log: BarLog,
+        mut log: BarLog,
+        sensors: &BTreeMap<String, SensorLog>,
         t0_ns: TimeNs,
         bin_s: f64,
     ) -> Result<BarSeries, SeriesError> {
-        let (series, time_ns) = Self::build_keeping_times(campaign, events, bar_id, log, t0_ns)?;
-        Ok(series.binned_on(&time_ns, bin_s))
+        if !(bin_s > 0.0) {
+            interpolate_temperatures(&mut log, sensors);
+            return Self::build(campaign, events, bar_id, log, t0_ns);
+        }
+        let grid = BinGrid::new(campaign, events, bar_id, bin_s);
+        let bins = BarBins::from_log(grid, &log.time_ns, &log.counts);
+        drop(log);
+        Self::from_bins(campaign, events, bar_id, &bins, sensors, t0_ns)
     }
 
-    /// The series and the log's times (ns), which `t_s` only approximates.
-    fn build_keeping_times(
+    /// Bar `bar_id`'s series from its compressed bins (ingest can make them while it streams the
+    /// encoder files), temperatures interpolated from `sensors` at the nodes' times.
+    pub fn from_bins(
         campaign: &Campaign,
         events: &[Event],
         bar_id: &str,
-        log: BarLog,
+        bins: &BarBins,
+        sensors: &BTreeMap<String, SensorLog>,
         t0_ns: TimeNs,
-    ) -> Result<(BarSeries, Vec<TimeNs>), SeriesError> {
+    ) -> Result<BarSeries, SeriesError> {
+        let mut knots: Vec<TimeNs> = sensors
+            .values()
+            .flat_map(|s| s.time_ns.iter().copied())
+            .collect();
+        knots.sort_unstable();
+        knots.dedup();
+        let readings = bins.readings(&knots);
+        drop(knots);
+        let celsius = temperatures_at(&readings.time_ns, sensors);
+        Self::from_readings(campaign, events, bar_id, readings, celsius, t0_ns)
+    }
+
+    /// The series of weighted readings with every sensor's temperature at their times.
+    fn from_readings(
+        campaign: &Campaign,
+        events: &[Event],
+        bar_id: &str,
+        readings: Readings,
+        celsius: BTreeMap<String, Vec<f64>>,
+        t0_ns: TimeNs,
+    ) -> Result<BarSeries, SeriesError> {
         let bar = campaign
             .bar(bar_id)
             .cloned()
             .ok_or_else(|| SeriesError::NoReadings {
                 bar: bar_id.to_string(),
             })?;
-        if log.time_ns.is_empty() {
+        if readings.time_ns.is_empty() {
             return Err(SeriesError::NoReadings {
                 bar: bar_id.to_string(),
             });
         }
         let to_s = |ns: TimeNs| (ns - t0_ns) as f64 * 1e-9;
-        let t_s: Vec<f64> = log.time_ns.iter().map(|&t| to_s(t)).collect();
+        let t_s: Vec<f64> = readings.time_ns.iter().map(|&t| to_s(t)).collect();
         let mounts = mount_spans(campaign, &bar, &to_s);
         let mount_of = assign_mounts(&t_s, &mounts);
-        let dropped_outside_mounts = mount_of.iter().filter(|m| m.is_none()).count();
+        let dropped_outside_mounts = mount_of
+            .iter()
+            .zip(&readings.weight)
+            .filter(|(m, _)| m.is_none())
+            .map(|(_, w)| w)
+            .sum::<f64>()
+            .round() as usize;
         let events: Vec<(f64, Event)> = events
             .iter()
             .filter(|e| e.bar.as_deref().is_none_or(|b| b == bar_id))
             .map(|e| (to_s(e.time_ns), e.clone()))
             .collect();
         let (zero_segment, n_zero_segments) = zero_segments(&t_s, &mount_of, &events);
-        let air_c = air_temperature(campaign, &bar, &log)?;
-        let mut y_um: Vec<f64> = log
-            .counts
-            .iter()
-            .map(|&c| c as f64 * bar.resolution_nm * 1e-3)
-            .collect();
-        subtract_plate_expansion(campaign, &log, &t_s, &mount_of, &mounts, &mut y_um);
+        let air_c = air_temperature(campaign, &bar, &celsius, t_s.len())?;
+        let um_per_count = bar.resolution_nm * 1e-3;
+        let mut y_um: Vec<f64> = readings.counts.iter().map(|&c| c * um_per_count).collect();
+        subtract_plate_expansion(campaign, &celsius, &t_s, &mount_of, &mounts, &mut y_um);
         let segment_offset_um = centre_segments(&mut y_um, &zero_segment, n_zero_segments);
         let fit_index: Vec<usize> = (0..t_s.len())
-            .filter(|&i| mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted()))
+            .filter(|&i| {
+                readings.weight[i] > 0.0
+                    && mount_of[i].is_some_and(|m| mounts[m as usize].is_fitted())
+            })
             .collect();
         if fit_index.is_empty() {
             return Err(SeriesError::NoMountedReadings {
                 bar: bar_id.to_string(),
             });
         }
-        let series = BarSeries {
+        let within_bin_rss_um2 = fit_index
+            .iter()
+            .map(|&i| readings.line_rss_counts2[i])
+            .sum::<f64>()
+            * um_per_count
+            * um_per_count;
+        Ok(BarSeries {
             bar,
             reference_temperature_c: campaign.reference_temperature_c,
             t0_ns,
@@ -239,7 +307,7 @@ impl BarSeries {
             segment_offset_um,
             mounts,
             air_c,
-            celsius: log.celsius,
+            celsius,
             air_sensor_ids: campaign.air_sensors().map(|s| s.id.clone()).collect(),
             plate_sensor_id: campaign
                 .sensors
@@ -247,10 +315,11 @@ impl BarSeries {
                 .find(|s| s.kind == crate::campaign::SensorKind::Plate)
                 .map(|s| s.id.clone()),
             fit_index,
+            weight: readings.weight,
+            within_bin_rss_um2,
             dropped_outside_mounts,
             events,
-        };
-        Ok((series, log.time_ns))
+        })
     }
 
     /// A series from plain vectors (no campaign files): for tests and tools that make their own
@@ -263,6 +332,7 @@ impl BarSeries {
         air_c: Vec<f64>,
         mounts: Vec<MountSpan>,
     ) -> BarSeries {
+        let n = t_s.len();
         let mount_of = assign_mounts(&t_s, &mounts);
         let dropped_outside_mounts = mount_of.iter().filter(|m| m.is_none()).count();
         let (zero_segment, n_zero_segments) = zero_segments(&t_s, &mount_of, &[]);
@@ -286,55 +356,32 @@ impl BarSeries {
             air_sensor_ids: vec!["T1".into()],
             plate_sensor_id: None,
             fit_index,
+            weight: vec![1.0; n],
+            within_bin_rss_um2: 0.0,
             dropped_outside_mounts,
             events: Vec::new(),
         }
     }
 
     /// The series averaged over consecutive bins of at most `bin_s` seconds that never cross a
-    /// mount or zero-segment boundary (nor a gap longer than `bin_s`). Thermal time constants
-    /// are 15 min to 2 h (`physics.md`), so 10-60 s bins keep the dynamics while a 1 Hz log
-    /// shrinks 10-60x; the lag's first-order hold between bin means is exact to O((bin/tau)^2).
-    /// Residual statistics of a binned fit are those of bin means. `bin_s <= 0`: unchanged.
+    /// mount or zero-segment boundary (nor a gap longer than `bin_s`): weighted means, each bin
+    /// weighing the readings it stands for. A coarse copy to start a fit's time constants on
+    /// and to trace the shape of its profiles; unlike [`BarSeries::build_binned`] it is not
+    /// exact, and its [`BarSeries::within_bin_rss_um2`] is the source's, so only RSS
+    /// *differences* of fits to it mean anything. `bin_s <= 0`: a copy.
     ///
-    /// Bin edges are decided on integer nanoseconds (`t_s` rounded to ns here; exact for the
-    /// series [`BarSeries::build`] makes from ns times up to ~45 days from the origin, and
-    /// [`BarSeries::build_binned`] uses the log's own ns times), so a 1 Hz log gives bins of
-    /// exactly `bin_s` samples: comparing float seconds let ~0.2 % of the bins take one more.
-    pub fn binned(self, bin_s: f64) -> BarSeries {
-        let time_ns: Vec<TimeNs> = self
-            .t_s
-            .iter()
-            .map(|&t| (t * 1e9).round() as TimeNs)
-            .collect();
-        self.binned_on(&time_ns, bin_s)
-    }
-
-    /// [`BarSeries::binned`] with the samples' times in ns (any origin).
-    fn binned_on(self, time_ns: &[TimeNs], bin_s: f64) -> BarSeries {
-        if !(bin_s > 0.0) || self.t_s.len() < 2 {
-            return self;
-        }
-        let bin_ns = (bin_s * 1e9).round() as TimeNs;
-        let groups = bin_groups(time_ns, &self.mount_of, &self.zero_segment, bin_ns);
-        if groups.len() == self.t_s.len() {
-            return self;
-        }
-        self.averaged(&groups)
-    }
-
-    /// A binned copy ([`BarSeries::binned`]) that leaves `self` as it is: e.g. a coarse copy
-    /// to start a fit's time constants on.
+    /// Bin edges are decided on integer nanoseconds (`t_s` rounded to ns), so a 1 Hz log gives
+    /// bins of exactly `bin_s` samples.
     pub fn binned_copy(&self, bin_s: f64) -> BarSeries {
-        let time_ns: Vec<TimeNs> = self
-            .t_s
-            .iter()
-            .map(|&t| (t * 1e9).round() as TimeNs)
-            .collect();
-        let bin_ns = (bin_s * 1e9).round() as TimeNs;
         if !(bin_s > 0.0) || self.t_s.len() < 2 {
             return self.clone();
         }
+        let time_ns: Vec<TimeNs> = self
+            .t_s
+            .iter()
+            .map(|&t| (t * 1e9).round() as TimeNs)
+            .collect();
+        let bin_ns = (bin_s * 1e9).round() as TimeNs;
         self.averaged(&bin_groups(
             &time_ns,
             &self.mount_of,
@@ -343,19 +390,35 @@ impl BarSeries {
         ))
     }
 
-    /// Means over the sample ranges `groups` (see [`bin_groups`]).
+    /// Weighted means over the sample ranges `groups` (see [`bin_groups`]).
     fn averaged(&self, groups: &[(usize, usize)]) -> BarSeries {
+        let w = &self.weight;
+        let weight: Vec<f64> = groups.iter().map(|&(a, b)| w[a..b].iter().sum()).collect();
         let mean = |v: &[f64]| -> Vec<f64> {
             groups
                 .iter()
-                .map(|&(a, b)| v[a..b].iter().sum::<f64>() / (b - a) as f64)
+                .zip(&weight)
+                .map(|(&(a, b), &total)| {
+                    if total > 0.0 {
+                        v[a..b]
+                            .iter()
+                            .zip(&w[a..b])
+                            .map(|(x, w)| x * w)
+                            .sum::<f64>()
+                            / total
+                    } else {
+                        v[a..b].iter().sum::<f64>() / (b - a) as f64
+                    }
+                })
                 .collect()
         };
         let pick =
             |v: &[Option<u32>]| -> Vec<Option<u32>> { groups.iter().map(|&(a, _)| v[a]).collect() };
         let mount_of = pick(&self.mount_of);
         let fit_index = (0..groups.len())
-            .filter(|&i| mount_of[i].is_some_and(|m| self.mounts[m as usize].is_fitted()))
+            .filter(|&i| {
+                weight[i] > 0.0 && mount_of[i].is_some_and(|m| self.mounts[m as usize].is_fitted())
+            })
             .collect();
         BarSeries {
             bar: self.bar.clone(),
@@ -377,6 +440,8 @@ impl BarSeries {
             plate_sensor_id: self.plate_sensor_id.clone(),
             mount_of,
             fit_index,
+            weight,
+            within_bin_rss_um2: self.within_bin_rss_um2,
             dropped_outside_mounts: self.dropped_outside_mounts,
             events: self.events.clone(),
         }
@@ -394,8 +459,29 @@ impl BarSeries {
             air_c: Vec::new(),
             celsius: BTreeMap::new(),
             fit_index: Vec::new(),
+            weight: Vec::new(),
             ..self
         }
+    }
+
+    /// Number of readings the fitted samples stand for.
+    pub fn fitted_readings(&self) -> usize {
+        self.fit_index
+            .iter()
+            .map(|&i| self.weight[i])
+            .sum::<f64>()
+            .round() as usize
+    }
+
+    /// A residual at the fitted samples (µm) weighed by the square root of each sample's weight:
+    /// under white noise every value then has the variance of one reading, which is what a
+    /// noise model of the residual needs when the samples are compressed bins.
+    pub fn weighted_residuals(&self, residuals_um: &[f64]) -> Vec<f64> {
+        residuals_um
+            .iter()
+            .zip(&self.fit_index)
+            .map(|(r, &i)| r * self.weight[i].sqrt())
+            .collect()
     }
 
     /// `I_p` of each sample (0 outside mounts).
@@ -413,14 +499,22 @@ impl BarSeries {
 /// (15 s at 30 s) that would bias every fitted time constant by about that much. Outside a
 /// sensor's log the nearest reading is used; a sensor without readings gets no column.
 pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, SensorLog>) {
+    log.celsius = temperatures_at(&log.time_ns, sensors);
+}
+
+/// Every sensor's temperature at the sorted times `time_ns` (see [`interpolate_temperatures`]).
+pub fn temperatures_at(
+    time_ns: &[TimeNs],
+    sensors: &BTreeMap<String, SensorLog>,
+) -> BTreeMap<String, Vec<f64>> {
+    let mut out = BTreeMap::new();
     for (id, sensor) in sensors {
         if sensor.time_ns.is_empty() {
-            log.celsius.remove(id);
             continue;
         }
-        let mut column = Vec::with_capacity(log.time_ns.len());
+        let mut column = Vec::with_capacity(time_ns.len());
         let mut j = 0;
-        for &t in &log.time_ns {
+        for &t in time_ns {
             while j + 1 < sensor.time_ns.len() && sensor.time_ns[j + 1] <= t {
                 j += 1;
             }
@@ -439,8 +533,9 @@ pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, Sen
                 sensor.celsius[j] + w * (sensor.celsius[j + 1] - sensor.celsius[j])
             });
         }
-        log.celsius.insert(id.clone(), column);
+        out.insert(id.clone(), column);
     }
+    out
 }
 
 /// Campaign time origin: the earliest mount start (else the earliest reading).
@@ -540,7 +635,12 @@ fn zero_segments(
     (out, next as usize)
 }
 
-fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f64>, SeriesError> {
+fn air_temperature(
+    campaign: &Campaign,
+    bar: &Bar,
+    celsius: &BTreeMap<String, Vec<f64>>,
+    n: usize,
+) -> Result<Vec<f64>, SeriesError> {
     let ids: Vec<String> = match &bar.sensor {
         Some(s) => vec![s.clone()],
         None => campaign.air_sensors().map(|s| s.id.clone()).collect(),
@@ -550,10 +650,9 @@ fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f
             bar: bar.id.clone(),
         });
     }
-    let mut sum = vec![0.0; log.time_ns.len()];
+    let mut sum = vec![0.0; n];
     for id in &ids {
-        let col = log
-            .celsius
+        let col = celsius
             .get(id)
             .filter(|c| c.len() == sum.len() && c.iter().all(|v| v.is_finite()))
             .ok_or_else(|| SeriesError::NoAirTemperature {
@@ -571,7 +670,7 @@ fn air_temperature(campaign: &Campaign, bar: &Bar, log: &BarLog) -> Result<Vec<f
 /// ([`crate::model::plate_temperature`]: the sensor smoothed without delay).
 fn subtract_plate_expansion(
     campaign: &Campaign,
-    log: &BarLog,
+    celsius: &BTreeMap<String, Vec<f64>>,
     t_s: &[f64],
     mount_of: &[Option<u32>],
     mounts: &[MountSpan],
@@ -588,7 +687,7 @@ fn subtract_plate_expansion(
     else {
         return;
     };
-    let Some(tp) = log.celsius.get(&plate.id) else {
+    let Some(tp) = celsius.get(&plate.id) else {
         return;
     };
     let tp = crate::model::plate_temperature(t_s, tp);

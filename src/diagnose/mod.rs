@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use crate::fit::{self, FitOptions};
+use crate::fit::{self, FitOptions, Separable};
 use crate::identify::{identify_from, BarModel};
 use crate::model::{channels, Effect, ThermalProblem, Transform, CATALOGUE};
 use crate::series::BarSeries;
@@ -134,7 +134,9 @@ fn score_channel(
     let problem = ThermalProblem::new(series, std::slice::from_ref(&effect))
         .ok()?
         .with_observations(residual.to_vec());
-    let rss0: f64 = residual.iter().map(|r| r * r).sum();
+    // The residual's own RSS as the problem counts it (weighted, plus any within-bin scatter).
+    let rss0: f64 =
+        problem.observations().iter().map(|r| r * r).sum::<f64>() + problem.unexplained_rss();
     let options = FitOptions {
         absorbed_params: problem.n_zeros(),
         ..FitOptions::default()
@@ -215,7 +217,7 @@ pub fn evaluate_candidates(
     // The current models' noise likelihoods, shared by every candidate's test.
     let base_log_likelihood: Vec<f64> = bars
         .par_iter()
-        .map(|(_, m)| noise::fit_noise(&m.residuals_um).log_likelihood)
+        .map(|(s, m)| noise::fit_noise(&s.weighted_residuals(&m.residuals_um)).log_likelihood)
         .collect();
     let out: Vec<Candidate> = candidates
         .par_iter()
@@ -279,7 +281,7 @@ fn candidate_on_bar(
         ));
     }
     let added = extended.n_params.saturating_sub(base.n_params).max(1);
-    let p_value = lr_p_value(base_log_likelihood, &extended, added);
+    let p_value = lr_p_value(base_log_likelihood, series, &extended, added);
     let delta_bic = extended.bic - base.bic;
     CandidateOnBar {
         bar: base.bar.clone(),
@@ -339,9 +341,15 @@ fn unidentifiable_pair(base: &BarModel, model: &BarModel) -> Option<(String, Str
 /// noise model's generalised least squares, which makes the statistic smaller: the test errs on
 /// the side of "not significant". A term that lowers the RMS but makes the residual less
 /// predictable (it adds its channel's sensor noise, or fits a slow wander with a smooth curve
-/// that jumps elsewhere) gets `p = 1`.
-pub fn lr_p_value(base_log_likelihood: f64, extended: &BarModel, added_params: usize) -> f64 {
-    let l1 = noise::fit_noise(&extended.residuals_um).log_likelihood;
+/// that jumps elsewhere) gets `p = 1`. Residuals are weighed by the square root of their
+/// samples' weights ([`BarSeries::weighted_residuals`]).
+pub fn lr_p_value(
+    base_log_likelihood: f64,
+    series: &BarSeries,
+    extended: &BarModel,
+    added_params: usize,
+) -> f64 {
+    let l1 = noise::fit_noise(&series.weighted_residuals(&extended.residuals_um)).log_likelihood;
     let lr = 2.0 * (l1 - base_log_likelihood);
     if !(lr > 0.0) {
         return 1.0;

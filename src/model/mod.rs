@@ -273,6 +273,9 @@ pub struct ThermalProblem<'a> {
     /// mount is a zero segment without fitted samples; its column would be all zeros).
     zero_columns: Vec<Option<usize>>,
     n_zero_columns: usize,
+    /// Square root of each fitted sample's weight ([`BarSeries::weight`]): every row the engine
+    /// sees is multiplied by it, so that its least squares are the weighted ones.
+    sqrt_weight: Vec<f64>,
     /// The last column (and `ln tau` derivative) computed for each term with a time constant,
     /// keyed by the bits of its tau: a solver asks for the basis and then its derivatives at the
     /// same `theta`, and a 1-D search moves one time constant while the others stay put, so
@@ -354,6 +357,11 @@ impl<'a> ThermalProblem<'a> {
             y: Vec::new(),
             zero_columns,
             n_zero_columns,
+            sqrt_weight: series
+                .fit_index
+                .iter()
+                .map(|&i| series.weight[i].sqrt())
+                .collect(),
             memo: Mutex::new(Vec::new()),
         };
         problem.y = problem.demean(&y_raw);
@@ -374,27 +382,48 @@ impl<'a> ThermalProblem<'a> {
             .and_then(|s| self.zero_columns[s as usize])
     }
 
-    /// Subtract each zero segment's mean over the fitted samples (`v` indexed by fitted sample).
+    /// Subtract each zero segment's weighted mean over the fitted samples (`v` indexed by fitted
+    /// sample), then weigh each row by the square root of its sample's weight: a row as the
+    /// engine sees it.
     ///
     /// The zeros are projected out (Frisch-Waugh-Lovell): fitting demeaned observations with
     /// demeaned gain columns gives exactly the gains, residuals and gain covariance of the fit
     /// with one indicator column per zero, at a cost that does not grow with the number of
     /// mounts. The zeros follow from the residual means ([`ThermalProblem::zeros_um`]).
     fn demean(&self, v: &[f64]) -> Vec<f64> {
-        let mut sum = vec![0.0; self.n_zero_columns];
-        let mut count = vec![0usize; self.n_zero_columns];
-        for (r, x) in v.iter().enumerate() {
-            if let Some(k) = self.fit_row_zero(r) {
-                sum[k] += x;
-                count[k] += 1;
-            }
-        }
+        let means = self.segment_means(v.iter().copied());
         v.iter()
             .enumerate()
             .map(|(r, x)| {
-                self.fit_row_zero(r)
-                    .map_or(*x, |k| x - sum[k] / count[k].max(1) as f64)
+                let centred = self.fit_row_zero(r).map_or(*x, |k| x - means[k]);
+                centred * self.sqrt_weight[r]
             })
+            .collect()
+    }
+
+    /// Weighted mean of `v` (one value per fitted sample) over each zero column's samples.
+    fn segment_means(&self, v: impl Iterator<Item = f64>) -> Vec<f64> {
+        let mut sum = vec![0.0; self.n_zero_columns];
+        let mut weight = vec![0.0; self.n_zero_columns];
+        for (r, x) in v.enumerate() {
+            if let Some(k) = self.fit_row_zero(r) {
+                let w = self.sqrt_weight[r] * self.sqrt_weight[r];
+                sum[k] += w * x;
+                weight[k] += w;
+            }
+        }
+        sum.iter()
+            .zip(&weight)
+            .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
+            .collect()
+    }
+
+    /// Residuals in µm at the fitted samples from the engine's (weighted) residuals.
+    pub fn unweighted(&self, residuals: &[f64]) -> Vec<f64> {
+        residuals
+            .iter()
+            .zip(&self.sqrt_weight)
+            .map(|(r, s)| r / s)
             .collect()
     }
 
@@ -407,18 +436,13 @@ impl<'a> ThermalProblem<'a> {
     /// thermal model over its fitted samples; 0 for a segment without fitted samples.
     pub fn zeros_um(&self, theta: &[f64], gains: &[f64]) -> Vec<f64> {
         let columns = self.full_columns(theta);
-        let mut sum = vec![0.0; self.n_zero_columns];
-        let mut count = vec![0usize; self.n_zero_columns];
-        for (r, &i) in self.series.fit_index.iter().enumerate() {
-            if let Some(k) = self.fit_row_zero(r) {
-                let thermal: f64 = columns.iter().zip(gains).map(|(c, g)| c[i] * g).sum();
-                sum[k] += self.series.y_um[i] - thermal;
-                count[k] += 1;
-            }
-        }
+        let means = self.segment_means(self.series.fit_index.iter().map(|&i| {
+            let thermal: f64 = columns.iter().zip(gains).map(|(c, g)| c[i] * g).sum();
+            self.series.y_um[i] - thermal
+        }));
         self.zero_columns
             .iter()
-            .map(|c| c.map_or(0.0, |k| sum[k] / count[k].max(1) as f64))
+            .map(|c| c.map_or(0.0, |k| means[k]))
             .collect()
     }
 
@@ -774,6 +798,14 @@ impl Separable for ThermalProblem<'_> {
 
     fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
         Some((0..self.y.len()).map(|r| self.fit_row_zero(r)).collect())
+    }
+
+    fn unexplained_rss(&self) -> f64 {
+        self.series.within_bin_rss_um2
+    }
+
+    fn represented_samples(&self) -> usize {
+        self.series.fitted_readings().max(self.y.len())
     }
 }
 

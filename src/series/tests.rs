@@ -228,29 +228,53 @@ fn bins_never_cross_a_mount_a_rezero_or_a_gap() {
 }
 
 #[test]
-fn build_binned_equals_build_then_binned() {
+fn build_binned_keeps_every_reading_in_weighted_nodes() {
     let c = campaign();
     let events = rezero_at(2 * 3600 + 15);
-    let (mut log, sensors) = log_and_sensors();
-    interpolate_temperatures(&mut log, &sensors);
-    let t0 = T0;
-    for bin_s in [0.0, 1.0, 10.0, 30.0, 60.0] {
-        let a = BarSeries::build(&c, &events, "B01", log.clone(), t0)
-            .expect("series")
-            .binned(bin_s);
-        let b =
-            BarSeries::build_binned(&c, &events, "B01", log.clone(), t0, bin_s).expect("series");
-        assert_eq!(a.t_s, b.t_s, "bin_s {bin_s}");
-        assert_eq!(a.y_um, b.y_um);
-        assert_eq!(a.air_c, b.air_c);
-        assert_eq!(a.celsius, b.celsius);
-        assert_eq!(a.mount_of, b.mount_of);
-        assert_eq!(a.zero_segment, b.zero_segment);
-        assert_eq!(a.fit_index, b.fit_index);
-        assert_eq!(a.segment_offset_um, b.segment_offset_um);
-        assert_eq!(a.dropped_outside_mounts, b.dropped_outside_mounts);
+    let (log, sensors) = log_and_sensors();
+    let mut with_temperatures = log.clone();
+    interpolate_temperatures(&mut with_temperatures, &sensors);
+    let full = BarSeries::build(&c, &events, "B01", with_temperatures, T0).expect("series");
+    let unbinned = BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, T0, 0.0)
+        .expect("series");
+    assert_eq!(unbinned.t_s, full.t_s);
+    assert_eq!(unbinned.y_um, full.y_um);
+    for bin_s in [1.0, 10.0, 30.0, 60.0] {
+        let b = BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, T0, bin_s)
+            .expect("series");
+        assert_eq!(b.n_zero_segments, full.n_zero_segments, "bin_s {bin_s}");
+        assert_eq!(b.fitted_readings(), full.fit_index.len(), "bin_s {bin_s}");
+        assert_eq!(b.dropped_outside_mounts, full.dropped_outside_mounts);
+        let total: f64 = b.weight.iter().sum();
+        assert!(
+            (total - log.time_ns.len() as f64).abs() < 1e-6,
+            "bin_s {bin_s}"
+        );
+        // Per zero segment, the weighted sums of time and reading are the readings' own.
+        for seg in 0..full.n_zero_segments as u32 {
+            let sums = |s: &BarSeries| {
+                let (mut st, mut sy) = (0.0, 0.0);
+                for i in 0..s.t_s.len() {
+                    if s.zero_segment[i] == Some(seg) {
+                        st += s.weight[i] * s.t_s[i];
+                        sy += s.weight[i] * (s.y_um[i] + s.segment_offset_um[seg as usize]);
+                    }
+                }
+                (st, sy)
+            };
+            let ((ft, fy), (bt, by)) = (sums(&full), sums(&b));
+            assert!(
+                (ft - bt).abs() < 1e-6 * ft.abs().max(1.0),
+                "bin_s {bin_s} seg {seg}"
+            );
+            assert!(
+                (fy - by).abs() < 1e-6 * fy.abs().max(1.0),
+                "bin_s {bin_s} seg {seg}: {fy} {by}"
+            );
+        }
         if bin_s >= 10.0 {
-            assert!(b.t_s.len() * 5 < log.time_ns.len(), "bin_s {bin_s}");
+            let nodes = b.weight.iter().filter(|&&w| w > 0.0).count();
+            assert!(nodes * 4 < log.time_ns.len(), "bin_s {bin_s}");
         }
     }
 }
@@ -262,7 +286,7 @@ fn bin_means_are_means_of_the_samples() {
     interpolate_temperatures(&mut log, &sensors);
     let full = BarSeries::build(&c, &[], "B01", log.clone(), T0).expect("series");
     let groups = bin_groups(&log.time_ns, &full.mount_of, &full.zero_segment, 30 * S);
-    let binned = full.clone().binned(30.0);
+    let binned = full.binned_copy(30.0);
     assert_eq!(binned.t_s.len(), groups.len());
     for (k, &(a, b)) in groups.iter().enumerate().step_by(37) {
         let mean = |v: &[f64]| v[a..b].iter().sum::<f64>() / (b - a) as f64;
