@@ -966,9 +966,16 @@ pub fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
     }
     let mean = x.iter().sum::<f64>() / n as f64;
     let len = (2 * n).next_power_of_two();
-    let mut planner = realfft::RealFftPlanner::<f64>::new();
-    let fwd = planner.plan_fft_forward(len);
-    let inv = planner.plan_fft_inverse(len);
+    // Plans (twiddle tables) are kept per thread: every fit asks for the autocorrelation of its
+    // residual, and planning cost as much as the transform.
+    thread_local! {
+        static PLANNER: std::cell::RefCell<realfft::RealFftPlanner<f64>> =
+            std::cell::RefCell::new(realfft::RealFftPlanner::new());
+    }
+    let (fwd, inv) = PLANNER.with(|p| {
+        let mut p = p.borrow_mut();
+        (p.plan_fft_forward(len), p.plan_fft_inverse(len))
+    });
     let mut buf = vec![0.0; len];
     for (b, v) in buf.iter_mut().zip(x) {
         *b = v - mean;

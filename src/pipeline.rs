@@ -506,6 +506,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         campaign,
         inputs,
         bars,
+        mut bins,
         sensors,
         events,
     } = logs;
@@ -514,7 +515,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .iter()
         .map(|m| m.from_ns)
         .min()
-        .unwrap_or_else(|| campaign_origin_from(&bars));
+        .unwrap_or_else(|| campaign_origin_from(&bars, &bins));
     let history = air_history(&campaign, &sensors, t0, 60.0);
     if !plan.runs(Stage::Identify) {
         return RunResults::before_stages(campaign, inputs, history, Vec::new(), Vec::new());
@@ -537,20 +538,28 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let progress = crate::progress::bar(bars.len() as u64, "identify");
     let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
         .into_iter()
+        .map(|(id, log)| {
+            let binned = bins.remove(&id);
+            (id, log, binned)
+        })
         .collect::<Vec<_>>()
         .into_par_iter()
-        .map(|(id, log)| {
-            let r = BarSeries::build_binned(&campaign, &events, &id, log, &sensors, t0, plan.bin_s)
-                .map_err(|e| e.to_string())
-                .and_then(|series| {
-                    let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
-                    let series = if samples_needed {
-                        series
-                    } else {
-                        series.without_samples()
-                    };
-                    Ok(BarOutcome { series, model })
-                });
+        .map(|(id, log, binned)| {
+            let series = match binned {
+                Some(b) => BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, t0),
+                None => {
+                    BarSeries::build_binned(&campaign, &events, &id, log, &sensors, t0, plan.bin_s)
+                }
+            };
+            let r = series.map_err(|e| e.to_string()).and_then(|series| {
+                let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
+                let series = if samples_needed {
+                    series
+                } else {
+                    series.without_samples()
+                };
+                Ok(BarOutcome { series, model })
+            });
             progress.inc(1);
             (id, r)
         })
@@ -681,9 +690,16 @@ fn run_acceptance(plan: &RunPlan, r: &RunResults) -> Vec<crate::acceptance::BarA
         .collect()
 }
 
-fn campaign_origin_from(bars: &BTreeMap<String, crate::series::BarLog>) -> i64 {
+fn campaign_origin_from(
+    bars: &BTreeMap<String, crate::series::BarLog>,
+    bins: &BTreeMap<String, crate::series::BarBins>,
+) -> i64 {
     bars.values()
         .filter_map(|l| l.time_ns.first().copied())
+        .chain(
+            bins.values()
+                .filter_map(crate::series::BarBins::first_reading_ns),
+        )
         .min()
         .unwrap_or(0)
 }

@@ -28,7 +28,7 @@ pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
 
 /// Run `plan`: ingest, analyse, write the output folder.
 pub fn run(plan: &RunPlan) -> Result<RunStatus> {
-    let logs = io::read_campaign(&plan.campaign_dir)?;
+    let logs = io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)?;
     let out = plan
         .out_dir
         .clone()

@@ -58,6 +58,9 @@ pub struct CampaignLogs {
     pub inputs: Vec<InputFile>,
     /// Bar id -> its log. Every manifest bar has an entry (possibly empty).
     pub bars: BTreeMap<String, BarLog>,
+    /// Bar id -> its readings compressed into bins while ingest streamed them
+    /// (`io::read_campaign_binned`); such a bar's log in `bars` is empty. Empty otherwise.
+    pub bins: BTreeMap<String, BarBins>,
     /// Sensor id -> its log. Every manifest sensor has an entry (possibly empty).
     pub sensors: BTreeMap<String, SensorLog>,
     /// Sorted by time.

@@ -13,7 +13,6 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
 
 use polars::lazy::dsl::Engine;
 use polars::prelude::*;
@@ -21,7 +20,7 @@ use polars::prelude::*;
 use super::inputs::{CampaignFiles, MANIFEST};
 use super::{format_ns, one_line, IngestError};
 use crate::campaign::{Campaign, Manifest};
-use crate::series::{BarLog, Event, SensorLog};
+use crate::series::{BarBins, BarLog, BinAccumulator, BinGrid, Event, SensorLog};
 
 /// Index of the source file of each row, added while scanning, for error messages.
 const FILE_COL: &str = "__source_file";
@@ -134,13 +133,17 @@ pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
 /// The three tables, split per bar / sensor and sorted.
 pub(crate) struct Tables {
     pub bars: BTreeMap<String, BarLog>,
+    pub bins: BTreeMap<String, BarBins>,
     pub sensors: BTreeMap<String, SensorLog>,
     pub events: Vec<Event>,
 }
 
+/// `bin_s > 0`: every bar's encoder rows go straight into compressed bins of `bin_s` seconds
+/// (`Tables::bins`), never held at full rate.
 pub(crate) fn read_tables(
     files: &CampaignFiles,
     campaign: &Campaign,
+    bin_s: f64,
 ) -> Result<Tables, IngestError> {
     let bar_ids: BTreeSet<&str> = campaign.bars.iter().map(|b| b.id.as_str()).collect();
     let sensor_ids: BTreeSet<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
@@ -160,7 +163,17 @@ pub(crate) fn read_tables(
     drop(temperatures);
     tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
 
-    let bars = read_encoders(&files.encoders, &bar_ids)?;
+    // Events first: the bins of a bar never cross its rezero events.
+    let events = read_events(&files.events, &bar_ids)?;
+    let grids: BTreeMap<String, BinGrid> = if bin_s > 0.0 {
+        bar_ids
+            .iter()
+            .map(|id| (id.to_string(), BinGrid::new(campaign, &events, id, bin_s)))
+            .collect()
+    } else {
+        BTreeMap::new()
+    };
+    let (bars, bins) = read_encoders(&files.encoders, &bar_ids, &grids)?;
     tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
 
     let sensors: BTreeMap<String, SensorLog> = readings
@@ -170,8 +183,9 @@ pub(crate) fn read_tables(
         .map_err(polars_error("temperatures"))?;
     Ok(Tables {
         bars,
+        bins,
         sensors,
-        events: read_events(&files.events, &bar_ids)?,
+        events,
     })
 }
 
@@ -279,11 +293,11 @@ fn scan_file(path: &Path, columns: &[ColumnSpec]) -> Result<LazyFrame, IngestErr
 
 // ---------------------------------------------------------------- encoders, streamed
 
-/// Rows of one bar gathered from every file and batch (in arrival order).
-#[derive(Default)]
-struct BarRows {
-    time_ns: Vec<i64>,
-    counts: Vec<i64>,
+/// Rows of one bar gathered from every file and batch: kept (in arrival order), or added to the
+/// bar's compressed bins as they arrive (`series::BinAccumulator`: order-free integer sums).
+enum BarRows {
+    Kept { time_ns: Vec<i64>, counts: Vec<i64> },
+    Binned(BinAccumulator),
 }
 
 /// Rows and time range of an undeclared bar id in one file.
@@ -326,27 +340,52 @@ impl EncoderSink {
         let time = time.rechunk();
         let counts = counts.rechunk();
         let (time, counts) = (time.cont_slice()?, counts.cont_slice()?);
+        // Runs of equal ids, found on the string views: a short id (12 bytes or less, every
+        // bar id of the spec's examples) is inline in its 16-byte view, so equal views are
+        // equal ids and the strings are compared only where the views differ.
         let mut start = 0;
-        let mut ids = bar.iter().map(Option::unwrap_or_default);
-        let Some(mut current) = ids.next() else {
-            return Ok(());
-        };
-        for (i, id) in ids.enumerate().map(|(i, id)| (i + 1, id)) {
-            if id != current {
-                self.append(current, &time[start..i], &counts[start..i]);
-                start = i;
-                current = id;
+        let mut offset = 0;
+        let mut current: Option<(&str, u128)> = None;
+        for chunk in bar.downcast_iter() {
+            let views = chunk.views();
+            for i in 0..chunk.len() {
+                let view = views[i].as_u128();
+                match current {
+                    Some((_, v)) if v == view => {}
+                    Some((id, _)) if id == chunk.value(i) => current = Some((id, view)),
+                    _ => {
+                        let row = offset + i;
+                        if let Some((id, _)) = current {
+                            self.append(id, &time[start..row], &counts[start..row]);
+                        }
+                        start = row;
+                        current = Some((chunk.value(i), view));
+                    }
+                }
             }
+            offset += chunk.len();
         }
-        self.append(current, &time[start..], &counts[start..]);
+        if let Some((id, _)) = current {
+            self.append(id, &time[start..], &counts[start..]);
+        }
         Ok(())
     }
 
     fn append(&mut self, id: &str, time: &[i64], counts: &[i64]) {
-        if let Some(rows) = self.bars.get_mut(id) {
-            rows.time_ns.extend_from_slice(time);
-            rows.counts.extend_from_slice(counts);
-            return;
+        match self.bars.get_mut(id) {
+            Some(BarRows::Kept {
+                time_ns,
+                counts: kept,
+            }) => {
+                time_ns.extend_from_slice(time);
+                kept.extend_from_slice(counts);
+                return;
+            }
+            Some(BarRows::Binned(bins)) => {
+                bins.add_all(time, counts);
+                return;
+            }
+            None => {}
         }
         let first = time.iter().copied().min().unwrap_or(0);
         let last = time.iter().copied().max().unwrap_or(0);
@@ -365,33 +404,52 @@ impl EncoderSink {
 }
 
 /// Streams every encoder file (projection and type normalisation inside the scan) into per-bar
-/// logs sorted by (time, counts). Errors as [`read_table`] + [`check_nulls`] + [`check_ids`]
-/// report them: schema errors at the file, then the first column with nulls (first file), then
-/// the first file with an undeclared bar (first id).
+/// logs sorted by (time, counts), or, for the bars `grids` names, straight into compressed bins
+/// (the bar's log then stays empty). Errors as [`read_table`] + [`check_nulls`] +
+/// [`check_ids`] report them: schema errors at the file, then the first column with nulls
+/// (first file), then the first file with an undeclared bar (first id).
 fn read_encoders(
     files: &[PathBuf],
     bar_ids: &BTreeSet<&str>,
-) -> Result<BTreeMap<String, BarLog>, IngestError> {
-    let sink = Arc::new(Mutex::new(EncoderSink {
+    grids: &BTreeMap<String, BinGrid>,
+) -> Result<(BTreeMap<String, BarLog>, BTreeMap<String, BarBins>), IngestError> {
+    let mut sink = EncoderSink {
         bars: bar_ids
             .iter()
-            .map(|id| (id.to_string(), BarRows::default()))
+            .map(|id| {
+                let rows = match grids.get(*id) {
+                    Some(grid) => BarRows::Binned(BinAccumulator::new(grid.clone())),
+                    None => BarRows::Kept {
+                        time_ns: Vec::new(),
+                        counts: Vec::new(),
+                    },
+                };
+                (id.to_string(), rows)
+            })
             .collect(),
         ..Default::default()
-    }));
-    for (index, path) in files.iter().enumerate() {
-        let lazy = scan_file(path, &ENCODER_COLUMNS)?;
-        lock(&sink).file = u32::try_from(index).unwrap_or(u32::MAX);
-        let batches = Arc::clone(&sink);
-        let callback = PlanCallback::new(move |batch: DataFrame| {
-            lock(&batches).push(&batch)?;
-            Ok(false) // keep going
+    };
+    // Polars decodes while a second thread splits and accumulates the batches it hands over
+    // (a bounded queue, so at most a few batches wait): the two overlap on two cores.
+    let (batches, received) = std::sync::mpsc::sync_channel::<(u32, DataFrame)>(4);
+    let sink = std::thread::scope(|scope| {
+        let consumer = scope.spawn(move || -> PolarsResult<EncoderSink> {
+            for (file, batch) in received {
+                sink.file = file;
+                sink.push(&batch)?;
+            }
+            Ok(sink)
         });
-        lazy.sink_batches(callback, true, None)
-            .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
-            .map_err(|e| not_parquet(path, e))?;
-    }
-    let sink = std::mem::take(&mut *lock(&sink));
+        let streamed = stream_files(files, batches);
+        let sink = consumer
+            .join()
+            .map_err(|_| IngestError::Polars {
+                context: "encoders".into(),
+                message: "the batch consumer panicked".into(),
+            })?
+            .map_err(polars_error("encoders"))?;
+        streamed.map(|()| sink)
+    })?;
     if let Some((&(column, file), &count)) = sink.nulls.iter().next() {
         return Err(IngestError::Nulls {
             path: file_path(files, file),
@@ -410,24 +468,48 @@ fn read_encoders(
             known: bar_ids.iter().copied().collect::<Vec<_>>().join(", "),
         });
     }
-    Ok(sink
-        .bars
-        .into_iter()
-        .map(|(id, rows)| {
-            let (time_ns, counts) = sorted_by_time_then_value(rows.time_ns, rows.counts);
-            let log = BarLog {
-                time_ns,
-                counts,
-                celsius: BTreeMap::new(),
-            };
-            (id, log)
-        })
-        .collect())
+    let mut logs = BTreeMap::new();
+    let mut bins = BTreeMap::new();
+    for (id, rows) in sink.bars {
+        match rows {
+            BarRows::Kept { time_ns, counts } => {
+                let (time_ns, counts) = sorted_by_time_then_value(time_ns, counts);
+                let log = BarLog {
+                    time_ns,
+                    counts,
+                    celsius: BTreeMap::new(),
+                };
+                logs.insert(id, log);
+            }
+            BarRows::Binned(acc) => {
+                bins.insert(id.clone(), acc.finish());
+                logs.insert(id, BarLog::default());
+            }
+        }
+    }
+    Ok((logs, bins))
 }
 
-fn lock(sink: &Mutex<EncoderSink>) -> std::sync::MutexGuard<'_, EncoderSink> {
-    // A panic while holding the lock leaves partial rows; the run fails on that panic anyway.
-    sink.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+/// Streams every encoder file, sending each batch (with its file's index) to `batches`.
+fn stream_files(
+    files: &[PathBuf],
+    batches: std::sync::mpsc::SyncSender<(u32, DataFrame)>,
+) -> Result<(), IngestError> {
+    for (index, path) in files.iter().enumerate() {
+        let lazy = scan_file(path, &ENCODER_COLUMNS)?;
+        let file = u32::try_from(index).unwrap_or(u32::MAX);
+        let to_consumer = batches.clone();
+        let callback = PlanCallback::new(move |batch: DataFrame| {
+            to_consumer
+                .send((file, batch))
+                .map_err(|_| polars_err!(ComputeError: "the batch consumer stopped"))?;
+            Ok(false) // keep going
+        });
+        lazy.sink_batches(callback, true, None)
+            .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
+            .map_err(|e| not_parquet(path, e))?;
+    }
+    Ok(())
 }
 
 /// Rows sorted by time, ties by value, so that the order never depends on how the rows were

@@ -273,6 +273,8 @@ pub struct ThermalProblem<'a> {
     /// mount is a zero segment without fitted samples; its column would be all zeros).
     zero_columns: Vec<Option<usize>>,
     n_zero_columns: usize,
+    /// Zero column of each fitted sample (`None`: its segment has no zero).
+    row_zero: Vec<Option<usize>>,
     /// Square root of each fitted sample's weight ([`BarSeries::weight`]): every row the engine
     /// sees is multiplied by it, so that its least squares are the weighted ones.
     sqrt_weight: Vec<f64>,
@@ -339,7 +341,7 @@ impl<'a> ThermalProblem<'a> {
             }
         }
         let mut n_zero_columns = 0;
-        let zero_columns = fitted
+        let zero_columns: Vec<Option<usize>> = fitted
             .iter()
             .map(|&f| {
                 f.then(|| {
@@ -355,6 +357,11 @@ impl<'a> ThermalProblem<'a> {
             tau_terms,
             tau_source,
             y: Vec::new(),
+            row_zero: series
+                .fit_index
+                .iter()
+                .map(|&i| series.zero_segment[i].and_then(|s| zero_columns[s as usize]))
+                .collect(),
             zero_columns,
             n_zero_columns,
             sqrt_weight: series
@@ -378,8 +385,7 @@ impl<'a> ThermalProblem<'a> {
 
     /// Zero column of each fitted sample (`None`: a sample whose segment has no zero).
     fn fit_row_zero(&self, r: usize) -> Option<usize> {
-        self.series.zero_segment[self.series.fit_index[r]]
-            .and_then(|s| self.zero_columns[s as usize])
+        self.row_zero[r]
     }
 
     /// Subtract each zero segment's weighted mean over the fitted samples (`v` indexed by fitted

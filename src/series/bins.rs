@@ -79,6 +79,28 @@ impl BinMoments {
         self.scc += c * c;
     }
 
+    /// Add readings of this bin (times in ns, the bin starting at `start_ns`).
+    pub fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
+        let mut run = BinMoments::default();
+        let (mut first, mut last) = (i64::MAX, i64::MIN);
+        for (&t, &c) in time_ns.iter().zip(counts) {
+            let u = (t - start_ns) / NS_PER_US;
+            first = first.min(u);
+            last = last.max(u);
+            // u < 3.6e9 µs (an hour), so u² fits i64; each product below is one 64x64->128.
+            let uu = u * u;
+            run.su += u as i128;
+            run.suu += uu as i128;
+            run.suuu += uu as i128 * u as i128;
+            run.sc += c as i128;
+            run.suc += u as i128 * c as i128;
+            run.scc += c as i128 * c as i128;
+        }
+        run.n = time_ns.len().min(counts.len()) as u64;
+        (run.first_us, run.last_us) = (first, last);
+        self.merge(&run);
+    }
+
     /// Sums of two parts of one bin.
     pub fn merge(&mut self, other: &BinMoments) {
         if other.n == 0 {
@@ -256,25 +278,34 @@ impl BinAccumulator {
 
     /// Add one reading.
     pub fn add(&mut self, time_ns: TimeNs, counts: i64) {
-        if let Some((key, end, moments)) = self.current.as_mut() {
-            if time_ns >= key.start_ns && time_ns < *end {
-                moments.add((time_ns - key.start_ns) / NS_PER_US, counts);
-                return;
-            }
-        }
-        if let Some((key, _, moments)) = self.current.take() {
-            self.runs.push((key, moments));
-        }
-        let (key, end) = self.grid.locate(time_ns);
-        let mut moments = BinMoments::default();
-        moments.add((time_ns - key.start_ns) / NS_PER_US, counts);
-        self.current = Some((key, end, moments));
+        self.add_all(&[time_ns], &[counts]);
     }
 
-    /// Add readings given as two columns.
+    /// Add readings given as two columns: each run of rows in one bin in a tight loop (ingest
+    /// streams tens of millions of rows through here).
     pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
-        for (&t, &c) in time_ns.iter().zip(counts) {
-            self.add(t, c);
+        let n = time_ns.len().min(counts.len());
+        let mut i = 0;
+        while i < n {
+            let (key, end, mut moments) = match self.current.take() {
+                Some((key, end, m)) if time_ns[i] >= key.start_ns && time_ns[i] < end => {
+                    (key, end, m)
+                }
+                other => {
+                    if let Some((key, _, m)) = other {
+                        self.runs.push((key, m));
+                    }
+                    let (key, end) = self.grid.locate(time_ns[i]);
+                    (key, end, BinMoments::default())
+                }
+            };
+            let run = time_ns[i..n]
+                .iter()
+                .position(|&t| t < key.start_ns || t >= end)
+                .map_or(n, |k| i + k);
+            moments.add_run(key.start_ns, &time_ns[i..run], &counts[i..run]);
+            self.current = Some((key, end, moments));
+            i = run;
         }
     }
 
@@ -325,6 +356,13 @@ impl BarBins {
         let mut acc = BinAccumulator::new(grid);
         acc.add_all(time_ns, counts);
         acc.finish()
+    }
+
+    /// Time of the first reading.
+    pub fn first_reading_ns(&self) -> Option<TimeNs> {
+        self.bins
+            .first()
+            .map(|(k, m)| k.start_ns + m.first_us * NS_PER_US)
     }
 
     /// Number of readings.

@@ -196,6 +196,21 @@ fn compressed_bins_reproduce_the_full_rate_fit() {
         }
     }
     println!("{report}");
+    // Ingest that bins while it streams gives the same bits as binning a log read whole.
+    let effects = vec!["fixed_part".to_string(), "scale".to_string()];
+    let mut plan =
+        dbbcal::pipeline::RunPlan::for_stage(Stage::Identify, dir.clone(), None, &effects)
+            .expect("plan");
+    plan.bin_s = 60.0;
+    let streamed = dbbcal::pipeline::analyse(
+        &plan,
+        dbbcal::io::read_campaign_binned(&dir, 60.0).expect("ingest"),
+    );
+    let whole = analyse_campaign_binned(&dir, 60.0);
+    for (a, b) in streamed.bars.iter().zip(&whole.bars) {
+        assert_eq!(a.model.params, b.model.params, "{}", a.model.bar);
+        assert_eq!(a.model.rms_um.to_bits(), b.model.rms_um.to_bits());
+    }
 }
 
 fn analyse_campaign_binned(dir: &std::path::Path, bin_s: f64) -> dbbcal::pipeline::RunResults {
