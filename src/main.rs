@@ -85,7 +85,8 @@ struct StageArgs {
     /// Add an effect to the model (repeatable).
     #[arg(long = "add-effect", value_name = "NAME")]
     add_effect: Vec<String>,
-    /// Fit on means of bins of this many seconds (0: every sample), e.g. 30 for 1 Hz logs.
+    /// Compress the readings into bins of this many seconds, two weighted nodes a bin (exact for
+    /// the fits; 0: every reading), e.g. 60 for 1 Hz logs.
     #[arg(long = "bin-s", value_name = "SECONDS", default_value_t = 0.0)]
     bin_s: f64,
 }
@@ -159,10 +160,10 @@ fn stage(stage: Stage, a: StageArgs) -> anyhow::Result<RunStatus> {
     let campaign =
         a.io.campaign
             .unwrap_or_else(|| PathBuf::from("data/sample"));
-    if !(a.bin_s >= 0.0) {
+    if !(0.0..=dbbcal::series::MAX_BIN_S).contains(&a.bin_s) {
         anyhow::bail!(dbbcal::pipeline::PlanError::Pipeline {
             path: "--bin-s".into(),
-            message: "must be zero or positive".into()
+            message: format!("must be between 0 and {} s", dbbcal::series::MAX_BIN_S)
         });
     }
     let mut plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;

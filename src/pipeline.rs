@@ -152,7 +152,8 @@ pub struct ModelSection {
     /// Generic terms spelled out (`[[model.term]]`): the same as `"lag:H1@1800"` in `effects`.
     #[serde(default)]
     pub term: Vec<GenericTerm>,
-    /// Fit on means of bins of this many seconds (0: every sample). See `BarSeries::binned`.
+    /// Compress each bar's readings into bins of this many seconds, two weighted nodes a bin,
+    /// exact for the fits (`series::bins`; 0: every reading). At most an hour.
     #[serde(default)]
     pub bin_s: f64,
 }
@@ -247,7 +248,7 @@ pub struct RunPlan {
     /// `None`: `reports/<campaign id>`, decided after the manifest is read.
     pub out_dir: Option<PathBuf>,
     pub effects: Vec<Effect>,
-    /// Bin length of the fits, s (0: every sample).
+    /// Bin length of the compressed readings, s (0: every reading).
     pub bin_s: f64,
     pub matching: MatchSection,
     pub diagnose: DiagnoseSection,
@@ -310,8 +311,11 @@ impl RunPlan {
             ));
         }
         plan.diagnose = file.diagnose;
-        if !(file.model.bin_s >= 0.0) {
-            return Err(perr("model.bin_s must be zero or positive".into()));
+        if !(0.0..=crate::series::MAX_BIN_S).contains(&file.model.bin_s) {
+            return Err(perr(format!(
+                "model.bin_s must be between 0 and {} s",
+                crate::series::MAX_BIN_S
+            )));
         }
         plan.bin_s = file.model.bin_s;
         if !(file.acceptance.tolerance_um > 0.0
