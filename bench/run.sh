@@ -24,8 +24,8 @@
 #                              ingest(all 12) + (identify - ingest)(N bars) x 12/N  (labelled in results.md)
 #   PY_BARS=2                  bars of the dense Python run ("all" for every bar; ~4 min a bar on 2 cores)
 #   PY_FAST=1                  also run python_equivalent.py --project-zeros on all bars (0 to skip)
-#   BIN_S=0                    fit on bin means of BIN_S seconds: `dbbcal identify --bin-s BIN_S` and
-#                              `python_equivalent.py --bin-s BIN_S` (0: every sample; e.g. 30 for 1 Hz logs)
+#   BIN_S=0                    compress into BIN_S-second bins: `dbbcal ingest/identify --bin-s BIN_S` (exact), and
+#                              `python_equivalent.py --bin-s BIN_S` (bin means: close, not exact; 0: every sample)
 #   SKIP_PYTHON=1              skip the Python equivalent
 #   WAIT_IDLE=1                before each measurement wait (up to 15 min) for the 1-min load < IDLE_LOAD
 #   IDLE_LOAD=0.7
@@ -134,14 +134,14 @@ for size in $SIZES; do
     # The bare scan first: it also warms the page cache for everyone after it.
     measure "bare-scan-$size" "$size" python3 bench/bare_scan.py "$camp" --repeat 3 --json "$OUT/bare-scan-$size.json"
     for r in $(seq 1 "$REPEAT"); do
-        measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest"
+        measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest" --bin-s "$BIN_S"
         if [ "$size" = full ] && [ "$DBBCAL_BARS" != all ]; then
             sub=$OUT/campaign-full-${DBBCAL_BARS}bars
             if [ ! -f "$sub/campaign.toml" ]; then
                 bars=$(python3 -c "import tomllib,sys; m=tomllib.load(open('$camp/campaign.toml','rb')); print(','.join(b['id'] for b in m['bar'][:int(sys.argv[1])]))" "$DBBCAL_BARS")
                 python3 bench/subset_campaign.py "$camp" "$sub" --bars "$bars"
             fi
-            measure "dbbcal-ingest-full-sub-$r" full-sub "$BIN" ingest --campaign "$sub" --out "$OUT/res-full-sub-ingest"
+            measure "dbbcal-ingest-full-sub-$r" full-sub "$BIN" ingest --campaign "$sub" --out "$OUT/res-full-sub-ingest" --bin-s "$BIN_S"
             measure "dbbcal-identify-full-sub-$r" full-sub "$BIN" identify --campaign "$sub" --out "$OUT/res-full-sub-identify" --bin-s "$BIN_S"
         else
             measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify" --bin-s "$BIN_S"
