@@ -33,21 +33,27 @@ fn encoder_table(bar: &str, counts: Column) -> Table {
         .with("counts", counts)
 }
 
-/// Run the nightly pipeline on `dir`; expect exit 3, one line containing every `needles`, and
-/// no output folder.
+/// Run the nightly pipeline on `dir`, then `identify` with bins accumulated while ingest streams
+/// (a second reading path); expect exit 3, one line containing every `needles`, and no output
+/// folder from either.
 fn check(dir: &Path, needles: &[&str]) {
+    check_command(dir, needles, &["run", "pipelines/nightly.toml"]);
+    check_command(dir, needles, &["identify", "--bin-s", "60"]);
+}
+
+fn check_command(dir: &Path, needles: &[&str], command: &[&str]) {
     let out = dir.parent().unwrap().join(format!(
         "{}-out",
         dir.file_name().unwrap().to_str().unwrap()
     ));
-    let (code, _stdout, stderr) = run_cli(&[
-        "run",
-        "pipelines/nightly.toml",
+    let mut args = command.to_vec();
+    args.extend([
         "--campaign",
         dir.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]);
+    let (code, _stdout, stderr) = run_cli(&args);
     assert_eq!(code, 3, "exit code for {}: stderr {stderr}", dir.display());
     let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
     assert_eq!(lines.len(), 1, "one line expected, got: {stderr}");
@@ -118,6 +124,9 @@ fn bad_inputs_give_one_clear_line_and_no_output() {
     let broken = format!("{}length = \"huge{}", &manifest[..first], &manifest[end..]);
     std::fs::write(d.join("campaign.toml"), broken).unwrap();
     check(&d, &["campaign.toml", "huge"]);
+
+    let d = small_campaign(root, "bin-too-long");
+    check_command(&d, &["--bin-s", "3600"], &["identify", "--bin-s", "7200"]);
 }
 
 #[test]
