@@ -456,7 +456,7 @@ pub fn fit_form(form: Form, points: &[CalibrationPoint]) -> Result<DistanceFunct
     let options = FitOptions {
         brent_start: false,
         hac_batch_len: Some(1),
-        ..FitOptions::default()
+        absorbed_params: 0,
     };
     let f = fit::fit(&problem, &[], &options).map_err(|e| e.to_string())?;
     let coefficients: Vec<(String, f64)> =

@@ -154,9 +154,6 @@ pub struct FitOptions {
     pub brent_start: bool,
     /// Batch length for the HAC covariance; `None` chooses it from the residual autocorrelation.
     pub hac_batch_len: Option<usize>,
-    /// Shortest batch the automatic choice may take (samples); see
-    /// `identify::HAC_MIN_BATCH_S` for why a thermal fit sets one.
-    pub hac_min_batch_len: usize,
     /// Linear parameters the problem projected out before the engine saw it (e.g. mount zeros):
     /// they count in every degrees-of-freedom correction.
     pub absorbed_params: usize,
@@ -167,7 +164,6 @@ impl Default for FitOptions {
         Self {
             brent_start: true,
             hac_batch_len: None,
-            hac_min_batch_len: 1,
             absorbed_params: 0,
         }
     }
@@ -216,10 +212,7 @@ pub fn fit<P: Separable>(
         &jac,
         &residuals,
         rss / n_obs.saturating_sub(p + options.absorbed_params).max(1) as f64,
-        options.hac_batch_len.or_else(|| {
-            let auto = hac_batch_length(&residuals);
-            Some(auto.max(options.hac_min_batch_len.min(y.len() / 20).max(1)))
-        }),
+        options.hac_batch_len,
         options.absorbed_params,
     )
     .ok_or_else(|| FitError::Singular(names.join(", ")))?;
@@ -1053,7 +1046,8 @@ mod tests {
             &[0.2],
             &FitOptions {
                 brent_start: false,
-                ..FitOptions::default()
+                hac_batch_len: None,
+                absorbed_params: 0,
             },
         )
         .unwrap();
@@ -1085,7 +1079,8 @@ mod tests {
         assert!(along.abs() < 1e-9, "observations keep {along} along d2");
         let options = FitOptions {
             brent_start: false,
-            ..FitOptions::default()
+            hac_batch_len: None,
+            absorbed_params: 0,
         };
         let f = fit(&o, &[0.2], &options).unwrap();
         assert!((f.values[0] - 3.0).abs() < 1e-8, "{:?}", f.values);

@@ -241,7 +241,6 @@ fn fit_from(
     }
     let mut options = FitOptions {
         absorbed_params: problem.n_zeros(),
-        hac_min_batch_len: min_batch_samples(series),
         ..FitOptions::default()
     };
     if let Some(theta) = coarse_start(series, effects, &theta0) {
@@ -255,33 +254,6 @@ fn fit_from(
     let mut model = to_bar_model(series, &problem, &fit);
     canonical_thermal_paths(&mut model);
     Ok(model)
-}
-
-/// Shortest HAC batch of a thermal fit, seconds: the upper end of the time constants of
-/// `physics.md` (15 min to 2 h).
-///
-/// Why: the batch length chosen from the residual autocorrelation sees the white reading noise,
-/// which dominates the residual's variance, and misses a small slow component under it (e.g.
-/// the temperature sensor's noise passed through the lags: 0.4 nm against 20 nm of reading
-/// noise on the 1 Hz benchmark campaign). Averaged over a time constant, the white noise falls
-/// to that size, so the slow part carries as much weight in the estimates. At 1 Hz the
-/// automatic batch was 10 s and the errors against truth were 1.75 u RMS.
-pub const HAC_MIN_BATCH_S: f64 = 7200.0;
-
-/// [`HAC_MIN_BATCH_S`] in fitted samples (their median spacing).
-fn min_batch_samples(series: &BarSeries) -> usize {
-    let mut steps: Vec<f64> = series
-        .fit_index
-        .windows(2)
-        .map(|w| series.t_s[w[1]] - series.t_s[w[0]])
-        .filter(|d| *d > 0.0)
-        .collect();
-    if steps.is_empty() {
-        return 1;
-    }
-    let mid = steps.len() / 2;
-    let median = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
-    (HAC_MIN_BATCH_S / median).ceil().max(1.0) as usize
 }
 
 /// The model without the last of `effects`, if `effects` goes beyond its leading base effects

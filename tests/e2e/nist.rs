@@ -116,7 +116,7 @@ fn check(name: &str, linear: &[usize], nonlinear: &[usize], basis: BasisFn) {
         let options = FitOptions {
             brent_start: false,
             hac_batch_len: Some(1),
-            ..FitOptions::default()
+            absorbed_params: 0,
         };
         let f = fit(&problem, &theta0, &options).unwrap_or_else(|e| panic!("{name} {label}: {e}"));
         let order: Vec<usize> = linear.iter().chain(nonlinear).copied().collect();
