@@ -126,9 +126,9 @@ fn base_model_recovers_truth_ten_bars_fifteen_days() {
 /// Bins compressed into two weighted nodes ([`dbbcal::series::BarBins`], `[model] bin_s`) give
 /// the fit of every reading: on a 1 Hz campaign the estimates of 2-60 s compressions equal the
 /// full-rate fit's to 0.002 of their uncertainty (measured), the RMS to 1e-6 relative, and the
-/// sample count is the full-rate one. The HAC uncertainties differ by up to about 23 % (measured)
-/// on these 3 days: 2-h batches, few of them, cut on different grids (an estimate of the
-/// uncertainty, not an error of the compression).
+/// sample count is the full-rate one. The HAC uncertainties differ by up to 18 % (measured): the
+/// automatic batches are cut on different grids (a bandwidth choice, not an error of the
+/// compression).
 #[test]
 fn compressed_bins_reproduce_the_full_rate_fit() {
     let tmp = tempfile::tempdir().unwrap();
