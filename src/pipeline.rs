@@ -866,7 +866,9 @@ pub struct PipelineRecord {
 #[derive(Debug, Serialize)]
 pub struct ModelRecord {
     pub effects: Vec<String>,
-    /// Bin length of the fits, s (0: every sample); RMS values are then those of bin means.
+    /// Bin length of the compressed readings, s (0: every reading). The fits, RMS and sample
+    /// counts are those of every reading either way (`series::bins`); residual statistics and
+    /// figures then show the bins' nodes.
     pub bin_s: f64,
 }
 

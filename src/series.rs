@@ -730,7 +730,7 @@ fn centre_segments(y_um: &mut [f64], segment: &[Option<u32>], n_segments: usize)
     medians
 }
 
-/// Sample ranges `[a, b)` of the bins of [`BarSeries::binned`]: a bin starts at a sample and
+/// Sample ranges `[a, b)` of the bins of [`BarSeries::binned_copy`]: a bin starts at a sample and
 /// takes the following ones while they are in the same mount and zero segment and less than
 /// `bin_ns` after its first sample (integer ns: no rounding decides a bin edge).
 fn bin_groups(
