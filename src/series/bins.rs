@@ -62,23 +62,6 @@ pub struct Node {
 }
 
 impl BinMoments {
-    /// Add one reading `u_us` µs after the bin's start.
-    pub fn add(&mut self, u_us: i64, counts: i64) {
-        let (u, c) = (u_us as i128, counts as i128);
-        if self.n == 0 {
-            (self.first_us, self.last_us) = (u_us, u_us);
-        }
-        self.first_us = self.first_us.min(u_us);
-        self.last_us = self.last_us.max(u_us);
-        self.n += 1;
-        self.su += u;
-        self.suu += u * u;
-        self.suuu += u * u * u;
-        self.sc += c;
-        self.suc += u * c;
-        self.scc += c * c;
-    }
-
     /// Add readings of this bin (times in ns, the bin starting at `start_ns`).
     pub fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
         let mut run = BinMoments::default();
@@ -276,11 +259,6 @@ impl BinAccumulator {
         }
     }
 
-    /// Add one reading.
-    pub fn add(&mut self, time_ns: TimeNs, counts: i64) {
-        self.add_all(&[time_ns], &[counts]);
-    }
-
     /// Add readings given as two columns: each run of rows in one bin in a tight loop (ingest
     /// streams tens of millions of rows through here).
     pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
@@ -444,11 +422,12 @@ impl Readings {
 mod tests {
     use super::*;
 
+    /// Moments of readings given as (µs after the bin's start, counts).
     fn moments(samples: &[(i64, i64)]) -> BinMoments {
+        let (time, counts): (Vec<TimeNs>, Vec<i64>) =
+            samples.iter().map(|&(u, c)| (u * NS_PER_US, c)).unzip();
         let mut m = BinMoments::default();
-        for &(u, c) in samples {
-            m.add(u, c);
-        }
+        m.add_run(0, &time, &counts);
         m
     }
 

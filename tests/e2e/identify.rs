@@ -4,7 +4,7 @@
 use dbbcal::pipeline::Stage;
 use dbbcal::simulate::{FleetConfig, RoomConfig, SimConfig};
 
-use crate::support::{analyse_campaign, rel, simulate_campaign};
+use crate::support::{analyse_campaign, analyse_campaign_binned, rel, simulate_campaign};
 
 #[test]
 fn base_model_recovers_truth_ten_bars_fifteen_days() {
@@ -145,10 +145,10 @@ fn compressed_bins_reproduce_the_full_rate_fit() {
         ..SimConfig::default()
     };
     let (dir, _) = simulate_campaign(tmp.path(), "c", &cfg);
-    let full = analyse_campaign_binned(&dir, 0.0);
+    let full = compressed(&dir, 0.0, false);
     let mut report = String::new();
     for bin_s in [2.0, 10.0, 30.0, 60.0] {
-        let binned = analyse_campaign_binned(&dir, bin_s);
+        let binned = compressed(&dir, bin_s, false);
         assert_eq!(binned.bars.len(), full.bars.len());
         for (f, b) in full.bars.iter().zip(&binned.bars) {
             let (f, b) = (&f.model, &b.model);
@@ -198,28 +198,20 @@ fn compressed_bins_reproduce_the_full_rate_fit() {
     }
     println!("{report}");
     // Ingest that bins while it streams gives the same bits as binning a log read whole.
-    let effects = vec!["fixed_part".to_string(), "scale".to_string()];
-    let mut plan =
-        dbbcal::pipeline::RunPlan::for_stage(Stage::Identify, dir.clone(), None, &effects)
-            .expect("plan");
-    plan.bin_s = 60.0;
-    let streamed = dbbcal::pipeline::analyse(
-        &plan,
-        dbbcal::io::read_campaign_binned(&dir, 60.0).expect("ingest"),
-    );
-    let whole = analyse_campaign_binned(&dir, 60.0);
+    let streamed = compressed(&dir, 60.0, true);
+    let whole = compressed(&dir, 60.0, false);
     for (a, b) in streamed.bars.iter().zip(&whole.bars) {
         assert_eq!(a.model.params, b.model.params, "{}", a.model.bar);
         assert_eq!(a.model.rms_um.to_bits(), b.model.rms_um.to_bits());
     }
 }
 
-fn analyse_campaign_binned(dir: &std::path::Path, bin_s: f64) -> dbbcal::pipeline::RunResults {
-    let effects = vec!["fixed_part".to_string(), "scale".to_string()];
-    let mut plan =
-        dbbcal::pipeline::RunPlan::for_stage(Stage::Identify, dir.to_path_buf(), None, &effects)
-            .expect("plan");
-    plan.bin_s = bin_s;
-    let logs = dbbcal::io::read_campaign(dir).expect("ingest");
-    dbbcal::pipeline::analyse(&plan, logs)
+fn compressed(dir: &std::path::Path, bin_s: f64, streamed: bool) -> dbbcal::pipeline::RunResults {
+    analyse_campaign_binned(
+        dir,
+        Stage::Identify,
+        &["fixed_part", "scale"],
+        bin_s,
+        streamed,
+    )
 }

@@ -16,10 +16,27 @@ pub fn simulate_campaign(root: &Path, name: &str, cfg: &SimConfig) -> (PathBuf, 
 
 /// Ingest + the analysis stages `stage` needs, with `effects`.
 pub fn analyse_campaign(dir: &Path, stage: Stage, effects: &[&str]) -> RunResults {
+    analyse_campaign_binned(dir, stage, effects, 0.0, false)
+}
+
+/// [`analyse_campaign`] with readings compressed into bins of `bin_s` seconds: by ingest while it
+/// streams (`streamed`), else from each bar's log in memory.
+pub fn analyse_campaign_binned(
+    dir: &Path,
+    stage: Stage,
+    effects: &[&str],
+    bin_s: f64,
+    streamed: bool,
+) -> RunResults {
     let effects: Vec<String> = effects.iter().map(|s| s.to_string()).collect();
-    let plan = RunPlan::for_stage(stage, dir.to_path_buf(), None, &effects).expect("plan");
-    let logs =
-        dbbcal::io::read_campaign(dir).unwrap_or_else(|e| panic!("ingest {}: {e}", dir.display()));
+    let mut plan = RunPlan::for_stage(stage, dir.to_path_buf(), None, &effects).expect("plan");
+    plan.bin_s = bin_s;
+    let logs = if streamed {
+        dbbcal::io::read_campaign_binned(dir, bin_s)
+    } else {
+        dbbcal::io::read_campaign(dir)
+    }
+    .unwrap_or_else(|e| panic!("ingest {}: {e}", dir.display()));
     analyse(&plan, logs)
 }
 
