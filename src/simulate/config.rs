@@ -117,6 +117,13 @@ pub struct RoomConfig {
     pub door_amplitude_k: f64,
     pub door_rise_s: f64,
     pub door_decay_s: f64,
+    /// Programmed set-point steps (the patent's step of room temperature, used to identify the
+    /// time constants): the set point alternates between `+setpoint_step_k / 2` and
+    /// `-setpoint_step_k / 2` every `setpoint_half_period_s`, and the air follows each change
+    /// first-order with `setpoint_settle_s` (the air-conditioning loop). 0 K: no steps.
+    pub setpoint_step_k: f64,
+    pub setpoint_half_period_s: f64,
+    pub setpoint_settle_s: f64,
     /// Vertical gradient T2 − T1: mean, daily amplitude, AC-synchronous amplitude, slow wander (K).
     pub gradient_k: f64,
     pub gradient_daily_k: f64,
@@ -469,6 +476,9 @@ impl Default for RoomConfig {
             door_amplitude_k: 0.3,
             door_rise_s: 60.0,
             door_decay_s: 600.0,
+            setpoint_step_k: 0.0,
+            setpoint_half_period_s: 6.0 * 3600.0,
+            setpoint_settle_s: 300.0,
             gradient_k: 0.3,
             gradient_daily_k: 0.25,
             gradient_ac_k: 0.05,
@@ -723,6 +733,7 @@ impl SimConfig {
             ("room.wander_k", r.wander_k),
             ("room.door_rate_per_day", r.door_rate_per_day),
             ("room.door_amplitude_k", r.door_amplitude_k),
+            ("room.setpoint_step_k", r.setpoint_step_k),
             ("room.gradient_daily_k", r.gradient_daily_k),
             ("room.gradient_ac_k", r.gradient_ac_k),
             ("room.gradient_wander_k", r.gradient_wander_k),
@@ -736,6 +747,8 @@ impl SimConfig {
         positive("room.ac_period_s", r.ac_period_s)?;
         positive("room.door_rise_s", r.door_rise_s)?;
         positive("room.door_decay_s", r.door_decay_s)?;
+        positive("room.setpoint_half_period_s", r.setpoint_half_period_s)?;
+        positive("room.setpoint_settle_s", r.setpoint_settle_s)?;
         if r.door_decay_s <= r.door_rise_s {
             return Err(invalid("room.door_decay_s", "must exceed room.door_rise_s"));
         }

@@ -100,6 +100,7 @@ impl Environment {
             t2_c.push(low + gradient);
         }
         add_doors(&mut t1_c, &mut t2_c, &door_times_s, room, grid.step_s);
+        add_setpoint_steps(&mut t1_c, &mut t2_c, room, grid.step_s);
         let plate_c = lagged(&t1_c, cfg.plate.thermal_tau_s, grid.step_s);
         let hidden_c = cfg
             .effects
@@ -191,6 +192,31 @@ fn add_doors(t1: &mut [f64], t2: &mut [f64], doors_s: &[f64], room: &RoomConfig,
 }
 
 /// `series` lagged by `tau_s`, starting in equilibrium.
+/// The programmed set-point steps ([`RoomConfig::setpoint_step_k`]): a square wave of
+/// `±step / 2` starting high, followed by the air with the first-order settle of the
+/// air-conditioning loop, added to both air levels.
+fn add_setpoint_steps(t1: &mut [f64], t2: &mut [f64], room: &RoomConfig, step_s: f64) {
+    if room.setpoint_step_k == 0.0 {
+        return;
+    }
+    let half = room.setpoint_step_k / 2.0;
+    let square: Vec<f64> = (0..t1.len())
+        .map(|i| {
+            let phase = (i as f64 * step_s / room.setpoint_half_period_s).floor() as u64;
+            if phase % 2 == 0 {
+                half
+            } else {
+                -half
+            }
+        })
+        .collect();
+    let air = lagged(&square, room.setpoint_settle_s, step_s);
+    for ((a, b), d) in t1.iter_mut().zip(t2.iter_mut()).zip(air) {
+        *a += d;
+        *b += d;
+    }
+}
+
 fn lagged(series: &[f64], tau_s: f64, step_s: f64) -> Vec<f64> {
     let Some(&first) = series.first() else {
         return Vec::new();

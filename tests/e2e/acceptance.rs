@@ -9,14 +9,9 @@ use std::path::Path;
 use dbbcal::acceptance::Decision;
 use dbbcal::calibrate::{calibrate_points, CalibrationPoint};
 use dbbcal::pipeline::{analyse, RunPlan, RunResults};
-use dbbcal::simulate::{SimConfig, Truth};
+use dbbcal::simulate::Truth;
 
-use crate::support::{run_cli, simulate_campaign};
-
-fn sim_config(path: &str) -> SimConfig {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    toml::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
-}
+use crate::support::{run_cli, sim_config, simulate_campaign};
 
 /// Simulate `config` and run the acceptance pipeline's analysis on it (no output written).
 fn acceptance_run(root: &Path, config: &str) -> (std::path::PathBuf, Truth, RunResults) {

@@ -1,125 +1,122 @@
-//! Identification against simulated truth (issue: 10 bars, 15 days, 10 s, noise 0.02 µm, base
-//! effects only: alpha and beta within 0.5 %, taus within 3 %, RMS within 5 % of the noise).
+//! Identification against simulated truth (issue 2: 10 bars, 15 days, 10 s, noise 0.02 µm, base
+//! effects only: alpha and beta within 0.5 %, taus within 3 %, RMS within 5 % of the noise), and
+//! compressed bins against the full-rate fit.
 
 use dbbcal::pipeline::Stage;
-use dbbcal::simulate::{FleetConfig, RoomConfig, SimConfig};
+use dbbcal::simulate::{FleetConfig, SimConfig};
 
-use crate::support::{analyse_campaign, analyse_campaign_binned, rel, simulate_campaign};
+use crate::support::{
+    analyse_campaign, analyse_campaign_binned, rel, sim_config, simulate_campaign,
+};
 
+/// The issue's identification campaign (`pipelines/sim-identification.toml`: 10 bars, 15 days,
+/// 10 s, noise 0.02 µm, base effects; the room at the top of physics.md's typical range plus the
+/// patent's set-point steps) meets every limit on every bar: alpha and beta within 0.5 %, taus
+/// within 3 %, RMS within 5 % of the noise.
 #[test]
 fn base_model_recovers_truth_ten_bars_fifteen_days() {
+    let cfg = sim_config("pipelines/sim-identification.toml");
+    check_identification(&cfg, ISSUE_LIMITS);
+}
+
+/// The same campaign in a passive room (no set-point steps) carries about 4× less information
+/// on tau_S: u(tau_S) is about 2 % a bar, so beta and tau_S are asserted only to lie within
+/// 3 u of the truth (noise-limited, not biased); alpha, tau_R and the RMS still meet the issue.
+#[test]
+fn passive_room_identification_is_noise_limited() {
+    let mut cfg = sim_config("pipelines/sim-identification.toml");
+    cfg.room.setpoint_step_k = 0.0;
+    check_identification(&cfg, [Some(0.005), None, Some(0.03), None]);
+}
+
+/// Relative limits of the issue on alpha, beta, tau_R and tau_S.
+const ISSUE_LIMITS: [Option<f64>; 4] = [Some(0.005), Some(0.005), Some(0.03), Some(0.03)];
+const PARAMS: [&str; 4] = ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
+
+/// Simulate `cfg`, identify the base model, and check every bar against its truth: each
+/// parameter within 3 of its own standard uncertainties, within `limits` (relative; `None`: not
+/// asserted) where given, and the RMS within 5 % of the noise. Prints per bar the errors in % and
+/// in u, and the chance that all bars meet each issue limit given their u (a property of the
+/// campaign's design, not of the estimator).
+fn check_identification(cfg: &SimConfig, limits: [Option<f64>; 4]) {
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = SimConfig {
-        seed: 2026,
-        campaign_id: "truth-10x15".into(),
-        duration_days: 15.0,
-        sample_s: 10.0,
-        noise_um: 0.02,
-        fleet: Some(FleetConfig {
-            n_bars: 10,
-            ..FleetConfig::default()
-        }),
-        // The upper end of physics.md's typical room: ±1 K a day, air-conditioning ±0.2 K.
-        room: RoomConfig {
-            daily_amplitude_k: 1.0,
-            ac_amplitude_k: 0.2,
-            ..RoomConfig::default()
-        },
-        ..SimConfig::default()
-    };
-    let (dir, truth) = simulate_campaign(tmp.path(), "c", &cfg);
+    let (dir, truth) = simulate_campaign(tmp.path(), "c", cfg);
     let results = analyse_campaign(&dir, Stage::Identify, &["fixed_part", "scale"]);
     assert!(
         results.failed.is_empty(),
         "failed bars: {:?}",
         results.failed
     );
-    assert_eq!(results.bars.len(), 10);
-    let mut report = String::new();
-    let mut worst = [0.0f64; 5];
-    let mut worst_z = 0.0f64;
-    // Chance that every bar lands within the issue's limits, given each estimate's own standard
-    // uncertainty (a property of the campaign's design, not of the estimator).
-    let mut p_all = [1.0f64; 4];
+    assert_eq!(results.bars.len(), truth.bars.len());
     let normal = statrs::distribution::Normal::new(0.0, 1.0).unwrap();
+    let mut report = String::new();
+    let mut worst = [0.0f64; 4];
+    let mut worst_z = [0.0f64; 4];
+    let mut worst_rms = 0.0f64;
+    let mut p_all = [1.0f64; 4];
     for o in &results.bars {
         let t = truth
             .bars
             .iter()
             .find(|b| b.id == o.model.bar)
             .expect("truth for bar");
-        let v = |n: &str| o.model.value(n).unwrap();
-        let errs = [
-            rel(v("alpha_ppm_per_k"), t.alpha_ppm_per_k),
-            rel(v("beta_ppm_per_k"), t.beta_ppm_per_k),
-            rel(v("tau_r_s"), t.tau_r_s),
-            rel(v("tau_s_s"), t.tau_s_s),
-            rel(o.model.rms_um, cfg.noise_um),
-        ];
-        for (w, e) in worst.iter_mut().zip(errs) {
-            *w = w.max(e);
-        }
-        let z = |n: &str, truth: f64| (v(n) - truth).abs() / o.model.param(n).unwrap().u;
-        for (k, (n, truth, limit)) in [
-            ("alpha_ppm_per_k", t.alpha_ppm_per_k, 0.005),
-            ("beta_ppm_per_k", t.beta_ppm_per_k, 0.005),
-            ("tau_r_s", t.tau_r_s, 0.03),
-            ("tau_s_s", t.tau_s_s, 0.03),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            worst_z = worst_z.max(z(n, truth));
-            let u_rel = o.model.param(n).unwrap().u / truth;
+        let truths = [t.alpha_ppm_per_k, t.beta_ppm_per_k, t.tau_r_s, t.tau_s_s];
+        report += &o.model.bar;
+        for (k, name) in PARAMS.iter().enumerate() {
+            let p = o.model.param(name).unwrap();
+            let (err, z, u_rel) = (
+                rel(p.value, truths[k]),
+                (p.value - truths[k]).abs() / p.u,
+                p.u / truths[k],
+            );
+            worst[k] = worst[k].max(err);
+            worst_z[k] = worst_z[k].max(z);
+            let limit = ISSUE_LIMITS[k].unwrap();
             p_all[k] *=
                 2.0 * statrs::distribution::ContinuousCDF::cdf(&normal, limit / u_rel) - 1.0;
+            report += &format!(
+                " {name} {:.3}% ({:.1} u, u {:.2}%)",
+                err * 100.0,
+                z,
+                u_rel * 100.0
+            );
         }
-        report += &format!(
-            "{} alpha {:.3}% ({:.1} u) beta {:.3}% ({:.1} u) tau_r {:.3}% ({:.1} u) tau_s {:.3}% ({:.1} u) rms {:.5} µm\n",
-            o.model.bar,
-            errs[0] * 100.0,
-            z("alpha_ppm_per_k", t.alpha_ppm_per_k),
-            errs[1] * 100.0,
-            z("beta_ppm_per_k", t.beta_ppm_per_k),
-            errs[2] * 100.0,
-            z("tau_r_s", t.tau_r_s),
-            errs[3] * 100.0,
-            z("tau_s_s", t.tau_s_s),
-            o.model.rms_um
-        );
+        let rms = rel(o.model.rms_um, cfg.noise_um);
+        worst_rms = worst_rms.max(rms);
+        report += &format!(" rms {:.5} µm\n", o.model.rms_um);
     }
-    eprintln!("{report}");
-    assert!(
-        worst[0] < 0.005,
-        "alpha worst {:.3} %\n{report}",
-        worst[0] * 100.0
-    );
-    assert!(
-        worst[2] < 0.03,
-        "tau_r worst {:.2} %\n{report}",
-        worst[2] * 100.0
-    );
-    // Measured shortfall against the issue (beta within 0.5 %, tau_S within 3 % for EVERY bar):
-    // with this room (the top of physics.md's typical range) the scale term's signal is small,
-    // so 1-2 of 10 bars miss (beta 0.56 %, tau_S 3.7 %) while lying within 3 standard
-    // uncertainties of the truth: noise-limited, not biased. Asserted as such.
-    assert!(
-        worst_z < 3.0,
-        "a parameter is {worst_z:.1} u from the truth\n{report}"
-    );
-    eprintln!(
-        "beta worst {:.3} % (issue: 0.5 %), tau_s worst {:.2} % (issue: 3 %)",
+    let summary = format!(
+        "worst: alpha {:.3} %, beta {:.3} %, tau_r {:.2} %, tau_s {:.2} % (issue 0.5, 0.5, 3, 3); \
+         chance all bars meet the issue's limits from their u: {:.3}, {:.3}, {:.3}, {:.3}",
+        worst[0] * 100.0,
         worst[1] * 100.0,
-        worst[3] * 100.0
+        worst[2] * 100.0,
+        worst[3] * 100.0,
+        p_all[0],
+        p_all[1],
+        p_all[2],
+        p_all[3]
     );
-    eprintln!(
-        "chance that all 10 bars meet the limit, from their own u: alpha {:.3}, beta {:.3}, tau_r {:.3}, tau_s {:.3}",
-        p_all[0], p_all[1], p_all[2], p_all[3]
-    );
+    eprintln!("{}\n{report}{summary}", cfg.campaign_id);
+    for (k, name) in PARAMS.iter().enumerate() {
+        assert!(
+            worst_z[k] < 3.0,
+            "{name} is {:.1} u from the truth\n{report}",
+            worst_z[k]
+        );
+        if let Some(limit) = limits[k] {
+            assert!(
+                worst[k] < limit,
+                "{name} worst {:.3} % (limit {} %)\n{report}",
+                worst[k] * 100.0,
+                limit * 100.0
+            );
+        }
+    }
     assert!(
-        worst[4] < 0.05,
+        worst_rms < 0.05,
         "rms worst {:.2} % off the noise\n{report}",
-        worst[4] * 100.0
+        worst_rms * 100.0
     );
 }
 

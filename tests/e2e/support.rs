@@ -5,6 +5,12 @@ use std::path::{Path, PathBuf};
 use dbbcal::pipeline::{analyse, RunPlan, RunResults, Stage};
 use dbbcal::simulate::{self, SimConfig, Truth};
 
+/// A simulation TOML of the repository (e.g. `pipelines/sim-sample.toml`).
+pub fn sim_config(path: &str) -> SimConfig {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    toml::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
 /// Simulate `cfg` into a fresh directory under `root`; returns the directory and the truth.
 pub fn simulate_campaign(root: &Path, name: &str, cfg: &SimConfig) -> (PathBuf, Truth) {
     let dir = root.join(name);
