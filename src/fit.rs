@@ -1246,19 +1246,25 @@ mod tests {
         assert!((tau - 19.0).abs() < 4.0, "{tau}");
     }
 
-    /// White residuals keep the short batch; a slow AR(1) part 30 times below the white noise
-    /// (autocorrelations of 1e-3 a lag, invisible to the sample ACF) lengthens it past its
-    /// correlation time, where batch means hold its variance.
+    /// White residuals keep the short batch (n^(1/3)); a slow AR(1) part 30 times below the
+    /// white noise (autocorrelations of 1e-3 a lag, invisible to the sample ACF) lengthens it
+    /// past its correlation time, where batch means hold its variance.
     #[test]
     fn variance_time_batches_find_a_slow_part_under_white_noise() {
         use rand::SeedableRng;
         use rand_distr::{Distribution, Normal};
         let n = 400_000;
         let normal = Normal::new(0.0, 1.0).unwrap();
-        for seed in 0..4 {
+        let mut lengthened_white = 0;
+        for seed in 0..40 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
             let white: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
-            assert_eq!(hac_batch_length(&white), 74, "seed {seed}: n^(1/3)");
+            if hac_batch_length(&white) != 74 {
+                lengthened_white += 1;
+            }
+            if seed >= 4 {
+                continue;
+            }
             // AR(1) with correlation time 1000 samples and sd 1/30 of the white noise.
             let phi = (-1.0f64 / 1000.0).exp();
             let innovation = (1.0 - phi * phi).sqrt() / 30.0;
@@ -1277,5 +1283,9 @@ mod tests {
             let batch = hac_batch_length(&slow);
             assert!(batch >= 2000, "seed {seed}: batch {batch}");
         }
+        assert!(
+            lengthened_white <= 1,
+            "{lengthened_white} of 40 white series got a longer batch"
+        );
     }
 }

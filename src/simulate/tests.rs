@@ -403,6 +403,36 @@ fn doors_are_events_and_bump_the_air() {
     assert_eq!(doors.len(), sim.truth.n_door_events);
 }
 
+/// Programmed set-point steps: the air starts on the high set point and settles to the other
+/// one first-order (the loop's `setpoint_settle_s`) after every half period.
+#[test]
+fn setpoint_steps_move_the_air_between_two_levels() {
+    let mut cfg = quiet(20.0);
+    cfg.room.setpoint_step_k = 1.0;
+    cfg.room.setpoint_half_period_s = 6.0 * 3600.0;
+    cfg.room.setpoint_settle_s = 300.0;
+    let grid = Grid::new(&cfg).unwrap();
+    let env = Environment::build(&cfg, &grid);
+    let at = |t_s: f64| env.t1_c[(t_s / grid.step_s).round() as usize] - 20.0;
+    assert!((at(0.0) - 0.5).abs() < 1e-12);
+    assert!((at(6.0 * 3600.0 - 1.0) - 0.5).abs() < 1e-9);
+    // One settle time after the first step: 1 - 1/e of the way down.
+    let one_tau = 0.5 - (1.0 - (-1.0f64).exp());
+    assert!(
+        (at(6.0 * 3600.0 + 300.0) - one_tau).abs() < 2e-3,
+        "{}",
+        at(6.0 * 3600.0 + 300.0)
+    );
+    assert!((at(12.0 * 3600.0 - 1.0) + 0.5).abs() < 1e-9);
+    assert!((at(18.0 * 3600.0 - 1.0) - 0.5).abs() < 1e-9);
+    // Both air levels step together.
+    assert!(env
+        .t1_c
+        .iter()
+        .zip(&env.t2_c)
+        .all(|(low, high)| (high - low - cfg.room.gradient_k).abs() < 1e-12));
+}
+
 #[test]
 fn config_round_trips_and_rejects_bad_input() {
     let cfg = SimConfig::default();
