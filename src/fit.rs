@@ -175,26 +175,10 @@ pub fn fit<P: Separable>(
     theta0: &[f64],
     options: &FitOptions,
 ) -> Result<Fit, FitError> {
+    let (theta, iterations) = minimise(problem, theta0, options.brent_start)?;
     let y = problem.observations();
     let n_lin = problem.linear_names().len();
     let p = n_lin + theta0.len();
-    if y.len() <= p {
-        return Err(FitError::TooFewSamples { n: y.len(), p });
-    }
-    if y.iter().any(|v| !v.is_finite()) {
-        return Err(FitError::NonFinite);
-    }
-    let mut theta = theta0.to_vec();
-    if options.brent_start {
-        brent_start(problem, &mut theta);
-    }
-    tracing::debug!(?theta, "fit: nonlinear start after the Brent sweep");
-    let (theta, iterations) = if theta.is_empty() {
-        (theta, 0)
-    } else {
-        levenberg_marquardt(problem, &theta)?
-    };
-    tracing::debug!(?theta, iterations, "fit: after Levenberg-Marquardt");
     let phi = problem.basis(&theta);
     let coef = solve_linear(&phi, y).ok_or_else(|| singular_term(problem, &phi))?;
     let residuals: Vec<f64> = (&phi * &coef).iter().zip(y).map(|(f, y)| y - f).collect();
@@ -236,6 +220,36 @@ pub fn fit<P: Separable>(
         hac_batch_len,
         iterations,
     })
+}
+
+/// The least-squares time constants of `problem` from `theta0` (the Brent start first if
+/// `brent_start`), and the number of model evaluations: [`fit`] without its uncertainties, for
+/// starts and refits that need only the minimum.
+pub fn minimise<P: Separable>(
+    problem: &P,
+    theta0: &[f64],
+    brent_start: bool,
+) -> Result<(Vec<f64>, usize), FitError> {
+    let y = problem.observations();
+    let p = problem.linear_names().len() + theta0.len();
+    if y.len() <= p {
+        return Err(FitError::TooFewSamples { n: y.len(), p });
+    }
+    if y.iter().any(|v| !v.is_finite()) {
+        return Err(FitError::NonFinite);
+    }
+    let mut theta = theta0.to_vec();
+    if brent_start {
+        self::brent_start(problem, &mut theta);
+    }
+    tracing::debug!(?theta, "fit: nonlinear start after the Brent sweep");
+    let (theta, iterations) = if theta.is_empty() {
+        (theta, 0)
+    } else {
+        levenberg_marquardt(problem, &theta)?
+    };
+    tracing::debug!(?theta, iterations, "fit: after Levenberg-Marquardt");
+    Ok((theta, iterations))
 }
 
 /// Residual sum of squares of the variable-projection functional at `theta`.
@@ -875,6 +889,10 @@ fn satterthwaite_dof(
     }
     let batch = batch.max(1);
     let mut out = Vec::with_capacity(p);
+    // `u_b` is nonzero in the p Jacobian entries and in the few groups batch b touches; `W` is
+    // block-diagonal. Both are used to keep each batch's cost at O((p + touched)²), not O(q²).
+    let mut nonzero: Vec<usize> = Vec::with_capacity(q);
+    let mut u = DVector::<f64>::zeros(q);
     for k in 0..p {
         let a = a_all.column(k);
         let (mut tr, mut w2, mut cross) = (0.0, 0.0, 0.0);
@@ -882,7 +900,8 @@ fn satterthwaite_dof(
         let mut start = 0;
         while start < n {
             let end = (start + batch).min(n);
-            let mut u = DVector::<f64>::zeros(q);
+            nonzero.clear();
+            nonzero.extend(0..p);
             let mut w = 0.0;
             for i in start..end {
                 w += a[i] * a[i];
@@ -890,14 +909,32 @@ fn satterthwaite_dof(
                     u[j] += jac[(i, j)] * a[i];
                 }
                 if let Some(Some(g)) = groups.map(|g| g[i]) {
+                    if !nonzero.contains(&(p + g)) {
+                        nonzero.push(p + g);
+                    }
                     u[p + g] += a[i];
                 }
             }
-            let uwu = (u.transpose() * &w_mat * &u)[(0, 0)];
+            let mut uwu = 0.0;
+            for j in 0..p {
+                for l in 0..p {
+                    uwu += u[j] * k_inv[(j, l)] * u[l];
+                }
+            }
+            for &g in &nonzero[p..] {
+                uwu += u[g] * u[g] * w_mat[(g, g)];
+            }
             tr += w - uwu;
             w2 += w * w;
             cross += w * uwu;
-            big_p.ger(1.0, &u, &u, 1.0);
+            for &r in &nonzero {
+                for &c in &nonzero {
+                    big_p[(r, c)] += u[r] * u[c];
+                }
+            }
+            for &r in &nonzero {
+                u[r] = 0.0;
+            }
             start = end;
         }
         let wp = &w_mat * &big_p;

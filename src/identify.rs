@@ -132,15 +132,13 @@ fn profile_on_coarse_copy(coarse: &BarSeries, model: &mut BarModel) {
     let Ok(problem) = ThermalProblem::new(coarse, &model.effects) else {
         return;
     };
-    let options = FitOptions {
-        absorbed_params: problem.n_zeros(),
-        brent_start: false,
-        ..FitOptions::default()
-    };
-    let Ok(fit) = fit::fit(&problem, &model.theta, &options) else {
+    let Ok((theta_c, _)) = fit::minimise(&problem, &model.theta, false) else {
         return;
     };
-    let theta_c = fit.values[fit.n_linear..].to_vec();
+    let rss_c = fit::projected_rss(&problem, &theta_c);
+    if !rss_c.is_finite() {
+        return;
+    }
     let Some(jac) = fit::jacobian_at(&problem, &theta_c) else {
         return;
     };
@@ -160,8 +158,7 @@ fn profile_on_coarse_copy(coarse: &BarSeries, model: &mut BarModel) {
         let u_ln = est.u / est.value;
         let t = fit::t_quantile_975(model.dof[p]);
         let delta = t * t * u_ln * u_ln / curvature;
-        if let Some([lo, hi]) =
-            fit::profile_interval(&problem, &theta_c, k, fit.rss, delta, t * u_ln)
+        if let Some([lo, hi]) = fit::profile_interval(&problem, &theta_c, k, rss_c, delta, t * u_ln)
         {
             let shift = model.theta[k] - theta_c[k];
             model.params[p].ci95 = [(lo + shift).exp(), (hi + shift).exp()];
@@ -297,12 +294,7 @@ fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Optio
     }
     let coarse = coarse_copy(series)?;
     let problem = ThermalProblem::new(&coarse, effects).ok()?;
-    let options = FitOptions {
-        absorbed_params: problem.n_zeros(),
-        ..FitOptions::default()
-    };
-    let fit = fit::fit(&problem, theta0, &options).ok()?;
-    let theta = fit.values[fit.n_linear..].to_vec();
+    let (theta, _) = fit::minimise(&problem, theta0, true).ok()?;
     tracing::debug!(bar = %series.bar.id, ?theta, n = coarse.fit_index.len(), "identify: coarse start");
     theta.iter().all(|t| t.is_finite()).then_some(theta)
 }
