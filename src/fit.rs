@@ -363,7 +363,7 @@ pub fn profile_interval<P: Separable>(
     rss_min: f64,
     delta_rss: f64,
     step: f64,
-) -> Option<[f64; 2]> {
+) -> Option<ProfileInterval> {
     if !(delta_rss > 0.0 && step > 0.0 && step.is_finite()) {
         return None;
     }
@@ -396,7 +396,10 @@ pub fn profile_interval<P: Separable>(
         let rss = profile_rss(problem, &start, k, x, PROFILE_RSS_TOL * delta_rss)?;
         Some((rss - rss_min).max(0.0).sqrt() - target)
     };
-    let mut out = [x0; 2];
+    let mut out = ProfileInterval {
+        ends: [x0; 2],
+        at_search_bound: [false; 2],
+    };
     for (side, dir) in [(0usize, -1.0f64), (1, 1.0)] {
         let limit = if dir < 0.0 {
             x0 - lo_bound
@@ -419,7 +422,8 @@ pub fn profile_interval<P: Separable>(
             fb = h(b, dir)?;
         }
         if fb <= 0.0 {
-            out[side] = x0 + dir * limit;
+            out.ends[side] = x0 + dir * limit;
+            out.at_search_bound[side] = true;
             continue;
         }
         // Illinois regula falsi on [a, b], until two successive estimates agree within `tol`.
@@ -448,9 +452,20 @@ pub fn profile_interval<P: Separable>(
                 break;
             }
         }
-        out[side] = x0 + dir * root;
+        out.ends[side] = x0 + dir * root;
     }
     Some(out)
+}
+
+/// A profile-likelihood interval of one nonlinear parameter ([`profile_interval`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProfileInterval {
+    /// Lower and upper end, in the parameter's own scale.
+    pub ends: [f64; 2],
+    /// The profile RSS never reached the cut on that side before the problem's search bound
+    /// ([`Separable::start_search_interval`], else 64 steps): the end is the bound, and the
+    /// data do not limit the parameter there.
+    pub at_search_bound: [bool; 2],
 }
 
 /// Accuracy of a profile interval's ends, relative to the Wald half-width: far below what
@@ -1230,7 +1245,9 @@ mod tests {
         let (u, t) = (f.se_naive(1), 2.0);
         let s2 = f.rss / (f.n_obs - 2) as f64;
         let delta = t * t * u * u / (f.cov_naive[(1, 1)] / s2);
-        let [lo, hi] = profile_interval(&p, &theta, 0, f.rss, delta, t * u).unwrap();
+        let interval = profile_interval(&p, &theta, 0, f.rss, delta, t * u).unwrap();
+        assert_eq!(interval.at_search_bound, [false; 2]);
+        let [lo, hi] = interval.ends;
         assert!(
             (theta[0] - lo - t * u).abs() < 0.03 * t * u,
             "{lo} {theta:?} {u}"
@@ -1323,6 +1340,32 @@ mod tests {
         assert!(
             lengthened_white <= 1,
             "{lengthened_white} of 40 white series got a longer batch"
+        );
+    }
+
+    /// A saturated exponential (`x` ≥ 10 / b2) says b2 is large but not how large: the profile
+    /// interval's upper end is the search bound, and says so; the lower end is a real limit.
+    #[test]
+    fn profile_interval_flags_an_end_the_data_do_not_bound() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.01).unwrap();
+        let x: Vec<f64> = (0..200).map(|i| 10.0 + i as f64 * 0.5).collect();
+        let y = x
+            .iter()
+            .map(|x| 3.0 * (1.0 - (-1.0 * x).exp()) + noise.sample(&mut rng))
+            .collect();
+        let p = Exponential { x, y };
+        let theta = [1.0];
+        let rss = projected_rss(&p, &theta);
+        let s2 = rss / 198.0;
+        let interval = profile_interval(&p, &theta, 0, rss, 4.0 * s2, 0.1).unwrap();
+        assert_eq!(interval.at_search_bound, [false, true], "{interval:?}");
+        assert_eq!(interval.ends[1], 1.0 + 6.4);
+        assert!(
+            interval.ends[0] > 0.1 && interval.ends[0] < 1.0,
+            "{interval:?}"
         );
     }
 }

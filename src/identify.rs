@@ -23,6 +23,10 @@ pub struct Estimate {
     /// (asymmetric; the profile RSS cut where a linear model would give `ln tau ± t u_ln`);
     /// from [`identify_from`] (diagnosis trial fits): the Wald interval `exp(ln tau ± t u_ln)`.
     pub ci95: [f64; 2],
+    /// Per end of `ci95`: the profile never rose to the cut before the search bound of the time
+    /// constants (60 s, 30 days), so that end is the bound and the data do not limit the time
+    /// constant on that side. Always `false` for gains and Wald intervals.
+    pub ci95_at_search_bound: [bool; 2],
 }
 
 /// A bar's identified model.
@@ -158,10 +162,11 @@ fn profile_on_coarse_copy(coarse: &BarSeries, model: &mut BarModel) {
         let u_ln = est.u / est.value;
         let t = fit::t_quantile_975(model.dof[p]);
         let delta = t * t * u_ln * u_ln / curvature;
-        if let Some([lo, hi]) = fit::profile_interval(&problem, &theta_c, k, rss_c, delta, t * u_ln)
+        if let Some(interval) = fit::profile_interval(&problem, &theta_c, k, rss_c, delta, t * u_ln)
         {
             let shift = model.theta[k] - theta_c[k];
-            model.params[p].ci95 = [(lo + shift).exp(), (hi + shift).exp()];
+            model.params[p].ci95 = interval.ends.map(|end| (end + shift).exp());
+            model.params[p].ci95_at_search_bound = interval.at_search_bound;
         }
     }
 }
@@ -187,10 +192,11 @@ fn profile_on_series(series: &BarSeries, model: &mut BarModel) {
         let ratio = est.u / est.u_naive;
         let t = fit::t_quantile_975(model.dof[p]);
         let delta = t * t * ratio * ratio * s2;
-        if let Some([lo, hi]) =
+        if let Some(interval) =
             fit::profile_interval(&problem, &model.theta, k, rss_min, delta, t * u_ln)
         {
-            model.params[p].ci95 = [lo.exp(), hi.exp()];
+            model.params[p].ci95 = interval.ends.map(f64::exp);
+            model.params[p].ci95_at_search_bound = interval.at_search_bound;
         }
     }
 }
@@ -370,6 +376,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
                     u,
                     u_naive: fit.se_naive(i),
                     ci95: [v - t95 * u, v + t95 * u],
+                    ci95_at_search_bound: [false; 2],
                 }
             } else {
                 let (ln_tau, u_ln) = (fit.values[i], fit.se_hac(i));
@@ -381,6 +388,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
                     u: tau * u_ln,
                     u_naive: tau * fit.se_naive(i),
                     ci95: [(ln_tau - t95 * u_ln).exp(), (ln_tau + t95 * u_ln).exp()],
+                    ci95_at_search_bound: [false; 2],
                 }
             }
         })

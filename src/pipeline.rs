@@ -878,6 +878,9 @@ pub struct ParamValue {
     pub u: f64,
     pub u_naive: f64,
     pub ci95: [f64; 2],
+    /// Per end of `ci95`: the end is the time constants' search bound, not a limit set by the
+    /// data ([`Estimate::ci95_at_search_bound`]).
+    pub ci95_at_search_bound: [bool; 2],
 }
 
 #[derive(Debug, Serialize)]
@@ -921,6 +924,7 @@ fn param_value(e: &Estimate) -> ParamValue {
         u: e.u,
         u_naive: e.u_naive,
         ci95: e.ci95,
+        ci95_at_search_bound: e.ci95_at_search_bound,
     }
 }
 

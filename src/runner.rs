@@ -139,8 +139,10 @@ fn models_table(results: &RunResults) -> io::Table {
             value.push(p.value);
             u.push(p.u);
             u_naive.push(p.u_naive);
-            lo.push(p.ci95[0]);
-            hi.push(p.ci95[1]);
+            // An end at the search bound is no confidence limit: null.
+            let end = |i: usize| (!p.ci95_at_search_bound[i]).then_some(p.ci95[i]);
+            lo.push(end(0));
+            hi.push(end(1));
             rms.push(o.model.rms_um);
             n.push(o.model.n_samples as i64);
         }
@@ -157,8 +159,8 @@ fn models_table(results: &RunResults) -> io::Table {
             ("value".into(), F64(value)),
             ("u".into(), F64(u)),
             ("u_naive".into(), F64(u_naive)),
-            ("ci95_low".into(), F64(lo)),
-            ("ci95_high".into(), F64(hi)),
+            ("ci95_low".into(), OptF64(lo)),
+            ("ci95_high".into(), OptF64(hi)),
             ("rms_um".into(), F64(rms)),
             ("n_samples".into(), I64(n)),
         ],
