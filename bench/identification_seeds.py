@@ -30,8 +30,14 @@ def run_seed(binary: str, config: str, seed: int, work: Path, setpoint_off: bool
         text = "\n".join("setpoint_step_k = 0.0" if l.startswith("setpoint_step_k") else l for l in text.splitlines())
         cfg = str(work / "passive.toml")
         Path(cfg).write_text(text + "\n")
-    subprocess.run([binary, "simulate", "--config", cfg, "--out", str(campaign), "--seed", str(seed)], check=True, capture_output=True)
-    subprocess.run([binary, "identify", "--campaign", str(campaign), "--out", str(out)], check=True, capture_output=True)
+    for cmd in (
+        [binary, "simulate", "--config", cfg, "--out", str(campaign), "--seed", str(seed)],
+        [binary, "identify", "--campaign", str(campaign), "--out", str(out)],
+    ):
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode != 0:
+            last = (done.stderr.strip().splitlines() or ["(no message)"])[-1]
+            sys.exit(f"seed {seed}: `{' '.join(cmd)}` failed (exit {done.returncode}): {last}")
     truth = {b["id"]: b for b in json.loads((campaign / "truth.json").read_text())["bars"]}
     summary = json.loads((out / "summary.json").read_text())
     worst = {k: 0.0 for k in LIMITS}

@@ -826,8 +826,10 @@ fn covariances(
         .try_inverse()
         .or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
     let cov_naive = &jtj_inv * s2;
+    // One autocorrelation serves the batch choice and the batch-edge correction.
+    let acf = autocorrelation(residuals, n / 2);
     let batch = batch_len
-        .unwrap_or_else(|| hac_batch_length(residuals))
+        .unwrap_or_else(|| batch_length_from(residuals, &acf))
         .clamp(1, n.max(1));
     let mut meat = DMatrix::<f64>::zeros(p, p);
     let mut start = 0;
@@ -847,7 +849,7 @@ fn covariances(
     meat *= b / (b - p_total as f64).max(1.0);
     // Batch sums miss the correlation across batch edges: relative bias -2 Σ k ρ_k / (L τ_int)
     // (ρ_k the residual autocorrelation); undo it.
-    meat /= (1.0 - batch_edge_bias(residuals, batch)).max(0.5);
+    meat /= (1.0 - batch_edge_bias(&acf, batch)).max(0.5);
     let cov_hac = &jtj_inv * meat * &jtj_inv;
     Some((cov_naive, cov_hac, batch))
 }
@@ -972,11 +974,16 @@ fn n_batches(n: usize, batch_len: usize) -> usize {
 /// (at least `n^(1/3)`), lengthened where the residuals' variance-time curve shows a slow part
 /// ([`variance_time_plateau`]), and no more than `n / 20` so that about twenty batches remain.
 pub fn hac_batch_length(residuals: &[f64]) -> usize {
+    batch_length_from(residuals, &autocorrelation(residuals, residuals.len() / 2))
+}
+
+/// [`hac_batch_length`] with the residuals' autocorrelation `acf` (lags `0..=n/2`) given.
+fn batch_length_from(residuals: &[f64], acf: &[f64]) -> usize {
     let n = residuals.len();
     if n < 40 {
         return 1;
     }
-    let tau_int = integrated_autocorrelation_time(residuals);
+    let (tau_int, _) = initial_positive_sums(acf);
     let lower = (n as f64).cbrt();
     let upper = (n / 20) as f64;
     let short = (10.0 * tau_int).max(lower).min(upper).max(1.0).round() as usize;
@@ -1036,9 +1043,17 @@ fn variance_time_plateau(residuals: &[f64], short: usize, longest: usize) -> usi
 
 /// Relative downward bias of batch-means variance with batches of `batch_len` samples:
 /// `2 Σ k ρ_k / (L (1 + 2 Σ ρ_k))`, sums over the initial positive autocorrelations.
-fn batch_edge_bias(residuals: &[f64], batch_len: usize) -> f64 {
-    let acf = autocorrelation(residuals, residuals.len() / 2);
-    let (mut first_moment, mut tau) = (0.0, 1.0);
+/// `acf`: the residuals' autocorrelation.
+fn batch_edge_bias(acf: &[f64], batch_len: usize) -> f64 {
+    let (tau, first_moment) = initial_positive_sums(acf);
+    2.0 * first_moment / (batch_len.max(1) as f64 * tau)
+}
+
+/// `(1 + 2 Σ ρ_k, Σ k ρ_k)` over the initial positive autocorrelations `ρ_1, ρ_2, …` of `acf`
+/// (summed until the ACF first drops to zero or below: Geyer's initial positive sequence,
+/// simplified).
+fn initial_positive_sums(acf: &[f64]) -> (f64, f64) {
+    let (mut tau, mut first_moment) = (1.0, 0.0);
     for (k, rho) in acf.iter().enumerate().skip(1) {
         if *rho <= 0.0 {
             break;
@@ -1046,21 +1061,13 @@ fn batch_edge_bias(residuals: &[f64], batch_len: usize) -> f64 {
         first_moment += k as f64 * rho;
         tau += 2.0 * rho;
     }
-    2.0 * first_moment / (batch_len.max(1) as f64 * tau)
+    (tau, first_moment)
 }
 
 /// Integrated autocorrelation time `1 + 2 Σ ρ_k`, summed until the ACF first drops below zero
 /// (Geyer's initial positive sequence, simplified), in samples.
 pub fn integrated_autocorrelation_time(x: &[f64]) -> f64 {
-    let acf = autocorrelation(x, x.len() / 2);
-    let mut tau = 1.0;
-    for rho in acf.iter().skip(1) {
-        if *rho <= 0.0 {
-            break;
-        }
-        tau += 2.0 * rho;
-    }
-    tau
+    initial_positive_sums(&autocorrelation(x, x.len() / 2)).0
 }
 
 /// Sample autocorrelation for lags `0..=max_lag` (biased estimator, FFT-based).
