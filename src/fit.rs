@@ -831,13 +831,14 @@ fn covariances(
     let batch = batch_len
         .unwrap_or_else(|| batch_length_from(residuals, &acf))
         .clamp(1, n.max(1));
+    let columns: Vec<&[f64]> = jac.as_slice().chunks_exact(n.max(1)).collect();
     let mut meat = DMatrix::<f64>::zeros(p, p);
+    let mut g = DVector::<f64>::zeros(p);
     let mut start = 0;
     while start < n {
         let end = (start + batch).min(n);
-        let mut g = DVector::<f64>::zeros(p);
-        for i in start..end {
-            g.axpy(residuals[i], &jac.row(i).transpose(), 1.0);
+        for (gj, col) in g.iter_mut().zip(&columns) {
+            *gj = dot(&col[start..end], &residuals[start..end]);
         }
         meat.ger(1.0, &g, &g, 1.0);
         start = end;
@@ -910,8 +911,10 @@ fn satterthwaite_dof(
     // block-diagonal. Both are used to keep each batch's cost at O((p + touched)²), not O(q²).
     let mut nonzero: Vec<usize> = Vec::with_capacity(q);
     let mut u = DVector::<f64>::zeros(q);
+    let columns: Vec<&[f64]> = jac.as_slice().chunks_exact(n.max(1)).collect();
     for k in 0..p {
         let a = a_all.column(k);
+        let a = a.as_slice();
         let (mut tr, mut w2, mut cross) = (0.0, 0.0, 0.0);
         let mut big_p = DMatrix::<f64>::zeros(q, q);
         let mut start = 0;
@@ -919,17 +922,19 @@ fn satterthwaite_dof(
             let end = (start + batch).min(n);
             nonzero.clear();
             nonzero.extend(0..p);
-            let mut w = 0.0;
-            for i in start..end {
-                w += a[i] * a[i];
-                for j in 0..p {
-                    u[j] += jac[(i, j)] * a[i];
-                }
-                if let Some(Some(g)) = groups.map(|g| g[i]) {
-                    if !nonzero.contains(&(p + g)) {
-                        nonzero.push(p + g);
+            let a_b = &a[start..end];
+            let w = dot(a_b, a_b);
+            for (j, col) in columns.iter().enumerate() {
+                u[j] = dot(&col[start..end], a_b);
+            }
+            if let Some(groups) = groups {
+                for (g, a_i) in groups[start..end].iter().zip(a_b) {
+                    if let Some(g) = g {
+                        if !nonzero.contains(&(p + g)) {
+                            nonzero.push(p + g);
+                        }
+                        u[p + g] += a_i;
                     }
-                    u[p + g] += a[i];
                 }
             }
             let mut uwu = 0.0;
@@ -964,6 +969,10 @@ fn satterthwaite_dof(
         out.push(nu.max(1.0));
     }
     Some(out)
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| a * b).sum()
 }
 
 fn n_batches(n: usize, batch_len: usize) -> usize {

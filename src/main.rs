@@ -91,6 +91,10 @@ struct StageArgs {
     bin_s: f64,
 }
 
+/// mimalloc: see Cargo.toml for why and what it measured.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     init_tracing();
     let cli = Cli::parse();

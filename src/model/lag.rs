@@ -31,15 +31,12 @@ pub fn lag(
     if let Some(d) = d.as_mut() {
         d.push(0.0);
     }
+    let mut factors = StepFactorCache::new(tau_s);
     for k in 1..n {
         let dt = t_s[k] - t_s[k - 1];
         if dt > 0.0 {
-            let r = dt / tau_s;
-            let one_minus_a = -(-r).exp_m1();
-            let a = 1.0 - one_minus_a;
+            let StepFactors { r, a, hold, .. } = *factors.at(dt);
             let du = u[k] - u[k - 1];
-            // m tau (1 - a) = du (1 - a) / r, written so that tau -> infinity (r -> 0) stays finite.
-            let hold = if r > 1e-300 { one_minus_a / r } else { 1.0 };
             let x_next = a * xs + u[k] - a * u[k - 1] - du * hold;
             if d.is_some() {
                 let b = a * r;
@@ -53,6 +50,72 @@ pub fn lag(
         }
     }
     (x, d)
+}
+
+/// The per-step factors of [`lag`] for one time step `dt`, with a small cache.
+///
+/// Why: the exponential is most of a lag's cost, and a bar's timeline repeats a handful of
+/// steps (sensor period, the bin nodes' fixed offsets between sensor samples: on the 30-day
+/// benchmark 4 step lengths make 83 % of 172 800 steps). A direct-mapped table keyed by the
+/// step's bits returns the very bits a fresh computation would, so results do not change.
+#[derive(Clone, Copy)]
+struct StepFactors {
+    dt_bits: u64,
+    /// `dt / tau`.
+    r: f64,
+    /// `exp(-dt/tau)`.
+    a: f64,
+    /// `(1 - a) / r`: the first-order-hold factor, finite as `tau -> infinity` (`r -> 0`).
+    hold: f64,
+}
+
+struct StepFactorCache {
+    tau_s: f64,
+    slots: [StepFactors; CACHE_SLOTS],
+}
+
+const CACHE_SLOTS: usize = 64;
+/// Slots tried after a step's home slot before one is overwritten (open addressing).
+const CACHE_PROBES: usize = 4;
+
+impl StepFactorCache {
+    fn new(tau_s: f64) -> StepFactorCache {
+        let empty = StepFactors {
+            dt_bits: u64::MAX,
+            r: f64::NAN,
+            a: f64::NAN,
+            hold: f64::NAN,
+        };
+        StepFactorCache {
+            tau_s,
+            slots: [empty; CACHE_SLOTS],
+        }
+    }
+
+    fn at(&mut self, dt: f64) -> &StepFactors {
+        let bits = dt.to_bits();
+        // Fibonacci hashing: round steps (7.5 s, 30 s) differ only in their high bits.
+        let home = (bits.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 58) as usize;
+        let mut slot = home;
+        for probe in 0..CACHE_PROBES {
+            slot = (home + probe) % CACHE_SLOTS;
+            if self.slots[slot].dt_bits == bits {
+                return &self.slots[slot];
+            }
+            if self.slots[slot].dt_bits == u64::MAX {
+                break;
+            }
+        }
+        let r = dt / self.tau_s;
+        let one_minus_a = -(-r).exp_m1();
+        self.slots[slot] = StepFactors {
+            dt_bits: bits,
+            r,
+            a: 1.0 - one_minus_a,
+            hold: if r > 1e-300 { one_minus_a / r } else { 1.0 },
+        };
+        &self.slots[slot]
+    }
 }
 
 /// Zero-phase smoothing of `u` sampled at `t_s`: the first-order lag run forward, then backward
@@ -157,6 +220,55 @@ pub fn held_lag(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The recursion of [`lag`] with its factors computed afresh at every step.
+    fn lag_uncached(t: &[f64], u: &[f64], tau: f64) -> (Vec<f64>, Vec<f64>) {
+        let (mut xs, mut ds) = (u[0], 0.0);
+        let (mut x, mut d) = (vec![xs], vec![ds]);
+        for k in 1..t.len() {
+            let dt = t[k] - t[k - 1];
+            if dt > 0.0 {
+                let r = dt / tau;
+                let one_minus_a = -(-r).exp_m1();
+                let a = 1.0 - one_minus_a;
+                let hold = if r > 1e-300 { one_minus_a / r } else { 1.0 };
+                let du = u[k] - u[k - 1];
+                let x_next = a * xs + u[k] - a * u[k - 1] - du * hold;
+                ds = a * ds + a * r * (xs - u[k - 1]) + du * (a - hold);
+                xs = x_next;
+            }
+            x.push(xs);
+            d.push(ds);
+        }
+        (x, d)
+    }
+
+    #[test]
+    fn cached_step_factors_give_the_same_bits() {
+        // A timeline like a binned bar's: a few steps repeating (more than the cache probes
+        // can hold at one home slot), irregular ones between them, and repeated times.
+        let pattern = [7.5, 22.5, 15.25, 14.75, 30.0, 0.0];
+        let mut t = vec![0.0];
+        for k in 1..5000usize {
+            let step = if k % 7 == 0 {
+                1.0 + (k as f64 * 0.618).fract() * 40.0
+            } else {
+                pattern[k % pattern.len()]
+            };
+            t.push(t[k - 1] + step);
+        }
+        let u: Vec<f64> = t
+            .iter()
+            .map(|t| (t / 700.0).sin() + 0.01 * (t / 13.0).cos())
+            .collect();
+        for tau in [1.0, 900.0, 3000.0, 1e9] {
+            let (x, d) = lag(&t, &u, tau, true);
+            let (x_ref, d_ref) = lag_uncached(&t, &u, tau);
+            let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&x), bits(&x_ref), "tau {tau}");
+            assert_eq!(bits(&d.unwrap()), bits(&d_ref), "tau {tau}");
+        }
+    }
 
     #[test]
     fn step_response_is_exact_at_any_spacing() {

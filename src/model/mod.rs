@@ -13,7 +13,7 @@
 pub mod channels;
 pub mod lag;
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -278,6 +278,8 @@ pub struct ThermalProblem<'a> {
     /// Square root of each fitted sample's weight ([`BarSeries::weight`]): every row the engine
     /// sees is multiplied by it, so that its least squares are the weighted ones.
     sqrt_weight: Vec<f64>,
+    /// Sum of the fitted samples' weights in each zero column.
+    zero_weight: Vec<f64>,
     /// The last column (and `ln tau` derivative) computed for each term with a time constant,
     /// keyed by the bits of its tau: a solver asks for the basis and then its derivatives at the
     /// same `theta`, and a 1-D search moves one time constant while the others stay put, so
@@ -287,9 +289,13 @@ pub struct ThermalProblem<'a> {
 
 struct TermMemo {
     tau_bits: u64,
-    x: Vec<f64>,
-    d: Vec<f64>,
+    x: Arc<Vec<f64>>,
+    d: Arc<Vec<f64>>,
 }
+
+/// A term's column on the bar's whole timeline and its `ln tau` derivative, shared with the
+/// memo (a basis reads them, it does not copy them).
+type TermColumn = (Arc<Vec<f64>>, Option<Arc<Vec<f64>>>);
 
 /// A model that cannot be built for a bar.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -369,8 +375,10 @@ impl<'a> ThermalProblem<'a> {
                 .iter()
                 .map(|&i| series.weight[i].sqrt())
                 .collect(),
+            zero_weight: Vec::new(),
             memo: Mutex::new(Vec::new()),
         };
+        problem.zero_weight = problem.segment_weights();
         problem.y = problem.demean(&y_raw);
         Ok(problem)
     }
@@ -410,18 +418,27 @@ impl<'a> ThermalProblem<'a> {
     /// Weighted mean of `v` (one value per fitted sample) over each zero column's samples.
     fn segment_means(&self, v: impl Iterator<Item = f64>) -> Vec<f64> {
         let mut sum = vec![0.0; self.n_zero_columns];
-        let mut weight = vec![0.0; self.n_zero_columns];
         for (r, x) in v.enumerate() {
             if let Some(k) = self.fit_row_zero(r) {
                 let w = self.sqrt_weight[r] * self.sqrt_weight[r];
                 sum[k] += w * x;
-                weight[k] += w;
             }
         }
         sum.iter()
-            .zip(&weight)
+            .zip(&self.zero_weight)
             .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
             .collect()
+    }
+
+    /// Sum of the fitted samples' weights over each zero column's samples.
+    fn segment_weights(&self) -> Vec<f64> {
+        let mut weight = vec![0.0; self.n_zero_columns];
+        for (zero, s) in self.row_zero.iter().zip(&self.sqrt_weight) {
+            if let Some(k) = zero {
+                weight[*k] += s * s;
+            }
+        }
+        weight
     }
 
     /// Residuals in µm at the fitted samples from the engine's (weighted) residuals.
@@ -513,13 +530,13 @@ impl<'a> ThermalProblem<'a> {
     /// The model's gain columns for every sample of the bar (not only the fitted ones), for
     /// plotting and for evaluating the model outside its fit mounts.
     pub fn full_columns(&self, theta: &[f64]) -> Vec<Vec<f64>> {
-        let per_term: Vec<Vec<f64>> = (0..self.terms.len())
+        let per_term: Vec<Arc<Vec<f64>>> = (0..self.terms.len())
             .map(|j| self.term_column(j, theta, false).0)
             .collect();
         self.gain_columns()
             .into_iter()
             .map(|(j, k)| {
-                let mut col = per_term[j].clone();
+                let mut col = per_term[j].to_vec();
                 if let Some(k) = k {
                     self.mask_to(&mut col, k);
                 }
@@ -541,14 +558,10 @@ impl<'a> ThermalProblem<'a> {
     /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`
     /// (memoised per term: see [`ThermalProblem::memo`]; a term with a time constant is always
     /// computed with its derivative, which costs no extra exponential).
-    fn term_column(
-        &self,
-        j: usize,
-        theta: &[f64],
-        with_derivative: bool,
-    ) -> (Vec<f64>, Option<Vec<f64>>) {
+    fn term_column(&self, j: usize, theta: &[f64], with_derivative: bool) -> TermColumn {
         let Some(tau) = self.tau_of(j, theta) else {
-            return self.compute_term_column(j, None, with_derivative);
+            let (x, d) = self.compute_term_column(j, None, with_derivative);
+            return (Arc::new(x), d.map(Arc::new));
         };
         let bits = tau.to_bits();
         {
@@ -562,7 +575,8 @@ impl<'a> ThermalProblem<'a> {
             }
         }
         let (x, d) = self.compute_term_column(j, Some(tau), true);
-        let Some(d) = d else {
+        let x = Arc::new(x);
+        let Some(d) = d.map(Arc::new) else {
             return (x, None);
         };
         let out = (x.clone(), with_derivative.then(|| d.clone()));
@@ -608,9 +622,37 @@ impl<'a> ThermalProblem<'a> {
         (x, d)
     }
 
-    /// The fitted samples of a full-timeline column.
-    fn gather<'b>(&'b self, full: &'b [f64]) -> impl Iterator<Item = f64> + 'b {
-        self.series.fit_index.iter().map(move |&i| full[i])
+    /// A full-timeline column as the engine sees it, written into `out` (one row per fitted
+    /// sample): gathered at the fitted samples, kept only within zero column `seg` if given
+    /// ([`ThermalProblem::mask_to`] on the fitted rows), demeaned and weighed as
+    /// [`ThermalProblem::demean`] does, without the intermediate vectors (the basis is rebuilt
+    /// at every evaluation of a fit).
+    fn write_row_column(&self, full: &[f64], seg: Option<usize>, out: &mut [f64]) {
+        let mut sums = vec![0.0; self.n_zero_columns];
+        let rows = out
+            .iter_mut()
+            .zip(&self.series.fit_index)
+            .zip(&self.row_zero);
+        for (((o, &i), zero), w) in rows.zip(&self.sqrt_weight) {
+            let x = if seg.is_none() || *zero == seg {
+                full[i]
+            } else {
+                0.0
+            };
+            *o = x;
+            if let Some(k) = zero {
+                sums[*k] += w * w * x;
+            }
+        }
+        let means: Vec<f64> = sums
+            .iter()
+            .zip(&self.zero_weight)
+            .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
+            .collect();
+        for ((o, zero), w) in out.iter_mut().zip(&self.row_zero).zip(&self.sqrt_weight) {
+            let centred = zero.map_or(*o, |k| *o - means[k]);
+            *o = centred * w;
+        }
     }
 }
 
@@ -762,22 +804,20 @@ impl Separable for ThermalProblem<'_> {
     }
 
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
-        let n = self.y.len();
-        let columns = self.full_columns(theta);
-        let mut phi = DMatrix::zeros(n, columns.len());
-        for (c, col) in columns.iter().enumerate() {
-            let gathered: Vec<f64> = self.gather(col).collect();
-            for (r, v) in self.demean(&gathered).into_iter().enumerate() {
-                phi[(r, c)] = v;
-            }
+        let gains = self.gain_columns();
+        let per_term: Vec<Arc<Vec<f64>>> = (0..self.terms.len())
+            .map(|j| self.term_column(j, theta, false).0)
+            .collect();
+        let mut phi = DMatrix::zeros(self.y.len(), gains.len());
+        for (c, (j, seg)) in gains.into_iter().enumerate() {
+            self.write_row_column(&per_term[j], seg, phi.column_mut(c).as_mut_slice());
         }
         phi
     }
 
     fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
-        let n = self.y.len();
         let gains = self.gain_columns();
-        let mut d = DMatrix::zeros(n, gains.len());
+        let mut d = DMatrix::zeros(self.y.len(), gains.len());
         let owner = self.tau_terms[k];
         // Every term on this time constant: the owner and the terms sharing it.
         for j in (0..self.terms.len()).filter(|&j| self.tau_source[j] == Some(owner)) {
@@ -785,14 +825,7 @@ impl Separable for ThermalProblem<'_> {
                 continue;
             };
             for (c, (_, seg)) in gains.iter().enumerate().filter(|(_, (term, _))| *term == j) {
-                let mut col = full.clone();
-                if let Some(seg) = seg {
-                    self.mask_to(&mut col, *seg);
-                }
-                let gathered: Vec<f64> = self.gather(&col).collect();
-                for (r, v) in self.demean(&gathered).into_iter().enumerate() {
-                    d[(r, c)] = v;
-                }
+                self.write_row_column(&full, *seg, d.column_mut(c).as_mut_slice());
             }
         }
         d
