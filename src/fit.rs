@@ -827,7 +827,7 @@ fn covariances(
         .or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
     let cov_naive = &jtj_inv * s2;
     // One autocorrelation serves the batch choice and the batch-edge correction.
-    let acf = autocorrelation(residuals, n / 2);
+    let acf = initial_autocorrelation(residuals);
     let batch = batch_len
         .unwrap_or_else(|| batch_length_from(residuals, &acf))
         .clamp(1, n.max(1));
@@ -983,10 +983,11 @@ fn n_batches(n: usize, batch_len: usize) -> usize {
 /// (at least `n^(1/3)`), lengthened where the residuals' variance-time curve shows a slow part
 /// ([`variance_time_plateau`]), and no more than `n / 20` so that about twenty batches remain.
 pub fn hac_batch_length(residuals: &[f64]) -> usize {
-    batch_length_from(residuals, &autocorrelation(residuals, residuals.len() / 2))
+    batch_length_from(residuals, &initial_autocorrelation(residuals))
 }
 
-/// [`hac_batch_length`] with the residuals' autocorrelation `acf` (lags `0..=n/2`) given.
+/// [`hac_batch_length`] with the residuals' autocorrelation `acf` given (its initial positive
+/// part at least: [`initial_autocorrelation`]).
 fn batch_length_from(residuals: &[f64], acf: &[f64]) -> usize {
     let n = residuals.len();
     if n < 40 {
@@ -1076,7 +1077,41 @@ fn initial_positive_sums(acf: &[f64]) -> (f64, f64) {
 /// Integrated autocorrelation time `1 + 2 Σ ρ_k`, summed until the ACF first drops below zero
 /// (Geyer's initial positive sequence, simplified), in samples.
 pub fn integrated_autocorrelation_time(x: &[f64]) -> f64 {
-    initial_positive_sums(&autocorrelation(x, x.len() / 2)).0
+    initial_positive_sums(&initial_autocorrelation(x)).0
+}
+
+/// Lags beyond which [`initial_autocorrelation`] leaves direct sums for the FFT.
+const DIRECT_ACF_MAX_LAG: usize = 32;
+
+/// The sample autocorrelation of `x` up to and including its first lag at or below zero: all
+/// that [`initial_positive_sums`] reads. By direct sums, O(n) a lag: residuals of a fit are
+/// mostly a few lags from white, where this costs a few passes instead of two FFTs of twice the
+/// series (padded to a power of two). A series still positive at lag
+/// [`DIRECT_ACF_MAX_LAG`] gets the FFT's autocorrelation to lag `n/2`. Same estimator as
+/// [`autocorrelation`] (biased: sums over `n`), up to rounding.
+pub fn initial_autocorrelation(x: &[f64]) -> Vec<f64> {
+    let n = x.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
+    let c0 = dot(&centred, &centred);
+    if !(c0 > 0.0) {
+        return vec![1.0];
+    }
+    let mut acf = vec![1.0];
+    for k in 1..n.min(DIRECT_ACF_MAX_LAG + 1) {
+        let rho = dot(&centred[..n - k], &centred[k..]) / c0;
+        acf.push(rho);
+        if rho <= 0.0 {
+            return acf;
+        }
+    }
+    if n <= DIRECT_ACF_MAX_LAG + 1 {
+        return acf;
+    }
+    autocorrelation(x, n / 2)
 }
 
 /// Sample autocorrelation for lags `0..=max_lag` (biased estimator, FFT-based).
@@ -1314,6 +1349,44 @@ mod tests {
         // tau_int of AR(1) = (1+phi)/(1-phi) = 19
         let tau = integrated_autocorrelation_time(&x);
         assert!((tau - 19.0).abs() < 4.0, "{tau}");
+    }
+
+    /// The direct initial autocorrelation equals the FFT one (to rounding) up to its first
+    /// non-positive lag, where it stops; a series still correlated at the direct limit gets the
+    /// FFT's whole autocorrelation.
+    #[test]
+    fn initial_autocorrelation_is_the_fft_one_up_to_its_first_non_positive_lag() {
+        let mut state = 7u64;
+        for phi in [0.0, 0.5, 0.9, 0.995] {
+            let mut v = 0.0;
+            let x: Vec<f64> = (0..20000)
+                .map(|_| {
+                    state = state
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let e = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                    v = phi * v + e;
+                    v
+                })
+                .collect();
+            let fft = autocorrelation(&x, x.len() / 2);
+            let direct = initial_autocorrelation(&x);
+            for (k, (d, f)) in direct.iter().zip(&fft).enumerate() {
+                assert!((d - f).abs() < 1e-12, "phi {phi} lag {k}: {d} vs {f}");
+            }
+            let first_non_positive = fft.iter().position(|r| *r <= 0.0).unwrap();
+            if first_non_positive <= DIRECT_ACF_MAX_LAG {
+                assert_eq!(direct.len(), first_non_positive + 1, "phi {phi}");
+            } else {
+                assert_eq!(direct.len(), fft.len(), "phi {phi}");
+            }
+            let (sums_d, sums_f) = (initial_positive_sums(&direct), initial_positive_sums(&fft));
+            assert!((sums_d.0 - sums_f.0).abs() < 1e-12 * sums_f.0, "phi {phi}");
+            assert!(
+                (sums_d.1 - sums_f.1).abs() <= 1e-12 * sums_f.1.abs(),
+                "phi {phi}"
+            );
+        }
     }
 
     /// White residuals keep the short batch (n^(1/3)); a slow AR(1) part 30 times below the

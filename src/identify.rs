@@ -59,6 +59,9 @@ pub struct BarModel {
     pub dof: Vec<f64>,
     /// Index in `theta` of each parameter that is a time constant (same order as `params`).
     theta_index: Vec<Option<usize>>,
+    /// The time constants fitted on the series' coarse copy ([`coarse_start`]), where the fit
+    /// started from: the profile intervals are taken there ([`profile_on_coarse_copy`]).
+    coarse_theta: Option<Vec<f64>>,
 }
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -136,8 +139,21 @@ fn profile_on_coarse_copy(coarse: &BarSeries, model: &mut BarModel) {
     let Ok(problem) = ThermalProblem::new(coarse, &model.effects) else {
         return;
     };
-    let Ok((theta_c, _)) = fit::minimise(&problem, &model.theta, false) else {
-        return;
+    // The coarse optimum the fit started from serves if the fit stayed in its basin (the
+    // two differ by the binning, a few per cent of a time constant); else it is refitted.
+    let near = |theta_c: &Vec<f64>| {
+        theta_c.len() == model.theta.len()
+            && theta_c
+                .iter()
+                .zip(&model.theta)
+                .all(|(c, f)| (c - f).abs() < COARSE_BASIN_LN_TAU)
+    };
+    let theta_c = match model.coarse_theta.clone().filter(near) {
+        Some(theta_c) => theta_c,
+        None => match fit::minimise(&problem, &model.theta, false) {
+            Ok((theta_c, _)) => theta_c,
+            Err(_) => return,
+        },
     };
     let rss_c = fit::projected_rss(&problem, &theta_c);
     if !rss_c.is_finite() {
@@ -246,8 +262,9 @@ fn fit_from(
         absorbed_params: problem.n_zeros(),
         ..FitOptions::default()
     };
-    if let Some(theta) = coarse_start(series, effects, &theta0) {
-        theta0 = theta;
+    let coarse_theta = coarse_start(series, effects, &theta0);
+    if let Some(theta) = &coarse_theta {
+        theta0 = theta.clone();
         options.brent_start = false;
     }
     let fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
@@ -255,6 +272,7 @@ fn fit_from(
         source,
     })?;
     let mut model = to_bar_model(series, &problem, &fit);
+    model.coarse_theta = coarse_theta;
     canonical_thermal_paths(&mut model);
     Ok(model)
 }
@@ -273,6 +291,9 @@ fn staged_start(series: &BarSeries, effects: &[Effect]) -> Option<BarModel> {
 /// Series with at least this many fitted samples start their time constants on a coarse copy
 /// (below it the engine's own Brent start costs well under a second).
 const COARSE_START_MIN_SAMPLES: usize = 50_000;
+/// How far (in `ln tau`) the fine fit may end from the coarse optimum it started at for that
+/// optimum to be taken as the coarse fit of the same basin (0.2: 22 %).
+const COARSE_BASIN_LN_TAU: f64 = 0.2;
 /// Bin of the coarse copy: a fifth or less of the shortest time constants of `physics.md`
 /// (15 min to 2 h), so the start lands in the fine fit's basin.
 const COARSE_START_BIN_S: f64 = 300.0;
@@ -435,6 +456,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
             .iter()
             .map(|&i| (i >= n_lin).then(|| i - n_lin))
             .collect(),
+        coarse_theta: None,
     }
 }
 
