@@ -128,7 +128,7 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 /// the difference between the two estimates, so a linear model still gets exactly
 /// `x̂ ± t u_hac`. Checked against the full profile in this module's tests.
 fn profile_tau_intervals(series: &BarSeries, model: &mut BarModel) {
-    match coarse_copy(series) {
+    match coarse_copy(series, COARSE_PROFILE_MIN_SAMPLES) {
         Some(coarse) => profile_on_coarse_copy(&coarse, model),
         None => profile_on_series(series, model),
     }
@@ -288,9 +288,15 @@ fn staged_start(series: &BarSeries, effects: &[Effect]) -> Option<BarModel> {
     identify_from(series, &effects[..effects.len() - 1], None).ok()
 }
 
-/// Series with at least this many fitted samples start their time constants on a coarse copy
-/// (below it the engine's own Brent start costs well under a second).
-const COARSE_START_MIN_SAMPLES: usize = 50_000;
+/// Series with at least this many fitted samples start their time constants on a coarse copy.
+/// The engine's own Brent start sweeps the projected residual some 40 times: on the 7.5-day
+/// benchmark campaign (21 600 nodes a bar with 60-s bins) that was two thirds of identify.
+const COARSE_START_MIN_SAMPLES: usize = 20_000;
+/// Series with at least this many fitted samples are profiled on their coarse copy (each
+/// profile point refits the other time constants). The coarse profile's ends are 2-6 % of the
+/// interval's width off the exact profile's (benchmark campaigns of 7.5-30 days, 60-s bins);
+/// below this size the exact profile costs less than the fit, so it is kept.
+const COARSE_PROFILE_MIN_SAMPLES: usize = 50_000;
 /// How far (in `ln tau`) the fine fit may end from the coarse optimum it started at for that
 /// optimum to be taken as the coarse fit of the same basin (0.2: 22 %).
 const COARSE_BASIN_LN_TAU: f64 = 0.2;
@@ -299,10 +305,11 @@ const COARSE_BASIN_LN_TAU: f64 = 0.2;
 const COARSE_START_BIN_S: f64 = 300.0;
 
 /// The 300-s bin means of a long series, on which its fit starts and its time constants are
-/// profiled; `None` for a series short enough to work on directly (below
-/// [`COARSE_START_MIN_SAMPLES`], or whose copy would not be at least 4× shorter).
-fn coarse_copy(series: &BarSeries) -> Option<BarSeries> {
-    if series.fit_index.len() < COARSE_START_MIN_SAMPLES {
+/// profiled; `None` for a series short enough to work on directly (below `min_samples`:
+/// [`COARSE_START_MIN_SAMPLES`] or [`COARSE_PROFILE_MIN_SAMPLES`]), or whose copy would not be
+/// at least 4× shorter.
+fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarSeries> {
+    if series.fit_index.len() < min_samples {
         return None;
     }
     let coarse = series.binned_copy(COARSE_START_BIN_S);
@@ -319,7 +326,7 @@ fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Optio
     if theta0.is_empty() {
         return None;
     }
-    let coarse = coarse_copy(series)?;
+    let coarse = coarse_copy(series, COARSE_START_MIN_SAMPLES)?;
     let problem = ThermalProblem::new(&coarse, effects).ok()?;
     let (theta, _) = fit::minimise(&problem, theta0, true).ok()?;
     tracing::debug!(bar = %series.bar.id, ?theta, n = coarse.fit_index.len(), "identify: coarse start");
