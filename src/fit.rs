@@ -1313,17 +1313,26 @@ mod tests {
         }
     }
 
-    #[test]
-    fn acf_of_white_noise_is_small() {
-        let mut state = 12345u64;
-        let x: Vec<f64> = (0..4000)
+    /// `n` samples of an AR(1) process `v = phi v + e` driven by uniform noise on ±0.5 from a
+    /// linear congruential generator seeded with `seed` (phi = 0: white noise).
+    fn uniform_ar1(seed: u64, phi: f64, n: usize) -> Vec<f64> {
+        let mut state = seed;
+        let mut v = 0.0;
+        (0..n)
             .map(|_| {
                 state = state
                     .wrapping_mul(6364136223846793005)
                     .wrapping_add(1442695040888963407);
-                (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+                let e = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+                v = phi * v + e;
+                v
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn acf_of_white_noise_is_small() {
+        let x = uniform_ar1(12345, 0.0, 4000);
         let acf = autocorrelation(&x, 10);
         assert!((acf[0] - 1.0).abs() < 1e-12);
         assert!(acf[1..].iter().all(|r| r.abs() < 0.06), "{acf:?}");
@@ -1332,18 +1341,7 @@ mod tests {
 
     #[test]
     fn acf_of_ar1_matches_phi() {
-        let mut state = 99u64;
-        let mut v = 0.0;
-        let x: Vec<f64> = (0..20000)
-            .map(|_| {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                let e = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-                v = 0.9 * v + e;
-                v
-            })
-            .collect();
+        let x = uniform_ar1(99, 0.9, 20000);
         let acf = autocorrelation(&x, 3);
         assert!((acf[1] - 0.9).abs() < 0.02, "{acf:?}");
         // tau_int of AR(1) = (1+phi)/(1-phi) = 19
@@ -1356,19 +1354,8 @@ mod tests {
     /// FFT's whole autocorrelation.
     #[test]
     fn initial_autocorrelation_is_the_fft_one_up_to_its_first_non_positive_lag() {
-        let mut state = 7u64;
-        for phi in [0.0, 0.5, 0.9, 0.995] {
-            let mut v = 0.0;
-            let x: Vec<f64> = (0..20000)
-                .map(|_| {
-                    state = state
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    let e = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-                    v = phi * v + e;
-                    v
-                })
-                .collect();
+        for (seed, phi) in [(7, 0.0), (8, 0.5), (9, 0.9), (10, 0.995)] {
+            let x = uniform_ar1(seed, phi, 20000);
             let fft = autocorrelation(&x, x.len() / 2);
             let direct = initial_autocorrelation(&x);
             for (k, (d, f)) in direct.iter().zip(&fft).enumerate() {
