@@ -1089,7 +1089,7 @@ const DIRECT_ACF_MAX_LAG: usize = 32;
 /// series (padded to a power of two). A series still positive at lag
 /// [`DIRECT_ACF_MAX_LAG`] gets the FFT's autocorrelation to lag `n/2`. Same estimator as
 /// [`autocorrelation`] (biased: sums over `n`), up to rounding.
-pub fn initial_autocorrelation(x: &[f64]) -> Vec<f64> {
+fn initial_autocorrelation(x: &[f64]) -> Vec<f64> {
     let n = x.len();
     if n == 0 {
         return Vec::new();

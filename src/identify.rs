@@ -120,10 +120,11 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 /// times the fit itself (simulated bars: 54 ms fit, 65 ms profiles). A failed profile keeps
 /// the Wald interval.
 ///
-/// A long series (the one [`coarse_start`] starts on its 300-s bin means) is profiled on that
-/// coarse copy: each profile point refits the other time constants, and at 1 Hz over 30 days
-/// that cost twice the fit. The shape of the profile in `ln tau` is the model's, which bin
-/// means of time constants of 15 min and more keep; the cut is taken from the coarse Jacobian
+/// A long series ([`COARSE_PROFILE_MIN_SAMPLES`]) is profiled on the 300-s bin means that
+/// [`coarse_start`] starts it on, from the coarse optimum found there: each profile point
+/// refits the other time constants, and at 1 Hz over 30 days that cost twice the fit. The
+/// shape of the profile in `ln tau` is the model's, which bin means of time constants of 15 min
+/// and more keep; the cut is taken from the coarse Jacobian
 /// (`t² u_hac² / [(J_cᵀJ_c)⁻¹]_kk`, `u_hac` from the full series), and the interval is moved by
 /// the difference between the two estimates, so a linear model still gets exactly
 /// `x̂ ± t u_hac`. Checked against the full profile in this module's tests.
