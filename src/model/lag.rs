@@ -56,7 +56,7 @@ pub fn lag(
 ///
 /// Why: the exponential is most of a lag's cost, and a bar's timeline repeats a handful of
 /// steps (sensor period, the bin nodes' fixed offsets between sensor samples: on the 30-day
-/// benchmark 4 step lengths make 83 % of 172 800 steps). A direct-mapped table keyed by the
+/// benchmark 4 step lengths make 83 % of 172 800 steps). A small open-addressed table keyed by the
 /// step's bits returns the very bits a fresh computation would, so results do not change.
 #[derive(Clone, Copy)]
 struct StepFactors {
