@@ -70,8 +70,9 @@ impl BinMoments {
             let u = (t - start_ns) / NS_PER_US;
             first = first.min(u);
             last = last.max(u);
-            // u < 3.6e9 µs (an hour), so u² fits i64; each product below is one 64x64->128.
-            let uu = u * u;
+            // 0 <= u < 3.6e9 µs (an hour) < 2³², so u² fits u64 (not i64: bins longer than
+            // 50.6 min overflowed it); each product below is one 64x64->128.
+            let uu = u as u64 * u as u64;
             run.su += u as i128;
             run.suu += uu as i128;
             run.suuu += uu as i128 * u as i128;
@@ -482,6 +483,26 @@ mod tests {
         assert!((two[0].offset_us - 0.0).abs() < 1e-9 && (two[1].offset_us - 10.0).abs() < 1e-9);
         assert!((two[0].counts - 1.0).abs() < 1e-9 && (two[1].counts - 5.0).abs() < 1e-9);
         assert!(rss.abs() < 1e-9);
+    }
+
+    /// The integer sums are exact up to the longest bin: times near an hour (u² > i64::MAX)
+    /// and counts near the i64 range, against sums done one reading at a time in i128.
+    #[test]
+    fn bin_sums_are_exact_up_to_an_hour() {
+        let us = [0, 1, 3_037_000_499, 3_037_000_500, 3_599_999_999];
+        let counts = [i64::MAX, i64::MIN + 1, -7, 0, 1 << 40];
+        let samples: Vec<(i64, i64)> = us.iter().copied().zip(counts).collect();
+        let m = moments(&samples);
+        let sum = |f: &dyn Fn(i128, i128) -> i128| -> i128 {
+            samples.iter().map(|&(u, c)| f(u as i128, c as i128)).sum()
+        };
+        assert_eq!(m.su, sum(&|u, _| u));
+        assert_eq!(m.suu, sum(&|u, _| u * u));
+        assert_eq!(m.suuu, sum(&|u, _| u * u * u));
+        assert_eq!(m.sc, sum(&|_, c| c));
+        assert_eq!(m.suc, sum(&|u, c| u * c));
+        assert_eq!(m.scc, sum(&|_, c| c * c));
+        assert_eq!((m.n, m.first_us, m.last_us), (5, 0, 3_599_999_999));
     }
 
     #[test]
