@@ -115,7 +115,7 @@ def main():
     w("")
     w("| campaign | encoder rows | what | wall s | CPU s | peak MB | × bare scan | load before/after | exit |")
     w("|---|---:|---|---:|---:|---:|---:|---|---:|")
-    scan_s, enc_rows, ident = {}, {}, {}
+    scan_s, enc_rows, ident, decode_s = {}, {}, {}, {}
     for size in sizes:
         bs = load_json(os.path.join(d, f"bare-scan-{size}.json"))
         if bs:
@@ -137,6 +137,16 @@ def main():
             label = f"full, first {n_bars(size)} of {n_bars('full')} bars" if size == "full-sub" else size
             w(f"| {label} | {enc_rows.get(size, 0):,} | {what}{runs} | {fmt(wall)} | {fmt(r['cpu'])} | {r['mb']:.0f} | {ratio} | "
               f"{r['before']:.2f} / {r['after']:.2f} | {r['status']} |")
+            if prefix.startswith("bare"):
+                floor = load_json(os.path.join(d, f"decode-floor-{size}.json"))
+                rf = best(f"decode-floor-{size}", size)
+                if floor and rf:
+                    decode_s[size] = floor["stream_best_s"]
+                    fr = f"{decode_s[size] / scan_s[size]:.1f}" if size in scan_s else "–"
+                    w(f"| {label} | {enc_rows.get(size, 0):,} | dbbcal's polars decoding the encoder files, batches dropped "
+                      f"(`examples/decode_floor.rs`, streamed, best of 3; the floor under ingest) | {fmt(decode_s[size])} | "
+                      f"– | {rf['mb']:.0f} | {fr} | "
+                      f"{rf['before']:.2f} / {rf['after']:.2f} | {rf['status']} |")
     extrapolated_full = False
     sub_i, sub_g, full_g = best("dbbcal-identify-full-sub", "full-sub"), best("dbbcal-ingest-full-sub", "full-sub"), best("dbbcal-ingest-full", "full")
     if "full" not in ident and sub_i and sub_g and full_g:
@@ -204,6 +214,9 @@ def main():
     if g and "full" in scan_s:
         w(f"| (for reference: ingest alone vs the bare scan) | {fmt(g['wall'])} s vs {fmt(scan_s['full'])} s = {g['wall'] / scan_s['full']:.1f}×, "
           f"peak {g['mb']:.0f} MB | {'within 2×' if g['wall'] <= 2 * scan_s['full'] else 'already above 2×'} |")
+    if "full" in decode_s and "full" in scan_s:
+        w(f"| (the floor: dbbcal's polars decoding the encoder files and nothing else) | {fmt(decode_s['full'])} s vs "
+          f"{fmt(scan_s['full'])} s = {decode_s['full'] / scan_s['full']:.1f}× | – |")
     if "full" in ident and py_total:
         f = py_total / ident["full"]["wall"]
         w(f"| ≥ 20× faster than the Python equivalent | {'≈ ' if extrapolated_full else ''}{f:.2g}× (Python {py_total:.0f} s, {'extrapolated' if dense and len(dense['bars']) < dense['n_bars_in_campaign'] else 'measured'}) | "

@@ -3,13 +3,14 @@
 #
 #     bench/run.sh
 #
-# 1. builds the release binary;
+# 1. builds the release binary and examples/decode_floor.rs (feature bench-tools);
 # 2. generates the benchmark campaigns into bench/out/ if missing (sim-bench*.toml: 12 bars at
 #    1 Hz for 7.5, 15 and 30 days = 7.8 / 15.6 / 31.1 M encoder rows) and the small sample one;
 # 3. checks on the sample campaign that bench/python_equivalent.py and dbbcal agree (1e-3 relative);
 # 4. measures wall time and peak RSS (/usr/bin/time -v) of, per campaign size:
 #      dbbcal ingest, dbbcal identify (= ingest + identify), bench/bare_scan.py (best of 3),
-#    and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
+#    examples/decode_floor.rs (dbbcal's polars decoding the encoder files and nothing else: the
+#    floor under ingest, best of 3), and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
 #    PY_BARS bars, extrapolated to all 12 -- plus the --project-zeros variant on all bars;
 # 5. writes bench/results.md (bench/report.py); with BIN_S=N, bench/results-binNs.md.
 #
@@ -60,10 +61,11 @@ if ! python3 -c 'import polars, scipy, numpy' 2>/dev/null; then
     python3 -m pip install --quiet polars scipy numpy
 fi
 
-say "cargo build --release (CARGO_TARGET_DIR=$CARGO_TARGET_DIR)"
-cargo build --release
+say "cargo build --release --features bench-tools (CARGO_TARGET_DIR=$CARGO_TARGET_DIR)"
+cargo build --release --features bench-tools --bin dbbcal --example decode_floor
 mkdir -p "$OUT"
 cp "$CARGO_TARGET_DIR/release/dbbcal" "$BIN"
+cp "$CARGO_TARGET_DIR/release/examples/decode_floor" "$OUT/decode_floor"
 
 # ------------------------------------------------------------------ campaigns
 config_of() {
@@ -133,6 +135,8 @@ for size in $SIZES; do
     say "timing $size ($camp)"
     # The bare scan first: it also warms the page cache for everyone after it.
     measure "bare-scan-$size" "$size" python3 bench/bare_scan.py "$camp" --repeat 3 --json "$OUT/bare-scan-$size.json"
+    # The floor under ingest: dbbcal's own polars decoding the encoder files, nothing else.
+    measure "decode-floor-$size" "$size" "$OUT/decode_floor" "$camp" --repeat 3 --json "$OUT/decode-floor-$size.json"
     for r in $(seq 1 "$REPEAT"); do
         measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest" --bin-s "$BIN_S"
         if [ "$size" = full ] && [ "$DBBCAL_BARS" != all ]; then

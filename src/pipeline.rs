@@ -540,6 +540,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .into_iter()
         .any(|s| plan.runs(s));
     let progress = crate::progress::bar(bars.len() as u64, "identify");
+    let knots = crate::series::sensor_knots(&sensors);
     let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
         .into_iter()
         .map(|(id, log)| {
@@ -550,7 +551,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .into_par_iter()
         .map(|(id, log, binned)| {
             let series = match binned {
-                Some(b) => BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, t0),
+                Some(b) => BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, &knots, t0),
                 None => {
                     BarSeries::build_binned(&campaign, &events, &id, log, &sensors, t0, plan.bin_s)
                 }

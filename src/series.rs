@@ -214,27 +214,23 @@ impl BarSeries {
         let grid = BinGrid::new(campaign, events, bar_id, bin_s);
         let bins = BarBins::from_log(grid, &log.time_ns, &log.counts);
         drop(log);
-        Self::from_bins(campaign, events, bar_id, &bins, sensors, t0_ns)
+        let knots = sensor_knots(sensors);
+        Self::from_bins(campaign, events, bar_id, &bins, sensors, &knots, t0_ns)
     }
 
     /// Bar `bar_id`'s series from its compressed bins (ingest can make them while it streams the
-    /// encoder files), temperatures interpolated from `sensors` at the nodes' times.
+    /// encoder files), temperatures interpolated from `sensors` at the nodes' times. `knots`:
+    /// [`sensor_knots`] of `sensors`.
     pub fn from_bins(
         campaign: &Campaign,
         events: &[Event],
         bar_id: &str,
         bins: &BarBins,
         sensors: &BTreeMap<String, SensorLog>,
+        knots: &[TimeNs],
         t0_ns: TimeNs,
     ) -> Result<BarSeries, SeriesError> {
-        let mut knots: Vec<TimeNs> = sensors
-            .values()
-            .flat_map(|s| s.time_ns.iter().copied())
-            .collect();
-        knots.sort_unstable();
-        knots.dedup();
-        let readings = bins.readings(&knots);
-        drop(knots);
+        let readings = bins.readings(knots);
         let celsius = temperatures_at(&readings.time_ns, sensors);
         Self::from_readings(campaign, events, bar_id, readings, celsius, t0_ns)
     }
@@ -506,6 +502,19 @@ pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, Sen
 }
 
 /// Every sensor's temperature at the sorted times `time_ns` (see [`interpolate_temperatures`]).
+/// Every sensor's reading times, sorted and deduplicated: the knots of the temperature
+/// interpolation, which a compressed series keeps as samples ([`BarSeries::from_bins`]). The
+/// same for every bar, so made once per campaign.
+pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
+    let mut knots: Vec<TimeNs> = sensors
+        .values()
+        .flat_map(|s| s.time_ns.iter().copied())
+        .collect();
+    knots.sort_unstable();
+    knots.dedup();
+    knots
+}
+
 pub fn temperatures_at(
     time_ns: &[TimeNs],
     sensors: &BTreeMap<String, SensorLog>,

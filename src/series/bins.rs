@@ -368,6 +368,8 @@ impl BarBins {
         let mut out = Readings::default();
         // Previous node (time, counts) and the last reading of its bin.
         let mut last: Option<(TimeNs, f64, TimeNs)> = None;
+        // Knots before this one lie before the previous node.
+        let mut next_knot = 0;
         for (key, moments) in &self.bins {
             let (nodes, line_rss) = moments.nodes();
             let first_reading = key.start_ns + moments.first_us * NS_PER_US;
@@ -389,9 +391,15 @@ impl BarBins {
                         }
                     }
                     Some((t_prev, c_prev, _)) => {
-                        let from = knots.partition_point(|&t| t <= t_prev);
-                        let to = knots.partition_point(|&t| t < time);
-                        for &t in &knots[from..to] {
+                        // Nodes come in time order: one walk over the knots, not a search each.
+                        while knots.get(next_knot).is_some_and(|&t| t <= t_prev) {
+                            next_knot += 1;
+                        }
+                        let from = next_knot;
+                        while knots.get(next_knot).is_some_and(|&t| t < time) {
+                            next_knot += 1;
+                        }
+                        for &t in &knots[from..next_knot] {
                             let f = (t - t_prev) as f64 / (time - t_prev) as f64;
                             out.push(t, c_prev + f * (node.counts - c_prev), 0.0, 0.0);
                         }
