@@ -501,7 +501,6 @@ pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, Sen
     log.celsius = temperatures_at(&log.time_ns, sensors);
 }
 
-/// Every sensor's temperature at the sorted times `time_ns` (see [`interpolate_temperatures`]).
 /// Every sensor's reading times, sorted and deduplicated: the knots of the temperature
 /// interpolation, which a compressed series keeps as samples ([`BarSeries::from_bins`]). The
 /// same for every bar, so made once per campaign.
@@ -515,6 +514,7 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
     knots
 }
 
+/// Every sensor's temperature at the sorted times `time_ns` (see [`interpolate_temperatures`]).
 pub fn temperatures_at(
     time_ns: &[TimeNs],
     sensors: &BTreeMap<String, SensorLog>,
