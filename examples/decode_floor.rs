@@ -19,11 +19,14 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
+use anyhow::Context;
 use polars::lazy::dsl::Engine;
 use polars::prelude::*;
 
 fn encoder_files(campaign: &str) -> anyhow::Result<Vec<PathBuf>> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(PathBuf::from(campaign).join("encoders"))?
+    let dir = PathBuf::from(campaign).join("encoders");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .with_context(|| format!("reading {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "parquet"))
         .collect();
@@ -70,7 +73,15 @@ fn stream(files: &[PathBuf]) -> PolarsResult<usize> {
     Ok(rows.load(Ordering::Relaxed))
 }
 
-fn main() -> anyhow::Result<()> {
+/// One line on failure (no backtrace), exit code 2.
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("decode_floor: {e:#}");
+        std::process::exit(2);
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     let usage = "usage: decode_floor CAMPAIGN_DIR [--repeat N] [--json FILE]";
     let mut args = std::env::args().skip(1);
     let campaign = args.next().ok_or_else(|| anyhow::anyhow!(usage))?;

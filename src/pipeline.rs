@@ -552,9 +552,9 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .map(|(id, log, binned)| {
             let series = match binned {
                 Some(b) => BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, &knots, t0),
-                None => {
-                    BarSeries::build_binned(&campaign, &events, &id, log, &sensors, t0, plan.bin_s)
-                }
+                None => BarSeries::build_binned(
+                    &campaign, &events, &id, log, &sensors, &knots, t0, plan.bin_s,
+                ),
             };
             let r = series.map_err(|e| e.to_string()).and_then(|series| {
                 let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;

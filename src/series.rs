@@ -197,13 +197,16 @@ impl BarSeries {
     /// Bar `bar_id`'s series from its log compressed into bins of `bin_s` seconds ([`bins`]:
     /// two weighted nodes a bin, exact for a model that is a straight line within each bin);
     /// `bin_s <= 0`: every reading, as [`BarSeries::build`]. Temperatures are interpolated from
-    /// `sensors` at the samples' times here. The full-rate log lives only inside this call.
+    /// `sensors` at the samples' times here (`knots`: [`sensor_knots`] of `sensors`, used with
+    /// bins). The full-rate log lives only inside this call.
+    #[allow(clippy::too_many_arguments)]
     pub fn build_binned(
         campaign: &Campaign,
         events: &[Event],
         bar_id: &str,
         mut log: BarLog,
         sensors: &BTreeMap<String, SensorLog>,
+        knots: &[TimeNs],
         t0_ns: TimeNs,
         bin_s: f64,
     ) -> Result<BarSeries, SeriesError> {
@@ -214,8 +217,7 @@ impl BarSeries {
         let grid = BinGrid::new(campaign, events, bar_id, bin_s);
         let bins = BarBins::from_log(grid, &log.time_ns, &log.counts);
         drop(log);
-        let knots = sensor_knots(sensors);
-        Self::from_bins(campaign, events, bar_id, &bins, sensors, &knots, t0_ns)
+        Self::from_bins(campaign, events, bar_id, &bins, sensors, knots, t0_ns)
     }
 
     /// Bar `bar_id`'s series from its compressed bins (ingest can make them while it streams the

@@ -232,16 +232,19 @@ fn build_binned_keeps_every_reading_in_weighted_nodes() {
     let c = campaign();
     let events = rezero_at(2 * 3600 + 15);
     let (log, sensors) = log_and_sensors();
+    let knots = sensor_knots(&sensors);
     let mut with_temperatures = log.clone();
     interpolate_temperatures(&mut with_temperatures, &sensors);
     let full = BarSeries::build(&c, &events, "B01", with_temperatures, T0).expect("series");
-    let unbinned = BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, T0, 0.0)
-        .expect("series");
+    let unbinned =
+        BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, &knots, T0, 0.0)
+            .expect("series");
     assert_eq!(unbinned.t_s, full.t_s);
     assert_eq!(unbinned.y_um, full.y_um);
     for bin_s in [1.0, 10.0, 30.0, 60.0] {
-        let b = BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, T0, bin_s)
-            .expect("series");
+        let b =
+            BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, &knots, T0, bin_s)
+                .expect("series");
         assert_eq!(b.n_zero_segments, full.n_zero_segments, "bin_s {bin_s}");
         assert_eq!(b.fitted_readings(), full.fit_index.len(), "bin_s {bin_s}");
         assert_eq!(b.dropped_outside_mounts, full.dropped_outside_mounts);
