@@ -701,9 +701,30 @@ fn levenberg_marquardt<P: Separable>(
 /// The Jacobian of `problem`'s model in all parameters at `theta`, the linear coefficients
 /// solved there (`None` when the basis is singular).
 pub fn jacobian_at<P: Separable>(problem: &P, theta: &[f64]) -> Option<DMatrix<f64>> {
+    linearise(problem, theta).map(|l| l.jacobian)
+}
+
+/// A model linearised at fixed nonlinear parameters: what a score (Lagrange-multiplier) test of
+/// an added term needs.
+pub struct Linearised {
+    /// Jacobian in all parameters, `n × p`: the directions a refit can move the model in.
+    pub jacobian: DMatrix<f64>,
+    /// Observations minus the model, the linear coefficients solved at `theta` (the engine's
+    /// rows, as [`Separable::observations`]).
+    pub residuals: Vec<f64>,
+}
+
+/// `problem` linearised at `theta` (the linear coefficients solved there); `None` when the basis
+/// is singular.
+pub fn linearise<P: Separable>(problem: &P, theta: &[f64]) -> Option<Linearised> {
     let phi = problem.basis(theta);
-    let coef = solve_linear(&phi, problem.observations())?;
-    Some(full_jacobian(problem, theta, &phi, &coef))
+    let y = problem.observations();
+    let coef = solve_linear(&phi, y)?;
+    let residuals = (&phi * &coef).iter().zip(y).map(|(f, y)| y - f).collect();
+    Some(Linearised {
+        jacobian: full_jacobian(problem, theta, &phi, &coef),
+        residuals,
+    })
 }
 
 /// `problem` seen in the orthogonal complement of some fixed directions: its observations and
@@ -717,7 +738,7 @@ pub fn jacobian_at<P: Separable>(problem: &P, theta: &[f64]) -> Option<DMatrix<f
 pub struct Orthogonalised<'a, P> {
     inner: &'a P,
     /// Orthonormal basis of the removed directions, `n × r`.
-    q: DMatrix<f64>,
+    q: std::borrow::Cow<'a, DMatrix<f64>>,
     y: Vec<f64>,
 }
 
@@ -725,19 +746,32 @@ impl<'a, P: Separable> Orthogonalised<'a, P> {
     /// `directions`: `n × k` columns, possibly rank-deficient (directions with a singular value
     /// below `1e-10` of the largest are dropped).
     pub fn new(inner: &'a P, directions: &DMatrix<f64>) -> Self {
-        let q = orthonormal_basis(directions);
+        Self::with_orthonormal_basis(
+            inner,
+            std::borrow::Cow::Owned(orthonormal_basis(directions)),
+        )
+    }
+
+    /// As [`Orthogonalised::new`], with the directions' [`orthonormal_basis`] computed once by
+    /// the caller (screening many terms against one model).
+    pub fn with_orthonormal_basis(inner: &'a P, q: std::borrow::Cow<'a, DMatrix<f64>>) -> Self {
         let y0 = DVector::from_column_slice(inner.observations());
-        let y = (&y0 - &q * (q.tr_mul(&y0))).iter().copied().collect();
+        let y = (&y0 - q.as_ref() * (q.tr_mul(&y0)))
+            .iter()
+            .copied()
+            .collect();
         Orthogonalised { inner, q, y }
     }
 
     fn project(&self, m: DMatrix<f64>) -> DMatrix<f64> {
-        let along = &self.q * self.q.tr_mul(&m);
+        let along = self.q.as_ref() * self.q.tr_mul(&m);
         m - along
     }
 }
 
-fn orthonormal_basis(a: &DMatrix<f64>) -> DMatrix<f64> {
+/// Orthonormal basis of the span of `a`'s columns (columns scaled to unit norm first;
+/// directions with a singular value below `1e-10` of the largest dropped).
+pub fn orthonormal_basis(a: &DMatrix<f64>) -> DMatrix<f64> {
     if a.ncols() == 0 || a.nrows() == 0 {
         return DMatrix::zeros(a.nrows(), 0);
     }

@@ -292,7 +292,7 @@ fn staged_start(series: &BarSeries, effects: &[Effect]) -> Option<BarModel> {
 /// Series with at least this many fitted samples start their time constants on a coarse copy.
 /// The engine's own Brent start sweeps the projected residual some 40 times: on the 7.5-day
 /// benchmark campaign (21 600 nodes a bar with 60-s bins) that was two thirds of identify.
-const COARSE_START_MIN_SAMPLES: usize = 20_000;
+pub(crate) const COARSE_START_MIN_SAMPLES: usize = 20_000;
 /// Series with at least this many fitted samples are profiled on their coarse copy (each
 /// profile point refits the other time constants). The coarse profile's ends are 2-6 % of the
 /// interval's width off the exact profile's (benchmark campaigns of 7.5-30 days, 60-s bins);
@@ -309,7 +309,7 @@ const COARSE_START_BIN_S: f64 = 300.0;
 /// profiled; `None` for a series short enough to work on directly (below `min_samples`:
 /// [`COARSE_START_MIN_SAMPLES`] or [`COARSE_PROFILE_MIN_SAMPLES`]), or whose copy would not be
 /// at least 4× shorter.
-fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarSeries> {
+pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarSeries> {
     if series.fit_index.len() < min_samples {
         return None;
     }

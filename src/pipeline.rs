@@ -115,6 +115,11 @@ pub struct DiagnoseSection {
     /// Forward selection keeps this many best paths at each step (1: plain greedy).
     #[serde(default = "default_beam")]
     pub beam: usize,
+    /// Tolerance the bars serve, µm: a candidate is proposed only when the fleet RMS it removes
+    /// is at least 0.5 % of it (and 5 % of the noise floor; `diagnose::Criteria`). Absent: the
+    /// matching limit `[match] limit_um`.
+    #[serde(default)]
+    pub tolerance_um: Option<f64>,
 }
 
 impl Default for DiagnoseSection {
@@ -122,6 +127,7 @@ impl Default for DiagnoseSection {
         Self {
             forward_steps: default_forward_steps(),
             beam: default_beam(),
+            tolerance_um: None,
         }
     }
 }
@@ -310,6 +316,13 @@ impl RunPlan {
                 "diagnose.beam must be at least 1 (1: plain greedy selection)".into(),
             ));
         }
+        if let Some(t) = file.diagnose.tolerance_um {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(perr(format!(
+                    "diagnose.tolerance_um must be a positive number of µm, not {t}"
+                )));
+            }
+        }
         plan.diagnose = file.diagnose;
         if !(0.0..=crate::series::MAX_BIN_S).contains(&file.model.bin_s) {
             return Err(perr(format!(
@@ -444,6 +457,8 @@ pub struct Diagnosis {
     pub bars: Vec<BarDiagnosis>,
     /// What each temperature sensor plausibly measures (profiled on the first bar's timeline).
     pub sensors: Vec<diagnose::sensors::SensorProfile>,
+    /// When a candidate is proposed (noise floor, tolerance, materiality threshold).
+    pub criteria: diagnose::Criteria,
     pub candidates: Vec<Candidate>,
     pub unavailable: Vec<diagnose::Unavailable>,
     pub ledger: Vec<LedgerStep>,
@@ -504,6 +519,15 @@ impl RunResults {
     }
 }
 
+/// Run `f` and log how long it took (`DBBCAL_LOG=info`): stage timings go to the log, never
+/// into the byte-identical outputs.
+pub fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
+    let start = std::time::Instant::now();
+    let out = f();
+    tracing::info!("{what}: {:.3} s", start.elapsed().as_secs_f64());
+    out
+}
+
 /// Run the analysis stages on already-read logs (no output written).
 pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let CampaignLogs {
@@ -541,34 +565,37 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .any(|s| plan.runs(s));
     let progress = crate::progress::bar(bars.len() as u64, "identify");
     let knots = crate::series::sensor_knots(&sensors);
-    let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
-        .into_iter()
-        .map(|(id, log)| {
-            let binned = bins.remove(&id);
-            (id, log, binned)
-        })
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|(id, log, binned)| {
-            let series = match binned {
-                Some(b) => BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, &knots, t0),
-                None => BarSeries::build_binned(
-                    &campaign, &events, &id, log, &sensors, &knots, t0, plan.bin_s,
-                ),
-            };
-            let r = series.map_err(|e| e.to_string()).and_then(|series| {
-                let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
-                let series = if samples_needed {
-                    series
-                } else {
-                    series.without_samples()
+    let outcomes: Vec<(String, Result<BarOutcome, String>)> = timed("identify", || {
+        bars.into_iter()
+            .map(|(id, log)| {
+                let binned = bins.remove(&id);
+                (id, log, binned)
+            })
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(id, log, binned)| {
+                let series = match binned {
+                    Some(b) => {
+                        BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, &knots, t0)
+                    }
+                    None => BarSeries::build_binned(
+                        &campaign, &events, &id, log, &sensors, &knots, t0, plan.bin_s,
+                    ),
                 };
-                Ok(BarOutcome { series, model })
-            });
-            progress.inc(1);
-            (id, r)
-        })
-        .collect();
+                let r = series.map_err(|e| e.to_string()).and_then(|series| {
+                    let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
+                    let series = if samples_needed {
+                        series
+                    } else {
+                        series.without_samples()
+                    };
+                    Ok(BarOutcome { series, model })
+                });
+                progress.inc(1);
+                (id, r)
+            })
+            .collect()
+    });
     progress.finish_and_clear();
     let mut ok = Vec::new();
     let mut failed = Vec::new();
@@ -589,7 +616,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         results.before_after = Some(before_after(&results.bars));
     }
     if plan.runs(Stage::Diagnose) {
-        results.diagnosis = Some(run_diagnose(plan, &results.bars));
+        results.diagnosis = Some(timed("diagnose", || run_diagnose(plan, &results.bars)));
     }
     if plan.runs(Stage::Calibrate) {
         results.calibration = Some(run_calibrate(&results));
@@ -1032,21 +1059,33 @@ fn before_after(bars: &[BarOutcome]) -> BeforeAfter {
 
 /// Diagnose every bar, rank the candidate effects, run forward selection.
 fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
-    let progress = crate::progress::bar(bars.len() as u64, "diagnose");
-    let diagnoses: Vec<BarDiagnosis> = bars
-        .par_iter()
-        .map(|o| {
-            let d = diagnose::diagnose_bar(&o.series, &o.model);
-            progress.inc(1);
-            d
-        })
-        .collect();
-    progress.finish_and_clear();
     let pairs: Vec<(&BarSeries, &BarModel)> = bars.iter().map(|o| (&o.series, &o.model)).collect();
-    let (mut candidates, unavailable) = diagnose::evaluate_candidates(
-        &pairs,
-        &diagnose::candidate_effects(&plan.effects, &diagnoses),
-    );
+    let bases = timed("diagnose: linearise", || diagnose::screen_bases(&pairs));
+    let progress = crate::progress::bar(bars.len() as u64, "diagnose");
+    let diagnoses: Vec<BarDiagnosis> = timed("diagnose: channels", || {
+        pairs
+            .par_iter()
+            .zip(bases.par_iter())
+            .map(|((s, m), b)| {
+                let d = diagnose::diagnose_bar(s, m, b.as_ref());
+                progress.inc(1);
+                d
+            })
+            .collect()
+    });
+    progress.finish_and_clear();
+    let tolerance_um = plan.diagnose.tolerance_um.unwrap_or(plan.matching.limit_um);
+    let criteria = timed("diagnose: noise floor", || {
+        diagnose::Criteria::for_fleet(&bases, tolerance_um)
+    });
+    let (mut candidates, unavailable) = timed("diagnose: candidates", || {
+        diagnose::evaluate_candidates(
+            &pairs,
+            &bases,
+            &diagnose::candidate_effects(&plan.effects, &diagnoses),
+            &criteria,
+        )
+    });
     // Sensors are the campaign's: profile them on the first bar's timeline.
     let sensors = bars
         .first()
@@ -1055,29 +1094,37 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
     diagnose::explain_candidates(&mut candidates, &sensors);
     let series: Vec<&BarSeries> = bars.iter().map(|o| &o.series).collect();
     let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
-    let (ledger, _) = diagnose::forward_selection(
-        &series,
-        models,
-        &candidates,
-        plan.diagnose.forward_steps,
-        plan.diagnose.beam,
-    );
-    let bar_ledgers = bars
-        .par_iter()
-        .zip(&diagnoses)
-        .map(|(o, d)| {
-            diagnose::forward_selection_of_bar(
-                &o.series,
-                o.model.clone(),
-                d,
-                plan.diagnose.forward_steps,
-                plan.diagnose.beam,
-            )
-        })
-        .collect();
+    let (ledger, _) = timed("diagnose: fleet forward selection", || {
+        diagnose::forward_selection(
+            &series,
+            models,
+            &candidates,
+            plan.diagnose.forward_steps,
+            plan.diagnose.beam,
+            &criteria,
+        )
+    });
+    let bar_ledgers = timed("diagnose: per-bar forward selection", || {
+        bars.par_iter()
+            .zip(&bases)
+            .zip(&diagnoses)
+            .map(|((o, b), d)| {
+                diagnose::forward_selection_of_bar(
+                    &o.series,
+                    o.model.clone(),
+                    b,
+                    d,
+                    plan.diagnose.forward_steps,
+                    plan.diagnose.beam,
+                    &criteria,
+                )
+            })
+            .collect()
+    });
     Diagnosis {
         bars: diagnoses,
         sensors,
+        criteria,
         candidates,
         unavailable,
         ledger,
@@ -1095,6 +1142,11 @@ pub struct DiagnosisRecord<'a> {
     pub bars: Vec<BarDiagnosisRecord<'a>>,
     /// What each temperature sensor plausibly measures, judged from its signal.
     pub sensors: &'a [diagnose::sensors::SensorProfile],
+    /// When a candidate is proposed: significant and removing at least `min_gain_um` of the
+    /// fleet RMS.
+    pub criteria: &'a diagnose::Criteria,
+    /// Every candidate: `verdict` proposed / immaterial / not_significant / screened_out, with
+    /// its `reason`.
     pub candidates: &'a [Candidate],
     /// Candidates that could not be fitted on any bar, with the reason.
     pub unavailable: &'a [diagnose::Unavailable],
@@ -1162,6 +1214,7 @@ pub fn diagnosis_record<'a>(
             })
             .collect(),
         sensors: &d.sensors,
+        criteria: &d.criteria,
         candidates: &d.candidates,
         unavailable: &d.unavailable,
         ledger: &d.ledger,

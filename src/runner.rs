@@ -28,13 +28,17 @@ pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
 
 /// Run `plan`: ingest, analyse, write the output folder.
 pub fn run(plan: &RunPlan) -> Result<RunStatus> {
-    let logs = io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)?;
+    let logs = pipeline::timed("ingest", || {
+        io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
+    })?;
     let out = plan
         .out_dir
         .clone()
         .unwrap_or_else(|| PathBuf::from("reports").join(&logs.campaign.id));
     let results = pipeline::analyse(plan, logs);
-    write_atomically(&out, |tmp| write_outputs(plan, &results, tmp))?;
+    pipeline::timed("write outputs", || {
+        write_atomically(&out, |tmp| write_outputs(plan, &results, tmp))
+    })?;
     Ok(match results.failed.len() {
         0 => RunStatus::AllBars,
         n => RunStatus::SomeBarsFailed(n),

@@ -1,13 +1,21 @@
 //! Where the model fails, which physical effect is missing, and what adding it buys.
 //!
 //! Per bar: residual statistics ([`residual`]) and a ranking of every channel the campaign
-//! offers by how much of the residual its best first-order response explains. Over the fleet:
-//! every catalogue effect not in the model, plus a generic `lag:CHANNEL` term for the channels
-//! that explain the most, is added in turn and fitted; candidates are ranked by the fleet's
-//! ΔBIC with a likelihood-ratio test in which each residual has its own AR(1)-plus-white-noise
-//! model ([`noise`]), so that a slow residual wander fitted by a smooth curve is not taken for
-//! an effect.
-//! [`forward_selection`] repeats that, adding the best significant candidate until none is left
+//! offers by how much of the residual its best first-order response would remove.
+//! Over the fleet, every catalogue effect not in the model, plus a generic `lag:CHANNEL` term
+//! for the channels that explain the most, is first **screened** ([`screen`]): a score-test
+//! prediction, from the current model linearised at its estimates, of what adding it would
+//! remove. Only the candidates whose predicted gain could be material get an **exact refit**;
+//! they are ranked by the fleet's ΔBIC with a likelihood-ratio test in which each residual has
+//! its own AR(1)-plus-white-noise model ([`noise`]), so that a slow residual wander fitted by a
+//! smooth curve is not taken for an effect.
+//!
+//! A candidate is **proposed** only when it is significant (the test, 5 % family-wise) *and*
+//! material: the fleet RMS it removes is at least [`Criteria::min_gain_um`], a share of the
+//! reading-noise floor and of the tolerance the bars serve. Detectable but immaterial structure
+//! is reported as such, never as a missing effect.
+//!
+//! [`forward_selection`] repeats that, adding the best proposed candidate until none is left
 //! (keeping the few best paths, a beam, so that a greedy first step does not lock it in);
 //! [`forward_selection_of_bar`] does the same for one bar on its own channels and tests (bars
 //! that are different physical objects, like the displacement axes of a machine tool, need
@@ -18,17 +26,18 @@
 pub mod explain;
 pub mod noise;
 pub mod residual;
+pub mod screen;
 pub mod sensors;
 
 use rayon::prelude::*;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use crate::fit::{self, FitOptions, Separable};
 use crate::identify::{identify_from, BarModel};
-use crate::model::{channels, Effect, ThermalProblem, Transform, CATALOGUE};
+use crate::model::{channels, Effect, Transform, CATALOGUE};
 use crate::series::BarSeries;
 use residual::{residual_stats, ResidualStats};
+use screen::{Screen, ScreenBase};
 
 /// Family-wise significance level of one selection step: each candidate is tested at
 /// `ALPHA / number of candidates` (Bonferroni). 5 %, the level of CTSM-R's likelihood-ratio
@@ -37,14 +46,75 @@ use residual::{residual_stats, ResidualStats};
 pub const ALPHA: f64 = 0.05;
 /// How many of the best-explaining channels get a generic `lag:` candidate.
 pub const CHANNEL_CANDIDATES: usize = 10;
+/// A candidate is material when the fleet RMS it removes is at least this share of the
+/// reading-noise floor ...
+pub const MATERIAL_SHARE_OF_NOISE: f64 = 0.05;
+/// ... and at least this share of the tolerance the bars serve (`[diagnose] tolerance_um`,
+/// by default the matching limit): 5 nm for the patent's ±1 µm.
+pub const MATERIAL_SHARE_OF_TOLERANCE: f64 = 0.005;
+/// A candidate is refitted exactly when its screened (linearised) gain is at least this share
+/// of the materiality threshold, or when its screened shift of the model's own terms is and its
+/// score test is significant: the linearised refit can underestimate what the exact refit
+/// removes, never by half on the hidden-effect campaigns of the tests.
+pub const SCREEN_SHARE: f64 = 0.5;
+
+/// When a candidate is worth proposing.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Criteria {
+    /// Reading-noise floor of the fleet (µm): the quadratic mean over bars of the white-noise
+    /// standard deviation under each residual ([`ScreenBase::white_noise_variance`]).
+    pub noise_floor_um: f64,
+    /// Tolerance the bars serve (µm).
+    pub tolerance_um: f64,
+    /// The smallest change that matters (µm):
+    /// `max(MATERIAL_SHARE_OF_NOISE × noise floor, MATERIAL_SHARE_OF_TOLERANCE × tolerance)`,
+    /// for the fleet RMS a candidate removes and for how much it moves the model's own terms.
+    pub min_gain_um: f64,
+    /// Family-wise level of the likelihood-ratio tests.
+    pub alpha: f64,
+}
+
+impl Criteria {
+    pub fn new(noise_floor_um: f64, tolerance_um: f64) -> Criteria {
+        Criteria {
+            noise_floor_um,
+            tolerance_um,
+            min_gain_um: (MATERIAL_SHARE_OF_NOISE * noise_floor_um)
+                .max(MATERIAL_SHARE_OF_TOLERANCE * tolerance_um),
+            alpha: ALPHA,
+        }
+    }
+
+    /// Criteria for a fleet's models ([`screen_bases`]): the noise floor from their residuals.
+    pub fn for_fleet(bases: &[Option<ScreenBase>], tolerance_um: f64) -> Criteria {
+        let white: Vec<f64> = bases
+            .par_iter()
+            .flatten()
+            .map(ScreenBase::white_noise_variance)
+            .filter(|v| v.is_finite())
+            .collect();
+        let floor = if white.is_empty() {
+            0.0
+        } else {
+            (white.iter().sum::<f64>() / white.len() as f64).sqrt()
+        };
+        Criteria::new(floor, tolerance_um)
+    }
+
+    /// Whether a candidate that removes `gain_um` of the fleet RMS and moves the model's own
+    /// terms' prediction by `shift_um` (fleet RMS) matters.
+    pub fn is_material(&self, gain_um: f64, shift_um: f64) -> bool {
+        gain_um >= self.min_gain_um || shift_um >= self.min_gain_um
+    }
+}
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ChannelScore {
     pub channel: String,
-    /// Fraction of the residual variance its best first-order response removes when added to the
-    /// model (a linearised refit, see `score_channel`).
+    /// Fraction of the residual's RSS its best first-order response removes when added to the
+    /// model (the linearised refit of [`screen`]).
     pub explained_fraction: f64,
-    /// Its time constant, s (NaN for impulse-free level channels that failed to fit).
+    /// Its time constant, s (NaN when it could not be screened).
     pub tau_s: f64,
 }
 
@@ -64,37 +134,99 @@ pub struct BarDiagnosis {
 pub struct CandidateOnBar {
     pub bar: String,
     pub rms_before_um: f64,
-    pub rms_after_um: f64,
-    pub delta_bic: f64,
-    pub p_value: f64,
+    /// The RMS after adding it, predicted by the screen (linearised refit).
+    pub screened_rms_after_um: f64,
+    /// How much adding it moves the model's own terms' prediction, RMS (µm, screened:
+    /// [`Screen::shift_rms_um`]).
+    pub screened_shift_um: f64,
+    /// Exact refit (absent when the candidate was screened out).
+    pub rms_after_um: Option<f64>,
+    pub delta_bic: Option<f64>,
+    pub p_value: Option<f64>,
+    /// Significant on this bar alone (its own test at the family-wise threshold, ΔBIC < 0).
     pub significant: bool,
     /// Why it could not be fitted on this bar, if so.
     pub error: Option<String>,
+}
+
+/// What the diagnosis concludes of a candidate.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq, PartialOrd, Ord)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// Significant and material: the diagnosis proposes adding it.
+    Proposed,
+    /// Significant, but what it removes is below the materiality threshold: detectable
+    /// structure that does not matter against the noise floor and the tolerance.
+    Immaterial,
+    /// Refitted exactly, not significant.
+    NotSignificant,
+    /// Not refitted: its screened gain cannot be material.
+    ScreenedOut,
 }
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Candidate {
     /// Accepted verbatim by `--add-effect`.
     pub effect: String,
+    pub verdict: Verdict,
+    /// The verdict in words, with the numbers it rests on.
+    pub reason: String,
+    /// Fleet RMS (quadratic mean over the bars that could fit it) before adding it.
     pub rms_before_um: f64,
-    pub rms_after_um: f64,
-    pub delta_bic: f64,
-    pub p_value: f64,
+    /// Fleet RMS after adding it as the screen predicts it.
+    pub screened_rms_after_um: f64,
+    /// How much adding it moves the model's own terms' prediction (quadratic mean over bars of
+    /// [`Screen::shift_rms_um`], µm).
+    pub screened_shift_um: f64,
+    /// Fleet RMS after the exact refit (absent when screened out).
+    pub rms_after_um: Option<f64>,
+    pub delta_bic: Option<f64>,
+    /// Fleet-wide p-value (Fisher's method over the bars' likelihood-ratio tests).
+    pub p_value: Option<f64>,
     pub bars_improved: usize,
+    /// Statistically significant (5 % family-wise).
     pub significant: bool,
+    /// Its RMS reduction, or how much it moves the model's own terms, reaches
+    /// [`Criteria::min_gain_um`].
+    pub material: bool,
     pub explanation: String,
     pub per_bar: Vec<CandidateOnBar>,
 }
 
-/// Diagnose one bar's fit: residual statistics and the channel ranking.
-pub fn diagnose_bar(series: &BarSeries, model: &BarModel) -> BarDiagnosis {
+impl Candidate {
+    /// Proposed as a missing effect: significant and material.
+    pub fn proposed(&self) -> bool {
+        self.verdict == Verdict::Proposed
+    }
+    /// Fleet RMS it removes: exact when refitted, else as screened.
+    pub fn gain_um(&self) -> f64 {
+        self.rms_before_um - self.rms_after_um.unwrap_or(self.screened_rms_after_um)
+    }
+}
+
+/// Each bar's model linearised for screening ([`ScreenBase`]); `None` where it cannot be.
+pub fn screen_bases(bars: &[(&BarSeries, &BarModel)]) -> Vec<Option<ScreenBase>> {
+    bars.par_iter()
+        .map(|(s, m)| ScreenBase::new(s, m))
+        .collect()
+}
+
+/// Diagnose one bar's fit: residual statistics and the channel ranking (`base`: the model
+/// linearised, [`screen_bases`]; without it no channel is ranked).
+pub fn diagnose_bar(
+    series: &BarSeries,
+    model: &BarModel,
+    base: Option<&ScreenBase>,
+) -> BarDiagnosis {
     let y: Vec<f64> = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
     let stats = residual_stats(&y, &model.residuals_um, model.n_params);
-    let directions = model_directions(series, model);
-    let mut channels: Vec<ChannelScore> = channels::available(series)
-        .into_iter()
-        .filter_map(|ch| score_channel(series, &model.residuals_um, directions.as_ref(), &ch))
-        .collect();
+    let mut channels: Vec<ChannelScore> = match base {
+        Some(base) => channels::available(series)
+            .into_iter()
+            .filter_map(|ch| score_channel(base, ch))
+            .collect(),
+        None => Vec::new(),
+    };
     channels.sort_by(|a, b| {
         b.explained_fraction
             .total_cmp(&a.explained_fraction)
@@ -110,53 +242,27 @@ pub fn diagnose_bar(series: &BarSeries, model: &BarModel) -> BarDiagnosis {
     }
 }
 
-/// The directions a refit of `model` can move in on the fitted samples: its Jacobian in all its
-/// parameters (zeros projected out), `None` if it cannot be formed.
-fn model_directions(series: &BarSeries, model: &BarModel) -> Option<nalgebra::DMatrix<f64>> {
-    let problem = ThermalProblem::new(series, &model.effects).ok()?;
-    fit::jacobian_at(&problem, &model.theta)
-}
-
-/// Fraction of the residual variance removed by the channel's best lag when the model is
-/// refitted with it (linearised: the channel's column is taken orthogonal to the model's
-/// Jacobian `directions`; zeros per segment refitted). Without `directions`, the residual alone.
-fn score_channel(
-    series: &BarSeries,
-    residual: &[f64],
-    directions: Option<&nalgebra::DMatrix<f64>>,
-    channel: &str,
-) -> Option<ChannelScore> {
+/// Fraction of the residual's RSS removed by the channel's best lag when the model is refitted
+/// with it (the linearised refit of [`screen`]).
+fn score_channel(base: &ScreenBase, channel: String) -> Option<ChannelScore> {
     let effect = Effect::Channel {
         transform: Transform::Lag,
-        channel: channel.to_string(),
+        channel,
         tau0_s: None,
     };
-    let problem = ThermalProblem::new(series, std::slice::from_ref(&effect))
-        .ok()?
-        .with_observations(residual.to_vec());
-    // The residual's own RSS as the problem counts it (weighted, plus any within-bin scatter).
-    let rss0: f64 =
-        problem.observations().iter().map(|r| r * r).sum::<f64>() + problem.unexplained_rss();
-    let options = FitOptions {
-        absorbed_params: problem.n_zeros(),
-        ..FitOptions::default()
+    let s = base.screen(&effect).ok()?;
+    let Effect::Channel { channel, .. } = effect else {
+        unreachable!("built as a channel term above")
     };
-    let theta0 = problem.theta0();
-    let fit = match directions {
-        Some(d) => fit::fit(&fit::Orthogonalised::new(&problem, d), &theta0, &options),
-        None => fit::fit(&problem, &theta0, &options),
-    }
-    .ok()?;
-    let explained_fraction = if rss0 > 0.0 {
-        (1.0 - fit.rss / rss0).max(0.0)
-    } else {
-        0.0
-    };
-    let tau_s = fit.values.last().map_or(f64::NAN, |t| t.exp());
+    let rss = base.rss_um2();
     Some(ChannelScore {
-        channel: channel.to_string(),
-        explained_fraction,
-        tau_s,
+        channel,
+        explained_fraction: if rss > 0.0 {
+            s.delta_rss_um2 / rss
+        } else {
+            0.0
+        },
+        tau_s: s.tau_s.unwrap_or(f64::NAN),
     })
 }
 
@@ -206,51 +312,181 @@ pub struct Unavailable {
     pub reason: String,
 }
 
-/// Fit every candidate on every bar; rank the ones that could be fitted best first (by the
-/// fleet's ΔBIC) and list the others apart.
+/// Screen every candidate on every bar (`bases`: the bars' models linearised,
+/// [`screen_bases`]), refit exactly those whose screened gain could be material, test them, and
+/// rank them: proposed first, then the other refitted ones (both by the fleet's ΔBIC), then the
+/// screened-out ones (by screened gain).
+/// Candidates that could not be built on any bar are listed apart.
 pub fn evaluate_candidates(
     bars: &[(&BarSeries, &BarModel)],
+    bases: &[Option<ScreenBase>],
     candidates: &[Effect],
+    criteria: &Criteria,
 ) -> (Vec<Candidate>, Vec<Unavailable>) {
-    let n_candidates = candidates.len().max(1);
-    let threshold = ALPHA / n_candidates as f64;
-    // The current models' noise likelihoods, shared by every candidate's test.
-    let base_log_likelihood: Vec<f64> = bars
-        .par_iter()
-        .map(|(s, m)| noise::fit_noise(&s.weighted_residuals(&m.residuals_um)).log_likelihood)
-        .collect();
-    let out: Vec<Candidate> = candidates
+    let threshold = criteria.alpha / candidates.len().max(1) as f64;
+    let screens: Vec<Vec<Result<Screen, String>>> = candidates
         .par_iter()
         .map(|effect| {
-            let per_bar: Vec<CandidateOnBar> = bars
+            bases
                 .iter()
-                .zip(&base_log_likelihood)
-                .map(|((s, m), &l0)| candidate_on_bar(s, m, l0, effect, threshold))
-                .collect();
-            summarise_candidate(effect, per_bar, threshold)
+                .map(|b| match b {
+                    Some(b) => b.screen(effect),
+                    None => Err("the model could not be linearised on this bar".into()),
+                })
+                .collect()
         })
         .collect();
-    let (mut ranked, unfit): (Vec<Candidate>, Vec<Candidate>) = out
-        .into_iter()
-        .partition(|c| c.per_bar.iter().any(|b| b.error.is_none()));
+    let mut unavailable = Vec::new();
+    // Per candidate that could be built somewhere: what it could matter by, as screened (a
+    // shift of the model's own terms counts only where the score test finds the term).
+    let mut screened: Vec<(usize, f64)> = Vec::new();
+    for (c, per_bar) in screens.iter().enumerate() {
+        if let Some((gain, shift, p)) = screened_change(bars, per_bar) {
+            screened.push((c, if p < threshold { gain.max(shift) } else { gain }));
+        } else {
+            unavailable.push(Unavailable {
+                effect: candidates[c].name(),
+                reason: per_bar
+                    .iter()
+                    .find_map(|s| s.as_ref().err().cloned())
+                    .unwrap_or_default(),
+            });
+        }
+    }
+    screened.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let refit: Vec<usize> = screened
+        .iter()
+        .filter(|(_, gain)| *gain >= SCREEN_SHARE * criteria.min_gain_um)
+        .map(|(c, _)| *c)
+        .collect();
+    let exact = exact_refits(bars, bases, &refit, candidates, &screens, threshold);
+    let mut ranked: Vec<Candidate> = screened
+        .iter()
+        .map(|&(c, _)| {
+            let per_bar = match refit.iter().position(|&r| r == c) {
+                Some(k) => exact[k].clone(),
+                None => screened_only(bars, &screens[c]),
+            };
+            summarise_candidate(&candidates[c], per_bar, threshold, criteria)
+        })
+        .collect();
     ranked.sort_by(|a, b| {
-        a.delta_bic
-            .total_cmp(&b.delta_bic)
+        a.verdict
+            .min(Verdict::NotSignificant)
+            .cmp(&b.verdict.min(Verdict::NotSignificant))
+            .then_with(|| match (a.delta_bic, b.delta_bic) {
+                (Some(x), Some(y)) => x.total_cmp(&y),
+                _ => b.gain_um().total_cmp(&a.gain_um()),
+            })
             .then_with(|| a.effect.cmp(&b.effect))
     });
     prefer_named_effects(&mut ranked);
-    let unavailable = unfit
-        .into_iter()
-        .map(|c| Unavailable {
-            reason: c
-                .per_bar
-                .iter()
-                .find_map(|b| b.error.clone())
-                .unwrap_or_default(),
-            effect: c.effect,
+    (ranked, unavailable)
+}
+
+/// The fleet RMS a candidate removes, how much it moves the model's own terms (quadratic means
+/// over the bars where it could be built) and the p-value of its fleet score test (the bars'
+/// statistics summed), as screened; `None` if it could be built on no bar.
+fn screened_change(
+    bars: &[(&BarSeries, &BarModel)],
+    per_bar: &[Result<Screen, String>],
+) -> Option<(f64, f64, f64)> {
+    let (mut before, mut after, mut shift, mut n) = (0.0, 0.0, 0.0, 0usize);
+    let (mut score, mut dof) = (0.0, 0usize);
+    for ((_, m), s) in bars.iter().zip(per_bar) {
+        if let Ok(s) = s {
+            before += m.rms_um.powi(2);
+            after += s.rms_after_um.powi(2);
+            shift += s.shift_rms_um.powi(2);
+            score += s.score;
+            dof += s.dof.max(1);
+            n += 1;
+        }
+    }
+    let mean = |v: f64| (v / n as f64).sqrt();
+    let p = ChiSquared::new(dof.max(1) as f64).map_or(1.0, |d| 1.0 - d.cdf(score));
+    (n > 0).then(|| ((mean(before) - mean(after)).max(0.0), mean(shift), p))
+}
+
+/// Exact refits of the candidates `refit` (indices into `candidates`) on every bar where they
+/// could be screened, with their likelihood-ratio tests.
+fn exact_refits(
+    bars: &[(&BarSeries, &BarModel)],
+    bases: &[Option<ScreenBase>],
+    refit: &[usize],
+    candidates: &[Effect],
+    screens: &[Vec<Result<Screen, String>>],
+    threshold: f64,
+) -> Vec<Vec<CandidateOnBar>> {
+    if refit.is_empty() {
+        return Vec::new();
+    }
+    // The current models' noise likelihoods, shared by every candidate's test (a bar without a
+    // base has no screen either, so it is never refitted).
+    let base_log_likelihood: Vec<f64> = bases
+        .par_iter()
+        .map(|b| b.as_ref().map_or(f64::NAN, |b| b.noise().log_likelihood))
+        .collect();
+    let jobs: Vec<(usize, usize)> = refit
+        .iter()
+        .flat_map(|&c| (0..bars.len()).map(move |b| (c, b)))
+        .collect();
+    let done: Vec<CandidateOnBar> = jobs
+        .par_iter()
+        .map(|&(c, b)| {
+            let (s, m) = bars[b];
+            match &screens[c][b] {
+                Ok(screen) => candidate_on_bar(
+                    s,
+                    m,
+                    base_log_likelihood[b],
+                    &candidates[c],
+                    screen,
+                    threshold,
+                ),
+                Err(e) => unfit_on_bar(m, e.clone()),
+            }
         })
         .collect();
-    (ranked, unavailable)
+    done.chunks(bars.len().max(1)).map(<[_]>::to_vec).collect()
+}
+
+/// A candidate's per-bar results when it was screened out (no refit).
+fn screened_only(
+    bars: &[(&BarSeries, &BarModel)],
+    screens: &[Result<Screen, String>],
+) -> Vec<CandidateOnBar> {
+    bars.iter()
+        .zip(screens)
+        .map(|((_, m), s)| match s {
+            Ok(s) => CandidateOnBar {
+                bar: m.bar.clone(),
+                rms_before_um: m.rms_um,
+                screened_rms_after_um: s.rms_after_um,
+                screened_shift_um: s.shift_rms_um,
+                rms_after_um: None,
+                delta_bic: None,
+                p_value: None,
+                significant: false,
+                error: None,
+            },
+            Err(e) => unfit_on_bar(m, e.clone()),
+        })
+        .collect()
+}
+
+fn unfit_on_bar(base: &BarModel, error: String) -> CandidateOnBar {
+    CandidateOnBar {
+        bar: base.bar.clone(),
+        rms_before_um: base.rms_um,
+        screened_rms_after_um: base.rms_um,
+        screened_shift_um: 0.0,
+        rms_after_um: None,
+        delta_bic: None,
+        p_value: None,
+        significant: false,
+        error: Some(error),
+    }
 }
 
 fn candidate_on_bar(
@@ -258,27 +494,20 @@ fn candidate_on_bar(
     base: &BarModel,
     base_log_likelihood: f64,
     effect: &Effect,
+    screen: &Screen,
     threshold: f64,
 ) -> CandidateOnBar {
     let mut effects = base.effects.clone();
     effects.push(effect.clone());
-    let unfit = |error: String| CandidateOnBar {
-        bar: base.bar.clone(),
-        rms_before_um: base.rms_um,
-        rms_after_um: base.rms_um,
-        delta_bic: 0.0,
-        p_value: 1.0,
-        significant: false,
-        error: Some(error),
-    };
     let extended = match identify_from(series, &effects, Some(base)) {
         Ok(m) => m,
-        Err(e) => return unfit(e.to_string()),
+        Err(e) => return unfit_on_bar(base, e.to_string()),
     };
     if let Some((a, b, r)) = unidentifiable_pair(base, &extended) {
-        return unfit(format!(
-            "not identifiable on this bar: {a} and {b} correlate at {r:.4}"
-        ));
+        return unfit_on_bar(
+            base,
+            format!("not identifiable on this bar: {a} and {b} correlate at {r:.4}"),
+        );
     }
     let added = extended.n_params.saturating_sub(base.n_params).max(1);
     let p_value = lr_p_value(base_log_likelihood, series, &extended, added);
@@ -286,26 +515,32 @@ fn candidate_on_bar(
     CandidateOnBar {
         bar: base.bar.clone(),
         rms_before_um: base.rms_um,
-        rms_after_um: extended.rms_um,
-        delta_bic,
-        p_value,
+        screened_rms_after_um: screen.rms_after_um,
+        screened_shift_um: screen.shift_rms_um,
+        rms_after_um: Some(extended.rms_um),
+        delta_bic: Some(delta_bic),
+        p_value: Some(p_value),
         significant: p_value < threshold && delta_bic < 0.0,
         error: None,
     }
 }
 
 /// When a generic channel term and a catalogue effect fit equally well (ΔBIC within 2, "not
-/// worth more than a bare mention" on Kass & Raftery's scale), the named physical effect goes
-/// first: `lag:event:head_power` and `head_heating` are the same model, and the user should be
-/// told the physics.
+/// worth more than a bare mention" on Kass & Raftery's scale) and share a verdict, the named
+/// physical effect goes first: `lag:event:head_power` and `head_heating` are the same model,
+/// and the user should be told the physics.
 fn prefer_named_effects(ranked: &mut [Candidate]) {
     let generic = |c: &Candidate| c.effect.contains(':');
+    let close = |a: &Candidate, b: &Candidate| match (a.delta_bic, b.delta_bic) {
+        (Some(x), Some(y)) => a.verdict == b.verdict && (x - y).abs() < 2.0,
+        _ => false,
+    };
     for i in 1..ranked.len() {
         let mut j = i;
         while j > 0
             && generic(&ranked[j - 1])
             && !generic(&ranked[j])
-            && (ranked[j].delta_bic - ranked[j - 1].delta_bic).abs() < 2.0
+            && close(&ranked[j], &ranked[j - 1])
         {
             ranked.swap(j - 1, j);
             j -= 1;
@@ -359,7 +594,12 @@ pub fn lr_p_value(
         .unwrap_or(f64::NAN)
 }
 
-fn summarise_candidate(effect: &Effect, per_bar: Vec<CandidateOnBar>, threshold: f64) -> Candidate {
+fn summarise_candidate(
+    effect: &Effect,
+    per_bar: Vec<CandidateOnBar>,
+    threshold: f64,
+    criteria: &Criteria,
+) -> Candidate {
     let fitted: Vec<&CandidateOnBar> = per_bar.iter().filter(|c| c.error.is_none()).collect();
     let fleet_rms = |f: &dyn Fn(&CandidateOnBar) -> f64| {
         if fitted.is_empty() {
@@ -368,35 +608,96 @@ fn summarise_candidate(effect: &Effect, per_bar: Vec<CandidateOnBar>, threshold:
         (fitted.iter().map(|c| f(c).powi(2)).sum::<f64>() / fitted.len() as f64).sqrt()
     };
     let rms_before_um = fleet_rms(&|c| c.rms_before_um);
-    let rms_after_um = fleet_rms(&|c| c.rms_after_um);
-    let delta_bic: f64 = fitted.iter().map(|c| c.delta_bic).sum();
-    // Fisher's method combines the bars' p-values into one fleet-wide test.
-    let p_value = if fitted.is_empty() {
-        1.0
-    } else {
-        let x2: f64 = fitted
-            .iter()
-            .map(|c| -2.0 * c.p_value.max(1e-300).ln())
-            .sum();
-        ChiSquared::new(2.0 * fitted.len() as f64)
-            .map(|d| 1.0 - d.cdf(x2))
-            .unwrap_or(f64::NAN)
-    };
-    let bars_improved = fitted.iter().filter(|c| c.significant).count();
-    Candidate {
+    let screened_rms_after_um = fleet_rms(&|c| c.screened_rms_after_um);
+    let screened_shift_um = fleet_rms(&|c| c.screened_shift_um);
+    let refitted = !fitted.is_empty() && fitted.iter().all(|c| c.rms_after_um.is_some());
+    let mut candidate = Candidate {
         effect: effect.name(),
+        verdict: Verdict::ScreenedOut,
+        reason: String::new(),
         rms_before_um,
-        rms_after_um,
-        delta_bic,
-        p_value,
-        bars_improved,
-        significant: !fitted.is_empty()
-            && p_value < threshold
-            && delta_bic < 0.0
-            && bars_improved > 0,
+        screened_rms_after_um,
+        screened_shift_um,
+        rms_after_um: None,
+        delta_bic: None,
+        p_value: None,
+        bars_improved: 0,
+        significant: false,
+        material: false,
         explanation: explain::explain(effect),
-        per_bar,
+        per_bar: Vec::new(),
+    };
+    if !refitted {
+        let gain = rms_before_um - screened_rms_after_um;
+        candidate.reason = format!(
+            "screened out: the linearised refit removes {} µm of the fleet RMS and moves the model's own terms by {} µm, both below {} of the materiality threshold {} µm",
+            fmt_um(gain),
+            fmt_um(screened_shift_um),
+            SCREEN_SHARE,
+            fmt_um(criteria.min_gain_um)
+        );
+        candidate.per_bar = per_bar;
+        return candidate;
     }
+    let rms_after_um = fleet_rms(&|c| c.rms_after_um.unwrap_or(c.rms_before_um));
+    let delta_bic: f64 = fitted.iter().filter_map(|c| c.delta_bic).sum();
+    // Fisher's method combines the bars' p-values into one fleet-wide test.
+    let x2: f64 = fitted
+        .iter()
+        .map(|c| -2.0 * c.p_value.unwrap_or(1.0).max(1e-300).ln())
+        .sum();
+    let p_value = ChiSquared::new(2.0 * fitted.len() as f64)
+        .map(|d| 1.0 - d.cdf(x2))
+        .unwrap_or(f64::NAN);
+    let bars_improved = fitted.iter().filter(|c| c.significant).count();
+    let significant = p_value < threshold && delta_bic < 0.0 && bars_improved > 0;
+    let gain = rms_before_um - rms_after_um;
+    let material = criteria.is_material(gain, screened_shift_um);
+    let (verdict, reason) = match (significant, material) {
+        (true, true) => (
+            Verdict::Proposed,
+            format!(
+                "significant (p = {p_value:.1e} < {threshold:.1e}) and material: removes {} µm of the fleet RMS and moves the model's own terms by {} µm (threshold {} µm)",
+                fmt_um(gain),
+                fmt_um(screened_shift_um),
+                fmt_um(criteria.min_gain_um)
+            ),
+        ),
+        (true, false) => (
+            Verdict::Immaterial,
+            format!(
+                "detectable but immaterial: significant (p = {p_value:.1e}), but it removes only {} µm of the fleet RMS and moves the model's own terms by {} µm, below the materiality threshold {} µm",
+                fmt_um(gain),
+                fmt_um(screened_shift_um),
+                fmt_um(criteria.min_gain_um)
+            ),
+        ),
+        (false, _) => (
+            Verdict::NotSignificant,
+            format!(
+                "not significant: p = {p_value:.1e} against {threshold:.1e} (5 % family-wise), ΔBIC {delta_bic:.1}"
+            ),
+        ),
+    };
+    Candidate {
+        verdict,
+        reason,
+        rms_after_um: Some(rms_after_um),
+        delta_bic: Some(delta_bic),
+        p_value: Some(p_value),
+        bars_improved,
+        significant,
+        material,
+        per_bar,
+        ..candidate
+    }
+}
+
+/// A length in µm with four significant digits (a reason's numbers).
+fn fmt_um(v: f64) -> String {
+    format!("{v:.3e}")
+        .parse::<f64>()
+        .map_or_else(|_| format!("{v}"), |x| format!("{x}"))
 }
 
 /// One step of forward selection.
@@ -407,8 +708,9 @@ pub struct LedgerStep {
     pub effects: Vec<String>,
     pub rms_um: Vec<(String, f64)>,
     pub fleet_rms_um: f64,
-    pub delta_bic: f64,
-    pub p_value: f64,
+    /// The added effect's ΔBIC and p-value (absent for the starting model).
+    pub delta_bic: Option<f64>,
+    pub p_value: Option<f64>,
 }
 
 /// One path through forward selection: its ledger, its models and the sum of its steps' ΔBIC.
@@ -421,11 +723,13 @@ struct SelectionPath {
     finished: bool,
 }
 
-/// Forward selection: add the best significant candidate (fleet-wide) until none is left or
-/// `max_steps` effects were added. Returns the ledger and the final models.
+/// Forward selection: add the best proposed candidate (fleet-wide: significant and material by
+/// `criteria`) until none is left or `max_steps` effects were added. Returns the ledger and the
+/// final models. Each step screens every candidate and refits exactly only those that could be
+/// material ([`evaluate_candidates`]).
 ///
 /// With `beam > 1` it keeps the `beam` best paths at each step (each extended by its own best
-/// significant candidates, ranked by the path's total ΔBIC) and returns the best path at the
+/// proposed candidates, ranked by the path's total ΔBIC) and returns the best path at the
 /// end: a greedy first step that fits well alone can lead to a worse three-term model than the
 /// runner-up. `beam = 1` is plain greedy forward selection.
 /// `first_candidates` are the candidates already ranked for `start` (reused for the first step).
@@ -435,10 +739,11 @@ pub fn forward_selection(
     first_candidates: &[Candidate],
     max_steps: usize,
     beam: usize,
+    criteria: &Criteria,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let beam = beam.max(1);
     let mut paths = vec![SelectionPath {
-        ledger: vec![ledger_step("base".into(), &start, f64::NAN, f64::NAN)],
+        ledger: vec![ledger_step("base".into(), &start, None, None)],
         models: start,
         delta_bic: 0.0,
         finished: false,
@@ -450,27 +755,26 @@ pub fn forward_selection(
             let candidates = if step == 0 {
                 first_candidates.to_vec()
             } else {
-                rank_candidates_for(series, &path.models)
+                rank_candidates_for(series, &path.models, criteria)
             };
-            let significant: Vec<Candidate> = candidates
+            let proposed: Vec<Candidate> = candidates
                 .into_iter()
-                .filter(|c| c.significant && Effect::parse(&c.effect).is_ok())
+                .filter(|c| c.proposed() && Effect::parse(&c.effect).is_ok())
                 .take(beam)
                 .collect();
-            if significant.is_empty() {
+            if proposed.is_empty() {
                 let mut done = path.clone();
                 done.finished = true;
                 next.push(done);
             }
-            extensions.extend(significant.into_iter().map(|c| (i, c)));
+            extensions.extend(proposed.into_iter().map(|c| (i, c)));
         }
         if extensions.is_empty() {
             paths = next;
             break;
         }
-        extensions.sort_by(|(i, a), (j, b)| {
-            (paths[*i].delta_bic + a.delta_bic).total_cmp(&(paths[*j].delta_bic + b.delta_bic))
-        });
+        let total = |i: usize, c: &Candidate| paths[i].delta_bic + c.delta_bic.unwrap_or(0.0);
+        extensions.sort_by(|(i, a), (j, b)| total(*i, a).total_cmp(&total(*j, b)));
         let mut seen: std::collections::BTreeSet<Vec<String>> = Default::default();
         let chosen: Vec<(usize, Candidate)> = extensions
             .into_iter()
@@ -506,19 +810,26 @@ fn effect_names_of(models: &[BarModel]) -> Vec<String> {
         .unwrap_or_default()
 }
 
-/// The candidates for the fleet's current `models`, ranked best first.
-fn rank_candidates_for(series: &[&BarSeries], models: &[BarModel]) -> Vec<Candidate> {
+/// The candidates for the fleet's current `models`, ranked best first (only those that could be
+/// material refitted exactly).
+fn rank_candidates_for(
+    series: &[&BarSeries],
+    models: &[BarModel],
+    criteria: &Criteria,
+) -> Vec<Candidate> {
     let effects = models
         .first()
         .map(|m| m.effects.clone())
         .unwrap_or_default();
-    let diagnoses: Vec<BarDiagnosis> = series
-        .par_iter()
-        .zip(models.par_iter())
-        .map(|(s, m)| diagnose_bar(s, m))
-        .collect();
     let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
-    evaluate_candidates(&pairs, &candidate_effects(&effects, &diagnoses)).0
+    let bases = screen_bases(&pairs);
+    let diagnoses: Vec<BarDiagnosis> = pairs
+        .par_iter()
+        .zip(bases.par_iter())
+        .map(|((s, m), b)| diagnose_bar(s, m, b.as_ref()))
+        .collect();
+    let candidates = candidate_effects(&effects, &diagnoses);
+    evaluate_candidates(&pairs, &bases, &candidates, criteria).0
 }
 
 /// `path` with `candidate` added and every bar refitted.
@@ -549,7 +860,7 @@ fn extend_path(
     SelectionPath {
         ledger,
         models,
-        delta_bic: path.delta_bic + candidate.delta_bic,
+        delta_bic: path.delta_bic + candidate.delta_bic.unwrap_or(0.0),
         finished: false,
     }
 }
@@ -562,22 +873,46 @@ pub struct BarLedger {
 }
 
 /// Forward selection on one bar alone: candidates from its own channel ranking (`diagnosis`
-/// of `model`), significance from its own likelihood-ratio tests.
+/// of `model`), significance from its own likelihood-ratio tests, materiality by the fleet's
+/// `criteria`.
 pub fn forward_selection_of_bar(
     series: &BarSeries,
     model: BarModel,
+    base: &Option<ScreenBase>,
     diagnosis: &BarDiagnosis,
     max_steps: usize,
     beam: usize,
+    criteria: &Criteria,
 ) -> BarLedger {
-    let candidates = candidate_effects(&model.effects, std::slice::from_ref(diagnosis));
-    let (first, _) = evaluate_candidates(&[(series, &model)], &candidates);
     let bar = model.bar.clone();
-    let (steps, _) = forward_selection(&[series], vec![model], &first, max_steps, beam);
+    if max_steps == 0 {
+        return BarLedger {
+            bar,
+            steps: vec![ledger_step(
+                "base".into(),
+                std::slice::from_ref(&model),
+                None,
+                None,
+            )],
+        };
+    }
+    let candidates = candidate_effects(&model.effects, std::slice::from_ref(diagnosis));
+    let (first, _) = evaluate_candidates(
+        &[(series, &model)],
+        std::slice::from_ref(base),
+        &candidates,
+        criteria,
+    );
+    let (steps, _) = forward_selection(&[series], vec![model], &first, max_steps, beam, criteria);
     BarLedger { bar, steps }
 }
 
-fn ledger_step(added: String, models: &[BarModel], delta_bic: f64, p_value: f64) -> LedgerStep {
+fn ledger_step(
+    added: String,
+    models: &[BarModel],
+    delta_bic: Option<f64>,
+    p_value: Option<f64>,
+) -> LedgerStep {
     let n_total: usize = models.iter().map(|m| m.n_samples).sum();
     let ss: f64 = models
         .iter()

@@ -60,17 +60,33 @@ pub fn kalman_likelihood(r: &[f64], phi: f64, lambda: f64) -> NoiseFit {
     };
     let mut w = 0.0;
     let (mut weighted_ss, mut sum_ln_f) = (0.0, 0.0);
-    for &y in r {
+    let mut k = 0;
+    while k < r.len() {
         let f = p + 1.0;
-        let e = y - w;
+        let e = r[k] - w;
         weighted_ss += e * e / f;
-        sum_ln_f += f.ln();
+        let ln_f = f.ln();
+        sum_ln_f += ln_f;
         let gain = p / f;
         w += gain * e;
-        p -= gain * p;
+        let p_filtered = p - gain * p;
         // Predict the next sample.
         w *= phi;
-        p = phi * phi * p + lambda;
+        let p_next = phi * phi * p_filtered + lambda;
+        k += 1;
+        if p_next == p {
+            // The Riccati recursion reached its fixed point (to the bit): every later step has
+            // the same `f`, `ln f` and gain, so they are reused (same bits, no logarithm).
+            for &y in &r[k..] {
+                let e = y - w;
+                weighted_ss += e * e / f;
+                sum_ln_f += ln_f;
+                w += gain * e;
+                w *= phi;
+            }
+            break;
+        }
+        p = p_next;
     }
     let nf = n.max(1) as f64;
     let white_variance = weighted_ss / nf;

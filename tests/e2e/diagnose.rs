@@ -46,8 +46,14 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
         .iter()
         .map(|c| {
             format!(
-                "{} (ΔBIC {:.0}, p {:.1e}, {} bars)",
-                c.effect, c.delta_bic, c.p_value, c.bars_improved
+                "{} ({:?}, ΔRMS {:.2e} µm, shift {:.2e} µm, ΔBIC {:.0}, p {:.1e}, {} bars)",
+                c.effect,
+                c.verdict,
+                c.gain_um(),
+                c.screened_shift_um,
+                c.delta_bic.unwrap_or(f64::NAN),
+                c.p_value.unwrap_or(f64::NAN),
+                c.bars_improved
             )
         })
         .collect();
@@ -114,8 +120,9 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
         "{name}: expected {expected} first, ranking {ranking:?}"
     );
     assert!(
-        first.significant,
-        "{name}: the true effect is not significant"
+        first.proposed(),
+        "{name}: the true effect is not proposed: {}",
+        first.reason
     );
     assert!(failures.is_empty(), "{name}: {failures:#?}");
 }
@@ -189,8 +196,8 @@ fn base_only_campaign_raises_no_false_alarm() {
     let alarms: Vec<String> = d
         .candidates
         .iter()
-        .filter(|c| c.significant)
-        .map(|c| format!("{} p={:.1e} ΔBIC={:.0}", c.effect, c.p_value, c.delta_bic))
+        .filter(|c| c.proposed())
+        .map(|c| c.reason.clone())
         .collect();
     assert!(alarms.is_empty(), "false alarms: {alarms:?}");
 }

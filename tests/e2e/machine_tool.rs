@@ -166,12 +166,13 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
     for c in d.candidates.iter().take(6) {
         let on3 = c.per_bar.iter().find(|b| b.bar == "ch3").unwrap();
         eprintln!(
-            "  candidate {:<22} fleet {:.2} -> {:.2} µm, ch3 {:.2} -> {:.2} µm — {}",
+            "  candidate {:<22} {:?} fleet {:.2} -> {:.2} µm, ch3 {:.2} -> {:.2} µm — {}",
             c.effect,
+            c.verdict,
             c.rms_before_um,
-            c.rms_after_um,
+            c.rms_after_um.unwrap_or(c.screened_rms_after_um),
             on3.rms_before_um,
-            on3.rms_after_um,
+            on3.rms_after_um.unwrap_or(on3.screened_rms_after_um),
             c.explanation
         );
     }
@@ -218,7 +219,7 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
             c.per_bar
                 .iter()
                 .find(|b| b.bar == "ch3")
-                .map(|b| b.rms_after_um)
+                .and_then(|b| b.rms_after_um)
         })
         .fold(f64::INFINITY, f64::min);
     assert!(
