@@ -108,7 +108,16 @@ pub fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> 
 }
 
 /// Events of one kind for the bar: a held series when they carry values, impulses otherwise.
+/// The held series' value before the first event follows [`held_start`]'s rules.
 pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelError> {
+    held_event_channel(series, kind).map(|(channel, _)| channel)
+}
+
+/// [`event_channel`], and for a held series what the data leave unknown about its start.
+pub fn held_event_channel(
+    series: &BarSeries,
+    kind: &str,
+) -> Result<(Channel, HeldStart), ChannelError> {
     let events: Vec<(f64, Option<f64>)> = series
         .events
         .iter()
@@ -119,7 +128,10 @@ pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelE
         return Err(ChannelError::NoEvents(kind.to_string()));
     }
     if events.iter().all(|(_, v)| v.is_none()) {
-        return Ok(Channel::Impulses(events.iter().map(|(t, _)| *t).collect()));
+        return Ok((
+            Channel::Impulses(events.iter().map(|(t, _)| *t).collect()),
+            HeldStart::default(),
+        ));
     }
     // Valueless events of a kind that otherwise carries values keep the value they find.
     let mut switch_s = Vec::with_capacity(events.len() + 1);
@@ -130,36 +142,133 @@ pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelE
         switch_s.push(*t);
         values.push(value);
     }
+    let (before, start) = held_start(series, kind, switch_s[0], &values);
+    // The lag starts here, in steady state at the value before the first event.
     switch_s.insert(
         0,
         series.t_s.first().copied().unwrap_or(0.0).min(switch_s[0]) - 1.0,
     );
-    values.insert(0, value_before_first_event(series, kind, values[0]));
-    let mut at_samples = Vec::with_capacity(series.t_s.len());
+    values.insert(0, before);
+    let at_samples = held_at(&series.t_s, &switch_s, &values);
+    Ok((
+        Channel::Held {
+            switch_s,
+            values,
+            at_samples,
+        },
+        start,
+    ))
+}
+
+/// A held input's value at each sample time.
+fn held_at(t_s: &[f64], switch_s: &[f64], values: &[f64]) -> Vec<f64> {
+    let mut at_samples = Vec::with_capacity(t_s.len());
     let mut next = 0;
     let mut current = 0.0;
-    for &t in &series.t_s {
+    for &t in t_s {
         while next < switch_s.len() && switch_s[next] <= t {
             current = values[next];
             next += 1;
         }
         at_samples.push(current);
     }
-    Ok(Channel::Held {
-        switch_s,
-        values,
-        at_samples,
-    })
+    at_samples
 }
 
-/// The input before a kind's first event: a head is off (`head_power` 0); the plate stands at
-/// the first mount's tilt (its own, else the plate's: `campaign-format.md`); any other kind is
-/// taken to hold its first value, so that the first event is not read as a step from 0.
-fn value_before_first_event(series: &BarSeries, kind: &str, first_value: f64) -> f64 {
+/// What the data leave unknown about a held event series' start, to be fitted by the model
+/// (see [`held_start`]). The default: nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct HeldStart {
+    /// The value before the first event cannot be told (a free level, fitted from the fitted
+    /// readings before the first event). Its placeholder in the channel is the first value.
+    pub free_level: Option<FreeLevel>,
+    /// The first-order state at the first fitted reading is not known to be steady: its
+    /// deviation, decaying with the term's time constant from that reading on, is fitted.
+    pub free_deviation_from_s: Option<f64>,
+}
+
+/// The samples before a kind's first event, whose level is fitted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FreeLevel {
+    /// The first event's time, s: the level holds before it.
+    pub until_s: f64,
+}
+
+impl HeldStart {
+    /// The indicator of the free level (1 before the first event, 0 from it on), as a held
+    /// input on `t_s`, or `None`.
+    pub fn level_channel(&self, t_s: &[f64]) -> Option<Channel> {
+        let until_s = self.free_level?.until_s;
+        let switch_s = vec![
+            t_s.first().copied().unwrap_or(0.0).min(until_s) - 1.0,
+            until_s,
+        ];
+        let values = vec![1.0, 0.0];
+        let at_samples = held_at(t_s, &switch_s, &values);
+        Some(Channel::Held {
+            switch_s,
+            values,
+            at_samples,
+        })
+    }
+}
+
+/// The value of a held event series before its first event (at `first_s`, values `values`), and
+/// what the data cannot tell about that start (`campaign-format.md`, events):
+///
+/// - An event marks a change: before the first one the state is the other one. `head_power`
+///   (1 powered, 0 off): off before a first "on", powered before a first "off". A kind whose
+///   events carry exactly two values: the other value.
+/// - A head that logs readings is powered: readings before the first `head_power` event mean a
+///   powered head, whatever that event says.
+/// - A lag starts in steady state at the value before the first event, like the temperature
+///   lags. A cold (unpowered) head is at rest; a powered head was switched on at a time no
+///   event gives, so its heat when the fitted readings begin is fitted (`free_deviation`).
+/// - `tilt`: the first mount's tilt (its own, else the plate's).
+/// - Any other kind (one value, or more than two): the level before the first event cannot be
+///   told; where fitted readings precede the first event it is fitted (`free_level`), else the
+///   first value is kept (the readings begin after the first event).
+fn held_start(series: &BarSeries, kind: &str, first_s: f64, values: &[f64]) -> (f64, HeldStart) {
+    let first_value = values[0];
+    let first_fitted_s = series.fit_index.first().map(|&i| series.t_s[i]);
     match kind {
-        "head_power" => 0.0,
-        "tilt" => series.mounts.first().map_or(first_value, |m| m.tilt_deg),
-        _ => first_value,
+        "head_power" => {
+            let logged_before = series.t_s.first().is_some_and(|&t| t < first_s);
+            let powered = logged_before || !(first_value > 0.0);
+            if powered {
+                (
+                    1.0,
+                    HeldStart {
+                        free_deviation_from_s: first_fitted_s,
+                        ..HeldStart::default()
+                    },
+                )
+            } else {
+                (0.0, HeldStart::default())
+            }
+        }
+        "tilt" => (
+            series.mounts.first().map_or(first_value, |m| m.tilt_deg),
+            HeldStart::default(),
+        ),
+        _ => {
+            let mut distinct: Vec<f64> = values.to_vec();
+            distinct.sort_by(f64::total_cmp);
+            distinct.dedup();
+            if let [a, b] = distinct[..] {
+                return (if first_value == a { b } else { a }, HeldStart::default());
+            }
+            let free_level = first_fitted_s
+                .filter(|&t| t < first_s)
+                .map(|_| FreeLevel { until_s: first_s });
+            (
+                first_value,
+                HeldStart {
+                    free_level,
+                    ..HeldStart::default()
+                },
+            )
+        }
     }
 }
 

@@ -200,6 +200,28 @@ impl Effect {
         }
     }
 
+    /// Names of the gains that fit an event input's unknown start ([`start_terms`]): the level
+    /// before its first event, and the deviation of its lag from steady state at the first
+    /// fitted reading (µm both).
+    fn start_gain_names(&self) -> (String, String) {
+        match self {
+            Effect::HeadHeating => (
+                "head_before_first_event_um".into(),
+                "head_initial_um".into(),
+            ),
+            Effect::Channel {
+                transform, channel, ..
+            } => (
+                format!("{}_{channel}_before_first_event_um", transform.as_str()),
+                format!("{}_{channel}_initial_um", transform.as_str()),
+            ),
+            _ => (
+                format!("{}_before_first_event_um", self.name()),
+                format!("{}_initial_um", self.name()),
+            ),
+        }
+    }
+
     /// Name of the effect's own time constant, if it has one (`air_gradient` shares the base
     /// paths' `tau_r_s` and `tau_s_s`).
     pub fn tau_name(&self) -> Option<String> {
@@ -256,6 +278,13 @@ enum TermKind {
     Level,
     /// `exp(-(t - mount start)/tau)` within each mount.
     Settling,
+    /// `exp(-(t - from_s)/tau)` from `from_s` on, 1 before: the decay of an unknown deviation
+    /// of a lag's state from the steady state it is assumed to start in, scaled to its value at
+    /// `from_s` (the first fitted reading). Before `from_s` nothing is fitted and the deviation
+    /// is held there, not extrapolated backwards.
+    Decay {
+        from_s: f64,
+    },
 }
 
 /// One bar's thermal model, ready for the fitting engine.
@@ -611,6 +640,7 @@ impl<'a> ThermalProblem<'a> {
                 )
             }
             (TermKind::Settling, Some(tau)) => settling(self.series, tau, with_derivative),
+            (TermKind::Decay { from_s }, Some(tau)) => decay(t, from_s, tau, with_derivative),
             _ => (term.input.level(t.len()), None),
         };
         if let Some(s) = &term.scale {
@@ -676,6 +706,27 @@ fn settling(series: &BarSeries, tau: f64, with_derivative: bool) -> (Vec<f64>, O
     (x, d)
 }
 
+/// `exp(-(t - from_s)/tau)` for `t >= from_s`, 1 before, and its derivative in `ln tau`
+/// (`s/tau exp(-s/tau)`, `s = t - from_s`): [`TermKind::Decay`].
+pub(crate) fn decay(
+    t_s: &[f64],
+    from_s: f64,
+    tau: f64,
+    with_derivative: bool,
+) -> (Vec<f64>, Option<Vec<f64>>) {
+    let mut x = Vec::with_capacity(t_s.len());
+    let mut d = with_derivative.then(|| Vec::with_capacity(t_s.len()));
+    for &t in t_s {
+        let r = (t - from_s).max(0.0) / tau;
+        let e = (-r).exp();
+        x.push(e);
+        if let Some(d) = d.as_mut() {
+            d.push(r * e);
+        }
+    }
+    (x, d)
+}
+
 /// Time constant of the zero-phase smoothing of the plate sensor, seconds.
 pub const PLATE_SMOOTHING_S: f64 = 300.0;
 
@@ -718,11 +769,13 @@ fn bind(
     let single = match effect {
         Effect::FixedPart | Effect::SecondPath => term(air(), minus_i_min(), TermKind::Lag),
         Effect::Scale => term(air(), minus_i_p(), TermKind::Lag),
-        Effect::HeadHeating => term(
-            channels::event_channel(series, "head_power")?,
-            Some(vec![-1.0; series.t_s.len()]),
-            TermKind::Lag,
-        ),
+        Effect::HeadHeating => {
+            let (input, start) = channels::held_event_channel(series, "head_power")?;
+            let scale = Some(vec![-1.0; series.t_s.len()]);
+            let mut terms = vec![term(input, scale.clone(), TermKind::Lag)];
+            terms.extend(start_terms(series, effect, &start, scale, TermKind::Lag));
+            return Ok(terms);
+        }
         Effect::AirGradient => {
             // `physics.md` model with `T = T_own + w dT_grad`: the gradient's share through each
             // base path, on that path's length and with that path's time constant.
@@ -775,16 +828,58 @@ fn bind(
         Effect::Channel {
             transform, channel, ..
         } => {
-            let input = channels::resolve(series, channel)?;
             let kind = match transform {
                 Transform::Lag => TermKind::Lag,
                 Transform::Rate => TermKind::Rate,
                 Transform::Level => TermKind::Level,
             };
-            term(input, None, kind)
+            if let Some(event_kind) = channel.strip_prefix("event:") {
+                let (input, start) = channels::held_event_channel(series, event_kind)?;
+                let mut terms = vec![term(input, None, kind)];
+                terms.extend(start_terms(series, effect, &start, None, kind));
+                return Ok(terms);
+            }
+            term(channels::resolve(series, channel)?, None, kind)
         }
     };
     Ok(vec![single])
+}
+
+/// The extra terms that fit what the data leave unknown about a held event input's start
+/// ([`channels::HeldStart`]), on the time constant of `effect`'s own term: a free level before
+/// the first event (the indicator of "before", transformed as the effect's input is), and the
+/// decay of an unknown initial deviation of its lag ([`TermKind::Decay`]; a level has no lag).
+fn start_terms(
+    series: &BarSeries,
+    effect: &Effect,
+    start: &channels::HeldStart,
+    scale: Option<Vec<f64>>,
+    kind: TermKind,
+) -> Vec<BoundTerm> {
+    let (level_name, deviation_name) = effect.start_gain_names();
+    let shares_tau_of = (kind != TermKind::Level).then(|| effect.clone());
+    let mut terms = Vec::new();
+    if let Some(indicator) = start.level_channel(&series.t_s) {
+        terms.push(BoundTerm {
+            effect: effect.clone(),
+            gain_name: level_name,
+            input: indicator,
+            scale: scale.clone(),
+            kind,
+            shares_tau_of: shares_tau_of.clone(),
+        });
+    }
+    if let (Some(from_s), Some(_)) = (start.free_deviation_from_s, &shares_tau_of) {
+        terms.push(BoundTerm {
+            effect: effect.clone(),
+            gain_name: deviation_name,
+            input: Channel::Sampled(Vec::new()),
+            scale,
+            kind: TermKind::Decay { from_s },
+            shares_tau_of,
+        });
+    }
+    terms
 }
 
 impl Separable for ThermalProblem<'_> {

@@ -182,38 +182,252 @@ fn plate_temperature_is_smoothed_without_delay() {
     assert!(out[10].is_nan() && out[11] == sensor[11]);
 }
 
-/// Held event inputs start where the physics says: a head off, the plate at the mount's tilt,
-/// any other kind at its first value (no spurious step at the first event).
+fn event(t_s: f64, kind: &str, value: f64) -> (f64, crate::series::Event) {
+    (
+        t_s,
+        crate::series::Event {
+            time_ns: 0,
+            bar: None,
+            kind: kind.into(),
+            value: Some(value),
+        },
+    )
+}
+
+/// Held event inputs start where `campaign-format.md` says: an event marks a change (before the
+/// first the state is the other one), a head that logs readings is powered, the plate stands at
+/// the mount's tilt; a kind whose values cannot tell "the other state" gets a free level where
+/// fitted readings precede its first event.
 #[test]
-fn held_events_start_from_a_physical_value() {
-    use crate::series::Event;
+fn held_events_start_from_the_other_state() {
+    use channels::{held_event_channel, FreeLevel};
+    let mut s = gradient_bar(0.0);
+    let (t0, t_f) = (s.t_s[0], s.t_s[s.fit_index[0]]);
+    s.events = vec![
+        event(t0 + 3600.0, "head_power", 0.0),
+        event(t0 + 7200.0, "tilt", 30.0),
+        event(t0 + 7200.0, "spindle", 1500.0),
+        event(t0 + 9000.0, "spindle", 0.0),
+        event(t0 + 7200.0, "speed", 1500.0),
+        event(t0 + 9000.0, "speed", 0.0),
+        event(t0 + 9900.0, "speed", 3000.0),
+        event(t0, "fan", 2.0),
+        event(t0 + 9000.0, "fan", 1.0),
+        event(t0 + 9900.0, "fan", 3.0),
+    ];
+    let start = |s: &BarSeries, kind: &str| {
+        let (channel, start) = held_event_channel(s, kind).unwrap();
+        (channel.level(s.t_s.len()), start)
+    };
+    // A first "off": powered before it, for a time no event gives (its heat is fitted).
+    let (head, head_start) = start(&s, "head_power");
+    assert_eq!((head[0], head[59], head[60]), (1.0, 1.0, 0.0));
+    assert_eq!(head_start.free_deviation_from_s, Some(t_f));
+    assert_eq!(head_start.free_level, None);
+    let (tilt, tilt_start) = start(&s, "tilt");
+    assert_eq!((tilt[0], tilt[200]), (s.mounts[0].tilt_deg, 30.0));
+    assert_eq!(tilt_start, channels::HeldStart::default());
+    // Two values: the other one.
+    let (spindle, spindle_start) = start(&s, "spindle");
+    assert_eq!((spindle[0], spindle[120], spindle[150]), (0.0, 1500.0, 0.0));
+    assert_eq!(spindle_start, channels::HeldStart::default());
+    // Three values, fitted readings before the first event: a free level until it.
+    let (_, speed_start) = start(&s, "speed");
+    assert_eq!(
+        speed_start.free_level,
+        Some(FreeLevel {
+            until_s: t0 + 7200.0
+        })
+    );
+    // ... no readings before the first event: nothing to fit, the first value holds.
+    let (fan, fan_start) = start(&s, "fan");
+    assert_eq!(fan[0], 2.0);
+    assert_eq!(fan_start, channels::HeldStart::default());
+
+    // A first "on" with no reading before it: off (and cold) before it.
+    s.events = vec![
+        event(t0, "head_power", 1.0),
+        event(t0 + 3600.0, "head_power", 0.0),
+    ];
+    let (head, head_start) = start(&s, "head_power");
+    assert_eq!((head[0], head[60]), (1.0, 0.0));
+    let Channel::Held { values, .. } = held_event_channel(&s, "head_power").unwrap().0 else {
+        panic!("held");
+    };
+    assert_eq!(values, [0.0, 1.0, 0.0]);
+    assert_eq!(head_start, channels::HeldStart::default());
+    // A first "on" after readings: the head that logged was powered, the event changes nothing.
+    s.events = vec![event(t0 + 3600.0, "head_power", 1.0)];
+    let (head, head_start) = start(&s, "head_power");
+    assert!(head.iter().all(|v| *v == 1.0));
+    assert_eq!(head_start.free_deviation_from_s, Some(t_f));
+}
+
+/// Held inputs start in steady state at the value before the first event, like the temperature
+/// lags: before a first "off" the lag sits at 1, then decays from it.
+#[test]
+fn held_lag_starts_in_steady_state_at_the_value_before_the_first_event() {
     let mut s = gradient_bar(0.0);
     let t0 = s.t_s[0];
-    let event = |dt: f64, kind: &str, value: f64| {
-        (
-            t0 + dt,
-            Event {
-                time_ns: 0,
-                bar: None,
-                kind: kind.into(),
-                value: Some(value),
-            },
-        )
+    s.events = vec![event(t0 + 3600.0, "head_power", 0.0)];
+    let channel = channels::event_channel(&s, "head_power").unwrap();
+    let tau = 900.0;
+    let (x, _) = channel.lag(&s.t_s, tau, false);
+    for (t, x) in s.t_s.iter().zip(&x) {
+        let expected = if *t <= t0 + 3600.0 {
+            1.0
+        } else {
+            (-(t - t0 - 3600.0) / tau).exp()
+        };
+        assert!((x - expected).abs() < 1e-12, "t {t}: {x} vs {expected}");
+    }
+}
+
+/// Three days at 60 s, readings from 0, fitted mounts from 1800 s on; the head powered from the
+/// first reading (cold, no event says so), off 3 h a day from `off_at_s`; the reading falls by
+/// `amplitude_um` times the head's first-order heat (`tau_s`), noise-free.
+fn head_bar(amplitude_um: f64, tau_s: f64, off_at_s: &[f64]) -> BarSeries {
+    let n = 3 * 1440;
+    let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 60.0).collect();
+    let mounts: Vec<MountSpan> = [250.0, 400.0, 325.0]
+        .iter()
+        .enumerate()
+        .map(|(k, mm)| MountSpan {
+            campaign_index: k,
+            length_id: Some(format!("L{k}")),
+            length_mm: Some(*mm),
+            i_p_mm: mm - I_MIN,
+            tilt_deg: 60.0,
+            purpose: Purpose::Calibration,
+            device: None,
+            from_s: 1800.0 + k as f64 * 86400.0,
+            to_s: (k + 1) as f64 * 86400.0 - 600.0,
+        })
+        .collect();
+    let mut switch_s = vec![-1.0];
+    let mut values = vec![1.0];
+    for &t in off_at_s {
+        switch_s.extend([t, t + 3.0 * 3600.0]);
+        values.extend([0.0, 1.0]);
+    }
+    // The head's heat from cold at the first reading.
+    let (warm, _) = lag::held_lag(&t_s, &switch_s, &values, tau_s, false);
+    let cold: Vec<f64> = warm
+        .iter()
+        .zip(&t_s)
+        .map(|(x, t)| x - (-t / tau_s).exp())
+        .collect();
+    let y_um = cold.iter().map(|x| -amplitude_um * x).collect();
+    let bar = Bar {
+        id: "H".into(),
+        resolution_nm: 1.0,
+        fixed_length_mm: I_MIN,
+        sensor: Some("T1".into()),
     };
-    s.events = vec![
-        event(3600.0, "head_power", 1.0),
-        event(7200.0, "tilt", 30.0),
-        event(7200.0, "spindle", 1500.0),
-        event(9000.0, "spindle", 0.0),
-    ];
-    let level = |kind: &str| {
-        channels::event_channel(&s, kind)
-            .unwrap()
-            .level(s.t_s.len())
-    };
-    assert_eq!(level("head_power")[0], 0.0);
-    assert_eq!(level("tilt")[0], s.mounts[0].tilt_deg);
-    assert_eq!(level("tilt")[200], 30.0);
-    assert_eq!(level("spindle")[0], 1500.0);
-    assert_eq!(level("spindle")[200], 0.0);
+    let mut s = BarSeries::from_vectors(bar, 20.0, t_s, y_um, vec![20.0; n], mounts);
+    s.events = off_at_s
+        .iter()
+        .flat_map(|&t| {
+            [
+                event(t, "head_power", 0.0),
+                event(t + 3.0 * 3600.0, "head_power", 1.0),
+            ]
+        })
+        .collect();
+    s
+}
+
+/// The basis of `p` at `theta` against central finite differences in `theta[k]`.
+fn check_derivatives(p: &ThermalProblem, theta: &[f64]) {
+    for k in 0..theta.len() {
+        let d = p.basis_derivative(theta, k);
+        let h = 1e-6;
+        let mut plus = theta.to_vec();
+        plus[k] += h;
+        let mut minus = theta.to_vec();
+        minus[k] -= h;
+        let fd = (p.basis(&plus) - p.basis(&minus)) / (2.0 * h);
+        let scale = fd.amax().max(1e-12);
+        assert!(
+            (&d - &fd).amax() < 1e-6 * scale.max(1.0),
+            "theta {k}: {} vs {}",
+            d.amax(),
+            fd.amax()
+        );
+    }
+}
+
+/// A head powered before its first event ("off") has an unknown heat when the fitted readings
+/// begin: a decay column on the head's time constant fits it, with its `ln tau` derivative, and
+/// the fit recovers the head's gain and time constant exactly from a cold start no event gives.
+#[test]
+fn head_heating_fits_the_heat_of_a_head_powered_before_its_first_event() {
+    let (amplitude, tau) = (1.3, 700.0);
+    let s = head_bar(amplitude, tau, &[30_000.0, 120_000.0, 200_000.0]);
+    let p = ThermalProblem::new(&s, &effects(&["head_heating"])).unwrap();
+    assert_eq!(p.gain_names(), ["head_growth_um", "head_initial_um"]);
+    assert_eq!(p.nonlinear_names(), ["ln_tau_head_s"]);
+    // The decay column: 1 up to the first fitted reading (1800 s), then exp(-(t - 1800)/tau).
+    let (x, d) = decay(&s.t_s, 1800.0, tau, true);
+    let d = d.unwrap();
+    for k in 0..s.t_s.len() {
+        let r = (s.t_s[k] - 1800.0).max(0.0) / tau;
+        assert!((x[k] - (-r).exp()).abs() < 1e-15);
+        let h = 1e-6;
+        let fd = (decay(&s.t_s[k..=k], 1800.0, (tau.ln() + h).exp(), false).0[0]
+            - decay(&s.t_s[k..=k], 1800.0, (tau.ln() - h).exp(), false).0[0])
+            / (2.0 * h);
+        assert!((d[k] - fd).abs() < 1e-8, "k={k}: {} vs {fd}", d[k]);
+    }
+    check_derivatives(&p, &[tau.ln()]);
+    check_derivatives(&p, &[300f64.ln()]);
+    let fit = crate::fit::fit(&p, &p.theta0(), &crate::fit::FitOptions::default()).unwrap();
+    let value = |name: &str| fit.values[fit.names.iter().position(|n| n == name).unwrap()];
+    assert!(
+        (value("head_growth_um") - amplitude).abs() < 1e-6,
+        "{:?}",
+        fit.values
+    );
+    assert!((value("ln_tau_head_s").exp() / tau - 1.0).abs() < 1e-6);
+    // The head's growth at the first fitted reading, beyond the steady state assumed.
+    let initial = -amplitude * (-1800.0 / tau).exp();
+    assert!((value("head_initial_um") - initial).abs() < 1e-6);
+    assert!(fit.rms() < 1e-6);
+}
+
+/// A kind with more than two values whose level before the first event is unknown: a free
+/// level (the indicator of "before", through the same lag) is fitted beside the gain.
+#[test]
+fn a_free_level_before_the_first_event_is_fitted() {
+    let mut s = head_bar(0.0, 700.0, &[]);
+    let (gain, tau, before) = (0.002, 1500.0, 800.0);
+    let first_s = 50_000.0;
+    let changes = [(first_s, 1500.0), (120_000.0, 0.0), (180_000.0, 3000.0)];
+    s.events = changes.iter().map(|&(t, v)| event(t, "speed", v)).collect();
+    let mut switch_s = vec![-1.0];
+    let mut values = vec![before];
+    for (t, v) in changes {
+        switch_s.push(t);
+        values.push(v);
+    }
+    let (x, _) = lag::held_lag(&s.t_s, &switch_s, &values, tau, false);
+    s.y_um = x.iter().map(|x| gain * x).collect();
+    let p = ThermalProblem::new(&s, &effects(&["lag:event:speed"])).unwrap();
+    assert_eq!(
+        p.gain_names(),
+        [
+            "lag_event:speed_gain_um_per_unit",
+            "lag_event:speed_before_first_event_um"
+        ]
+    );
+    check_derivatives(&p, &[tau.ln()]);
+    let fit = crate::fit::fit(&p, &p.theta0(), &crate::fit::FitOptions::default()).unwrap();
+    // The channel holds the first value before the first event; the free level adds the rest.
+    assert!((fit.values[0] - gain).abs() < 1e-9, "{:?}", fit.values);
+    assert!(
+        (fit.values[1] - gain * (before - 1500.0)).abs() < 1e-6,
+        "{:?}",
+        fit.values
+    );
+    assert!((fit.values[2].exp() / tau - 1.0).abs() < 1e-6);
 }

@@ -239,8 +239,17 @@ fn build_binned_keeps_every_reading_in_weighted_nodes() {
     let unbinned =
         BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, &knots, T0, 0.0)
             .expect("series");
-    assert_eq!(unbinned.t_s, full.t_s);
-    assert_eq!(unbinned.y_um, full.y_um);
+    // The same readings, and (weight 0) the sensor readings that fall between two of them
+    // (the jittered last hour, the 7-s hole).
+    let weighted = |s: &BarSeries| -> (Vec<f64>, Vec<f64>) {
+        (0..s.t_s.len())
+            .filter(|&i| s.weight[i] > 0.0)
+            .map(|i| (s.t_s[i], s.y_um[i]))
+            .unzip()
+    };
+    assert_eq!(weighted(&unbinned), weighted(&full));
+    assert_eq!(unbinned.fit_index.len(), full.fit_index.len());
+    assert!(unbinned.t_s.len() > full.t_s.len());
     for bin_s in [1.0, 10.0, 30.0, 60.0] {
         let b =
             BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, &knots, T0, bin_s)
@@ -279,6 +288,55 @@ fn build_binned_keeps_every_reading_in_weighted_nodes() {
             let nodes = b.weight.iter().filter(|&&w| w > 0.0).count();
             assert!(nodes * 4 < log.time_ns.len(), "bin_s {bin_s}");
         }
+    }
+}
+
+/// A bar that logs nothing for two hours (a head switched off) while the sensors go on: the
+/// sensors' readings in the gap are samples of weight 0 (never fitted), so that lags follow the
+/// air through the gap instead of a straight line across it; at full rate and with bins alike.
+#[test]
+fn sensor_readings_in_a_gap_of_the_log_are_kept_as_samples() {
+    let c = campaign();
+    let (mut log, sensors) = log_and_sensors();
+    let (gap_from, gap_to) = (T0 + 1800 * S, T0 + 2 * 3600 * S);
+    let keep: Vec<bool> = log
+        .time_ns
+        .iter()
+        .map(|t| !(gap_from..gap_to).contains(t))
+        .collect();
+    let mut it = keep.iter();
+    log.time_ns.retain(|_| *it.next().unwrap());
+    let mut it = keep.iter();
+    log.counts.retain(|_| *it.next().unwrap());
+    let knots = sensor_knots(&sensors);
+    let in_gap: Vec<TimeNs> = knots
+        .iter()
+        .copied()
+        .filter(|t| (gap_from..gap_to).contains(t))
+        .collect();
+    assert_eq!(in_gap.len(), 2 * 180);
+    // The readings alone (no sensor knots), for the count of fitted readings.
+    let mut with_temperatures = log.clone();
+    interpolate_temperatures(&mut with_temperatures, &sensors);
+    let plain = BarSeries::build(&c, &[], "B01", with_temperatures, T0).expect("series");
+    for bin_s in [0.0, 60.0] {
+        let s = BarSeries::build_binned(&c, &[], "B01", log.clone(), &sensors, &knots, T0, bin_s)
+            .expect("series");
+        let t1 = &sensors["T1"];
+        for &t in &in_gap {
+            let t_s = (t - T0) as f64 * 1e-9;
+            let i = s
+                .t_s
+                .iter()
+                .position(|&x| x == t_s)
+                .expect("a sample at the knot");
+            assert_eq!(s.weight[i], 0.0);
+            assert!(!s.fit_index.contains(&i));
+            if let Some(k) = t1.time_ns.iter().position(|&x| x == t) {
+                assert_eq!(s.celsius["T1"][i], t1.celsius[k], "bin_s {bin_s}");
+            }
+        }
+        assert_eq!(s.fitted_readings(), plain.fit_index.len(), "bin_s {bin_s}");
     }
 }
 

@@ -314,7 +314,8 @@ pub struct EffectsConfig {
 }
 
 /// Read-head self-heating: the bar grows by `amplitude_um * lag(power; tau_s)`; the head is
-/// switched on and off (`head_power` events), readings are logged only while it is on.
+/// switched on and off (`head_power` events: 1 on, 0 off, one per switch), readings are logged
+/// only while it is on (an unpowered head reads nothing).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct HeadHeating {
@@ -323,9 +324,55 @@ pub struct HeadHeating {
     pub tau_s: f64,
     /// Relative (log-normal) spread of amplitude and tau across bars.
     pub spread: f64,
-    /// Mean on and off durations (exponential), hours.
+    /// How the head starts: switched on at the start with an "on" event, or already powered
+    /// (first event an "off"). (Options at their defaults are not written, so that a `truth.json`
+    /// stays what it was before they existed.)
+    #[serde(skip_serializing_if = "is_default")]
+    pub start: HeadStart,
+    /// When the head is switched: exponential on and off durations, or off once a day.
+    #[serde(skip_serializing_if = "is_default")]
+    pub schedule: HeadSchedule,
+    /// Mean on and off durations (exponential, `schedule = "random"`), hours.
     pub mean_on_h: f64,
     pub mean_off_h: f64,
+    /// Shortest and longest off time, hours (`schedule = "daily"`: once a day, at a random time
+    /// of day, for a duration drawn uniformly from this range).
+    #[serde(skip_serializing_if = "is_default_daily_off")]
+    pub daily_off_h: [f64; 2],
+}
+
+fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
+}
+
+fn is_default_daily_off(v: &[f64; 2]) -> bool {
+    *v == HeadHeating::default().daily_off_h
+}
+
+/// The read head's state at the campaign start.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum HeadStart {
+    /// Off and cold before the start, switched on at the start: an "on" event at the start.
+    #[default]
+    SwitchedOn,
+    /// Powered long before the start (warm, in steady state); no event at the start, so each
+    /// bar's first `head_power` event is an "off".
+    PoweredWarm,
+    /// Switched on at the start, cold, but no event says so: each bar's first `head_power`
+    /// event is an "off", and the head is still warming up when the log begins.
+    PoweredCold,
+}
+
+/// When the read head is switched off and on again.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum HeadSchedule {
+    /// Exponential on and off durations (`mean_on_h`, `mean_off_h`; at least 5 minutes each).
+    #[default]
+    Random,
+    /// Off once a day, for `daily_off_h`.
+    Daily,
 }
 
 /// A second thermal path of the fixed part: `gain * I_min * lag(T - T0; tau_s)`.
@@ -532,8 +579,11 @@ impl Default for HeadHeating {
             amplitude_um: 1.5,
             tau_s: 900.0,
             spread: 0.2,
+            start: HeadStart::SwitchedOn,
+            schedule: HeadSchedule::Random,
             mean_on_h: 18.0,
             mean_off_h: 2.0,
+            daily_off_h: [1.5, 4.0],
         }
     }
 }
@@ -938,6 +988,13 @@ impl SimConfig {
         non_negative("effects.head_heating.spread", h.spread)?;
         positive("effects.head_heating.mean_on_h", h.mean_on_h)?;
         positive("effects.head_heating.mean_off_h", h.mean_off_h)?;
+        let [off_lo, off_hi] = h.daily_off_h;
+        if !(off_lo > 0.0 && off_lo <= off_hi && off_hi < 24.0) {
+            return Err(invalid(
+                "effects.head_heating.daily_off_h",
+                "must be [shortest, longest] hours with 0 < shortest <= longest < 24",
+            ));
+        }
         finite(
             "effects.second_path.gain_ppm_per_k",
             e.second_path.gain_ppm_per_k,

@@ -53,7 +53,8 @@ struct ThermalState {
 }
 
 impl ThermalState {
-    /// All states in equilibrium with the first grid point (head cold, as the power comes on).
+    /// All states in equilibrium with the first grid point; the head cold (as the power comes
+    /// on), or warm when it has been powered for long before the start.
     fn new(setup: &BarSetup, env: &Environment, step_s: f64) -> Self {
         let bar = setup.bar;
         let w_low = bar.seen_weights.get(AIR_LOW).copied().unwrap_or(0.0);
@@ -64,10 +65,14 @@ impl ThermalState {
             .second_path
             .as_ref()
             .map(|s| (FirstOrderLag::new(s.tau_s, step_s, u0), s.gain_ppm_per_k));
-        let head = bar
-            .head_heating
-            .as_ref()
-            .map(|h| (FirstOrderLag::new(h.tau_s, step_s, 0.0), h.amplitude_um));
+        let head = bar.head_heating.as_ref().map(|h| {
+            let warm = if setup.plan.head_warm_at_start {
+                1.0
+            } else {
+                0.0
+            };
+            (FirstOrderLag::new(h.tau_s, step_s, warm), h.amplitude_um)
+        });
         let hidden = match (&bar.hidden_channel, &env.hidden_c) {
             (Some(c), Some(h)) => Some((
                 FirstOrderLag::new(c.tau_s, step_s, h[0] - c.base_c),
@@ -141,11 +146,12 @@ impl HeadPower {
             .iter()
             .map(|&t| (t / grid.sample_ns) as usize * grid.steps_per_sample)
             .collect();
-        // Without the effect the head is always on; with it the first toggle (at 0) turns it on.
+        // Without the effect the head is always on; with it the first toggle (at 0) turns it on,
+        // unless it was powered at the start.
         Self {
             toggles,
             next: 0,
-            on: plan.head_toggles_ns.is_empty(),
+            on: plan.head_toggles_ns.is_empty() || plan.head_powered_at_start,
         }
     }
 

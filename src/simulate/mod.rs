@@ -41,9 +41,9 @@ use crate::series::{CampaignTables, Event};
 
 pub use config::{
     BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig, FleetConfig, GeometryConfig,
-    HeadHeating, HiddenChannel, Mismatch, PlateConfig, PlateExpansion, ReferenceMount, RoomConfig,
-    SagConfig, SagForm, ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig,
-    WorkingLayout,
+    HeadHeating, HeadSchedule, HeadStart, HiddenChannel, Mismatch, PlateConfig, PlateExpansion,
+    ReferenceMount, RoomConfig, SagConfig, SagForm, ScheduleConfig, SecondPath, SensorGradient,
+    Settling, SimConfig, WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
 pub use truth::{
@@ -406,8 +406,10 @@ fn build_events(
                 .iter()
                 .map(|&t| event(t, Some(&bar.id), "handling", None)),
         );
+        // Each switch flips the power: the first turns the head on unless it was powered.
         events.extend(plan.head_toggles_ns.iter().enumerate().map(|(k, &t)| {
-            let value = if k % 2 == 0 { 1.0 } else { 0.0 };
+            let on = (k % 2 == 0) != plan.head_powered_at_start;
+            let value = if on { 1.0 } else { 0.0 };
             event(t, Some(&bar.id), "head_power", Some(value))
         }));
     }

@@ -4,7 +4,7 @@
 
 use rand::Rng;
 
-use super::config::SimConfig;
+use super::config::{HeadSchedule, HeadStart, SimConfig};
 use super::environment::on_off_toggles;
 use super::{stream_rng, streams, Grid};
 use crate::campaign::Purpose;
@@ -59,9 +59,14 @@ pub(crate) struct BarPlan {
     pub handling_offset_mm: Vec<f64>,
     /// Start of every handling gap (a `handling` event each).
     pub handling_ns: Vec<i64>,
-    /// Head power switches (on at 0, then off, on, ...), on encoder sample times; empty when
-    /// the head is always on.
+    /// Head power switches, on encoder sample times, each flipping the power (from off, the
+    /// first being "on" at 0, unless `head_powered_at_start`); empty when the head is always on.
     pub head_toggles_ns: Vec<i64>,
+    /// The head is powered before its first switch (no "on" event at the start).
+    pub head_powered_at_start: bool,
+    /// The head's heat at the start is its steady state when powered (it has been on for long),
+    /// not cold.
+    pub head_warm_at_start: bool,
     /// Tilt of the bar when it has no mount before or after (the plate's), degrees.
     pub rest_tilt_deg: f64,
 }
@@ -192,11 +197,17 @@ pub(crate) fn plan_bar(cfg: &SimConfig, grid: &Grid, index: usize, bar_id: &str)
     let first_gap_ns = if n_calibration > 0 { 0 } else { stagger_ns };
     let handling_ns = gap_starts(&mounts, first_gap_ns, grid.duration_ns);
     let head_toggles_ns = head_toggles(cfg, grid, index);
+    let (head_enabled, start) = (
+        cfg.effects.head_heating.enabled,
+        cfg.effects.head_heating.start,
+    );
     BarPlan {
         mounts,
         handling_offset_mm,
         handling_ns,
         head_toggles_ns,
+        head_powered_at_start: head_enabled && start != HeadStart::SwitchedOn,
+        head_warm_at_start: head_enabled && start == HeadStart::PoweredWarm,
         rest_tilt_deg: cfg.plate.tilt_deg,
     }
 }
@@ -293,22 +304,54 @@ fn gap_starts(mounts: &[PlannedMount], first_ns: i64, end_ns: i64) -> Vec<i64> {
     starts
 }
 
-/// Read-head on/off switching on encoder sample times (on at 0), when the effect is on.
+/// Read-head on/off switching on encoder sample times, when the effect is on: "on" at 0 when the
+/// head is switched on at the start, then alternately off and on.
 fn head_toggles(cfg: &SimConfig, grid: &Grid, index: usize) -> Vec<i64> {
     let h = &cfg.effects.head_heating;
     if !h.enabled {
         return Vec::new();
     }
     let mut rng = stream_rng(cfg.seed, streams::HEAD + index as u64);
-    let mut toggles = vec![0];
-    for t_s in on_off_toggles(&mut rng, h.mean_on_h, h.mean_off_h, grid.duration_s()) {
+    let switches_s = match h.schedule {
+        HeadSchedule::Random => {
+            on_off_toggles(&mut rng, h.mean_on_h, h.mean_off_h, grid.duration_s())
+        }
+        HeadSchedule::Daily => daily_off(&mut rng, h.daily_off_h, grid.duration_s()),
+    };
+    let mut toggles = if h.start == HeadStart::SwitchedOn {
+        vec![0]
+    } else {
+        Vec::new()
+    };
+    for t_s in switches_s {
         let t_ns = ((t_s * 1e9) / grid.sample_ns as f64).round() as i64 * grid.sample_ns;
-        if toggles.last().is_some_and(|&last| t_ns <= last) {
+        if t_ns <= 0 || toggles.last().is_some_and(|&last| t_ns <= last) {
             continue; // (never with the 5-minute floor unless samples are longer)
         }
         toggles.push(t_ns);
     }
     toggles
+}
+
+/// Off once a day (off, then on, seconds after the start): each day, a duration drawn uniformly
+/// from `off_h` hours, at a time drawn uniformly among those that keep the head on for at least
+/// 5 minutes after midnight and before the next.
+fn daily_off(rng: &mut impl Rng, off_h: [f64; 2], duration_s: f64) -> Vec<f64> {
+    const MARGIN_S: f64 = 300.0;
+    let mut switches = Vec::new();
+    let mut day = 0.0;
+    while day * 86400.0 < duration_s {
+        let off_s = rng.gen_range(off_h[0]..=off_h[1]) * 3600.0;
+        let latest_s = (86400.0 - off_s - MARGIN_S).max(MARGIN_S);
+        let from_s = day * 86400.0 + rng.gen_range(MARGIN_S..=latest_s);
+        for t in [from_s, from_s + off_s] {
+            if t < duration_s {
+                switches.push(t);
+            }
+        }
+        day += 1.0;
+    }
+    switches
 }
 
 impl BarPlan {

@@ -352,6 +352,71 @@ fn head_heating_lowers_the_reading_by_up_to_its_amplitude() {
     }
 }
 
+/// Heads powered at the start (warm, or switched on cold with no event) and switched off once a
+/// day for 1.5-4 h: each bar's first `head_power` event is an "off", no encoder row is logged
+/// while a head is off, and the reading starts at the head's full growth (warm) or at none
+/// (cold).
+#[test]
+fn heads_powered_at_the_start_are_switched_off_once_a_day() {
+    let base = SimConfig {
+        duration_days: 3.0,
+        ..lively()
+    };
+    for start in [HeadStart::PoweredWarm, HeadStart::PoweredCold] {
+        let mut with = base.clone();
+        let h = &mut with.effects.head_heating;
+        h.enabled = true;
+        h.start = start;
+        h.schedule = HeadSchedule::Daily;
+        let sim = generate(&with).unwrap();
+        let deltas = effect_delta(&base, &with);
+        for bar in &sim.truth.bars {
+            let head = bar.head_heating.clone().unwrap();
+            let power: Vec<(i64, f64)> = sim
+                .tables
+                .events
+                .iter()
+                .filter(|e| e.kind == "head_power" && e.bar.as_deref() == Some(&bar.id))
+                .map(|e| (e.time_ns, e.value.unwrap()))
+                .collect();
+            // Off, on, off, on, ...: one off a day, 1.5-4 h long.
+            assert_eq!(power.len(), 6, "{start:?} {}: {power:?}", bar.id);
+            for (k, pair) in power.chunks(2).enumerate() {
+                assert_eq!((pair[0].1, pair[1].1), (0.0, 1.0));
+                let off_h = (pair[1].0 - pair[0].0) as f64 / 3.6e12;
+                assert!((1.5..=4.0).contains(&off_h), "{off_h} h");
+                let start_ns = with.start.timestamp_nanos_opt().unwrap();
+                let day = (pair[0].0 - start_ns) as f64 / 8.64e13;
+                assert!(
+                    day >= k as f64 && day < k as f64 + 1.0,
+                    "off {k} on day {day}"
+                );
+            }
+            // No encoder rows while the head is off.
+            let log = &sim.tables.encoders[&bar.id];
+            for pair in power.chunks(2) {
+                assert!(!log
+                    .time_ns
+                    .iter()
+                    .any(|t| *t >= pair[0].0 && *t < pair[1].0));
+            }
+            // The head's growth at the first reading: all of it when warm, none when cold.
+            let d = &deltas[&bar.id];
+            let expected = match start {
+                HeadStart::PoweredWarm => -head.amplitude_um,
+                _ => 0.0,
+            };
+            assert!(
+                (d[0].1 - expected).abs() < 1e-9,
+                "{start:?}: {} vs {expected}",
+                d[0].1
+            );
+            let deepest = d.iter().map(|(_, d)| *d).fold(0.0, f64::min);
+            assert!(-deepest <= head.amplitude_um + 1e-12);
+        }
+    }
+}
+
 #[test]
 fn hidden_channel_drives_the_bars_and_is_logged_as_other() {
     let base = lively();
@@ -445,6 +510,18 @@ fn config_round_trips_and_rejects_bad_input() {
         SimConfig::from_toml_str("bogus = 1"),
         Err(SimError::Toml(_))
     ));
+    let bad = SimConfig::from_toml_str(
+        "[effects.head_heating]\nschedule = \"daily\"\ndaily_off_h = [4.0, 1.5]",
+    );
+    assert!(
+        matches!(bad, Err(SimError::Invalid { ref key, .. }) if key == "effects.head_heating.daily_off_h"),
+        "{bad:?}"
+    );
+    let good = SimConfig::from_toml_str(
+        "[effects.head_heating]\nenabled = true\nstart = \"powered_warm\"\nschedule = \"daily\"",
+    )
+    .unwrap();
+    assert_eq!(good.effects.head_heating.start, HeadStart::PoweredWarm);
     let bad = SimConfig::from_toml_str("[effects.head_heating]\nenabled = true\ntau_s = -5.0");
     assert!(
         matches!(bad, Err(SimError::Invalid { ref key, .. }) if key == "effects.head_heating.tau_s"),

@@ -5,6 +5,7 @@ mod acceptance;
 mod bad_input;
 mod cli;
 mod diagnose;
+mod head_heating;
 mod identify;
 mod machine_tool;
 mod nist;
