@@ -1078,12 +1078,14 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
     let criteria = timed("diagnose: noise floor", || {
         diagnose::Criteria::for_fleet(&bases, tolerance_um)
     });
+    let refits = diagnose::Refits::default();
     let (mut candidates, unavailable) = timed("diagnose: candidates", || {
         diagnose::evaluate_candidates(
             &pairs,
             &bases,
             &diagnose::candidate_effects(&plan.effects, &diagnoses),
             &criteria,
+            &refits,
         )
     });
     // Sensors are the campaign's: profile them on the first bar's timeline.
@@ -1102,6 +1104,7 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
             plan.diagnose.forward_steps,
             plan.diagnose.beam,
             &criteria,
+            &refits,
         )
     });
     let bar_ledgers = timed("diagnose: per-bar forward selection", || {
@@ -1117,6 +1120,7 @@ fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
                     plan.diagnose.forward_steps,
                     plan.diagnose.beam,
                     &criteria,
+                    &refits,
                 )
             })
             .collect()
