@@ -425,14 +425,15 @@ pub fn evaluate_candidates(
         })
         .collect();
     let mut unavailable = Vec::new();
-    // Per candidate that could be built somewhere: what it could matter by, as screened (a
-    // shift of the model's own terms counts only where the score test finds the term).
-    let mut screened: Vec<(usize, f64)> = Vec::new();
+    // Per candidate that could be built somewhere, as screened: the fleet RMS it removes (which
+    // ranks it) and what it could matter by (a shift of the model's own terms counts only where
+    // the score test finds the term and the term leaves a trace in the fit).
+    let mut screened: Vec<(usize, f64, f64)> = Vec::new();
     for (c, per_bar) in screens.iter().enumerate() {
         if let Some((gain, shift, p)) = screened_change(bars, per_bar) {
             tracing::trace!(effect = %candidates[c].name(), gain, shift, p, "diagnose: screened");
             let shift_counts = p < threshold && criteria.shift_counts(gain);
-            screened.push((c, if shift_counts { gain.max(shift) } else { gain }));
+            screened.push((c, gain, if shift_counts { gain.max(shift) } else { gain }));
         } else {
             unavailable.push(Unavailable {
                 effect: candidates[c].name(),
@@ -444,15 +445,15 @@ pub fn evaluate_candidates(
         }
     }
     screened.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-    let best = screened.first().map_or(0.0, |(_, g)| *g);
+    let best = screened.first().map_or(0.0, |(_, g, _)| *g);
     let refit: Vec<usize> = screened
         .iter()
-        .filter(|(_, gain)| {
-            *gain >= SCREEN_SHARE * criteria.min_gain_um && *gain >= RIVAL_SHARE * best
+        .filter(|(_, gain, change)| {
+            *change >= SCREEN_SHARE * criteria.min_gain_um && *gain >= RIVAL_SHARE * best
         })
-        .map(|(c, _)| *c)
+        .map(|(c, _, _)| *c)
         .collect();
-    let best_effect = screened.first().map(|(c, _)| candidates[*c].name());
+    let best_effect = screened.first().map(|(c, _, _)| candidates[*c].name());
     tracing::debug!(
         bars = bars.len(),
         refit = ?refit.iter().map(|&c| candidates[c].name()).collect::<Vec<_>>(),
@@ -461,15 +462,17 @@ pub fn evaluate_candidates(
     let exact = exact_refits(bars, bases, &refit, candidates, &screens, threshold, refits);
     let mut ranked: Vec<Candidate> = screened
         .iter()
-        .map(|&(c, gain)| {
+        .map(|&(c, gain, change)| {
             let per_bar = match refit.iter().position(|&r| r == c) {
                 Some(k) => exact[k].clone(),
                 None => screened_only(bars, &screens[c]),
             };
             let mut summary = summarise_candidate(&candidates[c], per_bar, threshold, criteria);
-            if summary.verdict == Verdict::ScreenedOut && gain >= SCREEN_SHARE * criteria.min_gain_um {
+            if summary.verdict == Verdict::ScreenedOut
+                && change >= SCREEN_SHARE * criteria.min_gain_um
+            {
                 summary.reason = format!(
-                    "screened out: its screened change ({} µm) is less than {RIVAL_SHARE} of the best candidate's ({}, {} µm); if real it is found once that one is in the model",
+                    "screened out: the fleet RMS it removes ({} µm, screened) is less than {RIVAL_SHARE} of the best candidate's ({}, {} µm); if real it is found once that one is in the model",
                     fmt_um(gain),
                     best_effect.as_deref().unwrap_or(""),
                     fmt_um(best)

@@ -58,6 +58,14 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
         })
         .collect();
     eprintln!("{name}: {}", ranking.join("; "));
+    for c in &diagnosis.candidates {
+        let errors: Vec<&str> = c
+            .per_bar
+            .iter()
+            .filter_map(|b| b.error.as_deref())
+            .collect();
+        eprintln!("  {}: {} {errors:?}", c.effect, c.reason);
+    }
     let rank = diagnosis
         .candidates
         .iter()
