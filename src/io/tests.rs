@@ -642,6 +642,7 @@ fn write_then_read_round_trips_under_every_layout() {
             split_by_day: true,
             time_unit: TimeUnit::Us,
             shuffle_rows: true,
+            interleave_rows: false,
             dictionary_strings: true,
             seed: 7,
         },
@@ -649,6 +650,7 @@ fn write_then_read_round_trips_under_every_layout() {
             split_by_day: true,
             time_unit: TimeUnit::Ms,
             shuffle_rows: false,
+            interleave_rows: true,
             dictionary_strings: false,
             seed: 0,
         },
@@ -703,6 +705,7 @@ fn writing_is_deterministic_and_leaves_no_stale_files() {
         split_by_day: true,
         time_unit: TimeUnit::Us,
         shuffle_rows: true,
+        interleave_rows: false,
         dictionary_strings: true,
         seed: 3,
     };

@@ -8,4 +8,5 @@ mod diagnose;
 mod identify;
 mod machine_tool;
 mod nist;
+mod row_order;
 mod support;
