@@ -517,6 +517,12 @@ fn unknown_sensor_is_named() {
 fn null_times_and_counts_are_named() {
     let dir = campaign_dir();
     write_t1(dir.path());
+    // A clean file of the same schema first: the two share a scan, and the nulls are still
+    // attributed to their file.
+    write_df(
+        &dir.path().join("encoders/a.parquet"),
+        encoders(&[T0 + 9 * S], &["B01"], &[0]),
+    );
     let times = pl::Int64Chunked::from_slice_options("time".into(), &[Some(T0), None])
         .into_datetime(pl::TimeUnit::Nanoseconds, None)
         .into_column();
