@@ -98,8 +98,12 @@ def main():
 
     w("## Timings")
     w("")
-    bin_s = float(machine.get("bin_s", "0") or 0)
-    if bin_s > 0:
+    bin_text = machine.get("bin_s", "0") or "0"
+    bin_s = 60.0 if bin_text == "auto" else float(bin_text)
+    if bin_text == "auto":
+        w("**No `--bin-s`**: dbbcal chooses the bins itself (60 s for these 1 Hz campaigns, exact for the fits, see README); "
+          "`python_equivalent.py --bin-s 60` reads every sample and fits bin means, which is close but not the same fit.")
+    elif bin_s > 0:
         w(f"**Compressed {bin_s:g}-s bins**: `dbbcal ingest/identify --bin-s {bin_s:g}` accumulates each bin's integer "
           "moments while the encoder files stream and fits two weighted nodes a bin, which is exact for the fits (the "
           "estimates equal the full-rate fit's, see README); `python_equivalent.py --bin-s "
@@ -225,7 +229,8 @@ def main():
         mb = ident["full"]["mb"]
         w(f"| peak memory under 1.5 GB | {'≥ ' if extrapolated_full else ''}{mb:.0f} MB | {'met' if mb < 1500 else 'NOT met'} |")
     for key, what in [("wall", "wall s"), ("cpu", "CPU s")]:
-        pts = sorted((enc_rows[s], ident[s][key]) for s in sizes if s in ident and s in enc_rows and s != "full-sub")
+        pts = sorted((enc_rows[s], ident[s][key]) for s in sizes
+                     if s in ident and s in enc_rows and s != "full-sub" and not s.startswith("full-"))
         if len(pts) < 2:
             continue
         (n0, t0), (n1, t1) = pts[0], pts[-1]
@@ -235,6 +240,34 @@ def main():
           f"{' (last point extrapolated)' if extrapolated_full else ''}; log-log slope {slope:.2f} (1 = linear) | "
           f"{'met' if slope <= 1.2 else 'NOT met'}{' (below 1: grows slower than rows)' if slope < 0.8 else ''} |")
     w("")
+
+    # ---------------------------------------------------------------- row orders
+    layouts = [s[len("full-"):] for s in sizes if s.startswith("full-") and s != "full-sub"]
+    if layouts:
+        w("## Row orders (30-day campaign, day files holding all bars)")
+        w("")
+        w("`bench/layouts.py` rewrites the 30-day campaign into 30 day files, each holding every bar: sorted by bar then "
+          "time (`bybar`), by time with the bars interleaved (`bytime`, as a logger of many bars writes them), shuffled "
+          "inside each file (`shuffled`). dbbcal runs with no option (it chooses 60-s bins). Targets (issue 13): ingest + "
+          "identify within 4× the bare scan of the same files and under 1.5 GB, whatever the order.")
+        w("")
+        w("| order | bare scan s | decode floor s | ingest s (CPU s, MB) | identify s | identify CPU s | peak MB | × bare scan | verdict |")
+        w("|---|---:|---:|---|---:|---:|---:|---:|---|")
+        for layout in layouts:
+            size = f"full-{layout}"
+            g, i = best(f"dbbcal-ingest-{size}", size), best(f"dbbcal-identify-{size}", size)
+            if not (g and i and size in scan_s):
+                continue
+            ratio = i["wall"] / scan_s[size]
+            ok = ratio <= 4 and i["mb"] < 1500
+            floor = f"{decode_s[size]:.3g}" if size in decode_s else "–"
+            w(f"| {layout} | {scan_s[size]:.3g} | {floor} | {g['wall']:.3g} ({g['cpu']:.3g}, {g['mb']:.0f}) | {i['wall']:.3g} | "
+              f"{i['cpu']:.3g} | {i['mb']:.0f} | {ratio:.1f} | {'met' if ok else 'NOT met'} |")
+        same = os.path.join(d, "layouts-same.txt")
+        if os.path.exists(same):
+            w("")
+            w("- " + open(same).read().strip())
+        w("")
 
     # ---------------------------------------------------------------- correctness
     w("## Same answers")

@@ -12,7 +12,11 @@
 #    examples/decode_floor.rs (dbbcal's polars decoding the encoder files and nothing else: the
 #    floor under ingest, best of 3), and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
 #    PY_BARS bars, extrapolated to all 12 -- plus the --project-zeros variant on all bars;
-# 5. writes bench/results.md (bench/report.py); with BIN_S=N, bench/results-binNs.md.
+# 5. rewrites the 30-day campaign into the row orders a logger of many bars leaves (bench/layouts.py:
+#    day files holding all bars, sorted by bar / by time with the bars interleaved / shuffled) and
+#    measures the bare scan, dbbcal ingest and dbbcal identify with no option on each (issue 13:
+#    cost and memory must not depend on row order);
+# 6. writes bench/results.md (bench/report.py); with BIN_S=N, bench/results-binNs.md.
 #
 # The binary is copied to bench/out/dbbcal first, so a rebuild by someone else during the run
 # cannot mix two versions; results.md records a hash of src/ and Cargo.lock.
@@ -26,7 +30,9 @@
 #   PY_BARS=2                  bars of the dense Python run ("all" for every bar; ~4 min a bar on 2 cores)
 #   PY_FAST=1                  also run python_equivalent.py --project-zeros on all bars (0 to skip)
 #   BIN_S=0                    compress into BIN_S-second bins: `dbbcal ingest/identify --bin-s BIN_S` (exact), and
-#                              `python_equivalent.py --bin-s BIN_S` (bin means: close, not exact; 0: every sample)
+#                              `python_equivalent.py --bin-s BIN_S` (bin means: close, not exact; 0: every sample);
+#                              BIN_S=auto: no --bin-s (dbbcal chooses: 60 s for these 1 Hz campaigns; Python: 0)
+#   LAYOUTS="bybar bytime shuffled"  row orders of the 30-day campaign to time (identify with no option); "" to skip
 #   SKIP_PYTHON=1              skip the Python equivalent
 #   WAIT_IDLE=1                before each measurement wait (up to 15 min) for the 1-min load < IDLE_LOAD
 #   IDLE_LOAD=0.7
@@ -35,10 +41,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/dbbcal-target}
-SIZES=${SIZES:-quarter half full}
+SIZES=${SIZES-quarter half full}
 REPEAT=${REPEAT:-1}
 DBBCAL_BARS=${DBBCAL_BARS:-all}
 BIN_S=${BIN_S:-0}
+LAYOUTS=${LAYOUTS-bybar bytime shuffled}
 PY_BARS=${PY_BARS:-2}
 PY_FAST=${PY_FAST:-1}
 SKIP_PYTHON=${SKIP_PYTHON:-0}
@@ -77,7 +84,7 @@ config_of() {
         *) echo "unknown size $1" >&2; exit 2 ;;
     esac
 }
-for size in sample $SIZES; do
+for size in sample $SIZES ${LAYOUTS:+full}; do
     dir=$OUT/campaign-$size
     if [ ! -f "$dir/campaign.toml" ]; then
         rm -rf "$dir"
@@ -85,6 +92,22 @@ for size in sample $SIZES; do
         /usr/bin/time -f "simulate $size: %e s, peak %M KB" "$BIN" simulate --config "$(config_of "$size")" --out "$dir"
     fi
 done
+
+for layout in $LAYOUTS; do
+    dir=$OUT/campaign-full-$layout
+    if [ ! -f "$dir/campaign.toml" ]; then
+        rm -rf "$dir"
+        say "rewriting $OUT/campaign-full as $dir (bench/layouts.py --order $layout)"
+        python3 bench/layouts.py "$OUT/campaign-full" "$dir" --order "$layout"
+    fi
+done
+
+# `--bin-s N`, or nothing for BIN_S=auto (dbbcal then chooses).
+bin_flag() { [ "$1" = auto ] || printf -- '--bin-s\n%s\n' "$1"; }
+mapfile -t BIN_FLAG < <(bin_flag "$BIN_S")
+# The Python equivalent fits bin means (not exact); with BIN_S=auto it takes dbbcal's 60 s.
+PY_BIN_S=$BIN_S
+[ "$BIN_S" != auto ] || PY_BIN_S=60
 
 # ------------------------------------------------------------------ measuring
 wait_idle() {
@@ -123,6 +146,7 @@ measure() {
     echo "dbbcal	$("$BIN" --version), built $(date -u -r "$CARGO_TARGET_DIR/release/dbbcal" +%Y-%m-%dT%H:%M:%SZ), sha256(src/ + Cargo.lock) $(find src Cargo.lock -type f | LC_ALL=C sort | xargs cat | sha256sum | cut -c1-12)"
     echo "date	$(date -u +%Y-%m-%dT%H:%M:%SZ)"
     echo "bin_s	$BIN_S"
+    echo "layouts	$LAYOUTS"
 } >"$OUT/machine.tsv"
 
 say "correctness: python_equivalent.py vs dbbcal identify on the sample campaign"
@@ -138,20 +162,49 @@ for size in $SIZES; do
     # The floor under ingest: dbbcal's own polars decoding the encoder files, nothing else.
     measure "decode-floor-$size" "$size" "$OUT/decode_floor" "$camp" --repeat 3 --json "$OUT/decode-floor-$size.json"
     for r in $(seq 1 "$REPEAT"); do
-        measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest" --bin-s "$BIN_S"
+        measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest" "${BIN_FLAG[@]}"
         if [ "$size" = full ] && [ "$DBBCAL_BARS" != all ]; then
             sub=$OUT/campaign-full-${DBBCAL_BARS}bars
             if [ ! -f "$sub/campaign.toml" ]; then
                 bars=$(python3 -c "import tomllib,sys; m=tomllib.load(open('$camp/campaign.toml','rb')); print(','.join(b['id'] for b in m['bar'][:int(sys.argv[1])]))" "$DBBCAL_BARS")
                 python3 bench/subset_campaign.py "$camp" "$sub" --bars "$bars"
             fi
-            measure "dbbcal-ingest-full-sub-$r" full-sub "$BIN" ingest --campaign "$sub" --out "$OUT/res-full-sub-ingest" --bin-s "$BIN_S"
-            measure "dbbcal-identify-full-sub-$r" full-sub "$BIN" identify --campaign "$sub" --out "$OUT/res-full-sub-identify" --bin-s "$BIN_S"
+            measure "dbbcal-ingest-full-sub-$r" full-sub "$BIN" ingest --campaign "$sub" --out "$OUT/res-full-sub-ingest" "${BIN_FLAG[@]}"
+            measure "dbbcal-identify-full-sub-$r" full-sub "$BIN" identify --campaign "$sub" --out "$OUT/res-full-sub-identify" "${BIN_FLAG[@]}"
         else
-            measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify" --bin-s "$BIN_S"
+            measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify" "${BIN_FLAG[@]}"
         fi
     done
 done
+# The row orders: each timed like a size (bare scan, decode floor, ingest, identify), dbbcal with no
+# option (the bins it chooses), so that the three can be read against each other and their scan.
+for layout in $LAYOUTS; do
+    camp=$OUT/campaign-full-$layout
+    size=full-$layout
+    say "timing row order $layout ($camp)"
+    measure "bare-scan-$size" "$size" python3 bench/bare_scan.py "$camp" --repeat 3 --json "$OUT/bare-scan-$size.json"
+    measure "decode-floor-$size" "$size" "$OUT/decode_floor" "$camp" --repeat 3 --json "$OUT/decode-floor-$size.json"
+    for r in $(seq 1 "$REPEAT"); do
+        measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest"
+        measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify"
+    done
+done
+# Same results whatever the order: summary.json but for its inputs record (file names, hashes).
+if [ -n "$LAYOUTS" ]; then
+    python3 - "$OUT" $LAYOUTS >"$OUT/layouts-same.txt" <<'PY'
+import json, sys
+out, layouts = sys.argv[1], sys.argv[2:]
+def load(layout):
+    s = json.load(open(f"{out}/res-full-{layout}-identify/summary.json"))
+    s.pop("inputs")
+    return json.dumps(s, sort_keys=True)
+first = load(layouts[0])
+same = [l for l in layouts[1:] if load(l) == first]
+print(f"summary.json (without inputs) identical across {', '.join(layouts)}: {len(same) == len(layouts) - 1}")
+PY
+    cat "$OUT/layouts-same.txt" >&2
+fi
+
 FULL_SUMMARY=$OUT/res-full-identify/summary.json
 [ "$DBBCAL_BARS" = all ] || FULL_SUMMARY=$OUT/res-full-sub-identify/summary.json
 
@@ -163,16 +216,17 @@ if [ "$SKIP_PYTHON" != 1 ]; then
     fi
     say "timing the Python equivalent (dense lstsq) on ${bars:-all bars}"
     measure "python-dense-full" full python3 bench/python_equivalent.py "$camp" ${bars:+--bars "$bars"} \
-        --bin-s "$BIN_S" --json "$OUT/py-dense-full.json" --compare "$FULL_SUMMARY"
+        --bin-s "$PY_BIN_S" --json "$OUT/py-dense-full.json" --compare "$FULL_SUMMARY"
     if [ "$PY_FAST" = 1 ]; then
         say "timing the Python equivalent (--project-zeros) on all bars"
         measure "python-fwl-full" full python3 bench/python_equivalent.py "$camp" --project-zeros \
-            --bin-s "$BIN_S" --json "$OUT/py-fwl-full.json" --compare "$FULL_SUMMARY"
+            --bin-s "$PY_BIN_S" --json "$OUT/py-fwl-full.json" --compare "$FULL_SUMMARY"
     fi
 fi
 
 RESULTS=bench/results.md
 [ "$BIN_S" = 0 ] || RESULTS=bench/results-bin${BIN_S}s.md
+[ "$BIN_S" != auto ] || RESULTS=bench/results-auto.md
 say "writing $RESULTS"
 python3 bench/report.py --out-dir "$OUT" --results "$RESULTS" --dbbcal-bars "$DBBCAL_BARS"
 cat "$RESULTS"

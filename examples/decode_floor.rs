@@ -4,7 +4,7 @@
 //! Two ways, best of `--repeat` runs each:
 //! * `collect`: `scan_parquet` + `collect` into memory, as `bench/bare_scan.py` does in Python;
 //! * `stream`: the streaming engine handing over batches (`sink_batches`), as ingest reads the
-//!   encoder files, the batches dropped on arrival.
+//!   encoder files (one scan over all of them), the batches dropped on arrival.
 //!
 //! ```text
 //! cargo run --release --features bench-tools --example decode_floor -- bench/out/campaign-full \
@@ -57,19 +57,31 @@ fn collect(files: &[PathBuf]) -> PolarsResult<usize> {
     Ok(rows)
 }
 
-/// Rows decoded by streaming every file in batches, each dropped as it arrives.
+/// Rows decoded by streaming every file in batches, each dropped as it arrives: one scan over
+/// all the files, as ingest reads files of one schema.
 fn stream(files: &[PathBuf]) -> PolarsResult<usize> {
     let rows = Arc::new(AtomicUsize::new(0));
-    for path in files {
-        let seen = rows.clone();
-        let callback = PlanCallback::new(move |batch: DataFrame| {
-            seen.fetch_add(batch.height(), Ordering::Relaxed);
-            Ok(false)
-        });
-        scan(path)?
-            .sink_batches(callback, true, None)?
-            .collect_with_engine(Engine::Streaming)?;
-    }
+    let seen = rows.clone();
+    let callback = PlanCallback::new(move |batch: DataFrame| {
+        seen.fetch_add(batch.height(), Ordering::Relaxed);
+        Ok(false)
+    });
+    let args = ScanArgsParquet {
+        glob: false,
+        ..Default::default()
+    };
+    let paths: Vec<PlRefPath> = files
+        .iter()
+        .map(|p| PlRefPath::try_from_path(p))
+        .collect::<PolarsResult<_>>()?;
+    LazyFrame::scan_parquet_files(paths.into(), args)?
+        .select([
+            col("time").cast(DataType::Int64),
+            col("bar").cast(DataType::String),
+            col("counts").cast(DataType::Int64),
+        ])
+        .sink_batches(callback, true, None)?
+        .collect_with_engine(Engine::Streaming)?;
     Ok(rows.load(Ordering::Relaxed))
 }
 

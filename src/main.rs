@@ -86,9 +86,9 @@ struct StageArgs {
     #[arg(long = "add-effect", value_name = "NAME")]
     add_effect: Vec<String>,
     /// Compress the readings into bins of this many seconds, two weighted nodes a bin (exact for
-    /// the fits; 0: every reading), e.g. 60 for 1 Hz logs.
-    #[arg(long = "bin-s", value_name = "SECONDS", default_value_t = 0.0)]
-    bin_s: f64,
+    /// the fits; 0: every reading). Default: 60 when the bars log every 6 s or faster, else 0.
+    #[arg(long = "bin-s", value_name = "SECONDS")]
+    bin_s: Option<f64>,
 }
 
 /// mimalloc: see Cargo.toml for why and what it measured.
@@ -164,14 +164,18 @@ fn stage(stage: Stage, a: StageArgs) -> anyhow::Result<RunStatus> {
     let campaign =
         a.io.campaign
             .unwrap_or_else(|| PathBuf::from("data/sample"));
-    if !(0.0..=dbbcal::series::MAX_BIN_S).contains(&a.bin_s) {
+    if a.bin_s
+        .is_some_and(|b| !(0.0..=dbbcal::series::MAX_BIN_S).contains(&b))
+    {
         anyhow::bail!(dbbcal::pipeline::PlanError::Pipeline {
             path: "--bin-s".into(),
             message: format!("must be between 0 and {} s", dbbcal::series::MAX_BIN_S)
         });
     }
     let mut plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
-    plan.bin_s = a.bin_s;
+    if let Some(bin_s) = a.bin_s {
+        (plan.bin_s, plan.automatic_bins) = (bin_s, false);
+    }
     runner::run(&plan)
 }
 

@@ -159,9 +159,10 @@ pub struct ModelSection {
     #[serde(default)]
     pub term: Vec<GenericTerm>,
     /// Compress each bar's readings into bins of this many seconds, two weighted nodes a bin,
-    /// exact for the fits (`series::bins`; 0: every reading). At most an hour.
+    /// exact for the fits (`series::bins`; 0: every reading). At most an hour. Absent: chosen
+    /// from the campaign (`series::automatic_bin_s`: 60 s for logs of 6 s or faster).
     #[serde(default)]
-    pub bin_s: f64,
+    pub bin_s: Option<f64>,
 }
 
 /// A generic term defined in the pipeline TOML: `transform` of `channel`, starting at `tau_s`.
@@ -189,7 +190,7 @@ impl Default for ModelSection {
         Self {
             effects: default_effects(),
             term: Vec::new(),
-            bin_s: 0.0,
+            bin_s: None,
         }
     }
 }
@@ -256,6 +257,9 @@ pub struct RunPlan {
     pub effects: Vec<Effect>,
     /// Bin length of the compressed readings, s (0: every reading).
     pub bin_s: f64,
+    /// `bin_s` is chosen from the campaign before ingest (`io::automatic_bin_s`; the runner
+    /// replaces it): no `[model] bin_s` or `--bin-s` was given.
+    pub automatic_bins: bool,
     pub matching: MatchSection,
     pub diagnose: DiagnoseSection,
     pub acceptance: AcceptanceSection,
@@ -324,13 +328,15 @@ impl RunPlan {
             }
         }
         plan.diagnose = file.diagnose;
-        if !(0.0..=crate::series::MAX_BIN_S).contains(&file.model.bin_s) {
-            return Err(perr(format!(
-                "model.bin_s must be between 0 and {} s",
-                crate::series::MAX_BIN_S
-            )));
+        if let Some(bin_s) = file.model.bin_s {
+            if !(0.0..=crate::series::MAX_BIN_S).contains(&bin_s) {
+                return Err(perr(format!(
+                    "model.bin_s must be between 0 and {} s",
+                    crate::series::MAX_BIN_S
+                )));
+            }
+            (plan.bin_s, plan.automatic_bins) = (bin_s, false);
         }
-        plan.bin_s = file.model.bin_s;
         if !(file.acceptance.tolerance_um > 0.0
             && file.acceptance.u_temperature_k >= 0.0
             && file.acceptance.max_gap_s > 0.0)
@@ -393,6 +399,7 @@ impl RunPlan {
             out_dir,
             effects,
             bin_s: 0.0,
+            automatic_bins: true,
             matching,
             diagnose: DiagnoseSection::default(),
             acceptance: AcceptanceSection::default(),

@@ -28,6 +28,18 @@ pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
 
 /// Run `plan`: ingest, analyse, write the output folder.
 pub fn run(plan: &RunPlan) -> Result<RunStatus> {
+    // No bin length set: chosen from the campaign before ingest streams (and recorded).
+    let chosen;
+    let plan = if plan.automatic_bins {
+        chosen = RunPlan {
+            bin_s: io::automatic_bin_s(&plan.campaign_dir)?,
+            automatic_bins: false,
+            ..plan.clone()
+        };
+        &chosen
+    } else {
+        plan
+    };
     let logs = pipeline::timed("ingest", || {
         io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
     })?;

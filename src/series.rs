@@ -11,7 +11,8 @@ use crate::campaign::{Bar, Campaign, TimeNs};
 
 mod bins;
 pub use bins::{
-    BarBins, BinAccumulator, BinGrid, BinKey, BinMoments, Node, Readings, Region, MAX_BIN_S,
+    automatic_bin_s, BarBins, BinAccumulator, BinGrid, BinKey, BinMoments, Node, Readings, Region,
+    AUTOMATIC_BIN_S, AUTOMATIC_MAX_INTERVAL_S, MAX_BIN_S,
 };
 
 /// One input file the run read, with its hash, for the output's provenance record.

@@ -111,6 +111,16 @@ pub fn read_campaign_binned(dir: &Path, bin_s: f64) -> Result<CampaignLogs, Inge
     })
 }
 
+/// The bin length to compress a campaign with when none is set
+/// ([`crate::series::automatic_bin_s`]): decided from `campaign.toml` and the encoder files'
+/// parquet footers, before any row is read, so ingest can bin while it streams.
+pub fn automatic_bin_s(dir: &Path) -> Result<f64, IngestError> {
+    let campaign = read::read_manifest(dir)?;
+    let files = inputs::CampaignFiles::list(dir)?;
+    let rows = read::footer_rows(&files.encoders)?;
+    Ok(crate::series::automatic_bin_s(&campaign, rows))
+}
+
 /// Flattens a (possibly multi-line) message to one line.
 pub(crate) fn one_line(s: impl std::fmt::Display) -> String {
     s.to_string()

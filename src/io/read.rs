@@ -179,7 +179,13 @@ pub(crate) fn read_tables(
     } else {
         BTreeMap::new()
     };
-    let (bars, bins) = read_encoders(&files.encoders, &bar_ids, &grids)?;
+    // At full rate each bar's log is reserved once from the footers (no doubling overshoot).
+    let rows_hint = if grids.is_empty() {
+        footer_rows(&files.encoders)? as usize
+    } else {
+        0
+    };
+    let (bars, bins) = read_encoders(&files.encoders, &bar_ids, &grids, rows_hint)?;
     tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
 
     let sensors: BTreeMap<String, SensorLog> = readings
@@ -263,12 +269,19 @@ fn read_file(path: &Path, columns: &[ColumnSpec], index: usize) -> Result<DataFr
 /// One file's lazy scan, projected to the spec's columns in canonical types; schema errors
 /// (missing column, wrong type) are raised here, before any row is read.
 fn scan_file(path: &Path, columns: &[ColumnSpec]) -> Result<LazyFrame, IngestError> {
+    let (lazy, _, exprs) = checked_scan(path, columns)?;
+    Ok(lazy.select(exprs))
+}
+
+/// One file's lazy scan, its whole schema, and the expressions that project it to the spec's
+/// columns in canonical types; schema errors (missing column, wrong type) are raised here.
+fn checked_scan(
+    path: &Path,
+    columns: &[ColumnSpec],
+) -> Result<(LazyFrame, SchemaRef, Vec<Expr>), IngestError> {
     let source = PlRefPath::try_from_path(path).map_err(|e| not_parquet(path, e))?;
-    let args = ScanArgsParquet {
-        glob: false,
-        ..Default::default()
-    };
-    let mut lazy = LazyFrame::scan_parquet(source, args).map_err(|e| not_parquet(path, e))?;
+    let mut lazy =
+        LazyFrame::scan_parquet(source, scan_args()).map_err(|e| not_parquet(path, e))?;
     let schema = lazy.collect_schema().map_err(|e| not_parquet(path, e))?;
     let mut exprs = Vec::with_capacity(columns.len() + 1);
     for spec in columns {
@@ -294,7 +307,30 @@ fn scan_file(path: &Path, columns: &[ColumnSpec]) -> Result<LazyFrame, IngestErr
         };
         exprs.push(expr.alias(spec.name));
     }
-    Ok(lazy.select(exprs))
+    Ok((lazy, schema, exprs))
+}
+
+fn scan_args() -> ScanArgsParquet {
+    ScanArgsParquet {
+        glob: false,
+        ..Default::default()
+    }
+}
+
+/// The rows the files' parquet footers announce (no data page is read).
+pub(crate) fn footer_rows(files: &[PathBuf]) -> Result<u64, IngestError> {
+    let mut rows = 0u64;
+    for path in files {
+        let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        let n = ParquetReader::new(file)
+            .num_rows()
+            .map_err(|e| not_parquet(path, e))?;
+        rows += n as u64;
+    }
+    Ok(rows)
 }
 
 // ---------------------------------------------------------------- encoders, streamed
@@ -302,8 +338,13 @@ fn scan_file(path: &Path, columns: &[ColumnSpec]) -> Result<LazyFrame, IngestErr
 /// Rows of one bar gathered from every file and batch: kept (in arrival order), or added to the
 /// bar's compressed bins as they arrive (`series::BinAccumulator`: order-free integer sums).
 enum BarRows {
-    Kept { time_ns: Vec<i64>, counts: Vec<i64> },
+    Kept {
+        time_ns: Vec<i64>,
+        counts: Vec<i64>,
+    },
     Binned(BinAccumulator),
+    /// Not kept (a pass that only looks for nulls and undeclared ids).
+    Dropped,
 }
 
 /// Rows and time range of an undeclared bar id in one file.
@@ -313,23 +354,118 @@ struct Unknown {
     last_ns: i64,
 }
 
+/// Bar ids of a batch as small indices, found on the string views: an id of 12 bytes or less
+/// (every bar id of the spec's examples) is inline in its 16-byte view, so equal views are equal
+/// ids, and a small open-addressed table of views gives the index without touching the string.
+/// Longer ids are looked up by their string.
+struct IdIndex {
+    /// Id -> index (declared bars first, then undeclared ids as they appear).
+    by_name: BTreeMap<String, u32>,
+    names: Vec<String>,
+    /// Open-addressed (view, index + 1) table of inline ids; 0 = empty.
+    views: Vec<(u128, u32)>,
+    /// Entries of `views` in use (at most half of it).
+    filled: usize,
+    shift: u32,
+}
+
+impl IdIndex {
+    fn new<'a>(declared: impl Iterator<Item = &'a str>) -> IdIndex {
+        let names: Vec<String> = declared.map(str::to_string).collect();
+        let size = (4 * names.len() + 8).next_power_of_two();
+        IdIndex {
+            by_name: names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.clone(), i as u32))
+                .collect(),
+            names,
+            views: vec![(0, 0); size],
+            filled: 0,
+            shift: 64 - size.trailing_zeros(),
+        }
+    }
+
+    fn slot(&self, view: u128) -> usize {
+        let mixed = (view as u64) ^ ((view >> 64) as u64).rotate_left(29);
+        (mixed.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
+    }
+
+    /// Index of every row's id into `out`.
+    fn indices(&mut self, ids: &StringChunked, out: &mut Vec<u32>) {
+        out.clear();
+        out.reserve(ids.len());
+        let mask = self.views.len() - 1;
+        for chunk in ids.downcast_iter() {
+            let views = chunk.views();
+            let mut last: Option<(u128, u32)> = None;
+            for (i, view) in views.iter().enumerate() {
+                let bits = view.as_u128();
+                if let Some((_, index)) = last.filter(|&(v, _)| v == bits) {
+                    out.push(index);
+                    continue;
+                }
+                let index = if view.length <= 12 {
+                    let mut slot = self.slot(bits);
+                    loop {
+                        match self.views[slot] {
+                            (v, found) if found != 0 && v == bits => break found - 1,
+                            (_, 0) => {
+                                let index = self.by_string(chunk.value(i));
+                                if 2 * (self.filled + 1) <= self.views.len() {
+                                    self.views[slot] = (bits, index + 1);
+                                    self.filled += 1;
+                                }
+                                break index;
+                            }
+                            _ => slot = (slot + 1) & mask,
+                        }
+                    }
+                } else {
+                    self.by_string(chunk.value(i))
+                };
+                last = Some((bits, index));
+                out.push(index);
+            }
+        }
+    }
+
+    fn by_string(&mut self, id: &str) -> u32 {
+        if let Some(&index) = self.by_name.get(id) {
+            return index;
+        }
+        let index = self.names.len() as u32;
+        self.names.push(id.to_string());
+        self.by_name.insert(id.to_string(), index);
+        index
+    }
+}
+
 /// What the streamed encoder batches leave behind: per-bar rows of declared bars, and what the
 /// checks need (nulls per column and file, undeclared ids per file).
-#[derive(Default)]
 struct EncoderSink {
     /// Index of the file being streamed.
     file: u32,
-    bars: BTreeMap<String, BarRows>,
+    ids: IdIndex,
+    /// Rows of the declared bars, by index in `ids`.
+    bars: Vec<BarRows>,
     /// (index into [`ENCODER_COLUMNS`], file) -> null values.
     nulls: BTreeMap<(usize, u32), u64>,
     /// (file, id) -> rows of an undeclared bar.
     unknown: BTreeMap<(u32, String), Unknown>,
+    /// Scratch: each row's id index, and the batch's rows grouped by bar.
+    row_ids: Vec<u32>,
+    grouped_time: Vec<i64>,
+    grouped_counts: Vec<i64>,
+    group_start: Vec<usize>,
 }
 
 impl EncoderSink {
-    /// Split one batch into runs of equal `bar` and append each run to its bar's rows. A file
-    /// sorted or grouped by bar gives a few long runs; an interleaved one costs a map look-up per
-    /// row.
+    /// Split one batch per bar and add each bar's rows to its log or bins. The cost per row does
+    /// not depend on the order of the rows: ids are indexed on their string views; a batch of
+    /// few runs of one bar (a file sorted or grouped by bar) goes run by run, any other (bars
+    /// interleaved, or shuffled) is first grouped by bar with a counting sort (stable: each bar's
+    /// rows keep their order), so every bar gets its rows as one slice.
     fn push(&mut self, batch: &DataFrame) -> PolarsResult<()> {
         let time = batch.column("time")?.i64()?;
         let bar = batch.column("bar")?.str()?;
@@ -346,39 +482,64 @@ impl EncoderSink {
         let time = time.rechunk();
         let counts = counts.rechunk();
         let (time, counts) = (time.cont_slice()?, counts.cont_slice()?);
-        // Runs of equal ids, found on the string views: a short id (12 bytes or less, every
-        // bar id of the spec's examples) is inline in its 16-byte view, so equal views are
-        // equal ids and the strings are compared only where the views differ.
-        let mut start = 0;
-        let mut offset = 0;
-        let mut current: Option<(&str, u128)> = None;
-        for chunk in bar.downcast_iter() {
-            let views = chunk.views();
-            for i in 0..chunk.len() {
-                let view = views[i].as_u128();
-                match current {
-                    Some((_, v)) if v == view => {}
-                    Some((id, _)) if id == chunk.value(i) => current = Some((id, view)),
-                    _ => {
-                        let row = offset + i;
-                        if let Some((id, _)) = current {
-                            self.append(id, &time[start..row], &counts[start..row]);
-                        }
-                        start = row;
-                        current = Some((chunk.value(i), view));
-                    }
+        let mut ids = std::mem::take(&mut self.row_ids);
+        self.ids.indices(bar, &mut ids);
+        let runs = 1 + ids.windows(2).filter(|w| w[0] != w[1]).count();
+        if runs * 64 <= ids.len() {
+            let mut start = 0;
+            for end in 1..=ids.len() {
+                if end == ids.len() || ids[end] != ids[start] {
+                    self.append(ids[start], &time[start..end], &counts[start..end]);
+                    start = end;
                 }
             }
-            offset += chunk.len();
+        } else {
+            self.group_by_bar(&ids, time, counts);
+            let (grouped_time, grouped_counts) = (
+                std::mem::take(&mut self.grouped_time),
+                std::mem::take(&mut self.grouped_counts),
+            );
+            let starts = std::mem::take(&mut self.group_start);
+            for (index, w) in starts.windows(2).enumerate() {
+                if w[1] > w[0] {
+                    let range = w[0]..w[1];
+                    let (t, c) = (&grouped_time[range.clone()], &grouped_counts[range]);
+                    self.append(index as u32, t, c);
+                }
+            }
+            (self.grouped_time, self.grouped_counts, self.group_start) =
+                (grouped_time, grouped_counts, starts);
         }
-        if let Some((id, _)) = current {
-            self.append(id, &time[start..], &counts[start..]);
-        }
+        self.row_ids = ids;
         Ok(())
     }
 
-    fn append(&mut self, id: &str, time: &[i64], counts: &[i64]) {
-        match self.bars.get_mut(id) {
+    /// Counting sort of the batch's rows by id index into the grouped scratch columns;
+    /// `group_start[k]..group_start[k + 1]` are the rows of index `k`.
+    fn group_by_bar(&mut self, ids: &[u32], time: &[i64], counts: &[i64]) {
+        let groups = self.ids.names.len();
+        let starts = &mut self.group_start;
+        starts.clear();
+        starts.resize(groups + 1, 0);
+        for &id in ids {
+            starts[id as usize + 1] += 1;
+        }
+        for k in 0..groups {
+            starts[k + 1] += starts[k];
+        }
+        let mut next: Vec<usize> = starts[..groups].to_vec();
+        self.grouped_time.resize(ids.len(), 0);
+        self.grouped_counts.resize(ids.len(), 0);
+        for ((&id, &t), &c) in ids.iter().zip(time).zip(counts) {
+            let at = &mut next[id as usize];
+            self.grouped_time[*at] = t;
+            self.grouped_counts[*at] = c;
+            *at += 1;
+        }
+    }
+
+    fn append(&mut self, index: u32, time: &[i64], counts: &[i64]) {
+        match self.bars.get_mut(index as usize) {
             Some(BarRows::Kept {
                 time_ns,
                 counts: kept,
@@ -391,18 +552,17 @@ impl EncoderSink {
                 bins.add_all(time, counts);
                 return;
             }
+            Some(BarRows::Dropped) => return,
             None => {}
         }
+        let id = self.ids.names[index as usize].clone();
         let first = time.iter().copied().min().unwrap_or(0);
         let last = time.iter().copied().max().unwrap_or(0);
-        let entry = self
-            .unknown
-            .entry((self.file, id.to_string()))
-            .or_insert(Unknown {
-                rows: 0,
-                first_ns: first,
-                last_ns: last,
-            });
+        let entry = self.unknown.entry((self.file, id)).or_insert(Unknown {
+            rows: 0,
+            first_ns: first,
+            last_ns: last,
+        });
         entry.rows += time.len() as u64;
         entry.first_ns = entry.first_ns.min(first);
         entry.last_ns = entry.last_ns.max(last);
@@ -413,49 +573,35 @@ impl EncoderSink {
 /// logs sorted by (time, counts), or, for the bars `grids` names, straight into compressed bins
 /// (the bar's log then stays empty). Errors as [`read_table`] + [`check_nulls`] +
 /// [`check_ids`] report them: schema errors at the file, then the first column with nulls
-/// (first file), then the first file with an undeclared bar (first id).
+/// (first file), then the first file with an undeclared bar (first id). `rows_hint`: the
+/// encoder rows the files' footers announce (per-bar logs are reserved from it).
 fn read_encoders(
     files: &[PathBuf],
     bar_ids: &BTreeSet<&str>,
     grids: &BTreeMap<String, BinGrid>,
+    rows_hint: usize,
 ) -> Result<(BTreeMap<String, BarLog>, BTreeMap<String, BarBins>), IngestError> {
-    let mut sink = EncoderSink {
-        bars: bar_ids
-            .iter()
-            .map(|id| {
-                let rows = match grids.get(*id) {
-                    Some(grid) => BarRows::Binned(BinAccumulator::new(grid.clone())),
-                    None => BarRows::Kept {
-                        time_ns: Vec::new(),
-                        counts: Vec::new(),
-                    },
-                };
-                (id.to_string(), rows)
-            })
-            .collect(),
-        ..Default::default()
+    let keep = |id: &str| match grids.get(id) {
+        Some(grid) => BarRows::Binned(BinAccumulator::new(grid.clone())),
+        None => BarRows::Kept {
+            time_ns: Vec::with_capacity(rows_hint / bar_ids.len().max(1)),
+            counts: Vec::with_capacity(rows_hint / bar_ids.len().max(1)),
+        },
     };
-    // Polars decodes while a second thread splits and accumulates the batches it hands over
-    // (a bounded queue, so at most a few batches wait): the two overlap on two cores.
-    let (batches, received) = std::sync::mpsc::sync_channel::<(u32, DataFrame)>(4);
-    let sink = std::thread::scope(|scope| {
-        let consumer = scope.spawn(move || -> PolarsResult<EncoderSink> {
-            for (file, batch) in received {
-                sink.file = file;
-                sink.push(&batch)?;
-            }
-            Ok(sink)
-        });
-        let streamed = stream_files(files, batches);
-        let sink = consumer
-            .join()
-            .map_err(|_| IngestError::Polars {
-                context: "encoders".into(),
-                message: "the batch consumer panicked".into(),
-            })?
-            .map_err(polars_error("encoders"))?;
-        streamed.map(|()| sink)
-    })?;
+    // Files of one schema are decoded by one scan (polars then reads ahead across files: ~2x
+    // faster than a query per day file); its batches do not say which file they came from, so
+    // a null or an undeclared id found there is attributed by a second pass, file by file,
+    // that keeps no rows (only on that error path).
+    let clean = |s: &EncoderSink| s.nulls.is_empty() && s.unknown.is_empty();
+    let sink = match stream_encoders(files, bar_ids, &keep, true) {
+        Ok(sink) if clean(&sink) => sink,
+        Ok(_) => match stream_encoders(files, bar_ids, &|_| BarRows::Dropped, false)? {
+            check if !clean(&check) => check,
+            _ => stream_encoders(files, bar_ids, &keep, false)?,
+        },
+        // The failing file named by a scan of its own.
+        Err(_) => stream_encoders(files, bar_ids, &keep, false)?,
+    };
     if let Some((&(column, file), &count)) = sink.nulls.iter().next() {
         return Err(IngestError::Nulls {
             path: file_path(files, file),
@@ -474,10 +620,14 @@ fn read_encoders(
             known: bar_ids.iter().copied().collect::<Vec<_>>().join(", "),
         });
     }
-    let mut logs = BTreeMap::new();
-    let mut bins = BTreeMap::new();
-    for (id, rows) in sink.bars {
-        match rows {
+    // Bars in parallel: an unsorted full-rate log is sorted here (~0.1 s a million rows).
+    use rayon::prelude::*;
+    let finished: Vec<(String, BarLog, Option<BarBins>)> = bar_ids
+        .iter()
+        .zip(sink.bars)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|(id, rows)| match rows {
             BarRows::Kept { time_ns, counts } => {
                 let (time_ns, counts) = sorted_by_time_then_value(time_ns, counts);
                 let log = BarLog {
@@ -485,25 +635,99 @@ fn read_encoders(
                     counts,
                     celsius: BTreeMap::new(),
                 };
-                logs.insert(id, log);
+                (id.to_string(), log, None)
             }
-            BarRows::Binned(acc) => {
-                bins.insert(id.clone(), acc.finish());
-                logs.insert(id, BarLog::default());
-            }
+            BarRows::Binned(acc) => (id.to_string(), BarLog::default(), Some(acc.finish())),
+            BarRows::Dropped => (id.to_string(), BarLog::default(), None),
+        })
+        .collect();
+    let mut logs = BTreeMap::new();
+    let mut bins = BTreeMap::new();
+    for (id, log, binned) in finished {
+        if let Some(b) = binned {
+            bins.insert(id.clone(), b);
         }
+        logs.insert(id, log);
     }
     Ok((logs, bins))
 }
 
-/// Streams every encoder file, sending each batch (with its file's index) to `batches`.
+/// Streams every encoder file into a sink with rows `rows(id)` per declared bar: polars
+/// decodes while a second thread splits and accumulates the batches it hands over (a bounded
+/// queue, so at most a few batches wait): the two overlap on two cores. `shared_scans`: files
+/// of one schema share a scan (their batches then carry no file index).
+fn stream_encoders(
+    files: &[PathBuf],
+    bar_ids: &BTreeSet<&str>,
+    rows: &dyn Fn(&str) -> BarRows,
+    shared_scans: bool,
+) -> Result<EncoderSink, IngestError> {
+    let mut sink = EncoderSink {
+        file: 0,
+        ids: IdIndex::new(bar_ids.iter().copied()),
+        bars: bar_ids.iter().map(|id| rows(id)).collect(),
+        nulls: BTreeMap::new(),
+        unknown: BTreeMap::new(),
+        row_ids: Vec::new(),
+        grouped_time: Vec::new(),
+        grouped_counts: Vec::new(),
+        group_start: Vec::new(),
+    };
+    let (batches, received) = std::sync::mpsc::sync_channel::<(u32, DataFrame)>(4);
+    std::thread::scope(|scope| {
+        let consumer = scope.spawn(move || -> PolarsResult<EncoderSink> {
+            for (file, batch) in received {
+                sink.file = file;
+                sink.push(&batch)?;
+            }
+            Ok(sink)
+        });
+        let streamed = stream_files(files, batches, shared_scans);
+        let sink = consumer
+            .join()
+            .map_err(|_| IngestError::Polars {
+                context: "encoders".into(),
+                message: "the batch consumer panicked".into(),
+            })?
+            .map_err(polars_error("encoders"))?;
+        streamed.map(|()| sink)
+    })
+}
+
+/// Streams every encoder file, sending each batch with its file's index (`u32::MAX` from a scan
+/// shared by several files) to `batches`. `shared_scans`: consecutive files of one schema are
+/// read by one scan; else one scan a file.
 fn stream_files(
     files: &[PathBuf],
     batches: std::sync::mpsc::SyncSender<(u32, DataFrame)>,
+    shared_scans: bool,
 ) -> Result<(), IngestError> {
+    // Schemas first (footers only): every schema error is raised before any row is read.
+    let mut groups: Vec<(Vec<usize>, LazyFrame, SchemaRef, Vec<Expr>)> = Vec::new();
     for (index, path) in files.iter().enumerate() {
-        let lazy = scan_file(path, &ENCODER_COLUMNS)?;
-        let file = u32::try_from(index).unwrap_or(u32::MAX);
+        let (lazy, schema, exprs) = checked_scan(path, &ENCODER_COLUMNS)?;
+        match groups.last_mut() {
+            Some((members, _, shared, _)) if shared_scans && *shared == schema => {
+                members.push(index)
+            }
+            _ => groups.push((vec![index], lazy, schema, exprs)),
+        }
+    }
+    for (members, lazy, _, exprs) in groups {
+        let first = &files[members[0]];
+        let (file, lazy) = if members.len() == 1 {
+            (u32::try_from(members[0]).unwrap_or(u32::MAX), lazy)
+        } else {
+            let paths: Vec<PlRefPath> = members
+                .iter()
+                .map(|&i| {
+                    PlRefPath::try_from_path(&files[i]).map_err(|e| not_parquet(&files[i], e))
+                })
+                .collect::<Result<_, _>>()?;
+            let shared = LazyFrame::scan_parquet_files(paths.into(), scan_args())
+                .map_err(|e| not_parquet(first, e))?;
+            (u32::MAX, shared)
+        };
         let to_consumer = batches.clone();
         let callback = PlanCallback::new(move |batch: DataFrame| {
             to_consumer
@@ -511,16 +735,17 @@ fn stream_files(
                 .map_err(|_| polars_err!(ComputeError: "the batch consumer stopped"))?;
             Ok(false) // keep going
         });
-        lazy.sink_batches(callback, true, None)
+        lazy.select(exprs)
+            .sink_batches(callback, true, None)
             .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
-            .map_err(|e| not_parquet(path, e))?;
+            .map_err(|e| not_parquet(first, e))?;
     }
     Ok(())
 }
 
 /// Rows sorted by time, ties by value, so that the order never depends on how the rows were
 /// split into files and batches. Already sorted rows (a logger's usual output) are only checked.
-fn sorted_by_time_then_value(time_ns: Vec<i64>, counts: Vec<i64>) -> (Vec<i64>, Vec<i64>) {
+fn sorted_by_time_then_value(mut time_ns: Vec<i64>, mut counts: Vec<i64>) -> (Vec<i64>, Vec<i64>) {
     let sorted = time_ns
         .windows(2)
         .zip(counts.windows(2))
@@ -528,10 +753,18 @@ fn sorted_by_time_then_value(time_ns: Vec<i64>, counts: Vec<i64>) -> (Vec<i64>, 
     if sorted {
         return (time_ns, counts);
     }
-    let mut rows: Vec<(i64, i64)> = time_ns.into_iter().zip(counts).collect();
+    let mut rows: Vec<(i64, i64)> = time_ns
+        .iter()
+        .copied()
+        .zip(counts.iter().copied())
+        .collect();
     // Equal (time, counts) pairs are indistinguishable, so an unstable sort is deterministic.
     rows.sort_unstable();
-    rows.into_iter().unzip()
+    // Written back into the columns: one pair buffer beside them, not two more columns.
+    for ((t, c), (rt, rc)) in time_ns.iter_mut().zip(counts.iter_mut()).zip(rows) {
+        (*t, *c) = (rt, rc);
+    }
+    (time_ns, counts)
 }
 
 /// Rejects nulls in non-nullable columns, naming the first file that has some.

@@ -517,6 +517,12 @@ fn unknown_sensor_is_named() {
 fn null_times_and_counts_are_named() {
     let dir = campaign_dir();
     write_t1(dir.path());
+    // A clean file of the same schema first: the two share a scan, and the nulls are still
+    // attributed to their file.
+    write_df(
+        &dir.path().join("encoders/a.parquet"),
+        encoders(&[T0 + 9 * S], &["B01"], &[0]),
+    );
     let times = pl::Int64Chunked::from_slice_options("time".into(), &[Some(T0), None])
         .into_datetime(pl::TimeUnit::Nanoseconds, None)
         .into_column();
@@ -642,6 +648,7 @@ fn write_then_read_round_trips_under_every_layout() {
             split_by_day: true,
             time_unit: TimeUnit::Us,
             shuffle_rows: true,
+            interleave_rows: false,
             dictionary_strings: true,
             seed: 7,
         },
@@ -649,6 +656,7 @@ fn write_then_read_round_trips_under_every_layout() {
             split_by_day: true,
             time_unit: TimeUnit::Ms,
             shuffle_rows: false,
+            interleave_rows: true,
             dictionary_strings: false,
             seed: 0,
         },
@@ -703,6 +711,7 @@ fn writing_is_deterministic_and_leaves_no_stale_files() {
         split_by_day: true,
         time_unit: TimeUnit::Us,
         shuffle_rows: true,
+        interleave_rows: false,
         dictionary_strings: true,
         seed: 3,
     };

@@ -49,6 +49,9 @@ pub struct WriteOptions {
     pub time_unit: TimeUnit,
     /// Shuffle the rows inside each file (seeded by `seed`).
     pub shuffle_rows: bool,
+    /// Rows sorted by time, ties by id, inside each file: the ids interleaved, as a logger of
+    /// many bars writes them (unless `shuffle_rows`).
+    pub interleave_rows: bool,
     /// Write `bar` / `sensor` as dictionary (categorical) columns.
     pub dictionary_strings: bool,
     pub seed: u64,
@@ -277,7 +280,7 @@ fn write_table_files(
 ) -> Result<(), WriteError> {
     create_dir(folder)?;
     clear_parquet(folder)?;
-    if !opts.split_by_day && !opts.shuffle_rows {
+    if !opts.split_by_day && !opts.shuffle_rows && !opts.interleave_rows {
         let mut df = frame.df;
         return write_parquet(&folder.join(format!("{table}.parquet")), &mut df);
     }
@@ -289,6 +292,12 @@ fn write_table_files(
             rows.shuffle(&mut rng);
         }
         let mut df = take_rows(&path, &frame.df, rows)?;
+        if opts.interleave_rows && !opts.shuffle_rows {
+            let by: Vec<PlSmallStr> = df.get_column_names_owned().into_iter().take(2).collect();
+            df = df
+                .sort(by, SortMultipleOptions::default().with_maintain_order(true))
+                .map_err(polars_err(&path))?;
+        }
         write_parquet(&path, &mut df)?;
     }
     Ok(())

@@ -34,6 +34,42 @@ pub const MAX_BIN_S: f64 = 3600.0;
 
 const NS_PER_US: i64 = 1_000;
 
+/// The bin length chosen when none is set, s: a straight line within a minute is the thermal
+/// model to `O((60 s / tau)²)`, tau being 15 min or more for the bars (`physics.md`); measured
+/// on a 1 Hz campaign, 2-60 s bins give the full-rate estimates to 0.002 u
+/// (`tests/e2e/identify.rs`).
+pub const AUTOMATIC_BIN_S: f64 = 60.0;
+
+/// Longest mean interval between a bar's readings that is compressed automatically, s: a bin of
+/// [`AUTOMATIC_BIN_S`] then holds 10 readings or more, and two nodes (plus the sensors' reading
+/// times, weight 0) stand for them. Slower logs gain little and keep every reading.
+pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
+
+/// The bin length for a campaign of `encoder_rows` readings when none is set (`[model] bin_s`
+/// and `--bin-s` absent): [`AUTOMATIC_BIN_S`] when the bars' mean interval between readings is
+/// at most [`AUTOMATIC_MAX_INTERVAL_S`], else 0 (every reading). The interval is the bars'
+/// mounted time spans (each bar's first mount start to its last mount end, handling between
+/// them included) shared by the rows: known from `campaign.toml` and the parquet footers before
+/// any row is read, and the same for any row order or file layout. A bar that logged only part
+/// of its span makes the interval look longer (no compression), never shorter; rows logged
+/// outside the spans make it look shorter.
+pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
+    let mut spans: std::collections::BTreeMap<&str, (TimeNs, TimeNs)> = Default::default();
+    for m in &campaign.mounts {
+        let span = spans.entry(m.bar.as_str()).or_insert((m.from_ns, m.to_ns));
+        *span = (span.0.min(m.from_ns), span.1.max(m.to_ns));
+    }
+    let span_s: f64 = spans.values().map(|(a, b)| (b - a) as f64 * 1e-9).sum();
+    if encoder_rows == 0 || !(span_s > 0.0) {
+        return 0.0;
+    }
+    if span_s / encoder_rows as f64 <= AUTOMATIC_MAX_INTERVAL_S {
+        AUTOMATIC_BIN_S
+    } else {
+        0.0
+    }
+}
+
 /// Integer moments of one bin's readings: sums over its samples of powers of `u` (µs since the
 /// bin's start) and of the counts `c`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -83,6 +119,27 @@ impl BinMoments {
         run.n = time_ns.len().min(counts.len()) as u64;
         (run.first_us, run.last_us) = (first, last);
         self.merge(&run);
+    }
+
+    /// Add one reading of this bin: [`BinMoments::add_run`] of one row, without a second sum
+    /// to merge.
+    #[inline]
+    pub fn add_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) {
+        let u = (t - start_ns) / NS_PER_US;
+        if self.n == 0 {
+            (self.first_us, self.last_us) = (u, u);
+        } else {
+            self.first_us = self.first_us.min(u);
+            self.last_us = self.last_us.max(u);
+        }
+        let uu = u as u64 * u as u64;
+        self.n += 1;
+        self.su += u as i128;
+        self.suu += uu as i128;
+        self.suuu += uu as i128 * u as i128;
+        self.sc += c as i128;
+        self.suc += u as i128 * c as i128;
+        self.scc += c as i128 * c as i128;
     }
 
     /// Sums of two parts of one bin.
@@ -199,9 +256,44 @@ impl BinGrid {
         }
     }
 
+    /// The bar's time line cut into the stretches no bin crosses, in time order: handling time
+    /// before, between and after the mounts, and each mount's zero segments (split at `rezero`
+    /// events), each with the anchor of its bins ([`BinGrid::locate`] of any time in a span
+    /// gives that span's region and grid).
+    fn spans(&self) -> Vec<Span> {
+        let bin_ns = self.bin_ns;
+        let outside = |from: TimeNs, to: TimeNs| {
+            // Before the first mount the bins lie on the epoch's grid.
+            let anchor = if from == TimeNs::MIN { 0 } else { from };
+            Span::new(from, to, anchor, Region::Outside, bin_ns)
+        };
+        let mut spans = Vec::new();
+        let mut cursor = TimeNs::MIN;
+        for &(from, to, mount) in &self.mounts {
+            if from > cursor {
+                spans.push(outside(cursor, from));
+            }
+            let mut start = from;
+            let mut rezeros = self.rezeros.partition_point(|&r| r <= from);
+            while let Some(&r) = self.rezeros.get(rezeros).filter(|&&r| r < to) {
+                let region = Region::Segment { mount, rezeros };
+                spans.push(Span::new(start, r, start, region, bin_ns));
+                start = r;
+                rezeros = self.rezeros.partition_point(|&q| q <= r);
+            }
+            let region = Region::Segment { mount, rezeros };
+            spans.push(Span::new(start, to, start, region, bin_ns));
+            cursor = to;
+        }
+        spans.push(outside(cursor, TimeNs::MAX));
+        spans.retain(|s| s.from < s.to);
+        spans
+    }
+
     /// The bin holding a reading at `t`: its key and the end (exclusive, ns) of the time it
-    /// covers, so that a caller can keep adding readings before that end without a search.
-    pub fn locate(&self, t: TimeNs) -> (BinKey, TimeNs) {
+    /// covers. The reference [`BinAccumulator`] is tested against.
+    #[cfg(test)]
+    fn locate(&self, t: TimeNs) -> (BinKey, TimeNs) {
         let after = self.mounts.partition_point(|m| m.0 <= t);
         let inside = after
             .checked_sub(1)
@@ -241,70 +333,375 @@ impl BinGrid {
     }
 }
 
-/// Accumulates one bar's readings, in any order, into bins.
+/// Bins per page of a [`BinAccumulator`] (a power of two).
+const PAGE_BINS: usize = 64;
+const PAGE_SHIFT: u32 = PAGE_BINS.trailing_zeros();
+/// Longest dense page table of one span; pages beyond it (bins of microseconds over days, or
+/// readings far outside every mount) are kept in a map.
+const DENSE_PAGES: i64 = 1 << 16;
+const NO_PAGE: u32 = u32::MAX;
+
+/// One stretch of a bar's time line that no bin crosses (a zero segment, or handling time), its
+/// bins anchored at `anchor`, and where its bins' moments are stored.
+#[derive(Debug, Clone)]
+struct Span {
+    /// `[from, to)`; `TimeNs::MIN` / `TimeNs::MAX` for the handling time before the first and
+    /// after the last mount.
+    from: TimeNs,
+    to: TimeNs,
+    /// Bin `k` of the span starts at `anchor + k bin_ns` (0 before the first mount: bins on the
+    /// epoch's grid there).
+    anchor: TimeNs,
+    region: Region,
+    /// Page number of `slots[0]`.
+    base: i64,
+    /// Page number - `base` -> index into `BinAccumulator::pages` (`NO_PAGE`: no reading yet).
+    slots: Vec<u32>,
+    /// Pages outside the dense table.
+    far: std::collections::HashMap<i64, u32>,
+}
+
+/// The bin readings are being added to: its time range, and where its moments live.
+#[derive(Debug, Clone, Copy)]
+struct Current {
+    start: TimeNs,
+    end: TimeNs,
+    page: u32,
+    index: u32,
+}
+
+/// Accumulates one bar's readings, in any order, into bins: every bin's moments have a fixed
+/// place (pages of [`PAGE_BINS`] bins, looked up by the bin's number in its span), so a reading
+/// costs the same whether the rows come sorted, interleaved with other bars or shuffled, and
+/// memory grows with the bins, not with the rows.
 #[derive(Debug, Clone)]
 pub struct BinAccumulator {
-    grid: BinGrid,
-    /// The bin readings are being added to: key, end (ns), moments.
-    current: Option<(BinKey, TimeNs, BinMoments)>,
-    /// Finished runs of readings (a bin may appear several times when rows are not sorted).
-    runs: Vec<(BinKey, BinMoments)>,
+    bin_ns: TimeNs,
+    /// In time order, covering the whole time line.
+    spans: Vec<Span>,
+    pages: Vec<Box<[BinMoments]>>,
+    current: Option<Current>,
+    /// The span of the last located reading (readings come in runs).
+    last_span: usize,
+    /// Division by `bin_ns` (a reading out of time order needs one).
+    divide: Divide,
+    /// Reused buffers of [`BinAccumulator::add_by_block`].
+    scratch: BlockScratch,
+}
+
+/// Rows at least this many out of time order are grouped by time block before they are added.
+const MIN_BLOCK_SORT_ROWS: usize = 256;
+/// Most time blocks of one grouping.
+const MAX_SORT_BLOCKS: u64 = 1 << 16;
+
+#[derive(Debug, Clone, Default)]
+struct BlockScratch {
+    block: Vec<u32>,
+    start: Vec<usize>,
+    time: Vec<TimeNs>,
+    counts: Vec<i64>,
+}
+
+/// Exact unsigned division by a fixed divisor with a multiplication: `m = ⌊(2⁶⁴ − 1) / d⌋`
+/// gives `⌊n m / 2⁶⁴⌋` at most 2 below `⌊n / d⌋`, corrected by comparing the remainder with `d`
+/// (a 64-bit `div` takes several times longer, once per shuffled row).
+#[derive(Debug, Clone, Copy)]
+struct Divide {
+    d: u64,
+    m: u64,
+}
+
+impl Divide {
+    fn new(d: u64) -> Divide {
+        let d = d.max(1);
+        Divide { d, m: u64::MAX / d }
+    }
+
+    #[inline]
+    fn quotient(&self, n: u64) -> u64 {
+        let mut q = ((n as u128 * self.m as u128) >> 64) as u64;
+        let mut r = n - q * self.d;
+        while r >= self.d {
+            q += 1;
+            r -= self.d;
+        }
+        q
+    }
 }
 
 impl BinAccumulator {
     pub fn new(grid: BinGrid) -> BinAccumulator {
         BinAccumulator {
-            grid,
+            bin_ns: grid.bin_ns,
+            spans: grid.spans(),
+            pages: Vec::new(),
             current: None,
-            runs: Vec::new(),
+            last_span: 0,
+            divide: Divide::new(grid.bin_ns as u64),
+            scratch: BlockScratch::default(),
         }
     }
 
-    /// Add readings given as two columns: each run of rows in one bin in a tight loop (ingest
-    /// streams tens of millions of rows through here).
+    /// Add readings given as two columns, in any order (ingest streams tens of millions of rows
+    /// through here). Rows in time order go run by run, each run of one bin in a tight loop;
+    /// rows out of order are first grouped by time block ([`BinAccumulator::add_by_block`]).
     pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
+        let n = time_ns.len().min(counts.len());
+        let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
+        if n >= MIN_BLOCK_SORT_ROWS && !time_ns.is_sorted() {
+            self.add_by_block(time_ns, counts);
+        } else {
+            self.add_in_order(time_ns, counts);
+        }
+    }
+
+    /// Rows out of time order, grouped first by blocks of [`PAGE_BINS`] bins (a stable counting
+    /// sort): a bin's moments are then updated while its page is in the cache, not once per
+    /// row at a random place among the bar's bins (a shuffled day of 1 440 one-minute bins is
+    /// 184 kB a bar, 2.2 MB for twelve, more than a core's L2 cache). The sums are integers,
+    /// so the order changes no bit.
+    fn add_by_block(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
+        let n = time_ns.len();
+        let (first, last) = time_ns
+            .iter()
+            .fold((TimeNs::MAX, TimeNs::MIN), |(a, b), &t| {
+                (a.min(t), b.max(t))
+            });
+        let block_ns = (self.bin_ns as u64).saturating_mul(PAGE_BINS as u64);
+        let blocks = (last.abs_diff(first) / block_ns).saturating_add(1);
+        // Many blocks for few rows gain nothing (and cost their counters).
+        if blocks > (n as u64 / 8).min(MAX_SORT_BLOCKS) {
+            self.add_in_order(time_ns, counts);
+            return;
+        }
+        let divide = Divide::new(block_ns);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.block.clear();
+        scratch.block.extend(
+            time_ns
+                .iter()
+                .map(|&t| divide.quotient(t.abs_diff(first)) as u32),
+        );
+        scratch.start.clear();
+        scratch.start.resize(blocks as usize + 1, 0);
+        for &b in &scratch.block {
+            scratch.start[b as usize + 1] += 1;
+        }
+        for k in 0..blocks as usize {
+            scratch.start[k + 1] += scratch.start[k];
+        }
+        scratch.time.resize(n, 0);
+        scratch.counts.resize(n, 0);
+        for ((&b, &t), &c) in scratch.block.iter().zip(time_ns).zip(counts) {
+            let at = &mut scratch.start[b as usize];
+            scratch.time[*at] = t;
+            scratch.counts[*at] = c;
+            *at += 1;
+        }
+        self.add_scattered(&scratch.time, &scratch.counts);
+        self.scratch = scratch;
+    }
+
+    /// Rows in no particular time order, one at a time: each row's bin by arithmetic within the
+    /// span of the row before (the common case); a row in another span or on a page not yet
+    /// made goes through [`BinAccumulator::locate`].
+    fn add_scattered(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
         let n = time_ns.len().min(counts.len());
         let mut i = 0;
         while i < n {
-            let (key, end, mut moments) = match self.current.take() {
-                Some((key, end, m)) if time_ns[i] >= key.start_ns && time_ns[i] < end => {
-                    (key, end, m)
+            let c = self.locate(time_ns[i]);
+            self.pages[c.page as usize][c.index as usize].add_one(c.start, time_ns[i], counts[i]);
+            i += 1;
+            let Self {
+                bin_ns,
+                spans,
+                pages,
+                last_span,
+                divide,
+                ..
+            } = self;
+            let span = &spans[*last_span];
+            let (from, to, anchor) = (span.from, span.to, span.anchor);
+            if anchor > from {
+                continue; // before the first mount (epoch grid): negative offsets
+            }
+            while i < n {
+                let t = time_ns[i];
+                if t < from || t >= to {
+                    break;
                 }
-                other => {
-                    if let Some((key, _, m)) = other {
-                        self.runs.push((key, m));
-                    }
-                    let (key, end) = self.grid.locate(time_ns[i]);
-                    (key, end, BinMoments::default())
+                let k = divide.quotient((t - anchor) as u64) as i64;
+                let offset = ((k >> PAGE_SHIFT) - span.base) as u64;
+                let page = match span.slots.get(offset as usize) {
+                    Some(&page) if offset < span.slots.len() as u64 && page != NO_PAGE => page,
+                    _ => break,
+                };
+                let start = anchor + k * *bin_ns;
+                let index = (k & (PAGE_BINS as i64 - 1)) as usize;
+                pages[page as usize][index].add_one(start, t, counts[i]);
+                i += 1;
+            }
+        }
+        self.current = None;
+    }
+
+    /// Rows run by run: each run of rows in one bin summed in a tight loop, a row out of order
+    /// on its own.
+    fn add_in_order(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
+        let n = time_ns.len().min(counts.len());
+        let mut i = 0;
+        while i < n {
+            let t = time_ns[i];
+            let bin = match self.current {
+                Some(c) if t >= c.start && t < c.end => c,
+                _ => {
+                    let c = self.locate(t);
+                    self.current = Some(c);
+                    c
                 }
             };
-            let run = time_ns[i..n]
-                .iter()
-                .position(|&t| t < key.start_ns || t >= end)
-                .map_or(n, |k| i + k);
-            moments.add_run(key.start_ns, &time_ns[i..run], &counts[i..run]);
-            self.current = Some((key, end, moments));
-            i = run;
+            let moments = &mut self.pages[bin.page as usize][bin.index as usize];
+            if time_ns
+                .get(i + 1)
+                .is_some_and(|&t| t >= bin.start && t < bin.end)
+            {
+                let run = time_ns[i + 1..n]
+                    .iter()
+                    .position(|&t| t < bin.start || t >= bin.end)
+                    .map_or(n, |k| i + 1 + k);
+                moments.add_run(bin.start, &time_ns[i..run], &counts[i..run]);
+                i = run;
+            } else {
+                // Rows not sorted by time (shuffled, or bars interleaved): one at a time.
+                moments.add_one(bin.start, t, counts[i]);
+                i += 1;
+            }
         }
     }
 
-    /// The bins, in time order, each run of the same bin merged.
-    pub fn finish(mut self) -> BarBins {
-        if let Some((key, _, moments)) = self.current.take() {
-            self.runs.push((key, moments));
+    /// The bin holding a reading at `t`, its page created if needed.
+    fn locate(&mut self, t: TimeNs) -> Current {
+        let s = match self.spans.get(self.last_span) {
+            Some(span) if span.from <= t && t < span.to => self.last_span,
+            _ => self.spans.partition_point(|s| s.from <= t) - 1,
+        };
+        self.last_span = s;
+        let bin_ns = self.bin_ns;
+        let span = &mut self.spans[s];
+        let offset = t - span.anchor;
+        let k = if offset >= 0 {
+            self.divide.quotient(offset as u64) as i64
+        } else {
+            offset.div_euclid(bin_ns)
+        };
+        let start = span.anchor + k * bin_ns;
+        let end = start.saturating_add(bin_ns).min(span.to);
+        let page_number = k >> PAGE_SHIFT;
+        let index = (k & (PAGE_BINS as i64 - 1)) as u32;
+        let slot = span.slot(page_number);
+        let page = match *slot {
+            NO_PAGE => {
+                *slot = self.pages.len() as u32;
+                self.pages
+                    .push(vec![BinMoments::default(); PAGE_BINS].into_boxed_slice());
+                *slot
+            }
+            page => page,
+        };
+        Current {
+            start,
+            end,
+            page,
+            index,
         }
-        self.runs.sort_by_key(|(key, _)| *key);
-        let mut bins: Vec<(BinKey, BinMoments)> = Vec::with_capacity(self.runs.len());
-        for (key, moments) in self.runs {
-            match bins.last_mut() {
-                Some((last, sum)) if *last == key => sum.merge(&moments),
-                _ => bins.push((key, moments)),
+    }
+
+    /// The bins, in time order.
+    pub fn finish(self) -> BarBins {
+        let mut bins: Vec<(BinKey, BinMoments)> = Vec::new();
+        for span in &self.spans {
+            let mut pages: Vec<(i64, u32)> = span
+                .slots
+                .iter()
+                .enumerate()
+                .filter(|(_, &p)| p != NO_PAGE)
+                .map(|(k, &p)| (span.base + k as i64, p))
+                .chain(span.far.iter().map(|(&k, &p)| (k, p)))
+                .collect();
+            pages.sort_unstable();
+            for (number, page) in pages {
+                for (index, moments) in self.pages[page as usize].iter().enumerate() {
+                    if moments.n == 0 {
+                        continue;
+                    }
+                    let k = (number << PAGE_SHIFT) + index as i64;
+                    let key = BinKey {
+                        start_ns: span.anchor + k * self.bin_ns,
+                        region: span.region,
+                    };
+                    bins.push((key, *moments));
+                }
             }
         }
         BarBins {
-            bin_ns: self.grid.bin_ns,
+            bin_ns: self.bin_ns,
             bins,
         }
+    }
+}
+
+impl Span {
+    fn new(from: TimeNs, to: TimeNs, anchor: TimeNs, region: Region, bin_ns: TimeNs) -> Span {
+        // A bounded span gets its whole page table at once (readings of a span in any order
+        // then never move it); an unbounded or very long one grows it as readings come.
+        let pages = if from > TimeNs::MIN && to < TimeNs::MAX {
+            ((to - anchor - 1).div_euclid(bin_ns) >> PAGE_SHIFT) + 1
+        } else {
+            0
+        };
+        let dense = if pages <= DENSE_PAGES { pages } else { 0 };
+        Span {
+            from,
+            to,
+            anchor,
+            region,
+            base: 0,
+            slots: vec![NO_PAGE; dense as usize],
+            far: std::collections::HashMap::new(),
+        }
+    }
+
+    /// The page table entry of page `number`.
+    fn slot(&mut self, number: i64) -> &mut u32 {
+        if self.slots.is_empty() && self.far.is_empty() {
+            self.base = number;
+        }
+        let offset = number - self.base;
+        if offset < 0 || offset >= self.slots.len() as i64 {
+            // Grow the dense table towards the page (at least doubling it) while it stays short.
+            let len = self.slots.len() as i64;
+            let (low, high) = (self.base.min(number), (self.base + len).max(number + 1));
+            if high - low > DENSE_PAGES {
+                return self.far.entry(number).or_insert(NO_PAGE);
+            }
+            let grow = len.max(1);
+            let (low, high) = if number < self.base {
+                ((self.base - grow).min(low), high)
+            } else {
+                (low, (self.base + len + grow).max(high))
+            };
+            let (low, high) = if high - low > DENSE_PAGES {
+                (self.base.min(number), (self.base + len).max(number + 1))
+            } else {
+                (low, high)
+            };
+            let mut slots = vec![NO_PAGE; (high - low) as usize];
+            let at = (self.base - low) as usize;
+            slots[at..at + self.slots.len()].copy_from_slice(&self.slots);
+            self.slots = slots;
+            self.base = low;
+        }
+        &mut self.slots[(number - self.base) as usize]
     }
 }
 
@@ -551,6 +948,123 @@ mod tests {
         )));
         assert!(starts.contains(&(400_000_000_000, Region::Outside)));
         assert!(sorted.bins.windows(2).all(|w| w[0].0 < w[1].0));
+    }
+
+    /// Bins by the definition: each reading's bin from [`BinGrid::locate`], equal bins merged.
+    fn reference_bins(grid: &BinGrid, time: &[TimeNs], counts: &[i64]) -> BarBins {
+        let mut runs: Vec<(BinKey, BinMoments)> = time
+            .iter()
+            .zip(counts)
+            .map(|(&t, &c)| {
+                let (key, end) = grid.locate(t);
+                assert!(key.start_ns <= t && t < end);
+                let mut m = BinMoments::default();
+                m.add_run(key.start_ns, &[t], &[c]);
+                (key, m)
+            })
+            .collect();
+        runs.sort_by_key(|(key, _)| *key);
+        let mut bins: Vec<(BinKey, BinMoments)> = Vec::new();
+        for (key, moments) in runs {
+            match bins.last_mut() {
+                Some((last, sum)) if *last == key => sum.merge(&moments),
+                _ => bins.push((key, moments)),
+            }
+        }
+        BarBins {
+            bin_ns: grid.bin_ns,
+            bins,
+        }
+    }
+
+    /// The paged accumulator gives the bins of the definition for readings in any order:
+    /// before, between and after mounts, across rezeros (two at one instant, one at a mount
+    /// start, one outside), far from every mount, and for bins so short that a span's pages
+    /// overflow its dense table.
+    #[test]
+    fn the_accumulator_gives_the_bins_of_the_definition_in_any_order() {
+        use rand::seq::SliceRandom;
+        use rand::{Rng, SeedableRng};
+        const S: i64 = 1_000_000_000;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(13);
+        let mounts = vec![
+            (1_000 * S, 5_000 * S, 0),
+            (5_000 * S, 9_000 * S + 7, 2),
+            (20_000 * S, 30_000 * S, 1),
+        ];
+        let rezeros = vec![
+            500 * S,
+            3_000 * S,
+            3_000 * S,
+            5_000 * S,
+            12_000 * S,
+            25_000 * S + 3,
+        ];
+        let mut time: Vec<TimeNs> = (0..20_000)
+            .map(|_| rng.gen_range(-2_000 * S..40_000 * S))
+            .collect();
+        time.extend([
+            i64::MIN / 2,
+            -1,
+            0,
+            1_000 * S,
+            5_000 * S - 1,
+            3_000 * S,
+            9_000 * S + 7,
+            i64::MAX / 2,
+        ]);
+        let counts: Vec<i64> = (0..time.len())
+            .map(|_| rng.gen_range(-1000..1000))
+            .collect();
+        for bin_ns in [60 * S, 7 * S + 3, 1_000, 1 << 20] {
+            let grid = BinGrid {
+                bin_ns,
+                mounts: mounts.clone(),
+                rezeros: rezeros.clone(),
+            };
+            let want = reference_bins(&grid, &time, &counts);
+            let mut order: Vec<usize> = (0..time.len()).collect();
+            for pass in 0..3 {
+                match pass {
+                    0 => order.sort_by_key(|&i| time[i]),
+                    1 => order.reverse(),
+                    _ => order.shuffle(&mut rng),
+                }
+                let (t, c): (Vec<_>, Vec<_>) = order.iter().map(|&i| (time[i], counts[i])).unzip();
+                let mut acc = BinAccumulator::new(grid.clone());
+                for (tc, cc) in t.chunks(777).zip(c.chunks(777)) {
+                    acc.add_all(tc, cc);
+                }
+                assert_eq!(acc.finish(), want, "bin {bin_ns} ns, pass {pass}");
+            }
+        }
+    }
+
+    #[test]
+    fn division_by_multiplication_is_exact() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let divisors = [
+            1,
+            2,
+            3,
+            7,
+            1_000,
+            60_000_000_000,
+            (1 << 40) + 1,
+            u64::MAX / 3,
+            u64::MAX,
+        ];
+        for &d in &divisors {
+            let divide = Divide::new(d);
+            let edges = [0, 1, d - 1, d, d.saturating_add(1), u64::MAX - 1, u64::MAX];
+            for n in edges
+                .into_iter()
+                .chain((0..10_000).map(|_| rng.gen::<u64>() >> rng.gen_range(0..64)))
+            {
+                assert_eq!(divide.quotient(n), n / d, "{n} / {d}");
+            }
+        }
     }
 
     /// The weight-0 samples: the first reading, sensor times between close nodes, and the last

@@ -358,3 +358,30 @@ fn bin_means_are_means_of_the_samples() {
     }
     assert_eq!(binned.dropped_outside_mounts, full.dropped_outside_mounts);
 }
+
+/// The automatic bin length: the bar's mounts span 4 h (first start to last end, the handling
+/// gap and the device mount included), so 14 400 rows are one reading a second.
+#[test]
+fn automatic_bins_compress_logs_of_six_seconds_or_faster_only() {
+    let c = campaign();
+    let span_s = 4 * 3600;
+    for (interval_s, bin_s) in [
+        (0.1, 60.0),
+        (1.0, 60.0),
+        (6.0, 60.0),
+        (6.5, 0.0),
+        (10.0, 0.0),
+        (30.0, 0.0),
+    ] {
+        let rows = (span_s as f64 / interval_s).round() as u64;
+        assert_eq!(
+            automatic_bin_s(&c, rows),
+            bin_s,
+            "one reading every {interval_s} s"
+        );
+    }
+    assert_eq!(automatic_bin_s(&c, 0), 0.0, "no rows");
+    let mut no_mounts = c.clone();
+    no_mounts.mounts.clear();
+    assert_eq!(automatic_bin_s(&no_mounts, 1_000_000), 0.0, "no mounts");
+}

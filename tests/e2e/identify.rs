@@ -142,6 +142,8 @@ fn compressed_bins_reproduce_the_full_rate_fit() {
         ..SimConfig::default()
     };
     let (dir, _) = simulate_campaign(tmp.path(), "c", &cfg);
+    // With no bin length set, a 1 Hz log is compressed into 60-s bins (`io::automatic_bin_s`).
+    assert_eq!(dbbcal::io::automatic_bin_s(&dir).unwrap(), 60.0);
     let full = compressed(&dir, 0.0, false);
     let mut report = String::new();
     for bin_s in [2.0, 10.0, 30.0, 60.0] {

@@ -9,4 +9,5 @@ mod head_heating;
 mod identify;
 mod machine_tool;
 mod nist;
+mod row_order;
 mod support;
