@@ -119,7 +119,9 @@ fn brent_min<C>(cost: C, (lo, hi): (f64, f64), start: f64) -> f64
 where
     C: CostFunction<Param = f64, Output = f64>,
 {
-    let solver = BrentOpt::new(lo, hi).set_tolerance(1e-3, 1e-6);
+    // Relative tolerance 1 %: the log-likelihood is flat (quadratic) at its maximum, so the
+    // likelihood-ratio statistics move by far less than their own sampling spread.
+    let solver = BrentOpt::new(lo, hi).set_tolerance(1e-2, 1e-6);
     Executor::new(cost, solver)
         .configure(|state| state.param(start).max_iters(60))
         .run()
