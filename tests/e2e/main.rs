@@ -3,9 +3,11 @@
 
 mod acceptance;
 mod bad_input;
+mod base_noise;
 mod cli;
 mod diagnose;
 mod identify;
 mod machine_tool;
 mod nist;
+mod one_length;
 mod support;
