@@ -674,7 +674,19 @@ impl<'a> ThermalProblem<'a> {
     /// ([`ThermalProblem::mask_to`] on the fitted rows), demeaned and weighed as
     /// [`ThermalProblem::demean`] does, without the intermediate vectors (the basis is rebuilt
     /// at every evaluation of a fit).
+    ///
+    /// `out` must be zero on entry: a column that vanishes from some sample on (an initial-state
+    /// transient, [`initial_state`]) is written only up to the end of the last zero segment it
+    /// reaches; the rows after it stay zero (their segments' means are zero too).
     fn write_row_column(&self, full: &[f64], seg: Option<usize>, out: &mut [f64]) {
+        let support = full.iter().rposition(|v| *v != 0.0).map_or(0, |i| i + 1);
+        let mut n_rows = self.series.fit_index.partition_point(|&i| i < support);
+        if let Some(Some(k)) = n_rows.checked_sub(1).map(|r| self.row_zero[r]) {
+            while n_rows < out.len() && self.row_zero[n_rows] == Some(k) {
+                n_rows += 1;
+            }
+        }
+        let out = &mut out[..n_rows];
         let mut sums = vec![0.0; self.n_zero_columns];
         let rows = out
             .iter_mut()
@@ -739,15 +751,50 @@ fn initial_state(
     tau: f64,
     with_derivative: bool,
 ) -> (Vec<f64>, Option<Vec<f64>>) {
-    let mut x = Vec::with_capacity(t_s.len());
-    let mut d = with_derivative.then(|| Vec::with_capacity(t_s.len()));
-    for t in t_s {
-        let s = (t - t_ref).max(0.0) / tau;
-        let e = (-s).exp();
-        x.push(e);
+    let n = t_s.len();
+    let mut x = vec![0.0; n];
+    let mut d = with_derivative.then(|| vec![0.0; n]);
+    // exp(-(t - t_ref)/tau) by recursion over the (sorted) samples, the step factor of each
+    // step length computed once: a timeline repeats a few steps, and an exponential a sample
+    // would cost as much as the lags themselves. Relative drift ~1e-16 a step.
+    let mut steps = [(u64::MAX, 0.0f64); 8];
+    let mut slot = 0;
+    let mut previous: Option<(f64, f64)> = None;
+    for (k, &t) in t_s.iter().enumerate() {
+        let e = if t <= t_ref {
+            1.0
+        } else {
+            match previous {
+                Some((_, ep)) if ep == 0.0 => 0.0,
+                Some((tp, ep)) if tp >= t_ref => {
+                    let dt = t - tp;
+                    let bits = dt.to_bits();
+                    let a = match steps.iter().find(|(b, _)| *b == bits) {
+                        Some(&(_, a)) => a,
+                        None => {
+                            let a = (-dt / tau).exp();
+                            steps[slot] = (bits, a);
+                            slot = (slot + 1) % steps.len();
+                            a
+                        }
+                    };
+                    let e = ep * a;
+                    // Below anything a fit in double precision can see (the column is 1 at
+                    // t_ref): exactly 0 from here on, so the basis skips the rest.
+                    if e < 1e-13 {
+                        0.0
+                    } else {
+                        e
+                    }
+                }
+                _ => (-(t - t_ref) / tau).exp(),
+            }
+        };
+        x[k] = e;
         if let Some(d) = d.as_mut() {
-            d.push(e * s);
+            d[k] = e * (t - t_ref).max(0.0) / tau;
         }
+        previous = Some((t, e));
     }
     (x, d)
 }
