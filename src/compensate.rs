@@ -352,8 +352,8 @@ fn model_thermal_at(b: &CompBar, mount: usize, i_p_mm: f64) -> Result<Vec<f64>, 
     let problem = ThermalProblem::new(&s, &b.model.effects).map_err(|e| e.to_string())?;
     let columns = problem.full_columns(&b.model.theta);
     let mut out = vec![0.0; s.t_s.len()];
-    for (col, p) in columns.iter().zip(&b.model.params) {
-        out.iter_mut().zip(col).for_each(|(o, c)| *o += p.value * c);
+    for (col, g) in columns.iter().zip(&b.model.gains) {
+        out.iter_mut().zip(col).for_each(|(o, c)| *o += g * c);
     }
     Ok(out)
 }

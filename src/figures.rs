@@ -12,7 +12,7 @@ use crate::report::{self, NamedSeries, ReportError};
 pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<(), ReportError> {
     for o in &results.bars {
         report::render_bar_fit(
-            &bar_fit(o),
+            &bar_fit_figure(o),
             &dir.join(format!("bar-{}.png", file_safe(&o.model.bar))),
         )?;
     }
@@ -208,7 +208,9 @@ fn params_line(o: &BarOutcome) -> String {
     format!("{}\nRMS {:.4} µm over {} samples (± are standard uncertainties, autocorrelation-consistent)", p.join("   "), o.model.rms_um, o.model.n_samples)
 }
 
-fn bar_fit(o: &BarOutcome) -> report::BarFitFigure {
+/// The spec of a bar's figure (`figures/bar-<id>.png`): measured vs model, temperatures,
+/// residual, and the model's warnings (parameters the bar's data cannot determine).
+pub fn bar_fit_figure(o: &BarOutcome) -> report::BarFitFigure {
     let s = &o.series;
     let idx = &s.fit_index;
     let time_s: Vec<f64> = idx.iter().map(|&i| s.t_s[i]).collect();
@@ -247,16 +249,43 @@ fn bar_fit(o: &BarOutcome) -> report::BarFitFigure {
         model_um,
         temperatures_c,
         mount_boundaries_s,
+        notes: bar_notes(o),
     }
+}
+
+/// The bar figure's warnings: parameters the bar's data cannot determine, and why.
+fn bar_notes(o: &BarOutcome) -> Vec<String> {
+    o.model
+        .not_identifiable
+        .iter()
+        .map(|n| format!("Not identifiable: {}.", n.params.join(", ")))
+        .chain(o.model.not_identifiable.iter().flat_map(|n| {
+            // The reason is long: wrap it at its clauses.
+            n.reason
+                .split("; ")
+                .map(|part| format!("{part};"))
+                .collect::<Vec<_>>()
+        }))
+        .map(|l| {
+            let l = l.trim_end_matches(';');
+            let mut c = l.chars();
+            c.next()
+                .map(|f| f.to_uppercase().chain(c).collect())
+                .unwrap_or_default()
+        })
+        .collect()
 }
 
 fn fleet(r: &RunResults) -> report::FleetFigure {
     let bar_names: Vec<String> = r.bars.iter().map(|o| o.model.bar.clone()).collect();
-    let names: Vec<String> = r
-        .bars
-        .first()
-        .map(|o| o.model.params.iter().map(|p| p.name.clone()).collect())
-        .unwrap_or_default();
+    // Every parameter some bar has, in the order of the first bar that has it (a bar on one
+    // length lacks beta and tau_S).
+    let mut names: Vec<String> = Vec::new();
+    for p in r.bars.iter().flat_map(|o| &o.model.params) {
+        if !names.contains(&p.name) {
+            names.push(p.name.clone());
+        }
+    }
     let parameters = names
         .iter()
         .map(|name| {
@@ -295,8 +324,14 @@ fn fleet(r: &RunResults) -> report::FleetFigure {
     };
     let subtitle = match &r.reference {
         Some(rr) => format!(
-            "Reference: {} (nearest the fleet mean of alpha, beta, tau_R, tau_S scaled by the fleet spread).\nMismatch = max |predicted difference| over this campaign's temperature history at {:.1} mm.",
-            rr.choice.bar, rr.distance_mm
+            "Reference: {} (nearest the fleet mean of {} scaled by the fleet spread).\nMismatch = max |predicted difference| over this campaign's temperature history at {:.1} mm.",
+            rr.choice.bar,
+            if rr.choice.fleet_mean.iter().all(|v| v.is_finite()) {
+                "alpha, beta, tau_R, tau_S"
+            } else {
+                "alpha, tau_R: beta, tau_S not identifiable on one length"
+            },
+            rr.distance_mm
         ),
         None => "No reference chosen (no bar with the base parameters).".into(),
     };

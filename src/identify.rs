@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 use crate::fit::{self, Fit, FitError, FitOptions};
-use crate::model::{base_effects, Effect, ModelError, ThermalProblem};
+use crate::model::{base_effects, Effect, ModelError, NotIdentifiable, ThermalProblem};
 use crate::series::BarSeries;
 
 /// One estimated parameter.
@@ -34,8 +34,20 @@ pub struct Estimate {
 pub struct BarModel {
     pub bar: String,
     pub effects: Vec<Effect>,
-    /// Gains and time constants (physical names), without the mount zeros.
+    /// Gains and time constants (physical names), without the mount zeros and the initial-state
+    /// gains.
     pub params: Vec<Estimate>,
+    /// The base paths' initial-state gains (`initial_fixed_ppm`, `initial_scale_ppm`: each lag's
+    /// departure from steady state at the first fitted sample times its expansion), nuisance
+    /// parameters like the zeros ([`crate::model::INITIAL_FIXED`]).
+    pub initial_state: Vec<Estimate>,
+    /// Every linear gain of the fit in the model's column order (params' gains and the
+    /// initial-state gains interleaved as [`ThermalProblem::gain_names`] lists them): what
+    /// multiplies [`ThermalProblem::full_columns`].
+    pub gains: Vec<f64>,
+    /// Parameters of the effects asked for that this bar's data cannot determine, left out of
+    /// the fit, with the reason ([`crate::model::identifiable_effects`]).
+    pub not_identifiable: Vec<NotIdentifiable>,
     /// Zero of each zero segment, µm.
     pub zeros_um: Vec<f64>,
     /// Correlation matrix of `params` (HAC), same order.
@@ -371,11 +383,7 @@ fn canonical_thermal_paths(model: &mut BarModel) {
 
 /// Reuse the time constants a previous fit found for the same effects.
 fn warm_start(problem: &ThermalProblem, start: &BarModel, theta0: &mut [f64]) {
-    let taus: Vec<String> = problem
-        .effects()
-        .iter()
-        .filter_map(Effect::tau_name)
-        .collect();
+    let taus = problem.tau_names();
     for (k, name) in taus.iter().enumerate() {
         if let Some(v) = start.value(name) {
             theta0[k] = v.ln();
@@ -386,27 +394,32 @@ fn warm_start(problem: &ThermalProblem, start: &BarModel, theta0: &mut [f64]) {
 fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarModel {
     let effects = problem.effects();
     let gain_names = problem.gain_names();
+    let nuisance = problem.nuisance_gains();
     let n_gains = gain_names.len();
     let n_lin = fit.n_linear;
     let theta: Vec<f64> = fit.values[n_lin..].to_vec();
-    // Parameters reported: gains (0..n_gains) and taus (n_lin..), zeros kept apart.
-    let mut order: Vec<usize> = (0..n_gains).collect();
+    // Parameters reported: gains (0..n_gains) and taus (n_lin..), zeros and initial-state gains
+    // kept apart.
+    let mut order: Vec<usize> = (0..n_gains).filter(|&i| !nuisance[i]).collect();
     order.extend(n_lin..fit.n_params());
-    let tau_names: Vec<String> = effects.iter().filter_map(Effect::tau_name).collect();
+    let tau_names = problem.tau_names();
+    let gain_estimate = |i: usize| {
+        let (v, u) = (fit.values[i], fit.se_hac(i));
+        let t95 = fit.t95(i);
+        Estimate {
+            name: gain_names[i].clone(),
+            value: v,
+            u,
+            u_naive: fit.se_naive(i),
+            ci95: [v - t95 * u, v + t95 * u],
+            ci95_at_search_bound: [false; 2],
+        }
+    };
     let params = order
         .iter()
         .map(|&i| {
             if i < n_gains {
-                let (v, u) = (fit.values[i], fit.se_hac(i));
-                let t95 = fit.t95(i);
-                Estimate {
-                    name: gain_names[i].clone(),
-                    value: v,
-                    u,
-                    u_naive: fit.se_naive(i),
-                    ci95: [v - t95 * u, v + t95 * u],
-                    ci95_at_search_bound: [false; 2],
-                }
+                gain_estimate(i)
             } else {
                 let (ln_tau, u_ln) = (fit.values[i], fit.se_hac(i));
                 let t95 = fit.t95(i);
@@ -421,6 +434,10 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
                 }
             }
         })
+        .collect();
+    let initial_state = (0..n_gains)
+        .filter(|&i| nuisance[i])
+        .map(gain_estimate)
         .collect();
     let corr = fit.correlation();
     let correlation = order
@@ -447,6 +464,9 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         bar: series.bar.id.clone(),
         effects,
         params,
+        initial_state,
+        gains: fit.values[..n_gains].to_vec(),
+        not_identifiable: problem.not_identifiable().to_vec(),
         zeros_um,
         correlation,
         rms_um: fit.rms(),

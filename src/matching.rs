@@ -21,7 +21,9 @@ pub const MATCH_PARAMS: [&str; 4] = ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r
 pub struct MatchInput {
     pub bar: String,
     pub fixed_length_mm: f64,
-    /// Values of [`MATCH_PARAMS`], in order.
+    /// Values of [`MATCH_PARAMS`], in order; NaN for a parameter the bar's data cannot
+    /// determine (`beta` and `tau_S` of a bar mounted on one length: its `alpha` and `tau_R`
+    /// then describe the whole bar at that length).
     pub params: [f64; 4],
     /// Measured thermal error (reading minus the fitted zero), µm, at `t_s` (fitted samples).
     pub t_s: Vec<f64>,
@@ -37,7 +39,8 @@ pub struct ReferenceChoice {
     pub fleet_spread: [f64; 4],
 }
 
-/// Pick the bar nearest the fleet mean in parameters scaled by the fleet's standard deviation.
+/// Pick the bar nearest the fleet mean in parameters scaled by the fleet's standard deviation,
+/// over the parameters every bar has (a parameter some bar lacks has NaN mean and spread).
 /// `None` for an empty fleet.
 pub fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
     if bars.is_empty() {
@@ -59,7 +62,7 @@ pub fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
         .iter()
         .map(|b| {
             let d2: f64 = (0..4)
-                .filter(|&k| spread[k] > 0.0)
+                .filter(|&k| spread[k] > 0.0 && mean[k].is_finite())
                 .map(|k| ((b.params[k] - mean[k]) / spread[k]).powi(2))
                 .sum();
             (b.bar.clone(), d2.sqrt())
@@ -85,13 +88,20 @@ pub struct TemperatureHistory {
 }
 
 /// Base-model thermal error (µm) of a bar at centre distance `distance_mm` over `history`
-/// (`physics.md`: `-(alpha I_min lag(T; tau_R) + beta I_p lag(T; tau_S))`).
+/// (`physics.md`: `-(alpha I_min lag(T; tau_R) + beta I_p lag(T; tau_S))`). A bar without
+/// `beta` (identified on one length) has only its fixed part: its error at its own length,
+/// whatever `distance_mm` is.
 pub fn predicted_error_um(
     bar: &MatchInput,
     history: &TemperatureHistory,
     distance_mm: f64,
 ) -> Vec<f64> {
     let [alpha, beta, tau_r, tau_s] = bar.params;
+    let (beta, tau_s) = if beta.is_finite() && tau_s.is_finite() {
+        (beta, tau_s)
+    } else {
+        (0.0, tau_r)
+    };
     let i_min = bar.fixed_length_mm;
     let i_p = (distance_mm - i_min).max(0.0);
     let (lr, _) = lag(&history.t_s, &history.delta_c, tau_r, false);
@@ -256,6 +266,25 @@ mod tests {
         let c = choose_reference(&bars).unwrap();
         assert_eq!(c.bar, "B");
         assert!(c.distance[1].1 < 1e-12);
+    }
+
+    #[test]
+    fn bars_without_beta_are_matched_on_what_they_have() {
+        let nan = f64::NAN;
+        let bars = [
+            bar("A", [1.0, nan, 1000.0, nan]),
+            bar("B", [2.0, nan, 1500.0, nan]),
+            bar("C", [3.0, nan, 2100.0, nan]),
+        ];
+        let c = choose_reference(&bars).unwrap();
+        assert_eq!(c.bar, "B");
+        assert!(c.distance.iter().all(|(_, d)| d.is_finite()));
+        let history = TemperatureHistory {
+            t_s: (0..100).map(|i| i as f64 * 60.0).collect(),
+            delta_c: vec![1.0; 100],
+        };
+        let e = predicted_error_um(&bars[0], &history, 400.0);
+        assert!(e.iter().all(|v| v.is_finite()));
     }
 
     #[test]

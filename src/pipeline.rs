@@ -804,14 +804,17 @@ fn interpolate(x: &[f64], y: &[f64], at: f64) -> f64 {
     y[i - 1] + (y[i] - y[i - 1]) * (at - x0) / (x1 - x0)
 }
 
-/// What matching needs of an identified bar (bars whose model lacks a base parameter are left out).
+/// What matching needs of an identified bar: `None` when its model lacks `alpha` or `tau_R`;
+/// `beta` and `tau_S` are NaN when its data cannot determine them (one length,
+/// [`crate::model::identifiable_effects`]). See [`matched_inputs`] for who is matched.
 pub fn match_input(o: &BarOutcome) -> Option<MatchInput> {
     let p = |name: &str| o.model.value(name);
+    let q = |name: &str| p(name).unwrap_or(f64::NAN);
     let params = [
         p(matching::MATCH_PARAMS[0])?,
-        p(matching::MATCH_PARAMS[1])?,
+        q(matching::MATCH_PARAMS[1]),
         p(matching::MATCH_PARAMS[2])?,
-        p(matching::MATCH_PARAMS[3])?,
+        q(matching::MATCH_PARAMS[3]),
     ];
     let (t_s, measured_um) = o
         .series
@@ -831,8 +834,23 @@ pub fn match_input(o: &BarOutcome) -> Option<MatchInput> {
     })
 }
 
+/// The bars matched: those with all four base parameters; when no bar has them all (a
+/// one-length campaign, where `beta` cannot be identified), every bar on `alpha` and `tau_R`
+/// (each bar's predicted error is then the one at its own length). A bar lacking `beta` in a
+/// fleet where others have it is left out: its `alpha` describes the whole bar at its one length
+/// and is not comparable with theirs.
+pub fn matched_inputs(bars: &[BarOutcome]) -> Vec<MatchInput> {
+    let inputs: Vec<MatchInput> = bars.iter().filter_map(match_input).collect();
+    let complete = |m: &MatchInput| m.params.iter().all(|v| v.is_finite());
+    if inputs.iter().any(complete) {
+        inputs.into_iter().filter(complete).collect()
+    } else {
+        inputs
+    }
+}
+
 fn run_match(plan: &RunPlan, results: &mut RunResults) {
-    let inputs: Vec<MatchInput> = results.bars.iter().filter_map(match_input).collect();
+    let inputs = matched_inputs(&results.bars);
     let Some(choice) = matching::choose_reference(&inputs) else {
         return;
     };
@@ -928,6 +946,12 @@ pub struct BarSummary {
     pub n_samples: usize,
     pub dropped_outside_mounts: usize,
     pub hac_batch_samples: usize,
+    /// The base paths' initial-state gains (nuisance parameters like the zeros: each lag's
+    /// departure from steady state at the bar's first fitted sample times its expansion, ppm).
+    pub initial_state: BTreeMap<String, ParamValue>,
+    /// Parameters of the model's effects that this bar's data cannot determine (left out of its
+    /// fit), with the reason: e.g. `beta_ppm_per_k` and `tau_s_s` of a bar mounted on one length.
+    pub not_identifiable: Vec<crate::model::NotIdentifiable>,
 }
 
 #[derive(Debug, Serialize)]
@@ -984,11 +1008,22 @@ pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
             n_samples: o.model.n_samples,
             dropped_outside_mounts: o.series.dropped_outside_mounts,
             hac_batch_samples: o.model.hac_batch_len,
+            initial_state: o
+                .model
+                .initial_state
+                .iter()
+                .map(|p| (p.name.clone(), param_value(p)))
+                .collect(),
+            not_identifiable: o.model.not_identifiable.clone(),
         })
         .collect();
     let reference = r.reference.as_ref().map(|rr| ReferenceSummary {
         bar: rr.choice.bar.clone(),
-        rule: "nearest the fleet mean in (alpha, beta, tau_R, tau_S) scaled by the fleet standard deviation",
+        rule: if rr.choice.fleet_mean.iter().all(|v| v.is_finite()) {
+            "nearest the fleet mean in (alpha, beta, tau_R, tau_S) scaled by the fleet standard deviation"
+        } else {
+            "nearest the fleet mean in (alpha, tau_R) scaled by the fleet standard deviation (beta and tau_S are not identifiable: every bar on one length)"
+        },
         compared_at_mm: rr.distance_mm,
         limit_um: rr.limit_um,
         mismatch_um: rr.mismatches.iter().map(|m| (m.bar.clone(), m.max_abs_um)).collect(),

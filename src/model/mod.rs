@@ -90,6 +90,12 @@ pub const CATALOGUE: &[&str] = &[
     "creep",
 ];
 
+/// Names of the base paths' initial-state gains: the lag's departure from steady state at the
+/// bar's first fitted sample times the path's expansion (ppm = ppm/K · K), nuisance gains like
+/// the zeros ([`initial_state`]).
+pub const INITIAL_FIXED: &str = "initial_fixed_ppm";
+pub const INITIAL_SCALE: &str = "initial_scale_ppm";
+
 /// The base model of `physics.md`.
 pub fn base_effects() -> Vec<Effect> {
     vec![Effect::FixedPart, Effect::Scale]
@@ -285,12 +291,21 @@ enum TermKind {
     Decay {
         from_s: f64,
     },
+    /// The decay of a base lag's departure from steady state when the logging started:
+    /// `exp(-(t - t_ref)/tau)` with the path's time constant, `t_ref` the bar's first fitted
+    /// sample ([`ThermalProblem::initial_state_reference_s`]).
+    InitialState,
 }
 
 /// One bar's thermal model, ready for the fitting engine.
 pub struct ThermalProblem<'a> {
     series: &'a BarSeries,
     effects: Vec<Effect>,
+    /// The terms of `effects` this bar's data cannot determine, left out of the problem
+    /// ([`not_identifiable`]).
+    not_identifiable: Vec<NotIdentifiable>,
+    /// Where the initial-state columns are 1: the bar's first fitted sample, seconds.
+    initial_state_reference_s: f64,
     terms: Vec<BoundTerm>,
     /// Indices (into `terms`) of the terms with a time constant of their own, in `theta` order.
     tau_terms: Vec<usize>,
@@ -339,10 +354,14 @@ pub enum ModelError {
 }
 
 impl<'a> ThermalProblem<'a> {
+    /// `effects` bound to `series`. Terms the series cannot determine are left out and listed
+    /// ([`ThermalProblem::not_identifiable`]): the scale's (`beta`, `tau_S`) when every fitted
+    /// mount has the same travel `I_p`.
     pub fn new(series: &'a BarSeries, effects: &[Effect]) -> Result<Self, ModelError> {
-        let mut terms = Vec::with_capacity(effects.len() + 1);
-        for e in effects {
-            let bound = bind(series, e, effects).map_err(|source| ModelError::Channel {
+        let (bound_effects, not_identifiable) = identifiable_effects(series, effects);
+        let mut terms = Vec::with_capacity(2 * effects.len() + 2);
+        for e in &bound_effects {
+            let bound = bind(series, e, &bound_effects).map_err(|source| ModelError::Channel {
                 effect: e.name(),
                 source,
             })?;
@@ -388,6 +407,8 @@ impl<'a> ThermalProblem<'a> {
         let mut problem = ThermalProblem {
             series,
             effects: effects.to_vec(),
+            not_identifiable,
+            initial_state_reference_s: series.fit_index.first().map_or(0.0, |&i| series.t_s[i]),
             terms,
             tau_terms,
             tau_source,
@@ -506,8 +527,31 @@ impl<'a> ThermalProblem<'a> {
             .collect()
     }
 
+    /// The effects asked for (some of their terms may be left out: [`Self::not_identifiable`]).
     pub fn effects(&self) -> Vec<Effect> {
         self.effects.clone()
+    }
+
+    /// The terms of the effects asked for that this bar's data cannot determine, left out.
+    pub fn not_identifiable(&self) -> &[NotIdentifiable] {
+        &self.not_identifiable
+    }
+
+    /// Names of the time constants in `theta` order (e.g. `tau_r_s`).
+    pub fn tau_names(&self) -> Vec<String> {
+        self.tau_terms
+            .iter()
+            .map(|&i| self.terms[i].effect.tau_name().unwrap_or_default())
+            .collect()
+    }
+
+    /// Per gain column: whether it is a nuisance gain (an initial-state transient, like the
+    /// zeros not a property of the bar) rather than a parameter of the model.
+    pub fn nuisance_gains(&self) -> Vec<bool> {
+        self.gain_columns()
+            .into_iter()
+            .map(|(j, _)| self.terms[j].kind == TermKind::InitialState)
+            .collect()
     }
 
     /// Zero column (after the gains) of each zero segment; `None` for a segment without fitted
@@ -641,6 +685,9 @@ impl<'a> ThermalProblem<'a> {
             }
             (TermKind::Settling, Some(tau)) => settling(self.series, tau, with_derivative),
             (TermKind::Decay { from_s }, Some(tau)) => decay(t, from_s, tau, with_derivative),
+            (TermKind::InitialState, Some(tau)) => {
+                initial_state(t, self.initial_state_reference_s, tau, with_derivative)
+            }
             _ => (term.input.level(t.len()), None),
         };
         if let Some(s) = &term.scale {
@@ -657,7 +704,19 @@ impl<'a> ThermalProblem<'a> {
     /// ([`ThermalProblem::mask_to`] on the fitted rows), demeaned and weighed as
     /// [`ThermalProblem::demean`] does, without the intermediate vectors (the basis is rebuilt
     /// at every evaluation of a fit).
+    ///
+    /// `out` must be zero on entry: a column that vanishes from some sample on (an initial-state
+    /// transient, [`initial_state`]) is written only up to the end of the last zero segment it
+    /// reaches; the rows after it stay zero (their segments' means are zero too).
     fn write_row_column(&self, full: &[f64], seg: Option<usize>, out: &mut [f64]) {
+        let support = full.iter().rposition(|v| *v != 0.0).map_or(0, |i| i + 1);
+        let mut n_rows = self.series.fit_index.partition_point(|&i| i < support);
+        if let Some(Some(k)) = n_rows.checked_sub(1).map(|r| self.row_zero[r]) {
+            while n_rows < out.len() && self.row_zero[n_rows] == Some(k) {
+                n_rows += 1;
+            }
+        }
+        let out = &mut out[..n_rows];
         let mut sums = vec![0.0; self.n_zero_columns];
         let rows = out
             .iter_mut()
@@ -727,6 +786,131 @@ pub(crate) fn decay(
     (x, d)
 }
 
+/// The decay of a lag's initial departure from steady state, `exp(-(t - t_ref)/tau)`, and its
+/// `ln tau` derivative `exp(-(t - t_ref)/tau) (t - t_ref)/tau`.
+///
+/// Why: a lag is computed from steady state at the bar's first sample ([`lag::lag`]), but a bar
+/// whose room was drifting before the logging began is not in steady state then: its state
+/// departs by `delta` and the departure decays with the lag's own time constant, whatever the
+/// air does since (the lag is linear). The departure cannot be read from the logs, so it is a
+/// fitted gain on this column. Unit at the bar's first fitted sample (`t_ref`), so the column
+/// never vanishes on the fitted samples whatever `tau` is; held at 1 before it (samples there are
+/// not fitted; the departure before is only bounded from below).
+fn initial_state(
+    t_s: &[f64],
+    t_ref: f64,
+    tau: f64,
+    with_derivative: bool,
+) -> (Vec<f64>, Option<Vec<f64>>) {
+    let n = t_s.len();
+    let mut x = vec![0.0; n];
+    let mut d = with_derivative.then(|| vec![0.0; n]);
+    // exp(-(t - t_ref)/tau) by recursion over the (sorted) samples, the step factor of each
+    // step length computed once: a timeline repeats a few steps, and an exponential a sample
+    // would cost as much as the lags themselves. Relative drift ~1e-16 a step.
+    let mut steps = [(u64::MAX, 0.0f64); 8];
+    let mut slot = 0;
+    let mut previous: Option<(f64, f64)> = None;
+    for (k, &t) in t_s.iter().enumerate() {
+        let e = if t <= t_ref {
+            1.0
+        } else {
+            match previous {
+                Some((_, ep)) if ep == 0.0 => 0.0,
+                Some((tp, ep)) if tp >= t_ref => {
+                    let dt = t - tp;
+                    let bits = dt.to_bits();
+                    let a = match steps.iter().find(|(b, _)| *b == bits) {
+                        Some(&(_, a)) => a,
+                        None => {
+                            let a = (-dt / tau).exp();
+                            steps[slot] = (bits, a);
+                            slot = (slot + 1) % steps.len();
+                            a
+                        }
+                    };
+                    let e = ep * a;
+                    // Below anything a fit in double precision can see (the column is 1 at
+                    // t_ref): exactly 0 from here on, so the basis skips the rest.
+                    if e < 1e-13 {
+                        0.0
+                    } else {
+                        e
+                    }
+                }
+                _ => (-(t - t_ref) / tau).exp(),
+            }
+        };
+        x[k] = e;
+        if let Some(d) = d.as_mut() {
+            d[k] = e * (t - t_ref).max(0.0) / tau;
+        }
+        previous = Some((t, e));
+    }
+    (x, d)
+}
+
+/// A group of parameters of the effects asked for that one bar's data cannot determine, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NotIdentifiable {
+    pub params: Vec<String>,
+    pub reason: String,
+}
+
+/// Travel spread (mm) below which a bar's fitted mounts are taken as one length.
+const ONE_LENGTH_SPREAD_MM: f64 = 1e-6;
+
+/// The effects whose terms `series` can determine, and what was left out.
+///
+/// One length: when every fitted sample of the bar has the same travel `I_p` (all its plate
+/// mounts on one length, e.g. a bar on a machine tool's spindle), the scale's term
+/// `-beta I_p lag(T; tau_S)` is a second lag of the air with a constant factor: nothing in the
+/// data says which of two lags is the scale's, so `beta` and `tau_S` are not identifiable (and
+/// with `I_p = 0` the column vanishes). The scale (and `air_gradient`'s scale path) is left out;
+/// the fixed part's `alpha` and `tau_R` then describe the whole bar at that length (its
+/// expansion referred to `I_min`: `alpha + beta I_p / I_min` when the taus are close). A second
+/// time constant, if the data call for one, is the diagnosis' `second_path`.
+pub fn identifiable_effects(
+    series: &BarSeries,
+    effects: &[Effect],
+) -> (Vec<Effect>, Vec<NotIdentifiable>) {
+    if !effects.contains(&Effect::Scale) {
+        return (effects.to_vec(), Vec::new());
+    }
+    let travel =
+        |i: usize| series.mount_of[i].map_or(f64::NAN, |m| series.mounts[m as usize].i_p_mm);
+    let (lo, hi) = series
+        .fit_index
+        .iter()
+        .map(|&i| travel(i))
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !(hi - lo <= ONE_LENGTH_SPREAD_MM) {
+        return (effects.to_vec(), Vec::new());
+    }
+    let mut params = vec![
+        Effect::Scale.gain_name(),
+        Effect::Scale.tau_name().unwrap_or_default(),
+    ];
+    if effects.contains(&Effect::AirGradient) {
+        params.push(Effect::AirGradient.gain_names()[1].clone());
+    }
+    let reason = format!(
+        "every fitted mount of the bar is at one length (I_p = {lo:.3} mm): the scale's \
+         expansion (beta, tau_S) cannot be told from the fixed part's with one length; \
+         alpha_ppm_per_k and tau_r_s describe the whole bar at this length (alpha + beta I_p / \
+         I_min when the time constants are close); mount the bar on two lengths to separate them"
+    );
+    let kept = effects
+        .iter()
+        .filter(|e| **e != Effect::Scale)
+        .cloned()
+        .collect();
+    (kept, vec![NotIdentifiable { params, reason }])
+}
+
 /// Time constant of the zero-phase smoothing of the plate sensor, seconds.
 pub const PLATE_SMOOTHING_S: f64 = 300.0;
 
@@ -766,9 +950,22 @@ fn bind(
         kind,
         shares_tau_of: None,
     };
+    // A base path: its lag of the air and the decay of its initial departure from steady
+    // state ([`initial_state`]), on the same length and time constant.
+    let base_path = |scale: Option<Vec<f64>>, initial_name: &str| {
+        vec![
+            term(air(), scale.clone(), TermKind::Lag),
+            BoundTerm {
+                gain_name: initial_name.to_string(),
+                shares_tau_of: Some(effect.clone()),
+                ..term(Channel::Sampled(Vec::new()), scale, TermKind::InitialState)
+            },
+        ]
+    };
     let single = match effect {
-        Effect::FixedPart | Effect::SecondPath => term(air(), minus_i_min(), TermKind::Lag),
-        Effect::Scale => term(air(), minus_i_p(), TermKind::Lag),
+        Effect::FixedPart => return Ok(base_path(minus_i_min(), INITIAL_FIXED)),
+        Effect::Scale => return Ok(base_path(minus_i_p(), INITIAL_SCALE)),
+        Effect::SecondPath => term(air(), minus_i_min(), TermKind::Lag),
         Effect::HeadHeating => {
             let (input, start) = channels::held_event_channel(series, "head_power")?;
             let scale = Some(vec![-1.0; series.t_s.len()]);

@@ -78,7 +78,9 @@ fn air_gradient_has_two_gains_on_the_base_time_constants() {
         p.gain_names(),
         [
             "alpha_ppm_per_k",
+            INITIAL_FIXED,
             "beta_ppm_per_k",
+            INITIAL_SCALE,
             "gradient_fixed_ppm_per_k",
             "gradient_scale_ppm_per_k"
         ]
@@ -103,7 +105,7 @@ fn air_gradient_has_two_gains_on_the_base_time_constants() {
         let scale = fd.amax().max(1e-12);
         assert!((d.clone() - &fd).amax() < 1e-5 * scale, "theta {k}");
         // The gradient column of this path depends on the time constant, the other does not.
-        let (own, other) = if k == 0 { (2, 3) } else { (3, 2) };
+        let (own, other) = if k == 0 { (4, 5) } else { (5, 4) };
         assert!(
             d.column(own).amax() > 1e-6 * scale,
             "theta {k}: column {own}"
@@ -137,7 +139,7 @@ fn air_gradient_follows_the_base_paths_present() {
     let p = ThermalProblem::new(&s, &effects(&["fixed_part", "air_gradient"])).unwrap();
     assert_eq!(
         p.gain_names(),
-        ["alpha_ppm_per_k", "gradient_fixed_ppm_per_k"]
+        ["alpha_ppm_per_k", INITIAL_FIXED, "gradient_fixed_ppm_per_k"]
     );
     assert_eq!(p.nonlinear_names(), ["ln_tau_r_s"]);
     let err = ThermalProblem::new(&s, &effects(&["creep", "air_gradient"]))
@@ -430,4 +432,107 @@ fn a_free_level_before_the_first_event_is_fitted() {
         fit.values
     );
     assert!((fit.values[2].exp() / tau - 1.0).abs() < 1e-6);
+}
+
+/// [`gradient_bar`] with the bar's lags not in steady state at the first sample: each path's
+/// state departs from the air by `delta_k` there (a room that drifted before the logging).
+fn bar_out_of_steady_state(delta_k: f64) -> BarSeries {
+    let mut s = gradient_bar(0.0);
+    let t_ref = s.t_s[s.fit_index[0]];
+    for (k, &t) in s.t_s.iter().enumerate() {
+        let m = s.mount_of[k].map_or(0, |m| m as usize);
+        let i_p = s.mounts[m].i_p_mm;
+        let decay = |tau: f64| delta_k * (-(t - t_ref) / tau).exp();
+        s.y_um[k] -= (2.0 * I_MIN * decay(3000.0) + 0.6 * i_p * decay(1500.0)) * 1e-3;
+    }
+    s
+}
+
+#[test]
+fn initial_state_transients_are_fitted_on_the_base_paths() {
+    let s = bar_out_of_steady_state(0.2);
+    let p = ThermalProblem::new(&s, &base_effects()).unwrap();
+    assert_eq!(
+        p.gain_names(),
+        [
+            "alpha_ppm_per_k",
+            INITIAL_FIXED,
+            "beta_ppm_per_k",
+            INITIAL_SCALE
+        ]
+    );
+    assert_eq!(p.nuisance_gains(), [false, true, false, true]);
+    // The transient columns move with their path's time constant: the derivative matches
+    // finite differences.
+    let theta = [2500f64.ln(), 1800f64.ln()];
+    let h = 1e-6;
+    for k in 0..2 {
+        let d = p.basis_derivative(&theta, k);
+        let (mut tp, mut tm) = (theta, theta);
+        tp[k] += h;
+        tm[k] -= h;
+        let fd = (p.basis(&tp) - p.basis(&tm)) / (2.0 * h);
+        let scale = fd.amax().max(1e-12);
+        assert!((d.clone() - &fd).amax() < 1e-5 * scale, "theta {k}");
+        let own = if k == 0 { 1 } else { 3 };
+        assert!(d.column(own).amax() > 1e-6 * scale, "theta {k}");
+    }
+    // The fit finds the truth and the departures (alpha and beta times 0.2 K).
+    let m = crate::identify::identify(&s, &base_effects()).unwrap();
+    assert!(m.rms_um < 1e-5, "rms {}", m.rms_um);
+    for (name, truth) in [
+        ("alpha_ppm_per_k", 2.0),
+        ("beta_ppm_per_k", 0.6),
+        ("tau_r_s", 3000.0),
+        ("tau_s_s", 1500.0),
+    ] {
+        let v = m.value(name).unwrap();
+        assert!((v - truth).abs() < 1e-3 * truth, "{name} {v}");
+    }
+    assert!(m.params.iter().all(|p| !p.name.starts_with("initial_")));
+    let initial: Vec<(&str, f64)> = m
+        .initial_state
+        .iter()
+        .map(|e| (e.name.as_str(), e.value))
+        .collect();
+    assert_eq!(initial.len(), 2);
+    assert!((initial[0].1 - 2.0 * 0.2).abs() < 1e-3, "{initial:?}");
+    assert!((initial[1].1 - 0.6 * 0.2).abs() < 1e-3, "{initial:?}");
+}
+
+#[test]
+fn one_length_leaves_the_scale_out_and_says_why() {
+    let mut s = gradient_bar(0.0);
+    for m in &mut s.mounts {
+        m.i_p_mm = 95.0;
+        m.length_mm = Some(I_MIN + 95.0);
+    }
+    let p = ThermalProblem::new(&s, &effects(&["fixed_part", "scale", "air_gradient"])).unwrap();
+    assert_eq!(
+        p.gain_names(),
+        ["alpha_ppm_per_k", INITIAL_FIXED, "gradient_fixed_ppm_per_k"]
+    );
+    assert_eq!(p.tau_names(), ["tau_r_s"]);
+    let notes = p.not_identifiable();
+    assert_eq!(notes.len(), 1);
+    assert_eq!(
+        notes[0].params,
+        ["beta_ppm_per_k", "tau_s_s", "gradient_scale_ppm_per_k"]
+    );
+    assert!(
+        notes[0].reason.contains("one length"),
+        "{}",
+        notes[0].reason
+    );
+    // The model keeps the effects asked for; the fit has what the data determine.
+    let m = crate::identify::identify(&s, &base_effects()).unwrap();
+    assert_eq!(m.effects, base_effects());
+    assert!(m.param("beta_ppm_per_k").is_none() && m.param("tau_s_s").is_none());
+    assert!(m.param("alpha_ppm_per_k").is_some());
+    assert_eq!(m.not_identifiable.len(), 1);
+    // Two lengths: nothing left out.
+    let s = gradient_bar(0.0);
+    let (kept, out) = identifiable_effects(&s, &base_effects());
+    assert_eq!(kept, base_effects());
+    assert!(out.is_empty());
 }

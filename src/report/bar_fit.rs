@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use super::axis::{format_significant, Axis, TimeUnit};
-use super::canvas::{header, render_with, split_grid, Area, DrawError};
+use super::canvas::{header, notes, render_with, split_grid, Area, DrawError};
 use super::data::rms;
 use super::legend::Mark;
 use super::panel::{y_area_width, Panel};
@@ -28,6 +28,9 @@ pub struct BarFitFigure {
     pub temperatures_c: Vec<NamedSeries>,
     /// Mount changes, seconds since campaign start (faint vertical lines in every panel).
     pub mount_boundaries_s: Vec<f64>,
+    /// Warnings about the model shown under the subtitle in red, one line each (e.g. parameters
+    /// the data cannot determine).
+    pub notes: Vec<String>,
 }
 
 impl BarFitFigure {
@@ -74,6 +77,7 @@ fn y_axes(spec: &BarFitFigure, residual: &[f64]) -> [Axis; 3] {
 
 fn draw(spec: &BarFitFigure, root: &Area<'_>) -> Result<(), DrawError> {
     let body = header(root, &spec.title, &spec.subtitle)?;
+    let body = notes(&body, &spec.notes)?;
     let rows = split_grid(&body, &[1.0], &[0.42, 0.26, 0.32]);
     let all_t = spec
         .time_s

@@ -78,6 +78,30 @@ pub(crate) fn header<'b>(
     Ok(root.split_vertically(height).1)
 }
 
+/// Draws `lines` (warnings) centred in red at the top of `area`, returns the area below (all
+/// of `area` when there are none).
+pub(crate) fn notes<'b>(area: &Area<'b>, lines: &[String]) -> Result<Area<'b>, DrawError> {
+    let lines: Vec<&str> = lines
+        .iter()
+        .map(|l| l.trim())
+        .filter(|l| !l.is_empty())
+        .collect();
+    if lines.is_empty() {
+        return Ok(area.clone());
+    }
+    let centre = area.dim_in_pixel().0 as i32 / 2;
+    let line_h = SUBTITLE_PX as i32 + 7;
+    for (i, line) in lines.iter().enumerate() {
+        let st = style::text(SUBTITLE_PX, style::RED, (HPos::Center, VPos::Top));
+        area.draw(&Text::new(
+            line.to_string(),
+            (centre, 2 + i as i32 * line_h),
+            st,
+        ))?;
+    }
+    Ok(area.split_vertically(4 + lines.len() as i32 * line_h).1)
+}
+
 /// Width and height in pixels of `s` in `style`, (0, 0) if it cannot be measured.
 pub(crate) fn text_size(area: &Area<'_>, s: &str, style: &TextStyle<'_>) -> (u32, u32) {
     if s.is_empty() {

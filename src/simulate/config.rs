@@ -47,6 +47,43 @@ pub struct SimConfig {
     pub geometry: GeometryConfig,
     /// Bars made deliberately different from the fleet (none by default).
     pub mismatch: Vec<Mismatch>,
+    /// How the truth is generated where the logs cannot tell (the air between two temperature
+    /// readings, the bars' state before logging): by default as the simulator always did, and
+    /// left out of `truth.json` then.
+    #[serde(skip_serializing_if = "GenerationConfig::is_default")]
+    pub generation: GenerationConfig,
+}
+
+/// What the logs cannot tell and the simulation must choose (issue 13: the base model must fit
+/// any truth consistent with the logs to the noise).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct GenerationConfig {
+    /// The air that drives the bars (and the plate) between two readings of the temperature
+    /// sensors: the room's own continuous air (`continuous`, the default), the air at the last
+    /// reading held until the next (`held`), or the air at the readings interpolated linearly
+    /// (`interpolated`). The sensors read the same values at their reading times in all three.
+    pub air_between_readings: AirBetweenReadings,
+    /// Hours the room runs before the logging starts (the bars, the plate and the air
+    /// conditioning's set-point loop start in steady state that long before and follow the
+    /// room's air since). 0: every state starts in steady state with the first air.
+    pub prehistory_hours: f64,
+}
+
+impl GenerationConfig {
+    pub fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// See [`GenerationConfig::air_between_readings`].
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum AirBetweenReadings {
+    #[default]
+    Continuous,
+    Held,
+    Interpolated,
 }
 
 /// The calibration plate.
@@ -147,6 +184,11 @@ pub struct ScheduleConfig {
     pub stagger_minutes: f64,
     /// During handling the bar rests at a random offset up to this many mm from the socket length.
     pub handling_offset_mm: f64,
+    /// Plate length ids the rotating bars visit in turn (bar `i` starts at the `i`-th); empty:
+    /// every plate length. One id puts every mount of every rotating bar on that one length (a
+    /// one-length campaign, like a machine tool's spindle: `beta` cannot be identified).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lengths: Vec<String>,
     /// Bars that stay on one length all campaign (after the calibration phase, if any), with
     /// purpose `reference`.
     pub reference: Vec<ReferenceMount>,
@@ -466,6 +508,7 @@ impl Default for SimConfig {
             effects: EffectsConfig::default(),
             geometry: GeometryConfig::default(),
             mismatch: Vec::new(),
+            generation: GenerationConfig::default(),
         }
     }
 }
@@ -544,6 +587,7 @@ impl Default for ScheduleConfig {
             gap_minutes: 20.0,
             stagger_minutes: 30.0,
             handling_offset_mm: 2.0,
+            lengths: Vec::new(),
             reference: Vec::new(),
             calibration: None,
             working: None,
@@ -700,7 +744,36 @@ impl SimConfig {
         self.validate_phases()?;
         self.validate_geometry()?;
         self.validate_mismatch()?;
+        self.validate_generation()?;
         self.validate_effects()
+    }
+
+    /// The internal integration step (seconds) the grid will use: `sample_s` divided into the
+    /// fewest steps of at most `max_internal_step_s` ([`super::Grid`]).
+    pub(crate) fn internal_step_s(&self) -> f64 {
+        let steps = (self.sample_s / self.max_internal_step_s).ceil().max(1.0);
+        (self.sample_s * 1e9).round() * 1e-9 / steps
+    }
+
+    fn validate_generation(&self) -> Result<(), SimError> {
+        let g = &self.generation;
+        non_negative("generation.prehistory_hours", g.prehistory_hours)?;
+        if g.prehistory_hours > 24.0 * 366.0 {
+            return Err(invalid("generation.prehistory_hours", "longer than a year"));
+        }
+        if g.air_between_readings != AirBetweenReadings::Continuous {
+            // The air is rebuilt from its values at the reading times on the internal grid:
+            // the readings must fall on grid points.
+            let ratio = self.room.temperature_sample_s / self.internal_step_s();
+            if (ratio - ratio.round()).abs() > 1e-6 || ratio.round() < 1.0 {
+                return Err(invalid(
+                    "generation.air_between_readings",
+                    "needs room.temperature_sample_s to be a multiple of the internal step \
+                     (sample_s divided into steps of at most max_internal_step_s)",
+                ));
+            }
+        }
+        Ok(())
     }
 
     fn validate_plate(&self) -> Result<(), SimError> {
@@ -823,6 +896,15 @@ impl SimConfig {
         if s.mount_days * 86400.0 < 60.0 {
             return Err(invalid("schedule.mount_days", "shorter than a minute"));
         }
+        for (i, id) in s.lengths.iter().enumerate() {
+            if !self.plate.length.iter().any(|l| &l.id == id) {
+                return Err(invalid(
+                    &format!("schedule.lengths[{i}]"),
+                    "no such plate length",
+                ));
+            }
+        }
+        unique("schedule.lengths", s.lengths.iter().map(String::as_str))?;
         for (i, r) in s.reference.iter().enumerate() {
             if !self.plate.length.iter().any(|l| l.id == r.length) {
                 return Err(invalid(

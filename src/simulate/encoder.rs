@@ -45,6 +45,8 @@ struct ThermalState {
     w_low: f64,
     w_high: f64,
     t0_c: f64,
+    /// The air is held over each grid step ([`Environment::air_held`]).
+    air_held: bool,
     fixed: FirstOrderLag,
     scale: FirstOrderLag,
     second: Option<(FirstOrderLag, f64)>,
@@ -53,14 +55,22 @@ struct ThermalState {
 }
 
 impl ThermalState {
-    /// All states in equilibrium with the first grid point; the head cold (as the power comes
-    /// on), or warm when it has been powered for long before the start.
+    /// All states in equilibrium with the first air (the head cold, as the power comes on, or
+    /// warm when it has been powered for long before the start); with a pre-history
+    /// ([`Environment::pre_t1_c`]) the air states start in equilibrium at its start and follow it
+    /// up to the start of the logging.
     fn new(setup: &BarSetup, env: &Environment, step_s: f64) -> Self {
         let bar = setup.bar;
         let w_low = bar.seen_weights.get(AIR_LOW).copied().unwrap_or(0.0);
         let w_high = bar.seen_weights.get(AIR_HIGH).copied().unwrap_or(0.0);
         let t0_c = setup.reference_temperature_c;
-        let u0 = w_low * env.t1_c[0] + w_high * env.t2_c[0] - t0_c;
+        let with_pre = !env.pre_t1_c.is_empty();
+        let (t1, t2) = if with_pre {
+            (&env.pre_t1_c, &env.pre_t2_c)
+        } else {
+            (&env.t1_c, &env.t2_c)
+        };
+        let u0 = w_low * t1[0] + w_high * t2[0] - t0_c;
         let second = bar
             .second_path
             .as_ref()
@@ -73,7 +83,12 @@ impl ThermalState {
             };
             (FirstOrderLag::new(h.tau_s, step_s, warm), h.amplitude_um)
         });
-        let hidden = match (&bar.hidden_channel, &env.hidden_c) {
+        let hidden_c = if with_pre {
+            &env.pre_hidden_c
+        } else {
+            &env.hidden_c
+        };
+        let hidden = match (&bar.hidden_channel, hidden_c) {
             (Some(c), Some(h)) => Some((
                 FirstOrderLag::new(c.tau_s, step_s, h[0] - c.base_c),
                 c.gain_um_per_k,
@@ -81,16 +96,25 @@ impl ThermalState {
             )),
             _ => None,
         };
-        Self {
+        let mut state = Self {
             w_low,
             w_high,
             t0_c,
+            air_held: env.air_held,
             fixed: FirstOrderLag::new(bar.tau_r_s, step_s, u0),
             scale: FirstOrderLag::new(bar.tau_s_s, step_s, u0),
             second,
             head,
             hidden,
+        };
+        if with_pre {
+            for i in 0..env.pre_t1_c.len() - 1 {
+                let seen = |k: usize| w_low * t1[k] + w_high * t2[k] - t0_c;
+                let hidden = env.pre_hidden_c.as_ref().map(|h| (h[i], h[i + 1]));
+                state.step_air(seen(i), seen(i + 1), hidden);
+            }
         }
+        state
     }
 
     fn seen(&self, env: &Environment, i: usize) -> f64 {
@@ -100,16 +124,24 @@ impl ThermalState {
     /// Advance from grid point `i` to `i + 1`, the head powered (`1`) or not (`0`).
     fn advance(&mut self, env: &Environment, i: usize, head_power: f64) {
         let (u0, u1) = (self.seen(env, i), self.seen(env, i + 1));
+        let hidden = env.hidden_c.as_ref().map(|h| (h[i], h[i + 1]));
+        self.step_air(u0, u1, hidden);
+        if let Some((lag, _)) = &mut self.head {
+            lag.step_held(head_power);
+        }
+    }
+
+    /// Advance the states that follow the air (and the hidden channel) by one grid step, the
+    /// air going from `u0` to `u1` (linearly, or held at `u0` when the air is held).
+    fn step_air(&mut self, u0: f64, u1: f64, hidden: Option<(f64, f64)>) {
+        let u1 = if self.air_held { u0 } else { u1 };
         self.fixed.step_linear(u0, u1);
         self.scale.step_linear(u0, u1);
         if let Some((lag, _)) = &mut self.second {
             lag.step_linear(u0, u1);
         }
-        if let Some((lag, _)) = &mut self.head {
-            lag.step_held(head_power);
-        }
-        if let (Some((lag, _, base)), Some(h)) = (&mut self.hidden, &env.hidden_c) {
-            lag.step_linear(h[i] - *base, h[i + 1] - *base);
+        if let (Some((lag, _, base)), Some((h0, h1))) = (&mut self.hidden, hidden) {
+            lag.step_linear(h0 - *base, h1 - *base);
         }
     }
 

@@ -7,7 +7,7 @@ use std::f64::consts::TAU;
 use rand::Rng;
 use rand_distr::{Distribution, Exp, Normal};
 
-use super::config::{HiddenChannel, RoomConfig, SimConfig};
+use super::config::{AirBetweenReadings, HiddenChannel, RoomConfig, SimConfig};
 use super::lag::FirstOrderLag;
 use super::{stream_rng, streams, Grid};
 use crate::series::SensorLog;
@@ -22,7 +22,8 @@ const DAY_S: f64 = 86400.0;
 /// True signals at every grid point `i` (time `i * step_s` after the start).
 #[derive(Debug, Clone)]
 pub(crate) struct Environment {
-    /// Air at bar height, °C (what T1 reads, before noise).
+    /// Air at bar height, °C: what drives the bars (and what T1 reads at its reading times,
+    /// before noise).
     pub t1_c: Vec<f64>,
     /// Air above the bars, °C (what T2 reads, before noise).
     pub t2_c: Vec<f64>,
@@ -32,6 +33,14 @@ pub(crate) struct Environment {
     pub hidden_c: Option<Vec<f64>>,
     /// Door openings, seconds after the start (whole seconds).
     pub door_times_s: Vec<f64>,
+    /// The room before the logging starts (`generation.prehistory_hours`), on the same grid,
+    /// ending at the start (its last point is the first of `t1_c`, `t2_c`); empty without one.
+    pub pre_t1_c: Vec<f64>,
+    pub pre_t2_c: Vec<f64>,
+    pub pre_hidden_c: Option<Vec<f64>>,
+    /// The air is constant over each grid step (`generation.air_between_readings = "held"`):
+    /// the bars integrate it held, not linearly.
+    pub air_held: bool,
 }
 
 /// A sum of sinusoids `sum a sin(w t + phi)`: the slow random wander of the room.
@@ -80,11 +89,14 @@ impl Environment {
         let ac_phase = rng.gen_range(0.0..1.0);
         let door_times_s = door_times(&mut rng, room, grid.duration_s());
         let day_offset_s = seconds_of_day(cfg);
-        let n = grid.n_points();
+        // Grid points before the start (the pre-history); the room's signals are functions of
+        // time and run back unchanged; doors happen only while logging.
+        let pre = prehistory_points(cfg, grid);
+        let n = grid.n_points() + pre;
         let mut t1_c = Vec::with_capacity(n);
         let mut t2_c = Vec::with_capacity(n);
         for i in 0..n {
-            let t = i as f64 * grid.step_s;
+            let t = grid_time(i, pre, grid.step_s);
             let daily = (TAU * (t + day_offset_s - room.daily_peak_hour * 3600.0) / DAY_S).cos();
             let ac = triangle(t, room.ac_period_s, ac_phase);
             let low = room.mean_c
@@ -99,20 +111,51 @@ impl Environment {
             t1_c.push(low);
             t2_c.push(low + gradient);
         }
-        add_doors(&mut t1_c, &mut t2_c, &door_times_s, room, grid.step_s);
-        add_setpoint_steps(&mut t1_c, &mut t2_c, room, grid.step_s);
-        let plate_c = lagged(&t1_c, cfg.plate.thermal_tau_s, grid.step_s);
+        add_doors(
+            &mut t1_c[pre..],
+            &mut t2_c[pre..],
+            &door_times_s,
+            room,
+            grid.step_s,
+        );
+        add_setpoint_steps(&mut t1_c, &mut t2_c, room, grid.step_s, pre);
+        let air_held = cfg.generation.air_between_readings == AirBetweenReadings::Held;
+        if cfg.generation.air_between_readings != AirBetweenReadings::Continuous {
+            let period = readings_period_points(cfg, grid);
+            for series in [&mut t1_c, &mut t2_c] {
+                *series = air_between_readings(series, period, pre, air_held);
+            }
+        }
+        let plate_c = lagged(&t1_c, cfg.plate.thermal_tau_s, grid.step_s, air_held);
         let hidden_c = cfg
             .effects
             .hidden_channel
             .enabled
-            .then(|| hidden_signal(cfg.seed, &cfg.effects.hidden_channel, grid));
+            .then(|| hidden_signal(cfg.seed, &cfg.effects.hidden_channel, grid, pre));
+        let split = |mut v: Vec<f64>| {
+            let main = v.split_off(pre);
+            if pre > 0 {
+                v.push(main[0]);
+            }
+            (v, main)
+        };
+        let (pre_t1_c, t1_c) = split(t1_c);
+        let (pre_t2_c, t2_c) = split(t2_c);
+        let (_, plate_c) = split(plate_c);
+        let (pre_hidden_c, hidden_c) = match hidden_c.map(split) {
+            Some((p, h)) => (Some(p), Some(h)),
+            None => (None, None),
+        };
         Self {
             t1_c,
             t2_c,
             plate_c,
             hidden_c,
             door_times_s,
+            pre_t1_c,
+            pre_t2_c,
+            pre_hidden_c,
+            air_held,
         }
     }
 
@@ -191,55 +234,111 @@ fn add_doors(t1: &mut [f64], t2: &mut [f64], doors_s: &[f64], room: &RoomConfig,
     }
 }
 
-/// `series` lagged by `tau_s`, starting in equilibrium.
 /// The programmed set-point steps ([`RoomConfig::setpoint_step_k`]): a square wave of
-/// `±step / 2` starting high, followed by the air with the first-order settle of the
-/// air-conditioning loop, added to both air levels.
-fn add_setpoint_steps(t1: &mut [f64], t2: &mut [f64], room: &RoomConfig, step_s: f64) {
+/// `±step / 2` starting high at the start of the logging, followed by the air with the
+/// first-order settle of the air-conditioning loop, added to both air levels (`pre` grid points
+/// of pre-history come first).
+fn add_setpoint_steps(t1: &mut [f64], t2: &mut [f64], room: &RoomConfig, step_s: f64, pre: usize) {
     if room.setpoint_step_k == 0.0 {
         return;
     }
     let half = room.setpoint_step_k / 2.0;
     let square: Vec<f64> = (0..t1.len())
         .map(|i| {
-            let phase = (i as f64 * step_s / room.setpoint_half_period_s).floor() as u64;
-            if phase % 2 == 0 {
+            let t = grid_time(i, pre, step_s);
+            let phase = (t / room.setpoint_half_period_s).floor() as i64;
+            if phase.rem_euclid(2) == 0 {
                 half
             } else {
                 -half
             }
         })
         .collect();
-    let air = lagged(&square, room.setpoint_settle_s, step_s);
+    let air = lagged(&square, room.setpoint_settle_s, step_s, false);
     for ((a, b), d) in t1.iter_mut().zip(t2.iter_mut()).zip(air) {
         *a += d;
         *b += d;
     }
 }
 
-fn lagged(series: &[f64], tau_s: f64, step_s: f64) -> Vec<f64> {
+/// `series` lagged by `tau_s`, starting in equilibrium; the input linear over each step, or
+/// held at its value at the step's start (`held`).
+fn lagged(series: &[f64], tau_s: f64, step_s: f64, held: bool) -> Vec<f64> {
     let Some(&first) = series.first() else {
         return Vec::new();
     };
     let mut lag = FirstOrderLag::new(tau_s, step_s, first);
     let mut out = Vec::with_capacity(series.len());
     out.push(first);
-    out.extend(series.windows(2).map(|w| lag.step_linear(w[0], w[1])));
+    out.extend(series.windows(2).map(|w| {
+        if held {
+            lag.step_held(w[0])
+        } else {
+            lag.step_linear(w[0], w[1])
+        }
+    }));
     out
+}
+
+/// Time (s after the start of the logging) of grid point `i` of a grid with `pre` points of
+/// pre-history.
+fn grid_time(i: usize, pre: usize, step_s: f64) -> f64 {
+    if pre == 0 {
+        i as f64 * step_s
+    } else {
+        (i as f64 - pre as f64) * step_s
+    }
+}
+
+/// Grid points of pre-history (`generation.prehistory_hours`, whole steps).
+pub(crate) fn prehistory_points(cfg: &SimConfig, grid: &Grid) -> usize {
+    (cfg.generation.prehistory_hours * 3600.0 / grid.step_s).round() as usize
+}
+
+/// Grid steps between two temperature readings (validated to be whole:
+/// [`SimConfig::validate`]).
+fn readings_period_points(cfg: &SimConfig, grid: &Grid) -> usize {
+    ((cfg.room.temperature_sample_s / grid.step_s).round() as usize).max(1)
+}
+
+/// The air rebuilt from its values at the reading times (every `period` grid points from the
+/// start of the logging, `pre` points into `series`; readings go on back into the
+/// pre-history): held from each reading to the next (`held`), or linear between them. At a
+/// reading time the value is the air's own.
+fn air_between_readings(series: &[f64], period: usize, pre: usize, held: bool) -> Vec<f64> {
+    let last = series.len() - 1;
+    // Grid index of reading `k` (k counts from the first reading at or before grid point 0).
+    let first = pre % period;
+    let reading = |i: usize| -> (usize, usize) {
+        let k = if i < first { 0 } else { (i - first) / period };
+        let at = if i < first { i } else { first + k * period };
+        (at, (at + period).min(last))
+    };
+    (0..series.len())
+        .map(|i| {
+            let (a, b) = reading(i);
+            if held || b == a {
+                series[a]
+            } else {
+                let f = (i - a) as f64 / (b - a) as f64;
+                series[a] + f * (series[b] - series[a])
+            }
+        })
+        .collect()
 }
 
 /// The machine's temperature: base + amplitude * lag(on/off), on and off for exponential
 /// durations, starting off and cold.
-fn hidden_signal(seed: u64, h: &HiddenChannel, grid: &Grid) -> Vec<f64> {
+fn hidden_signal(seed: u64, h: &HiddenChannel, grid: &Grid, pre: usize) -> Vec<f64> {
     let mut rng = stream_rng(seed, streams::HIDDEN);
     let toggles = on_off_toggles(&mut rng, h.mean_off_h, h.mean_on_h, grid.duration_s());
     let mut lag = FirstOrderLag::new(h.signal_tau_s, grid.step_s, 0.0);
     let mut on = false;
     let mut next = toggles.iter().peekable();
-    (0..grid.n_points())
+    (0..grid.n_points() + pre)
         .map(|i| {
             let value = h.base_c + h.amplitude_k * lag.state;
-            let t = i as f64 * grid.step_s;
+            let t = grid_time(i, pre, grid.step_s);
             while next.next_if(|&&toggle| toggle <= t).is_some() {
                 on = !on;
             }

@@ -40,10 +40,10 @@ use crate::campaign::{
 use crate::series::{CampaignTables, Event};
 
 pub use config::{
-    BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig, FleetConfig, GeometryConfig,
-    HeadHeating, HeadSchedule, HeadStart, HiddenChannel, Mismatch, PlateConfig, PlateExpansion,
-    ReferenceMount, RoomConfig, SagConfig, SagForm, ScheduleConfig, SecondPath, SensorGradient,
-    Settling, SimConfig, WorkingLayout,
+    AirBetweenReadings, BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig,
+    FleetConfig, GenerationConfig, GeometryConfig, HeadHeating, HeadSchedule, HeadStart,
+    HiddenChannel, Mismatch, PlateConfig, PlateExpansion, ReferenceMount, RoomConfig, SagConfig,
+    SagForm, ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig, WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
 pub use truth::{

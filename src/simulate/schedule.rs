@@ -140,7 +140,7 @@ pub(crate) fn plan_bar(cfg: &SimConfig, grid: &Grid, index: usize, bar_id: &str)
     let calibration_end_ns = CalibrationTiming::of(cfg).map_or(0, |c| c.end_ns());
     let n_calibration = mounts.len();
     let role = role_of(cfg, bar_id);
-    let n_lengths = cfg.plate.length.len();
+    let visited = visited_lengths(cfg);
     let mut t = calibration_end_ns + stagger_ns;
     while t + gap_ns < grid.duration_ns {
         let from_ns = t + gap_ns;
@@ -153,7 +153,7 @@ pub(crate) fn plan_bar(cfg: &SimConfig, grid: &Grid, index: usize, bar_id: &str)
             ),
             Role::Working(site, tilt, purpose) => (site.clone(), *tilt, *purpose, grid.duration_ns),
             Role::Rotate => {
-                let i = (index + mounts.len() - n_calibration) % n_lengths;
+                let i = visited[(index + mounts.len() - n_calibration) % visited.len()];
                 (
                     Site::Length(i),
                     cfg.plate.tilt_deg,
@@ -210,6 +210,19 @@ pub(crate) fn plan_bar(cfg: &SimConfig, grid: &Grid, index: usize, bar_id: &str)
         head_warm_at_start: head_enabled && start == HeadStart::PoweredWarm,
         rest_tilt_deg: cfg.plate.tilt_deg,
     }
+}
+
+/// Indices of the plate lengths rotating bars visit, in order (`schedule.lengths`; all of them
+/// when it is empty).
+fn visited_lengths(cfg: &SimConfig) -> Vec<usize> {
+    if cfg.schedule.lengths.is_empty() {
+        return (0..cfg.plate.length.len()).collect();
+    }
+    cfg.schedule
+        .lengths
+        .iter()
+        .filter_map(|id| cfg.plate.length.iter().position(|l| &l.id == id))
+        .collect()
 }
 
 /// The bar's role after the calibration phase.

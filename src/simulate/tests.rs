@@ -637,3 +637,154 @@ fn written_campaign_reads_back() {
     );
     assert_eq!(logs.events.len(), sim.tables.events.len());
 }
+
+/// `[generation] air_between_readings`: the sensors read the same in every variant; the bars
+/// follow the air held between readings or interpolated between them, which differs from the
+/// continuous air only between readings (the AC triangle's corners, the set-point steps).
+#[test]
+fn air_between_readings_changes_the_bars_not_the_sensors() {
+    let mut base = lively();
+    base.duration_days = 1.0;
+    base.sample_s = 10.0;
+    base.room.setpoint_step_k = 1.0;
+    let with = |air: AirBetweenReadings| SimConfig {
+        generation: GenerationConfig {
+            air_between_readings: air,
+            ..GenerationConfig::default()
+        },
+        ..base.clone()
+    };
+    let continuous = generate(&base).unwrap();
+    let held = generate(&with(AirBetweenReadings::Held)).unwrap();
+    let interpolated = generate(&with(AirBetweenReadings::Interpolated)).unwrap();
+    // (Equal to rounding: a reading time in seconds is a grid index up to 1e-15.)
+    let same_logs = |a: &Simulation, b: &Simulation| {
+        a.tables.temperatures.iter().all(|(id, l)| {
+            let m = &b.tables.temperatures[id];
+            l.time_ns == m.time_ns
+                && l.celsius
+                    .iter()
+                    .zip(&m.celsius)
+                    .all(|(x, y)| (x - y).abs() < 1e-12)
+        })
+    };
+    for other in [&held, &interpolated] {
+        assert!(same_logs(other, &continuous));
+        assert_eq!(other.manifest, continuous.manifest);
+    }
+    // The bars' error: each variant differs from the others, by little (the air between two
+    // readings 30 s apart), the held air behind by about half a reading period.
+    let max_diff = |a: &Simulation, b: &Simulation| {
+        a.true_error_um
+            .values()
+            .zip(b.true_error_um.values())
+            .flat_map(|(x, y)| x.iter().zip(y).map(|(x, y)| (x - y).abs()))
+            .fold(0.0, f64::max)
+    };
+    let (dh, di) = (
+        max_diff(&held, &continuous),
+        max_diff(&interpolated, &continuous),
+    );
+    assert!(dh > 1e-4 && dh < 0.02, "held vs continuous {dh} µm");
+    assert!(
+        di > 1e-7 && di < 0.002,
+        "interpolated vs continuous {di} µm"
+    );
+    assert!(dh > 3.0 * di, "held {dh} interpolated {di}");
+    // The default is the continuous air, left out of truth.json.
+    assert_eq!(base.generation, GenerationConfig::default());
+    let json = serde_json::to_string(&continuous.truth).unwrap();
+    assert!(!json.contains("generation"));
+    assert!(serde_json::to_string(&held.truth)
+        .unwrap()
+        .contains("\"held\""));
+}
+
+/// `[generation] prehistory_hours`: the room runs before the logging, so a bar is not in
+/// steady state at its first reading; the logs themselves (sensors) do not change.
+#[test]
+fn prehistory_leaves_the_bars_out_of_steady_state() {
+    let mut base = quiet(20.0);
+    base.room.drift_k_per_day = 2.0; // a steady drift: the lag trails by slope * tau
+    base.duration_days = 1.0;
+    let pre = SimConfig {
+        generation: GenerationConfig {
+            prehistory_hours: 24.0,
+            ..GenerationConfig::default()
+        },
+        ..base.clone()
+    };
+    let (a, b) = (generate(&base).unwrap(), generate(&pre).unwrap());
+    assert_eq!(a.tables.temperatures.len(), b.tables.temperatures.len());
+    for (id, l) in &a.tables.temperatures {
+        let m = &b.tables.temperatures[id];
+        assert_eq!(l.time_ns, m.time_ns);
+        assert!(l
+            .celsius
+            .iter()
+            .zip(&m.celsius)
+            .all(|(x, y)| (x - y).abs() < 1e-9));
+    }
+    for bar in &a.truth.bars {
+        let (ea, eb) = (&a.true_error_um[&bar.id], &b.true_error_um[&bar.id]);
+        // At the first reading the bar with a pre-history lags the drift by slope * tau:
+        // growth alpha I_min slope tau_R + beta I_p slope tau_S smaller; it reads higher.
+        // (At t = 0 the bar is in its first handling gap; the scale adds a few per cent.)
+        let slope = 2.0 / 86400.0;
+        let lag_um = bar.alpha_ppm_per_k * bar.fixed_length_mm * slope * bar.tau_r_s * 1e-3;
+        let d0 = eb[0] - ea[0];
+        assert!(
+            d0 > 0.8 * lag_um && d0 < 1.5 * lag_um,
+            "{}: {d0} vs {lag_um}",
+            bar.id
+        );
+        // A day later (many time constants) both are the same.
+        let last = ea.len() - 1;
+        assert!((eb[last] - ea[last]).abs() < 1e-6 * lag_um.max(1.0));
+    }
+}
+
+/// `schedule.lengths`: rotating bars visit only the listed plate lengths; one length gives a
+/// one-length campaign (every mount of every bar on it).
+#[test]
+fn schedule_lengths_restricts_the_rotation() {
+    let mut cfg = quiet(20.0);
+    cfg.schedule.lengths = vec!["mid".into()];
+    let sim = generate(&cfg).unwrap();
+    assert!(sim.truth.mounts.len() > 3);
+    assert!(sim.truth.mounts.iter().all(|m| m.length == "mid"));
+    cfg.schedule.lengths = vec!["max".into(), "min".into()];
+    let sim = generate(&cfg).unwrap();
+    let b01: Vec<&str> = sim
+        .truth
+        .mounts
+        .iter()
+        .filter(|m| m.bar == "B01")
+        .map(|m| m.length.as_str())
+        .collect();
+    assert_eq!(&b01[..2], ["max", "min"]);
+    cfg.schedule.lengths = vec!["nope".into()];
+    assert!(matches!(
+        cfg.validate(),
+        Err(SimError::Invalid { ref key, .. }) if key == "schedule.lengths[0]"
+    ));
+}
+
+#[test]
+fn generation_options_are_validated() {
+    let bad = SimConfig::from_toml_str("[generation]\nprehistory_hours = -1.0");
+    assert!(
+        matches!(bad, Err(SimError::Invalid { ref key, .. }) if key == "generation.prehistory_hours"),
+        "{bad:?}"
+    );
+    // Readings off the internal grid cannot carry a held or interpolated air.
+    let off_grid = "sample_s = 10.0\nmax_internal_step_s = 4.0\n[room]\ntemperature_sample_s = 7.0\n[generation]\nair_between_readings = \"held\"";
+    assert!(matches!(
+        SimConfig::from_toml_str(off_grid),
+        Err(SimError::Invalid { ref key, .. }) if key == "generation.air_between_readings"
+    ));
+    let ok = SimConfig::from_toml_str(
+        "[generation]\nair_between_readings = \"interpolated\"\nprehistory_hours = 12",
+    );
+    assert!(ok.is_ok(), "{ok:?}");
+}

@@ -3,11 +3,13 @@
 
 mod acceptance;
 mod bad_input;
+mod base_noise;
 mod cli;
 mod diagnose;
 mod head_heating;
 mod identify;
 mod machine_tool;
 mod nist;
+mod one_length;
 mod row_order;
 mod support;

@@ -65,3 +65,123 @@ pub fn run_cli(args: &[&str]) -> (i32, String, String) {
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// A base-only campaign (issue 13): the identification room of
+/// `pipelines/sim-identification.toml` (daily swing ±1 K, air conditioning ±0.2 K every 20 min,
+/// 1 K set-point steps every 6 h) with `n_bars` bars over `days`, white reading noise 0.020 µm,
+/// no effect beyond the base model, encoder period `sample_s` and temperature period
+/// `temperature_sample_s`; the truth's air between two temperature readings is `air` and the
+/// room runs `prehistory_hours` before the logging starts (the bars are then not in steady state
+/// at their first reading).
+#[allow(clippy::too_many_arguments)]
+pub fn base_only_config(
+    seed: u64,
+    air: simulate::AirBetweenReadings,
+    prehistory_hours: f64,
+    sample_s: f64,
+    temperature_sample_s: f64,
+    n_bars: usize,
+    days: f64,
+) -> SimConfig {
+    let mut cfg = sim_config("pipelines/sim-identification.toml");
+    cfg.seed = seed;
+    cfg.campaign_id = format!("base-only-{seed}");
+    cfg.duration_days = days;
+    cfg.sample_s = sample_s;
+    cfg.room.temperature_sample_s = temperature_sample_s;
+    cfg.record_true_error = true;
+    if let Some(f) = cfg.fleet.as_mut() {
+        f.n_bars = n_bars;
+    }
+    cfg.generation = simulate::GenerationConfig {
+        air_between_readings: air,
+        prehistory_hours,
+    };
+    cfg
+}
+
+/// A simulated campaign on disk with its truth and the reading noise it actually drew.
+pub struct NoisyCampaign {
+    pub dir: PathBuf,
+    pub truth: Truth,
+    /// Per bar: RMS of the noise actually added to its fitted readings (white noise and
+    /// quantization: reading minus true thermal error, each mount's mean removed), µm. What a
+    /// model that contains the truth fits down to (a little below, by its parameters).
+    pub noise_rms_um: std::collections::BTreeMap<String, f64>,
+    /// The same over every bar's fitted readings.
+    pub fleet_noise_rms_um: f64,
+}
+
+/// Simulate `cfg` (with `record_true_error` on) into `root/name` and measure the noise it drew.
+pub fn noisy_campaign(root: &Path, name: &str, cfg: &SimConfig) -> NoisyCampaign {
+    let mut cfg = cfg.clone();
+    cfg.record_true_error = true;
+    let dir = root.join(name);
+    let sim = simulate::generate(&cfg).unwrap_or_else(|e| panic!("simulate {name}: {e}"));
+    simulate::write(&sim, &dir, &dbbcal::io::WriteOptions::default())
+        .unwrap_or_else(|e| panic!("write {name}: {e}"));
+    let ns = |rfc: &str| {
+        chrono::DateTime::parse_from_rfc3339(rfc)
+            .unwrap()
+            .timestamp_nanos_opt()
+            .unwrap()
+    };
+    let mut noise_rms_um = std::collections::BTreeMap::new();
+    let (mut ss_all, mut n_all) = (0.0, 0usize);
+    for bar in &sim.truth.bars {
+        let log = &sim.tables.encoders[&bar.id];
+        let error = &sim.true_error_um[&bar.id];
+        let k_um = bar.resolution_nm * 1e-3;
+        let (mut ss, mut n) = (0.0, 0usize);
+        for m in sim.truth.mounts.iter().filter(|m| m.bar == bar.id) {
+            if m.device.is_some() || m.purpose == dbbcal::campaign::Purpose::Check {
+                continue;
+            }
+            let (from, to) = (ns(&m.from), ns(&m.to));
+            let noise: Vec<f64> = (0..log.time_ns.len())
+                .filter(|&i| log.time_ns[i] >= from && log.time_ns[i] <= to)
+                .map(|i| (log.counts[i] as f64 - m.zero_counts) * k_um - error[i])
+                .collect();
+            let mean = noise.iter().sum::<f64>() / noise.len().max(1) as f64;
+            ss += noise.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
+            n += noise.len();
+        }
+        noise_rms_um.insert(bar.id.clone(), (ss / n.max(1) as f64).sqrt());
+        ss_all += ss;
+        n_all += n;
+    }
+    NoisyCampaign {
+        dir,
+        truth: sim.truth,
+        noise_rms_um,
+        fleet_noise_rms_um: (ss_all / n_all.max(1) as f64).sqrt(),
+    }
+}
+
+/// [`noisy_campaign`] of [`base_only_config`]: the base-only campaign of seed `seed` (3 bars,
+/// 4 days) with the truth's air between readings `air`, the room running `prehistory_hours`
+/// before the logging, and encoder and temperature periods `sample_s` and
+/// `temperature_sample_s`, in a fresh directory under `root`.
+pub fn base_only_campaign(
+    root: &Path,
+    seed: u64,
+    air: simulate::AirBetweenReadings,
+    prehistory_hours: f64,
+    sample_s: f64,
+    temperature_sample_s: f64,
+) -> NoisyCampaign {
+    let cfg = base_only_config(
+        seed,
+        air,
+        prehistory_hours,
+        sample_s,
+        temperature_sample_s,
+        3,
+        4.0,
+    );
+    noisy_campaign(
+        root,
+        &format!("base-{seed}-{air:?}-{prehistory_hours}-{sample_s}-{temperature_sample_s}"),
+        &cfg,
+    )
+}
