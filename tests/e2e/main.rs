@@ -6,6 +6,7 @@ mod bad_input;
 mod base_noise;
 mod cli;
 mod diagnose;
+mod false_alarms;
 mod head_heating;
 mod identify;
 mod machine_tool;
