@@ -686,7 +686,7 @@ impl<'a> ThermalProblem<'a> {
             (TermKind::Settling, Some(tau)) => settling(self.series, tau, with_derivative),
             (TermKind::Decay { from_s }, Some(tau)) => decay(t, from_s, tau, with_derivative),
             (TermKind::InitialState, Some(tau)) => {
-                initial_state(t, self.initial_state_reference_s, tau, with_derivative)
+                decay(t, self.initial_state_reference_s, tau, with_derivative)
             }
             _ => (term.input.level(t.len()), None),
         };
@@ -765,29 +765,10 @@ fn settling(series: &BarSeries, tau: f64, with_derivative: bool) -> (Vec<f64>, O
     (x, d)
 }
 
-/// `exp(-(t - from_s)/tau)` for `t >= from_s`, 1 before, and its derivative in `ln tau`
-/// (`s/tau exp(-s/tau)`, `s = t - from_s`): [`TermKind::Decay`].
-pub(crate) fn decay(
-    t_s: &[f64],
-    from_s: f64,
-    tau: f64,
-    with_derivative: bool,
-) -> (Vec<f64>, Option<Vec<f64>>) {
-    let mut x = Vec::with_capacity(t_s.len());
-    let mut d = with_derivative.then(|| Vec::with_capacity(t_s.len()));
-    for &t in t_s {
-        let r = (t - from_s).max(0.0) / tau;
-        let e = (-r).exp();
-        x.push(e);
-        if let Some(d) = d.as_mut() {
-            d.push(r * e);
-        }
-    }
-    (x, d)
-}
-
-/// The decay of a lag's initial departure from steady state, `exp(-(t - t_ref)/tau)`, and its
-/// `ln tau` derivative `exp(-(t - t_ref)/tau) (t - t_ref)/tau`.
+/// The decay of a lag's initial departure from steady state, `exp(-(t - t_ref)/tau)` for
+/// `t >= t_ref`, 1 before, and its `ln tau` derivative `exp(-(t - t_ref)/tau) (t - t_ref)/tau`:
+/// the column of [`TermKind::InitialState`] (the base paths, `t_ref` the first fitted reading)
+/// and of [`TermKind::Decay`] (a powered head's initial heat, `t_ref = from_s`).
 ///
 /// Why: a lag is computed from steady state at the bar's first sample ([`lag::lag`]), but a bar
 /// whose room was drifting before the logging began is not in steady state then: its state
@@ -796,7 +777,7 @@ pub(crate) fn decay(
 /// fitted gain on this column. Unit at the bar's first fitted sample (`t_ref`), so the column
 /// never vanishes on the fitted samples whatever `tau` is; held at 1 before it (samples there are
 /// not fitted; the departure before is only bounded from below).
-fn initial_state(
+pub(crate) fn decay(
     t_s: &[f64],
     t_ref: f64,
     tau: f64,
