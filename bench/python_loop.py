@@ -74,7 +74,7 @@ Simplifications against dbbcal (it is a peer, not a reimplementation):
 Usage (from the repository root)::
 
     python3 bench/python_loop.py CAMPAIGN [--bars N] [--max-steps 3] [--extra-channels]
-                                 [--starts both|warm] [--dense] [--json OUT] [--quiet]
+                                 [--starts both|warm|cold] [--dense] [--json OUT] [--quiet]
 
 ``--bars N`` fits only the first N bars of the manifest and prints, beside the measured times, an
 extrapolation to all bars (read as measured; the per-bar stages scaled by bars/N).
@@ -456,11 +456,9 @@ def extend(bar: Bar, current: dict, effect: str, man, opts) -> dict | None:
         model = Model(bar, current["effects"] + [effect], man, opts.dense)
     except LookupError:
         return None
-    starts = [list(current["theta"])]
-    if opts.starts == "both":
-        cold = list(np.log(model.tau0[: len(current["theta"])]))
-        if not np.allclose(cold, starts[0]):
-            starts.append(cold)
+    warm = list(current["theta"])
+    cold = list(np.log(model.tau0[: len(warm)]))
+    starts = {"warm": [warm], "cold": [cold], "both": [warm] + ([cold] if not np.allclose(cold, warm) else [])}[opts.starts]
     best = None
     for theta0 in starts:
         if len(model.tau_names) > len(theta0):
@@ -581,8 +579,8 @@ def main() -> int:
     ap.add_argument("--bars", type=int, default=0, help="only the first N bars of the manifest (0: all); times extrapolated")
     ap.add_argument("--max-steps", type=int, default=3, help="forward-selection steps (default 3)")
     ap.add_argument("--extra-channels", action="store_true", help="also lag: of time_since_mount_h, time_of_day_h, length_mm, event:KIND")
-    ap.add_argument("--starts", choices=["both", "warm"], default="both",
-                    help="candidate fits from the current model's taus and from the defaults (both, default) or warm only")
+    ap.add_argument("--starts", choices=["both", "warm", "cold"], default="both",
+                    help="candidate fits from the current model's taus (warm), from the defaults (cold), or both, the better kept (default)")
     ap.add_argument("--dense", action="store_true", help="one-hot zeros in the lstsq design instead of projecting them out")
     ap.add_argument("--json", help="write the ranking, ledger and timings here")
     ap.add_argument("--quiet", action="store_true", help="no per-candidate lines")
@@ -647,17 +645,17 @@ def main() -> int:
         print(f"{r['effect']:<28} {r['rms_before_um']:10.5f} {r['rms_after_um']:10.5f} {100 * r['delta_rms_um'] / r['rms_before_um']:8.3f} "
               f"{r['delta_bic']:12.1f} {r['p_value']:9.2e} {r['df']:4d} {r['bars_improved']}/{r['bars_fitted']}"
               f"{'  *' if r['significant'] else ''}")
+    if len(ledger) > 1:
+        print(f"\nfinal model per bar ({', '.join(ledger[-1]['effects'])}; settling amplitudes left out)")
+        for b, params in ledger[-1]["params"].items():
+            new = {k: v for k, v in params.items() if not (k.startswith("settling_") and k.endswith("_um"))}
+            print(f"  {b}: rms {ledger[-1]['rms_um'][b]:.5f}  " + "  ".join(f"{k} {v:.4g}" for k, v in new.items()))
     print("\nledger (greedy forward selection, fleet-wide)")
     for i, s in enumerate(ledger):
         p = "" if s["p_value"] is None else f"  dBIC {s['delta_bic']:.1f}  p {s['p_value']:.2e}"
         print(f"  {i}: {s['added']:<26} fleet rms {s['fleet_rms_um']:.5f} um{p}")
-        if i > 0:
-            for b, params in s["params"].items():
-                new = {k: v for k, v in params.items() if not (k.startswith("settling_") and k.endswith("_um"))}
-                print(f"       {b}: rms {s['rms_um'][b]:.5f}  " + "  ".join(f"{k} {v:.4g}" for k, v in new.items()))
     if len(ledger) == 1:
         print("  no candidate significant: nothing added")
-
     print("\ntimings (wall, s): " + "  ".join(f"{k[:-2]} {v:.2f}" for k, v in timings.items() if k.endswith("_s") and k != "cpu_s"))
     print(f"cpu {timings['cpu_s']:.1f} s, peak RSS {timings['peak_rss_mb']:.0f} MB, load {os.getloadavg()[0]:.2f}")
     if len(bars) < n_all:

@@ -452,7 +452,7 @@ fn ledger(steps: &[LedgerStep], sensors: &[SensorProfile], beam: usize) -> repor
     let bars: Vec<String> = steps[0].rms_um.iter().map(|(b, _)| b.clone()).collect();
     report::LedgerFigure {
         title: "Forward selection — RMS residual as effects are added".into(),
-        subtitle: format!("Each step adds a proposed candidate (significant: likelihood-ratio test with a residual noise model, Bonferroni over candidates; and material: it removes enough of the fleet RMS); the best of {beam} paths by fleet ΔBIC.{}", sensor_lines(steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
+        subtitle: format!("Each step adds a proposed candidate (significant and material, diagnosis.json → criteria); the best of {beam} paths by fleet ΔBIC.{}", sensor_lines(steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
         steps: steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
         bars: bars
             .iter()
@@ -475,7 +475,7 @@ fn bar_ledger(
 ) -> report::LedgerFigure {
     report::LedgerFigure {
         title: format!("Forward selection for bar {} alone", bl.bar),
-        subtitle: format!("Each step adds a candidate proposed on this bar (significant: likelihood-ratio test with a residual noise model, Bonferroni over candidates; and material); the best of {beam} paths by ΔBIC.{}", sensor_lines(bl.steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
+        subtitle: format!("Each step adds a candidate proposed on this bar (significant and material); the best of {beam} paths by ΔBIC.{}", sensor_lines(bl.steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
         steps: bl.steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
         bars: vec![report::NamedValues {
             name: bl.bar.clone(),

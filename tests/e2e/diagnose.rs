@@ -1,7 +1,8 @@
 //! The diagnostics loop on data with a hidden effect (issue: the diagnosis ranks the true effect
 //! — or the right channel — first; after adding it the RMS falls to within 1.2x the simulated
 //! noise and the base parameters lose their bias, i.e. alpha, beta, tau_R and tau_S lie within
-//! 3 standard uncertainties of the truth; on the base-only campaign no candidate is significant).
+//! 3 standard uncertainties of the truth; on the base-only campaign no candidate is proposed,
+//! i.e. significant and material).
 
 use dbbcal::identify::identify;
 use dbbcal::model::Effect;
@@ -29,7 +30,7 @@ fn config(seed: u64, switch: impl FnOnce(&mut SimConfig)) -> SimConfig {
 }
 
 /// Simulate, diagnose (no forward selection), and check the ranking and the fix: `expected`
-/// (the effect string the diagnosis prints) first and significant; after adding it, per bar, the
+/// (the effect string the diagnosis prints) first and proposed; after adding it, per bar, the
 /// RMS within 1.2x the noise and each base parameter within 3 standard uncertainties (HAC) of
 /// the truth. Prints, per bar, the rank, RMS/noise and the base parameters' errors before and
 /// after.
