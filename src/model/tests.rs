@@ -376,7 +376,12 @@ fn head_heating_fits_the_heat_of_a_head_powered_before_its_first_event() {
         let r = (s.t_s[k] - 1800.0).max(0.0) / tau;
         // By recursion over the samples (relative drift ~1e-16 a step), cut to exactly 0 below
         // 1e-13 (`model::decay`).
-        assert!((x[k] - (-r).exp()).abs() < 1e-12, "k={k}: {} vs {}", x[k], (-r).exp());
+        assert!(
+            (x[k] - (-r).exp()).abs() < 1e-12,
+            "k={k}: {} vs {}",
+            x[k],
+            (-r).exp()
+        );
         let h = 1e-6;
         let fd = (decay(&s.t_s[k..=k], 1800.0, (tau.ln() + h).exp(), false).0[0]
             - decay(&s.t_s[k..=k], 1800.0, (tau.ln() - h).exp(), false).0[0])
