@@ -293,7 +293,7 @@ class Bar:
         return g
 
     def event_lag(self, kind, tau):
-        ev = sorted(self.events[kind])
+        ev = sorted(self.events[kind], key=lambda e: e[0])
         t = np.array([e[0] for e in ev], dtype=np.int64)
         vals = [e[1] for e in ev]
         if all(v is None for v in vals):
