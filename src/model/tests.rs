@@ -26,21 +26,7 @@ fn gradient_bar(w: f64) -> BarSeries {
         .zip(&t_s)
         .map(|(a, t)| a + 0.3 + 0.2 * (tau * t / 30000.0).cos() + 0.05 * (tau * t / 4000.0).sin())
         .collect();
-    let mounts: Vec<MountSpan> = [250.0, 400.0, 325.0]
-        .iter()
-        .enumerate()
-        .map(|(k, mm)| MountSpan {
-            campaign_index: k,
-            length_id: Some(format!("L{k}")),
-            length_mm: Some(*mm),
-            i_p_mm: mm - I_MIN,
-            tilt_deg: 60.0,
-            purpose: Purpose::Calibration,
-            device: None,
-            from_s: k as f64 * 86400.0,
-            to_s: (k + 1) as f64 * 86400.0,
-        })
-        .collect();
+    let mounts = daily_mounts(0.0, 0.0);
     let seen: Vec<f64> = t1
         .iter()
         .zip(&t2)
@@ -285,13 +271,10 @@ fn held_lag_starts_in_steady_state_at_the_value_before_the_first_event() {
     }
 }
 
-/// Three days at 60 s, readings from 0, fitted mounts from 1800 s on; the head powered from the
-/// first reading (cold, no event says so), off 3 h a day from `off_at_s`; the reading falls by
-/// `amplitude_um` times the head's first-order heat (`tau_s`), noise-free.
-fn head_bar(amplitude_um: f64, tau_s: f64, off_at_s: &[f64]) -> BarSeries {
-    let n = 3 * 1440;
-    let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 60.0).collect();
-    let mounts: Vec<MountSpan> = [250.0, 400.0, 325.0]
+/// Three one-day calibration mounts at 250, 400 and 325 mm, each from `start_s` after its day's
+/// start to `end_trim_s` before its end.
+fn daily_mounts(start_s: f64, end_trim_s: f64) -> Vec<MountSpan> {
+    [250.0, 400.0, 325.0]
         .iter()
         .enumerate()
         .map(|(k, mm)| MountSpan {
@@ -302,10 +285,19 @@ fn head_bar(amplitude_um: f64, tau_s: f64, off_at_s: &[f64]) -> BarSeries {
             tilt_deg: 60.0,
             purpose: Purpose::Calibration,
             device: None,
-            from_s: 1800.0 + k as f64 * 86400.0,
-            to_s: (k + 1) as f64 * 86400.0 - 600.0,
+            from_s: start_s + k as f64 * 86400.0,
+            to_s: (k + 1) as f64 * 86400.0 - end_trim_s,
         })
-        .collect();
+        .collect()
+}
+
+/// Three days at 60 s, readings from 0, fitted mounts from 1800 s on; the head powered from the
+/// first reading (cold, no event says so), off 3 h a day from `off_at_s`; the reading falls by
+/// `amplitude_um` times the head's first-order heat (`tau_s`), noise-free.
+fn head_bar(amplitude_um: f64, tau_s: f64, off_at_s: &[f64]) -> BarSeries {
+    let n = 3 * 1440;
+    let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 60.0).collect();
+    let mounts = daily_mounts(1800.0, 600.0);
     let mut switch_s = vec![-1.0];
     let mut values = vec![1.0];
     for &t in off_at_s {
