@@ -314,13 +314,10 @@ pub fn diagnose_bar(
 fn score_channel(base: &ScreenBase, channel: String) -> Option<ChannelScore> {
     let effect = Effect::Channel {
         transform: Transform::Lag,
-        channel,
+        channel: channel.clone(),
         tau0_s: None,
     };
     let s = base.screen(&effect).ok()?;
-    let Effect::Channel { channel, .. } = effect else {
-        unreachable!("built as a channel term above")
-    };
     let rss = base.rss_um2();
     Some(ChannelScore {
         channel,
@@ -744,13 +741,23 @@ fn summarise_candidate(
     };
     if !refitted {
         let gain = rms_before_um - screened_rms_after_um;
-        candidate.reason = format!(
-            "screened out: the linearised refit removes {} µm of the fleet RMS and moves the model's own terms by {} µm, both below {} of the materiality threshold {} µm",
-            fmt_um(gain),
-            fmt_um(screened_shift_um),
-            SCREEN_SHARE,
-            fmt_um(criteria.min_gain_um)
-        );
+        candidate.reason = if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um {
+            format!(
+                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but its score test does not find the term or it leaves no trace in the fit (a reparametrisation the data do not determine)",
+                fmt_um(gain),
+                SCREEN_SHARE,
+                fmt_um(criteria.min_gain_um),
+                fmt_um(screened_shift_um)
+            )
+        } else {
+            format!(
+                "screened out: the linearised refit removes {} µm of the fleet RMS and moves the model's own terms by {} µm, both below {} of the materiality threshold {} µm",
+                fmt_um(gain),
+                fmt_um(screened_shift_um),
+                SCREEN_SHARE,
+                fmt_um(criteria.min_gain_um)
+            )
+        };
         candidate.per_bar = per_bar;
         return candidate;
     }
@@ -834,7 +841,7 @@ struct SelectionPath {
     ledger: Vec<LedgerStep>,
     models: Vec<BarModel>,
     delta_bic: f64,
-    /// No significant candidate was left at its last step.
+    /// No proposed candidate was left at its last step.
     finished: bool,
 }
 

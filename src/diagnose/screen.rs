@@ -172,11 +172,6 @@ impl ScreenBase {
         })
     }
 
-    /// The model's RMS on the bar's own samples (µm).
-    pub fn rms_um(&self) -> f64 {
-        (self.rss_um2 / self.n_samples.max(1) as f64).sqrt()
-    }
-
     /// The model's RSS on the bar's own samples (µm²).
     pub fn rss_um2(&self) -> f64 {
         self.rss_um2

@@ -464,17 +464,11 @@ fn initial_state_transients_are_fitted_on_the_base_paths() {
     // The transient columns move with their path's time constant: the derivative matches
     // finite differences.
     let theta = [2500f64.ln(), 1800f64.ln()];
-    let h = 1e-6;
+    check_derivatives(&p, &theta);
     for k in 0..2 {
-        let d = p.basis_derivative(&theta, k);
-        let (mut tp, mut tm) = (theta, theta);
-        tp[k] += h;
-        tm[k] -= h;
-        let fd = (p.basis(&tp) - p.basis(&tm)) / (2.0 * h);
-        let scale = fd.amax().max(1e-12);
-        assert!((d.clone() - &fd).amax() < 1e-5 * scale, "theta {k}");
         let own = if k == 0 { 1 } else { 3 };
-        assert!(d.column(own).amax() > 1e-6 * scale, "theta {k}");
+        let d = p.basis_derivative(&theta, k);
+        assert!(d.column(own).amax() > 1e-6 * d.amax(), "theta {k}");
     }
     // The fit finds the truth and the departures (alpha and beta times 0.2 K).
     let m = crate::identify::identify(&s, &base_effects()).unwrap();
