@@ -5,6 +5,7 @@ mod acceptance;
 mod bad_input;
 mod base_noise;
 mod cli;
+mod corpus;
 mod diagnose;
 mod false_alarms;
 mod head_heating;
