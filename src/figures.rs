@@ -61,7 +61,7 @@ fn render_acceptance(
 ) -> Result<(), ReportError> {
     for a in acc {
         let name = format!(
-            "acceptance-{}-{}.png",
+            "acceptance-{}@{}.png",
             file_safe(&a.bar),
             file_safe(&a.length_id)
         );
@@ -180,16 +180,23 @@ fn acceptance_rms(acc: &[crate::acceptance::BarAcceptance]) -> report::BeforeAft
     }
 }
 
-fn file_safe(s: &str) -> String {
-    s.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
+/// A file-name part for an id: the id itself when it is made of `[A-Za-z0-9._-]` only and does
+/// not start with a dot; else its safe characters (`_` for the others) and 8 hex digits of its
+/// SHA-256, so two ids never share a file (`B.1` and `B_1` stay apart; `B/1` → `B_1-…`). The
+/// result never holds `@`, which joins two ids in one name.
+fn file_safe(id: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.');
+    if !id.is_empty() && !id.starts_with('.') && id.chars().all(safe) {
+        return id.to_string();
+    }
+    use sha2::{Digest, Sha256};
+    let digest = Sha256::digest(id.as_bytes());
+    let cleaned: String = id
+        .chars()
+        .map(|c| if safe(c) { c } else { '_' })
+        .collect();
+    let hex: String = digest[..4].iter().map(|b| format!("{b:02x}")).collect();
+    format!("{}-{hex}", cleaned.trim_start_matches('.'))
 }
 
 fn params_line(o: &BarOutcome) -> String {

@@ -10,15 +10,36 @@ use clap::{Args, Parser, Subcommand};
 use dbbcal::pipeline::{RunPlan, Stage};
 use dbbcal::runner::{self, RunStatus};
 
-/// Exit codes: 0 all bars processed; 2 some bars failed (the others are done); 3 unusable input
-/// or configuration; 1 anything else (e.g. the output could not be written).
-const EXIT_SOME_BARS_FAILED: u8 = 2;
-const EXIT_UNUSABLE_INPUT: u8 = 3;
+/// Exit codes (also in `--help` and the README). 2 is clap's for a command-line usage error.
 const EXIT_OTHER: u8 = 1;
+const EXIT_UNUSABLE_INPUT: u8 = 3;
+const EXIT_SOME_BARS_FAILED: u8 = 4;
+const EXIT_NO_BAR_SUCCEEDED: u8 = 5;
+const EXIT_OUTPUT_BUSY: u8 = 6;
+
+const AFTER_HELP: &str = "Examples:
+  dbbcal run pipelines/nightly.toml                      # the shipped sample -> reports/<campaign id>
+  dbbcal run pipelines/nightly.toml --campaign /data/lab-a-2026-11 --out /tmp/out
+  dbbcal run pipelines/reference-match.toml              # matching study with mismatch heat map
+  dbbcal run pipelines/acceptance.toml --campaign DIR    # calibrate, compensate, accept working bars
+  dbbcal calibrate --campaign DIR --out /tmp/cal          # centre-distance functions D(n, A)
+  dbbcal identify --campaign data/sample --out /tmp/id --add-effect head_heating
+  dbbcal simulate --config pipelines/sim-sample.toml --out /tmp/campaign
+
+Exit codes:
+  0    every bar processed; the output is in place
+  1    another error (e.g. the output could not be written); the previous output is unchanged
+  2    command-line usage error (nothing read or written)
+  3    unusable input or configuration, or an output location dbbcal may not write (refused
+       before any work; the previous output is unchanged)
+  4    some bars failed (see failed_bars in summary.json); the others are in the output
+  5    no bar succeeded; nothing written, the previous output is unchanged
+  6    another dbbcal run is writing the same output; nothing done
+  130  interrupted (Ctrl-C; 143 for SIGTERM): the partial output removed, the previous unchanged";
 
 #[derive(Parser)]
 #[command(name = "dbbcal", version, about = "Batch analysis of double-ballbar thermal campaigns", long_about = None,
-    after_help = "Examples:\n  dbbcal run pipelines/nightly.toml                      # the shipped sample -> reports/<campaign id>\n  dbbcal run pipelines/nightly.toml --campaign /data/lab-a-2026-11 --out /tmp/out\n  dbbcal run pipelines/reference-match.toml              # matching study with mismatch heat map\n  dbbcal run pipelines/acceptance.toml --campaign DIR    # calibrate, compensate, accept working bars\n  dbbcal calibrate --campaign DIR --out /tmp/cal          # centre-distance functions D(n, A)\n  dbbcal identify --campaign data/sample --out /tmp/id --add-effect head_heating\n  dbbcal simulate --config pipelines/sim-sample.toml --out /tmp/campaign\n\nExit codes: 0 all bars processed, 2 some bars failed (others done), 3 unusable input, 1 other errors.")]
+    after_help = AFTER_HELP)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -70,7 +91,9 @@ struct IoArgs {
     /// Campaign directory (default: the pipeline's, else data/sample).
     #[arg(long)]
     campaign: Option<PathBuf>,
-    /// Output directory (default: reports/<campaign id>). Replaced atomically at the end.
+    /// Output directory (default: reports/<campaign id>). Written only if absent, empty or an
+    /// earlier dbbcal output (it holds dbbcal-output.json); swapped in whole at the end, the
+    /// previous one kept as OUT.prev.
     #[arg(long)]
     out: Option<PathBuf>,
 }
@@ -98,16 +121,22 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 fn main() -> ExitCode {
     init_tracing();
     let cli = Cli::parse();
+    dbbcal::output::install_signal_handlers();
     match execute(cli) {
         Ok(RunStatus::AllBars) => ExitCode::SUCCESS,
         Ok(RunStatus::SomeBarsFailed(n)) => {
             eprintln!("dbbcal: {n} bar(s) failed; the others were processed (see failed_bars in summary.json)");
             ExitCode::from(EXIT_SOME_BARS_FAILED)
         }
+        Ok(RunStatus::NoBarSucceeded(n)) => {
+            eprintln!("dbbcal: no bar succeeded ({n} failed); nothing written, the previous output is unchanged (run `dbbcal identify` on the campaign to see each bar's reason)");
+            ExitCode::from(EXIT_NO_BAR_SUCCEEDED)
+        }
         Err(e) => {
-            let unusable = e.chain().any(runner::is_input_error);
             eprintln!("dbbcal: error: {}", one_line(&e));
-            ExitCode::from(if unusable {
+            ExitCode::from(if e.chain().any(runner::is_busy_error) {
+                EXIT_OUTPUT_BUSY
+            } else if e.chain().any(runner::is_input_error) {
                 EXIT_UNUSABLE_INPUT
             } else {
                 EXIT_OTHER

@@ -1,15 +1,16 @@
 //! The edge between the library and the file system: run a plan end to end into an output
-//! folder that appears whole or not at all.
+//! folder that appears whole or not at all, and only where dbbcal may write ([`crate::output`]).
 //!
-//! Everything is written into `OUT.partial-<pid>` beside `OUT`; on success an existing `OUT` is
-//! moved aside and the new folder renamed into place. Outputs contain no clocks or host names,
-//! so the same inputs and plan give byte-identical JSON.
+//! The output location is checked and locked before any work; everything is written into a
+//! partial folder beside `OUT` and swapped into place at the end. Outputs contain no clocks or
+//! host names, so the same inputs and plan give byte-identical JSON.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
 use crate::io;
+use crate::output::{self, Marker, OutputTarget, WriteFailure};
 use crate::pipeline::{self, RunPlan, RunResults, Stage};
 
 /// How a run ended when it produced output.
@@ -17,6 +18,8 @@ use crate::pipeline::{self, RunPlan, RunResults, Stage};
 pub enum RunStatus {
     AllBars,
     SomeBarsFailed(usize),
+    /// Every bar failed: nothing was written and the previous output is as it was.
+    NoBarSucceeded(usize),
 }
 
 /// Whether an error (anywhere in a chain) means the input or configuration is unusable.
@@ -24,10 +27,31 @@ pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
     e.is::<io::IngestError>()
         || e.is::<pipeline::PlanError>()
         || e.is::<crate::campaign::CampaignError>()
+        || e.downcast_ref::<output::OutputError>()
+            .is_some_and(|o| matches!(o, output::OutputError::Refused { .. }))
 }
 
-/// Run `plan`: ingest, analyse, write the output folder.
+/// Whether an error is another run holding the output's lock.
+pub fn is_busy_error(e: &(dyn std::error::Error + 'static)) -> bool {
+    e.downcast_ref::<output::OutputError>()
+        .is_some_and(|o| matches!(o, output::OutputError::Busy { .. }))
+}
+
+/// The output folder of `plan`: `--out`, else `reports/<campaign id>` (the id read from the
+/// manifest alone).
+fn output_folder(plan: &RunPlan) -> Result<PathBuf> {
+    match &plan.out_dir {
+        Some(out) => Ok(out.clone()),
+        None => {
+            let campaign = io::read_manifest(&plan.campaign_dir)?;
+            Ok(PathBuf::from("reports").join(&campaign.id))
+        }
+    }
+}
+
+/// Run `plan`: claim the output, ingest, analyse, write the output folder.
 pub fn run(plan: &RunPlan) -> Result<RunStatus> {
+    let target = OutputTarget::claim(&output_folder(plan)?, &plan.campaign_dir)?;
     // No bin length set: chosen from the campaign before ingest streams (and recorded).
     let chosen;
     let plan = if plan.automatic_bins {
@@ -43,14 +67,26 @@ pub fn run(plan: &RunPlan) -> Result<RunStatus> {
     let logs = pipeline::timed("ingest", || {
         io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
     })?;
-    let out = plan
-        .out_dir
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("reports").join(&logs.campaign.id));
     let results = pipeline::analyse(plan, logs);
+    if plan.runs(Stage::Identify) && results.bars.is_empty() {
+        return Ok(RunStatus::NoBarSucceeded(results.failed.len()));
+    }
+    let marker = Marker::new(
+        &results.campaign.id,
+        serde_json::to_value(&plan.stages)?,
+        serde_json::to_value(plan.effects.iter().map(|e| e.name()).collect::<Vec<_>>())?,
+        serde_json::to_value(&results.inputs)?,
+    );
+    let out = target.path().to_path_buf();
     pipeline::timed("write outputs", || {
-        write_atomically(&out, |tmp| write_outputs(plan, &results, tmp))
-    })?;
+        target
+            .write(&marker, |tmp| write_outputs(plan, &results, tmp))
+            .map_err(|e| match e {
+                WriteFailure::Build(e) => e,
+                WriteFailure::Output(e) => anyhow::Error::from(e),
+            })
+    })
+    .with_context(|| format!("writing {}", out.display()))?;
     Ok(match results.failed.len() {
         0 => RunStatus::AllBars,
         n => RunStatus::SomeBarsFailed(n),
@@ -72,17 +108,18 @@ pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<
     if let Some(seed) = seed {
         cfg.seed = seed;
     }
-    if out.exists() {
+    if std::fs::symlink_metadata(out).is_ok() {
         anyhow::bail!("{} already exists; choose a new directory", out.display());
     }
     let sim = crate::simulate::generate(&cfg)?;
-    write_atomically(out, |tmp| {
+    create_new_folder(out, |tmp| {
         crate::simulate::write(&sim, tmp, &io::WriteOptions::default()).map_err(anyhow::Error::from)
     })
 }
 
-/// Build a folder at `out` through a temporary sibling renamed at the end.
-fn write_atomically(out: &Path, build: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+/// Build a new folder at `out` (absent) through a temporary sibling renamed at the end. A
+/// campaign carries no output marker: dbbcal never replaces it.
+fn create_new_folder(out: &Path, build: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let parent = out
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -91,34 +128,36 @@ fn write_atomically(out: &Path, build: impl FnOnce(&Path) -> Result<()>) -> Resu
         .with_context(|| format!("cannot create {}", parent.display()))?;
     let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("out");
     let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    std::fs::create_dir(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
     if let Err(e) = build(&tmp) {
         let _ = std::fs::remove_dir_all(&tmp);
         return Err(e);
     }
-    let old = parent.join(format!(".{name}.old-{}", std::process::id()));
-    if out.exists() {
-        std::fs::rename(out, &old)
-            .with_context(|| format!("cannot move the previous {} aside", out.display()))?;
+    if std::fs::symlink_metadata(out).is_ok() {
+        let _ = std::fs::remove_dir_all(&tmp);
+        anyhow::bail!("{} appeared meanwhile; choose a new directory", out.display());
     }
     std::fs::rename(&tmp, out)
-        .with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
-    let _ = std::fs::remove_dir_all(&old);
-    Ok(())
+        .with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))
 }
 
 fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
     let mut text = serde_json::to_string_pretty(value)?;
     text.push('\n');
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+    Ok(output::write_file(path, text.as_bytes())?)
+}
+
+/// A parquet table, through the output's fault points.
+fn write_table(path: &Path, table: &io::Table) -> Result<()> {
+    output::fault::point("write", path).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(io::write_table(path, table)?)
 }
 
 fn write_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()> {
     write_json(&dir.join("summary.json"), &pipeline::summary(plan, results))?;
     write_json(&dir.join("inputs.json"), &results.inputs)?;
     if plan.runs(Stage::Identify) {
-        io::write_table(&dir.join("models.parquet"), &models_table(results))?;
+        write_table(&dir.join("models.parquet"), &models_table(results))?;
     }
     if let Some(d) = &results.diagnosis {
         write_json(
@@ -203,7 +242,7 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
     if let Some(c) = &results.compensation {
         let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "options": &plan.acceptance, "working": &c.working, "failed": failed(&c.failed) });
         write_json(&dir.join("compensation.json"), &record)?;
-        io::write_table(
+        write_table(
             &dir.join("compensated.parquet"),
             &compensated_table(results, &c.working),
         )?;

@@ -111,6 +111,12 @@ pub fn read_campaign_binned(dir: &Path, bin_s: f64) -> Result<CampaignLogs, Inge
     })
 }
 
+/// The campaign's manifest (`campaign.toml`) alone, read and validated: what a run needs to know
+/// before any parquet is read (its id names the default output folder).
+pub fn read_manifest(dir: &Path) -> Result<crate::campaign::Campaign, IngestError> {
+    read::read_manifest(dir)
+}
+
 /// The bin length to compress a campaign with when none is set
 /// ([`crate::series::automatic_bin_s`]): decided from `campaign.toml` and the encoder files'
 /// parquet footers, before any row is read, so ingest can bin while it streams.

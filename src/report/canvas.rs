@@ -44,6 +44,10 @@ where
         path: path_buf.clone(),
         message: e.0,
     };
+    crate::output::fault::point("write", path).map_err(|source| ReportError::Write {
+        path: path_buf.clone(),
+        source,
+    })?;
     let root = BitMapBackend::new(path, size).into_drawing_area();
     root.fill(&style::WHITE).map_err(|e| to_err(e.into()))?;
     draw(&root).map_err(to_err)?;

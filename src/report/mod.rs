@@ -74,6 +74,12 @@ pub enum ReportError {
         path: PathBuf,
         source: std::io::Error,
     },
+    /// The file could not be written.
+    #[error("figure {path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     /// plotters failed while drawing or encoding the PNG.
     #[error("figure {path}: drawing failed: {message}")]
     Draw { path: PathBuf, message: String },

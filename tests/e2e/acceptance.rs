@@ -164,7 +164,7 @@ fn calibration_two_references_and_acceptance_on_a_matched_fleet() {
     for f in [
         "acceptance-fleet.png",
         "acceptance-rms.png",
-        "acceptance-B03-mid.png",
+        "acceptance-B03@mid.png",
     ] {
         assert!(out.join("figures").join(f).is_file(), "{f} missing");
     }

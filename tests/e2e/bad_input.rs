@@ -102,7 +102,7 @@ fn bad_inputs_give_one_clear_line_and_no_output() {
 }
 
 #[test]
-fn a_bar_without_data_fails_alone_with_exit_code_2() {
+fn a_bar_without_data_fails_alone_with_exit_code_4() {
     let tmp = tempfile::tempdir().unwrap();
     let d = small_campaign(tmp.path(), "one-bad-bar");
     // Declare a third bar that never logged anything.
@@ -118,7 +118,7 @@ fn a_bar_without_data_fails_alone_with_exit_code_2() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(code, 2, "{stderr}");
+    assert_eq!(code, 4, "{stderr}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["bars"].as_array().unwrap().len(), 2);

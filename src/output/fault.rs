@@ -1,0 +1,70 @@
+//! Fault injection for the crash tests (tests/e2e/safe_outputs.rs): every step that writes,
+//! fsyncs or renames in an output is a numbered point, and `DBBCAL_FAULT` picks one:
+//!
+//! * `kill@K`: the process kills itself with SIGKILL at point K (a power cut as far as the
+//!   output folder can tell, but for the page cache);
+//! * `enospc@K`: the step at point K fails with "No space left on device".
+//!
+//! Unset (every normal run), each point costs one relaxed atomic increment.
+
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fault {
+    Kill(usize),
+    NoSpace(usize),
+}
+
+fn configured() -> Option<Fault> {
+    static FAULT: OnceLock<Option<Fault>> = OnceLock::new();
+    *FAULT.get_or_init(|| {
+        let spec = std::env::var("DBBCAL_FAULT").ok()?;
+        let (kind, at) = spec.split_once('@')?;
+        let at: usize = at.parse().ok()?;
+        match kind {
+            "kill" => Some(Fault::Kill(at)),
+            "enospc" => Some(Fault::NoSpace(at)),
+            _ => None,
+        }
+    })
+}
+
+static POINTS: AtomicUsize = AtomicUsize::new(0);
+
+fn next(what: &str, path: &Path) -> Option<Fault> {
+    let fault = configured()?;
+    let k = POINTS.fetch_add(1, Ordering::Relaxed) + 1;
+    let hit = match fault {
+        Fault::Kill(at) | Fault::NoSpace(at) => at == k,
+    };
+    hit.then(|| {
+        eprintln!("dbbcal: fault injected at point {k} ({what} {})", path.display());
+        fault
+    })
+}
+
+/// A step that may fail: killed or failed with ENOSPC when the configured point is this one.
+pub fn point(what: &str, path: &Path) -> std::io::Result<()> {
+    match next(what, path) {
+        Some(Fault::Kill(_)) => kill(),
+        Some(Fault::NoSpace(_)) => Err(std::io::Error::from_raw_os_error(libc::ENOSPC)),
+        None => Ok(()),
+    }
+}
+
+/// A step after which an error can no longer be undone: only a kill is injected here.
+pub fn kill_point(what: &str, path: &Path) {
+    if let Some(Fault::Kill(_)) = next(what, path) {
+        kill()
+    }
+}
+
+fn kill() -> ! {
+    // SAFETY: sending a signal to our own process.
+    unsafe {
+        libc::kill(libc::getpid(), libc::SIGKILL);
+    }
+    unreachable!("SIGKILL returned")
+}
