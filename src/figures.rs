@@ -191,10 +191,7 @@ fn file_safe(id: &str) -> String {
     }
     use sha2::{Digest, Sha256};
     let digest = Sha256::digest(id.as_bytes());
-    let cleaned: String = id
-        .chars()
-        .map(|c| if safe(c) { c } else { '_' })
-        .collect();
+    let cleaned: String = id.chars().map(|c| if safe(c) { c } else { '_' }).collect();
     let hex: String = digest[..4].iter().map(|b| format!("{b:02x}")).collect();
     format!("{}-{hex}", cleaned.trim_start_matches('.'))
 }

@@ -128,8 +128,18 @@ fn main() -> ExitCode {
             eprintln!("dbbcal: {n} bar(s) failed; the others were processed (see failed_bars in summary.json)");
             ExitCode::from(EXIT_SOME_BARS_FAILED)
         }
-        Ok(RunStatus::NoBarSucceeded(n)) => {
-            eprintln!("dbbcal: no bar succeeded ({n} failed); nothing written, the previous output is unchanged (run `dbbcal identify` on the campaign to see each bar's reason)");
+        Ok(RunStatus::NoBarSucceeded(failed)) => {
+            let reasons: Vec<String> = failed
+                .iter()
+                .map(|(bar, why)| {
+                    let why = why.strip_prefix(&format!("bar {bar}: ")).unwrap_or(why);
+                    format!("{bar}: {why}")
+                })
+                .collect();
+            eprintln!(
+                "dbbcal: no bar succeeded ({}); nothing written, the previous output is unchanged",
+                reasons.join("; ")
+            );
             ExitCode::from(EXIT_NO_BAR_SUCCEEDED)
         }
         Err(e) => {

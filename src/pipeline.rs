@@ -610,7 +610,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         match r {
             Ok(o) => ok.push(o),
             Err(e) => {
-                tracing::warn!("{e}");
+                tracing::info!("{e}"); // in failed_bars and the final line
                 failed.push((id, e));
             }
         }

@@ -14,12 +14,12 @@ use crate::output::{self, Marker, OutputTarget, WriteFailure};
 use crate::pipeline::{self, RunPlan, RunResults, Stage};
 
 /// How a run ended when it produced output.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum RunStatus {
     AllBars,
     SomeBarsFailed(usize),
-    /// Every bar failed: nothing was written and the previous output is as it was.
-    NoBarSucceeded(usize),
+    /// Every bar failed (bar, reason): nothing was written and the previous output is as it was.
+    NoBarSucceeded(Vec<(String, String)>),
 }
 
 /// Whether an error (anywhere in a chain) means the input or configuration is unusable.
@@ -69,7 +69,7 @@ pub fn run(plan: &RunPlan) -> Result<RunStatus> {
     })?;
     let results = pipeline::analyse(plan, logs);
     if plan.runs(Stage::Identify) && results.bars.is_empty() {
-        return Ok(RunStatus::NoBarSucceeded(results.failed.len()));
+        return Ok(RunStatus::NoBarSucceeded(results.failed));
     }
     let marker = Marker::new(
         &results.campaign.id,
@@ -135,7 +135,10 @@ fn create_new_folder(out: &Path, build: impl FnOnce(&Path) -> Result<()>) -> Res
     }
     if std::fs::symlink_metadata(out).is_ok() {
         let _ = std::fs::remove_dir_all(&tmp);
-        anyhow::bail!("{} appeared meanwhile; choose a new directory", out.display());
+        anyhow::bail!(
+            "{} appeared meanwhile; choose a new directory",
+            out.display()
+        );
     }
     std::fs::rename(&tmp, out)
         .with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))
@@ -149,7 +152,8 @@ fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
 
 /// A parquet table, through the output's fault points.
 fn write_table(path: &Path, table: &io::Table) -> Result<()> {
-    output::fault::point("write", path).with_context(|| format!("cannot write {}", path.display()))?;
+    output::fault::point("write", path)
+        .with_context(|| format!("cannot write {}", path.display()))?;
     Ok(io::write_table(path, table)?)
 }
 

@@ -3,7 +3,8 @@
 //!
 //! * `kill@K`: the process kills itself with SIGKILL at point K (a power cut as far as the
 //!   output folder can tell, but for the page cache);
-//! * `enospc@K`: the step at point K fails with "No space left on device".
+//! * `enospc@K`: the step at point K fails with "No space left on device";
+//! * `stall@K`: the process waits 60 s at point K (the signal tests interrupt it there).
 //!
 //! Unset (every normal run), each point costs one relaxed atomic increment.
 
@@ -15,6 +16,7 @@ use std::sync::OnceLock;
 enum Fault {
     Kill(usize),
     NoSpace(usize),
+    Stall(usize),
 }
 
 fn configured() -> Option<Fault> {
@@ -26,6 +28,7 @@ fn configured() -> Option<Fault> {
         match kind {
             "kill" => Some(Fault::Kill(at)),
             "enospc" => Some(Fault::NoSpace(at)),
+            "stall" => Some(Fault::Stall(at)),
             _ => None,
         }
     })
@@ -37,10 +40,10 @@ fn next(what: &str, path: &Path) -> Option<Fault> {
     let fault = configured()?;
     let k = POINTS.fetch_add(1, Ordering::Relaxed) + 1;
     let hit = match fault {
-        Fault::Kill(at) | Fault::NoSpace(at) => at == k,
+        Fault::Kill(at) | Fault::NoSpace(at) | Fault::Stall(at) => at == k,
     };
     hit.then(|| {
-        eprintln!("dbbcal: fault injected at point {k} ({what} {})", path.display());
+        eprintln!("dbbcal: fault point {k} ({what} {})", path.display());
         fault
     })
 }
@@ -50,14 +53,20 @@ pub fn point(what: &str, path: &Path) -> std::io::Result<()> {
     match next(what, path) {
         Some(Fault::Kill(_)) => kill(),
         Some(Fault::NoSpace(_)) => Err(std::io::Error::from_raw_os_error(libc::ENOSPC)),
+        Some(Fault::Stall(_)) => {
+            std::thread::sleep(std::time::Duration::from_secs(60));
+            Ok(())
+        }
         None => Ok(()),
     }
 }
 
 /// A step after which an error can no longer be undone: only a kill is injected here.
 pub fn kill_point(what: &str, path: &Path) {
-    if let Some(Fault::Kill(_)) = next(what, path) {
-        kill()
+    match next(what, path) {
+        Some(Fault::Kill(_)) => kill(),
+        Some(_) => eprintln!("dbbcal: fault point takes kills only: nothing injected"),
+        None => {}
     }
 }
 

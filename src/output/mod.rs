@@ -114,19 +114,20 @@ impl OutputTarget {
         let name = final_name(out).ok_or_else(|| {
             refused("name a folder (not the current, parent or root folder)".into())
         })?;
-        let resolved = resolve(out).map_err(|e| refused(format!("cannot resolve the path: {e}")))?;
+        let resolved =
+            resolve(out).map_err(|e| refused(format!("cannot resolve the path: {e}")))?;
         if home_dir().is_some_and(|home| resolved == home) {
             return Err(refused("that is the home folder".into()));
         }
+        check_overlap(&resolved, campaign).map_err(refused)?;
         check_replaceable(out, "")?;
         let prev = sibling(out, &format!("{name}.prev"));
-        check_replaceable(&prev, " (the previous output, kept as OUT.prev)").map_err(|e| {
-            match e {
+        check_replaceable(&prev, " (the previous output, kept as OUT.prev)").map_err(
+            |e| match e {
                 OutputError::Refused { why, .. } => refused(format!("{}: {why}", prev.display())),
                 other => other,
-            }
-        })?;
-        check_overlap(&resolved, campaign).map_err(refused)?;
+            },
+        )?;
         let parent = parent_of(out);
         std::fs::create_dir_all(&parent).map_err(OutputError::io(&parent))?;
         let lock_path = parent.join(format!(".{name}.lock"));
@@ -419,9 +420,15 @@ fn check_overlap(out: &Path, campaign: &Path) -> Result<(), String> {
     if out == campaign {
         Err(format!("it is the campaign folder {}", campaign.display()))
     } else if out.starts_with(&campaign) {
-        Err(format!("it is inside the campaign folder {}", campaign.display()))
+        Err(format!(
+            "it is inside the campaign folder {}",
+            campaign.display()
+        ))
     } else if campaign.starts_with(out) {
-        Err(format!("it holds the campaign folder {}", campaign.display()))
+        Err(format!(
+            "it holds the campaign folder {}",
+            campaign.display()
+        ))
     } else {
         Ok(())
     }
@@ -485,11 +492,7 @@ pub fn install_signal_handlers() {
     std::thread::spawn(move || {
         if let Some(signal) = signals.forever().next() {
             let _swap = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some(c) = IN_PROGRESS
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .take()
-            {
+            if let Some(c) = IN_PROGRESS.lock().unwrap_or_else(|e| e.into_inner()).take() {
                 let _ = std::fs::remove_dir_all(&c.partial);
                 let _ = std::fs::remove_file(&c.lock);
             }

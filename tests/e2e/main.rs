@@ -14,4 +14,5 @@ mod machine_tool;
 mod nist;
 mod one_length;
 mod row_order;
+mod safe_outputs;
 mod support;

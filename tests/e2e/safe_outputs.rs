@@ -1,0 +1,417 @@
+//! Issue 14, outputs: dbbcal never touches what it did not write, and a run killed, interrupted
+//! or short of disk at any step leaves `OUT` entirely old or entirely new.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use dbbcal::io::{write_table, Column, Table};
+use dbbcal::simulate::{FleetConfig, SimConfig};
+
+use crate::corpus::{assert_one_line, copy_dir, earlier_output, leftovers, snapshot};
+use crate::support::simulate_campaign;
+
+/// The `dbbcal` binary with `args` and extra environment `env`.
+fn dbbcal(args: &[&str], env: &[(&str, &str)]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+        .args(args)
+        .envs(env.iter().copied())
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("CI", "1")
+        .output()
+        .expect("run dbbcal")
+}
+
+fn small_campaign(root: &Path, name: &str) -> PathBuf {
+    let cfg = SimConfig {
+        seed: 7,
+        campaign_id: name.into(),
+        duration_days: 1.0,
+        sample_s: 120.0,
+        fleet: Some(FleetConfig {
+            n_bars: 2,
+            ..FleetConfig::default()
+        }),
+        ..SimConfig::default()
+    };
+    simulate_campaign(root, name, &cfg).0
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `args` (with `--campaign campaign --out out` appended) is refused with exit `code` and one
+/// line holding `needles`; every path in `guarded` is byte-for-byte as before.
+fn check_out_refused(
+    command: &[&str],
+    campaign: &Path,
+    out: &Path,
+    env: &[(&str, &str)],
+    code: i32,
+    needles: &[&str],
+    guarded: &[&Path],
+) {
+    let before: Vec<_> = guarded.iter().map(|p| snapshot(p)).collect();
+    let mut args = command.to_vec();
+    args.extend(["--campaign", s(campaign), "--out", s(out)]);
+    let r = dbbcal(&args, env);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    let what = format!("--out {}", out.display());
+    assert_eq!(r.status.code(), Some(code), "{what}: {stderr}");
+    assert_one_line(&stderr, needles, &what);
+    for (p, b) in guarded.iter().zip(before) {
+        assert!(snapshot(p) == b, "{what}: {} changed", p.display());
+    }
+}
+
+#[test]
+fn output_locations_dbbcal_did_not_write_are_refused_before_any_work() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let c = small_campaign(root, "camp");
+    let ingest = ["ingest"];
+    let refused = |out: &Path, needles: &[&str], guarded: &[&Path]| {
+        check_out_refused(&ingest, &c, out, &[], 3, needles, guarded)
+    };
+    // The campaign itself, a folder inside it, its parent, the same through `..` and a link.
+    refused(&c, &["refused", "campaign folder"], &[&c]);
+    refused(&c.join("reports"), &["inside the campaign"], &[&c]);
+    refused(root, &["holds the campaign"], &[&c]);
+    refused(&c.join("encoders/.."), &["refused"], &[&c]);
+    refused(&root.join("nothere/../camp"), &["campaign folder"], &[&c]);
+    refused(&c.join("encoders/../out"), &["inside the campaign"], &[&c]);
+    std::os::unix::fs::symlink(&c, root.join("link-to-camp")).unwrap();
+    refused(
+        &root.join("link-to-camp/out"),
+        &["inside the campaign"],
+        &[&c],
+    );
+    // A link, even to an earlier output.
+    let earlier = root.join("earlier");
+    copy_dir(earlier_output(), &earlier);
+    std::os::unix::fs::symlink(&earlier, root.join("link-out")).unwrap();
+    refused(
+        &root.join("link-out"),
+        &["symbolic link"],
+        &[&earlier, &root.join("link-out")],
+    );
+    // A user's folder, a file, and an OUT.prev that is not dbbcal's.
+    let user = root.join("thesis");
+    std::fs::create_dir(&user).unwrap();
+    std::fs::write(user.join("chapter1.tex"), "weeks of work").unwrap();
+    refused(&user, &["thesis", "did not write"], &[&user]);
+    let file = root.join("notes.txt");
+    std::fs::write(&file, "notes").unwrap();
+    refused(&file, &["notes.txt", "is a file"], &[&file]);
+    let out = root.join("night");
+    copy_dir(earlier_output(), &out);
+    let prev = root.join("night.prev");
+    std::fs::create_dir(&prev).unwrap();
+    std::fs::write(prev.join("keep.txt"), "mine").unwrap();
+    refused(&out, &["night.prev", "did not write"], &[&out, &prev]);
+    // The working folder, the root, the home folder.
+    refused(Path::new("."), &["refused"], &[]);
+    refused(Path::new("/"), &["refused"], &[]);
+    let home = root.join("home");
+    std::fs::create_dir(&home).unwrap();
+    std::fs::write(home.join(".profile"), "x").unwrap();
+    check_out_refused(
+        &ingest,
+        &c,
+        &home,
+        &[("HOME", s(&home))],
+        3,
+        &["home folder"],
+        &[&home],
+    );
+    assert!(leftovers(root).is_empty(), "{:?}", leftovers(root));
+}
+
+#[test]
+fn a_second_run_on_a_locked_output_refuses_at_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let out = tmp.path().join("out");
+    copy_dir(earlier_output(), &out);
+    let lock = std::fs::File::create(tmp.path().join(".out.lock")).unwrap();
+    lock.try_lock().unwrap();
+    check_out_refused(
+        &["identify"],
+        &c,
+        &out,
+        &[],
+        6,
+        &["another dbbcal run", ".out.lock"],
+        &[&out],
+    );
+    drop(lock);
+}
+
+#[test]
+fn replacing_keeps_one_previous_output_and_cleans_dead_partials() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let out = tmp.path().join("out");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["identify", "--campaign", s(&c), "--out", s(&out)];
+        args.extend(extra);
+        let r = dbbcal(&args, &[]);
+        assert_eq!(
+            r.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+        snapshot(&out)
+    };
+    // A dead run's partial folder (marker inside), an empty one, and a user's look-alike.
+    let dead = tmp.path().join(".out.partial-4000000");
+    copy_dir(earlier_output(), &dead);
+    std::fs::create_dir(tmp.path().join(".out.partial-4000001")).unwrap();
+    let mine = tmp.path().join(".out.partial-mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("x"), "x").unwrap();
+    let first = run(&[]);
+    assert!(first.contains_key(Path::new(dbbcal::output::MARKER)));
+    assert!(!dead.exists() && !tmp.path().join(".out.partial-4000001").exists());
+    assert!(mine.exists(), "a folder dbbcal did not write was removed");
+    let second = run(&["--bin-s", "600"]);
+    assert!(first != second);
+    assert!(snapshot(&tmp.path().join("out.prev")) == first);
+    run(&[]);
+    assert!(snapshot(&tmp.path().join("out.prev")) == second);
+    assert_eq!(leftovers(tmp.path()), vec![".out.partial-mine".to_string()]);
+}
+
+#[test]
+fn a_run_where_no_bar_succeeds_keeps_the_previous_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    // Three readings a bar: too few for any model.
+    let ns = 1_793_491_200_000_000_000i64;
+    for f in std::fs::read_dir(c.join("encoders")).unwrap() {
+        std::fs::remove_file(f.unwrap().path()).unwrap();
+    }
+    let times: Vec<i64> = (0..3).map(|k| ns + k * 60_000_000_000).collect();
+    let table = Table::new()
+        .with("time", Column::TimeNs([times.clone(), times].concat()))
+        .with(
+            "bar",
+            Column::Str(
+                ["B01", "B01", "B01", "B02", "B02", "B02"]
+                    .map(String::from)
+                    .to_vec(),
+            ),
+        )
+        .with("counts", Column::I64(vec![1, 2, 3, 1, 2, 3]));
+    write_table(&c.join("encoders/few.parquet"), &table).unwrap();
+    let out = tmp.path().join("out");
+    copy_dir(earlier_output(), &out);
+    check_out_refused(
+        &["identify"],
+        &c,
+        &out,
+        &[],
+        5,
+        &[
+            "no bar succeeded",
+            "B01: no readings",
+            "B02: no readings",
+            "unchanged",
+        ],
+        &[&out],
+    );
+    assert!(leftovers(tmp.path()).is_empty());
+}
+
+/// The clean result of `identify` + figures on the campaign `c` (with `--out` `fresh`).
+fn reference_output(c: &Path, fresh: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let r = dbbcal(&["report", "--campaign", s(c), "--out", s(fresh)], &[]);
+    assert_eq!(
+        r.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    snapshot(fresh)
+}
+
+#[test]
+fn killed_at_any_write_step_the_output_is_entirely_old_or_entirely_new() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let new = reference_output(&c, &tmp.path().join("fresh"));
+    let old = snapshot(earlier_output());
+    let out = tmp.path().join("out");
+    let (mut killed, mut saw_new) = (0, false);
+    for k in 1..200 {
+        let _ = std::fs::remove_dir_all(&out);
+        let _ = std::fs::remove_dir_all(tmp.path().join("out.prev"));
+        copy_dir(earlier_output(), &out);
+        let fault = format!("kill@{k}");
+        let args = ["report", "--campaign", s(&c), "--out", s(&out)];
+        let r = dbbcal(&args, &[("DBBCAL_FAULT", &fault)]);
+        let now = snapshot(&out);
+        assert!(
+            now == old || now == new,
+            "{fault}: OUT is neither old nor new"
+        );
+        saw_new |= now == new;
+        if r.status.code().is_some() {
+            assert_eq!(
+                r.status.code(),
+                Some(0),
+                "{fault}: {}",
+                String::from_utf8_lossy(&r.stderr)
+            );
+            break; // past the last point: the run finished
+        }
+        killed += 1;
+        // The rerun cleans up after the dead run and gives the clean result.
+        let r = dbbcal(&args, &[]);
+        assert_eq!(r.status.code(), Some(0), "rerun after {fault}");
+        assert!(
+            snapshot(&out) == new,
+            "rerun after {fault} differs from a clean run"
+        );
+        assert!(
+            leftovers(tmp.path()).is_empty(),
+            "after {fault}: {:?}",
+            leftovers(tmp.path())
+        );
+    }
+    assert!(killed >= 10, "only {killed} kill points");
+    assert!(saw_new);
+}
+
+#[test]
+fn a_full_disk_at_any_write_step_leaves_the_previous_output_intact() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let new = reference_output(&c, &tmp.path().join("fresh"));
+    let old = snapshot(earlier_output());
+    let out = tmp.path().join("out");
+    let mut failed = 0;
+    for k in 1..200 {
+        let _ = std::fs::remove_dir_all(&out);
+        copy_dir(earlier_output(), &out);
+        let fault = format!("enospc@{k}");
+        let args = ["report", "--campaign", s(&c), "--out", s(&out)];
+        let r = dbbcal(&args, &[("DBBCAL_FAULT", &fault)]);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        if r.status.code() == Some(0) {
+            // Past the last point, or at a step after the exchange, where only kills are
+            // injected: the new output is in place.
+            assert!(snapshot(&out) == new, "{fault}: {stderr}");
+            if stderr.contains("kills only") {
+                continue;
+            }
+            assert!(
+                !stderr.contains("fault point"),
+                "{fault}: exit 0 after an injected error"
+            );
+            break;
+        }
+        failed += 1;
+        assert_eq!(r.status.code(), Some(1), "{fault}: {stderr}");
+        let last = stderr.lines().last().unwrap_or("");
+        assert!(
+            last.contains("No space left on device"),
+            "{fault}: {stderr}"
+        );
+        assert!(
+            snapshot(&out) == old,
+            "{fault}: the previous output changed"
+        );
+        assert!(
+            leftovers(tmp.path()).is_empty(),
+            "{fault}: {:?}",
+            leftovers(tmp.path())
+        );
+    }
+    assert!(failed >= 10, "only {failed} write steps");
+}
+
+#[test]
+fn an_interrupted_run_removes_its_partial_folder_and_keeps_the_old_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    for (signal, code) in [(libc::SIGINT, 130), (libc::SIGTERM, 143)] {
+        let out = tmp.path().join("out");
+        let _ = std::fs::remove_dir_all(&out);
+        copy_dir(earlier_output(), &out);
+        let old = snapshot(&out);
+        // Stalled at its third write step, inside the partial folder.
+        let child = Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+            .args(["report", "--campaign", s(&c), "--out", s(&out)])
+            .env("DBBCAL_FAULT", "stall@3")
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let partial = tmp.path().join(format!(".out.partial-{}", child.id()));
+        let start = std::time::Instant::now();
+        while !partial.join(dbbcal::output::MARKER).exists() {
+            assert!(start.elapsed().as_secs() < 30, "no partial folder appeared");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        // SAFETY: a signal to our own child.
+        unsafe { libc::kill(child.id() as i32, signal) };
+        let r = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(code), "{stderr}");
+        assert!(stderr.contains("interrupted"), "{stderr}");
+        assert!(!partial.exists(), "the partial folder is left");
+        assert!(snapshot(&out) == old);
+        assert!(
+            leftovers(tmp.path()).is_empty(),
+            "{:?}",
+            leftovers(tmp.path())
+        );
+    }
+}
+
+#[test]
+fn figure_names_from_bar_ids_never_collide() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = SimConfig {
+        seed: 7,
+        campaign_id: "names".into(),
+        duration_days: 1.0,
+        sample_s: 120.0,
+        fleet: Some(FleetConfig {
+            n_bars: 2,
+            ..FleetConfig::default()
+        }),
+        ..SimConfig::default()
+    };
+    let mut sim = dbbcal::simulate::generate(&cfg).unwrap();
+    // The bars B01 and B02 become "B.1" and "B_1" (one PNG name before).
+    let rename = |id: &str| match id {
+        "B01" => "B.1".to_string(),
+        "B02" => "B_1".to_string(),
+        other => other.to_string(),
+    };
+    let text = toml::to_string(&sim.manifest).unwrap();
+    let text = text
+        .replace("\"B01\"", "\"B.1\"")
+        .replace("\"B02\"", "\"B_1\"");
+    sim.manifest = toml::from_str(&text).unwrap();
+    let encoders = std::mem::take(&mut sim.tables.encoders);
+    sim.tables.encoders = encoders.into_iter().map(|(k, v)| (rename(&k), v)).collect();
+    for e in &mut sim.tables.events {
+        e.bar = e.bar.as_deref().map(rename);
+    }
+    let c = tmp.path().join("names");
+    dbbcal::simulate::write(&sim, &c, &dbbcal::io::WriteOptions::default()).unwrap();
+    let out = tmp.path().join("out");
+    let r = dbbcal(&["report", "--campaign", s(&c), "--out", s(&out)], &[]);
+    assert_eq!(
+        r.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
+    assert!(out.join("figures/bar-B.1.png").is_file());
+    assert!(out.join("figures/bar-B_1.png").is_file());
+}
