@@ -8,70 +8,147 @@ use crate::diagnose::{BarDiagnosis, LedgerStep};
 use crate::pipeline::{BarOutcome, RunPlan, RunResults, Stage};
 use crate::report::{self, NamedSeries, ReportError};
 
-/// Every figure the run's stages call for, into `dir`.
-pub fn render_all(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<(), ReportError> {
+/// Which part of a report a figure belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FigureKind {
+    BarFit,
+    Fleet,
+    MatchStudy,
+    Diagnosis,
+    Ledger,
+    BeforeAfter,
+    Acceptance,
+}
+
+/// A figure written: its file name in `figures/`, what it shows, and its bar when it has one.
+#[derive(Debug, Clone)]
+pub struct FigureFile {
+    pub file: String,
+    pub kind: FigureKind,
+    pub bar: Option<String>,
+    pub caption: String,
+}
+
+/// Every figure the run's stages call for, into `dir`; returns what was written, in order.
+pub fn render_all(
+    plan: &RunPlan,
+    results: &RunResults,
+    dir: &Path,
+) -> Result<Vec<FigureFile>, ReportError> {
+    let mut written = Vec::new();
+    let mut add = |file: String, kind, bar: Option<&str>, caption: String| {
+        let path = dir.join(&file);
+        written.push(FigureFile {
+            file,
+            kind,
+            bar: bar.map(str::to_string),
+            caption,
+        });
+        path
+    };
     for o in &results.bars {
-        report::render_bar_fit(
-            &bar_fit_figure(o),
-            &dir.join(format!("bar-{}.png", file_safe(&o.model.bar))),
-        )?;
+        let bar = o.model.bar.as_str();
+        let path = add(
+            format!("bar-{}.png", file_safe(bar)),
+            FigureKind::BarFit,
+            Some(bar),
+            format!("Bar {bar}: measured against model, temperatures, residual"),
+        );
+        report::render_bar_fit(&bar_fit_figure(o), &path)?;
     }
     if !results.bars.is_empty() {
-        report::render_fleet(&fleet(results), &dir.join("fleet.png"))?;
+        let path = add(
+            "fleet.png".into(),
+            FigureKind::Fleet,
+            None,
+            "The fleet's parameters, the reference bar and the predicted mismatches".into(),
+        );
+        report::render_fleet(&fleet(results), &path)?;
     }
     if plan.runs(Stage::MatchStudy) {
         if let Some(study) = &results.study {
-            report::render_heat_map(&heat_map(study), &dir.join("match-study.png"))?;
+            let path = add(
+                "match-study.png".into(),
+                FigureKind::MatchStudy,
+                None,
+                "Measured mismatch of every pair of bars".into(),
+            );
+            report::render_heat_map(&heat_map(study), &path)?;
         }
     }
     if let Some(d) = &results.diagnosis {
         for (bd, o) in d.bars.iter().zip(&results.bars) {
-            report::render_residual_diagnostics(
-                &residual_figure(bd, o, &d.sensors),
-                &dir.join(format!("diagnosis-{}.png", file_safe(&bd.bar))),
-            )?;
+            let path = add(
+                format!("diagnosis-{}.png", file_safe(&bd.bar)),
+                FigureKind::Diagnosis,
+                Some(&bd.bar),
+                format!("Bar {}: residual diagnostics and channels ranked", bd.bar),
+            );
+            report::render_residual_diagnostics(&residual_figure(bd, o, &d.sensors), &path)?;
         }
         if d.ledger.len() > 1 {
-            report::render_ledger(
-                &ledger(&d.ledger, &d.sensors, plan.diagnose.beam),
-                &dir.join("ledger.png"),
-            )?;
+            let path = add(
+                "ledger.png".into(),
+                FigureKind::Ledger,
+                None,
+                "Forward selection: the fleet RMS as effects are added".into(),
+            );
+            report::render_ledger(&ledger(&d.ledger, &d.sensors, plan.diagnose.beam), &path)?;
         }
         for bl in d.bar_ledgers.iter().filter(|bl| bl.steps.len() > 1) {
-            report::render_ledger(
-                &bar_ledger(bl, &d.sensors, plan.diagnose.beam),
-                &dir.join(format!("ledger-{}.png", file_safe(&bl.bar))),
-            )?;
+            let path = add(
+                format!("ledger-{}.png", file_safe(&bl.bar)),
+                FigureKind::Ledger,
+                Some(&bl.bar),
+                format!("Bar {}: forward selection", bl.bar),
+            );
+            report::render_ledger(&bar_ledger(bl, &d.sensors, plan.diagnose.beam), &path)?;
         }
     }
     if let Some(ba) = &results.before_after {
-        report::render_before_after(&before_after(ba), &dir.join("before-after.png"))?;
+        let path = add(
+            "before-after.png".into(),
+            FigureKind::BeforeAfter,
+            None,
+            "RMS per bar with the base model and with the effects added".into(),
+        );
+        report::render_before_after(&before_after(ba), &path)?;
     }
     if let Some(acc) = &results.acceptance {
-        render_acceptance(acc, dir)?;
+        for a in acc {
+            let path = add(
+                format!(
+                    "acceptance-{}@{}.png",
+                    file_safe(&a.bar),
+                    file_safe(&a.length_id)
+                ),
+                FigureKind::Acceptance,
+                Some(&a.bar),
+                format!(
+                    "Bar {} on {}: error before and after compensation",
+                    a.bar, a.length_id
+                ),
+            );
+            report::render_series_panels(&acceptance_sheet(a), &path)?;
+        }
+        if !acc.is_empty() {
+            let path = add(
+                "acceptance-fleet.png".into(),
+                FigureKind::Acceptance,
+                None,
+                "Every working bar's error after compensation".into(),
+            );
+            report::render_series_panels(&acceptance_fleet(acc), &path)?;
+            let path = add(
+                "acceptance-rms.png".into(),
+                FigureKind::Acceptance,
+                None,
+                "RMS error before and after compensation".into(),
+            );
+            report::render_before_after(&acceptance_rms(acc), &path)?;
+        }
     }
-    Ok(())
-}
-
-/// Acceptance sheets: one per working bar (error over time before/after compensation against the
-/// tolerance, the thermal error removed) and the fleet's (all bars, and RMS before/after).
-fn render_acceptance(
-    acc: &[crate::acceptance::BarAcceptance],
-    dir: &Path,
-) -> Result<(), ReportError> {
-    for a in acc {
-        let name = format!(
-            "acceptance-{}@{}.png",
-            file_safe(&a.bar),
-            file_safe(&a.length_id)
-        );
-        report::render_series_panels(&acceptance_sheet(a), &dir.join(name))?;
-    }
-    if !acc.is_empty() {
-        report::render_series_panels(&acceptance_fleet(acc), &dir.join("acceptance-fleet.png"))?;
-        report::render_before_after(&acceptance_rms(acc), &dir.join("acceptance-rms.png"))?;
-    }
-    Ok(())
+    Ok(written)
 }
 
 fn tolerance_lines(t: f64) -> Vec<report::RefLine> {

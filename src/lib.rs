@@ -10,6 +10,7 @@ pub mod identify;
 pub mod io;
 pub mod matching;
 pub mod model;
+pub mod narrative;
 pub mod output;
 pub mod pipeline;
 pub mod progress;

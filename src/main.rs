@@ -4,8 +4,10 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use std::io::{IsTerminal, Write};
+
 use anyhow::Context;
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, Parser, Subcommand};
 
 use dbbcal::pipeline::{RunPlan, Stage};
 use dbbcal::runner::{self, RunStatus};
@@ -43,6 +45,35 @@ Exit codes:
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Print nothing but errors.
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    /// More detail on stderr: -v stage timings, -vv per-bar details (DBBCAL_LOG overrides).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true, conflicts_with = "quiet")]
+    verbose: u8,
+    /// Colour: auto (on a terminal, unless NO_COLOR is set), always, never.
+    #[arg(long, value_enum, default_value_t = ColorWhen::Auto, global = true, value_name = "WHEN")]
+    color: ColorWhen,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum ColorWhen {
+    Auto,
+    Always,
+    Never,
+}
+
+impl ColorWhen {
+    /// Whether to write ANSI colour to a stream that is (or is not) a terminal.
+    fn enabled(self, terminal: bool) -> bool {
+        match self {
+            ColorWhen::Always => true,
+            ColorWhen::Never => false,
+            ColorWhen::Auto => {
+                terminal && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
+            }
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -53,10 +84,8 @@ enum Command {
         pipeline: PathBuf,
         #[command(flatten)]
         io: IoArgs,
-        /// Add an effect to the pipeline's model: a name exactly as the diagnosis prints it
-        /// (e.g. head_heating, second_path, lag:T2, rate:T1@600). Repeatable.
-        #[arg(long = "add-effect", value_name = "NAME")]
-        add_effect: Vec<String>,
+        #[command(flatten)]
+        model: ModelArgs,
     },
     /// Read and validate a campaign; write the input record.
     Ingest(StageArgs),
@@ -72,6 +101,13 @@ enum Command {
     /// Calibrate, then compensate the working bars (check lengths, devices) with the reference
     /// bars (two, one) or the identified models -> compensation.json, compensated.parquet.
     Compensate(StageArgs),
+    /// Print an output folder's fit report (OUT/report.md) on the terminal.
+    Show {
+        /// An output folder of dbbcal.
+        out: PathBuf,
+    },
+    /// Print a shell completion script (e.g. `dbbcal completions bash > ~/.local/share/bash-completion/completions/dbbcal`).
+    Completions { shell: clap_complete::Shell },
     /// Write a simulated campaign (with truth.json) from a simulation TOML.
     Simulate {
         /// Simulation config (see pipelines/sim-sample.toml); defaults when absent.
@@ -102,10 +138,18 @@ struct IoArgs {
 struct StageArgs {
     #[command(flatten)]
     io: IoArgs,
-    /// Model effects (default: the base model fixed_part, scale).
+    #[command(flatten)]
+    model: ModelArgs,
+}
+
+/// The model and compression overrides, the same for `run` and the stage subcommands.
+#[derive(Args)]
+struct ModelArgs {
+    /// Model effects, replacing the pipeline's (default: the base model fixed_part, scale).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     effects: Vec<String>,
-    /// Add an effect to the model (repeatable).
+    /// Add an effect to the model: a name exactly as the diagnosis prints it (e.g.
+    /// head_heating, second_path, lag:T2, rate:T1@600). Repeatable.
     #[arg(long = "add-effect", value_name = "NAME")]
     add_effect: Vec<String>,
     /// Compress the readings into bins of this many seconds, two weighted nodes a bin (exact for
@@ -119,31 +163,33 @@ struct StageArgs {
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> ExitCode {
-    init_tracing();
     let cli = Cli::parse();
+    let color = cli.color.enabled(std::io::stderr().is_terminal());
+    init_tracing(cli.verbose, color);
     dbbcal::output::install_signal_handlers();
-    match execute(cli) {
-        Ok(RunStatus::AllBars) => ExitCode::SUCCESS,
-        Ok(RunStatus::SomeBarsFailed(n)) => {
-            eprintln!("dbbcal: {n} bar(s) failed; the others were processed (see failed_bars in summary.json)");
-            ExitCode::from(EXIT_SOME_BARS_FAILED)
-        }
-        Ok(RunStatus::NoBarSucceeded(failed)) => {
-            let reasons: Vec<String> = failed
-                .iter()
-                .map(|(bar, why)| {
-                    let why = why.strip_prefix(&format!("bar {bar}: ")).unwrap_or(why);
-                    format!("{bar}: {why}")
-                })
-                .collect();
-            eprintln!(
-                "dbbcal: no bar succeeded ({}); nothing written, the previous output is unchanged",
-                reasons.join("; ")
-            );
-            ExitCode::from(EXIT_NO_BAR_SUCCEEDED)
+    let say = Say {
+        quiet: cli.quiet,
+        color,
+    };
+    let started = std::time::Instant::now();
+    match execute(cli.command, say, cli.color) {
+        Ok(None) => ExitCode::SUCCESS,
+        Ok(Some(outcome)) => {
+            say.outcome(&outcome, started.elapsed());
+            match outcome.status {
+                RunStatus::AllBars => ExitCode::SUCCESS,
+                RunStatus::SomeBarsFailed(n) => {
+                    say.error(&format!("{n} bar(s) failed; the others were processed (see failed_bars in summary.json)"));
+                    ExitCode::from(EXIT_SOME_BARS_FAILED)
+                }
+                RunStatus::NoBarSucceeded(failed) => {
+                    say.error(&no_bar_succeeded(&failed));
+                    ExitCode::from(EXIT_NO_BAR_SUCCEEDED)
+                }
+            }
         }
         Err(e) => {
-            eprintln!("dbbcal: error: {}", one_line(&e));
+            say.error(&format!("error: {}", one_line(&e)));
             ExitCode::from(if e.chain().any(runner::is_busy_error) {
                 EXIT_OUTPUT_BUSY
             } else if e.chain().any(runner::is_input_error) {
@@ -151,6 +197,80 @@ fn main() -> ExitCode {
             } else {
                 EXIT_OTHER
             })
+        }
+    }
+}
+
+fn no_bar_succeeded(failed: &[(String, String)]) -> String {
+    let reasons: Vec<String> = failed
+        .iter()
+        .map(|(bar, why)| {
+            let why = why.strip_prefix(&format!("bar {bar}: ")).unwrap_or(why);
+            format!("{bar}: {why}")
+        })
+        .collect();
+    format!(
+        "no bar succeeded ({}); nothing written, the previous output is unchanged",
+        reasons.join("; ")
+    )
+}
+
+/// What the command line says on stderr, cargo's way: a right-aligned bold label, then text.
+#[derive(Clone, Copy)]
+struct Say {
+    quiet: bool,
+    color: bool,
+}
+
+impl Say {
+    fn line(&self, label: &str, text: &str, style: &str) {
+        if self.color {
+            eprintln!("\x1b[{style}m{label:>12}\x1b[0m {text}");
+        } else {
+            eprintln!("{label:>12} {text}");
+        }
+    }
+
+    /// The run's block: where the output is, the bars, the verdict, the next command.
+    fn outcome(&self, outcome: &runner::Outcome, elapsed: std::time::Duration) {
+        if self.quiet {
+            return;
+        }
+        let Some(h) = &outcome.headline else {
+            return;
+        };
+        let finished = format!(
+            "{} on campaign {} in {:.1} s",
+            h.pipeline,
+            h.campaign,
+            elapsed.as_secs_f64()
+        );
+        self.line("Finished", &finished, "1;32");
+        if let Some(out) = &outcome.out {
+            let page = out.join("index.html");
+            let text = if page.is_file() {
+                format!("{} (open {})", out.display(), page.display())
+            } else {
+                out.display().to_string()
+            };
+            self.line("Output", &text, "1;32");
+        }
+        for (label, text) in h.lines() {
+            let style = match label {
+                "Diagnosis" if text.starts_with("missing") => "1;33",
+                "Next" => "1;36",
+                _ => "1;32",
+            };
+            self.line(label, &text, style);
+        }
+    }
+
+    /// One line that always prints (errors and failures), `dbbcal: ` first.
+    fn error(&self, text: &str) {
+        if self.color {
+            eprintln!("\x1b[1;31mdbbcal:\x1b[0m {text}");
+        } else {
+            eprintln!("dbbcal: {text}");
         }
     }
 }
@@ -167,63 +287,128 @@ fn one_line(e: &anyhow::Error) -> String {
     parts.join(": ")
 }
 
-fn execute(cli: Cli) -> anyhow::Result<RunStatus> {
-    match cli.command {
+fn execute(
+    command: Command,
+    say: Say,
+    color: ColorWhen,
+) -> anyhow::Result<Option<runner::Outcome>> {
+    let plan = match command {
         Command::Run {
             pipeline,
             io,
-            add_effect,
+            model,
         } => {
-            let plan = RunPlan::from_pipeline_file(&pipeline, io.campaign, io.out, &add_effect)?;
-            runner::run(&plan)
+            let plan =
+                RunPlan::from_pipeline_file(&pipeline, io.campaign, io.out, &model.add_effect)?;
+            with_model_overrides(plan, &model)?
         }
-        Command::Ingest(a) => stage(Stage::Ingest, a),
-        Command::Identify(a) => stage(Stage::Identify, a),
-        Command::Match(a) => stage(Stage::Match, a),
-        Command::Report(a) => stage(Stage::Report, a),
-        Command::Calibrate(a) => stage(Stage::Calibrate, a),
-        Command::Compensate(a) => stage(Stage::Compensate, a),
+        Command::Ingest(a) => stage_plan(Stage::Ingest, a)?,
+        Command::Identify(a) => stage_plan(Stage::Identify, a)?,
+        Command::Match(a) => stage_plan(Stage::Match, a)?,
+        Command::Report(a) => stage_plan(Stage::Report, a)?,
+        Command::Calibrate(a) => stage_plan(Stage::Calibrate, a)?,
+        Command::Compensate(a) => stage_plan(Stage::Compensate, a)?,
+        Command::Show { out } => {
+            show(&out, color.enabled(std::io::stdout().is_terminal()))?;
+            return Ok(None);
+        }
+        Command::Completions { shell } => {
+            let mut cmd = Cli::command();
+            clap_complete::generate(shell, &mut cmd, "dbbcal", &mut std::io::stdout());
+            return Ok(None);
+        }
         Command::Simulate { config, out, seed } => {
             runner::simulate(config.as_deref(), &out, seed)
                 .with_context(|| format!("simulate into {}", out.display()))?;
-            Ok(RunStatus::AllBars)
+            if !say.quiet {
+                say.line("Simulated", &out.display().to_string(), "1;32");
+            }
+            return Ok(None);
         }
-    }
+    };
+    runner::run(&plan).map(Some)
 }
 
-fn stage(stage: Stage, a: StageArgs) -> anyhow::Result<RunStatus> {
-    let mut effects = a.effects;
-    if effects.is_empty() && !a.add_effect.is_empty() {
-        effects = dbbcal::model::base_effects()
-            .iter()
-            .map(|e| e.name())
-            .collect();
-    }
-    effects.extend(a.add_effect);
+fn stage_plan(stage: Stage, a: StageArgs) -> anyhow::Result<RunPlan> {
     let campaign =
         a.io.campaign
             .unwrap_or_else(|| PathBuf::from("data/sample"));
-    if a.bin_s
+    let plan = RunPlan::for_stage(stage, campaign, a.io.out, &[])?;
+    with_model_overrides(plan, &a.model)
+}
+
+/// `--effects` (replacing the plan's), `--add-effect`, `--bin-s`.
+fn with_model_overrides(mut plan: RunPlan, m: &ModelArgs) -> anyhow::Result<RunPlan> {
+    use dbbcal::pipeline::PlanError;
+    if m.bin_s
         .is_some_and(|b| !(0.0..=dbbcal::series::MAX_BIN_S).contains(&b))
     {
-        anyhow::bail!(dbbcal::pipeline::PlanError::Pipeline {
+        anyhow::bail!(PlanError::Pipeline {
             path: "--bin-s".into(),
             message: format!("must be between 0 and {} s", dbbcal::series::MAX_BIN_S)
         });
     }
-    let mut plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
-    if let Some(bin_s) = a.bin_s {
+    if let Some(bin_s) = m.bin_s {
         (plan.bin_s, plan.automatic_bins) = (bin_s, false);
     }
-    runner::run(&plan)
+    let parse = |n: &String| dbbcal::model::Effect::parse(n).map_err(PlanError::from);
+    if !m.effects.is_empty() {
+        plan.effects = m.effects.iter().map(parse).collect::<Result<_, _>>()?;
+    }
+    for n in &m.add_effect {
+        let e = parse(n)?;
+        if !plan.effects.contains(&e) {
+            plan.effects.push(e);
+        }
+    }
+    Ok(plan)
 }
 
-fn init_tracing() {
+/// `dbbcal show OUT`: the fit report, headings and warnings coloured on a terminal.
+fn show(out: &std::path::Path, color: bool) -> anyhow::Result<()> {
+    let path = out.join("report.md");
+    let text = std::fs::read_to_string(&path).with_context(|| {
+        format!(
+            "{}: no fit report here (is it an output folder of dbbcal?)",
+            path.display()
+        )
+    })?;
+    let mut stdout = std::io::stdout().lock();
+    for line in text.lines() {
+        let styled = if !color {
+            line.to_string()
+        } else if line.starts_with('#') {
+            format!("\x1b[1;36m{line}\x1b[0m")
+        } else if line.starts_with("- ") && line.contains(": the data do not bound")
+            || line.contains("not identifiable")
+            || line.contains("few independent batches")
+        {
+            format!("\x1b[33m{line}\x1b[0m")
+        } else {
+            line.to_string()
+        };
+        if writeln!(stdout, "{styled}").is_err() {
+            break; // a closed pipe (`| head`) is no error
+        }
+    }
+    Ok(())
+}
+
+/// Logs on stderr: warnings; `-v` adds the stage timings, `-vv` everything at debug level.
+/// `DBBCAL_LOG` (a tracing filter) overrides.
+fn init_tracing(verbose: u8, color: bool) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "warn,dbbcal=info",
+        _ => "info,dbbcal=debug",
+    };
     let filter = tracing_subscriber::EnvFilter::try_from_env("DBBCAL_LOG")
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
     tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
+        .with_ansi(color)
         .with_target(false)
+        .without_time()
         .init();
 }

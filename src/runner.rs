@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 
 use crate::io;
+use crate::narrative::{fit_report::fit_report, Headline};
 use crate::output::{self, Marker, OutputTarget, WriteFailure};
 use crate::pipeline::{self, RunPlan, RunResults, Stage};
 
@@ -20,6 +21,16 @@ pub enum RunStatus {
     SomeBarsFailed(usize),
     /// Every bar failed (bar, reason): nothing was written and the previous output is as it was.
     NoBarSucceeded(Vec<(String, String)>),
+}
+
+/// What a run leaves for the command line to say.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub status: RunStatus,
+    /// The output folder, when one was written.
+    pub out: Option<PathBuf>,
+    /// The night in a few lines (absent when no bar succeeded).
+    pub headline: Option<Headline>,
 }
 
 /// Whether an error (anywhere in a chain) means the input or configuration is unusable.
@@ -50,7 +61,7 @@ fn output_folder(plan: &RunPlan) -> Result<PathBuf> {
 }
 
 /// Run `plan`: claim the output, ingest, analyse, write the output folder.
-pub fn run(plan: &RunPlan) -> Result<RunStatus> {
+pub fn run(plan: &RunPlan) -> Result<Outcome> {
     let target = OutputTarget::claim(&output_folder(plan)?, &plan.campaign_dir)?;
     // No bin length set: chosen from the campaign before ingest streams (and recorded).
     let chosen;
@@ -69,8 +80,13 @@ pub fn run(plan: &RunPlan) -> Result<RunStatus> {
     })?;
     let results = pipeline::analyse(plan, logs);
     if plan.runs(Stage::Identify) && results.bars.is_empty() {
-        return Ok(RunStatus::NoBarSucceeded(results.failed));
+        return Ok(Outcome {
+            status: RunStatus::NoBarSucceeded(results.failed),
+            out: None,
+            headline: None,
+        });
     }
+    let headline = Headline::from_results(plan, &results);
     let marker = Marker::new(
         &results.campaign.id,
         serde_json::to_value(&plan.stages)?,
@@ -80,16 +96,21 @@ pub fn run(plan: &RunPlan) -> Result<RunStatus> {
     let out = target.path().to_path_buf();
     pipeline::timed("write outputs", || {
         target
-            .write(&marker, |tmp| write_outputs(plan, &results, tmp))
+            .write(&marker, |tmp| write_outputs(plan, &results, &headline, tmp))
             .map_err(|e| match e {
                 WriteFailure::Build(e) => e,
                 WriteFailure::Output(e) => anyhow::Error::from(e),
             })
     })
     .with_context(|| format!("writing {}", out.display()))?;
-    Ok(match results.failed.len() {
+    let status = match results.failed.len() {
         0 => RunStatus::AllBars,
         n => RunStatus::SomeBarsFailed(n),
+    };
+    Ok(Outcome {
+        status,
+        out: Some(out),
+        headline: Some(headline),
     })
 }
 
@@ -157,7 +178,12 @@ fn write_table(path: &Path, table: &io::Table) -> Result<()> {
     Ok(io::write_table(path, table)?)
 }
 
-fn write_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()> {
+fn write_outputs(
+    plan: &RunPlan,
+    results: &RunResults,
+    headline: &Headline,
+    dir: &Path,
+) -> Result<()> {
     write_json(&dir.join("summary.json"), &pipeline::summary(plan, results))?;
     write_json(&dir.join("inputs.json"), &results.inputs)?;
     if plan.runs(Stage::Identify) {
@@ -176,11 +202,19 @@ fn write_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()>
         write_json(&dir.join("match_study.json"), study)?;
     }
     write_calibration_outputs(plan, results, dir)?;
-    if plan.runs(Stage::Report) {
+    let figures = if plan.runs(Stage::Report) {
         let figures = dir.join("figures");
         std::fs::create_dir_all(&figures)?;
-        crate::figures::render_all(plan, results, &figures)?;
+        crate::figures::render_all(plan, results, &figures)?
+    } else {
+        Vec::new()
+    };
+    let report = fit_report(plan, results, headline);
+    if plan.runs(Stage::Identify) {
+        output::write_file(&dir.join("report.md"), report.as_bytes())?;
     }
+    let page = crate::narrative::page::page(plan, results, headline, &figures, &report);
+    output::write_file(&dir.join("index.html"), page.as_bytes())?;
     Ok(())
 }
 
