@@ -13,6 +13,7 @@ mod identify;
 mod machine_tool;
 mod nist;
 mod one_length;
+mod page;
 mod row_order;
 mod safe_outputs;
 mod support;
