@@ -258,6 +258,7 @@ impl Say {
         for (label, text) in h.lines() {
             let style = match label {
                 "Diagnosis" if text.starts_with("missing") => "1;33",
+                "Note" => "1;33",
                 "Next" => "1;36",
                 _ => "1;32",
             };

@@ -46,6 +46,8 @@ pub struct Headline {
     pub conclusion: Option<Conclusion>,
     /// The command that adds the proposed effect (same campaign, same output).
     pub next_command: Option<String>,
+    /// Why a stage has nothing to show, and bars a later stage left out, in words.
+    pub notes: Vec<String>,
 }
 
 impl Headline {
@@ -81,6 +83,7 @@ impl Headline {
             reference: reference_line(results),
             conclusion,
             next_command,
+            notes: notes(plan, results),
         }
     }
 
@@ -126,6 +129,9 @@ impl Headline {
         if let Some(c) = &self.conclusion {
             lines.push(("Diagnosis", conclusion_text(c)));
         }
+        for note in &self.notes {
+            lines.push(("Note", note.clone()));
+        }
         if let Some(cmd) = &self.next_command {
             lines.push(("Next", cmd.clone()));
         }
@@ -147,6 +153,27 @@ pub fn conclusion_text(c: &Conclusion) -> String {
             "missing effect: {effect}; adding it cuts the fleet RMS from {rms_before_um:.4} to {rms_after_um:.4} µm"
         ),
     }
+}
+
+/// Stages that ran with nothing to show, and bars they left out, with the reason.
+fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
+    let mut notes = Vec::new();
+    if let Some(c) = &results.calibration {
+        for (bar, why) in &c.failed {
+            notes.push(format!("no centre-distance function for {bar}: {why}"));
+        }
+    }
+    if let Some(c) = &results.compensation {
+        for (bar, why) in &c.failed {
+            notes.push(format!("{bar} not compensated: {why}"));
+        }
+    }
+    if plan.runs(Stage::Acceptance) && results.acceptance.as_ref().is_none_or(|a| a.is_empty()) {
+        notes.push(
+            "nothing to accept: the campaign has no working mounts; mark a mount with purpose = \"check\" (on a plate length) or give it a device in campaign.toml".into(),
+        );
+    }
+    notes
 }
 
 fn fleet_rms_um(results: &RunResults) -> Option<f64> {

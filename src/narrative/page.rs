@@ -76,6 +76,7 @@ fn night(h: &mut String, headline: &Headline) {
         }
         let class = match label {
             "Diagnosis" if text.starts_with("missing") => " class=\"warn\"",
+            "Note" => " class=\"warn\"",
             "Bars" if !headline.failed.is_empty() => " class=\"warn\"",
             _ => "",
         };
