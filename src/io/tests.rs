@@ -568,7 +568,10 @@ fn null_times_and_counts_are_named() {
     assert_eq!(logs.bars["B01"].counts, vec![1, 0]);
     let q = &logs.quality.bars["B01"];
     assert_eq!((q.rows, q.null, q.dropped_rows), (3, 1, 1));
-    assert_eq!(q.flags[0].kind, crate::series::quality::FlagKind::MissingValues);
+    assert_eq!(
+        q.flags[0].kind,
+        crate::series::quality::FlagKind::MissingValues
+    );
 }
 
 // ---------------------------------------------------------------- writing

@@ -1202,4 +1202,78 @@ mod tests {
         let total: f64 = r.weight.iter().sum();
         assert!((total - 1200.0).abs() < 1e-9);
     }
+
+    mod properties {
+        use super::*;
+        use proptest::prelude::*;
+
+        const S: TimeNs = 1_000_000_000;
+        const B: TimeNs = 1_800_000_000 * S;
+
+        fn grid(bin_s: i64) -> BinGrid {
+            BinGrid {
+                bin_ns: bin_s * S,
+                mounts: vec![
+                    (B + 1_000 * S, B + 50_000 * S, 0),
+                    (B + 60_000 * S, B + 90_000 * S, 1),
+                ],
+                rezeros: vec![B + 20_000 * S],
+            }
+        }
+
+        proptest! {
+            #![proptest_config(ProptestConfig::with_cases(64))]
+
+            /// Any row order and any split into batches gives the same bins.
+            #[test]
+            fn any_order_or_batch_split_gives_the_same_bins(
+                rows in prop::collection::vec((-5_000i64..100_000, -100_000i64..100_000), 1..600),
+                keys in prop::collection::vec(any::<u32>(), 600),
+                batch in 1usize..300,
+                bin_s in 1i64..3600,
+            ) {
+                let time: Vec<TimeNs> = rows.iter().map(|r| B + r.0 * S + r.0 % 7).collect();
+                let counts: Vec<i64> = rows.iter().map(|r| r.1).collect();
+                let want = BarBins::from_log(grid(bin_s), &time, &counts).unwrap();
+                let mut order: Vec<usize> = (0..rows.len()).collect();
+                order.sort_by_key(|&i| keys[i]);
+                let t: Vec<TimeNs> = order.iter().map(|&i| time[i]).collect();
+                let c: Vec<i64> = order.iter().map(|&i| counts[i]).collect();
+                let mut acc = BinAccumulator::new(grid(bin_s));
+                for (tc, cc) in t.chunks(batch).zip(c.chunks(batch)) {
+                    acc.add_all(tc, cc).unwrap();
+                }
+                prop_assert_eq!(acc.finish(), want);
+            }
+
+            /// Extreme times and counts are refused (an error, nothing added), never a panic,
+            /// a hang or a wrapped sum; accepted ones are summed exactly.
+            #[test]
+            fn extreme_values_are_refused_not_wrapped(
+                t in prop_oneof![
+                    Just(i64::MIN), Just(i64::MAX), Just(0i64), Just(-1i64),
+                    Just(EARLIEST_READING_NS - 1), Just(EARLIEST_READING_NS),
+                    Just(LATEST_READING_NS - 1), Just(LATEST_READING_NS), any::<i64>()
+                ],
+                c in prop_oneof![
+                    Just(i64::MIN), Just(i64::MAX), Just(MAX_ABS_COUNTS),
+                    Just(-MAX_ABS_COUNTS), Just(MAX_ABS_COUNTS + 1), any::<i64>()
+                ],
+            ) {
+                let mut acc = BinAccumulator::new(grid(60));
+                let ok = reading_time_ok(t) && c.unsigned_abs() <= MAX_ABS_COUNTS as u64;
+                let r = acc.add_all(&[t, t], &[c, c]);
+                prop_assert_eq!(r.is_ok(), ok);
+                let bins = acc.finish();
+                if ok {
+                    prop_assert_eq!(bins.n_readings(), 2);
+                    let m = bins.bins[0].1;
+                    prop_assert_eq!(m.sc, 2 * c as i128);
+                    prop_assert_eq!(m.scc, 2 * (c as i128) * (c as i128));
+                } else {
+                    prop_assert_eq!(bins.n_readings(), 0);
+                }
+            }
+        }
+    }
 }
