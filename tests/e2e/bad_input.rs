@@ -143,7 +143,7 @@ fn edited_campaign(root: &Path, name: &str, edit: impl FnOnce(&mut CampaignTable
         duration_days: 1.0,
         sample_s: 60.0,
         fleet: Some(FleetConfig {
-            n_bars: 2,
+            n_bars: 3,
             ..FleetConfig::default()
         }),
         ..SimConfig::default()
@@ -384,9 +384,12 @@ fn missing_values_are_dropped_counted_and_flagged() {
         t1.celsius[10] = f64::NAN;
         t1.celsius[11] = f64::INFINITY;
         t1.celsius[12] = f64::NEG_INFINITY;
-        for e in t.events.iter_mut().filter(|e| e.value.is_some()).take(1) {
-            e.value = Some(f64::NAN);
-        }
+        t.events.push(dbbcal::series::Event {
+            time_ns: T0_NS,
+            bar: None,
+            kind: "door".into(),
+            value: Some(f64::NAN),
+        });
     });
     // Null temperatures and counts, and whole float counts, in extra files.
     write_table(
@@ -452,7 +455,7 @@ fn missing_values_are_dropped_counted_and_flagged() {
             "{}",
             s["quality"]["events"]
         );
-        assert_eq!(s["bars"].as_array().unwrap().len(), 2);
+        assert_eq!(s["bars"].as_array().unwrap().len(), 3);
     }
 }
 
@@ -506,9 +509,10 @@ fn duplicates_and_mixed_zones_are_counted_once_and_flagged() {
     let inputs = s["inputs"].as_array().unwrap();
     let copy = inputs
         .iter()
-        .find(|f| f["path"] == "encoders/copy.parquet")
+        .find(|f| f["path"] == "encoders/encoders.parquet")
         .unwrap();
-    assert_eq!(copy["duplicate_of"], "encoders/encoders.parquet");
+    // Files are taken in path order: the copy is read, the original marked as its duplicate.
+    assert_eq!(copy["duplicate_of"], "encoders/copy.parquet");
     let q = bar_quality(&s, "B01");
     assert_eq!(q["duplicate_rows"], n as u64, "{q}");
     let dup = flags(q, "duplicate_rows");
@@ -526,23 +530,24 @@ fn duplicates_and_mixed_zones_are_counted_once_and_flagged() {
 fn encoder_faults_are_flagged_and_a_dead_bar_fails_alone() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
-    // Out of order (reversed) rows, a spike, a 32-bit wrap in B01's second mount, B02 frozen.
+    // Out of order (reversed) rows and a spike in B01, a 32-bit wrap in B02, B03 frozen.
     let mut spike_at = 0;
     let mut wrap_at = 0;
     let d = edited_campaign(root, "faults", |t| {
         let b1 = t.encoders.get_mut("B01").unwrap();
         spike_at = b1.time_ns[200];
         b1.counts[200] += 4000; // 20 µm for one reading
-        let second_mount = b1.time_ns.len() * 3 / 4;
-        wrap_at = b1.time_ns[second_mount];
-        for c in &mut b1.counts[second_mount..] {
-            *c -= 1 << 32;
-        }
         b1.time_ns.reverse();
         b1.counts.reverse();
         let b2 = t.encoders.get_mut("B02").unwrap();
-        let frozen = b2.counts[0];
-        b2.counts.iter_mut().for_each(|c| *c = frozen);
+        let late = b2.time_ns.len() * 3 / 4;
+        wrap_at = b2.time_ns[late];
+        for c in &mut b2.counts[late..] {
+            *c -= 1 << 32;
+        }
+        let b3 = t.encoders.get_mut("B03").unwrap();
+        let frozen = b3.counts[0];
+        b3.counts.iter_mut().for_each(|c| *c = frozen);
     });
     for bin_s in ["0", "60"] {
         let s = identify(&d, bin_s);
@@ -555,21 +560,30 @@ fn encoder_faults_are_flagged_and_a_dead_bar_fails_alone() {
                 && f["to"].as_str().unwrap() >= spike.as_str()
         };
         assert!(jumps.iter().any(at_spike), "{spike}: {q}");
-        let wraps = flags(q, "counter_wrap");
-        assert_eq!(wraps.len(), 1, "{q}");
+        let q2 = bar_quality(&s, "B02");
+        let wraps = flags(q2, "counter_wrap");
+        assert_eq!(wraps.len(), 1, "{q2}");
         let size = wraps[0]["size_counts"].as_f64().unwrap();
         assert!((size + 4_294_967_296.0).abs() < 1e3, "{size}");
-        assert!(q["fault_rows"].as_u64().unwrap() > 0);
+        let wrap = dbbcal::series::quality::format_ns(wrap_at);
+        assert!(wraps[0]["from"].as_str().unwrap() <= wrap.as_str());
+        assert!(wraps[0]["to"].as_str().unwrap() >= wrap.as_str());
+        assert!(q2["fault_rows"].as_u64().unwrap() > 0);
         let failed = s["failed_bars"].as_array().unwrap();
-        assert_eq!(failed.len(), 1, "{s}");
+        assert_eq!(failed.len(), 2, "{s}");
         assert_eq!(failed[0]["bar"], "B02");
+        assert!(failed[0]["error"]
+            .as_str()
+            .unwrap()
+            .contains("counter wrap"));
+        assert_eq!(failed[1]["bar"], "B03");
         assert!(
-            failed[0]["error"].as_str().unwrap().contains("dead"),
+            failed[1]["error"].as_str().unwrap().contains("dead"),
             "{}",
-            failed[0]
+            failed[1]
         );
-        assert!(!flags(bar_quality(&s, "B02"), "stuck").is_empty());
+        assert!(!flags(bar_quality(&s, "B03"), "stuck").is_empty());
         assert_eq!(s["bars"][0]["bar"], "B01");
-        let _ = wrap_at;
+        assert_eq!(s["bars"].as_array().unwrap().len(), 1);
     }
 }
