@@ -444,6 +444,8 @@ pub struct RunResults {
     pub compensation: Option<CompensationStage>,
     /// Acceptance stage: one entry per working bar on a known length.
     pub acceptance: Option<Vec<crate::acceptance::BarAcceptance>>,
+    /// What ingest dropped, counted and flagged (`series::quality`).
+    pub quality: crate::series::Quality,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -522,6 +524,7 @@ impl RunResults {
             calibration: None,
             compensation: None,
             acceptance: None,
+            quality: Default::default(),
         }
     }
 }
@@ -544,6 +547,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         mut bins,
         sensors,
         events,
+        quality,
     } = logs;
     let t0 = campaign
         .mounts
@@ -553,7 +557,10 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .unwrap_or_else(|| campaign_origin_from(&bars, &bins));
     let history = air_history(&campaign, &sensors, t0, 60.0);
     if !plan.runs(Stage::Identify) {
-        return RunResults::before_stages(campaign, inputs, history, Vec::new(), Vec::new());
+        let mut results =
+            RunResults::before_stages(campaign, inputs, history, Vec::new(), Vec::new());
+        results.quality = quality;
+        return results;
     }
     // Every stage past identify reads the bars' samples, and so does the before/after
     // comparison of an extended model; a plain identify run keeps only the models and counts,
@@ -581,6 +588,11 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
             .collect::<Vec<_>>()
             .into_par_iter()
             .map(|(id, log, binned)| {
+                // A bar ingest found no usable signal in (a dead encoder) fails alone.
+                if let Some(why) = quality.unusable(&id) {
+                    progress.inc(1);
+                    return (id, Err(why.to_string()));
+                }
                 let series = match binned {
                     Some(b) => {
                         BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, &knots, t0)
@@ -616,6 +628,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         }
     }
     let mut results = RunResults::before_stages(campaign, inputs, history, ok, failed);
+    results.quality = quality;
     if plan.runs(Stage::Match) {
         run_match(plan, &mut results);
     }
@@ -906,6 +919,8 @@ pub struct Summary {
     pub bars: Vec<BarSummary>,
     pub failed_bars: Vec<FailedBar>,
     pub reference: Option<ReferenceSummary>,
+    /// What ingest dropped, counted and flagged, per bar, sensor, events and files.
+    pub quality: crate::series::Quality,
 }
 
 #[derive(Debug, Serialize)]
@@ -1057,6 +1072,7 @@ pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
             })
             .collect(),
         reference,
+        quality: r.quality.clone(),
     }
 }
 

@@ -10,10 +10,13 @@ use std::collections::BTreeMap;
 use crate::campaign::{Bar, Campaign, TimeNs};
 
 mod bins;
+pub mod quality;
 pub use bins::{
-    automatic_bin_s, BarBins, BinAccumulator, BinGrid, BinKey, BinMoments, Node, Readings, Region,
-    AUTOMATIC_BIN_S, AUTOMATIC_MAX_INTERVAL_S, MAX_BIN_S,
+    automatic_bin_s, reading_time_ok, BarBins, BinAccumulator, BinError, BinGrid, BinKey,
+    BinMoments, Node, Readings, Region, AUTOMATIC_BIN_S, AUTOMATIC_MAX_INTERVAL_S,
+    EARLIEST_READING_NS, LATEST_READING_NS, MAX_ABS_COUNTS, MAX_BAR_READINGS, MAX_BIN_S,
 };
+pub use quality::Quality;
 
 /// One input file the run read, with its hash, for the output's provenance record.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
@@ -22,6 +25,9 @@ pub struct InputFile {
     pub path: String,
     pub sha256: String,
     pub bytes: u64,
+    /// Another input file with the same bytes (same sha256): this one was not read again.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub duplicate_of: Option<String>,
 }
 
 /// One event row (`events/*.parquet`).
@@ -66,6 +72,8 @@ pub struct CampaignLogs {
     pub sensors: BTreeMap<String, SensorLog>,
     /// Sorted by time.
     pub events: Vec<Event>,
+    /// What ingest dropped, counted and flagged (`summary.json` → `quality`).
+    pub quality: Quality,
 }
 
 /// A bar's raw encoder readings (what a logger writes), not necessarily sorted.
@@ -167,6 +175,8 @@ pub enum SeriesError {
     NoAirTemperature { bar: String, sensor: String },
     #[error("bar {bar}: the campaign declares no air sensor and the bar names none")]
     NoAirSensor { bar: String },
+    #[error("bar {bar}: {reason}")]
+    Readings { bar: String, reason: String },
 }
 
 impl BarSeries {
@@ -227,7 +237,12 @@ impl BarSeries {
             return Self::from_readings(campaign, events, bar_id, readings, celsius, t0_ns);
         }
         let grid = BinGrid::new(campaign, events, bar_id, bin_s);
-        let bins = BarBins::from_log(grid, &log.time_ns, &log.counts);
+        let bins = BarBins::from_log(grid, &log.time_ns, &log.counts).map_err(|e| {
+            SeriesError::Readings {
+                bar: bar_id.to_string(),
+                reason: e.to_string(),
+            }
+        })?;
         drop(log);
         Self::from_bins(campaign, events, bar_id, &bins, sensors, knots, t0_ns)
     }

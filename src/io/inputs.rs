@@ -7,7 +7,8 @@ use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use super::IngestError;
-use crate::series::InputFile;
+use crate::series::quality::{Flag, FlagKind};
+use crate::series::{InputFile, Quality};
 
 pub(crate) const MANIFEST: &str = "campaign.toml";
 pub(crate) const ENCODERS: &str = "encoders";
@@ -108,6 +109,7 @@ fn hash_file(dir: &Path, path: &Path) -> Result<InputFile, IngestError> {
         path: relative_slash_path(dir, path),
         sha256: hex,
         bytes,
+        duplicate_of: None,
     })
 }
 
@@ -117,4 +119,102 @@ fn relative_slash_path(dir: &Path, path: &Path) -> String {
         .map(|c| c.as_os_str().to_string_lossy().into_owned())
         .collect::<Vec<_>>()
         .join("/")
+}
+
+/// Size and modification time of a file, taken before it is hashed.
+pub(crate) struct Stamp {
+    path: PathBuf,
+    bytes: u64,
+    modified: Option<std::time::SystemTime>,
+}
+
+fn stamp(path: &Path) -> Result<Stamp, IngestError> {
+    let meta = std::fs::metadata(path).map_err(|e| IngestError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    Ok(Stamp {
+        path: path.to_path_buf(),
+        bytes: meta.len(),
+        modified: meta.modified().ok(),
+    })
+}
+
+/// [`Stamp`]s of `files`, in order.
+pub(crate) fn stamps(files: &[PathBuf]) -> Result<Vec<Stamp>, IngestError> {
+    files.iter().map(|p| stamp(p)).collect()
+}
+
+/// The hashes are of the bytes analysed: each file kept the size and modification time it had
+/// before hashing until the read ended, and the hash covered exactly that many bytes.
+pub(crate) fn check_unchanged(
+    dir: &Path,
+    before: &[Stamp],
+    hashed: &[InputFile],
+) -> Result<(), IngestError> {
+    for old in before {
+        let now = stamp(&old.path)?;
+        let changed = |what: String| IngestError::ChangedDuringRun {
+            path: old.path.clone(),
+            what,
+        };
+        if now.bytes != old.bytes {
+            return Err(changed(format!("{} bytes, then {}", old.bytes, now.bytes)));
+        }
+        if now.modified != old.modified {
+            return Err(changed("modification time moved".into()));
+        }
+        let rel = relative_slash_path(dir, &old.path);
+        let hashed_bytes = hashed.iter().find(|f| f.path == rel).map(|f| f.bytes);
+        if let Some(b) = hashed_bytes.filter(|&b| b != old.bytes) {
+            return Err(changed(format!("{} bytes, {b} hashed", old.bytes)));
+        }
+    }
+    Ok(())
+}
+
+/// A file byte-identical to an earlier one (by path) of its table is not read again: it is
+/// dropped from `files`, marked `duplicate_of` in `inputs` and flagged in `quality.files`.
+pub(crate) fn skip_duplicate_files(
+    dir: &Path,
+    files: &mut CampaignFiles,
+    inputs: &mut [InputFile],
+    quality: &mut Quality,
+) {
+    let hash_of = |inputs: &[InputFile], path: &Path| {
+        let rel = relative_slash_path(dir, path);
+        inputs
+            .iter()
+            .find(|f| f.path == rel)
+            .map(|f| f.sha256.clone())
+    };
+    for table in [
+        &mut files.encoders,
+        &mut files.temperatures,
+        &mut files.events,
+    ] {
+        let mut seen: Vec<(String, String)> = Vec::new();
+        let mut kept = Vec::new();
+        for path in table.drain(..) {
+            let rel = relative_slash_path(dir, &path);
+            let hash = hash_of(inputs, &path).unwrap_or_default();
+            match seen.iter().find(|(h, _)| *h == hash) {
+                Some((_, first)) => {
+                    if let Some(f) = inputs.iter_mut().find(|f| f.path == rel) {
+                        f.duplicate_of = Some(first.clone());
+                    }
+                    let note =
+                        format!("{rel} is byte-identical to {first} (same sha256): read once");
+                    quality
+                        .files
+                        .push(Flag::file(FlagKind::DuplicateFile, 0, note));
+                }
+                None => {
+                    seen.push((hash, rel));
+                    kept.push(path);
+                }
+            }
+        }
+        *table = kept;
+    }
 }

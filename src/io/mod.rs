@@ -6,6 +6,7 @@
 //! only in the crate's own types (`campaign`, `series`, [`Table`]), so a polars upgrade touches
 //! `src/io/` alone.
 
+mod guard;
 mod inputs;
 mod read;
 mod table;
@@ -75,6 +76,31 @@ pub enum IngestError {
     /// A polars failure that none of the checks above predicted (e.g. a corrupt data page).
     #[error("{context}: {message}")]
     Polars { context: String, message: String },
+    /// Rows whose value cannot be read as what the spec says (a time out of range, counts that
+    /// are not whole numbers): named by file, column and row range (counting from 0).
+    #[error(
+        "{}: column `{column}`: {rows} rows (rows {first_row} .. {last_row}, counting from 0) {problem} (first: {example})",
+        path.display()
+    )]
+    BadRows {
+        path: PathBuf,
+        column: &'static str,
+        rows: u64,
+        first_row: u64,
+        last_row: u64,
+        problem: String,
+        example: String,
+    },
+    /// A dependency panicked while reading the file (caught at the read, `io::guard`).
+    #[error("{}: the parquet reader failed on this file (corrupt?): {message}", path.display())]
+    Panicked { path: PathBuf, message: String },
+    /// The file's size or modification time changed between hashing and the end of the read:
+    /// the hash recorded would not be of the bytes analysed.
+    #[error("{}: changed while it was being read ({what}); run again on a stable copy", path.display())]
+    ChangedDuringRun { path: PathBuf, what: String },
+    /// A campaign that cannot give any result (no bars, no mounts, no air for a bar).
+    #[error("{}: {problem}", path.display())]
+    UnusableCampaign { path: PathBuf, problem: String },
 }
 
 /// Reads a campaign directory (see `shared/spec/campaign-format.md`): the manifest, every
@@ -92,15 +118,20 @@ pub fn read_campaign(dir: &Path) -> Result<CampaignLogs, IngestError> {
 /// [`read_campaign`], with every bar's encoder rows compressed into bins of `bin_s` seconds
 /// while they stream in ([`crate::series::BarBins`], [`CampaignLogs::bins`]; the bar logs stay
 /// empty): a campaign at 1 Hz is never held at full rate. `bin_s <= 0`: [`read_campaign`].
+///
+/// Every file is hashed first (`inputs.json`); a file byte-identical to an earlier one of its
+/// table is read once and flagged (`quality.files`); after the read every file's size and
+/// modification time are checked against those taken before hashing, so the hashes recorded
+/// are of the bytes analysed ([`IngestError::ChangedDuringRun`] otherwise).
 pub fn read_campaign_binned(dir: &Path, bin_s: f64) -> Result<CampaignLogs, IngestError> {
     let campaign = read::read_manifest(dir)?;
-    let files = inputs::CampaignFiles::list(dir)?;
-    // Hashing (one core, ~0.2 s for 135 MB) overlaps the read, which waits on decompression.
-    let (tables, inputs) = rayon::join(
-        || read::read_tables(&files, &campaign, bin_s),
-        || inputs::hash_inputs(dir, &files.all()),
-    );
-    let (tables, inputs) = (tables?, inputs?);
+    let mut files = inputs::CampaignFiles::list(dir)?;
+    let stamps = inputs::stamps(&files.all())?;
+    let mut inputs = inputs::hash_inputs(dir, &files.all())?;
+    let mut quality = crate::series::Quality::default();
+    inputs::skip_duplicate_files(dir, &mut files, &mut inputs, &mut quality);
+    let tables = read::read_tables(&files, &campaign, bin_s, &mut quality)?;
+    inputs::check_unchanged(dir, &stamps, &inputs)?;
     Ok(CampaignLogs {
         campaign,
         inputs,
@@ -108,6 +139,7 @@ pub fn read_campaign_binned(dir: &Path, bin_s: f64) -> Result<CampaignLogs, Inge
         bins: tables.bins,
         sensors: tables.sensors,
         events: tables.events,
+        quality,
     })
 }
 

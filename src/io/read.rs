@@ -17,10 +17,15 @@ use std::path::{Path, PathBuf};
 use polars::lazy::dsl::Engine;
 use polars::prelude::*;
 
+use super::guard::guarded;
 use super::inputs::{CampaignFiles, MANIFEST};
 use super::{format_ns, one_line, IngestError};
-use crate::campaign::{Campaign, Manifest};
-use crate::series::{BarBins, BarLog, BinAccumulator, BinGrid, Event, SensorLog};
+use crate::campaign::{Campaign, Manifest, SensorKind};
+use crate::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
+use crate::series::{
+    reading_time_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event, Quality, SensorLog,
+    MAX_ABS_COUNTS,
+};
 
 /// Index of the source file of each row, added while scanning, for error messages.
 const FILE_COL: &str = "__source_file";
@@ -32,7 +37,7 @@ enum Kind {
     Time,
     /// utf8 or dictionary(utf8) -> String.
     Text,
-    /// Integer -> i64.
+    /// Integer -> i64; float -> f64 (whole numbers accepted, checked row by row).
     Count,
     /// Float -> f64.
     Real,
@@ -55,12 +60,14 @@ const fn spec(name: &'static str, kind: Kind, nullable: bool) -> ColumnSpec {
 const ENCODER_COLUMNS: [ColumnSpec; 3] = [
     spec("time", Kind::Time, false),
     spec("bar", Kind::Text, false),
-    spec("counts", Kind::Count, false),
+    // Null counts are missing readings: dropped and counted per bar (`EncoderSink::push`).
+    spec("counts", Kind::Count, true),
 ];
 const TEMPERATURE_COLUMNS: [ColumnSpec; 3] = [
     spec("time", Kind::Time, false),
     spec("sensor", Kind::Text, false),
-    spec("celsius", Kind::Real, false),
+    // Null, NaN, ±inf: missing readings, dropped and counted per sensor (`sensor_log`).
+    spec("celsius", Kind::Real, true),
 ];
 const EVENT_COLUMNS: [ColumnSpec; 4] = [
     spec("time", Kind::Time, false),
@@ -74,7 +81,7 @@ impl Kind {
         match self {
             Kind::Time => "a timestamp (ns, us or ms; naive or zoned)",
             Kind::Text => "utf8 or dictionary(utf8)",
-            Kind::Count => "int64 or int32",
+            Kind::Count => "int64 or int32 (or float64 holding whole numbers)",
             Kind::Real => "float64",
         }
     }
@@ -84,21 +91,9 @@ impl Kind {
     fn normalise(self, name: &str, dtype: &DataType) -> Option<Expr> {
         let c = col(name);
         match (self, dtype) {
-            // The physical value of a polars datetime is UTC epoch in its unit, zone or not.
-            (Kind::Time, DataType::Datetime(unit, _)) => {
-                let ns_per_unit: i64 = match unit {
-                    TimeUnit::Nanoseconds => 1,
-                    TimeUnit::Microseconds => 1_000,
-                    TimeUnit::Milliseconds => 1_000_000,
-                };
-                let ns = c.cast(DataType::Int64);
-                // A pass over tens of millions of rows saved when the unit is already ns.
-                Some(if ns_per_unit == 1 {
-                    ns
-                } else {
-                    ns * lit(ns_per_unit)
-                })
-            }
+            // The physical value of a polars datetime is UTC epoch in its unit, zone or not; it
+            // is scaled to ns in Rust with checked arithmetic (`to_ns`), never wrapped.
+            (Kind::Time, DataType::Datetime(..)) => Some(c.cast(DataType::Int64)),
             (Kind::Text, DataType::String) => Some(c),
             (Kind::Text, DataType::Categorical(..) | DataType::Enum(..)) => {
                 Some(c.cast(DataType::String))
@@ -113,8 +108,95 @@ impl Kind {
                 | DataType::UInt16
                 | DataType::UInt8,
             ) => Some(c.cast(DataType::Int64)),
+            (Kind::Count, DataType::Float64 | DataType::Float32) => Some(c.cast(DataType::Float64)),
             (Kind::Real, DataType::Float64 | DataType::Float32) => Some(c.cast(DataType::Float64)),
             _ => None,
+        }
+    }
+}
+
+/// How a file stores its `time` column: ns per stored unit, and whether it names a zone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct TimeColumn {
+    ns_per_unit: i64,
+    zoned: bool,
+}
+
+impl TimeColumn {
+    fn of(dtype: Option<&DataType>) -> TimeColumn {
+        match dtype {
+            Some(DataType::Datetime(unit, zone)) => TimeColumn {
+                ns_per_unit: match unit {
+                    TimeUnit::Nanoseconds => 1,
+                    TimeUnit::Microseconds => 1_000,
+                    TimeUnit::Milliseconds => 1_000_000,
+                },
+                zoned: zone.is_some(),
+            },
+            _ => TimeColumn {
+                ns_per_unit: 1,
+                zoned: false,
+            },
+        }
+    }
+
+    fn unit(self) -> &'static str {
+        match self.ns_per_unit {
+            1 => "ns",
+            1_000 => "us",
+            _ => "ms",
+        }
+    }
+
+    /// A stored value as ns, when it is an accepted reading time: `None` for an overflow of
+    /// the ns range (µs/ms far out) or a time outside 1980 .. 2200 (NaT = `i64::MIN`, a 1970
+    /// clock reset, a far future).
+    fn to_ns(self, raw: i64) -> Option<i64> {
+        raw.checked_mul(self.ns_per_unit)
+            .filter(|&t| reading_time_ok(t))
+    }
+}
+
+const TIME_PROBLEM: &str =
+    "hold times outside 1980-01-01 .. 2200-01-01 (NaT, a clock reset, a far future, or a unit whose ns value overflows)";
+
+/// Rows of one file with one problem: how many, the first and last row, the first value.
+#[derive(Debug, Clone)]
+struct BadRange {
+    rows: u64,
+    first_row: u64,
+    last_row: u64,
+    example: String,
+}
+
+impl BadRange {
+    fn add(slot: &mut Option<BadRange>, row: u64, example: impl FnOnce() -> String) {
+        match slot {
+            Some(b) => {
+                b.rows += 1;
+                b.first_row = b.first_row.min(row);
+                b.last_row = b.last_row.max(row);
+            }
+            None => {
+                *slot = Some(BadRange {
+                    rows: 1,
+                    first_row: row,
+                    last_row: row,
+                    example: example(),
+                })
+            }
+        }
+    }
+
+    fn error(self, path: PathBuf, column: &'static str, problem: &str) -> IngestError {
+        IngestError::BadRows {
+            path,
+            column,
+            rows: self.rows,
+            first_row: self.first_row,
+            last_row: self.last_row,
+            problem: problem.to_string(),
+            example: self.example,
         }
     }
 }
@@ -133,7 +215,41 @@ pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
     })?;
     let file = path.display().to_string();
     let manifest = Manifest::from_toml_str(&text, &file)?;
-    Ok(Campaign::from_manifest_at(manifest, &file)?)
+    let campaign = Campaign::from_manifest_at(manifest, &file)?;
+    check_usable(&campaign, &path)?;
+    Ok(campaign)
+}
+
+/// A campaign that can give no result is refused before any table is read: no bar, no mount,
+/// or a bar that names no sensor in a campaign without an air sensor (its air would be the
+/// mean of none).
+fn check_usable(campaign: &Campaign, path: &Path) -> Result<(), IngestError> {
+    let refuse = |problem: String| IngestError::UnusableCampaign {
+        path: path.to_path_buf(),
+        problem,
+    };
+    if campaign.bars.is_empty() {
+        return Err(refuse(
+            "declares no bar ([[bar]]): nothing to analyse".into(),
+        ));
+    }
+    if campaign.mounts.is_empty() {
+        return Err(refuse(
+            "declares no mount ([[mount]]): no reading can be placed on a length".into(),
+        ));
+    }
+    let has_air = campaign.sensors.iter().any(|s| s.kind == SensorKind::Air);
+    if let Some(bar) = campaign
+        .bars
+        .iter()
+        .find(|b| b.sensor.is_none() && !has_air)
+    {
+        return Err(refuse(format!(
+            "declares no air sensor (kind = \"air\") and bar {} names no `sensor`: its air temperature is unknown",
+            bar.id
+        )));
+    }
+    Ok(())
 }
 
 /// The three tables, split per bar / sensor and sorted.
@@ -150,12 +266,14 @@ pub(crate) fn read_tables(
     files: &CampaignFiles,
     campaign: &Campaign,
     bin_s: f64,
+    quality: &mut Quality,
 ) -> Result<Tables, IngestError> {
     let bar_ids: BTreeSet<&str> = campaign.bars.iter().map(|b| b.id.as_str()).collect();
     let sensor_ids: BTreeSet<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
+    let mut zones = Vec::new();
 
     let clock = std::time::Instant::now();
-    let temperatures = read_table(&files.temperatures, &TEMPERATURE_COLUMNS)?;
+    let temperatures = read_table(&files.temperatures, &TEMPERATURE_COLUMNS, &mut zones)?;
     let readings =
         sensor_readings(&temperatures, &sensor_ids).map_err(polars_error("temperatures"))?;
     let matched = readings.values().map(DataFrame::height).sum();
@@ -170,7 +288,7 @@ pub(crate) fn read_tables(
     tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
 
     // Events first: the bins of a bar never cross its rezero events.
-    let events = read_events(&files.events, &bar_ids)?;
+    let events = read_events(&files.events, &bar_ids, &mut zones, &mut quality.events)?;
     let grids: BTreeMap<String, BinGrid> = if bin_s > 0.0 {
         bar_ids
             .iter()
@@ -185,20 +303,88 @@ pub(crate) fn read_tables(
     } else {
         0
     };
-    let (bars, bins) = read_encoders(&files.encoders, &bar_ids, &grids, rows_hint)?;
+    let encoders = read_encoders(&files.encoders, &bar_ids, &grids, rows_hint, &mut zones)?;
     tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
 
-    let sensors: BTreeMap<String, SensorLog> = readings
-        .iter()
-        .map(|(id, df)| Ok((id.clone(), sensor_log(df)?)))
-        .collect::<PolarsResult<_>>()
-        .map_err(polars_error("temperatures"))?;
+    let mut sensors = BTreeMap::new();
+    for (id, df) in &readings {
+        let q = quality.sensors.entry(id.clone()).or_default();
+        let log = sensor_log(df, q).map_err(polars_error("temperatures"))?;
+        sensors.insert(id.clone(), log);
+    }
+    let (mut bars, mut bins) = (encoders.logs, encoders.bins);
+    check_bars(campaign, &events, &sensors, &mut bars, &mut bins, quality);
+    for (id, (rows, missing)) in encoders.rows {
+        let q = quality.bars.entry(id).or_default();
+        q.rows = rows;
+        missing.record(q, "encoder rows");
+    }
+    flag_mixed_zones(&zones, quality);
     Ok(Tables {
         bars,
         bins,
         sensors,
         events,
     })
+}
+
+/// Every bar's encoder checks (`series::quality`), bars in parallel.
+fn check_bars(
+    campaign: &Campaign,
+    events: &[Event],
+    sensors: &BTreeMap<String, SensorLog>,
+    bars: &mut BTreeMap<String, BarLog>,
+    bins: &mut BTreeMap<String, BarBins>,
+    quality: &mut Quality,
+) {
+    use rayon::prelude::*;
+    for id in bars.keys() {
+        quality.bars.entry(id.clone()).or_default();
+    }
+    let mut work: Vec<(&String, &mut BarLog, Option<&mut BarBins>, ChannelQuality)> = bars
+        .iter_mut()
+        .map(|(id, log)| (id, log, None, ChannelQuality::default()))
+        .collect();
+    for (id, b) in bins.iter_mut() {
+        if let Some(w) = work.iter_mut().find(|w| w.0 == id) {
+            w.2 = Some(b);
+        }
+    }
+    work.par_iter_mut()
+        .for_each(|(id, log, binned, q)| match binned {
+            Some(b) => quality::check_bins(campaign, events, sensors, id, b, q),
+            None => quality::check_log(campaign, events, sensors, id, log, q),
+        });
+    for (id, _, _, q) in work {
+        let entry = quality.bars.entry(id.clone()).or_default();
+        entry.duplicate_rows += q.duplicate_rows;
+        entry.fault_rows += q.fault_rows;
+        entry.dropped_rows += q.dropped_rows;
+        entry.flags.extend(q.flags);
+        entry.unusable = q.unusable;
+    }
+}
+
+/// Naive (UTC by the spec) and zoned time columns in one campaign: legal, but a naive file
+/// written in local time would be off by the zone's offset, so it is flagged.
+fn flag_mixed_zones(zones: &[(PathBuf, bool)], quality: &mut Quality) {
+    let naive: Vec<&PathBuf> = zones.iter().filter(|z| !z.1).map(|z| &z.0).collect();
+    let zoned = zones.len() - naive.len();
+    if naive.is_empty() || zoned == 0 {
+        return;
+    }
+    let name = |p: &PathBuf| {
+        p.file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned())
+    };
+    let note = format!(
+        "{} files have naive times (taken as UTC, e.g. {}) and {zoned} zoned ones: check the naive ones are not local time",
+        naive.len(),
+        name(naive[0])
+    );
+    quality
+        .files
+        .push(Flag::file(FlagKind::MixedTimeZones, 0, note));
 }
 
 /// The rows of known ids were extracted (`matched` of them); if that is not every row, some id
@@ -234,10 +420,16 @@ fn polars_error(context: &str) -> impl Fn(PolarsError) -> IngestError + '_ {
 // ---------------------------------------------------------------- scanning
 
 /// Scans, normalises and stacks every file of one table; adds [`FILE_COL`] and checks nulls.
-fn read_table(files: &[PathBuf], columns: &[ColumnSpec]) -> Result<DataFrame, IngestError> {
+/// `zones`: each file's path and whether its times are zoned.
+fn read_table(
+    files: &[PathBuf],
+    columns: &[ColumnSpec],
+    zones: &mut Vec<(PathBuf, bool)>,
+) -> Result<DataFrame, IngestError> {
     let mut stacked: Option<DataFrame> = None;
     for (index, path) in files.iter().enumerate() {
-        let df = read_file(path, columns, index)?;
+        let (df, time) = guarded(path, || read_file(path, columns, index))?;
+        zones.push((path.clone(), time.zoned));
         match stacked.as_mut() {
             None => stacked = Some(df),
             Some(all) => {
@@ -257,20 +449,44 @@ fn not_parquet(path: &Path, e: PolarsError) -> IngestError {
     }
 }
 
-/// One file, projected to the spec's columns in canonical types.
-fn read_file(path: &Path, columns: &[ColumnSpec], index: usize) -> Result<DataFrame, IngestError> {
+/// One file, projected to the spec's columns in canonical types, times in ns (checked: a time
+/// out of range is refused with its rows).
+fn read_file(
+    path: &Path,
+    columns: &[ColumnSpec],
+    index: usize,
+) -> Result<(DataFrame, TimeColumn), IngestError> {
     let index = u32::try_from(index).unwrap_or(u32::MAX);
-    scan_file(path, columns)?
+    let (lazy, schema, exprs) = checked_scan(path, columns)?;
+    let unit = TimeColumn::of(schema.get("time"));
+    let mut df = lazy
+        .select(exprs)
         .with_column(lit(index).cast(DataType::UInt32).alias(FILE_COL))
         .collect()
-        .map_err(|e| not_parquet(path, e))
-}
-
-/// One file's lazy scan, projected to the spec's columns in canonical types; schema errors
-/// (missing column, wrong type) are raised here, before any row is read.
-fn scan_file(path: &Path, columns: &[ColumnSpec]) -> Result<LazyFrame, IngestError> {
-    let (lazy, _, exprs) = checked_scan(path, columns)?;
-    Ok(lazy.select(exprs))
+        .map_err(|e| not_parquet(path, e))?;
+    let raw = df
+        .column("time")
+        .and_then(|c| c.i64().cloned())
+        .map_err(|e| not_parquet(path, e))?;
+    let mut bad = None;
+    let ns: Int64Chunked = raw
+        .iter()
+        .enumerate()
+        .map(|(row, t)| {
+            let t = t?;
+            let ns = unit.to_ns(t);
+            if ns.is_none() {
+                BadRange::add(&mut bad, row as u64, || format!("{t} {}", unit.unit()));
+            }
+            ns.or(Some(0))
+        })
+        .collect();
+    if let Some(b) = bad {
+        return Err(b.error(path.to_path_buf(), "time", TIME_PROBLEM));
+    }
+    df.with_column(ns.into_series().with_name("time".into()).into_column())
+        .map_err(|e| not_parquet(path, e))?;
+    Ok((df, unit))
 }
 
 /// One file's lazy scan, its whole schema, and the expressions that project it to the spec's
@@ -321,14 +537,16 @@ fn scan_args() -> ScanArgsParquet {
 pub(crate) fn footer_rows(files: &[PathBuf]) -> Result<u64, IngestError> {
     let mut rows = 0u64;
     for path in files {
-        let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
-            path: path.clone(),
-            message: e.to_string(),
+        let n = guarded(path, || {
+            let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
+                path: path.clone(),
+                message: e.to_string(),
+            })?;
+            ParquetReader::new(file)
+                .num_rows()
+                .map_err(|e| not_parquet(path, e))
         })?;
-        let n = ParquetReader::new(file)
-            .num_rows()
-            .map_err(|e| not_parquet(path, e))?;
-        rows += n as u64;
+        rows = rows.saturating_add(n as u64);
     }
     Ok(rows)
 }
@@ -444,8 +662,11 @@ impl IdIndex {
 /// What the streamed encoder batches leave behind: per-bar rows of declared bars, and what the
 /// checks need (nulls per column and file, undeclared ids per file).
 struct EncoderSink {
-    /// Index of the file being streamed.
+    /// Index of the file being streamed, and its rows streamed before this batch.
     file: u32,
+    row_offset: u64,
+    /// How the batch's times are stored (a scan's files share one schema).
+    time: TimeColumn,
     ids: IdIndex,
     /// Rows of the declared bars, by index in `ids`.
     bars: Vec<BarRows>,
@@ -453,6 +674,13 @@ struct EncoderSink {
     nulls: BTreeMap<(usize, u32), u64>,
     /// (file, id) -> rows of an undeclared bar.
     unknown: BTreeMap<(u32, String), Unknown>,
+    /// (file, column, problem) -> rows that cannot be read (times out of range, counts that are
+    /// not whole numbers or beyond ±2^48): the run is refused on them.
+    bad: BTreeMap<(u32, &'static str, &'static str), BadRange>,
+    /// Per id index: rows read, and missing counts (null, NaN, ±inf) dropped.
+    read: Vec<(u64, Missing)>,
+    /// A bin accumulator's refusal (cannot happen after `push`'s checks; reported if it does).
+    bin_error: Option<String>,
     /// Scratch: each row's id index, and the batch's rows grouped by bar.
     row_ids: Vec<u32>,
     grouped_time: Vec<i64>,
@@ -467,10 +695,11 @@ impl EncoderSink {
     /// interleaved, or shuffled) is first grouped by bar with a counting sort (stable: each bar's
     /// rows keep their order), so every bar gets its rows as one slice.
     fn push(&mut self, batch: &DataFrame) -> PolarsResult<()> {
+        let offset = self.row_offset;
+        self.row_offset += batch.height() as u64;
         let time = batch.column("time")?.i64()?;
         let bar = batch.column("bar")?.str()?;
-        let counts = batch.column("counts")?.i64()?;
-        let nulls = [time.null_count(), bar.null_count(), counts.null_count()];
+        let nulls = [time.null_count(), bar.null_count()];
         if nulls.iter().any(|&n| n > 0) {
             // The run fails on these nulls (reported after every file is read, as for the
             // other tables); the rows themselves are not needed.
@@ -480,10 +709,156 @@ impl EncoderSink {
             return Ok(());
         }
         let time = time.rechunk();
-        let counts = counts.rechunk();
-        let (time, counts) = (time.cont_slice()?, counts.cont_slice()?);
+        let raw = time.cont_slice()?;
+        let converted;
+        let time: &[i64] = if self.time.ns_per_unit == 1 && raw.iter().all(|&t| reading_time_ok(t))
+        {
+            raw
+        } else {
+            converted = self.times_ns(raw, offset);
+            match &converted {
+                Some(ns) => ns,
+                None => return Ok(()), // refused: the rows are not needed
+            }
+        };
         let mut ids = std::mem::take(&mut self.row_ids);
         self.ids.indices(bar, &mut ids);
+        if self.read.len() < self.ids.names.len() {
+            self.read
+                .resize(self.ids.names.len(), (0, Missing::default()));
+        }
+        for &id in &ids {
+            self.read[id as usize].0 += 1;
+        }
+        let counts = batch.column("counts")?;
+        let whole = counts
+            .i64()
+            .ok()
+            .filter(|c| c.null_count() == 0)
+            .map(|c| c.rechunk());
+        let clean = whole.as_ref().and_then(|c| {
+            let v = c.cont_slice().ok()?;
+            v.iter()
+                .all(|c| c.unsigned_abs() <= MAX_ABS_COUNTS as u64)
+                .then_some(v)
+        });
+        match clean {
+            Some(counts) => self.add_rows(&ids, time, counts),
+            None => {
+                if let Some((ids_kept, time_kept, counts_kept)) =
+                    self.checked_counts(&ids, time, counts, offset)?
+                {
+                    self.add_rows(&ids_kept, &time_kept, &counts_kept);
+                }
+            }
+        }
+        self.row_ids = ids;
+        Ok(())
+    }
+
+    /// Times of the batch in ns, or `None` (rows recorded in `bad`) when one is out of range.
+    fn times_ns(&mut self, raw: &[i64], offset: u64) -> Option<Vec<i64>> {
+        let unit = self.time;
+        let mut bad = None;
+        let ns: Vec<i64> = raw
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| {
+                unit.to_ns(t).unwrap_or_else(|| {
+                    BadRange::add(&mut bad, offset + i as u64, || {
+                        format!("{t} {}", unit.unit())
+                    });
+                    0
+                })
+            })
+            .collect();
+        match bad {
+            None => Some(ns),
+            Some(b) => {
+                self.merge_bad("time", TIME_PROBLEM, b);
+                None
+            }
+        }
+    }
+
+    fn merge_bad(&mut self, column: &'static str, problem: &'static str, b: BadRange) {
+        let slot = self
+            .bad
+            .entry((self.file, column, problem))
+            .or_insert(BadRange {
+                rows: 0,
+                first_row: b.first_row,
+                last_row: b.last_row,
+                example: b.example.clone(),
+            });
+        slot.rows += b.rows;
+        slot.first_row = slot.first_row.min(b.first_row);
+        slot.last_row = slot.last_row.max(b.last_row);
+    }
+
+    /// Counts that are not a clean int64 column (nulls, floats, values beyond ±2^48): missing
+    /// ones (null, NaN, ±inf) dropped and counted per bar; whole floats converted exactly; the
+    /// batch refused (`None`, rows in `bad`) on a fraction or a value out of range.
+    #[allow(clippy::type_complexity)]
+    fn checked_counts(
+        &mut self,
+        ids: &[u32],
+        time: &[i64],
+        counts: &Column,
+        offset: u64,
+    ) -> PolarsResult<Option<(Vec<u32>, Vec<i64>, Vec<i64>)>> {
+        const FRACTION: &str = "hold counts that are not whole numbers";
+        const RANGE: &str = "hold counts beyond ±2^48";
+        let values: Vec<Option<f64>> = match counts.dtype() {
+            DataType::Float64 => counts.f64()?.iter().collect(),
+            _ => counts.i64()?.iter().map(|c| c.map(|c| c as f64)).collect(),
+        };
+        let ints: Vec<Option<i64>> = match counts.dtype() {
+            DataType::Float64 => vec![None; values.len()],
+            _ => counts.i64()?.iter().collect(),
+        };
+        let (mut fraction, mut range) = (None, None);
+        let mut kept = (Vec::new(), Vec::new(), Vec::new());
+        for (i, (&v, &int)) in values.iter().zip(&ints).enumerate() {
+            let row = offset + i as u64;
+            let c = match (int, v) {
+                (Some(c), _) => c,
+                (None, Some(v)) if v.is_finite() => {
+                    if v.fract() != 0.0 {
+                        BadRange::add(&mut fraction, row, || v.to_string());
+                        continue;
+                    }
+                    if v.abs() > MAX_ABS_COUNTS as f64 {
+                        BadRange::add(&mut range, row, || v.to_string());
+                        continue;
+                    }
+                    v as i64
+                }
+                (None, v) => {
+                    self.read[ids[i] as usize].1.add(time[i], v);
+                    continue;
+                }
+            };
+            if c.unsigned_abs() > MAX_ABS_COUNTS as u64 {
+                BadRange::add(&mut range, row, || c.to_string());
+                continue;
+            }
+            kept.0.push(ids[i]);
+            kept.1.push(time[i]);
+            kept.2.push(c);
+        }
+        let refused = fraction.is_some() || range.is_some();
+        if let Some(b) = fraction {
+            self.merge_bad("counts", FRACTION, b);
+        }
+        if let Some(b) = range {
+            self.merge_bad("counts", RANGE, b);
+        }
+        Ok((!refused).then_some(kept))
+    }
+
+    /// Adds the batch's rows (id index, time ns, counts) to the bars' logs or bins.
+    fn add_rows(&mut self, ids: &[u32], time: &[i64], counts: &[i64]) {
         let runs = 1 + ids.windows(2).filter(|w| w[0] != w[1]).count();
         if runs * 64 <= ids.len() {
             let mut start = 0;
@@ -494,7 +869,7 @@ impl EncoderSink {
                 }
             }
         } else {
-            self.group_by_bar(&ids, time, counts);
+            self.group_by_bar(ids, time, counts);
             let (grouped_time, grouped_counts) = (
                 std::mem::take(&mut self.grouped_time),
                 std::mem::take(&mut self.grouped_counts),
@@ -510,8 +885,6 @@ impl EncoderSink {
             (self.grouped_time, self.grouped_counts, self.group_start) =
                 (grouped_time, grouped_counts, starts);
         }
-        self.row_ids = ids;
-        Ok(())
     }
 
     /// Counting sort of the batch's rows by id index into the grouped scratch columns;
@@ -549,7 +922,10 @@ impl EncoderSink {
                 return;
             }
             Some(BarRows::Binned(bins)) => {
-                bins.add_all(time, counts);
+                // Every row was checked in `push` (times and counts within the sums' range).
+                if let Err(e) = bins.add_all(time, counts) {
+                    self.bin_error.get_or_insert(e.to_string());
+                }
                 return;
             }
             Some(BarRows::Dropped) => return,
@@ -580,7 +956,8 @@ fn read_encoders(
     bar_ids: &BTreeSet<&str>,
     grids: &BTreeMap<String, BinGrid>,
     rows_hint: usize,
-) -> Result<(BTreeMap<String, BarLog>, BTreeMap<String, BarBins>), IngestError> {
+    zones: &mut Vec<(PathBuf, bool)>,
+) -> Result<Encoders, IngestError> {
     let keep = |id: &str| match grids.get(id) {
         Some(grid) => BarRows::Binned(BinAccumulator::new(grid.clone())),
         None => BarRows::Kept {
@@ -592,15 +969,21 @@ fn read_encoders(
     // faster than a query per day file); its batches do not say which file they came from, so
     // a null or an undeclared id found there is attributed by a second pass, file by file,
     // that keeps no rows (only on that error path).
-    let clean = |s: &EncoderSink| s.nulls.is_empty() && s.unknown.is_empty();
-    let sink = match stream_encoders(files, bar_ids, &keep, true) {
+    let clean = |s: &EncoderSink| s.nulls.is_empty() && s.unknown.is_empty() && s.bad.is_empty();
+    let sink = match stream_encoders(files, bar_ids, &keep, true, zones) {
         Ok(sink) if clean(&sink) => sink,
-        Ok(_) => match stream_encoders(files, bar_ids, &|_| BarRows::Dropped, false)? {
+        Ok(_) => match stream_encoders(
+            files,
+            bar_ids,
+            &|_| BarRows::Dropped,
+            false,
+            &mut Vec::new(),
+        )? {
             check if !clean(&check) => check,
-            _ => stream_encoders(files, bar_ids, &keep, false)?,
+            _ => stream_encoders(files, bar_ids, &keep, false, &mut Vec::new())?,
         },
         // The failing file named by a scan of its own.
-        Err(_) => stream_encoders(files, bar_ids, &keep, false)?,
+        Err(_) => stream_encoders(files, bar_ids, &keep, false, &mut Vec::new())?,
     };
     if let Some((&(column, file), &count)) = sink.nulls.iter().next() {
         return Err(IngestError::Nulls {
@@ -609,6 +992,24 @@ fn read_encoders(
             count,
         });
     }
+    if let Some(((file, column, problem), b)) = sink.bad.into_iter().next() {
+        return Err(b.error(file_path(files, file), column, problem));
+    }
+    if let Some(message) = sink.bin_error {
+        return Err(IngestError::Polars {
+            context: "encoders".into(),
+            message,
+        });
+    }
+    let rows: BTreeMap<String, (u64, Missing)> = bar_ids
+        .iter()
+        .zip(
+            sink.read
+                .iter()
+                .chain(std::iter::repeat(&(0, Missing::default()))),
+        )
+        .map(|(id, r)| (id.to_string(), *r))
+        .collect();
     if let Some(((file, id), u)) = sink.unknown.into_iter().next() {
         return Err(IngestError::UnknownId {
             path: file_path(files, file),
@@ -649,7 +1050,15 @@ fn read_encoders(
         }
         logs.insert(id, log);
     }
-    Ok((logs, bins))
+    Ok(Encoders { logs, bins, rows })
+}
+
+/// The encoder table per bar: full-rate logs (sorted) or bins, and per bar the rows read and
+/// the missing counts dropped.
+struct Encoders {
+    logs: BTreeMap<String, BarLog>,
+    bins: BTreeMap<String, BarBins>,
+    rows: BTreeMap<String, (u64, Missing)>,
 }
 
 /// Streams every encoder file into a sink with rows `rows(id)` per declared bar: polars
@@ -661,9 +1070,15 @@ fn stream_encoders(
     bar_ids: &BTreeSet<&str>,
     rows: &dyn Fn(&str) -> BarRows,
     shared_scans: bool,
+    zones: &mut Vec<(PathBuf, bool)>,
 ) -> Result<EncoderSink, IngestError> {
     let mut sink = EncoderSink {
         file: 0,
+        row_offset: 0,
+        time: TimeColumn::of(None),
+        bad: BTreeMap::new(),
+        read: Vec::new(),
+        bin_error: None,
         ids: IdIndex::new(bar_ids.iter().copied()),
         bars: bar_ids.iter().map(|id| rows(id)).collect(),
         nulls: BTreeMap::new(),
@@ -673,16 +1088,19 @@ fn stream_encoders(
         grouped_counts: Vec::new(),
         group_start: Vec::new(),
     };
-    let (batches, received) = std::sync::mpsc::sync_channel::<(u32, DataFrame)>(4);
+    let (batches, received) = std::sync::mpsc::sync_channel::<(u32, TimeColumn, DataFrame)>(4);
     std::thread::scope(|scope| {
         let consumer = scope.spawn(move || -> PolarsResult<EncoderSink> {
-            for (file, batch) in received {
-                sink.file = file;
+            for (file, time, batch) in received {
+                if file != sink.file {
+                    sink.row_offset = 0;
+                }
+                (sink.file, sink.time) = (file, time);
                 sink.push(&batch)?;
             }
             Ok(sink)
         });
-        let streamed = stream_files(files, batches, shared_scans);
+        let streamed = stream_files(files, batches, shared_scans, zones);
         let sink = consumer
             .join()
             .map_err(|_| IngestError::Polars {
@@ -699,13 +1117,15 @@ fn stream_encoders(
 /// read by one scan; else one scan a file.
 fn stream_files(
     files: &[PathBuf],
-    batches: std::sync::mpsc::SyncSender<(u32, DataFrame)>,
+    batches: std::sync::mpsc::SyncSender<(u32, TimeColumn, DataFrame)>,
     shared_scans: bool,
+    zones: &mut Vec<(PathBuf, bool)>,
 ) -> Result<(), IngestError> {
     // Schemas first (footers only): every schema error is raised before any row is read.
     let mut groups: Vec<(Vec<usize>, LazyFrame, SchemaRef, Vec<Expr>)> = Vec::new();
     for (index, path) in files.iter().enumerate() {
-        let (lazy, schema, exprs) = checked_scan(path, &ENCODER_COLUMNS)?;
+        let (lazy, schema, exprs) = guarded(path, || checked_scan(path, &ENCODER_COLUMNS))?;
+        zones.push((path.clone(), TimeColumn::of(schema.get("time")).zoned));
         match groups.last_mut() {
             Some((members, _, shared, _)) if shared_scans && *shared == schema => {
                 members.push(index)
@@ -713,8 +1133,9 @@ fn stream_files(
             _ => groups.push((vec![index], lazy, schema, exprs)),
         }
     }
-    for (members, lazy, _, exprs) in groups {
+    for (members, lazy, schema, exprs) in groups {
         let first = &files[members[0]];
+        let time = TimeColumn::of(schema.get("time"));
         let (file, lazy) = if members.len() == 1 {
             (u32::try_from(members[0]).unwrap_or(u32::MAX), lazy)
         } else {
@@ -731,14 +1152,16 @@ fn stream_files(
         let to_consumer = batches.clone();
         let callback = PlanCallback::new(move |batch: DataFrame| {
             to_consumer
-                .send((file, batch))
+                .send((file, time, batch))
                 .map_err(|_| polars_err!(ComputeError: "the batch consumer stopped"))?;
             Ok(false) // keep going
         });
-        lazy.select(exprs)
-            .sink_batches(callback, true, None)
-            .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
-            .map_err(|e| not_parquet(first, e))?;
+        guarded(first, || {
+            lazy.select(exprs)
+                .sink_batches(callback, true, None)
+                .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
+                .map_err(|e| not_parquet(first, e))
+        })?;
     }
     Ok(())
 }
@@ -921,37 +1344,62 @@ fn sensor_readings(
         .collect()
 }
 
-fn sensor_log(readings: &DataFrame) -> PolarsResult<SensorLog> {
-    Ok(SensorLog {
-        time_ns: i64_values(readings, "time")?,
-        celsius: f64_values(readings, "celsius")?,
-    })
-}
-
-/// Values of a column checked free of nulls (a null, which cannot occur here, would read NaN).
-fn f64_values(df: &DataFrame, name: &str) -> PolarsResult<Vec<f64>> {
-    Ok(df
-        .column(name)?
-        .f64()?
-        .iter()
-        .map(|v| v.unwrap_or(f64::NAN))
-        .collect())
-}
-
-/// Values of a column checked free of nulls by [`check_nulls`].
-fn i64_values(df: &DataFrame, name: &str) -> PolarsResult<Vec<i64>> {
-    Ok(df.column(name)?.i64()?.into_no_null_iter().collect())
+/// A sensor's log from its rows sorted by (time, value): null, NaN and ±inf readings dropped
+/// (a missing reading, not a temperature: one NaN would otherwise spread through every bar
+/// that interpolates the sensor) and exact duplicates counted once, both recorded in `q`.
+fn sensor_log(readings: &DataFrame, q: &mut ChannelQuality) -> PolarsResult<SensorLog> {
+    let time = readings.column("time")?.i64()?;
+    let celsius = readings.column("celsius")?.f64()?;
+    let mut log = SensorLog::default();
+    let mut missing = Missing::default();
+    for (t, c) in time.into_no_null_iter().zip(celsius.iter()) {
+        match c {
+            Some(c) if c.is_finite() => {
+                log.time_ns.push(t);
+                log.celsius.push(c);
+            }
+            other => missing.add(t, other),
+        }
+    }
+    q.rows = readings.height() as u64;
+    missing.record(q, "temperature readings");
+    // Sorted by time, ties by value: exact duplicates are neighbours (NaN, which would not
+    // compare equal, is gone).
+    let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
+    quality::record_duplicates(q, dups, range, "temperature readings");
+    Ok(log)
 }
 
 // ---------------------------------------------------------------- events
 
-fn read_events(files: &[PathBuf], bar_ids: &BTreeSet<&str>) -> Result<Vec<Event>, IngestError> {
+fn read_events(
+    files: &[PathBuf],
+    bar_ids: &BTreeSet<&str>,
+    zones: &mut Vec<(PathBuf, bool)>,
+    q: &mut ChannelQuality,
+) -> Result<Vec<Event>, IngestError> {
     if files.is_empty() {
         return Ok(Vec::new());
     }
-    let table = read_table(files, &EVENT_COLUMNS)?;
+    let table = read_table(files, &EVENT_COLUMNS, zones)?;
     check_ids(&table, files, "bar", bar_ids)?;
-    events_sorted(table).map_err(polars_error("events"))
+    q.rows = table.height() as u64;
+    let events = events_sorted(table).map_err(polars_error("events"))?;
+    // A NaN or infinite value is a missing reading, not a level (a null value is a valueless
+    // event, as the spec allows): the event is dropped and counted.
+    let mut missing = Missing::default();
+    let kept = events
+        .into_iter()
+        .filter(|e| match e.value {
+            Some(v) if !v.is_finite() => {
+                missing.add(e.time_ns, Some(v));
+                false
+            }
+            _ => true,
+        })
+        .collect();
+    missing.record(q, "event rows");
+    Ok(kept)
 }
 
 fn events_sorted(table: DataFrame) -> PolarsResult<Vec<Event>> {

@@ -17,6 +17,15 @@ pub enum Column {
     Str(Vec<String>),
     /// Timestamps, nanoseconds since the Unix epoch, written as a naive (= UTC) `Datetime(ns)`.
     TimeNs(Vec<i64>),
+    /// Nullable integers.
+    OptI64(Vec<Option<i64>>),
+    /// Raw timestamps in `unit` (`None`: null), naive or in `zone` (e.g. `"UTC"`): how a
+    /// logger may write them, for tests of odd inputs.
+    Time {
+        raw: Vec<Option<i64>>,
+        unit: super::TimeUnit,
+        zone: Option<String>,
+    },
 }
 
 impl Column {
@@ -27,6 +36,8 @@ impl Column {
             Column::I64(v) => v.len(),
             Column::Str(v) => v.len(),
             Column::TimeNs(v) => v.len(),
+            Column::OptI64(v) => v.len(),
+            Column::Time { raw, .. } => raw.len(),
         }
     }
 
@@ -44,6 +55,20 @@ impl Column {
             Column::TimeNs(v) => pl::Int64Chunked::from_vec(name, v.clone())
                 .into_datetime(pl::TimeUnit::Nanoseconds, None)
                 .into_column(),
+            Column::OptI64(v) => pl::Series::new(name, v.as_slice()).into_column(),
+            Column::Time { raw, unit, zone } => {
+                let unit = match unit {
+                    super::TimeUnit::Ns => pl::TimeUnit::Nanoseconds,
+                    super::TimeUnit::Us => pl::TimeUnit::Microseconds,
+                    super::TimeUnit::Ms => pl::TimeUnit::Milliseconds,
+                };
+                let zone = pl::TimeZone::opt_try_new(zone.as_deref()).unwrap_or(None);
+                let ints = pl::Series::new(name, raw.as_slice());
+                match ints.i64() {
+                    Ok(ints) => ints.clone().into_datetime(unit, zone).into_column(),
+                    Err(_) => ints.into_column(),
+                }
+            }
         }
     }
 }

@@ -444,11 +444,25 @@ fn wrong_column_types_are_named() {
             pl::Column::new("counts".into(), [1.5f64]),
         ]),
     );
+    // Float counts are accepted when whole; a fraction is refused with file, column and row.
     let msg = read_err(dir.path());
     assert!(
-        msg.contains("float.parquet: column `counts` has type f64, expected int64 or int32"),
+        msg.contains("float.parquet: column `counts`: 1 rows (rows 0 .. 0, counting from 0) hold counts that are not whole numbers (first: 1.5)"),
         "{msg}"
     );
+    write_df(
+        &dir.path().join("encoders/float.parquet"),
+        df(vec![
+            time_col(&[T0, T0 + S, T0 + 2 * S], pl::TimeUnit::Nanoseconds, None),
+            str_col("bar", &["B01", "B01", "B01"]),
+            pl::Column::new("counts".into(), [Some(-7.0f64), None, Some(f64::NAN)]),
+        ]),
+    );
+    let logs = read_campaign(dir.path()).expect("whole float counts");
+    assert_eq!(logs.bars["B01"].counts, vec![-7]);
+    let q = &logs.quality.bars["B01"];
+    assert_eq!((q.rows, q.null, q.nan, q.dropped_rows), (3, 1, 1, 2));
+    std::fs::remove_file(dir.path().join("encoders/float.parquet")).expect("rm");
 
     write_df(
         &dir.path().join("encoders/float.parquet"),
@@ -549,10 +563,14 @@ fn null_times_and_counts_are_named() {
             pl::Column::new("counts".into(), [Some(1i64), None]),
         ]),
     );
-    let msg = read_err(dir.path());
-    assert!(
-        msg.contains("nullcounts.parquet: column `counts` has 1 null values"),
-        "{msg}"
+    // Null counts are missing readings: dropped and counted for their bar.
+    let logs = read_campaign(dir.path()).expect("null counts are dropped");
+    assert_eq!(logs.bars["B01"].counts, vec![1, 0]);
+    let q = &logs.quality.bars["B01"];
+    assert_eq!((q.rows, q.null, q.dropped_rows), (3, 1, 1));
+    assert_eq!(
+        q.flags[0].kind,
+        crate::series::quality::FlagKind::MissingValues
     );
 }
 

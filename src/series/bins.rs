@@ -34,6 +34,39 @@ pub const MAX_BIN_S: f64 = 3600.0;
 
 const NS_PER_US: i64 = 1_000;
 
+/// Earliest reading time accepted anywhere (1980-01-01T00:00:00Z, ns): no logger of this kind
+/// predates it, and a time before it is a clock reset (1970) or a NaT (`i64::MIN`), refused at
+/// ingest (README, "What dbbcal promises about your data").
+pub const EARLIEST_READING_NS: TimeNs = 315_532_800_000_000_000;
+/// First reading time no longer accepted (2200-01-01T00:00:00Z, ns): a time past it is a broken
+/// clock or a unit mix-up. The bounds keep every sum of times and bin numbers far from `i64`'s
+/// ends, so no arithmetic on an accepted time can wrap.
+pub const LATEST_READING_NS: TimeNs = 7_258_118_400_000_000_000;
+/// Largest accepted |counts| (2⁴⁸, 1.4 km at 5 nm a count): with at most
+/// [`MAX_BAR_READINGS`] readings in a bin, `Σ c²` stays below 2¹²⁷ (`i128`).
+pub const MAX_ABS_COUNTS: i64 = 1 << 48;
+/// Most readings one bar's accumulator takes (2³¹): bounds every bin's sums (`Σ u³ < 2¹²⁷`).
+pub const MAX_BAR_READINGS: u64 = 1 << 31;
+
+/// Why readings cannot be added to a bar's bins: a value outside what the integer sums hold
+/// exactly. Ingest refuses such rows before they get here; the accumulator checks again so
+/// that no caller can make it wrap, panic or loop.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BinError {
+    #[error("reading time {time_ns} ns is outside 1980-01-01 .. 2200-01-01")]
+    TimeOutOfRange { time_ns: TimeNs },
+    #[error("counts {counts} exceed ±2^48")]
+    CountsOutOfRange { counts: i64 },
+    #[error("more than 2^31 readings for one bar")]
+    TooManyReadings,
+}
+
+/// Whether `t` is an accepted reading time ([`EARLIEST_READING_NS`] ..
+/// [`LATEST_READING_NS`]).
+pub fn reading_time_ok(t: TimeNs) -> bool {
+    (EARLIEST_READING_NS..LATEST_READING_NS).contains(&t)
+}
+
 /// The bin length chosen when none is set, s: a straight line within a minute is the thermal
 /// model to `O((60 s / tau)²)`, tau being 15 min or more for the bars (`physics.md`); measured
 /// on a 1 Hz campaign, 2-60 s bins give the full-rate estimates to 0.002 u
@@ -78,6 +111,10 @@ pub struct BinMoments {
     /// First and last reading, µs since the bin's start.
     pub first_us: i64,
     pub last_us: i64,
+    /// Smallest and largest counts of the bin: a jump or a counter wrap inside a bin shows as
+    /// a spread far beyond the noise (`series::quality`).
+    pub min_counts: i64,
+    pub max_counts: i64,
     pub su: i128,
     pub suu: i128,
     pub suuu: i128,
@@ -102,10 +139,13 @@ impl BinMoments {
     pub fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
         let mut run = BinMoments::default();
         let (mut first, mut last) = (i64::MAX, i64::MIN);
+        let (mut low, mut high) = (i64::MAX, i64::MIN);
         for (&t, &c) in time_ns.iter().zip(counts) {
             let u = (t - start_ns) / NS_PER_US;
             first = first.min(u);
             last = last.max(u);
+            low = low.min(c);
+            high = high.max(c);
             // 0 <= u < 3.6e9 µs (an hour) < 2³², so u² fits u64 (not i64: bins longer than
             // 50.6 min overflowed it); each product below is one 64x64->128.
             let uu = u as u64 * u as u64;
@@ -118,6 +158,7 @@ impl BinMoments {
         }
         run.n = time_ns.len().min(counts.len()) as u64;
         (run.first_us, run.last_us) = (first, last);
+        (run.min_counts, run.max_counts) = (low, high);
         self.merge(&run);
     }
 
@@ -128,9 +169,12 @@ impl BinMoments {
         let u = (t - start_ns) / NS_PER_US;
         if self.n == 0 {
             (self.first_us, self.last_us) = (u, u);
+            (self.min_counts, self.max_counts) = (c, c);
         } else {
             self.first_us = self.first_us.min(u);
             self.last_us = self.last_us.max(u);
+            self.min_counts = self.min_counts.min(c);
+            self.max_counts = self.max_counts.max(c);
         }
         let uu = u as u64 * u as u64;
         self.n += 1;
@@ -149,9 +193,12 @@ impl BinMoments {
         }
         if self.n == 0 {
             (self.first_us, self.last_us) = (other.first_us, other.last_us);
+            (self.min_counts, self.max_counts) = (other.min_counts, other.max_counts);
         }
         self.first_us = self.first_us.min(other.first_us);
         self.last_us = self.last_us.max(other.last_us);
+        self.min_counts = self.min_counts.min(other.min_counts);
+        self.max_counts = self.max_counts.max(other.max_counts);
         self.n += other.n;
         self.su += other.su;
         self.suu += other.suu;
@@ -387,6 +434,29 @@ pub struct BinAccumulator {
     divide: Divide,
     /// Reused buffers of [`BinAccumulator::add_by_block`].
     scratch: BlockScratch,
+    /// Readings added so far (at most [`MAX_BAR_READINGS`]).
+    readings: u64,
+}
+
+/// The first time or counts value of the rows that the bin sums cannot hold exactly.
+fn check_readings(time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
+    // Branch-free pass first (the common, clean case); the search only on failure.
+    let clean = time_ns.iter().all(|&t| reading_time_ok(t))
+        && counts
+            .iter()
+            .all(|&c| c.unsigned_abs() <= MAX_ABS_COUNTS as u64);
+    if clean {
+        return Ok(());
+    }
+    if let Some(&t) = time_ns.iter().find(|&&t| !reading_time_ok(t)) {
+        return Err(BinError::TimeOutOfRange { time_ns: t });
+    }
+    let c = counts
+        .iter()
+        .copied()
+        .find(|c| c.unsigned_abs() > MAX_ABS_COUNTS as u64)
+        .unwrap_or_default();
+    Err(BinError::CountsOutOfRange { counts: c })
 }
 
 /// Rows at least this many out of time order are grouped by time block before they are added.
@@ -439,20 +509,33 @@ impl BinAccumulator {
             last_span: 0,
             divide: Divide::new(grid.bin_ns as u64),
             scratch: BlockScratch::default(),
+            readings: 0,
         }
     }
 
     /// Add readings given as two columns, in any order (ingest streams tens of millions of rows
     /// through here). Rows in time order go run by run, each run of one bin in a tight loop;
     /// rows out of order are first grouped by time block ([`BinAccumulator::add_by_block`]).
-    pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
+    ///
+    /// Every row is checked first (times within [`EARLIEST_READING_NS`] ..
+    /// [`LATEST_READING_NS`], |counts| ≤ [`MAX_ABS_COUNTS`], at most [`MAX_BAR_READINGS`] in
+    /// all): out of those bounds the bin arithmetic could wrap, so nothing of the call is added
+    /// and the first offending value is returned.
+    pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
         let n = time_ns.len().min(counts.len());
         let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
+        check_readings(time_ns, counts)?;
+        self.readings = self
+            .readings
+            .checked_add(n as u64)
+            .filter(|&r| r <= MAX_BAR_READINGS)
+            .ok_or(BinError::TooManyReadings)?;
         if n >= MIN_BLOCK_SORT_ROWS && !time_ns.is_sorted() {
             self.add_by_block(time_ns, counts);
         } else {
             self.add_in_order(time_ns, counts);
         }
+        Ok(())
     }
 
     /// Rows out of time order, grouped first by blocks of [`PAGE_BINS`] bins (a stable counting
@@ -728,10 +811,14 @@ pub struct Readings {
 impl BarBins {
     /// Bins of a log held in memory (the same sums as streaming it through a
     /// [`BinAccumulator`]).
-    pub fn from_log(grid: BinGrid, time_ns: &[TimeNs], counts: &[i64]) -> BarBins {
+    pub fn from_log(
+        grid: BinGrid,
+        time_ns: &[TimeNs],
+        counts: &[i64],
+    ) -> Result<BarBins, BinError> {
         let mut acc = BinAccumulator::new(grid);
-        acc.add_all(time_ns, counts);
-        acc.finish()
+        acc.add_all(time_ns, counts)?;
+        Ok(acc.finish())
     }
 
     /// Time of the first reading.
@@ -912,19 +999,21 @@ mod tests {
 
     #[test]
     fn the_order_of_the_readings_does_not_change_the_bins() {
-        let time: Vec<TimeNs> = (0..500).map(|i| 1_000_000_000 * i + 7).collect();
+        // Times from 2027-01-15 (accepted reading times, `reading_time_ok`).
+        const B: TimeNs = 1_800_000_000_000_000_000;
+        let time: Vec<TimeNs> = (0..500).map(|i| B + 1_000_000_000 * i + 7).collect();
         let counts: Vec<i64> = (0..500).map(|i| (i * 37) % 101 - 50).collect();
         let grid = BinGrid {
             bin_ns: 60_000_000_000,
-            mounts: vec![(100_000_000_000, 400_000_000_000, 0)],
-            rezeros: vec![250_000_000_000],
+            mounts: vec![(B + 100_000_000_000, B + 400_000_000_000, 0)],
+            rezeros: vec![B + 250_000_000_000],
         };
-        let sorted = BarBins::from_log(grid.clone(), &time, &counts);
+        let sorted = BarBins::from_log(grid.clone(), &time, &counts).unwrap();
         let mut order: Vec<usize> = (0..500).collect();
         order.reverse();
         order.swap(3, 400);
         let (t2, c2): (Vec<_>, Vec<_>) = order.iter().map(|&i| (time[i], counts[i])).unzip();
-        assert_eq!(BarBins::from_log(grid, &t2, &c2), sorted);
+        assert_eq!(BarBins::from_log(grid, &t2, &c2).unwrap(), sorted);
         assert_eq!(sorted.n_readings(), 500);
         // Bins never cross the mount start/end or the rezero, and start on their region's grid.
         let starts: Vec<(TimeNs, Region)> = sorted
@@ -933,20 +1022,20 @@ mod tests {
             .map(|(k, _)| (k.start_ns, k.region))
             .collect();
         assert!(starts.contains(&(
-            100_000_000_000,
+            B + 100_000_000_000,
             Region::Segment {
                 mount: 0,
                 rezeros: 0
             }
         )));
         assert!(starts.contains(&(
-            250_000_000_000,
+            B + 250_000_000_000,
             Region::Segment {
                 mount: 0,
                 rezeros: 1
             }
         )));
-        assert!(starts.contains(&(400_000_000_000, Region::Outside)));
+        assert!(starts.contains(&(B + 400_000_000_000, Region::Outside)));
         assert!(sorted.bins.windows(2).all(|w| w[0].0 < w[1].0));
     }
 
@@ -986,32 +1075,37 @@ mod tests {
         use rand::seq::SliceRandom;
         use rand::{Rng, SeedableRng};
         const S: i64 = 1_000_000_000;
+        // Times from 2027-01-15 (accepted reading times, `reading_time_ok`).
+        const B: TimeNs = 1_800_000_000 * S;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(13);
         let mounts = vec![
-            (1_000 * S, 5_000 * S, 0),
-            (5_000 * S, 9_000 * S + 7, 2),
-            (20_000 * S, 30_000 * S, 1),
+            (B + 1_000 * S, B + 5_000 * S, 0),
+            (B + 5_000 * S, B + 9_000 * S + 7, 2),
+            (B + 20_000 * S, B + 30_000 * S, 1),
         ];
-        let rezeros = vec![
+        let rezeros: Vec<TimeNs> = [
             500 * S,
             3_000 * S,
             3_000 * S,
             5_000 * S,
             12_000 * S,
             25_000 * S + 3,
-        ];
+        ]
+        .iter()
+        .map(|&t| B + t)
+        .collect();
         let mut time: Vec<TimeNs> = (0..20_000)
-            .map(|_| rng.gen_range(-2_000 * S..40_000 * S))
+            .map(|_| B + rng.gen_range(-2_000 * S..40_000 * S))
             .collect();
         time.extend([
-            i64::MIN / 2,
-            -1,
-            0,
-            1_000 * S,
-            5_000 * S - 1,
-            3_000 * S,
-            9_000 * S + 7,
-            i64::MAX / 2,
+            EARLIEST_READING_NS,
+            B - 1,
+            B,
+            B + 1_000 * S,
+            B + 5_000 * S - 1,
+            B + 3_000 * S,
+            B + 9_000 * S + 7,
+            LATEST_READING_NS - 1,
         ]);
         let counts: Vec<i64> = (0..time.len())
             .map(|_| rng.gen_range(-1000..1000))
@@ -1033,7 +1127,7 @@ mod tests {
                 let (t, c): (Vec<_>, Vec<_>) = order.iter().map(|&i| (time[i], counts[i])).unzip();
                 let mut acc = BinAccumulator::new(grid.clone());
                 for (tc, cc) in t.chunks(777).zip(c.chunks(777)) {
-                    acc.add_all(tc, cc);
+                    acc.add_all(tc, cc).unwrap();
                 }
                 assert_eq!(acc.finish(), want, "bin {bin_ns} ns, pass {pass}");
             }
@@ -1078,10 +1172,11 @@ mod tests {
             rezeros: vec![],
         };
         // 1 Hz for 10 min, a 30-min gap, 1 Hz for 10 min again.
-        let time: Vec<TimeNs> = (0..600).chain(2400..3000).map(|i| i * S).collect();
+        const B: TimeNs = 1_800_000_000 * S;
+        let time: Vec<TimeNs> = (0..600).chain(2400..3000).map(|i| B + i * S).collect();
         let counts: Vec<i64> = (0..time.len() as i64).map(|i| i % 7).collect();
-        let bins = BarBins::from_log(grid, &time, &counts);
-        let knots: Vec<TimeNs> = (0..100).map(|i| i * 30 * S + 5 * S).collect();
+        let bins = BarBins::from_log(grid, &time, &counts).unwrap();
+        let knots: Vec<TimeNs> = (0..100).map(|i| B + i * 30 * S + 5 * S).collect();
         let r = bins.readings(&knots);
         assert!(r.time_ns.windows(2).all(|w| w[0] < w[1]), "sorted");
         let zero: Vec<TimeNs> = r
@@ -1091,20 +1186,94 @@ mod tests {
             .filter(|(_, &w)| w == 0.0)
             .map(|(&t, _)| t)
             .collect();
-        assert_eq!(zero[0], 0, "the first reading");
+        assert_eq!(zero[0], B, "the first reading");
         assert!(
-            zero.contains(&(599 * S)) && zero.contains(&(2400 * S)),
+            zero.contains(&(B + 599 * S)) && zero.contains(&(B + 2400 * S)),
             "gap edges"
         );
         assert!(
-            zero.contains(&(35 * S)) && zero.contains(&(2435 * S)),
+            zero.contains(&(B + 35 * S)) && zero.contains(&(B + 2435 * S)),
             "sensor times"
         );
         assert!(
-            !zero.iter().any(|&t| t > 599 * S && t < 2400 * S),
+            !zero.iter().any(|&t| t > B + 599 * S && t < B + 2400 * S),
             "nothing in the gap"
         );
         let total: f64 = r.weight.iter().sum();
         assert!((total - 1200.0).abs() < 1e-9);
+    }
+
+    mod properties {
+        use super::*;
+        use proptest::prelude::*;
+
+        const S: TimeNs = 1_000_000_000;
+        const B: TimeNs = 1_800_000_000 * S;
+
+        fn grid(bin_s: i64) -> BinGrid {
+            BinGrid {
+                bin_ns: bin_s * S,
+                mounts: vec![
+                    (B + 1_000 * S, B + 50_000 * S, 0),
+                    (B + 60_000 * S, B + 90_000 * S, 1),
+                ],
+                rezeros: vec![B + 20_000 * S],
+            }
+        }
+
+        proptest! {
+            #![proptest_config(ProptestConfig::with_cases(64))]
+
+            /// Any row order and any split into batches gives the same bins.
+            #[test]
+            fn any_order_or_batch_split_gives_the_same_bins(
+                rows in prop::collection::vec((-5_000i64..100_000, -100_000i64..100_000), 1..600),
+                keys in prop::collection::vec(any::<u32>(), 600),
+                batch in 1usize..300,
+                bin_s in 1i64..3600,
+            ) {
+                let time: Vec<TimeNs> = rows.iter().map(|r| B + r.0 * S + r.0 % 7).collect();
+                let counts: Vec<i64> = rows.iter().map(|r| r.1).collect();
+                let want = BarBins::from_log(grid(bin_s), &time, &counts).unwrap();
+                let mut order: Vec<usize> = (0..rows.len()).collect();
+                order.sort_by_key(|&i| keys[i]);
+                let t: Vec<TimeNs> = order.iter().map(|&i| time[i]).collect();
+                let c: Vec<i64> = order.iter().map(|&i| counts[i]).collect();
+                let mut acc = BinAccumulator::new(grid(bin_s));
+                for (tc, cc) in t.chunks(batch).zip(c.chunks(batch)) {
+                    acc.add_all(tc, cc).unwrap();
+                }
+                prop_assert_eq!(acc.finish(), want);
+            }
+
+            /// Extreme times and counts are refused (an error, nothing added), never a panic,
+            /// a hang or a wrapped sum; accepted ones are summed exactly.
+            #[test]
+            fn extreme_values_are_refused_not_wrapped(
+                t in prop_oneof![
+                    Just(i64::MIN), Just(i64::MAX), Just(0i64), Just(-1i64),
+                    Just(EARLIEST_READING_NS - 1), Just(EARLIEST_READING_NS),
+                    Just(LATEST_READING_NS - 1), Just(LATEST_READING_NS), any::<i64>()
+                ],
+                c in prop_oneof![
+                    Just(i64::MIN), Just(i64::MAX), Just(MAX_ABS_COUNTS),
+                    Just(-MAX_ABS_COUNTS), Just(MAX_ABS_COUNTS + 1), any::<i64>()
+                ],
+            ) {
+                let mut acc = BinAccumulator::new(grid(60));
+                let ok = reading_time_ok(t) && c.unsigned_abs() <= MAX_ABS_COUNTS as u64;
+                let r = acc.add_all(&[t, t], &[c, c]);
+                prop_assert_eq!(r.is_ok(), ok);
+                let bins = acc.finish();
+                if ok {
+                    prop_assert_eq!(bins.n_readings(), 2);
+                    let m = bins.bins[0].1;
+                    prop_assert_eq!(m.sc, 2 * c as i128);
+                    prop_assert_eq!(m.scc, 2 * (c as i128) * (c as i128));
+                } else {
+                    prop_assert_eq!(bins.n_readings(), 0);
+                }
+            }
+        }
     }
 }

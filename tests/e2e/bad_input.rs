@@ -129,3 +129,461 @@ fn a_bar_without_data_fails_alone_with_exit_code_4() {
     assert_eq!(summary["bars"].as_array().unwrap().len(), 2);
     assert_eq!(summary["failed_bars"][0]["bar"], "B77");
 }
+
+// ---------------------------------------------------------------- issue 14: never lose a byte
+
+use dbbcal::io::{write_campaign, TimeUnit, WriteOptions};
+use dbbcal::series::CampaignTables;
+
+/// The small campaign's tables, changed by `edit`, written to `root/name` (one file a table).
+fn edited_campaign(root: &Path, name: &str, edit: impl FnOnce(&mut CampaignTables)) -> PathBuf {
+    let cfg = SimConfig {
+        seed: 5,
+        campaign_id: name.into(),
+        duration_days: 1.0,
+        sample_s: 60.0,
+        fleet: Some(FleetConfig {
+            n_bars: 3,
+            ..FleetConfig::default()
+        }),
+        ..SimConfig::default()
+    };
+    let mut sim = dbbcal::simulate::generate(&cfg).unwrap();
+    edit(&mut sim.tables);
+    let dir = root.join(name);
+    write_campaign(&dir, &sim.manifest, &sim.tables, &WriteOptions::default()).unwrap();
+    dir
+}
+
+use std::path::PathBuf;
+
+/// A campaign directory with `campaign.toml` rewritten by `edit`.
+fn with_manifest(root: &Path, name: &str, edit: impl Fn(&str) -> String) -> PathBuf {
+    let d = small_campaign(root, name);
+    let text = std::fs::read_to_string(d.join("campaign.toml")).unwrap();
+    std::fs::write(d.join("campaign.toml"), edit(&text)).unwrap();
+    d
+}
+
+/// `text` without its `[[header]]` sections.
+fn without_sections(text: &str, header: &str) -> String {
+    let mut out = String::new();
+    let mut skipping = false;
+    for line in text.lines() {
+        if line.starts_with('[') {
+            skipping = line.trim() == format!("[[{header}]]");
+        }
+        if !skipping {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// Runs `identify` (rows binned while they stream with `bin_s` > 0, else every reading) on a
+/// campaign that must be processed; returns summary.json. The exit code agrees with
+/// `failed_bars`.
+fn identify(dir: &Path, bin_s: &str) -> serde_json::Value {
+    let out = dir.with_extension(format!("out-{bin_s}"));
+    let (code, _, stderr) = run_cli(&[
+        "identify",
+        "--bin-s",
+        bin_s,
+        "--campaign",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let failed = summary["failed_bars"].as_array().unwrap().len();
+    assert_eq!(code == 0, failed == 0, "exit {code}, {stderr}");
+    summary
+}
+
+fn time_column(raw: Vec<Option<i64>>, unit: TimeUnit, zone: Option<&str>) -> Column {
+    Column::Time {
+        raw,
+        unit,
+        zone: zone.map(str::to_string),
+    }
+}
+
+const T0_NS: i64 = 1_793_491_200_000_000_000 + 3_600_000_000_000;
+
+fn encoder_rows(time: Column, counts: Column) -> Table {
+    Table::new()
+        .with("time", time)
+        .with("bar", Column::Str(vec!["B01".into(), "B01".into()]))
+        .with("counts", counts)
+}
+
+#[test]
+fn unreadable_rows_and_files_are_refused_with_file_and_rows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let ns = |t: Vec<Option<i64>>| time_column(t, TimeUnit::Ns, None);
+    let cases: Vec<(&str, Table, Vec<&str>)> = vec![
+        (
+            "nat",
+            encoder_rows(
+                ns(vec![Some(T0_NS), Some(i64::MIN)]),
+                Column::I64(vec![1, 2]),
+            ),
+            vec![
+                "nat.parquet",
+                "`time`",
+                "rows 1 .. 1",
+                "-9223372036854775808",
+            ],
+        ),
+        (
+            "max-time",
+            encoder_rows(
+                ns(vec![Some(i64::MAX), Some(T0_NS)]),
+                Column::I64(vec![1, 2]),
+            ),
+            vec!["max-time.parquet", "rows 0 .. 0", "9223372036854775807"],
+        ),
+        (
+            "clock-reset",
+            encoder_rows(
+                ns(vec![Some(5_000_000_000), Some(6_000_000_000)]),
+                Column::I64(vec![1, 2]),
+            ),
+            vec!["clock-reset.parquet", "2 rows", "rows 0 .. 1"],
+        ),
+        (
+            "ms-overflow",
+            encoder_rows(
+                time_column(
+                    vec![Some(T0_NS / 1_000_000), Some(i64::MAX / 1000)],
+                    TimeUnit::Ms,
+                    None,
+                ),
+                Column::I64(vec![1, 2]),
+            ),
+            vec!["ms-overflow.parquet", "rows 1 .. 1", "ms"],
+        ),
+        (
+            "us-far-future",
+            encoder_rows(
+                // Year 2300 in µs: its ns value overflows i64.
+                time_column(
+                    vec![Some(10_413_792_000_000_000), Some(T0_NS / 1000)],
+                    TimeUnit::Us,
+                    None,
+                ),
+                Column::I64(vec![1, 2]),
+            ),
+            vec!["us-far-future.parquet", "rows 0 .. 0", "us"],
+        ),
+        (
+            "fraction",
+            encoder_rows(
+                ns(vec![Some(T0_NS), Some(T0_NS + 60_000_000_000)]),
+                Column::F64(vec![3.0, 3.25]),
+            ),
+            vec![
+                "fraction.parquet",
+                "`counts`",
+                "rows 1 .. 1",
+                "not whole",
+                "3.25",
+            ],
+        ),
+        (
+            "huge-counts",
+            encoder_rows(
+                ns(vec![Some(T0_NS), Some(T0_NS + 60_000_000_000)]),
+                Column::F64(vec![1e300, 1.0]),
+            ),
+            vec!["huge-counts.parquet", "`counts`", "rows 0 .. 0", "2^48"],
+        ),
+    ];
+    for (name, table, needles) in cases {
+        let d = small_campaign(root, name);
+        write_table(&d.join(format!("encoders/{name}.parquet")), &table).unwrap();
+        check(&d, &needles);
+    }
+
+    // A temperature time out of range is named the same way.
+    let d = small_campaign(root, "temperature-nat");
+    write_table(
+        &d.join("temperatures/nat.parquet"),
+        &Table::new()
+            .with("time", ns(vec![Some(T0_NS), Some(i64::MIN)]))
+            .with("sensor", Column::Str(vec!["T1".into(), "T1".into()]))
+            .with("celsius", Column::F64(vec![20.0, 20.1])),
+    )
+    .unwrap();
+    check(&d, &["nat.parquet", "`time`", "rows 1 .. 1"]);
+
+    // Zero bytes, a truncated file, corrupt data pages: one line naming the file.
+    let d = small_campaign(root, "zero-bytes");
+    std::fs::write(d.join("encoders/empty.parquet"), b"").unwrap();
+    check(&d, &["empty.parquet"]);
+    let d = small_campaign(root, "truncated");
+    let whole = std::fs::read(d.join("encoders/encoders.parquet")).unwrap();
+    std::fs::write(
+        d.join("encoders/encoders.parquet"),
+        &whole[..whole.len() / 2],
+    )
+    .unwrap();
+    check(&d, &["encoders.parquet"]);
+    let d = small_campaign(root, "corrupt-pages");
+    let mut bytes = whole.clone();
+    for b in &mut bytes[64..whole.len() / 2] {
+        *b ^= 0x5a;
+    }
+    std::fs::write(d.join("encoders/encoders.parquet"), &bytes).unwrap();
+    check(&d, &["encoders.parquet"]);
+}
+
+#[test]
+fn campaigns_without_bars_mounts_or_air_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let d = with_manifest(root, "no-mounts", |t| without_sections(t, "mount"));
+    check_refused(&d, &["identify"], 3, &["campaign.toml", "no mount"]);
+    let d = with_manifest(root, "no-bars", |t| {
+        without_sections(&without_sections(t, "mount"), "bar")
+    });
+    check_refused(&d, &["identify"], 3, &["campaign.toml", "no bar"]);
+    let d = with_manifest(root, "no-air", |t| {
+        t.replace("kind = \"air\"", "kind = \"other\"")
+            .lines()
+            .filter(|l| !l.starts_with("sensor = "))
+            .collect::<Vec<_>>()
+            .join("\n")
+    });
+    check_refused(&d, &["identify"], 3, &["campaign.toml", "no air sensor"]);
+}
+
+fn bar_quality<'a>(summary: &'a serde_json::Value, bar: &str) -> &'a serde_json::Value {
+    &summary["quality"]["bars"][bar]
+}
+
+fn flags<'a>(q: &'a serde_json::Value, kind: &str) -> Vec<&'a serde_json::Value> {
+    q["flags"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["kind"] == kind)
+        .collect()
+}
+
+#[test]
+fn missing_values_are_dropped_counted_and_flagged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let d = edited_campaign(root, "nan-inf-null", |t| {
+        let t1 = t.temperatures.get_mut("T1").unwrap();
+        t1.celsius[10] = f64::NAN;
+        t1.celsius[11] = f64::INFINITY;
+        t1.celsius[12] = f64::NEG_INFINITY;
+        t.events.push(dbbcal::series::Event {
+            time_ns: T0_NS,
+            bar: None,
+            kind: "door".into(),
+            value: Some(f64::NAN),
+        });
+    });
+    // Null temperatures and counts, and whole float counts, in extra files.
+    write_table(
+        &d.join("temperatures/nulls.parquet"),
+        &Table::new()
+            .with("time", Column::TimeNs(vec![T0_NS + 1, T0_NS + 2]))
+            .with("sensor", Column::Str(vec!["T2".into(), "T2".into()]))
+            .with("celsius", Column::OptF64(vec![None, Some(f64::NAN)])),
+    )
+    .unwrap();
+    write_table(
+        &d.join("encoders/nulls.parquet"),
+        &encoder_rows(
+            Column::TimeNs(vec![T0_NS + 1, T0_NS + 2]),
+            Column::OptI64(vec![None, None]),
+        ),
+    )
+    .unwrap();
+    write_table(
+        &d.join("encoders/floats.parquet"),
+        &Table::new()
+            .with(
+                "time",
+                Column::TimeNs(vec![T0_NS + 5, T0_NS + 6, T0_NS + 7]),
+            )
+            .with("bar", Column::Str(vec!["B02".into(); 3]))
+            .with(
+                "counts",
+                Column::OptF64(vec![Some(f64::NAN), Some(f64::INFINITY), None]),
+            ),
+    )
+    .unwrap();
+    for bin_s in ["0", "60"] {
+        let s = identify(&d, bin_s);
+        assert!(s["failed_bars"].as_array().unwrap().is_empty(), "{s}");
+        let t1 = &s["quality"]["sensors"]["T1"];
+        assert_eq!(
+            (t1["nan"].as_u64(), t1["inf"].as_u64()),
+            (Some(1), Some(2)),
+            "{t1}"
+        );
+        let t2 = &s["quality"]["sensors"]["T2"];
+        assert_eq!(
+            (t2["null"].as_u64(), t2["nan"].as_u64()),
+            (Some(1), Some(1)),
+            "{t2}"
+        );
+        assert_eq!(t2["dropped_rows"], 2);
+        let b1 = bar_quality(&s, "B01");
+        assert_eq!(
+            (b1["null"].as_u64(), b1["dropped_rows"].as_u64()),
+            (Some(2), Some(2))
+        );
+        let missing = flags(b1, "missing_values");
+        assert_eq!(missing[0]["from"], "2026-11-01T01:00:00.000000001Z");
+        let b2 = bar_quality(&s, "B02");
+        assert_eq!(
+            (b2["null"].as_u64(), b2["nan"].as_u64(), b2["inf"].as_u64()),
+            (Some(1), Some(1), Some(1))
+        );
+        assert_eq!(
+            s["quality"]["events"]["nan"], 1,
+            "{}",
+            s["quality"]["events"]
+        );
+        assert_eq!(s["bars"].as_array().unwrap().len(), 3);
+    }
+}
+
+#[test]
+fn duplicates_and_mixed_zones_are_counted_once_and_flagged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let d = edited_campaign(root, "duplicates", |_| {});
+    std::fs::copy(
+        d.join("encoders/encoders.parquet"),
+        d.join("encoders/copy.parquet"),
+    )
+    .unwrap();
+    // Overlapping identical rows from another file, in zoned ms (the others are naive ns).
+    let logs = dbbcal::io::read_campaign(&d).unwrap();
+    let b1 = &logs.bars["B01"];
+    let n = 30;
+    write_table(
+        &d.join("encoders/overlap.parquet"),
+        &Table::new()
+            .with(
+                "time",
+                time_column(
+                    b1.time_ns[100..100 + n]
+                        .iter()
+                        .rev()
+                        .map(|&t| Some(t / 1_000_000))
+                        .collect(),
+                    TimeUnit::Ms,
+                    Some("UTC"),
+                ),
+            )
+            .with("bar", Column::Str(vec!["B01".into(); n]))
+            .with(
+                "counts",
+                Column::I64(b1.counts[100..100 + n].iter().rev().copied().collect()),
+            ),
+    )
+    .unwrap();
+    let s = identify(&d, "0");
+    let files: Vec<&str> = s["quality"]["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["kind"].as_str().unwrap())
+        .collect();
+    assert!(
+        files.contains(&"duplicate_file") && files.contains(&"mixed_time_zones"),
+        "{files:?}"
+    );
+    let inputs = s["inputs"].as_array().unwrap();
+    let copy = inputs
+        .iter()
+        .find(|f| f["path"] == "encoders/encoders.parquet")
+        .unwrap();
+    // Files are taken in path order: the copy is read, the original marked as its duplicate.
+    assert_eq!(copy["duplicate_of"], "encoders/copy.parquet");
+    let q = bar_quality(&s, "B01");
+    assert_eq!(q["duplicate_rows"], n as u64, "{q}");
+    let dup = flags(q, "duplicate_rows");
+    assert_eq!(dup.len(), 1);
+    let n_samples_b1 = s["bars"][0]["n_samples"].as_u64().unwrap();
+    let clean = identify(&edited_campaign(root, "clean", |_| {}), "0");
+    assert_eq!(
+        clean["bars"][0]["n_samples"].as_u64().unwrap(),
+        n_samples_b1
+    );
+    assert_eq!(bar_quality(&clean, "B01")["dropped_rows"], 0);
+}
+
+#[test]
+fn encoder_faults_are_flagged_and_a_dead_bar_fails_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    // Out of order (reversed) rows and a spike in B01, a 32-bit wrap in B02, B03 frozen.
+    let mut spike_at = 0;
+    let mut wrap_at = 0;
+    let d = edited_campaign(root, "faults", |t| {
+        let b1 = t.encoders.get_mut("B01").unwrap();
+        spike_at = b1.time_ns[200];
+        b1.counts[200] += 4000; // 20 µm for one reading
+        b1.time_ns.reverse();
+        b1.counts.reverse();
+        let b2 = t.encoders.get_mut("B02").unwrap();
+        let late = b2.time_ns.len() * 3 / 4;
+        wrap_at = b2.time_ns[late];
+        for c in &mut b2.counts[late..] {
+            *c -= 1 << 32;
+        }
+        let b3 = t.encoders.get_mut("B03").unwrap();
+        let frozen = b3.counts[0];
+        b3.counts.iter_mut().for_each(|c| *c = frozen);
+    });
+    for bin_s in ["0", "60"] {
+        let s = identify(&d, bin_s);
+        let q = bar_quality(&s, "B01");
+        let jumps = flags(q, "jump");
+        assert!(!jumps.is_empty(), "{q}");
+        let spike = dbbcal::series::quality::format_ns(spike_at);
+        let at_spike = |f: &&serde_json::Value| {
+            f["from"].as_str().unwrap() <= spike.as_str()
+                && f["to"].as_str().unwrap() >= spike.as_str()
+        };
+        assert!(jumps.iter().any(at_spike), "{spike}: {q}");
+        let q2 = bar_quality(&s, "B02");
+        let wraps = flags(q2, "counter_wrap");
+        assert_eq!(wraps.len(), 1, "{q2}");
+        let size = wraps[0]["size_counts"].as_f64().unwrap();
+        assert!((size + 4_294_967_296.0).abs() < 1e3, "{size}");
+        let wrap = dbbcal::series::quality::format_ns(wrap_at);
+        assert!(wraps[0]["from"].as_str().unwrap() <= wrap.as_str());
+        assert!(wraps[0]["to"].as_str().unwrap() >= wrap.as_str());
+        assert!(q2["fault_rows"].as_u64().unwrap() > 0);
+        let failed = s["failed_bars"].as_array().unwrap();
+        assert_eq!(failed.len(), 2, "{s}");
+        assert_eq!(failed[0]["bar"], "B02");
+        assert!(failed[0]["error"]
+            .as_str()
+            .unwrap()
+            .contains("counter wrap"));
+        assert_eq!(failed[1]["bar"], "B03");
+        assert!(
+            failed[1]["error"].as_str().unwrap().contains("dead"),
+            "{}",
+            failed[1]
+        );
+        assert!(!flags(bar_quality(&s, "B03"), "stuck").is_empty());
+        assert_eq!(s["bars"][0]["bar"], "B01");
+        assert_eq!(s["bars"].as_array().unwrap().len(), 1);
+    }
+}
