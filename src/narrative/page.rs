@@ -307,6 +307,19 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
         );
     }
     h.push_str("</tbody></table>\n");
+    let decided = |d: crate::acceptance::Decision| acc.iter().filter(|a| a.decision == d).count();
+    use crate::acceptance::Decision::{Fail, NoDecision, Pass};
+    let _ = writeln!(
+        h,
+        "<p class=\"conformity\"><strong>Statement of conformity.</strong> Of {} working bar \
+         length(s), {} conform to the tolerance of {:.3} µm, {} do not, and {} cannot be decided \
+         (the expanded uncertainty straddles the limit), under the decision rule above.</p>",
+        acc.len(),
+        decided(Pass),
+        plan.acceptance.tolerance_um,
+        decided(Fail),
+        decided(NoDecision)
+    );
     for f in figures.iter().filter(|f| f.kind == FigureKind::Acceptance) {
         figure(h, f);
     }
