@@ -259,6 +259,7 @@ impl Say {
             let style = match label {
                 "Diagnosis" if text.starts_with("missing") => "1;33",
                 "Note" => "1;33",
+                "Acceptance" if !text.contains(" 0 do not") => "1;31",
                 "Next" => "1;36",
                 _ => "1;32",
             };

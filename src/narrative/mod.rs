@@ -46,6 +46,8 @@ pub struct Headline {
     pub conclusion: Option<Conclusion>,
     /// The command that adds the proposed effect (same campaign, same output).
     pub next_command: Option<String>,
+    /// Acceptance, when it ran on working bars: (pass, fail, no decision, tolerance µm).
+    pub acceptance: Option<(usize, usize, usize, f64)>,
     /// Why a stage has nothing to show, and bars a later stage left out, in words.
     pub notes: Vec<String>,
 }
@@ -83,6 +85,7 @@ impl Headline {
             reference: reference_line(results),
             conclusion,
             next_command,
+            acceptance: acceptance_counts(plan, results),
             notes: notes(plan, results),
         }
     }
@@ -129,6 +132,15 @@ impl Headline {
         if let Some(c) = &self.conclusion {
             lines.push(("Diagnosis", conclusion_text(c)));
         }
+        if let Some((pass, fail, open, tolerance_um)) = self.acceptance {
+            lines.push((
+                "Acceptance",
+                format!(
+                    "{pass} of {} conform to ±{tolerance_um:.3} µm, {fail} do not, {open} undecided",
+                    pass + fail + open
+                ),
+            ));
+        }
         for note in &self.notes {
             lines.push(("Note", note.clone()));
         }
@@ -153,6 +165,18 @@ pub fn conclusion_text(c: &Conclusion) -> String {
             "missing effect: {effect}; adding it cuts the fleet RMS from {rms_before_um:.4} to {rms_after_um:.4} µm"
         ),
     }
+}
+
+fn acceptance_counts(plan: &RunPlan, results: &RunResults) -> Option<(usize, usize, usize, f64)> {
+    use crate::acceptance::Decision;
+    let acc = results.acceptance.as_ref().filter(|a| !a.is_empty())?;
+    let count = |d: Decision| acc.iter().filter(|a| a.decision == d).count();
+    Some((
+        count(Decision::Pass),
+        count(Decision::Fail),
+        count(Decision::NoDecision),
+        plan.acceptance.tolerance_um,
+    ))
 }
 
 /// Stages that ran with nothing to show, and bars they left out, with the reason.

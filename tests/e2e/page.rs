@@ -302,3 +302,25 @@ document.getElementById("f").addEventListener("load", () => {{
         "{pages} pages printed, expected {lower}..={upper} for {files} figures"
     );
 }
+
+#[test]
+fn acceptance_with_nothing_to_accept_says_why() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("acc");
+    let (code, _, stderr) = run_cli(&[
+        "run",
+        "pipelines/acceptance.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("nothing to accept") && stderr.contains("purpose = \"check\""),
+        "{stderr}"
+    );
+    let page = read(&out.join("index.html"));
+    assert!(
+        page.contains("Nothing to accept"),
+        "the page does not say why"
+    );
+}
