@@ -68,6 +68,32 @@ pub struct PipelineFile {
     pub diagnose: DiagnoseSection,
     #[serde(default)]
     pub acceptance: AcceptanceSection,
+    #[serde(default)]
+    pub report: ReportSection,
+    #[serde(default)]
+    pub output: OutputSection,
+}
+
+/// `[report]`: what the data cannot say and a filed report must (ISO/IEC 17025 §7.8): the lab's
+/// template fields, printed on the report page's provenance; absent ones stay blank lines.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ReportSection {
+    pub laboratory: Option<String>,
+    pub address: Option<String>,
+    pub customer: Option<String>,
+    /// The report's or certificate's unique identification.
+    pub report_id: Option<String>,
+    pub signatory: Option<String>,
+}
+
+/// `[output]`: extra formats.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// Also write the tables (`models.parquet`, `compensated.parquet`) as CSV.
+    #[serde(default)]
+    pub csv: bool,
 }
 
 /// `[acceptance]`: compensation and acceptance options (`calibrate`, `compensate`, `acceptance`).
@@ -263,6 +289,8 @@ pub struct RunPlan {
     pub matching: MatchSection,
     pub diagnose: DiagnoseSection,
     pub acceptance: AcceptanceSection,
+    pub report: ReportSection,
+    pub output: OutputSection,
 }
 
 impl RunPlan {
@@ -346,6 +374,8 @@ impl RunPlan {
             ));
         }
         plan.acceptance = file.acceptance;
+        plan.report = file.report;
+        plan.output = file.output;
         Ok(plan)
     }
 
@@ -403,6 +433,8 @@ impl RunPlan {
             matching,
             diagnose: DiagnoseSection::default(),
             acceptance: AcceptanceSection::default(),
+            report: ReportSection::default(),
+            output: OutputSection::default(),
         })
     }
 

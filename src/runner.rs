@@ -187,7 +187,7 @@ fn write_outputs(
     write_json(&dir.join("summary.json"), &pipeline::summary(plan, results))?;
     write_json(&dir.join("inputs.json"), &results.inputs)?;
     if plan.runs(Stage::Identify) {
-        write_table(&dir.join("models.parquet"), &models_table(results))?;
+        write_table(plan, &dir.join("models.parquet"), &models_table(results))?;
     }
     if let Some(d) = &results.diagnosis {
         write_json(
@@ -281,6 +281,7 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
         let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "options": &plan.acceptance, "working": &c.working, "failed": failed(&c.failed) });
         write_json(&dir.join("compensation.json"), &record)?;
         write_table(
+            plan,
             &dir.join("compensated.parquet"),
             &compensated_table(results, &c.working),
         )?;

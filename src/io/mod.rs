@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use crate::campaign::CampaignError;
 use crate::series::CampaignLogs;
 
-pub use table::{write_table, Column, Table};
+pub use table::{write_table, write_table_csv, Column, Table};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 
 /// Why a campaign directory could not be read. Every message is one line naming the file (and

@@ -127,3 +127,35 @@ pub fn write_table(path: &Path, table: &Table) -> Result<(), WriteError> {
     })?;
     write_parquet(path, &mut df)
 }
+
+/// Writes `table` as CSV (a header row, then one row per table row): floats in their shortest
+/// exact decimal form, nulls empty, timestamps RFC 3339 UTC. Same table, same bytes.
+pub fn write_table_csv(path: &Path, table: &Table) -> Result<(), WriteError> {
+    let io_err = |e: std::io::Error| WriteError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let csv_err = |e: csv::Error| WriteError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let mut w = csv::Writer::from_path(path).map_err(csv_err)?;
+    w.write_record(table.columns.iter().map(|(n, _)| n.as_str()))
+        .map_err(csv_err)?;
+    let cell = |c: &Column, i: usize| -> String {
+        match c {
+            Column::F64(v) => v[i].to_string(),
+            Column::OptF64(v) => v[i].map(|x| x.to_string()).unwrap_or_default(),
+            Column::I64(v) => v[i].to_string(),
+            Column::OptI64(v) => v[i].map(|x| x.to_string()).unwrap_or_default(),
+            Column::Str(v) => v[i].clone(),
+            Column::TimeNs(v) => super::format_ns(v[i]),
+            Column::Time { raw, .. } => raw[i].map(|x| x.to_string()).unwrap_or_default(),
+        }
+    };
+    for i in 0..table.height() {
+        w.write_record(table.columns.iter().map(|(_, c)| cell(c, i)))
+            .map_err(csv_err)?;
+    }
+    w.flush().map_err(io_err)
+}

@@ -365,8 +365,11 @@ fn provenance(h: &mut String, plan: &RunPlan, results: &RunResults) {
             "Uncertainty",
             "expanded, U = k·u with k = 2 (about 95 %)".to_string(),
         ),
-        ("Laboratory", String::new()),
-        ("Signatory", String::new()),
+        ("Report", field(&plan.report.report_id)),
+        ("Laboratory", field(&plan.report.laboratory)),
+        ("Address", field(&plan.report.address)),
+        ("Customer", field(&plan.report.customer)),
+        ("Signatory", field(&plan.report.signatory)),
         ("Date of issue", String::new()),
     ];
     for (k, v) in items {
@@ -407,6 +410,11 @@ fn p_text(p: f64) -> String {
     } else {
         "< 1e-300".into()
     }
+}
+
+/// A `[report]` field, or empty (a blank line to fill in).
+fn field(v: &Option<String>) -> String {
+    v.clone().unwrap_or_default()
 }
 
 fn figure(h: &mut String, f: &FigureFile) {
