@@ -98,7 +98,12 @@ fn bad_inputs_give_one_clear_line_and_no_output() {
     check(&d, &["campaign.toml", "huge"]);
 
     let d = small_campaign(root, "bin-too-long");
-    check_refused(&d, &["identify", "--bin-s", "7200"], 3, &["--bin-s", "3600"]);
+    check_refused(
+        &d,
+        &["identify", "--bin-s", "7200"],
+        3,
+        &["--bin-s", "3600"],
+    );
 }
 
 #[test]

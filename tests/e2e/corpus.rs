@@ -99,7 +99,10 @@ pub fn check_refused(campaign: &Path, command: &[&str], code: i32, needles: &[&s
     let what = format!("{} on {}", command.join(" "), campaign.display());
     assert_eq!(got, code, "exit code of {what}: stderr {stderr}");
     assert_one_line(&stderr, needles, &what);
-    assert!(snapshot(&out) == before, "{what}: the earlier output changed");
+    assert!(
+        snapshot(&out) == before,
+        "{what}: the earlier output changed"
+    );
     assert!(
         snapshot(campaign) == campaign_before,
         "{what}: the campaign changed"
@@ -114,6 +117,10 @@ pub fn assert_one_line(stderr: &str, needles: &[&str], what: &str) {
     let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
     assert_eq!(lines.len(), 1, "{what}: one line expected, got: {stderr}");
     for n in needles {
-        assert!(lines[0].contains(n), "{what}: {n:?} missing from: {}", lines[0]);
+        assert!(
+            lines[0].contains(n),
+            "{what}: {n:?} missing from: {}",
+            lines[0]
+        );
     }
 }
