@@ -7,6 +7,7 @@ mod bad_input;
 mod base_noise;
 mod cli;
 mod corpus;
+mod determinism;
 mod diagnose;
 mod false_alarms;
 mod head_heating;
