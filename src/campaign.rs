@@ -485,6 +485,7 @@ impl Validator<'_> {
     }
 
     /// `value` finite and within `range`; `open_low`: the low end itself is refused (`> lo`).
+    #[allow(clippy::result_large_err)] // as every check here: one error, built once per run
     fn in_range(
         &self,
         key: &str,
@@ -669,6 +670,7 @@ impl Validator<'_> {
             false,
             " degrees",
         )?;
+        #[allow(clippy::result_large_err)]
         let time = |name: &str, dt: &toml::value::Datetime| {
             let ns = toml_datetime_to_ns(dt)
                 .map_err(|e| self.invalid(key.clone(), format!("{name}: {e}")))?;

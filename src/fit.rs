@@ -950,7 +950,7 @@ pub fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>, f64)> 
     for (i, &si) in s.iter().enumerate() {
         let ratio = si / s_max;
         smallest = smallest.min(ratio);
-        if !(ratio >= MIN_RELATIVE_SINGULAR_VALUE) {
+        if ratio.is_nan() || ratio < MIN_RELATIVE_SINGULAR_VALUE {
             undetermined.extend((0..p).filter(|&j| v_t[(i, j)].abs() >= UNDETERMINED_LOADING));
         }
     }

@@ -244,7 +244,7 @@ pub enum PlanError {
     Effect(#[from] crate::model::UnknownEffect),
     /// `campaign.toml` read at plan time (cheap, before any parquet file) is not usable.
     #[error(transparent)]
-    Campaign(#[from] crate::campaign::CampaignError),
+    Campaign(Box<crate::campaign::CampaignError>),
     /// The plan names something the campaign's manifest does not declare (one line, naming the
     /// key).
     #[error("{0}")]
@@ -445,8 +445,10 @@ fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
         path: file.clone(),
         message: format!("cannot read: {e}"),
     })?;
-    let manifest = crate::campaign::Manifest::from_toml_str(&text, &file)?;
-    Ok((Campaign::from_manifest_at(manifest, &file)?, file))
+    let boxed = |e| PlanError::Campaign(Box::new(e));
+    let manifest = crate::campaign::Manifest::from_toml_str(&text, &file).map_err(boxed)?;
+    let campaign = Campaign::from_manifest_at(manifest, &file).map_err(boxed)?;
+    Ok((campaign, file))
 }
 
 /// A validated run: what to read, what to do, where to write.
