@@ -200,7 +200,7 @@ pub enum CampaignError {
         message: String,
     },
     /// Two entries of one table share an id.
-    #[error("{file}: {table}[{second}]: id \"{id}\" is already used by {table}[{first}]")]
+    #[error("{file}: {table}[{second}]: id {id:?} is already used by {table}[{first}]")]
     DuplicateId {
         file: String,
         table: &'static str,
@@ -209,7 +209,7 @@ pub enum CampaignError {
         second: usize,
     },
     /// A reference to something the manifest does not declare.
-    #[error("{file}: {key}: {field} \"{value}\" is not {what} (known: {known})")]
+    #[error("{file}: {key}: {field} {value:?} is not {what} (known: {known})")]
     Unknown {
         file: String,
         key: String,
@@ -225,6 +225,40 @@ pub enum CampaignError {
         key: String,
         problem: String,
     },
+}
+
+/// The allowed ranges of the manifest's numbers (both ends included; NaN and infinities are
+/// outside every range). Generous: they refuse what no real campaign holds (a typo, a unit
+/// mix-up, TOML's `nan`/`inf`), not unusual set-ups.
+pub mod limits {
+    /// `campaign.id`: at most this many characters of `[A-Za-z0-9._-]`, no leading dot (it names
+    /// the default output folder `reports/<id>`).
+    pub const ID_MAX_CHARS: usize = 100;
+    /// `campaign.reference_temperature_c`, °C.
+    pub const REFERENCE_TEMPERATURE_C: (f64, f64) = (-100.0, 200.0);
+    /// `plate.cte_ppm_per_k`, ppm/K (Zerodur ~0, steel ~12, aluminium ~23).
+    pub const CTE_PPM_PER_K: (f64, f64) = (-100.0, 100.0);
+    /// `plate.tilt_deg`, `mount[].tilt_deg`: from horizontal, degrees.
+    pub const TILT_DEG: (f64, f64) = (-90.0, 90.0);
+    /// `plate.length[].mm`, `bar[].fixed_length_mm`: above 0, at most 10 m.
+    pub const LENGTH_MM: (f64, f64) = (0.0, 10_000.0);
+    /// `plate.length[].u_um`: 0 to 1 mm.
+    pub const U_UM: (f64, f64) = (0.0, 1_000.0);
+    /// `bar[].resolution_nm`: above 0, at most 1 mm a count.
+    pub const RESOLUTION_NM: (f64, f64) = (0.0, 1e6);
+    /// `mount[].from`, `mount[].to`: from 1970-01-01T00:00:00Z (included) to
+    /// 2200-01-01T00:00:00Z (excluded), ns since the epoch.
+    pub const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
+}
+
+/// A number for a one-line message: plain decimals, an exponent for very large or small ones
+/// (`1e300`, not three hundred digits).
+pub fn display_number(v: f64) -> String {
+    if v.is_finite() && v != 0.0 && !(1e-6..1e15).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// The file name used in messages when the caller does not give one.
@@ -252,7 +286,11 @@ impl Manifest {
 
 /// 1-based line and column of byte `offset` in `text`.
 fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
+    let mut end = offset.min(text.len());
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    let before = &text[..end];
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
     (line, column)
@@ -295,7 +333,9 @@ pub fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String>
         None | Some(toml::value::Offset::Z) => 0,
         Some(toml::value::Offset::Custom { minutes }) => i64::from(minutes),
     };
-    Ok(local_ns - offset_minutes * 60 * 1_000_000_000)
+    local_ns
+        .checked_sub(offset_minutes * 60 * 1_000_000_000)
+        .ok_or_else(|| format!("{dt} is outside 1677..2262 (nanosecond range)"))
 }
 
 /// Converts nanoseconds since the epoch to a UTC TOML datetime (`...Z`), the inverse of
@@ -366,6 +406,36 @@ impl Campaign {
     }
 }
 
+/// `campaign.id` names the default output folder (`reports/<id>`): non-empty, at most
+/// [`limits::ID_MAX_CHARS`] characters of `[A-Za-z0-9._-]`, not starting with a dot (no hidden
+/// folder, no `..`, no path separator).
+pub fn check_campaign_id(id: &str) -> Result<(), String> {
+    if id.is_empty() {
+        return Err("is empty".into());
+    }
+    if id.chars().count() > limits::ID_MAX_CHARS {
+        return Err(format!(
+            "is {} characters long; at most {} are allowed",
+            id.chars().count(),
+            limits::ID_MAX_CHARS
+        ));
+    }
+    if let Some(c) = id
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-')))
+    {
+        return Err(format!(
+            "{id:?} contains {c:?}: only letters A-Z a-z, digits, '.', '_' and '-' are allowed (it names the output folder reports/<id>)"
+        ));
+    }
+    if id.starts_with('.') {
+        return Err(format!(
+            "{id:?} starts with a dot (it names the output folder reports/<id>)"
+        ));
+    }
+    Ok(())
+}
+
 /// Checks of one manifest; holds the file name for messages.
 struct Validator<'a> {
     file: &'a str,
@@ -397,16 +467,12 @@ impl Validator<'_> {
             known: if known.is_empty() {
                 "none".to_string()
             } else {
-                known.join(", ")
+                known
+                    .iter()
+                    .map(|k| k.escape_debug().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             },
-        }
-    }
-
-    fn finite(&self, key: &str, name: &str, value: f64) -> Result<(), CampaignError> {
-        if value.is_finite() {
-            Ok(())
-        } else {
-            Err(self.invalid(key, format!("{name} = {value} is not a finite number")))
         }
     }
 
@@ -415,6 +481,32 @@ impl Validator<'_> {
             Ok(())
         } else {
             Err(self.invalid(key, format!("{name} = {value} must be a finite number > 0")))
+        }
+    }
+
+    /// `value` finite and within `range`; `open_low`: the low end itself is refused (`> lo`).
+    #[allow(clippy::result_large_err)] // as every check here: one error, built once per run
+    fn in_range(
+        &self,
+        key: &str,
+        name: &str,
+        value: f64,
+        (lo, hi): (f64, f64),
+        open_low: bool,
+        unit: &str,
+    ) -> Result<(), CampaignError> {
+        let low_ok = if open_low { value > lo } else { value >= lo };
+        if value.is_finite() && low_ok && value <= hi {
+            Ok(())
+        } else {
+            let low = if open_low { ">" } else { ">=" };
+            Err(self.invalid(
+                key,
+                format!(
+                    "{name} = {} is out of range: it must be a finite number {low} {lo} and <= {hi}{unit}",
+                    display_number(value)
+                ),
+            ))
         }
     }
 
@@ -427,6 +519,12 @@ impl Validator<'_> {
         for (i, id) in ids.enumerate() {
             if id.trim().is_empty() {
                 return Err(self.invalid(format!("{table}[{i}]"), "id is empty"));
+            }
+            if id.chars().any(char::is_control) {
+                return Err(self.invalid(
+                    format!("{table}[{i}]"),
+                    format!("id {id:?} contains a control character"),
+                ));
             }
             if let Some(&first) = seen.get(id) {
                 return Err(CampaignError::DuplicateId {
@@ -446,26 +544,46 @@ impl Validator<'_> {
         if c.id.trim().is_empty() {
             return Err(self.invalid("campaign.id", "is empty"));
         }
-        self.finite(
+        check_campaign_id(&c.id).map_err(|problem| self.invalid("campaign.id", problem))?;
+        self.in_range(
             "campaign",
             "reference_temperature_c",
             c.reference_temperature_c,
+            limits::REFERENCE_TEMPERATURE_C,
+            false,
+            " °C",
         )
     }
 
     fn plate(&self, p: &PlateSection) -> Result<(), CampaignError> {
-        self.finite("plate", "cte_ppm_per_k", p.cte_ppm_per_k)?;
-        self.finite("plate", "tilt_deg", p.tilt_deg)?;
+        self.in_range(
+            "plate",
+            "cte_ppm_per_k",
+            p.cte_ppm_per_k,
+            limits::CTE_PPM_PER_K,
+            false,
+            " ppm/K",
+        )?;
+        self.in_range(
+            "plate",
+            "tilt_deg",
+            p.tilt_deg,
+            limits::TILT_DEG,
+            false,
+            " degrees",
+        )?;
         self.unique_ids("plate.length", p.length.iter().map(|l| l.id.as_str()))?;
         for (i, l) in p.length.iter().enumerate() {
-            let key = format!("plate.length[{i}] (\"{}\")", l.id);
+            let key = format!("plate.length[{i}] ({:?})", l.id);
             self.positive(&key, "mm", l.mm)?;
+            self.in_range(&key, "mm", l.mm, limits::LENGTH_MM, true, " mm")?;
             if !(l.u_um.is_finite() && l.u_um >= 0.0) {
                 return Err(self.invalid(
                     key,
                     format!("u_um = {} must be a finite number >= 0", l.u_um),
                 ));
             }
+            self.in_range(&key, "u_um", l.u_um, limits::U_UM, false, " µm")?;
         }
         Ok(())
     }
@@ -478,9 +596,25 @@ impl Validator<'_> {
         self.unique_ids("bar", bars.iter().map(|b| b.id.as_str()))?;
         let sensor_ids: Vec<&str> = sensors.iter().map(|s| s.id.as_str()).collect();
         for (i, b) in bars.iter().enumerate() {
-            let key = format!("bar[{i}] (\"{}\")", b.id);
+            let key = format!("bar[{i}] ({:?})", b.id);
             self.positive(&key, "resolution_nm", b.resolution_nm)?;
+            self.in_range(
+                &key,
+                "resolution_nm",
+                b.resolution_nm,
+                limits::RESOLUTION_NM,
+                true,
+                " nm",
+            )?;
             self.positive(&key, "fixed_length_mm", b.fixed_length_mm)?;
+            self.in_range(
+                &key,
+                "fixed_length_mm",
+                b.fixed_length_mm,
+                limits::LENGTH_MM,
+                true,
+                " mm",
+            )?;
             if let Some(s) = &b.sensor {
                 if !sensor_ids.contains(&s.as_str()) {
                     return Err(self.unknown(key, "sensor", s, "a declared sensor", &sensor_ids));
@@ -503,7 +637,7 @@ impl Validator<'_> {
             let ((ia, a), (ib, b)) = (&pair[0], &pair[1]);
             if a.bar == b.bar && b.from_ns < a.to_ns {
                 return Err(self.invalid(
-                    format!("mount[{ib}] (bar \"{}\")", b.bar),
+                    format!("mount[{ib}] (bar {:?})", b.bar),
                     format!(
                         "interval {} .. {} overlaps mount[{ia}] ({} .. {})",
                         m.mount[*ib].from, m.mount[*ib].to, m.mount[*ia].from, m.mount[*ia].to
@@ -515,7 +649,7 @@ impl Validator<'_> {
     }
 
     fn mount(&self, i: usize, d: &MountDecl, m: &Manifest) -> Result<Mount, CampaignError> {
-        let key = format!("mount[{i}] (bar \"{}\")", d.bar);
+        let key = format!("mount[{i}] (bar {:?})", d.bar);
         let bar_ids: Vec<&str> = m.bar.iter().map(|b| b.id.as_str()).collect();
         let Some(bar) = m.bar.iter().find(|b| b.id == d.bar) else {
             return Err(self.unknown(
@@ -528,11 +662,31 @@ impl Validator<'_> {
         };
         let place = self.place(&key, d, bar, &m.plate)?;
         let tilt_deg = d.tilt_deg.unwrap_or(m.plate.tilt_deg);
-        self.finite(&key, "tilt_deg", tilt_deg)?;
-        let from_ns = toml_datetime_to_ns(&d.from)
-            .map_err(|e| self.invalid(key.clone(), format!("from: {e}")))?;
-        let to_ns = toml_datetime_to_ns(&d.to)
-            .map_err(|e| self.invalid(key.clone(), format!("to: {e}")))?;
+        self.in_range(
+            &key,
+            "tilt_deg",
+            tilt_deg,
+            limits::TILT_DEG,
+            false,
+            " degrees",
+        )?;
+        #[allow(clippy::result_large_err)]
+        let time = |name: &str, dt: &toml::value::Datetime| {
+            let ns = toml_datetime_to_ns(dt)
+                .map_err(|e| self.invalid(key.clone(), format!("{name}: {e}")))?;
+            let (lo, hi) = limits::MOUNT_TIME_NS;
+            if !(lo..hi).contains(&ns) {
+                return Err(self.invalid(
+                    key.clone(),
+                    format!(
+                        "{name} = {dt} is outside 1970-01-01T00:00:00Z .. 2200-01-01T00:00:00Z"
+                    ),
+                ));
+            }
+            Ok(ns)
+        };
+        let from_ns = time("from", &d.from)?;
+        let to_ns = time("to", &d.to)?;
         if from_ns >= to_ns {
             return Err(self.invalid(
                 key,
@@ -597,10 +751,10 @@ impl Validator<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    const GOOD: &str = r#"
+    pub(super) const GOOD: &str = r#"
 [campaign]
 id = "lab"
 reference_temperature_c = 20.0
@@ -816,4 +970,93 @@ to = 2026-11-04T00:00:00Z
         ));
         assert!(msg.contains("mount[2] (bar \"B01\"): bar fixed_length_mm = 260 exceeds plate length \"min\" = 250 mm"), "{msg}");
     }
+
+    #[test]
+    fn campaign_ids_name_a_folder() {
+        for ok in ["lab", "lab-a-2026-11", "a.b_c-D9", "x..y", &"a".repeat(100)] {
+            let text = GOOD.replace("id = \"lab\"", &format!("id = {ok:?}"));
+            validate(&text).unwrap_or_else(|e| panic!("{ok}: {e}"));
+        }
+        for (bad, why) in [
+            ("", "is empty"),
+            (".hidden", "starts with a dot"),
+            ("..", "starts with a dot"),
+            ("../../etc", "contains '/'"),
+            ("a/b", "contains '/'"),
+            ("a\\b", "contains '\\\\'"),
+            ("lab 1", "contains ' '"),
+            ("lab\n1", "contains '\\n'"),
+            ("läb", "contains 'ä'"),
+            (&"a".repeat(101), "101 characters long"),
+        ] {
+            let text = GOOD.replace("id = \"lab\"", &format!("id = {bad:?}"));
+            let msg = error(&text);
+            assert!(
+                msg.contains("campaign.toml: campaign.id: "),
+                "{bad:?}: {msg}"
+            );
+            assert!(msg.contains(why), "{bad:?}: {msg}");
+        }
+    }
+
+    #[test]
+    fn bar_and_sensor_ids_refuse_control_characters() {
+        let msg = error(
+            &GOOD
+                .replace("id = \"B02\"", "id = \"B\\u0007\"")
+                .replace("bar = \"B02\"", "bar = \"B\\u0007\""),
+        );
+        assert!(
+            msg.contains("bar[0]: id \"B\\u{7}\" contains a control character"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("id = \"T1\"", "id = \"T\\t1\""));
+        assert!(
+            msg.contains("sensor[0]: id \"T\\t1\" contains a control character"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("id = \"T1\"", "id = \"\""));
+        assert!(msg.contains("sensor[0]: id is empty"), "{msg}");
+        // Path-like bar ids are not refused here (the report makes file names safe).
+        let text = GOOD
+            .replace("id = \"B02\"", "id = \"../B 02\"")
+            .replace("bar = \"B02\"", "bar = \"../B 02\"");
+        validate(&text).expect("a path-like bar id is allowed");
+        // An unknown reference with a newline stays on one line.
+        let msg = error(&GOOD.replace("bar = \"B02\"", "bar = \"B\\n03\""));
+        assert!(
+            msg.contains("bar \"B\\n03\" is not a declared bar"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn every_number_is_range_checked() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("reference_temperature_c = 20.0", "reference_temperature_c = nan", "campaign: reference_temperature_c = NaN is out of range"),
+            ("reference_temperature_c = 20.0", "reference_temperature_c = 2000.0", "reference_temperature_c = 2000 is out of range: it must be a finite number >= -100 and <= 200 °C"),
+            ("material = \"zerodur\"", "material = \"zerodur\"\ncte_ppm_per_k = inf", "plate: cte_ppm_per_k = inf is out of range"),
+            ("tilt_deg = 60.0\n[[plate", "tilt_deg = 400.0\n[[plate", "plate: tilt_deg = 400 is out of range: it must be a finite number >= -90 and <= 90 degrees"),
+            ("tilt_deg = 10.0", "tilt_deg = -inf", "mount[1] (bar \"B01\"): tilt_deg = -inf is out of range"),
+            ("mm = 250.0", "mm = 1e9", "plate.length[0] (\"min\"): mm = 1000000000 is out of range"),
+            ("mm = 250.0", "mm = nan", "plate.length[0] (\"min\"): mm = NaN must be a finite number > 0"),
+            ("u_um = 0.15", "u_um = 5000.0", "plate.length[0] (\"min\"): u_um = 5000 is out of range"),
+            ("u_um = 0.15", "u_um = -inf", "u_um = -inf must be a finite number >= 0"),
+            ("resolution_nm = 5.0", "resolution_nm = 1e300", "bar[0] (\"B02\"): resolution_nm = 1e300 is out of range"),
+            ("resolution_nm = 5.0", "resolution_nm = nan", "bar[0] (\"B02\"): resolution_nm = NaN must be a finite number > 0"),
+            ("fixed_length_mm = 230.0", "fixed_length_mm = 1e5", "bar[0] (\"B02\"): fixed_length_mm = 100000 is out of range"),
+            ("from = 2026-11-02T00:00:00Z", "from = 1900-11-02T00:00:00Z", "mount[0] (bar \"B02\"): from = 1900-11-02T00:00:00Z is outside 1970-01-01T00:00:00Z .. 2200-01-01T00:00:00Z"),
+            ("to = 2026-11-03T00:00:00Z", "to = 2250-11-03T00:00:00Z", "mount[0] (bar \"B02\"): to = 2250-11-03T00:00:00Z is outside"),
+            ("to = 2026-11-03T00:00:00Z", "to = 9999-12-31T23:59:59-23:59", "mount[0] (bar \"B02\"): to: 9999-12-31T23:59:59-23:59 is outside 1677..2262"),
+            ("to = 2026-11-03T00:00:00Z", "to = 2262-04-11T23:47:16.854775807-01:00", "mount[0] (bar \"B02\"): to: 2262-04-11T23:47:16.854775807-01:00 is outside 1677..2262"),
+        ];
+        for (from, to, needle) in cases {
+            assert!(GOOD.contains(from), "{from}");
+            let msg = error(&GOOD.replacen(from, to, 1));
+            assert!(msg.contains(needle), "{to}: {msg}");
+        }
+    }
 }
+
+#[cfg(test)]
+pub(crate) mod prop_tests;

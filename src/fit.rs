@@ -66,6 +66,12 @@ pub enum FitError {
     TooFewSamples { n: usize, p: usize },
     #[error("the basis is singular: {0} cannot be separated from the other terms with these data")]
     Singular(String),
+    /// Parameters the data cannot determine: a direction of the model's Jacobian that the data
+    /// do not constrain ([`undetermined_parameters`]), or (for the thermal model) a column that
+    /// vanishes once the mount zeros are taken out. Reported instead of an estimate whose
+    /// uncertainty would come from a (pseudo-)inverse of a singular matrix.
+    #[error("not identifiable: these data cannot determine {params} ({reason})")]
+    NotIdentifiable { params: String, reason: String },
     #[error("the solver did not converge ({0})")]
     NoConvergence(String),
     #[error("non-finite values in the data or the model")]
@@ -190,6 +196,16 @@ pub fn fit<P: Separable>(
     let jac = full_jacobian(problem, &theta, &phi, &coef);
     let mut names = problem.linear_names();
     names.extend(problem.nonlinear_names());
+    if let Some((undetermined, ratio)) = undetermined_parameters(&jac) {
+        let params: Vec<&str> = undetermined.iter().map(|&i| names[i].as_str()).collect();
+        return Err(FitError::NotIdentifiable {
+            params: params.join(", "),
+            reason: format!(
+                "the Jacobian, each column scaled to unit norm, has a singular value {ratio:.1e} \
+                 of its largest, below {MIN_RELATIVE_SINGULAR_VALUE:.0e}"
+            ),
+        });
+    }
     let mut values: Vec<f64> = coef.iter().copied().collect();
     values.extend(&theta);
     let (cov_naive, cov_hac, hac_batch_len) = covariances(
@@ -855,10 +871,9 @@ fn covariances(
     let (n, p) = jac.shape();
     let p_total = p + absorbed;
     let jtj = jac.tr_mul(jac);
-    let jtj_inv = jtj
-        .clone()
-        .try_inverse()
-        .or_else(|| jtj.clone().pseudo_inverse(1e-14).ok())?;
+    // No pseudo-inverse: it would give the directions the data do not determine a zero
+    // variance. [`fit`] refuses those first ([`undetermined_parameters`]).
+    let jtj_inv = jtj.try_inverse()?;
     let cov_naive = &jtj_inv * s2;
     // One autocorrelation serves the batch choice and the batch-edge correction.
     let acf = initial_autocorrelation(residuals);
@@ -887,6 +902,61 @@ fn covariances(
     meat /= (1.0 - batch_edge_bias(&acf, batch)).max(0.5);
     let cov_hac = &jtj_inv * meat * &jtj_inv;
     Some((cov_naive, cov_hac, batch))
+}
+
+/// Directions of the Jacobian, each column scaled to unit norm, whose singular value is below
+/// this fraction of the largest are not determined by the data (condition number above 1e8,
+/// `JᵀJ`'s above 1e16: past what double precision resolves, and far below what the thermal
+/// model's columns are computed to, ~1e-12). Well-posed fits stay far above it: the base model
+/// on a week of a daily swing ~0.16, `tau_S` a thousand times the campaign's length ~4e-3
+/// (beta then well determined at 0, tau_S with a large u), `tau_R` so (the estimate wanders to
+/// 1e9 s) ~5e-5. A linear temperature ramp (no time constant can be told from a mount's zero)
+/// gives ~1e-16.
+pub const MIN_RELATIVE_SINGULAR_VALUE: f64 = 1e-8;
+
+/// A parameter is named as undetermined when its share of a singular direction (the absolute
+/// component of the unit right singular vector) is at least this.
+const UNDETERMINED_LOADING: f64 = 0.1;
+
+/// The parameters (indices into the Jacobian's columns) in the directions the data do not
+/// determine, and the smallest singular value relative to the largest; `None` when every
+/// direction is determined. A zero or non-finite column is undetermined on its own.
+///
+/// Columns are scaled to unit norm first: gains and `ln tau` derivatives differ by orders of
+/// magnitude that say nothing about identifiability. Cost `O(n p²)` (SVD of the `n × p`
+/// Jacobian, no left vectors).
+pub fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>, f64)> {
+    let p = jac.ncols();
+    if p == 0 || jac.nrows() == 0 {
+        return None;
+    }
+    let norms: Vec<f64> = jac.column_iter().map(|c| c.norm()).collect();
+    let bad: Vec<usize> = (0..p)
+        .filter(|&j| !(norms[j].is_finite() && norms[j] > 0.0))
+        .collect();
+    if !bad.is_empty() {
+        return Some((bad, 0.0));
+    }
+    let mut scaled = jac.clone();
+    for (mut c, n) in scaled.column_iter_mut().zip(&norms) {
+        c /= *n;
+    }
+    let svd = scaled.svd(false, true);
+    let v_t = svd.v_t?;
+    let s = &svd.singular_values;
+    let s_max = s.iter().copied().fold(0.0, f64::max);
+    let mut undetermined: Vec<usize> = Vec::new();
+    let mut smallest = f64::INFINITY;
+    for (i, &si) in s.iter().enumerate() {
+        let ratio = si / s_max;
+        smallest = smallest.min(ratio);
+        if ratio.is_nan() || ratio < MIN_RELATIVE_SINGULAR_VALUE {
+            undetermined.extend((0..p).filter(|&j| v_t[(i, j)].abs() >= UNDETERMINED_LOADING));
+        }
+    }
+    undetermined.sort_unstable();
+    undetermined.dedup();
+    (!undetermined.is_empty()).then_some((undetermined, smallest))
 }
 
 /// Student's t quantile 0.975 with `dof` degrees of freedom (1.96 if `dof` is not usable).
@@ -1190,6 +1260,9 @@ pub fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
         .map(|c| c / c0)
         .collect()
 }
+
+#[cfg(test)]
+mod conditioning_tests;
 
 #[cfg(test)]
 mod tests {

@@ -275,6 +275,9 @@ fn fit_from(
         absorbed_params: problem.n_zeros(),
         ..FitOptions::default()
     };
+    if let Some(source) = vanished_gains(series, &problem, &theta0) {
+        return Err(IdentifyError::Fit { bar, source });
+    }
     let coarse_theta = coarse_start(series, effects, &theta0);
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
@@ -288,6 +291,43 @@ fn fit_from(
     model.coarse_theta = coarse_theta;
     canonical_thermal_paths(&mut model);
     Ok(model)
+}
+
+/// A gain column whose norm over the fitted samples, once the mount zeros are taken out, is at
+/// most this fraction of its norm before: the input does not vary while the bar is mounted (a
+/// constant temperature), and what is left is rounding (~1e-14 of the column). Taken as it is,
+/// the engine would scale that rounding to a unit column and fit the noise with it: a gain of
+/// any value with an uncertainty that means nothing.
+pub const VANISHED_COLUMN: f64 = 1e-9;
+
+/// The gains of `problem` at `theta` whose columns vanish within every zero segment
+/// ([`VANISHED_COLUMN`]), as the error that names them; `None` when none does.
+fn vanished_gains(series: &BarSeries, problem: &ThermalProblem, theta: &[f64]) -> Option<FitError> {
+    let names = problem.gain_names();
+    let basis = fit::Separable::basis(problem, theta);
+    let full = problem.full_columns(theta);
+    let vanished: Vec<&str> = full
+        .iter()
+        .enumerate()
+        .filter(|(j, col)| {
+            let before = series
+                .fit_index
+                .iter()
+                .map(|&i| series.weight[i] * col[i] * col[i])
+                .sum::<f64>()
+                .sqrt();
+            let after = basis.column(*j).norm();
+            before > 0.0 && after <= VANISHED_COLUMN * before
+        })
+        .map(|(j, _)| names[j].as_str())
+        .collect();
+    (!vanished.is_empty()).then(|| FitError::NotIdentifiable {
+        params: vanished.join(", "),
+        reason: format!(
+            "the input does not vary within any mount: its column, the mount zeros taken out, \
+             is at most {VANISHED_COLUMN:.0e} of its size"
+        ),
+    })
 }
 
 /// The model without the last of `effects`, if `effects` goes beyond its leading base effects
@@ -487,6 +527,9 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         coarse_theta: None,
     }
 }
+
+#[cfg(test)]
+mod conditioning_tests;
 
 #[cfg(test)]
 mod tests {

@@ -300,8 +300,7 @@ fn execute(
             io,
             model,
         } => {
-            let plan =
-                RunPlan::from_pipeline_file(&pipeline, io.campaign, io.out, &model.add_effect)?;
+            let plan = RunPlan::from_pipeline_file(&pipeline, io.campaign, io.out, &[])?;
             with_model_overrides(plan, &model)?
         }
         Command::Ingest(a) => stage_plan(Stage::Ingest, a)?,
@@ -335,33 +334,39 @@ fn stage_plan(stage: Stage, a: StageArgs) -> anyhow::Result<RunPlan> {
     let campaign =
         a.io.campaign
             .unwrap_or_else(|| PathBuf::from("data/sample"));
-    let plan = RunPlan::for_stage(stage, campaign, a.io.out, &[])?;
-    with_model_overrides(plan, &a.model)
+    let mut effects = a.model.effects.clone();
+    if effects.is_empty() && !a.model.add_effect.is_empty() {
+        effects = dbbcal::model::base_effects()
+            .iter()
+            .map(|e| e.name())
+            .collect();
+    }
+    effects.extend(a.model.add_effect.iter().cloned());
+    let plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
+    with_bin_s(plan, a.model.bin_s)
 }
 
-/// `--effects` (replacing the plan's), `--add-effect`, `--bin-s`.
-fn with_model_overrides(mut plan: RunPlan, m: &ModelArgs) -> anyhow::Result<RunPlan> {
+/// `run`'s model overrides: `--effects` (replacing the pipeline's), `--add-effect`, `--bin-s`.
+fn with_model_overrides(plan: RunPlan, m: &ModelArgs) -> anyhow::Result<RunPlan> {
+    let plan = if m.effects.is_empty() && m.add_effect.is_empty() {
+        plan
+    } else {
+        plan.with_effects(&m.effects, &m.add_effect)?
+    };
+    with_bin_s(plan, m.bin_s)
+}
+
+/// `--bin-s`, range-checked.
+fn with_bin_s(mut plan: RunPlan, bin_s: Option<f64>) -> anyhow::Result<RunPlan> {
     use dbbcal::pipeline::PlanError;
-    if m.bin_s
-        .is_some_and(|b| !(0.0..=dbbcal::series::MAX_BIN_S).contains(&b))
-    {
+    if bin_s.is_some_and(|b| !(0.0..=dbbcal::series::MAX_BIN_S).contains(&b)) {
         anyhow::bail!(PlanError::Pipeline {
             path: "--bin-s".into(),
             message: format!("must be between 0 and {} s", dbbcal::series::MAX_BIN_S)
         });
     }
-    if let Some(bin_s) = m.bin_s {
+    if let Some(bin_s) = bin_s {
         (plan.bin_s, plan.automatic_bins) = (bin_s, false);
-    }
-    let parse = |n: &String| dbbcal::model::Effect::parse(n).map_err(PlanError::from);
-    if !m.effects.is_empty() {
-        plan.effects = m.effects.iter().map(parse).collect::<Result<_, _>>()?;
-    }
-    for n in &m.add_effect {
-        let e = parse(n)?;
-        if !plan.effects.contains(&e) {
-            plan.effects.push(e);
-        }
     }
     Ok(plan)
 }

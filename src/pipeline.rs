@@ -268,6 +268,213 @@ pub enum PlanError {
     NoCampaign(String),
     #[error("{0}")]
     Effect(#[from] crate::model::UnknownEffect),
+    /// `campaign.toml` read at plan time (cheap, before any parquet file) is not usable.
+    #[error(transparent)]
+    Campaign(Box<crate::campaign::CampaignError>),
+    /// The plan names something the campaign's manifest does not declare (one line, naming the
+    /// key).
+    #[error("{0}")]
+    NotInCampaign(String),
+}
+
+/// The allowed range of every number a pipeline file (or a command-line option) sets, checked
+/// before any IO on the campaign: `(key, low, high, unit)`, both ends included. NaN and
+/// infinities (TOML's `nan`, `inf`) are outside every range.
+pub mod limits {
+    /// `[match] limit_um`, `[diagnose] tolerance_um`, `[acceptance] tolerance_um`: µm (a ballbar's
+    /// tolerances are microns; 1 mm is far beyond any).
+    pub const TOLERANCE_UM: (f64, f64) = (1e-6, 1e3);
+    /// `[match] study_step_s`: the measured-drift grid step, s (one second to a day).
+    pub const STUDY_STEP_S: (f64, f64) = (1.0, 86_400.0);
+    /// `[acceptance] u_temperature_k`: standard uncertainty of the air temperature, K.
+    pub const U_TEMPERATURE_K: (f64, f64) = (0.0, 10.0);
+    /// `[acceptance] max_gap_s`: one second to 30 days.
+    pub const MAX_GAP_S: (f64, f64) = (1.0, 30.0 * 86_400.0);
+    /// A starting time constant (`[[model.term]] tau_s`, the `@TAU_S` of an effect name), s: the
+    /// range the model evaluates time constants in (`ln tau` clamped to [0, ln 1e9]).
+    pub const TAU_S: (f64, f64) = (1.0, 1e9);
+    /// `[diagnose] forward_steps` (0: rank the candidates only).
+    pub const FORWARD_STEPS: (usize, usize) = (0, 10);
+    /// `[diagnose] beam` (1: plain greedy selection).
+    pub const BEAM: (usize, usize) = (1, 10);
+}
+
+/// `value` within `[lo, hi]` (finite), or the one-line message that names `key` and the range.
+fn check_range(key: &str, value: f64, (lo, hi): (f64, f64), unit: &str) -> Result<(), String> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {} is out of range: it must be a finite number from {lo} to {hi}{unit}",
+            crate::campaign::display_number(value)
+        ))
+    }
+}
+
+fn check_count(key: &str, value: usize, (lo, hi): (usize, usize)) -> Result<(), String> {
+    if (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {value} is out of range: it must be a whole number from {lo} to {hi}"
+        ))
+    }
+}
+
+impl PipelineFile {
+    /// Every number of the file in its range ([`limits`]); the message names the key.
+    pub fn check_numbers(&self) -> Result<(), String> {
+        use limits::*;
+        let m = &self.matching;
+        check_range("match.limit_um", m.limit_um, TOLERANCE_UM, " µm")?;
+        check_range("match.study_step_s", m.study_step_s, STUDY_STEP_S, " s")?;
+        let d = &self.diagnose;
+        check_count("diagnose.forward_steps", d.forward_steps, FORWARD_STEPS)?;
+        check_count("diagnose.beam", d.beam, BEAM)?;
+        if let Some(t) = d.tolerance_um {
+            check_range("diagnose.tolerance_um", t, TOLERANCE_UM, " µm")?;
+        }
+        let a = &self.acceptance;
+        check_range(
+            "acceptance.tolerance_um",
+            a.tolerance_um,
+            TOLERANCE_UM,
+            " µm",
+        )?;
+        check_range(
+            "acceptance.u_temperature_k",
+            a.u_temperature_k,
+            U_TEMPERATURE_K,
+            " K",
+        )?;
+        check_range("acceptance.max_gap_s", a.max_gap_s, MAX_GAP_S, " s")?;
+        if let Some(bin_s) = self.model.bin_s {
+            check_bin_s("model.bin_s", bin_s)?;
+        }
+        for (i, t) in self.model.term.iter().enumerate() {
+            if let Some(tau) = t.tau_s {
+                check_range(&format!("model.term[{i}].tau_s"), tau, TAU_S, " s")?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A bin length (`[model] bin_s`, `--bin-s`): 0 (every reading) to [`crate::series::MAX_BIN_S`].
+pub fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
+    check_range(key, bin_s, (0.0, crate::series::MAX_BIN_S), " s")
+}
+
+/// An effect's starting time constant (`@TAU_S`) in [`limits::TAU_S`].
+fn check_effect(e: &Effect) -> Result<(), String> {
+    match e {
+        Effect::Channel {
+            tau0_s: Some(tau), ..
+        } => check_range(
+            &format!("{:?}: the starting time constant @TAU_S", e.name()),
+            *tau,
+            limits::TAU_S,
+            " s",
+        ),
+        _ => Ok(()),
+    }
+}
+
+/// Channel names every campaign has (`model::channels::resolve`).
+const BUILT_IN_CHANNELS: [&str; 4] = [
+    "time_since_mount_h",
+    "time_of_day_h",
+    "length_mm",
+    "tilt_deg",
+];
+
+/// Whether `channel` can exist in `campaign` as far as `campaign.toml` tells: a declared sensor,
+/// a difference `A-B` of two, `event:KIND` (events are only known once read), or a built-in
+/// channel ([`crate::model::channels::resolve`] resolves them the same way).
+fn channel_declared(campaign: &Campaign, channel: &str) -> bool {
+    let sensor = |id: &str| campaign.sensor(id).is_some();
+    sensor(channel)
+        || channel
+            .split_once('-')
+            .is_some_and(|(a, b)| sensor(a) && sensor(b))
+        || channel
+            .strip_prefix("event:")
+            .is_some_and(|kind| !kind.is_empty())
+        || BUILT_IN_CHANNELS.contains(&channel)
+}
+
+/// The plan's references into the campaign, against its manifest (read before any parquet
+/// file): `[match] at_length` a plate length, every `lag:`/`rate:`/`level:` channel one the
+/// campaign can provide. `effects`: each effect with the key it came from.
+fn check_against_campaign(
+    campaign: &Campaign,
+    manifest_path: &str,
+    effects: &[(Effect, String)],
+    matching: &MatchSection,
+    pipeline_path: &str,
+) -> Result<(), String> {
+    if let Some(id) = &matching.at_length {
+        if !campaign.plate.lengths.iter().any(|l| &l.id == id) {
+            let known: Vec<&str> = campaign
+                .plate
+                .lengths
+                .iter()
+                .map(|l| l.id.as_str())
+                .collect();
+            return Err(format!(
+                "{pipeline_path}: match.at_length = {id:?} is not a plate length of {manifest_path} (known: {})",
+                if known.is_empty() { "none".to_string() } else { known.join(", ") }
+            ));
+        }
+    }
+    for (e, key) in effects {
+        if let Effect::Channel { channel, .. } = e {
+            if !channel_declared(campaign, channel) {
+                let sensors: Vec<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
+                return Err(format!(
+                    "{key}: {:?}: no channel {channel:?} in {manifest_path} (sensors: {}; \
+                     or a difference A-B of two, event:KIND, {})",
+                    e.name(),
+                    if sensors.is_empty() {
+                        "none".to_string()
+                    } else {
+                        sensors.join(", ")
+                    },
+                    BUILT_IN_CHANNELS.join(", ")
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A path for a one-line message: control characters escaped.
+fn shown(path: &Path) -> String {
+    path.display()
+        .to_string()
+        .chars()
+        .flat_map(|c| {
+            if c.is_control() {
+                c.escape_debug().collect::<Vec<_>>()
+            } else {
+                vec![c]
+            }
+        })
+        .collect()
+}
+
+/// Reads and validates `dir/campaign.toml` (cheap: no parquet file is opened).
+fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
+    let path = dir.join("campaign.toml");
+    let file = shown(&path);
+    let text = std::fs::read_to_string(&path).map_err(|e| PlanError::Pipeline {
+        path: file.clone(),
+        message: format!("cannot read: {e}"),
+    })?;
+    let boxed = |e| PlanError::Campaign(Box::new(e));
+    let manifest = crate::campaign::Manifest::from_toml_str(&text, &file).map_err(boxed)?;
+    let campaign = Campaign::from_manifest_at(manifest, &file).map_err(boxed)?;
+    Ok((campaign, file))
 }
 
 /// A validated run: what to read, what to do, where to write.
@@ -302,7 +509,7 @@ impl RunPlan {
         add_effects: &[String],
     ) -> Result<RunPlan, PlanError> {
         let perr = |message: String| PlanError::Pipeline {
-            path: path.display().to_string(),
+            path: shown(path),
             message,
         };
         let text = std::fs::read_to_string(path).map_err(|e| perr(format!("cannot read: {e}")))?;
@@ -311,6 +518,8 @@ impl RunPlan {
         if file.pipeline.stages.is_empty() {
             return Err(perr("pipeline.stages is empty".into()));
         }
+        // Every number first, before anything of the campaign is touched.
+        file.check_numbers().map_err(perr)?;
         let mut stages: Vec<Stage> = file
             .pipeline
             .stages
@@ -319,17 +528,24 @@ impl RunPlan {
             .collect();
         stages.sort();
         stages.dedup();
-        let mut names = file.model.effects.clone();
-        for t in &file.model.term {
-            if t.tau_s.is_some_and(|tau| !(tau > 0.0)) {
-                return Err(perr(format!(
-                    "model.term (channel {:?}): tau_s must be positive",
-                    t.channel
-                )));
-            }
-            names.push(t.effect().name());
+        let mut names: Vec<(String, String)> = file
+            .model
+            .effects
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (e.clone(), format!("{}: model.effects[{i}]", shown(path))))
+            .collect();
+        for (i, t) in file.model.term.iter().enumerate() {
+            names.push((
+                t.effect().name(),
+                format!("{}: model.term[{i}]", shown(path)),
+            ));
         }
-        names.extend(add_effects.iter().cloned());
+        names.extend(
+            add_effects
+                .iter()
+                .map(|e| (e.clone(), "--add-effect".to_string())),
+        );
         let campaign_dir = campaign
             .or(file.pipeline.campaign.clone())
             .unwrap_or_else(|| PathBuf::from("data/sample"));
@@ -343,35 +559,9 @@ impl RunPlan {
             &names,
             file.matching,
         )?;
-        if file.diagnose.beam == 0 {
-            return Err(perr(
-                "diagnose.beam must be at least 1 (1: plain greedy selection)".into(),
-            ));
-        }
-        if let Some(t) = file.diagnose.tolerance_um {
-            if !(t.is_finite() && t > 0.0) {
-                return Err(perr(format!(
-                    "diagnose.tolerance_um must be a positive number of µm, not {t}"
-                )));
-            }
-        }
         plan.diagnose = file.diagnose;
         if let Some(bin_s) = file.model.bin_s {
-            if !(0.0..=crate::series::MAX_BIN_S).contains(&bin_s) {
-                return Err(perr(format!(
-                    "model.bin_s must be between 0 and {} s",
-                    crate::series::MAX_BIN_S
-                )));
-            }
             (plan.bin_s, plan.automatic_bins) = (bin_s, false);
-        }
-        if !(file.acceptance.tolerance_um > 0.0
-            && file.acceptance.u_temperature_k >= 0.0
-            && file.acceptance.max_gap_s > 0.0)
-        {
-            return Err(perr(
-                "acceptance: tolerance_um and max_gap_s must be > 0, u_temperature_k >= 0".into(),
-            ));
         }
         plan.acceptance = file.acceptance;
         plan.report = file.report;
@@ -386,10 +576,16 @@ impl RunPlan {
         out: Option<PathBuf>,
         effects: &[String],
     ) -> Result<RunPlan, PlanError> {
-        let names = if effects.is_empty() {
+        let names: Vec<(String, String)> = if effects.is_empty() {
             default_effects()
+                .into_iter()
+                .map(|e| (e, "the base model".to_string()))
+                .collect()
         } else {
-            effects.to_vec()
+            effects
+                .iter()
+                .map(|e| (e.clone(), "--effects/--add-effect".to_string()))
+                .collect()
         };
         RunPlan::new(
             format!("{stage:?}").to_lowercase(),
@@ -408,19 +604,10 @@ impl RunPlan {
         stages: Vec<Stage>,
         campaign_dir: PathBuf,
         out_dir: Option<PathBuf>,
-        effect_names: &[String],
+        effect_names: &[(String, String)],
         matching: MatchSection,
     ) -> Result<RunPlan, PlanError> {
-        let mut effects = Vec::new();
-        for n in effect_names {
-            let e = Effect::parse(n)?;
-            if !effects.contains(&e) {
-                effects.push(e);
-            }
-        }
-        if !campaign_dir.join("campaign.toml").is_file() {
-            return Err(PlanError::NoCampaign(campaign_dir.display().to_string()));
-        }
+        let effects = validated_effects(&campaign_dir, effect_names, &matching, source.as_ref())?;
         Ok(RunPlan {
             pipeline_name: name,
             pipeline_source: source,
@@ -441,6 +628,63 @@ impl RunPlan {
     pub fn runs(&self, stage: Stage) -> bool {
         self.stages.contains(&stage)
     }
+
+    /// The command line's model overrides: `--effects` (replacing the plan's, when not empty),
+    /// then `--add-effect`; validated against the campaign like the pipeline's own.
+    pub fn with_effects(
+        mut self,
+        replace: &[String],
+        add: &[String],
+    ) -> Result<RunPlan, PlanError> {
+        let mut names: Vec<(String, String)> = if replace.is_empty() {
+            self.effects
+                .iter()
+                .map(|e| (e.name(), "model.effects".to_string()))
+                .collect()
+        } else {
+            replace
+                .iter()
+                .map(|e| (e.clone(), "--effects".to_string()))
+                .collect()
+        };
+        names.extend(add.iter().map(|e| (e.clone(), "--add-effect".to_string())));
+        self.effects = validated_effects(
+            &self.campaign_dir,
+            &names,
+            &self.matching,
+            self.pipeline_source.as_ref(),
+        )?;
+        Ok(self)
+    }
+}
+
+/// Parse, range-check and deduplicate `effect_names` (each with the key that named it), and
+/// check them against the campaign's manifest (cheap to read) before any parquet.
+fn validated_effects(
+    campaign_dir: &Path,
+    effect_names: &[(String, String)],
+    matching: &MatchSection,
+    source: Option<&(PathBuf, String)>,
+) -> Result<Vec<Effect>, PlanError> {
+    let mut keyed: Vec<(Effect, String)> = Vec::new();
+    for (n, key) in effect_names {
+        let e = Effect::parse(n)?;
+        check_effect(&e).map_err(|message| PlanError::Pipeline {
+            path: key.clone(),
+            message,
+        })?;
+        if !keyed.iter().any(|(k, _)| *k == e) {
+            keyed.push((e, key.clone()));
+        }
+    }
+    if !campaign_dir.join("campaign.toml").is_file() {
+        return Err(PlanError::NoCampaign(shown(campaign_dir)));
+    }
+    let (campaign, manifest_path) = read_campaign_manifest(campaign_dir)?;
+    let pipeline_path = source.map_or("plan".to_string(), |(p, _)| shown(p));
+    check_against_campaign(&campaign, &manifest_path, &keyed, matching, &pipeline_path)
+        .map_err(PlanError::NotInCampaign)?;
+    Ok(keyed.into_iter().map(|(e, _)| e).collect())
 }
 
 pub fn sha256_hex(bytes: &[u8]) -> String {
@@ -1315,3 +1559,6 @@ pub fn diagnosis_record<'a>(
         bar_ledgers: &d.bar_ledgers,
     }
 }
+
+#[cfg(test)]
+mod plan_tests;

@@ -171,11 +171,18 @@ fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
     Ok(output::write_file(path, text.as_bytes())?)
 }
 
-/// A parquet table, through the output's fault points.
-fn write_table(path: &Path, table: &io::Table) -> Result<()> {
+/// A parquet table (and its CSV twin when `[output] csv`), through the output's fault points.
+fn write_table(plan: &RunPlan, path: &Path, table: &io::Table) -> Result<()> {
     output::fault::point("write", path)
         .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(io::write_table(path, table)?)
+    io::write_table(path, table)?;
+    if plan.output.csv {
+        let csv = path.with_extension("csv");
+        output::fault::point("write", &csv)
+            .with_context(|| format!("cannot write {}", csv.display()))?;
+        io::write_table_csv(&csv, table)?;
+    }
+    Ok(())
 }
 
 fn write_outputs(

@@ -982,7 +982,9 @@ mod tests {
     #[test]
     fn bin_sums_are_exact_up_to_an_hour() {
         let us = [0, 1, 3_037_000_499, 3_037_000_500, 3_599_999_999];
-        let counts = [i64::MAX, i64::MIN + 1, -7, 0, 1 << 40];
+        // Σc² of these is 2¹²⁷ − 2⁶⁵ + 2⁶⁴ + 51, just inside i128 (with 1 << 40 it overflowed:
+        // found by overflow-checks, issue 14).
+        let counts = [i64::MAX, i64::MIN + 1, -7, 0, 1 << 32];
         let samples: Vec<(i64, i64)> = us.iter().copied().zip(counts).collect();
         let m = moments(&samples);
         let sum = |f: &dyn Fn(i128, i128) -> i128| -> i128 {

@@ -2,10 +2,12 @@
 //! Data-driven through small `check(...)` helpers in each module.
 
 mod acceptance;
+mod bad_config;
 mod bad_input;
 mod base_noise;
 mod cli;
 mod corpus;
+mod determinism;
 mod diagnose;
 mod false_alarms;
 mod head_heating;

@@ -185,3 +185,20 @@ pub fn base_only_campaign(
         &cfg,
     )
 }
+
+/// [`run_cli`] with extra environment variables on the child process (e.g.
+/// `RAYON_NUM_THREADS`).
+pub fn run_cli_env(args: &[&str], env: &[(&str, &str)]) -> (i32, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("CI", "1")
+        .envs(env.iter().copied())
+        .output()
+        .expect("run dbbcal");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
