@@ -139,3 +139,43 @@ fn adding_an_effect_on_the_command_line_makes_the_error_fall() {
         "{stderr}"
     );
 }
+
+#[test]
+fn run_takes_the_stage_overrides_and_writes_csv_when_asked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string("pipelines/nightly.toml").unwrap();
+    let pipeline = tmp.path().join("csv.toml");
+    std::fs::write(&pipeline, format!("{text}\n[output]\ncsv = true\n")).unwrap();
+    let out = tmp.path().join("out");
+    let (code, _, stderr) = run_cli(&[
+        "run",
+        pipeline.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--bin-s",
+        "600",
+        "--effects",
+        "fixed_part,scale",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let csv = std::fs::read_to_string(out.join("models.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "campaign,bar,param,value,u,u_naive,ci95_low,ci95_high,rms_um,n_samples"
+    );
+    let s = read_json(&out.join("summary.json"));
+    let rows = s["bars"].as_array().unwrap().len() * 4;
+    assert_eq!(lines.count(), rows, "one CSV row per bar and parameter");
+    // An effect naming a channel the campaign lacks is refused before any data is read.
+    let (code, _, stderr) = run_cli(&[
+        "run",
+        "pipelines/nightly.toml",
+        "--out",
+        out.to_str().unwrap(),
+        "--effects",
+        "fixed_part,scale,lag:T9",
+    ]);
+    assert_eq!(code, 3, "{stderr}");
+    assert!(stderr.contains("--effects") && stderr.contains("T9"), "{stderr}");
+}
