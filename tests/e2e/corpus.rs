@@ -107,7 +107,12 @@ pub fn check_refused(campaign: &Path, command: &[&str], code: i32, needles: &[&s
         snapshot(campaign) == campaign_before,
         "{what}: the campaign changed"
     );
-    let left = leftovers(campaign.parent().unwrap());
+    assert_no_leftovers(campaign.parent().unwrap(), &what);
+}
+
+/// No partial folder, old output or lock is left in `dir`.
+pub fn assert_no_leftovers(dir: &Path, what: &str) {
+    let left = leftovers(dir);
     assert!(left.is_empty(), "{what}: leftovers {left:?}");
 }
 

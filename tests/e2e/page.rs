@@ -26,17 +26,23 @@ fn night() -> &'static (PathBuf, PathBuf, String) {
         cfg.effects.head_heating.enabled = true;
         let (campaign, _) = simulate_campaign(&root, "campaign", &cfg);
         let out = root.join("night");
-        let (code, _, stderr) = run_cli(&[
-            "run",
-            "pipelines/nightly.toml",
-            "--campaign",
-            campaign.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert_eq!(code, 0, "{stderr}");
+        let stderr = run_night(&campaign, &out);
         (campaign, out, stderr)
     })
+}
+
+/// `dbbcal run pipelines/nightly.toml` on `campaign` into `out`; its stderr.
+fn run_night(campaign: &Path, out: &Path) -> String {
+    let (code, _, stderr) = run_cli(&[
+        "run",
+        "pipelines/nightly.toml",
+        "--campaign",
+        campaign.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    stderr
 }
 
 fn read(path: &Path) -> String {
@@ -163,18 +169,9 @@ fn the_command_line_says_where_the_output_went_and_what_to_do_next() {
 #[test]
 fn page_and_report_are_byte_identical_across_runs() {
     let (campaign, out, _) = night();
-    let tmp = tempfile::tempdir().unwrap();
     // The same --out string, so the command lines in the page are the same: rerun in place.
     let before = (read(&out.join("index.html")), read(&out.join("report.md")));
-    let (code, _, stderr) = run_cli(&[
-        "run",
-        "pipelines/nightly.toml",
-        "--campaign",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    run_night(campaign, out);
     let after = (read(&out.join("index.html")), read(&out.join("report.md")));
     assert!(
         before == after,

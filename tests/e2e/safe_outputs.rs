@@ -7,7 +7,9 @@ use std::process::{Command, Output};
 use dbbcal::io::{write_table, Column, Table};
 use dbbcal::simulate::{FleetConfig, SimConfig};
 
-use crate::corpus::{assert_one_line, copy_dir, earlier_output, leftovers, snapshot};
+use crate::corpus::{
+    assert_no_leftovers, assert_one_line, copy_dir, earlier_output, leftovers, snapshot,
+};
 use crate::support::simulate_campaign;
 
 /// The `dbbcal` binary with `args` and extra environment `env`.
@@ -221,7 +223,7 @@ fn a_run_where_no_bar_succeeds_keeps_the_previous_output() {
         ],
         &[&out],
     );
-    assert!(leftovers(tmp.path()).is_empty());
+    assert_no_leftovers(tmp.path(), "no bar succeeded");
 }
 
 /// The clean result of `identify` + figures on the campaign `c` (with `--out` `fresh`).
@@ -274,11 +276,7 @@ fn killed_at_any_write_step_the_output_is_entirely_old_or_entirely_new() {
             snapshot(&out) == new,
             "rerun after {fault} differs from a clean run"
         );
-        assert!(
-            leftovers(tmp.path()).is_empty(),
-            "after {fault}: {:?}",
-            leftovers(tmp.path())
-        );
+        assert_no_leftovers(tmp.path(), &fault);
     }
     assert!(killed >= 10, "only {killed} kill points");
     assert!(saw_new);
@@ -323,11 +321,7 @@ fn a_full_disk_at_any_write_step_leaves_the_previous_output_intact() {
             snapshot(&out) == old,
             "{fault}: the previous output changed"
         );
-        assert!(
-            leftovers(tmp.path()).is_empty(),
-            "{fault}: {:?}",
-            leftovers(tmp.path())
-        );
+        assert_no_leftovers(tmp.path(), &fault);
     }
     assert!(failed >= 10, "only {failed} write steps");
 }
@@ -363,11 +357,7 @@ fn an_interrupted_run_removes_its_partial_folder_and_keeps_the_old_output() {
         assert!(stderr.contains("interrupted"), "{stderr}");
         assert!(!partial.exists(), "the partial folder is left");
         assert!(snapshot(&out) == old);
-        assert!(
-            leftovers(tmp.path()).is_empty(),
-            "{:?}",
-            leftovers(tmp.path())
-        );
+        assert_no_leftovers(tmp.path(), &format!("signal {signal}"));
     }
 }
 
