@@ -177,7 +177,6 @@ fn page_and_report_are_byte_identical_across_runs() {
         before == after,
         "the page or the report changed between identical runs"
     );
-    drop(tmp);
 }
 
 /// Chromium from the distribution, if installed.
