@@ -38,7 +38,7 @@ pub fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headline) -> 
             .map(|b| b.whiteness_p)
     };
     for o in &results.bars {
-        bar_section(&mut md, o, whiteness(&o.model.bar));
+        bar_section(&mut md, o, whiteness(&o.model.bar), plan.bin_s);
     }
     if !results.failed.is_empty() {
         let _ = writeln!(md, "## Failed bars\n");
@@ -51,11 +51,17 @@ pub fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headline) -> 
 }
 
 /// One bar: the fit statistics, the variables, strong correlations, warnings.
-fn bar_section(md: &mut String, o: &BarOutcome, whiteness_p: Option<f64>) {
+fn bar_section(md: &mut String, o: &BarOutcome, whiteness_p: Option<f64>, bin_s: f64) {
     let m = &o.model;
     let _ = writeln!(md, "## Bar {}\n", m.bar);
     md.push_str("```text\n[[Fit statistics]]\n");
     let _ = writeln!(md, "    data points      = {}", m.n_samples);
+    if bin_s > 0.0 {
+        let _ = writeln!(
+            md,
+            "    compression      = {bin_s:.0}-s bins, two weighted nodes each (exact for a model straight within a bin)"
+        );
+    }
     let _ = writeln!(
         md,
         "    variables        = {} ({} physical, the rest mount zeros and initial states)",
@@ -100,7 +106,7 @@ fn bar_section(md: &mut String, o: &BarOutcome, whiteness_p: Option<f64>) {
         }
     }
     md.push_str("```\n\n");
-    let warnings = warnings(o);
+    let warnings = warnings(o, bin_s);
     if !warnings.is_empty() {
         md.push_str("Warnings:\n\n");
         for w in warnings {
@@ -172,7 +178,18 @@ pub enum Warning {
     FewBatches { param: String, dof: f64 },
     /// Parameters the bar's data cannot determine (left out of its fit).
     NotIdentifiable { params: Vec<String>, reason: String },
+    /// A fitted time constant shorter than [`BINS_PER_TAU`] compressed bins: the compression is
+    /// exact to O((bin / tau)²), more than 1 % here (README, "exact compression").
+    CoarseBins {
+        param: String,
+        tau_s: f64,
+        bin_s: f64,
+    },
 }
+
+/// A time constant should span at least this many bins for the compression to stay within
+/// (1 / 10)² = 1 % of the straight-line approximation it rests on.
+pub const BINS_PER_TAU: f64 = 10.0;
 
 impl Warning {
     /// In plain words (the fit report).
@@ -189,14 +206,27 @@ impl Warning {
                 "not identifiable from this bar's data: {} ({reason})",
                 params.join(", ")
             ),
+            Warning::CoarseBins { param, tau_s, bin_s } => format!(
+                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s: the compression's straight line within a bin is off by ~(bin/tau)² = {:.1} % of the term's curvature; rerun with --bin-s 0 (every reading) to be exact",
+                100.0 * (bin_s / tau_s).powi(2)
+            ),
         }
     }
 }
 
-/// The bar's warnings.
-pub fn warnings(o: &BarOutcome) -> Vec<Warning> {
+/// The bar's warnings; `bin_s`: the length of the compressed bins (0: every reading).
+pub fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
     let m = &o.model;
     let mut out = Vec::new();
+    for p in m.params.iter().filter(|p| p.name.starts_with("tau")) {
+        if bin_s > 0.0 && p.value < BINS_PER_TAU * bin_s {
+            out.push(Warning::CoarseBins {
+                param: p.name.clone(),
+                tau_s: p.value,
+                bin_s,
+            });
+        }
+    }
     for p in &m.params {
         for (end, side) in [(0, "below"), (1, "above")] {
             if p.ci95_at_search_bound[end] {
@@ -237,6 +267,9 @@ pub fn short_flags(warnings: &[Warning]) -> Vec<String> {
             Warning::NotIdentifiable { params, .. } => {
                 flags.push(format!("not identifiable: {}", params.join(", ")))
             }
+            Warning::CoarseBins { param, .. } => flags.push(format!(
+                "{param} < {BINS_PER_TAU} bins: rerun with --bin-s 0"
+            )),
         }
     }
     if !unbounded.is_empty() {

@@ -42,7 +42,7 @@ pub fn page(
         escape(&measurement_dates(results)),
     );
     night(&mut h, headline);
-    bars(&mut h, results, headline);
+    bars(&mut h, plan, results, headline);
     the_loop(&mut h, results, headline, figures);
     per_bar(&mut h, results, figures);
     acceptance(&mut h, plan, results, figures);
@@ -86,7 +86,7 @@ fn night(h: &mut String, headline: &Headline) {
 }
 
 /// 2. A table of bars: parameters ± U (k = 2), RMS, whiteness, flags; failed bars with reasons.
-fn bars(h: &mut String, results: &RunResults, headline: &Headline) {
+fn bars(h: &mut String, plan: &RunPlan, results: &RunResults, headline: &Headline) {
     h.push_str("<section id=\"bars\"><h2>Bars</h2>\n");
     let mut names: Vec<&str> = Vec::new();
     for o in &results.bars {
@@ -119,7 +119,7 @@ fn bars(h: &mut String, results: &RunResults, headline: &Headline) {
             .and_then(|d| d.bars.iter().find(|b| b.bar == m.bar))
             .map(|b| format!("{:.3}", b.whiteness_p))
             .unwrap_or_else(|| "—".into());
-        let mut flags = short_flags(&warnings(o));
+        let mut flags = short_flags(&warnings(o, plan.bin_s));
         flags.extend(
             strong_correlations(o)
                 .into_iter()

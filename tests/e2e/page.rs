@@ -320,3 +320,26 @@ fn acceptance_with_nothing_to_accept_says_why() {
         "the page does not say why"
     );
 }
+
+#[test]
+fn the_fit_report_warns_when_bins_are_coarse_for_a_time_constant() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (bin_s, warned) in [("600", true), ("0", false)] {
+        let out = tmp.path().join(format!("bins-{bin_s}"));
+        let (code, _, stderr) = run_cli(&[
+            "-q",
+            "identify",
+            "--out",
+            out.to_str().unwrap(),
+            "--bin-s",
+            bin_s,
+        ]);
+        assert_eq!(code, 0, "{stderr}");
+        let report = read(&out.join("report.md"));
+        assert_eq!(
+            report.contains("spans fewer than 10 bins of 600 s"),
+            warned,
+            "--bin-s {bin_s}"
+        );
+    }
+}
