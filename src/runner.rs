@@ -64,21 +64,8 @@ fn output_folder(plan: &RunPlan) -> Result<PathBuf> {
 pub fn run(plan: &RunPlan) -> Result<Outcome> {
     let target = OutputTarget::claim(&output_folder(plan)?, &plan.campaign_dir)?;
     // No bin length set: chosen from the campaign before ingest streams (and recorded).
-    let chosen;
-    let plan = if plan.automatic_bins {
-        chosen = RunPlan {
-            bin_s: io::automatic_bin_s(&plan.campaign_dir)?,
-            automatic_bins: false,
-            ..plan.clone()
-        };
-        &chosen
-    } else {
-        plan
-    };
-    let logs = pipeline::timed("ingest", || {
-        io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
-    })?;
-    let results = pipeline::analyse(plan, logs);
+    let (plan, results) = ingest_and_analyse(plan)?;
+    let plan = &plan;
     if plan.runs(Stage::Identify) && results.bars.is_empty() {
         return Ok(Outcome {
             status: RunStatus::NoBarSucceeded(results.failed),
@@ -112,6 +99,54 @@ pub fn run(plan: &RunPlan) -> Result<Outcome> {
         out: Some(out),
         headline: Some(headline),
     })
+}
+
+/// Ingest and analyse. With no bin length set, the bins are chosen from the campaign's reading
+/// rate ([`io::automatic_bin_s`]) and then checked against the fitted time constants: when one
+/// spans fewer than [`crate::series::MIN_BINS_PER_TAU`] bins, the campaign is read again with
+/// bins that short time constant allows (at most twice; below 1 s, every reading).
+fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
+    let automatic = plan.automatic_bins;
+    let mut plan = RunPlan {
+        automatic_bins: false,
+        ..plan.clone()
+    };
+    if automatic {
+        plan.bin_s = io::automatic_bin_s(&plan.campaign_dir)?;
+    }
+    for pass in 0.. {
+        let logs = pipeline::timed("ingest", || {
+            io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
+        })?;
+        let results = pipeline::analyse(&plan, logs);
+        let shortest = shortest_fitted_tau_s(&results);
+        let limit = crate::series::MIN_BINS_PER_TAU * plan.bin_s;
+        match shortest {
+            Some(tau) if automatic && plan.bin_s > 0.0 && tau < limit && pass < 2 => {
+                let bin_s = (tau / crate::series::MIN_BINS_PER_TAU).floor();
+                let bin_s = if bin_s >= 1.0 { bin_s } else { 0.0 };
+                tracing::info!(
+                    "a fitted time constant of {tau:.0} s spans fewer than {} bins of {} s: reading again with bins of {bin_s} s",
+                    crate::series::MIN_BINS_PER_TAU,
+                    plan.bin_s
+                );
+                plan.bin_s = bin_s;
+            }
+            _ => return Ok((plan, results)),
+        }
+    }
+    unreachable!("the loop returns by its third pass")
+}
+
+/// The shortest time constant fitted on any bar (s).
+fn shortest_fitted_tau_s(results: &RunResults) -> Option<f64> {
+    results
+        .bars
+        .iter()
+        .flat_map(|o| o.model.params.iter())
+        .filter(|p| p.name.starts_with("tau") && p.value.is_finite())
+        .map(|p| p.value)
+        .min_by(f64::total_cmp)
 }
 
 /// Write a simulated campaign into `out` (which must not exist).

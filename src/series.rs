@@ -15,6 +15,7 @@ pub use bins::{
     automatic_bin_s, reading_time_ok, BarBins, BinAccumulator, BinError, BinGrid, BinKey,
     BinMoments, Node, Readings, Region, AUTOMATIC_BIN_S, AUTOMATIC_MAX_INTERVAL_S,
     EARLIEST_READING_NS, LATEST_READING_NS, MAX_ABS_COUNTS, MAX_BAR_READINGS, MAX_BIN_S,
+    MIN_BINS_PER_TAU,
 };
 pub use quality::Quality;
 

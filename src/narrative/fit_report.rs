@@ -6,6 +6,7 @@ use std::fmt::Write;
 
 use super::Headline;
 use crate::pipeline::{BarOutcome, RunPlan, RunResults};
+use crate::series::MIN_BINS_PER_TAU as BINS_PER_TAU;
 
 /// Correlations of parameters listed when |r| is above this (lmfit lists above 0.1 by default;
 /// a metrologist reading for trouble wants the near-collinear pairs only).
@@ -186,10 +187,6 @@ pub enum Warning {
         bin_s: f64,
     },
 }
-
-/// A time constant should span at least this many bins for the compression to stay within
-/// (1 / 10)² = 1 % of the straight-line approximation it rests on.
-pub const BINS_PER_TAU: f64 = 10.0;
 
 impl Warning {
     /// In plain words (the fit report).

@@ -86,6 +86,11 @@ pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
 /// any row is read, and the same for any row order or file layout. A bar that logged only part
 /// of its span makes the interval look longer (no compression), never shorter; rows logged
 /// outside the spans make it look shorter.
+/// A fitted time constant should span at least this many bins: the compression's straight line
+/// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
+/// length set, a run whose fit finds a shorter one reads the campaign again with shorter bins.
+pub const MIN_BINS_PER_TAU: f64 = 10.0;
+
 pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
     let mut spans: std::collections::BTreeMap<&str, (TimeNs, TimeNs)> = Default::default();
     for m in &campaign.mounts {

@@ -214,3 +214,61 @@ fn compressed(dir: &std::path::Path, bin_s: f64, streamed: bool) -> dbbcal::pipe
         streamed,
     )
 }
+
+/// With no bin length set, a fitted time constant shorter than 10 bins of the automatic 60 s
+/// makes the run read the campaign again with bins it allows, and the result is the full-rate
+/// fit's (settling with tau 240 s, 2-s readings: 60-s bins, then 23-s bins).
+#[test]
+fn automatic_bins_shorten_for_a_short_fitted_time_constant() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut cfg: SimConfig = sim_config("pipelines/sim-sample.toml");
+    cfg.campaign_id = "short-tau".into();
+    cfg.duration_days = 2.0;
+    cfg.sample_s = 2.0;
+    cfg.fleet = Some(FleetConfig {
+        n_bars: 2,
+        ..FleetConfig::default()
+    });
+    cfg.effects.settling.enabled = true;
+    cfg.effects.settling.tau_s = 240.0;
+    let (dir, _) = simulate_campaign(tmp.path(), "short-tau", &cfg);
+    let summary = |bin: Option<&str>| {
+        let out = tmp.path().join(format!("out-{bin:?}"));
+        let mut args = vec![
+            "-q",
+            "identify",
+            "--campaign",
+            dir.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--add-effect",
+            "settling",
+        ];
+        if let Some(b) = bin {
+            args.extend(["--bin-s", b]);
+        }
+        let (code, _, stderr) = crate::support::run_cli(&args);
+        assert_eq!(code, 0, "{stderr}");
+        let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()
+    };
+    let auto = summary(None);
+    let full = summary(Some("0"));
+    let bin_s = auto["model"]["bin_s"].as_f64().unwrap();
+    assert!(bin_s > 0.0 && bin_s <= 24.0, "bins of {bin_s} s");
+    for (a, f) in auto["bars"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(full["bars"].as_array().unwrap())
+    {
+        for p in ["alpha_ppm_per_k", "tau_settling_s"] {
+            let (va, vf) = (
+                a["params"][p]["value"].as_f64().unwrap(),
+                f["params"][p]["value"].as_f64().unwrap(),
+            );
+            let u = f["params"][p]["u"].as_f64().unwrap();
+            assert!((va - vf).abs() < 0.1 * u, "{p}: {va} vs {vf} (u {u})");
+        }
+    }
+}
