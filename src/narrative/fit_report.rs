@@ -39,7 +39,12 @@ pub fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headline) -> 
             .map(|b| b.whiteness_p)
     };
     for o in &results.bars {
-        bar_section(&mut md, o, whiteness(&o.model.bar), plan.bin_s);
+        let quality = results
+            .quality
+            .bars
+            .get(&o.model.bar)
+            .and_then(quality_line);
+        bar_section(&mut md, o, whiteness(&o.model.bar), plan.bin_s, quality);
     }
     if !results.failed.is_empty() {
         let _ = writeln!(md, "## Failed bars\n");
@@ -52,7 +57,13 @@ pub fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headline) -> 
 }
 
 /// One bar: the fit statistics, the variables, strong correlations, warnings.
-fn bar_section(md: &mut String, o: &BarOutcome, whiteness_p: Option<f64>, bin_s: f64) {
+fn bar_section(
+    md: &mut String,
+    o: &BarOutcome,
+    whiteness_p: Option<f64>,
+    bin_s: f64,
+    quality: Option<String>,
+) {
     let m = &o.model;
     let _ = writeln!(md, "## Bar {}\n", m.bar);
     md.push_str("```text\n[[Fit statistics]]\n");
@@ -108,8 +119,11 @@ fn bar_section(md: &mut String, o: &BarOutcome, whiteness_p: Option<f64>, bin_s:
     }
     md.push_str("```\n\n");
     let warnings = warnings(o, bin_s);
-    if !warnings.is_empty() {
+    if !warnings.is_empty() || quality.is_some() {
         md.push_str("Warnings:\n\n");
+        if let Some(q) = quality {
+            let _ = writeln!(md, "- {q} (ranges in summary.json → quality)");
+        }
         for w in warnings {
             let _ = writeln!(md, "- {}", w.sentence());
         }
@@ -279,6 +293,36 @@ pub fn short_flags(warnings: &[Warning]) -> Vec<String> {
         ));
     }
     flags
+}
+
+/// A bar's data quality in one line (`summary.json` → `quality` has the ranges), if anything was
+/// dropped or flagged.
+pub fn quality_line(q: &crate::series::quality::ChannelQuality) -> Option<String> {
+    let mut kinds: Vec<(String, usize)> = Vec::new();
+    for f in &q.flags {
+        let kind = serde_json::to_value(f.kind)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        match kinds.iter_mut().find(|(k, _)| *k == kind) {
+            Some((_, n)) => *n += 1,
+            None => kinds.push((kind, 1)),
+        }
+    }
+    if q.dropped_rows == 0 && kinds.is_empty() {
+        return None;
+    }
+    let flags: Vec<String> = kinds.iter().map(|(k, n)| format!("{k} ×{n}")).collect();
+    Some(format!(
+        "data: {} of {} readings dropped{}",
+        q.dropped_rows,
+        q.rows,
+        if flags.is_empty() {
+            String::new()
+        } else {
+            format!("; flagged {}", flags.join(", "))
+        }
+    ))
 }
 
 /// A duration in seconds as a person reads it.

@@ -6,7 +6,9 @@
 
 use std::fmt::Write;
 
-use super::fit_report::{short_flags, strong_correlations, value_and_uncertainty, warnings};
+use super::fit_report::{
+    quality_line, short_flags, strong_correlations, value_and_uncertainty, warnings,
+};
 use super::{conclusion_text, Headline};
 use crate::figures::{FigureFile, FigureKind};
 use crate::pipeline::{RunPlan, RunResults};
@@ -119,7 +121,14 @@ fn bars(h: &mut String, plan: &RunPlan, results: &RunResults, headline: &Headlin
             .and_then(|d| d.bars.iter().find(|b| b.bar == m.bar))
             .map(|b| format!("{:.3}", b.whiteness_p))
             .unwrap_or_else(|| "—".into());
-        let mut flags = short_flags(&warnings(o, plan.bin_s));
+        let mut flags: Vec<String> = results
+            .quality
+            .bars
+            .get(&m.bar)
+            .and_then(quality_line)
+            .into_iter()
+            .collect();
+        flags.extend(short_flags(&warnings(o, plan.bin_s)));
         flags.extend(
             strong_correlations(o)
                 .into_iter()

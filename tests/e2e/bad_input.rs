@@ -200,6 +200,19 @@ fn identify(dir: &Path, bin_s: &str) -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let failed = summary["failed_bars"].as_array().unwrap().len();
     assert_eq!(code == 0, failed == 0, "exit {code}, {stderr}");
+    // What was dropped or flagged is said in words too, per bar, in report.md and on the page.
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let page = std::fs::read_to_string(out.join("index.html")).unwrap();
+    for bar in summary["bars"].as_array().unwrap() {
+        let q = &summary["quality"]["bars"][bar["bar"].as_str().unwrap()];
+        let dropped = q["dropped_rows"].as_u64().unwrap_or(0);
+        let flagged = q["flags"].as_array().is_some_and(|f| !f.is_empty());
+        if dropped > 0 || flagged {
+            let line = format!("data: {dropped} of {} readings dropped", q["rows"]);
+            assert!(report.contains(&line), "{line:?} not in report.md");
+            assert!(page.contains(&line), "{line:?} not on the page");
+        }
+    }
     summary
 }
 
