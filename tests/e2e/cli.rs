@@ -177,5 +177,8 @@ fn run_takes_the_stage_overrides_and_writes_csv_when_asked() {
         "fixed_part,scale,lag:T9",
     ]);
     assert_eq!(code, 3, "{stderr}");
-    assert!(stderr.contains("--effects") && stderr.contains("T9"), "{stderr}");
+    assert!(
+        stderr.contains("--effects") && stderr.contains("T9"),
+        "{stderr}"
+    );
 }
