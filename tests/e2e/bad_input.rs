@@ -613,22 +613,33 @@ fn rows_of_bar(
     range: std::ops::Range<usize>,
     shift: i64,
 ) -> (Table, i64, i64) {
+    rows_of_bar_as(d, bar, range, shift, true)
+}
+
+/// [`rows_of_bar`]; `zoned_ms: false`: naive ns, the campaign's own schema (its files then
+/// share one scan), still reversed.
+fn rows_of_bar_as(
+    d: &Path,
+    bar: &str,
+    range: std::ops::Range<usize>,
+    shift: i64,
+    zoned_ms: bool,
+) -> (Table, i64, i64) {
     let logs = dbbcal::io::read_campaign(d).unwrap();
     let log = &logs.bars[bar];
     let n = range.len();
-    let table = Table::new()
-        .with(
-            "time",
-            time_column(
-                log.time_ns[range.clone()]
-                    .iter()
-                    .rev()
-                    .map(|&t| Some(t / 1_000_000))
-                    .collect(),
-                TimeUnit::Ms,
-                Some("UTC"),
-            ),
+    let times = log.time_ns[range.clone()].iter().rev();
+    let time = if zoned_ms {
+        time_column(
+            times.map(|&t| Some(t / 1_000_000)).collect(),
+            TimeUnit::Ms,
+            Some("UTC"),
         )
+    } else {
+        Column::TimeNs(times.copied().collect())
+    };
+    let table = Table::new()
+        .with("time", time)
         .with("bar", Column::Str(vec![bar.into(); n]))
         .with(
             "counts",
@@ -648,16 +659,23 @@ fn rows_two_files_both_hold_are_flagged_and_counted_once_on_both_paths() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
     let clean = edited_campaign(root, "clean", |_| {});
-    let d = edited_campaign(root, "overlap", |_| {});
     // A re-export overlapping the day file by 5 h for B01 (300 rows at 60 s) and 50 rows of
-    // B02: other bytes (zoned ms, reversed), the same readings.
-    let (b1, from, to) = rows_of_bar(&d, "B01", 100..400, 0);
-    write_table(&d.join("encoders/reexport-b01.parquet"), &b1).unwrap();
-    let (b2, _, _) = rows_of_bar(&d, "B02", 0..50, 0);
-    write_table(&d.join("encoders/reexport-b02.parquet"), &b2).unwrap();
+    // B02: other bytes (reversed; zoned ms, or naive ns as the day file: one shared scan),
+    // the same readings.
+    for (name, zoned_ms) in [("overlap-ms", true), ("overlap-ns", false)] {
+        let d = edited_campaign(root, name, |_| {});
+        let (b1, from, to) = rows_of_bar_as(&d, "B01", 100..400, 0, zoned_ms);
+        write_table(&d.join("encoders/reexport-b01.parquet"), &b1).unwrap();
+        let (b2, _, _) = rows_of_bar_as(&d, "B02", 0..50, 0, zoned_ms);
+        write_table(&d.join("encoders/reexport-b02.parquet"), &b2).unwrap();
+        overlap_counted_once(&d, &clean, from, to);
+    }
+}
+
+fn overlap_counted_once(d: &Path, clean: &Path, from: i64, to: i64) {
     for bin_s in ["60", "0"] {
-        let s = identify(&d, bin_s);
-        let reference = identify(&clean, bin_s);
+        let s = identify(d, bin_s);
+        let reference = identify(clean, bin_s);
         assert_eq!(fit_results(&s), fit_results(&reference), "bin_s {bin_s}");
         let q = bar_quality(&s, "B01");
         assert_eq!(q["duplicate_rows"], 300, "{q}");
