@@ -1,8 +1,11 @@
 //! What the logs hold besides readings, and what ingest did about it (`summary.json` →
 //! `quality`): missing values (null, NaN, ±inf) dropped and counted, exact duplicates counted
 //! once, and a bar's encoder checked for the faults a thermal fit would take for thermal
-//! error: a frozen counter, single-sample jumps, a 32-bit counter wrap. Nothing is dropped
-//! without a count, and nothing suspicious reaches a fit without a flag.
+//! error: a frozen counter, single-sample jumps, a 32-bit counter wrap; and for the signs of a
+//! clock that jumped: readings of one time with different counts (`conflicting_readings`) and
+//! gaps inside a mount (`gap`). Nothing is dropped without a count, and nothing suspicious
+//! reaches a fit without a flag. (Rows that two files both hold are found by ingest,
+//! `io::read::resolve_overlaps`.)
 //!
 //! The encoder checks run on a bar's *pieces* in time order within each zero segment (a mount,
 //! split at `rezero` events; handling time is never fitted and the bar moves then): a piece is
