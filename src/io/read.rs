@@ -1058,7 +1058,9 @@ fn read_encoders(
         });
     }
     let mut bars = sink.bars;
+    let clock = std::time::Instant::now();
     let overlaps = resolve_overlaps(files, bar_ids, &sink.ranges, &mut bars)?;
+    tracing::debug!(elapsed = ?clock.elapsed(), bars = overlaps.len(), "file overlaps resolved");
     // Bars in parallel: an unsorted full-rate log is sorted here (~0.1 s a million rows).
     use rayon::prelude::*;
     let finished: Vec<(String, BarLog, Option<BarBins>)> = bar_ids
