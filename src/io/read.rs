@@ -29,6 +29,8 @@ use crate::series::{
 
 /// Index of the source file of each row, added while scanning, for error messages.
 const FILE_COL: &str = "__source_file";
+/// The path of each row's file in a scan shared by several encoder files.
+const PATH_COL: &str = "__source_path";
 
 /// The accepted physical forms of one spec column.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -319,6 +321,12 @@ pub(crate) fn read_tables(
         q.rows = rows;
         missing.record(q, "encoder rows");
     }
+    for (id, overlap) in encoders.overlaps {
+        let q = quality.bars.entry(id).or_default();
+        q.duplicate_rows += overlap.removed;
+        q.dropped_rows += overlap.removed;
+        q.flags.extend(overlap.flags);
+    }
     flag_mixed_zones(&zones, quality);
     Ok(Tables {
         bars,
@@ -565,6 +573,14 @@ enum BarRows {
     Dropped,
 }
 
+/// Time range and rows of one declared bar in one file.
+#[derive(Debug, Clone, Copy)]
+struct FileRange {
+    first_ns: i64,
+    last_ns: i64,
+    rows: u64,
+}
+
 /// Rows and time range of an undeclared bar id in one file.
 struct Unknown {
     rows: u64,
@@ -681,6 +697,9 @@ struct EncoderSink {
     read: Vec<(u64, Missing)>,
     /// A bin accumulator's refusal (cannot happen after `push`'s checks; reported if it does).
     bin_error: Option<String>,
+    /// (declared bar index, file) -> time range and rows: where two files overlap for one bar
+    /// ([`resolve_overlaps`]).
+    ranges: BTreeMap<(u32, u32), FileRange>,
     /// Scratch: each row's id index, and the batch's rows grouped by bar.
     row_ids: Vec<u32>,
     grouped_time: Vec<i64>,
@@ -912,6 +931,23 @@ impl EncoderSink {
     }
 
     fn append(&mut self, index: u32, time: &[i64], counts: &[i64]) {
+        if matches!(
+            self.bars.get(index as usize),
+            Some(BarRows::Kept { .. } | BarRows::Binned(_))
+        ) && !time.is_empty()
+        {
+            let (first, last) = time
+                .iter()
+                .fold((i64::MAX, i64::MIN), |(a, b), &t| (a.min(t), b.max(t)));
+            let range = self.ranges.entry((index, self.file)).or_insert(FileRange {
+                first_ns: first,
+                last_ns: last,
+                rows: 0,
+            });
+            range.first_ns = range.first_ns.min(first);
+            range.last_ns = range.last_ns.max(last);
+            range.rows += time.len() as u64;
+        }
         match self.bars.get_mut(index as usize) {
             Some(BarRows::Kept {
                 time_ns,
@@ -1021,11 +1057,15 @@ fn read_encoders(
             known: bar_ids.iter().copied().collect::<Vec<_>>().join(", "),
         });
     }
+    let mut bars = sink.bars;
+    let clock = std::time::Instant::now();
+    let overlaps = resolve_overlaps(files, bar_ids, &sink.ranges, &mut bars)?;
+    tracing::debug!(elapsed = ?clock.elapsed(), bars = overlaps.len(), "file overlaps resolved");
     // Bars in parallel: an unsorted full-rate log is sorted here (~0.1 s a million rows).
     use rayon::prelude::*;
     let finished: Vec<(String, BarLog, Option<BarBins>)> = bar_ids
         .iter()
-        .zip(sink.bars)
+        .zip(bars)
         .collect::<Vec<_>>()
         .into_par_iter()
         .map(|(id, rows)| match rows {
@@ -1050,7 +1090,248 @@ fn read_encoders(
         }
         logs.insert(id, log);
     }
-    Ok(Encoders { logs, bins, rows })
+    Ok(Encoders {
+        logs,
+        bins,
+        rows,
+        overlaps,
+    })
+}
+
+/// What two files holding rows of one bar over one time range gave: flags, and the copies
+/// removed from the bins (counted in `duplicate_rows`).
+#[derive(Debug, Default)]
+struct Overlap {
+    flags: Vec<Flag>,
+    removed: u64,
+}
+
+/// Rows of one bar that several files hold. Wherever the time ranges of two files overlap for
+/// a bar (recorded while streaming, [`FileRange`]), the rows of that bar inside the overlap are
+/// read again from those files only (filtered in the scan by bar and time, so memory is the
+/// overlap's rows), and:
+/// - a reading (time and counts) that several files hold is counted once: with bins, the extra
+///   copies are taken out of the bins (exact: integer sums); at full rate the exact-duplicate
+///   rule drops them (`quality::dedup_sorted`) and only the flag is added here;
+/// - readings of one time with different counts are `conflicting_readings` (kept; at full rate
+///   `quality::check_log` finds them on the sorted rows, so only the binned path flags here).
+fn resolve_overlaps(
+    files: &[PathBuf],
+    bar_ids: &BTreeSet<&str>,
+    ranges: &BTreeMap<(u32, u32), FileRange>,
+    bars: &mut [BarRows],
+) -> Result<BTreeMap<String, Overlap>, IngestError> {
+    let mut found = BTreeMap::new();
+    for (index, id) in bar_ids.iter().enumerate() {
+        let index = index as u32;
+        let binned = match bars.get(index as usize) {
+            Some(BarRows::Binned(_)) => true,
+            Some(BarRows::Kept { .. }) => false,
+            _ => continue,
+        };
+        let mine: Vec<(u32, FileRange)> = ranges
+            .range((index, 0)..=(index, u32::MAX))
+            .filter(|((_, file), _)| (*file as usize) < files.len())
+            .map(|(&(_, file), &r)| (file, r))
+            .collect();
+        let mut windows: Vec<(i64, i64)> = Vec::new();
+        for (i, (_, a)) in mine.iter().enumerate() {
+            for (_, b) in &mine[i + 1..] {
+                let (from, to) = (a.first_ns.max(b.first_ns), a.last_ns.min(b.last_ns));
+                if from <= to {
+                    windows.push((from, to));
+                }
+            }
+        }
+        if windows.is_empty() {
+            continue;
+        }
+        windows.sort_unstable();
+        let mut merged: Vec<(i64, i64)> = Vec::new();
+        for (from, to) in windows {
+            match merged.last_mut() {
+                Some(last) if from <= last.1 => last.1 = last.1.max(to),
+                _ => merged.push((from, to)),
+            }
+        }
+        let report: &mut Overlap = found.entry(id.to_string()).or_default();
+        for (from, to) in merged {
+            let mut rows: Vec<(i64, i64, u32)> = Vec::new();
+            for &(file, r) in &mine {
+                if r.first_ns <= to && r.last_ns >= from {
+                    let path = &files[file as usize];
+                    let read = guarded(path, || rows_in_window(path, id, from, to))?;
+                    rows.extend(read.into_iter().map(|(t, c)| (t, c, file)));
+                }
+            }
+            rows.sort_unstable();
+            let copies = compare_copies(&rows);
+            if copies.removed.0.is_empty() && copies.conflicts.is_none() {
+                continue;
+            }
+            let names = |set: &BTreeSet<u32>| {
+                set.iter()
+                    .map(|&f| file_name(&files[f as usize]))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            if let Some((a, b)) = copies.removed_range {
+                let n = copies.removed.0.len() as u64;
+                let how = if binned {
+                    "counted once (the copies taken out of the bins)"
+                } else {
+                    "counted once (exact duplicates, in duplicate_rows)"
+                };
+                let note = format!(
+                    "{n} readings of bar {id} held by more than one file ({}) with the same time \
+                     and counts: {how}",
+                    names(&copies.duplicate_files)
+                );
+                report
+                    .flags
+                    .push(Flag::at(FlagKind::OverlappingFiles, a, b, n, note));
+            }
+            if let Some(BarRows::Binned(acc)) = bars.get_mut(index as usize) {
+                acc.remove_all(&copies.removed.0, &copies.removed.1)
+                    .map_err(|e| IngestError::Polars {
+                        context: "encoders".into(),
+                        message: format!("bar {id}: {e}"),
+                    })?;
+                report.removed += copies.removed.0.len() as u64;
+                if let Some((a, b, n)) = copies.conflicts {
+                    let note = format!(
+                        "{n} readings of bar {id} share their time with a reading of other \
+                         counts in the overlap of {}: a logger clock set back, or two loggers; \
+                         all kept",
+                        names(&copies.conflict_files)
+                    );
+                    report
+                        .flags
+                        .push(Flag::at(FlagKind::ConflictingReadings, a, b, n, note));
+                }
+            }
+        }
+    }
+    Ok(found)
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+/// What rows `(time, counts, file)` sorted by all three hold twice.
+#[derive(Debug, Default)]
+struct Copies {
+    /// Copies to take out: of a reading that `k` files hold `m_f` times each, all but the
+    /// largest `m_f` (the rows of one file are never compared with each other here).
+    removed: (Vec<i64>, Vec<i64>),
+    removed_range: Option<(i64, i64)>,
+    duplicate_files: BTreeSet<u32>,
+    /// Times with more than one counts value: first, last, readings concerned.
+    conflicts: Option<(i64, i64, u64)>,
+    conflict_files: BTreeSet<u32>,
+}
+
+fn compare_copies(rows: &[(i64, i64, u32)]) -> Copies {
+    let mut out = Copies::default();
+    let mut i = 0;
+    while i < rows.len() {
+        let t = rows[i].0;
+        let end = i + rows[i..]
+            .iter()
+            .position(|r| r.0 != t)
+            .unwrap_or(rows.len() - i);
+        let group = &rows[i..end];
+        let mut values = 0u64;
+        let mut j = 0;
+        while j < group.len() {
+            let c = group[j].1;
+            let same = j + group[j..]
+                .iter()
+                .position(|r| r.1 != c)
+                .unwrap_or(group.len() - j);
+            values += 1;
+            // Per file multiplicities (sorted by file within equal time and counts).
+            let (mut largest, mut run, mut files) = (0usize, 0usize, BTreeSet::new());
+            for k in j..same {
+                run = if k > j && group[k].2 == group[k - 1].2 {
+                    run + 1
+                } else {
+                    1
+                };
+                largest = largest.max(run);
+                files.insert(group[k].2);
+            }
+            let extra = (same - j) - largest;
+            if extra > 0 && files.len() > 1 {
+                for _ in 0..extra {
+                    out.removed.0.push(t);
+                    out.removed.1.push(c);
+                }
+                out.removed_range = Some(out.removed_range.map_or((t, t), |(a, b)| (a, b.max(t))));
+                out.duplicate_files.extend(files);
+            }
+            j = same;
+        }
+        if values > 1 {
+            let (a, b, n) = out.conflicts.unwrap_or((t, t, 0));
+            out.conflicts = Some((a.min(t), b.max(t), n + values));
+            out.conflict_files.extend(group.iter().map(|r| r.2));
+        }
+        i = end;
+    }
+    out
+}
+
+/// One bar's rows of one encoder file with times in `[from_ns, to_ns]`: the scan filters by
+/// bar and time, so only those rows are decoded into memory. Missing counts (null, NaN, ±inf)
+/// are left out as in the streamed read; whole float counts converted.
+fn rows_in_window(
+    path: &Path,
+    bar: &str,
+    from_ns: i64,
+    to_ns: i64,
+) -> Result<Vec<(i64, i64)>, IngestError> {
+    let (lazy, schema, exprs) = checked_scan(path, &ENCODER_COLUMNS)?;
+    let unit = TimeColumn::of(schema.get("time"));
+    let per = unit.ns_per_unit;
+    let (lo, hi) = (
+        from_ns.div_euclid(per) + i64::from(from_ns.rem_euclid(per) != 0),
+        to_ns.div_euclid(per),
+    );
+    let df = lazy
+        .select(exprs)
+        .filter(
+            col("bar")
+                .eq(lit(bar))
+                .and(col("time").gt_eq(lit(lo)))
+                .and(col("time").lt_eq(lit(hi))),
+        )
+        .collect()
+        .map_err(|e| not_parquet(path, e))?;
+    let rows = (|| -> PolarsResult<Vec<(i64, i64)>> {
+        let time = df.column("time")?.i64()?;
+        let counts = df.column("counts")?;
+        let counts: Vec<Option<i64>> = match counts.dtype() {
+            DataType::Float64 => counts
+                .f64()?
+                .iter()
+                .map(|v| v.filter(|v| v.is_finite()).map(|v| v as i64))
+                .collect(),
+            _ => counts.i64()?.iter().collect(),
+        };
+        Ok(time
+            .iter()
+            .zip(counts)
+            .filter_map(|(t, c)| Some((unit.to_ns(t?)?, c?)))
+            .filter(|&(t, _)| t >= from_ns && t <= to_ns)
+            .collect())
+    })()
+    .map_err(|e| not_parquet(path, e))?;
+    Ok(rows)
 }
 
 /// The encoder table per bar: full-rate logs (sorted) or bins, and per bar the rows read and
@@ -1059,6 +1340,8 @@ struct Encoders {
     logs: BTreeMap<String, BarLog>,
     bins: BTreeMap<String, BarBins>,
     rows: BTreeMap<String, (u64, Missing)>,
+    /// Per bar: rows several files hold ([`resolve_overlaps`]).
+    overlaps: BTreeMap<String, Overlap>,
 }
 
 /// Streams every encoder file into a sink with rows `rows(id)` per declared bar: polars
@@ -1079,6 +1362,7 @@ fn stream_encoders(
         bad: BTreeMap::new(),
         read: Vec::new(),
         bin_error: None,
+        ranges: BTreeMap::new(),
         ids: IdIndex::new(bar_ids.iter().copied()),
         bars: bar_ids.iter().map(|id| rows(id)).collect(),
         nulls: BTreeMap::new(),
@@ -1145,15 +1429,42 @@ fn stream_files(
                     PlRefPath::try_from_path(&files[i]).map_err(|e| not_parquet(&files[i], e))
                 })
                 .collect::<Result<_, _>>()?;
-            let shared = LazyFrame::scan_parquet_files(paths.into(), scan_args())
+            let args = ScanArgsParquet {
+                include_file_paths: Some(PATH_COL.into()),
+                ..scan_args()
+            };
+            let shared = LazyFrame::scan_parquet_files(paths.into(), args)
                 .map_err(|e| not_parquet(first, e))?;
             (u32::MAX, shared)
         };
+        let mut exprs = exprs;
+        // A shared scan's batches name their file (a constant column per batch): each batch
+        // is sent with its file's index, so every row's file is known (`FileRange`).
+        let by_path: Option<BTreeMap<String, u32>> = (file == u32::MAX).then(|| {
+            exprs.push(col(PATH_COL));
+            members
+                .iter()
+                .map(|&i| {
+                    let index = u32::try_from(i).unwrap_or(u32::MAX);
+                    (files[i].to_string_lossy().into_owned(), index)
+                })
+                .collect()
+        });
         let to_consumer = batches.clone();
         let callback = PlanCallback::new(move |batch: DataFrame| {
-            to_consumer
-                .send((file, time, batch))
-                .map_err(|_| polars_err!(ComputeError: "the batch consumer stopped"))?;
+            let send = |file: u32, batch: DataFrame| {
+                to_consumer
+                    .send((file, time, batch))
+                    .map_err(|_| polars_err!(ComputeError: "the batch consumer stopped"))
+            };
+            match &by_path {
+                None => send(file, batch)?,
+                Some(by_path) => {
+                    for (file, part) in split_by_file(&batch, by_path)? {
+                        send(file, part)?;
+                    }
+                }
+            }
             Ok(false) // keep going
         });
         guarded(first, || {
@@ -1164,6 +1475,43 @@ fn stream_files(
         })?;
     }
     Ok(())
+}
+
+/// A shared scan's batch cut into runs of one file (usually the whole batch: the scan's file
+/// path column is one constant per batch), each with its file's index (`u32::MAX` for a path
+/// not found) and without the path column.
+fn split_by_file(
+    batch: &DataFrame,
+    by_path: &BTreeMap<String, u32>,
+) -> PolarsResult<Vec<(u32, DataFrame)>> {
+    let index = |path: Option<&str>| {
+        path.and_then(|p| {
+            by_path.get(p).copied().or_else(|| {
+                by_path
+                    .iter()
+                    .find(|(k, _)| Path::new(k.as_str()) == Path::new(p))
+                    .map(|(_, &i)| i)
+            })
+        })
+        .unwrap_or(u32::MAX)
+    };
+    let column = batch.column(PATH_COL)?;
+    let rest = batch.drop(PATH_COL)?;
+    if let Some(scalar) = column.as_scalar_column() {
+        return Ok(vec![(index(scalar.scalar().value().extract_str()), rest)]);
+    }
+    let paths = column.str()?;
+    let mut parts = Vec::new();
+    let mut start = 0;
+    let n = paths.len();
+    for end in 1..=n {
+        if end == n || paths.get(end) != paths.get(start) {
+            let part = rest.slice(start as i64, end - start);
+            parts.push((index(paths.get(start)), part));
+            start = end;
+        }
+    }
+    Ok(parts)
 }
 
 /// Rows sorted by time, ties by value, so that the order never depends on how the rows were

@@ -59,6 +59,8 @@ pub enum BinError {
     CountsOutOfRange { counts: i64 },
     #[error("more than 2^31 readings for one bar")]
     TooManyReadings,
+    #[error("reading at {time_ns} ns removed from a bin that holds no reading")]
+    NotAdded { time_ns: TimeNs },
 }
 
 /// Whether `t` is an accepted reading time ([`EARLIEST_READING_NS`] ..
@@ -189,6 +191,32 @@ impl BinMoments {
         self.sc += c as i128;
         self.suc += u as i128 * c as i128;
         self.scc += c as i128 * c as i128;
+    }
+
+    /// Take back one reading added with [`BinMoments::add_one`] or [`BinMoments::add_run`]:
+    /// the sums are integers, so this is exact. The first/last time and the smallest/largest
+    /// counts cannot be taken back in general; they stay as they were, which is exact when the
+    /// reading removed is a copy of one that stays (a duplicate row), and a bin left empty
+    /// becomes the empty bin. Returns `false` (and changes nothing) on an empty bin.
+    #[inline]
+    pub fn remove_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) -> bool {
+        if self.n == 0 {
+            return false;
+        }
+        if self.n == 1 {
+            *self = BinMoments::default();
+            return true;
+        }
+        let u = (t - start_ns) / NS_PER_US;
+        let uu = u as u64 * u as u64;
+        self.n -= 1;
+        self.su -= u as i128;
+        self.suu -= uu as i128;
+        self.suuu -= uu as i128 * u as i128;
+        self.sc -= c as i128;
+        self.suc -= u as i128 * c as i128;
+        self.scc -= c as i128 * c as i128;
+        true
     }
 
     /// Sums of two parts of one bin.
@@ -539,6 +567,25 @@ impl BinAccumulator {
             self.add_by_block(time_ns, counts);
         } else {
             self.add_in_order(time_ns, counts);
+        }
+        Ok(())
+    }
+
+    /// Take back readings added before (exact copies of readings that stay, e.g. the rows two
+    /// overlapping files both hold): each row's bin loses that reading's integer moments, so
+    /// the bins equal those of the readings without the removed rows. A row whose bin holds
+    /// nothing is refused ([`BinError::NotAdded`]); the rows before it stay removed.
+    pub fn remove_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
+        let n = time_ns.len().min(counts.len());
+        check_readings(&time_ns[..n], &counts[..n])?;
+        for (&t, &c) in time_ns.iter().zip(counts) {
+            let bin = self.locate(t);
+            self.current = Some(bin);
+            let moments = &mut self.pages[bin.page as usize][bin.index as usize];
+            if !moments.remove_one(bin.start, t, c) {
+                return Err(BinError::NotAdded { time_ns: t });
+            }
+            self.readings -= 1;
         }
         Ok(())
     }
@@ -1044,6 +1091,42 @@ mod tests {
         )));
         assert!(starts.contains(&(B + 400_000_000_000, Region::Outside)));
         assert!(sorted.bins.windows(2).all(|w| w[0].0 < w[1].0));
+    }
+
+    #[test]
+    fn removing_readings_gives_back_the_bins_without_them() {
+        const B: TimeNs = 1_800_000_000_000_000_000;
+        let time: Vec<TimeNs> = (0..500).map(|i| B + 1_000_000_000 * i + 7).collect();
+        let counts: Vec<i64> = (0..500).map(|i| (i * 37) % 101 - 50).collect();
+        let grid = BinGrid {
+            bin_ns: 60_000_000_000,
+            mounts: vec![(B + 100_000_000_000, B + 400_000_000_000, 0)],
+            rezeros: vec![B + 250_000_000_000],
+        };
+        let clean = BarBins::from_log(grid.clone(), &time, &counts).unwrap();
+        // Add then remove everything: no bin left.
+        let mut acc = BinAccumulator::new(grid.clone());
+        acc.add_all(&time, &counts).unwrap();
+        acc.remove_all(&time, &counts).unwrap();
+        assert!(acc.finish().bins.is_empty());
+        // The log plus copies of some of its rows (another file, another order), the copies
+        // removed: exactly the bins of the log, bit for bit (first/last, min/max included).
+        let mut acc = BinAccumulator::new(grid.clone());
+        acc.add_all(&time, &counts).unwrap();
+        let copies: Vec<usize> = (120..340).rev().chain([0, 499]).collect();
+        let (ct, cc): (Vec<_>, Vec<_>) = copies.iter().map(|&i| (time[i], counts[i])).unzip();
+        acc.add_all(&ct, &cc).unwrap();
+        assert_ne!(acc.clone().finish(), clean);
+        acc.remove_all(&ct, &cc).unwrap();
+        let back = acc.finish();
+        assert_eq!(back, clean);
+        assert_eq!(back.n_readings(), 500);
+        // A reading where no bin holds one is refused.
+        let mut acc = BinAccumulator::new(grid);
+        assert_eq!(
+            acc.remove_all(&[B + 7], &[1]),
+            Err(BinError::NotAdded { time_ns: B + 7 })
+        );
     }
 
     /// Bins by the definition: each reading's bin from [`BinGrid::locate`], equal bins merged.

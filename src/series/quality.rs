@@ -1,8 +1,11 @@
 //! What the logs hold besides readings, and what ingest did about it (`summary.json` →
 //! `quality`): missing values (null, NaN, ±inf) dropped and counted, exact duplicates counted
 //! once, and a bar's encoder checked for the faults a thermal fit would take for thermal
-//! error: a frozen counter, single-sample jumps, a 32-bit counter wrap. Nothing is dropped
-//! without a count, and nothing suspicious reaches a fit without a flag.
+//! error: a frozen counter, single-sample jumps, a 32-bit counter wrap; and for the signs of a
+//! clock that jumped: readings of one time with different counts (`conflicting_readings`) and
+//! gaps inside a mount (`gap`). Nothing is dropped without a count, and nothing suspicious
+//! reaches a fit without a flag. (Rows that two files both hold are found by ingest,
+//! `io::read::resolve_overlaps`.)
 //!
 //! The encoder checks run on a bar's *pieces* in time order within each zero segment (a mount,
 //! split at `rezero` events; handling time is never fitted and the bar moves then): a piece is
@@ -46,6 +49,17 @@ pub const STUCK_MIN_AIR_CHANGE_K: f64 = 0.05;
 /// Readings more than this long (s) before a bar's first mount or after its last are flagged:
 /// a clock reset or a wrong day file.
 pub const FAR_OUTSIDE_MOUNTS_S: f64 = 86_400.0;
+
+/// A gap inside a mount is flagged when no reading comes for longer than this many times the
+/// bar's median interval between readings ...
+pub const GAP_INTERVAL_FACTOR: f64 = 10.0;
+/// ... and at least this long (s).
+pub const GAP_MIN_S: f64 = 600.0;
+
+/// The gap threshold for a bar whose median interval between readings is `median_interval_ns`.
+pub fn gap_threshold_ns(median_interval_ns: f64) -> TimeNs {
+    (GAP_INTERVAL_FACTOR * median_interval_ns).max(GAP_MIN_S * 1e9) as TimeNs
+}
 
 /// Everything ingest found, per bar, sensor, the events and the files.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -117,6 +131,13 @@ pub enum FlagKind {
     Jump,
     CounterWrap,
     FarOutsideMounts,
+    /// Rows of one bar that two files both hold (same time and counts): counted once.
+    OverlappingFiles,
+    /// One bar, one time, different counts (a logger clock set back, or two loggers): kept.
+    ConflictingReadings,
+    /// No reading for longer than [`gap_threshold_ns`] inside a mount (a logger down, or its
+    /// clock jumped forward).
+    Gap,
 }
 
 /// RFC 3339 rendering of ns since the epoch.
@@ -249,6 +270,64 @@ pub fn record_duplicates(
     }
 }
 
+/// Readings of one bar at one time with different counts, in rows sorted by (time, counts)
+/// without exact duplicates: a `conflicting_readings` flag (range, rows concerned), or `None`.
+pub fn conflicting_sorted(time_ns: &[TimeNs], counts: &[i64], note: &str) -> Option<Flag> {
+    let n = time_ns.len().min(counts.len());
+    let (mut rows, mut range) = (0u64, None::<(TimeNs, TimeNs)>);
+    let mut i = 0;
+    while i < n {
+        let mut end = i + 1;
+        while end < n && time_ns[end] == time_ns[i] {
+            end += 1;
+        }
+        if counts[i..end].iter().any(|&c| c != counts[i]) {
+            rows += (end - i) as u64;
+            let t = time_ns[i];
+            range = Some(range.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+        }
+        i = end;
+    }
+    let (from, to) = range?;
+    let note = format!(
+        "{rows} readings share their time with a reading of other counts ({note}): \
+         a logger clock set back, or two loggers; all kept"
+    );
+    Some(Flag::at(
+        FlagKind::ConflictingReadings,
+        from,
+        to,
+        rows,
+        note,
+    ))
+}
+
+/// `gap` flags: within each mount, consecutive pieces (readings or bins) more than
+/// [`gap_threshold_ns`] apart.
+fn gap_flags(pieces: &[(Region, Piece)], median_interval_ns: f64) -> Vec<Flag> {
+    let limit = gap_threshold_ns(median_interval_ns);
+    let mut flags = Vec::new();
+    for w in pieces.windows(2) {
+        let (Region::Segment { mount: a, .. }, Region::Segment { mount: b, .. }) = (w[0].0, w[1].0)
+        else {
+            continue;
+        };
+        let (from, to) = (w[0].1.last_ns, w[1].1.first_ns);
+        if a == b && to - from > limit {
+            let note = format!(
+                "no reading for {:.2} h inside a mount (threshold {:.0} s: max({GAP_INTERVAL_FACTOR} \
+                 × the median interval {:.1} s, {GAP_MIN_S} s)): a logger down or its clock \
+                 jumped forward; the fits go on",
+                (to - from) as f64 / 3.6e12,
+                limit as f64 * 1e-9,
+                median_interval_ns * 1e-9
+            );
+            flags.push(Flag::at(FlagKind::Gap, from, to, 0, note));
+        }
+    }
+    flags
+}
+
 // ------------------------------------------------------------------ encoder checks
 
 /// One reading, or one bin, of a bar in time order.
@@ -375,6 +454,16 @@ fn median(mut v: Vec<f64>) -> f64 {
     } else {
         0.5 * (v[m - 1] + v[m])
     }
+}
+
+/// The upper median (the lower for an even count would do as well: it sets a threshold), in
+/// linear time: a full-rate bar has millions of steps.
+fn select_median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let m = v.len() / 2;
+    *v.select_nth_unstable_by(m, f64::total_cmp).1
 }
 
 /// Jumps, wraps and frozen runs in one zero segment's pieces (time order).
@@ -594,6 +683,11 @@ pub fn check_log(
 ) {
     let (dups, range) = dedup_sorted(&mut log.time_ns, &mut log.counts);
     record_duplicates(q, dups, range, "encoder rows");
+    q.flags.extend(conflicting_sorted(
+        &log.time_ns,
+        &log.counts,
+        "full-rate rows",
+    ));
     let segments = Segments::new(campaign, events, bar);
     let pieces: Vec<(Region, Piece)> = log
         .time_ns
@@ -611,6 +705,13 @@ pub fn check_log(
             (segments.region(t), piece)
         })
         .collect();
+    let steps: Vec<f64> = log
+        .time_ns
+        .windows(2)
+        .map(|w| (w[1] - w[0]) as f64)
+        .filter(|&d| d > 0.0)
+        .collect();
+    q.flags.extend(gap_flags(&pieces, select_median(steps)));
     let air = air_logs(campaign, bar, sensors);
     let leave = check_pieces(&pieces, &segments, resolution(campaign, bar), &air, q);
     let mounted_before = pieces.iter().filter(|(r, _)| *r != Region::Outside).count();
@@ -664,6 +765,23 @@ pub fn check_bins(
             (key.region, piece)
         })
         .collect();
+    // The median interval between readings from the bins: (last − first) / (n − 1) of each
+    // bin of two readings or more.
+    // bin of two readings or more; with no such bin (a reading a bin or less), the steps
+    // between bins.
+    let mut intervals: Vec<f64> = pieces
+        .iter()
+        .filter(|(_, p)| p.n >= 2 && p.last_ns > p.first_ns)
+        .map(|(_, p)| (p.last_ns - p.first_ns) as f64 / (p.n - 1) as f64)
+        .collect();
+    if intervals.is_empty() {
+        intervals = pieces
+            .windows(2)
+            .map(|w| (w[1].1.first_ns - w[0].1.last_ns) as f64)
+            .filter(|&d| d > 0.0)
+            .collect();
+    }
+    q.flags.extend(gap_flags(&pieces, select_median(intervals)));
     let air = air_logs(campaign, bar, sensors);
     let leave = check_pieces(&pieces, &segments, resolution(campaign, bar), &air, q);
     let mounted_before = pieces.iter().any(|(r, _)| *r != Region::Outside);

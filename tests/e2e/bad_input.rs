@@ -600,3 +600,179 @@ fn encoder_faults_are_flagged_and_a_dead_bar_fails_alone() {
         assert_eq!(s["bars"].as_array().unwrap().len(), 1);
     }
 }
+
+/// Each bar's fitted parameters (values) and RMS: what must not change when rows are
+/// duplicated across files.
+fn fit_results(s: &serde_json::Value) -> Vec<(String, String, String)> {
+    s["bars"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| {
+            (
+                b["bar"].as_str().unwrap().to_string(),
+                b["params"].to_string(),
+                b["rms_um"].to_string(),
+            )
+        })
+        .collect()
+}
+
+/// Rows `range` of `bar`'s full-rate log as an encoder file in zoned ms, in reverse order (other
+/// bytes than the campaign's own naive-ns file), counts changed by `shift`.
+fn rows_of_bar(
+    d: &Path,
+    bar: &str,
+    range: std::ops::Range<usize>,
+    shift: i64,
+) -> (Table, i64, i64) {
+    rows_of_bar_as(d, bar, range, shift, true)
+}
+
+/// [`rows_of_bar`]; `zoned_ms: false`: naive ns, the campaign's own schema (its files then
+/// share one scan), still reversed.
+fn rows_of_bar_as(
+    d: &Path,
+    bar: &str,
+    range: std::ops::Range<usize>,
+    shift: i64,
+    zoned_ms: bool,
+) -> (Table, i64, i64) {
+    let logs = dbbcal::io::read_campaign(d).unwrap();
+    let log = &logs.bars[bar];
+    let n = range.len();
+    let times = log.time_ns[range.clone()].iter().rev();
+    let time = if zoned_ms {
+        time_column(
+            times.map(|&t| Some(t / 1_000_000)).collect(),
+            TimeUnit::Ms,
+            Some("UTC"),
+        )
+    } else {
+        Column::TimeNs(times.copied().collect())
+    };
+    let table = Table::new()
+        .with("time", time)
+        .with("bar", Column::Str(vec![bar.into(); n]))
+        .with(
+            "counts",
+            Column::I64(
+                log.counts[range.clone()]
+                    .iter()
+                    .rev()
+                    .map(|c| c + shift)
+                    .collect(),
+            ),
+        );
+    (table, log.time_ns[range.start], log.time_ns[range.end - 1])
+}
+
+#[test]
+fn rows_two_files_both_hold_are_flagged_and_counted_once_on_both_paths() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let clean = edited_campaign(root, "clean", |_| {});
+    // A re-export overlapping the day file by 5 h for B01 (300 rows at 60 s) and 50 rows of
+    // B02: other bytes (reversed; zoned ms, or naive ns as the day file: one shared scan),
+    // the same readings.
+    for (name, zoned_ms) in [("overlap-ms", true), ("overlap-ns", false)] {
+        let d = edited_campaign(root, name, |_| {});
+        let (b1, from, to) = rows_of_bar_as(&d, "B01", 100..400, 0, zoned_ms);
+        write_table(&d.join("encoders/reexport-b01.parquet"), &b1).unwrap();
+        let (b2, _, _) = rows_of_bar_as(&d, "B02", 0..50, 0, zoned_ms);
+        write_table(&d.join("encoders/reexport-b02.parquet"), &b2).unwrap();
+        overlap_counted_once(&d, &clean, from, to);
+    }
+}
+
+fn overlap_counted_once(d: &Path, clean: &Path, from: i64, to: i64) {
+    for bin_s in ["60", "0"] {
+        let s = identify(d, bin_s);
+        let reference = identify(clean, bin_s);
+        assert_eq!(fit_results(&s), fit_results(&reference), "bin_s {bin_s}");
+        let q = bar_quality(&s, "B01");
+        assert_eq!(q["duplicate_rows"], 300, "{q}");
+        let overlap = flags(q, "overlapping_files");
+        assert_eq!(overlap.len(), 1, "{q}");
+        assert_eq!(overlap[0]["rows"], 300);
+        assert_eq!(overlap[0]["from"], dbbcal::series::quality::format_ns(from));
+        assert_eq!(overlap[0]["to"], dbbcal::series::quality::format_ns(to));
+        let note = overlap[0]["note"].as_str().unwrap();
+        assert!(
+            note.contains("reexport-b01.parquet") && note.contains("encoders.parquet"),
+            "{note}"
+        );
+        assert_eq!(bar_quality(&s, "B02")["duplicate_rows"], 50);
+        assert_eq!(bar_quality(&s, "B03")["duplicate_rows"], 0);
+        assert!(flags(q, "conflicting_readings").is_empty(), "{q}");
+    }
+}
+
+#[test]
+fn conflicting_readings_are_flagged_and_kept() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = edited_campaign(tmp.path(), "conflicts", |_| {});
+    // Ten readings of B01 again at the same times with other counts (a second logger, or a
+    // clock set back over them).
+    let (b1, from, to) = rows_of_bar(&d, "B01", 200..210, 40);
+    write_table(&d.join("encoders/second-logger.parquet"), &b1).unwrap();
+    for bin_s in ["60", "0"] {
+        let s = identify(&d, bin_s);
+        let q = bar_quality(&s, "B01");
+        let conflicts = flags(q, "conflicting_readings");
+        assert_eq!(conflicts.len(), 1, "bin_s {bin_s}: {q}");
+        assert_eq!(conflicts[0]["rows"], 20);
+        assert_eq!(
+            conflicts[0]["from"],
+            dbbcal::series::quality::format_ns(from)
+        );
+        assert_eq!(conflicts[0]["to"], dbbcal::series::quality::format_ns(to));
+        assert_eq!(q["duplicate_rows"], 0, "{q}");
+        assert_eq!(q["dropped_rows"], 0, "{q}");
+        assert!(flags(bar_quality(&s, "B02"), "conflicting_readings").is_empty());
+    }
+}
+
+#[test]
+fn a_two_hour_gap_inside_a_mount_is_flagged_on_both_paths() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let probe = edited_campaign(root, "probe", |_| {});
+    let campaign = dbbcal::io::read_manifest(&probe).unwrap();
+    let mount = campaign
+        .mounts
+        .iter()
+        .filter(|m| m.bar == "B01")
+        .max_by_key(|m| m.to_ns - m.from_ns)
+        .unwrap();
+    assert!(mount.to_ns - mount.from_ns > 4 * 3_600_000_000_000);
+    let mid = mount.from_ns + (mount.to_ns - mount.from_ns) / 2;
+    let (cut_from, cut_to) = (mid - 3_600_000_000_000, mid + 3_600_000_000_000);
+    let mut edges = (0, 0);
+    let d = edited_campaign(root, "gap", |t| {
+        let b1 = t.encoders.get_mut("B01").unwrap();
+        let keep: Vec<bool> = b1
+            .time_ns
+            .iter()
+            .map(|&t| t < cut_from || t >= cut_to)
+            .collect();
+        let before = b1.time_ns.iter().filter(|&&t| t < cut_from).max().unwrap();
+        let after = b1.time_ns.iter().filter(|&&t| t >= cut_to).min().unwrap();
+        edges = (*before, *after);
+        let mut k = keep.iter();
+        b1.time_ns.retain(|_| *k.next().unwrap());
+        let mut k = keep.iter();
+        b1.counts.retain(|_| *k.next().unwrap());
+    });
+    for bin_s in ["60", "0"] {
+        let s = identify(&d, bin_s);
+        let q = bar_quality(&s, "B01");
+        let gaps = flags(q, "gap");
+        assert_eq!(gaps.len(), 1, "bin_s {bin_s}: {q}");
+        assert_eq!(gaps[0]["from"], dbbcal::series::quality::format_ns(edges.0));
+        assert_eq!(gaps[0]["to"], dbbcal::series::quality::format_ns(edges.1));
+        assert!(flags(bar_quality(&s, "B02"), "gap").is_empty(), "{s}");
+        // Flags only: the bar is fitted.
+        assert_eq!(s["bars"][0]["bar"], "B01");
+    }
+}
