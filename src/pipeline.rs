@@ -185,9 +185,10 @@ pub struct ModelSection {
     #[serde(default)]
     pub term: Vec<GenericTerm>,
     /// Compress each bar's readings into bins of this many seconds, two weighted nodes a bin,
-    /// exact for the fits (`series::bins`; 0: every reading). At most an hour. Absent: chosen
-    /// from the campaign (`series::automatic_bin_s`: 60 s for logs of 6 s or faster).
-    #[serde(default)]
+    /// exact for the fits (`series::bins`; 0: every reading). At most an hour. Absent or
+    /// `"auto"`: chosen from the campaign (`series::automatic_bin_s`: 60 s for logs of 6 s or
+    /// faster) and checked against the fitted time constants (`runner`).
+    #[serde(default, deserialize_with = "bin_s_or_auto")]
     pub bin_s: Option<f64>,
 }
 
@@ -685,6 +686,23 @@ fn validated_effects(
     check_against_campaign(&campaign, &manifest_path, &keyed, matching, &pipeline_path)
         .map_err(PlanError::NotInCampaign)?;
     Ok(keyed.into_iter().map(|(e, _)| e).collect())
+}
+
+/// `bin_s = 60` or `bin_s = "auto"` (= absent).
+fn bin_s_or_auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum BinS {
+        Seconds(f64),
+        Word(String),
+    }
+    match BinS::deserialize(d)? {
+        BinS::Seconds(s) => Ok(Some(s)),
+        BinS::Word(w) if w == "auto" => Ok(None),
+        BinS::Word(w) => Err(serde::de::Error::custom(format!(
+            "model.bin_s must be a number of seconds or \"auto\", not {w:?}"
+        ))),
+    }
 }
 
 pub fn sha256_hex(bytes: &[u8]) -> String {

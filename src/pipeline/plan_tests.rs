@@ -255,3 +255,13 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn bin_s_takes_seconds_or_auto() {
+    let with = |v: &str| FULL.replace("bin_s = 60.0", &format!("bin_s = {v}"));
+    let p = plan(&with("\"auto\""), &[]).unwrap();
+    assert!(p.automatic_bins);
+    let p = plan(&with("30"), &[]).unwrap();
+    assert_eq!((p.bin_s, p.automatic_bins), (30.0, false));
+    refused(&with("\"fast\""), &[], &["\"auto\"", "fast"]);
+}
