@@ -141,6 +141,7 @@ impl OutputTarget {
                 source,
             },
         })?;
+        *HELD_LOCK.lock().unwrap_or_else(|e| e.into_inner()) = Some(lock_path.clone());
         Ok(OutputTarget {
             out: out.to_path_buf(),
             parent,
@@ -265,6 +266,7 @@ impl Drop for OutputTarget {
     /// The lock file goes while the lock is still held (a run waiting on the old file then sees
     /// it replaced and locks the new one; see [`take_lock`]).
     fn drop(&mut self) {
+        *HELD_LOCK.lock().unwrap_or_else(|e| e.into_inner()) = None;
         let _ = std::fs::remove_file(&self.lock_path);
         let _ = self.lock.unlock();
     }
@@ -473,6 +475,8 @@ struct Cleanup {
 }
 
 static IN_PROGRESS: Mutex<Option<Cleanup>> = Mutex::new(None);
+/// The lock file of the claimed output, from the claim on (a signal during ingest removes it).
+static HELD_LOCK: Mutex<Option<PathBuf>> = Mutex::new(None);
 /// Held during the swap: a signal waits until `OUT` is whole again.
 static CRITICAL: Mutex<()> = Mutex::new(());
 
@@ -495,6 +499,9 @@ pub fn install_signal_handlers() {
             if let Some(c) = IN_PROGRESS.lock().unwrap_or_else(|e| e.into_inner()).take() {
                 let _ = std::fs::remove_dir_all(&c.partial);
                 let _ = std::fs::remove_file(&c.lock);
+            }
+            if let Some(lock) = HELD_LOCK.lock().unwrap_or_else(|e| e.into_inner()).take() {
+                let _ = std::fs::remove_file(lock);
             }
             eprintln!("dbbcal: interrupted (signal {signal}); the previous output is unchanged");
             std::process::exit(128 + signal);

@@ -23,8 +23,9 @@ fn dbbcal(args: &[&str], env: &[(&str, &str)]) -> Output {
         .expect("run dbbcal")
 }
 
-fn small_campaign(root: &Path, name: &str) -> PathBuf {
-    let cfg = SimConfig {
+/// One day, two bars, a reading every 2 min: quick to run many times.
+fn small_config(name: &str) -> SimConfig {
+    SimConfig {
         seed: 7,
         campaign_id: name.into(),
         duration_days: 1.0,
@@ -34,8 +35,11 @@ fn small_campaign(root: &Path, name: &str) -> PathBuf {
             ..FleetConfig::default()
         }),
         ..SimConfig::default()
-    };
-    simulate_campaign(root, name, &cfg).0
+    }
+}
+
+fn small_campaign(root: &Path, name: &str) -> PathBuf {
+    simulate_campaign(root, name, &small_config(name)).0
 }
 
 fn s(p: &Path) -> &str {
@@ -364,18 +368,7 @@ fn an_interrupted_run_removes_its_partial_folder_and_keeps_the_old_output() {
 #[test]
 fn figure_names_from_bar_ids_never_collide() {
     let tmp = tempfile::tempdir().unwrap();
-    let cfg = SimConfig {
-        seed: 7,
-        campaign_id: "names".into(),
-        duration_days: 1.0,
-        sample_s: 120.0,
-        fleet: Some(FleetConfig {
-            n_bars: 2,
-            ..FleetConfig::default()
-        }),
-        ..SimConfig::default()
-    };
-    let mut sim = dbbcal::simulate::generate(&cfg).unwrap();
+    let mut sim = dbbcal::simulate::generate(&small_config("names")).unwrap();
     // The bars B01 and B02 become "B.1" and "B_1" (one PNG name before).
     let rename = |id: &str| match id {
         "B01" => "B.1".to_string(),
@@ -404,4 +397,45 @@ fn figure_names_from_bar_ids_never_collide() {
     );
     assert!(out.join("figures/bar-B.1.png").is_file());
     assert!(out.join("figures/bar-B_1.png").is_file());
+}
+
+/// Ctrl-C at whatever moment the run has reached once its lock exists (ingest, fits, writing):
+/// exit 130 with the old output and no lock or partial folder left, or the run had finished.
+#[test]
+fn an_interrupt_at_any_moment_leaves_no_lock_and_no_partial_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let out = tmp.path().join("out");
+    let mut interrupted = 0;
+    for delay_ms in [0u64, 5, 20, 50, 100, 200] {
+        let _ = std::fs::remove_dir_all(&out);
+        let _ = std::fs::remove_dir_all(tmp.path().join("out.prev"));
+        copy_dir(earlier_output(), &out);
+        let old = snapshot(&out);
+        let child = Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+            .args(["report", "--campaign", s(&c), "--out", s(&out)])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let lock = tmp.path().join(".out.lock");
+        let start = std::time::Instant::now();
+        while !lock.exists() && start.elapsed().as_secs() < 20 {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        // SAFETY: a signal to our own child.
+        unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+        let r = child.wait_with_output().unwrap();
+        let what = format!("SIGINT {delay_ms} ms after the lock");
+        match r.status.code() {
+            Some(130) => {
+                interrupted += 1;
+                assert!(snapshot(&out) == old, "{what}: the old output changed");
+            }
+            Some(0) => {}
+            other => panic!("{what}: exit {other:?}: {}", String::from_utf8_lossy(&r.stderr)),
+        }
+        assert_no_leftovers(tmp.path(), &what);
+    }
+    assert!(interrupted >= 1, "no run was interrupted");
 }
