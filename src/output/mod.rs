@@ -131,6 +131,8 @@ impl OutputTarget {
         let parent = parent_of(out);
         std::fs::create_dir_all(&parent).map_err(OutputError::io(&parent))?;
         let lock_path = parent.join(format!(".{name}.lock"));
+        // A signal waits until the lock is taken and known to the handler, which removes it.
+        let _signals_wait = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
         let lock = take_lock(&lock_path).map_err(|e| match e {
             LockError::Busy => OutputError::Busy {
                 path: out.to_path_buf(),
@@ -223,6 +225,16 @@ impl OutputTarget {
     /// `partial` → `OUT`, the previous `OUT` → `OUT.prev`. Signals wait until this is done.
     fn swap(&self, partial: &Path) -> Result<(), OutputError> {
         let _guard = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
+        let result = self.swap_in(partial);
+        if result.is_ok() {
+            // From here a signal finds the new output in place and nothing to clean up.
+            in_progress(None);
+            REPLACED.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+        result
+    }
+
+    fn swap_in(&self, partial: &Path) -> Result<(), OutputError> {
         let prev = self.parent.join(format!("{}.prev", self.name));
         let out = &self.out;
         if std::fs::symlink_metadata(out).is_err() {
@@ -266,6 +278,7 @@ impl Drop for OutputTarget {
     /// The lock file goes while the lock is still held (a run waiting on the old file then sees
     /// it replaced and locks the new one; see [`take_lock`]).
     fn drop(&mut self) {
+        let _signals_wait = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
         *HELD_LOCK.lock().unwrap_or_else(|e| e.into_inner()) = None;
         let _ = std::fs::remove_file(&self.lock_path);
         let _ = self.lock.unlock();
@@ -477,7 +490,10 @@ struct Cleanup {
 static IN_PROGRESS: Mutex<Option<Cleanup>> = Mutex::new(None);
 /// The lock file of the claimed output, from the claim on (a signal during ingest removes it).
 static HELD_LOCK: Mutex<Option<PathBuf>> = Mutex::new(None);
-/// Held during the swap: a signal waits until `OUT` is whole again.
+/// The new output has been swapped into place.
+static REPLACED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+/// Held while the lock is taken or given back and during the swap: a signal waits until the
+/// lock and `OUT` are in a state it can clean up.
 static CRITICAL: Mutex<()> = Mutex::new(());
 
 fn in_progress(c: Option<Cleanup>) {
@@ -503,7 +519,15 @@ pub fn install_signal_handlers() {
             if let Some(lock) = HELD_LOCK.lock().unwrap_or_else(|e| e.into_inner()).take() {
                 let _ = std::fs::remove_file(lock);
             }
-            eprintln!("dbbcal: interrupted (signal {signal}); the previous output is unchanged");
+            if REPLACED.load(std::sync::atomic::Ordering::SeqCst) {
+                eprintln!(
+                    "dbbcal: interrupted (signal {signal}) after the new output was in place"
+                );
+            } else {
+                eprintln!(
+                    "dbbcal: interrupted (signal {signal}); the previous output is unchanged"
+                );
+            }
             std::process::exit(128 + signal);
         }
     });
