@@ -76,7 +76,7 @@ fn bar_section(
     }
     let _ = writeln!(
         md,
-        "    variables        = {} ({} physical, the rest mount zeros and initial states)",
+        "    variables        = {} ({} physical parameters below)",
         m.n_params,
         m.params.len()
     );
