@@ -534,7 +534,7 @@ mod conditioning_tests;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::campaign::{Bar, Purpose};
+    use crate::campaign::Bar;
     use crate::fit::Separable;
     use crate::model::lag::lag;
     use crate::series::MountSpan;
@@ -582,16 +582,9 @@ mod tests {
         let mounts: Vec<MountSpan> = lengths
             .iter()
             .enumerate()
-            .map(|(k, mm)| MountSpan {
-                campaign_index: k,
-                length_id: Some(format!("L{k}")),
-                length_mm: Some(*mm),
-                i_p_mm: mm - i_min,
-                tilt_deg: 60.0,
-                purpose: Purpose::Calibration,
-                device: None,
-                from_s: k as f64 * 2.0 * 86400.0,
-                to_s: (k + 1) as f64 * 2.0 * 86400.0,
+            .map(|(k, mm)| {
+                let day_s = 2.0 * 86400.0;
+                MountSpan::calibration(k, *mm, i_min, k as f64 * day_s, (k + 1) as f64 * day_s)
             })
             .collect();
         let dt: Vec<f64> = air_c.iter().map(|t| t - 20.0).collect();

@@ -113,6 +113,29 @@ pub struct MountSpan {
 }
 
 impl MountSpan {
+    /// A calibration mount `k` on plate length `L{k}` of `length_mm`, from `from_s` to `to_s`
+    /// (tilt 60°): the test fixtures' mount.
+    #[cfg(test)]
+    pub(crate) fn calibration(
+        k: usize,
+        length_mm: f64,
+        i_min_mm: f64,
+        from_s: f64,
+        to_s: f64,
+    ) -> Self {
+        MountSpan {
+            campaign_index: k,
+            length_id: Some(format!("L{k}")),
+            length_mm: Some(length_mm),
+            i_p_mm: length_mm - i_min_mm,
+            tilt_deg: 60.0,
+            purpose: crate::campaign::Purpose::Calibration,
+            device: None,
+            from_s,
+            to_s,
+        }
+    }
+
     /// Whether the thermal model is fitted on this mount: a plate length used for calibration
     /// or as a reference (checks are never fitted; devices have no known distance).
     pub fn is_fitted(&self) -> bool {

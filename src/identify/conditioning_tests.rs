@@ -2,7 +2,7 @@
 //! never given a zero or tiny uncertainty.
 
 use super::*;
-use crate::campaign::{Bar, Purpose};
+use crate::campaign::Bar;
 use crate::model::lag::lag;
 use crate::series::MountSpan;
 use rand::SeedableRng;
@@ -20,17 +20,8 @@ fn bar(days: usize, air: impl Fn(f64) -> f64, tau_r: f64, tau_s: f64) -> BarSeri
     let mounts: Vec<MountSpan> = (0..days / 2)
         .map(|k| {
             let mm = if k % 2 == 0 { 250.0 } else { 400.0 };
-            MountSpan {
-                campaign_index: k,
-                length_id: Some(format!("L{k}")),
-                length_mm: Some(mm),
-                i_p_mm: mm - i_min,
-                tilt_deg: 60.0,
-                purpose: Purpose::Calibration,
-                device: None,
-                from_s: k as f64 * 2.0 * 86400.0,
-                to_s: (k + 1) as f64 * 2.0 * 86400.0,
-            }
+            let span_s = 2.0 * 86400.0;
+            MountSpan::calibration(k, mm, i_min, k as f64 * span_s, (k + 1) as f64 * span_s)
         })
         .collect();
     let dt: Vec<f64> = air_c.iter().map(|t| t - 20.0).collect();

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use super::*;
-use crate::campaign::{Bar, Purpose};
+use crate::campaign::Bar;
 use crate::fit::Separable;
 use crate::series::MountSpan;
 
@@ -277,16 +277,12 @@ fn daily_mounts(start_s: f64, end_trim_s: f64) -> Vec<MountSpan> {
     [250.0, 400.0, 325.0]
         .iter()
         .enumerate()
-        .map(|(k, mm)| MountSpan {
-            campaign_index: k,
-            length_id: Some(format!("L{k}")),
-            length_mm: Some(*mm),
-            i_p_mm: mm - I_MIN,
-            tilt_deg: 60.0,
-            purpose: Purpose::Calibration,
-            device: None,
-            from_s: start_s + k as f64 * 86400.0,
-            to_s: (k + 1) as f64 * 86400.0 - end_trim_s,
+        .map(|(k, mm)| {
+            let (from_s, to_s) = (
+                start_s + k as f64 * 86400.0,
+                (k + 1) as f64 * 86400.0 - end_trim_s,
+            );
+            MountSpan::calibration(k, *mm, I_MIN, from_s, to_s)
         })
         .collect()
 }
