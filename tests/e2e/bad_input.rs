@@ -1,27 +1,32 @@
 //! Bad input through the CLI: one clear line naming what and where, exit code 3, and no output
 //! folder (not even a partial one).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use dbbcal::io::{write_table, Column, Table};
+use dbbcal::io::{write_campaign, write_table, Column, Table, TimeUnit, WriteOptions};
+use dbbcal::series::CampaignTables;
 use dbbcal::simulate::{FleetConfig, SimConfig};
 
 use crate::corpus::check_refused;
 use crate::support::{run_cli, simulate_campaign};
 
-fn small_campaign(root: &Path, name: &str) -> std::path::PathBuf {
-    let cfg = SimConfig {
+/// One day, `n_bars` bars, a reading a minute.
+fn small_config(name: &str, n_bars: usize) -> SimConfig {
+    SimConfig {
         seed: 5,
         campaign_id: name.into(),
         duration_days: 1.0,
         sample_s: 60.0,
         fleet: Some(FleetConfig {
-            n_bars: 2,
+            n_bars,
             ..FleetConfig::default()
         }),
         ..SimConfig::default()
-    };
-    simulate_campaign(root, name, &cfg).0
+    }
+}
+
+fn small_campaign(root: &Path, name: &str) -> PathBuf {
+    simulate_campaign(root, name, &small_config(name, 2)).0
 }
 
 fn encoder_table(bar: &str, counts: Column) -> Table {
@@ -132,30 +137,14 @@ fn a_bar_without_data_fails_alone_with_exit_code_4() {
 
 // ---------------------------------------------------------------- issue 14: never lose a byte
 
-use dbbcal::io::{write_campaign, TimeUnit, WriteOptions};
-use dbbcal::series::CampaignTables;
-
 /// The small campaign's tables, changed by `edit`, written to `root/name` (one file a table).
 fn edited_campaign(root: &Path, name: &str, edit: impl FnOnce(&mut CampaignTables)) -> PathBuf {
-    let cfg = SimConfig {
-        seed: 5,
-        campaign_id: name.into(),
-        duration_days: 1.0,
-        sample_s: 60.0,
-        fleet: Some(FleetConfig {
-            n_bars: 3,
-            ..FleetConfig::default()
-        }),
-        ..SimConfig::default()
-    };
-    let mut sim = dbbcal::simulate::generate(&cfg).unwrap();
+    let mut sim = dbbcal::simulate::generate(&small_config(name, 3)).unwrap();
     edit(&mut sim.tables);
     let dir = root.join(name);
     write_campaign(&dir, &sim.manifest, &sim.tables, &WriteOptions::default()).unwrap();
     dir
 }
-
-use std::path::PathBuf;
 
 /// A campaign directory with `campaign.toml` rewritten by `edit`.
 fn with_manifest(root: &Path, name: &str, edit: impl Fn(&str) -> String) -> PathBuf {
