@@ -1051,10 +1051,12 @@ mod tests {
         assert_eq!((m.n, m.first_us, m.last_us), (5, 0, 3_599_999_999));
     }
 
-    #[test]
-    fn the_order_of_the_readings_does_not_change_the_bins() {
-        // Times from 2027-01-15 (accepted reading times, `reading_time_ok`).
-        const B: TimeNs = 1_800_000_000_000_000_000;
+    /// 2027-01-15: an accepted reading time (`reading_time_ok`).
+    const B: TimeNs = 1_800_000_000_000_000_000;
+
+    /// 500 readings a second apart from [`B`], on a grid of 60-s bins with one mount and one
+    /// rezero.
+    fn five_hundred_readings() -> (BinGrid, Vec<TimeNs>, Vec<i64>) {
         let time: Vec<TimeNs> = (0..500).map(|i| B + 1_000_000_000 * i + 7).collect();
         let counts: Vec<i64> = (0..500).map(|i| (i * 37) % 101 - 50).collect();
         let grid = BinGrid {
@@ -1062,6 +1064,12 @@ mod tests {
             mounts: vec![(B + 100_000_000_000, B + 400_000_000_000, 0)],
             rezeros: vec![B + 250_000_000_000],
         };
+        (grid, time, counts)
+    }
+
+    #[test]
+    fn the_order_of_the_readings_does_not_change_the_bins() {
+        let (grid, time, counts) = five_hundred_readings();
         let sorted = BarBins::from_log(grid.clone(), &time, &counts).unwrap();
         let mut order: Vec<usize> = (0..500).collect();
         order.reverse();
@@ -1095,14 +1103,7 @@ mod tests {
 
     #[test]
     fn removing_readings_gives_back_the_bins_without_them() {
-        const B: TimeNs = 1_800_000_000_000_000_000;
-        let time: Vec<TimeNs> = (0..500).map(|i| B + 1_000_000_000 * i + 7).collect();
-        let counts: Vec<i64> = (0..500).map(|i| (i * 37) % 101 - 50).collect();
-        let grid = BinGrid {
-            bin_ns: 60_000_000_000,
-            mounts: vec![(B + 100_000_000_000, B + 400_000_000_000, 0)],
-            rezeros: vec![B + 250_000_000_000],
-        };
+        let (grid, time, counts) = five_hundred_readings();
         let clean = BarBins::from_log(grid.clone(), &time, &counts).unwrap();
         // Add then remove everything: no bin left.
         let mut acc = BinAccumulator::new(grid.clone());

@@ -341,6 +341,20 @@ struct Piece {
     mean: f64,
 }
 
+impl Piece {
+    /// One reading of `counts` at `t`.
+    fn reading(t: TimeNs, counts: i64) -> Piece {
+        Piece {
+            first_ns: t,
+            last_ns: t,
+            n: 1,
+            min: counts,
+            max: counts,
+            mean: counts as f64,
+        }
+    }
+}
+
 /// Where a bar's readings fall: its mounts and `rezero` events.
 struct Segments {
     /// `(from, to, index into Campaign::mounts)`, sorted.
@@ -694,14 +708,7 @@ pub fn check_log(
         .iter()
         .zip(&log.counts)
         .map(|(&t, &c)| {
-            let piece = Piece {
-                first_ns: t,
-                last_ns: t,
-                n: 1,
-                min: c,
-                max: c,
-                mean: c as f64,
-            };
+            let piece = Piece::reading(t, c);
             (segments.region(t), piece)
         })
         .collect();

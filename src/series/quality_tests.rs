@@ -8,16 +8,7 @@ fn reading(t_s: i64, c: i64) -> (Region, Piece) {
         mount: 0,
         rezeros: 0,
     };
-    let t = B + t_s * S;
-    let p = Piece {
-        first_ns: t,
-        last_ns: t,
-        n: 1,
-        min: c,
-        max: c,
-        mean: c as f64,
-    };
-    (seg, p)
+    (seg, Piece::reading(B + t_s * S, c))
 }
 
 fn segments() -> Segments {
