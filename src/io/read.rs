@@ -30,7 +30,6 @@ use crate::series::{
 /// Index of the source file of each row, added while scanning, for error messages.
 const FILE_COL: &str = "__source_file";
 /// The path of each row's file in a scan shared by several encoder files.
-const PATH_COL: &str = "__source_path";
 
 /// The accepted physical forms of one spec column.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -543,20 +542,28 @@ fn scan_args() -> ScanArgsParquet {
 
 /// The rows the files' parquet footers announce (no data page is read).
 pub(crate) fn footer_rows(files: &[PathBuf]) -> Result<u64, IngestError> {
-    let mut rows = 0u64;
-    for path in files {
-        let n = guarded(path, || {
-            let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
-                path: path.clone(),
-                message: e.to_string(),
-            })?;
-            ParquetReader::new(file)
-                .num_rows()
-                .map_err(|e| not_parquet(path, e))
-        })?;
-        rows = rows.saturating_add(n as u64);
-    }
-    Ok(rows)
+    Ok(footer_rows_each(files)?
+        .into_iter()
+        .fold(0u64, u64::saturating_add))
+}
+
+/// The rows each file's parquet footer announces, in the order of `files`.
+fn footer_rows_each(files: &[PathBuf]) -> Result<Vec<u64>, IngestError> {
+    files
+        .iter()
+        .map(|path| {
+            guarded(path, || {
+                let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
+                    path: path.clone(),
+                    message: e.to_string(),
+                })?;
+                ParquetReader::new(file)
+                    .num_rows()
+                    .map(|n| n as u64)
+                    .map_err(|e| not_parquet(path, e))
+            })
+        })
+        .collect()
 }
 
 // ---------------------------------------------------------------- encoders, streamed
@@ -1420,8 +1427,8 @@ fn stream_files(
     for (members, lazy, schema, exprs) in groups {
         let first = &files[members[0]];
         let time = TimeColumn::of(schema.get("time"));
-        let (file, lazy) = if members.len() == 1 {
-            (u32::try_from(members[0]).unwrap_or(u32::MAX), lazy)
+        let (file, lazy, cursor) = if members.len() == 1 {
+            (u32::try_from(members[0]).unwrap_or(u32::MAX), lazy, None)
         } else {
             let paths: Vec<PlRefPath> = members
                 .iter()
@@ -1429,38 +1436,42 @@ fn stream_files(
                     PlRefPath::try_from_path(&files[i]).map_err(|e| not_parquet(&files[i], e))
                 })
                 .collect::<Result<_, _>>()?;
-            let args = ScanArgsParquet {
-                include_file_paths: Some(PATH_COL.into()),
-                ..scan_args()
-            };
-            let shared = LazyFrame::scan_parquet_files(paths.into(), args)
+            let member_files: Vec<PathBuf> = members.iter().map(|&i| files[i].clone()).collect();
+            let rows = footer_rows_each(&member_files)?;
+            let cursor = FileCursor::new(
+                members
+                    .iter()
+                    .map(|&i| u32::try_from(i).unwrap_or(u32::MAX))
+                    .zip(rows)
+                    .collect(),
+            );
+            let shared = LazyFrame::scan_parquet_files(paths.into(), scan_args())
                 .map_err(|e| not_parquet(first, e))?;
-            (u32::MAX, shared)
+            (
+                u32::MAX,
+                shared,
+                Some(std::sync::Arc::new(std::sync::Mutex::new(cursor))),
+            )
         };
-        let mut exprs = exprs;
-        // A shared scan's batches name their file (a constant column per batch): each batch
-        // is sent with its file's index, so every row's file is known (`FileRange`).
-        let by_path: Option<BTreeMap<String, u32>> = (file == u32::MAX).then(|| {
-            exprs.push(col(PATH_COL));
-            members
-                .iter()
-                .map(|&i| {
-                    let index = u32::try_from(i).unwrap_or(u32::MAX);
-                    (files[i].to_string_lossy().into_owned(), index)
-                })
-                .collect()
-        });
+        // A shared scan's batches arrive in file order (`maintain_order`): each is cut at the
+        // files' footer row counts and sent with its file's index, so every row's file is
+        // known (`FileRange`) without a per-row path column.
         let to_consumer = batches.clone();
+        let batch_cursor = cursor.clone();
         let callback = PlanCallback::new(move |batch: DataFrame| {
             let send = |file: u32, batch: DataFrame| {
                 to_consumer
                     .send((file, time, batch))
                     .map_err(|_| polars_err!(ComputeError: "the batch consumer stopped"))
             };
-            match &by_path {
+            match &batch_cursor {
                 None => send(file, batch)?,
-                Some(by_path) => {
-                    for (file, part) in split_by_file(&batch, by_path)? {
+                Some(cursor) => {
+                    let parts = cursor
+                        .lock()
+                        .map_err(|_| polars_err!(ComputeError: "the file cursor was poisoned"))?
+                        .split(batch)?;
+                    for (file, part) in parts {
                         send(file, part)?;
                     }
                 }
@@ -1473,45 +1484,79 @@ fn stream_files(
                 .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
                 .map_err(|e| not_parquet(first, e))
         })?;
+        if let Some(cursor) = cursor {
+            let cursor = cursor.lock().map_err(|_| IngestError::Polars {
+                context: "encoders".into(),
+                message: "the file cursor was poisoned".into(),
+            })?;
+            if let Some((file, missing)) = cursor.unread() {
+                return Err(IngestError::Polars {
+                    context: file_path(files, file).display().to_string(),
+                    message: format!(
+                        "{missing} rows announced by the parquet footer were not decoded"
+                    ),
+                });
+            }
+        }
     }
     Ok(())
 }
 
-/// A shared scan's batch cut into runs of one file (usually the whole batch: the scan's file
-/// path column is one constant per batch), each with its file's index (`u32::MAX` for a path
-/// not found) and without the path column.
-fn split_by_file(
-    batch: &DataFrame,
-    by_path: &BTreeMap<String, u32>,
-) -> PolarsResult<Vec<(u32, DataFrame)>> {
-    let index = |path: Option<&str>| {
-        path.and_then(|p| {
-            by_path.get(p).copied().or_else(|| {
-                by_path
-                    .iter()
-                    .find(|(k, _)| Path::new(k.as_str()) == Path::new(p))
-                    .map(|(_, &i)| i)
-            })
-        })
-        .unwrap_or(u32::MAX)
-    };
-    let column = batch.column(PATH_COL)?;
-    let rest = batch.drop(PATH_COL)?;
-    if let Some(scalar) = column.as_scalar_column() {
-        return Ok(vec![(index(scalar.scalar().value().extract_str()), rest)]);
+/// Where a shared scan is in its files: their indices and footer row counts, the file now
+/// read and its rows not yet seen.
+struct FileCursor {
+    files: Vec<(u32, u64)>,
+    at: usize,
+    left: u64,
+}
+
+impl FileCursor {
+    fn new(files: Vec<(u32, u64)>) -> FileCursor {
+        let left = files.first().map_or(0, |f| f.1);
+        FileCursor { files, at: 0, left }
     }
-    let paths = column.str()?;
-    let mut parts = Vec::new();
-    let mut start = 0;
-    let n = paths.len();
-    for end in 1..=n {
-        if end == n || paths.get(end) != paths.get(start) {
-            let part = rest.slice(start as i64, end - start);
-            parts.push((index(paths.get(start)), part));
-            start = end;
+
+    /// Skips files whose rows have all been seen (empty files included).
+    fn settle(&mut self) {
+        while self.left == 0 && self.at + 1 < self.files.len() {
+            self.at += 1;
+            self.left = self.files[self.at].1;
         }
     }
-    Ok(parts)
+
+    /// The next batch of the scan cut into runs of one file, each with its file's index. More
+    /// rows than the footers announce is an error (it cannot happen with valid footers).
+    fn split(&mut self, batch: DataFrame) -> PolarsResult<Vec<(u32, DataFrame)>> {
+        let mut parts = Vec::with_capacity(1);
+        let (mut start, n) = (0usize, batch.height());
+        while start < n {
+            self.settle();
+            if self.left == 0 {
+                polars_bail!(ComputeError: "the files hold more rows than their footers announce");
+            }
+            let take = (self.left.min((n - start) as u64)) as usize;
+            let part = if start == 0 && take == n {
+                batch.clone()
+            } else {
+                batch.slice(start as i64, take)
+            };
+            parts.push((self.files[self.at].0, part));
+            self.left -= take as u64;
+            start += take;
+        }
+        Ok(parts)
+    }
+
+    /// The first file with rows its footer announced but the scan did not give, if any.
+    fn unread(&self) -> Option<(u32, u64)> {
+        let mut cursor = FileCursor {
+            files: self.files.clone(),
+            at: self.at,
+            left: self.left,
+        };
+        cursor.settle();
+        (cursor.left > 0).then(|| (cursor.files[cursor.at].0, cursor.left))
+    }
 }
 
 /// Rows sorted by time, ties by value, so that the order never depends on how the rows were
@@ -1771,4 +1816,46 @@ fn events_sorted(table: DataFrame) -> PolarsResult<Vec<Event>> {
             value: value.get(i),
         })
         .collect())
+}
+
+#[cfg(test)]
+mod file_cursor_tests {
+    use super::*;
+
+    fn batch(n: usize) -> DataFrame {
+        let values: Vec<i64> = (0..n as i64).collect();
+        DataFrame::new(n, vec![Column::new("time".into(), values)]).unwrap()
+    }
+
+    fn firsts(parts: &[(u32, DataFrame)]) -> Vec<(u32, usize, i64)> {
+        parts
+            .iter()
+            .map(|(f, df)| {
+                let first = df.column("time").unwrap().i64().unwrap().get(0).unwrap();
+                (*f, df.height(), first)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn batches_are_cut_at_the_footers_row_counts_and_empty_files_skipped() {
+        // Files 3 (4 rows), 5 (empty), 7 (3 rows), 9 (2 rows).
+        let mut cursor = FileCursor::new(vec![(3, 4), (5, 0), (7, 3), (9, 2)]);
+        let parts = cursor.split(batch(6)).unwrap();
+        assert_eq!(firsts(&parts), vec![(3, 4, 0), (7, 2, 4)]);
+        assert_eq!(cursor.unread(), Some((7, 1)));
+        let parts = cursor.split(batch(3)).unwrap();
+        assert_eq!(firsts(&parts), vec![(7, 1, 0), (9, 2, 1)]);
+        assert_eq!(cursor.unread(), None);
+        assert!(cursor.split(batch(1)).is_err(), "rows beyond the footers");
+    }
+
+    #[test]
+    fn a_batch_within_one_file_is_passed_whole() {
+        let mut cursor = FileCursor::new(vec![(0, 10)]);
+        let parts = cursor.split(batch(10)).unwrap();
+        assert_eq!(firsts(&parts), vec![(0, 10, 0)]);
+        assert_eq!(cursor.unread(), None);
+        assert_eq!(FileCursor::new(vec![(2, 5)]).unread(), Some((2, 5)));
+    }
 }
