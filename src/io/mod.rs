@@ -9,6 +9,7 @@
 mod guard;
 mod inputs;
 mod read;
+mod repeats;
 mod table;
 mod write;
 

@@ -19,6 +19,7 @@ use polars::prelude::*;
 
 use super::guard::guarded;
 use super::inputs::{CampaignFiles, MANIFEST};
+use super::repeats::{RepeatSketch, RepeatWindows};
 use super::{format_ns, one_line, IngestError};
 use crate::campaign::{Campaign, Manifest, SensorKind};
 use crate::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
@@ -29,7 +30,6 @@ use crate::series::{
 
 /// Index of the source file of each row, added while scanning, for error messages.
 const FILE_COL: &str = "__source_file";
-/// The path of each row's file in a scan shared by several encoder files.
 
 /// The accepted physical forms of one spec column.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -290,17 +290,24 @@ pub(crate) fn read_tables(
 
     // Events first: the bins of a bar never cross its rezero events.
     let events = read_events(&files.events, &bar_ids, &mut zones, &mut quality.events)?;
-    let grids: BTreeMap<String, BinGrid> = if bin_s > 0.0 {
+    // The footers' rows: at full rate each bar's log is reserved once from them (no doubling
+    // overshoot); with bins they set the slot width of each bar's repeat sketch.
+    let footer_total = footer_rows(&files.encoders)?;
+    let rows_per_bar = footer_total / bar_ids.len().max(1) as u64;
+    let grids: BTreeMap<String, (BinGrid, Option<RepeatSketch>)> = if bin_s > 0.0 {
         bar_ids
             .iter()
-            .map(|id| (id.to_string(), BinGrid::new(campaign, &events, id, bin_s)))
+            .map(|id| {
+                let grid = BinGrid::new(campaign, &events, id, bin_s);
+                let repeats = RepeatSketch::new(campaign, id, rows_per_bar);
+                (id.to_string(), (grid, repeats))
+            })
             .collect()
     } else {
         BTreeMap::new()
     };
-    // At full rate each bar's log is reserved once from the footers (no doubling overshoot).
     let rows_hint = if grids.is_empty() {
-        footer_rows(&files.encoders)? as usize
+        footer_total as usize
     } else {
         0
     };
@@ -575,7 +582,12 @@ enum BarRows {
         time_ns: Vec<i64>,
         counts: Vec<i64>,
     },
-    Binned(BinAccumulator),
+    /// Added to the bar's bins as they arrive; `repeats` marks where its times may repeat
+    /// (`None`: a bar without mounts).
+    Binned {
+        bins: BinAccumulator,
+        repeats: Option<RepeatSketch>,
+    },
     /// Not kept (a pass that only looks for nulls and undeclared ids).
     Dropped,
 }
@@ -940,7 +952,7 @@ impl EncoderSink {
     fn append(&mut self, index: u32, time: &[i64], counts: &[i64]) {
         if matches!(
             self.bars.get(index as usize),
-            Some(BarRows::Kept { .. } | BarRows::Binned(_))
+            Some(BarRows::Kept { .. } | BarRows::Binned { .. })
         ) && !time.is_empty()
         {
             let (first, last) = time
@@ -964,10 +976,13 @@ impl EncoderSink {
                 kept.extend_from_slice(counts);
                 return;
             }
-            Some(BarRows::Binned(bins)) => {
+            Some(BarRows::Binned { bins, repeats }) => {
                 // Every row was checked in `push` (times and counts within the sums' range).
                 if let Err(e) = bins.add_all(time, counts) {
                     self.bin_error.get_or_insert(e.to_string());
+                }
+                if let Some(repeats) = repeats {
+                    repeats.add(time);
                 }
                 return;
             }
@@ -997,12 +1012,15 @@ impl EncoderSink {
 fn read_encoders(
     files: &[PathBuf],
     bar_ids: &BTreeSet<&str>,
-    grids: &BTreeMap<String, BinGrid>,
+    grids: &BTreeMap<String, (BinGrid, Option<RepeatSketch>)>,
     rows_hint: usize,
     zones: &mut Vec<(PathBuf, bool)>,
 ) -> Result<Encoders, IngestError> {
     let keep = |id: &str| match grids.get(id) {
-        Some(grid) => BarRows::Binned(BinAccumulator::new(grid.clone())),
+        Some((grid, repeats)) => BarRows::Binned {
+            bins: BinAccumulator::new(grid.clone()),
+            repeats: repeats.clone(),
+        },
         None => BarRows::Kept {
             time_ns: Vec::with_capacity(rows_hint / bar_ids.len().max(1)),
             counts: Vec::with_capacity(rows_hint / bar_ids.len().max(1)),
@@ -1066,8 +1084,8 @@ fn read_encoders(
     }
     let mut bars = sink.bars;
     let clock = std::time::Instant::now();
-    let overlaps = resolve_overlaps(files, bar_ids, &sink.ranges, &mut bars)?;
-    tracing::debug!(elapsed = ?clock.elapsed(), bars = overlaps.len(), "file overlaps resolved");
+    let overlaps = resolve_repeats(files, bar_ids, &sink.ranges, &mut bars)?;
+    tracing::debug!(elapsed = ?clock.elapsed(), bars = overlaps.len(), "repeated readings resolved");
     // Bars in parallel: an unsorted full-rate log is sorted here (~0.1 s a million rows).
     use rayon::prelude::*;
     let finished: Vec<(String, BarLog, Option<BarBins>)> = bar_ids
@@ -1085,7 +1103,9 @@ fn read_encoders(
                 };
                 (id.to_string(), log, None)
             }
-            BarRows::Binned(acc) => (id.to_string(), BarLog::default(), Some(acc.finish())),
+            BarRows::Binned { bins, .. } => {
+                (id.to_string(), BarLog::default(), Some(bins.finish()))
+            }
             BarRows::Dropped => (id.to_string(), BarLog::default(), None),
         })
         .collect();
@@ -1105,24 +1125,30 @@ fn read_encoders(
     })
 }
 
-/// What two files holding rows of one bar over one time range gave: flags, and the copies
-/// removed from the bins (counted in `duplicate_rows`).
+/// What re-reading the rows of one bar that may repeat gave: flags, and the copies removed
+/// from the bins (counted in `duplicate_rows`).
 #[derive(Debug, Default)]
 struct Overlap {
     flags: Vec<Flag>,
     removed: u64,
 }
 
-/// Rows of one bar that several files hold. Wherever the time ranges of two files overlap for
-/// a bar (recorded while streaming, [`FileRange`]), the rows of that bar inside the overlap are
-/// read again from those files only (filtered in the scan by bar and time, so memory is the
-/// overlap's rows), and:
-/// - a reading (time and counts) that several files hold is counted once: with bins, the extra
-///   copies are taken out of the bins (exact: integer sums); at full rate the exact-duplicate
-///   rule drops them (`quality::dedup_sorted`) and only the flag is added here;
-/// - readings of one time with different counts are `conflicting_readings` (kept; at full rate
-///   `quality::check_log` finds them on the sorted rows, so only the binned path flags here).
-fn resolve_overlaps(
+/// Readings of one bar that repeat: held by several files, or twice by one. They are found in
+/// windows of the bar's time line, and the bar's rows inside them are read again from the files
+/// whose time range meets them (filtered in the scan by bar and time, so memory is those rows):
+/// - windows where the time ranges of two files overlap for the bar (recorded while streaming,
+///   [`FileRange`]), on both reading paths;
+/// - with bins, the windows of the bar's [`RepeatSketch`]: where two rows fell in one slot
+///   (at full rate the sorted rows show repeats directly, `quality::check_log`).
+///
+/// There:
+/// - a reading (time and counts) held more than once is counted once, as at full rate
+///   (`quality::dedup_sorted`): with bins the extra copies are taken out of the bins (exact:
+///   integer sums) and flagged `duplicate_rows`; held by several files, also
+///   `overlapping_files` (at full rate only that flag is added here);
+/// - readings of one time with different counts are `conflicting_readings`, all kept (at full
+///   rate `quality::check_log` finds them, so only the binned path flags here).
+fn resolve_repeats(
     files: &[PathBuf],
     bar_ids: &BTreeSet<&str>,
     ranges: &BTreeMap<(u32, u32), FileRange>,
@@ -1130,96 +1156,129 @@ fn resolve_overlaps(
 ) -> Result<BTreeMap<String, Overlap>, IngestError> {
     let mut found = BTreeMap::new();
     for (index, id) in bar_ids.iter().enumerate() {
-        let index = index as u32;
-        let binned = match bars.get(index as usize) {
-            Some(BarRows::Binned(_)) => true,
-            Some(BarRows::Kept { .. }) => false,
+        let (binned, repeats) = match bars.get_mut(index) {
+            Some(BarRows::Binned { repeats, .. }) => (true, repeats.take()),
+            Some(BarRows::Kept { .. }) => (false, None),
             _ => continue,
         };
         let mine: Vec<(u32, FileRange)> = ranges
-            .range((index, 0)..=(index, u32::MAX))
+            .range((index as u32, 0)..=(index as u32, u32::MAX))
             .filter(|((_, file), _)| (*file as usize) < files.len())
             .map(|(&(_, file), &r)| (file, r))
             .collect();
-        let mut windows: Vec<(i64, i64)> = Vec::new();
-        for (i, (_, a)) in mine.iter().enumerate() {
-            for (_, b) in &mine[i + 1..] {
-                let (from, to) = (a.first_ns.max(b.first_ns), a.last_ns.min(b.last_ns));
-                if from <= to {
-                    windows.push((from, to));
-                }
-            }
+        let mut windows = overlap_windows(&mine);
+        match repeats.map_or(RepeatWindows::None, RepeatSketch::windows) {
+            RepeatWindows::None => {}
+            RepeatWindows::Windows(w) => windows.extend(w),
+            RepeatWindows::Everything(from, to) => windows.push((from, to)),
         }
+        let windows = merged(windows);
         if windows.is_empty() {
             continue;
         }
-        windows.sort_unstable();
-        let mut merged: Vec<(i64, i64)> = Vec::new();
-        for (from, to) in windows {
-            match merged.last_mut() {
-                Some(last) if from <= last.1 => last.1 = last.1.max(to),
-                _ => merged.push((from, to)),
+        let mut rows: Vec<(i64, i64, u32)> = Vec::new();
+        for &(file, r) in &mine {
+            let meets: Vec<(i64, i64)> = windows
+                .iter()
+                .copied()
+                .filter(|&(from, to)| r.first_ns <= to && r.last_ns >= from)
+                .collect();
+            if !meets.is_empty() {
+                let path = &files[file as usize];
+                let read = guarded(path, || rows_in_windows(path, id, &meets))?;
+                rows.extend(read.into_iter().map(|(t, c)| (t, c, file)));
             }
         }
+        rows.sort_unstable();
+        let copies = compare_copies(&rows);
         let report: &mut Overlap = found.entry(id.to_string()).or_default();
-        for (from, to) in merged {
-            let mut rows: Vec<(i64, i64, u32)> = Vec::new();
-            for &(file, r) in &mine {
-                if r.first_ns <= to && r.last_ns >= from {
-                    let path = &files[file as usize];
-                    let read = guarded(path, || rows_in_window(path, id, from, to))?;
-                    rows.extend(read.into_iter().map(|(t, c)| (t, c, file)));
-                }
-            }
-            rows.sort_unstable();
-            let copies = compare_copies(&rows);
-            if copies.removed.0.is_empty() && copies.conflicts.is_none() {
-                continue;
-            }
-            let names = |set: &BTreeSet<u32>| {
-                set.iter()
-                    .map(|&f| file_name(&files[f as usize]))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            if let Some((a, b)) = copies.removed_range {
-                let n = copies.removed.0.len() as u64;
-                let how = if binned {
-                    "counted once (the copies taken out of the bins)"
-                } else {
-                    "counted once (exact duplicates, in duplicate_rows)"
-                };
-                let note = format!(
-                    "{n} readings of bar {id} held by more than one file ({}) with the same time \
-                     and counts: {how}",
-                    names(&copies.duplicate_files)
-                );
-                report
-                    .flags
-                    .push(Flag::at(FlagKind::OverlappingFiles, a, b, n, note));
-            }
-            if let Some(BarRows::Binned(acc)) = bars.get_mut(index as usize) {
-                acc.remove_all(&copies.removed.0, &copies.removed.1)
-                    .map_err(|e| IngestError::Polars {
-                        context: "encoders".into(),
-                        message: format!("bar {id}: {e}"),
-                    })?;
-                report.removed += copies.removed.0.len() as u64;
-                if let Some((a, b, n)) = copies.conflicts {
-                    let note = format!(
-                        "{n} readings of bar {id} share their time with a reading of other \
-                         counts in the overlap of {}: a logger clock set back, or two loggers; \
-                         all kept",
-                        names(&copies.conflict_files)
-                    );
-                    report
-                        .flags
-                        .push(Flag::at(FlagKind::ConflictingReadings, a, b, n, note));
-                }
+        report_copies(files, id, binned, &copies, report);
+        if let Some(BarRows::Binned { bins, .. }) = bars.get_mut(index) {
+            bins.remove_all(&copies.removed.0, &copies.removed.1)
+                .map_err(|e| IngestError::Polars {
+                    context: "encoders".into(),
+                    message: format!("bar {id}: {e}"),
+                })?;
+            report.removed += copies.removed.0.len() as u64;
+        }
+    }
+    found.retain(|_, o| !o.flags.is_empty() || o.removed > 0);
+    Ok(found)
+}
+
+/// Where the time ranges of two of a bar's files overlap.
+fn overlap_windows(mine: &[(u32, FileRange)]) -> Vec<(i64, i64)> {
+    let mut windows = Vec::new();
+    for (i, (_, a)) in mine.iter().enumerate() {
+        for (_, b) in &mine[i + 1..] {
+            let (from, to) = (a.first_ns.max(b.first_ns), a.last_ns.min(b.last_ns));
+            if from <= to {
+                windows.push((from, to));
             }
         }
     }
-    Ok(found)
+    windows
+}
+
+/// Windows `[from, to]` sorted and merged where they meet or touch.
+fn merged(mut windows: Vec<(i64, i64)>) -> Vec<(i64, i64)> {
+    windows.sort_unstable();
+    let mut out: Vec<(i64, i64)> = Vec::with_capacity(windows.len());
+    for (from, to) in windows {
+        match out.last_mut() {
+            Some(last) if from <= last.1.saturating_add(1) => last.1 = last.1.max(to),
+            _ => out.push((from, to)),
+        }
+    }
+    out
+}
+
+/// The flags of one bar's repeated readings (see [`resolve_repeats`]).
+fn report_copies(files: &[PathBuf], id: &str, binned: bool, copies: &Copies, report: &mut Overlap) {
+    let names = |set: &BTreeSet<u32>| {
+        set.iter()
+            .map(|&f| file_name(&files[f as usize]))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if let Some((a, b, n)) = copies.across_files {
+        let how = if binned {
+            "counted once (the copies taken out of the bins)"
+        } else {
+            "counted once (exact duplicates, in duplicate_rows)"
+        };
+        let note = format!(
+            "{n} readings of bar {id} held by more than one file ({}) with the same time and \
+             counts: {how}",
+            names(&copies.duplicate_files)
+        );
+        report
+            .flags
+            .push(Flag::at(FlagKind::OverlappingFiles, a, b, n, note));
+    }
+    if !binned {
+        return;
+    }
+    if let Some((a, b)) = copies.removed_range {
+        let n = copies.removed.0.len() as u64;
+        let note = format!(
+            "{n} exact duplicate encoder rows (same time and value) counted once (the copies \
+             taken out of the bins)"
+        );
+        report
+            .flags
+            .push(Flag::at(FlagKind::DuplicateRows, a, b, n, note));
+    }
+    if let Some((a, b, n)) = copies.conflicts {
+        let note = format!(
+            "{n} readings of bar {id} share their time with a reading of other counts ({}): a \
+             logger clock set back, or two loggers; all kept",
+            names(&copies.conflict_files)
+        );
+        report
+            .flags
+            .push(Flag::at(FlagKind::ConflictingReadings, a, b, n, note));
+    }
 }
 
 fn file_name(path: &Path) -> String {
@@ -1229,68 +1288,73 @@ fn file_name(path: &Path) -> String {
     )
 }
 
-/// What rows `(time, counts, file)` sorted by all three hold twice.
-#[derive(Debug, Default)]
+/// What rows `(time, counts, file)` sorted by all three hold more than once.
+#[derive(Debug, Default, PartialEq)]
 struct Copies {
-    /// Copies to take out: of a reading that `k` files hold `m_f` times each, all but the
-    /// largest `m_f` (the rows of one file are never compared with each other here).
+    /// Copies to take out: every row of a (time, counts) reading but one.
     removed: (Vec<i64>, Vec<i64>),
     removed_range: Option<(i64, i64)>,
+    /// Readings held by more than one file: first, last time, copies among those removed.
+    across_files: Option<(i64, i64, u64)>,
     duplicate_files: BTreeSet<u32>,
     /// Times with more than one counts value: first, last, readings concerned.
     conflicts: Option<(i64, i64, u64)>,
     conflict_files: BTreeSet<u32>,
 }
 
+fn widen(range: Option<(i64, i64, u64)>, t: i64, n: u64) -> Option<(i64, i64, u64)> {
+    let (a, b, m) = range.unwrap_or((t, t, 0));
+    Some((a.min(t), b.max(t), m + n))
+}
+
 fn compare_copies(rows: &[(i64, i64, u32)]) -> Copies {
     let mut out = Copies::default();
-    let mut i = 0;
-    while i < rows.len() {
-        let t = rows[i].0;
-        let end = i + rows[i..]
-            .iter()
-            .position(|r| r.0 != t)
-            .unwrap_or(rows.len() - i);
-        let group = &rows[i..end];
+    for group in rows.chunk_by(|a, b| a.0 == b.0) {
+        let t = group[0].0;
         let mut values = 0u64;
-        let mut j = 0;
-        while j < group.len() {
-            let c = group[j].1;
-            let same = j + group[j..]
-                .iter()
-                .position(|r| r.1 != c)
-                .unwrap_or(group.len() - j);
+        for same in group.chunk_by(|a, b| a.1 == b.1) {
             values += 1;
-            // Per file multiplicities (sorted by file within equal time and counts).
-            let (mut largest, mut run, mut files) = (0usize, 0usize, BTreeSet::new());
-            for k in j..same {
-                run = if k > j && group[k].2 == group[k - 1].2 {
-                    run + 1
-                } else {
-                    1
-                };
-                largest = largest.max(run);
-                files.insert(group[k].2);
+            let extra = same.len() - 1;
+            if extra == 0 {
+                continue;
             }
-            let extra = (same - j) - largest;
-            if extra > 0 && files.len() > 1 {
-                for _ in 0..extra {
-                    out.removed.0.push(t);
-                    out.removed.1.push(c);
-                }
-                out.removed_range = Some(out.removed_range.map_or((t, t), |(a, b)| (a, b.max(t))));
-                out.duplicate_files.extend(files);
+            let c = same[0].1;
+            out.removed.0.extend(std::iter::repeat_n(t, extra));
+            out.removed.1.extend(std::iter::repeat_n(c, extra));
+            out.removed_range = Some(out.removed_range.map_or((t, t), |(a, b)| (a, b.max(t))));
+            if same.first().map(|r| r.2) != same.last().map(|r| r.2) {
+                out.across_files = widen(out.across_files, t, extra as u64);
+                out.duplicate_files.extend(same.iter().map(|r| r.2));
             }
-            j = same;
         }
         if values > 1 {
-            let (a, b, n) = out.conflicts.unwrap_or((t, t, 0));
-            out.conflicts = Some((a.min(t), b.max(t), n + values));
+            out.conflicts = widen(out.conflicts, t, group.len() as u64);
             out.conflict_files.extend(group.iter().map(|r| r.2));
         }
-        i = end;
     }
     out
+}
+
+/// One bar's rows of one encoder file with times in one of `windows` (sorted, disjoint): the
+/// scan filters by bar and by the windows' whole span, so only those rows are decoded into
+/// memory. Missing counts (null, NaN, ±inf) are left out as in the streamed read; whole float
+/// counts converted.
+fn rows_in_windows(
+    path: &Path,
+    bar: &str,
+    windows: &[(i64, i64)],
+) -> Result<Vec<(i64, i64)>, IngestError> {
+    let (Some(&(from_ns, _)), Some(&(_, to_ns))) = (windows.first(), windows.last()) else {
+        return Ok(Vec::new());
+    };
+    let inside = |t: i64| {
+        let k = windows.partition_point(|w| w.1 < t);
+        windows.get(k).is_some_and(|w| w.0 <= t)
+    };
+    Ok(rows_in_window(path, bar, from_ns, to_ns)?
+        .into_iter()
+        .filter(|&(t, _)| inside(t))
+        .collect())
 }
 
 /// One bar's rows of one encoder file with times in `[from_ns, to_ns]`: the scan filters by

@@ -765,3 +765,81 @@ fn a_two_hour_gap_inside_a_mount_is_flagged_on_both_paths() {
         assert_eq!(s["bars"][0]["bar"], "B01");
     }
 }
+
+#[test]
+fn repeated_rows_inside_one_file_are_counted_once_and_conflicts_flagged_on_both_paths() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let clean = edited_campaign(root, "clean-one-file", |_| {});
+    let mut times = (0, 0, 0, 0);
+    // In the campaign's own encoder file: 30 rows of B01 written twice (the copies at the end,
+    // out of time order, one of them three times), and 10 more of its times again with other
+    // counts (a logger clock set back).
+    let d = edited_campaign(root, "repeats-one-file", |t| {
+        let b1 = t.encoders.get_mut("B01").unwrap();
+        times = (
+            b1.time_ns[100],
+            b1.time_ns[129],
+            b1.time_ns[200],
+            b1.time_ns[209],
+        );
+        for i in (100..130).rev().chain([115]) {
+            let (t, c) = (b1.time_ns[i], b1.counts[i]);
+            b1.time_ns.push(t);
+            b1.counts.push(c);
+        }
+        for i in 200..210 {
+            let (t, c) = (b1.time_ns[i], b1.counts[i] + 40);
+            b1.time_ns.push(t);
+            b1.counts.push(c);
+        }
+    });
+    let encoder_files = std::fs::read_dir(d.join("encoders")).unwrap().count();
+    assert_eq!(encoder_files, 1, "the repeats are inside one file");
+    let (dup_from, dup_to, conflict_from, conflict_to) = times;
+    for bin_s in ["60", "0"] {
+        let s = identify(&d, bin_s);
+        let q = bar_quality(&s, "B01");
+        assert_eq!(q["duplicate_rows"], 31, "bin_s {bin_s}: {q}");
+        let dups = flags(q, "duplicate_rows");
+        assert_eq!(dups.len(), 1, "bin_s {bin_s}: {q}");
+        assert_eq!(dups[0]["rows"], 31);
+        assert_eq!(
+            dups[0]["from"],
+            dbbcal::series::quality::format_ns(dup_from)
+        );
+        assert_eq!(dups[0]["to"], dbbcal::series::quality::format_ns(dup_to));
+        let conflicts = flags(q, "conflicting_readings");
+        assert_eq!(conflicts.len(), 1, "bin_s {bin_s}: {q}");
+        assert_eq!(conflicts[0]["rows"], 20);
+        assert_eq!(
+            conflicts[0]["from"],
+            dbbcal::series::quality::format_ns(conflict_from)
+        );
+        assert_eq!(
+            conflicts[0]["to"],
+            dbbcal::series::quality::format_ns(conflict_to)
+        );
+        assert!(flags(q, "overlapping_files").is_empty(), "{q}");
+        for bar in ["B02", "B03"] {
+            assert_eq!(bar_quality(&s, bar)["duplicate_rows"], 0, "{bar}");
+        }
+        // Without the conflicting readings, the fit is that of the clean campaign: the copies
+        // weigh nothing (taken out of the bins exactly).
+        if bin_s == "60" {
+            let only_dups = edited_campaign(root, "dups-one-file", |t| {
+                let b1 = t.encoders.get_mut("B01").unwrap();
+                for i in (100..130).rev().chain([115]) {
+                    let (t, c) = (b1.time_ns[i], b1.counts[i]);
+                    b1.time_ns.push(t);
+                    b1.counts.push(c);
+                }
+            });
+            assert_eq!(
+                fit_results(&identify(&only_dups, bin_s)),
+                fit_results(&identify(&clean, bin_s)),
+                "bin_s {bin_s}"
+            );
+        }
+    }
+}
