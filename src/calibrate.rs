@@ -21,7 +21,7 @@ use serde::Serialize;
 use crate::campaign::{Campaign, Purpose};
 use crate::fit::{self, FitOptions, Separable};
 use crate::identify::BarModel;
-use crate::series::BarSeries;
+use crate::series::{BarSeries, EventKind};
 
 /// One calibration point: a bar on a plate length at one tilt, within one counter epoch.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -271,7 +271,7 @@ fn latest_tilt_event(series: &BarSeries, t_s: f64) -> Option<f64> {
         .events
         .iter()
         .take_while(|(t, _)| *t <= t_s)
-        .filter(|(_, e)| e.kind == "tilt")
+        .filter(|(_, e)| e.kind == EventKind::Tilt)
         .filter_map(|(_, e)| e.value.filter(|v| v.is_finite()))
         .last()
 }
@@ -281,7 +281,7 @@ pub fn counter_epochs(series: &BarSeries) -> Vec<usize> {
     let rezeros: Vec<f64> = series
         .events
         .iter()
-        .filter(|(_, e)| e.kind == "rezero")
+        .filter(|(_, e)| e.kind == EventKind::Rezero)
         .map(|(t, _)| *t)
         .collect();
     series

@@ -37,8 +37,67 @@ pub struct Event {
     pub time_ns: TimeNs,
     /// `None`: the whole setup.
     pub bar: Option<String>,
-    pub kind: String,
+    pub kind: EventKind,
     pub value: Option<f64>,
+}
+
+/// What an event marks (`campaign-format.md`, events table, `kind`): the spec's four kinds, or
+/// any other word, kept and offered to the diagnosis as a channel (`lag:event:WORD`). Ordered
+/// by its word, as the events table is sorted.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub enum EventKind {
+    /// Value 1: the read head powered, 0: off. An event marks a change.
+    HeadPower,
+    /// Value: the plate's tilt, degrees.
+    Tilt,
+    /// The bar's counter was reset: counts before and after are not comparable.
+    Rezero,
+    /// Someone touched the bar; value unused.
+    Handling,
+    /// Any other word.
+    Other(String),
+}
+
+impl EventKind {
+    /// The kind a word of the `kind` column names.
+    pub fn parse(word: &str) -> EventKind {
+        match word {
+            "head_power" => EventKind::HeadPower,
+            "tilt" => EventKind::Tilt,
+            "rezero" => EventKind::Rezero,
+            "handling" => EventKind::Handling,
+            other => EventKind::Other(other.to_string()),
+        }
+    }
+
+    /// The word in the `kind` column; `EventKind::parse(k.as_str()) == k`.
+    pub fn as_str(&self) -> &str {
+        match self {
+            EventKind::HeadPower => "head_power",
+            EventKind::Tilt => "tilt",
+            EventKind::Rezero => "rezero",
+            EventKind::Handling => "handling",
+            EventKind::Other(word) => word,
+        }
+    }
+}
+
+impl std::fmt::Display for EventKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl PartialOrd for EventKind {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for EventKind {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.as_str().cmp(other.as_str())
+    }
 }
 
 /// A bar's encoder log, sorted by time, with every sensor's temperature at the same instants
@@ -740,7 +799,7 @@ fn zero_segments(
 ) -> (Vec<Option<u32>>, usize) {
     let rezeros: Vec<f64> = events
         .iter()
-        .filter(|(_, e)| e.kind == "rezero")
+        .filter(|(_, e)| e.kind == EventKind::Rezero)
         .map(|(t, _)| *t)
         .collect();
     let mut out = Vec::with_capacity(t_s.len());

@@ -57,7 +57,11 @@ pub fn sensor_profiles(series: &BarSeries) -> Vec<SensorProfile> {
     let step = series.t_s.len().div_ceil(MAX_SAMPLES).max(1);
     let t: Vec<f64> = series.t_s.iter().step_by(step).copied().collect();
     let thin = |v: &[f64]| -> Vec<f64> { v.iter().step_by(step).copied().collect() };
-    let mut kinds: Vec<String> = series.events.iter().map(|(_, e)| e.kind.clone()).collect();
+    let mut kinds: Vec<String> = series
+        .events
+        .iter()
+        .map(|(_, e)| e.kind.to_string())
+        .collect();
     kinds.sort();
     kinds.dedup();
     let mut events: Vec<(String, channels::Channel)> = Vec::new();

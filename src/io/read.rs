@@ -24,8 +24,8 @@ use super::{format_ns, one_line, IngestError};
 use crate::campaign::{Campaign, Manifest, SensorKind};
 use crate::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
 use crate::series::{
-    reading_time_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event, Quality, SensorLog,
-    MAX_ABS_COUNTS,
+    reading_time_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event, EventKind, Quality,
+    SensorLog, MAX_ABS_COUNTS,
 };
 
 /// Index of the source file of each row, added while scanning, for error messages.
@@ -1876,7 +1876,7 @@ fn events_sorted(table: DataFrame) -> PolarsResult<Vec<Event>> {
         .map(|i| Event {
             time_ns: time.get(i).unwrap_or(0),
             bar: bar.get(i).map(str::to_string),
-            kind: kind.get(i).unwrap_or_default().to_string(),
+            kind: EventKind::parse(kind.get(i).unwrap_or_default()),
             value: value.get(i),
         })
         .collect())

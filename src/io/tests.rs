@@ -274,13 +274,13 @@ fn reads_events_sorted_keeping_unknown_kinds_and_hashes_inputs() {
             Event {
                 time_ns: T0 + S,
                 bar: None,
-                kind: "head_power".into(),
+                kind: crate::series::EventKind::parse("head_power"),
                 value: Some(1.0)
             },
             Event {
                 time_ns: T0 + 2 * S,
                 bar: Some("B01".into()),
-                kind: "door_opened".into(),
+                kind: crate::series::EventKind::parse("door_opened"),
                 value: None
             },
         ]
@@ -609,13 +609,13 @@ fn sample_tables() -> CampaignTables {
         Event {
             time_ns: T0 + 5 * S,
             bar: Some("B01".into()),
-            kind: "rezero".into(),
+            kind: crate::series::EventKind::parse("rezero"),
             value: None,
         },
         Event {
             time_ns: T0 + S,
             bar: None,
-            kind: "tilt".into(),
+            kind: crate::series::EventKind::parse("tilt"),
             value: Some(45.0),
         },
     ];
@@ -707,7 +707,7 @@ fn write_then_read_round_trips_under_every_layout() {
             assert_eq!(logs.sensors[sensor].celsius, written.celsius);
         }
         assert_eq!(logs.events.len(), 2);
-        assert_eq!(logs.events[0].kind, "tilt");
+        assert_eq!(logs.events[0].kind, crate::series::EventKind::Tilt);
         let n_encoder_files = logs
             .inputs
             .iter()

@@ -121,7 +121,7 @@ pub fn held_event_channel(
     let events: Vec<(f64, Option<f64>)> = series
         .events
         .iter()
-        .filter(|(_, e)| e.kind == kind)
+        .filter(|(_, e)| e.kind.as_str() == kind)
         .map(|(t, e)| (*t, e.value))
         .collect();
     if events.is_empty() {
@@ -312,7 +312,11 @@ pub fn available(series: &BarSeries) -> Vec<String> {
             names.push(format!("{b}-{a}"));
         }
     }
-    let mut kinds: Vec<String> = series.events.iter().map(|(_, e)| e.kind.clone()).collect();
+    let mut kinds: Vec<String> = series
+        .events
+        .iter()
+        .map(|(_, e)| e.kind.to_string())
+        .collect();
     kinds.sort();
     kinds.dedup();
     names.extend(kinds.into_iter().map(|k| format!("event:{k}")));

@@ -176,7 +176,7 @@ fn event(t_s: f64, kind: &str, value: f64) -> (f64, crate::series::Event) {
         crate::series::Event {
             time_ns: 0,
             bar: None,
-            kind: kind.into(),
+            kind: crate::series::EventKind::parse(kind),
             value: Some(value),
         },
     )

@@ -325,7 +325,10 @@ impl BinGrid {
         mounts.sort();
         let mut rezeros: Vec<TimeNs> = events
             .iter()
-            .filter(|e| e.kind == "rezero" && e.bar.as_deref().is_none_or(|b| b == bar_id))
+            .filter(|e| {
+                e.kind == crate::series::EventKind::Rezero
+                    && e.bar.as_deref().is_none_or(|b| b == bar_id)
+            })
             .map(|e| e.time_ns)
             .collect();
         rezeros.sort();

@@ -374,7 +374,10 @@ impl Segments {
         mounts.sort();
         let mut rezeros: Vec<TimeNs> = events
             .iter()
-            .filter(|e| e.kind == "rezero" && e.bar.as_deref().is_none_or(|b| b == bar))
+            .filter(|e| {
+                e.kind == crate::series::EventKind::Rezero
+                    && e.bar.as_deref().is_none_or(|b| b == bar)
+            })
             .map(|e| e.time_ns)
             .collect();
         rezeros.sort();

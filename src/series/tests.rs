@@ -102,7 +102,7 @@ fn rezero_at(seconds_after_t0: i64) -> Vec<Event> {
     vec![Event {
         time_ns: T0 + seconds_after_t0 * S,
         bar: Some("B01".into()),
-        kind: "rezero".into(),
+        kind: crate::series::EventKind::parse("rezero"),
         value: None,
     }]
 }
@@ -384,4 +384,34 @@ fn automatic_bins_compress_logs_of_six_seconds_or_faster_only() {
     let mut no_mounts = c.clone();
     no_mounts.mounts.clear();
     assert_eq!(automatic_bin_s(&no_mounts, 1_000_000), 0.0, "no mounts");
+}
+
+#[test]
+fn event_kinds_round_trip_through_their_words_and_sort_by_them() {
+    use crate::series::EventKind;
+    let words = [
+        "head_power",
+        "tilt",
+        "rezero",
+        "handling",
+        "door",
+        "spindle",
+        "",
+    ];
+    let kinds: Vec<EventKind> = words.iter().map(|w| EventKind::parse(w)).collect();
+    for (word, kind) in words.iter().zip(&kinds) {
+        assert_eq!(kind.as_str(), *word);
+        assert_eq!(kind.to_string(), *word);
+        assert_eq!(EventKind::parse(kind.as_str()), *kind);
+    }
+    assert_eq!(kinds[0], EventKind::HeadPower);
+    assert_eq!(kinds[4], EventKind::Other("door".into()));
+    let mut sorted = kinds.clone();
+    sorted.sort();
+    let mut by_word = words.to_vec();
+    by_word.sort();
+    assert_eq!(
+        sorted.iter().map(EventKind::as_str).collect::<Vec<_>>(),
+        by_word
+    );
 }

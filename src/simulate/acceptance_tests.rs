@@ -168,7 +168,7 @@ fn calibration_phase_covers_every_length_and_tilt() {
         .tables
         .events
         .iter()
-        .filter(|e| e.kind == "tilt")
+        .filter(|e| e.kind.as_str() == "tilt")
         .collect();
     assert_eq!(
         tilt_events
@@ -427,7 +427,7 @@ fn neutral_defaults_leave_the_base_campaign_unchanged() {
         assert_eq!(b.d_zero_mm, b.fixed_length_mm);
     }
     assert!(sim.manifest.mount.iter().all(|m| m.tilt_deg.is_none()));
-    assert!(!sim.tables.events.iter().any(|e| e.kind == "tilt"));
+    assert!(!sim.tables.events.iter().any(|e| e.kind.as_str() == "tilt"));
 }
 
 /// Worst |thermal error of a check bar − two-reference interpolation| over the measurement

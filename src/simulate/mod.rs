@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use crate::campaign::{
     BarDecl, CampaignSection, Manifest, MountDecl, PlateSection, SensorDecl, SensorKind,
 };
-use crate::series::{CampaignTables, Event};
+use crate::series::{CampaignTables, Event, EventKind};
 
 pub use config::{
     AirBetweenReadings, BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig,
@@ -384,33 +384,40 @@ fn build_events(
     plans: &[BarPlan],
     start_ns: i64,
 ) -> Vec<Event> {
-    let event = |t_ns: i64, bar: Option<&str>, kind: &str, value: Option<f64>| Event {
+    let event = |t_ns: i64, bar: Option<&str>, kind: EventKind, value: Option<f64>| Event {
         time_ns: start_ns + t_ns,
         bar: bar.map(str::to_string),
-        kind: kind.into(),
+        kind,
         value,
     };
     let mut events: Vec<Event> = env
         .door_times_s
         .iter()
-        .map(|&t| event((t * 1e9) as i64, None, "door", None))
+        .map(|&t| {
+            event(
+                (t * 1e9) as i64,
+                None,
+                EventKind::Other("door".into()),
+                None,
+            )
+        })
         .collect();
     events.extend(
         schedule::plate_tilts(cfg, grid)
             .into_iter()
-            .map(|(t, tilt)| event(t, None, "tilt", Some(tilt))),
+            .map(|(t, tilt)| event(t, None, EventKind::Tilt, Some(tilt))),
     );
     for (bar, plan) in bars.iter().zip(plans) {
         events.extend(
             plan.handling_ns
                 .iter()
-                .map(|&t| event(t, Some(&bar.id), "handling", None)),
+                .map(|&t| event(t, Some(&bar.id), EventKind::Handling, None)),
         );
         // Each switch flips the power: the first turns the head on unless it was powered.
         events.extend(plan.head_toggles_ns.iter().enumerate().map(|(k, &t)| {
             let on = (k % 2 == 0) != plan.head_powered_at_start;
             let value = if on { 1.0 } else { 0.0 };
-            event(t, Some(&bar.id), "head_power", Some(value))
+            event(t, Some(&bar.id), EventKind::HeadPower, Some(value))
         }));
     }
     events.sort_by(|a, b| (a.time_ns, &a.bar, &a.kind).cmp(&(b.time_ns, &b.bar, &b.kind)));

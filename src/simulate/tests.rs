@@ -210,7 +210,11 @@ fn handling_gaps_are_logged_off_socket() {
             "rotates over the plate lengths (all three over 3+ days)"
         );
     }
-    assert!(sim.tables.events.iter().any(|e| e.kind == "handling"));
+    assert!(sim
+        .tables
+        .events
+        .iter()
+        .any(|e| e.kind.as_str() == "handling"));
 }
 
 #[test]
@@ -323,7 +327,7 @@ fn head_heating_lowers_the_reading_by_up_to_its_amplitude() {
         .tables
         .events
         .iter()
-        .any(|e| e.kind == "head_power" && e.value == Some(1.0)));
+        .any(|e| e.kind.as_str() == "head_power" && e.value == Some(1.0)));
     for (id, deltas) in effect_delta(&base, &with) {
         let head = sim
             .truth
@@ -376,7 +380,7 @@ fn heads_powered_at_the_start_are_switched_off_once_a_day() {
                 .tables
                 .events
                 .iter()
-                .filter(|e| e.kind == "head_power" && e.bar.as_deref() == Some(&bar.id))
+                .filter(|e| e.kind.as_str() == "head_power" && e.bar.as_deref() == Some(&bar.id))
                 .map(|e| (e.time_ns, e.value.unwrap()))
                 .collect();
             // Off, on, off, on, ...: one off a day, 1.5-4 h long.
@@ -462,7 +466,7 @@ fn doors_are_events_and_bump_the_air() {
         .tables
         .events
         .iter()
-        .filter(|e| e.kind == "door")
+        .filter(|e| e.kind.as_str() == "door")
         .collect();
     assert!(!doors.is_empty() && doors.iter().all(|e| e.bar.is_none()));
     assert_eq!(doors.len(), sim.truth.n_door_events);

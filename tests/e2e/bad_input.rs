@@ -389,7 +389,7 @@ fn missing_values_are_dropped_counted_and_flagged() {
         t.events.push(dbbcal::series::Event {
             time_ns: T0_NS,
             bar: None,
-            kind: "door".into(),
+            kind: dbbcal::series::EventKind::parse("door"),
             value: Some(f64::NAN),
         });
     });

@@ -70,7 +70,7 @@ fn check(name: &str, cfg: SimConfig) {
             .series
             .events
             .iter()
-            .find(|(_, e)| e.kind == "head_power")
+            .find(|(_, e)| e.kind.as_str() == "head_power")
             .and_then(|(_, e)| e.value);
         base_models.push(identify(&o.series, &base_effects()).unwrap());
         let t = truth.bars.iter().find(|b| b.id == m.bar).unwrap();

@@ -73,7 +73,7 @@ fn convert(dir: &Path) {
             tables.events.push(Event {
                 time_ns: *t,
                 bar: None,
-                kind: "spindle".into(),
+                kind: dbbcal::series::EventKind::parse("spindle"),
                 value: Some(r[rpm]),
             });
             last = r[rpm];
