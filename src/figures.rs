@@ -477,7 +477,7 @@ fn residual_figure(
     let dt = median_step(&o.series.t_s);
     let top: Vec<&crate::diagnose::ChannelScore> = d.channels.iter().take(12).collect();
     report::ResidualDiagnosticsFigure {
-        title: format!("Bar {} — where the model [{}] fails", d.bar, d.effects.join(" + ")),
+        title: format!("Bar {} — where the model [{}] fails", d.bar, d.effects.iter().map(crate::model::Effect::name).collect::<Vec<_>>().join(" + ")),
         subtitle: format!(
             "RMS {:.4} µm, peak-to-valley {:.3} µm, fit {:.1} %, Ljung-Box p = {:.2e} ({} lags), residual correlation time {:.0} s",
             d.stats.rms_um, d.stats.peak_to_valley_um, d.stats.fit_percent, d.whiteness_p, d.stats.ljung_box_lags, d.stats.correlation_time_samples * dt
@@ -522,9 +522,11 @@ fn sensor_lines<S: AsRef<str>>(
 }
 
 /// The channel a generic term added at a ledger step reads (`lag:t4-t1` → `t4-t1`).
-fn term_channel(added: &str) -> Option<String> {
-    match crate::model::Effect::parse(added) {
-        Ok(crate::model::Effect::Channel { channel, .. }) => Some(channel),
+fn term_channel(added: &crate::diagnose::Added) -> Option<String> {
+    match added {
+        crate::diagnose::Added::Effect(crate::model::Effect::Channel { channel, .. }) => {
+            Some(channel.clone())
+        }
         _ => None,
     }
 }
@@ -534,7 +536,7 @@ fn ledger(steps: &[LedgerStep], sensors: &[SensorProfile], beam: usize) -> repor
     report::LedgerFigure {
         title: "Forward selection — RMS residual as effects are added".into(),
         subtitle: format!("Each step adds a proposed candidate (significant and material, diagnosis.json → criteria); the best of {beam} paths by fleet ΔBIC.{}", sensor_lines(steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
-        steps: steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
+        steps: steps.iter().map(|s| s.added.label()).collect(),
         bars: bars
             .iter()
             .map(|b| report::NamedValues {
@@ -557,7 +559,7 @@ fn bar_ledger(
     report::LedgerFigure {
         title: format!("Forward selection for bar {} alone", bl.bar),
         subtitle: format!("Each step adds a candidate proposed on this bar (significant and material); the best of {beam} paths by ΔBIC.{}", sensor_lines(bl.steps.iter().filter_map(|s| term_channel(&s.added)), sensors)),
-        steps: bl.steps.iter().map(|s| if s.added == "base" { "base".into() } else { format!("+{}", s.added) }).collect(),
+        steps: bl.steps.iter().map(|s| s.added.label()).collect(),
         bars: vec![report::NamedValues {
             name: bl.bar.clone(),
             values: bl.steps.iter().map(|s| s.fleet_rms_um).collect(),

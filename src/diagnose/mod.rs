@@ -144,7 +144,7 @@ pub struct ChannelScore {
 #[derive(Debug, Clone, Serialize)]
 pub struct BarDiagnosis {
     pub bar: String,
-    pub effects: Vec<String>,
+    pub effects: Vec<Effect>,
     pub rms_um: f64,
     pub whiteness_p: f64,
     pub stats: ResidualStats,
@@ -189,8 +189,8 @@ pub enum Verdict {
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Candidate {
-    /// Accepted verbatim by `--add-effect`.
-    pub effect: String,
+    /// Written as its name, accepted verbatim by `--add-effect`.
+    pub effect: Effect,
     pub verdict: Verdict,
     /// The verdict in words, with the numbers it rests on.
     pub reason: String,
@@ -301,7 +301,7 @@ pub fn diagnose_bar(
     });
     BarDiagnosis {
         bar: model.bar.clone(),
-        effects: model.effect_names(),
+        effects: model.effects.clone(),
         rms_um: model.rms_um,
         whiteness_p: stats.whiteness_p,
         stats,
@@ -382,9 +382,7 @@ pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<
 /// Rewrite the channel candidates' explanations with what their sensors plausibly are.
 pub fn explain_candidates(candidates: &mut [Candidate], profiles: &[sensors::SensorProfile]) {
     for c in candidates {
-        if let Ok(effect) = Effect::parse(&c.effect) {
-            c.explanation = explain::explain_with(&effect, profiles);
-        }
+        c.explanation = explain::explain_with(&c.effect, profiles);
     }
 }
 
@@ -392,7 +390,7 @@ pub fn explain_candidates(candidates: &mut [Candidate], profiles: &[sensors::Sen
 /// events), with the first bar's reason.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Unavailable {
-    pub effect: String,
+    pub effect: Effect,
     pub reason: String,
 }
 
@@ -433,7 +431,7 @@ pub fn evaluate_candidates(
             screened.push((c, gain, if shift_counts { gain.max(shift) } else { gain }));
         } else {
             unavailable.push(Unavailable {
-                effect: candidates[c].name(),
+                effect: candidates[c].clone(),
                 reason: per_bar
                     .iter()
                     .find_map(|s| s.as_ref().err().cloned())
@@ -486,7 +484,7 @@ pub fn evaluate_candidates(
                 (Some(x), Some(y)) => x.total_cmp(&y),
                 _ => b.gain_um().total_cmp(&a.gain_um()),
             })
-            .then_with(|| a.effect.cmp(&b.effect))
+            .then_with(|| a.effect.name().cmp(&b.effect.name()))
     });
     prefer_named_effects(&mut ranked);
     (ranked, unavailable)
@@ -644,7 +642,7 @@ fn candidate_on_bar(
 /// physical effect goes first: `lag:event:head_power` and `head_heating` are the same model,
 /// and the user should be told the physics.
 fn prefer_named_effects(ranked: &mut [Candidate]) {
-    let generic = |c: &Candidate| c.effect.contains(':');
+    let generic = |c: &Candidate| matches!(c.effect, Effect::Channel { .. });
     let close = |a: &Candidate, b: &Candidate| match (a.delta_bic, b.delta_bic) {
         (Some(x), Some(y)) => a.verdict == b.verdict && (x - y).abs() < 2.0,
         _ => false,
@@ -724,7 +722,7 @@ fn summarise_candidate(
     let screened_shift_um = fleet_rms(&|c| c.screened_shift_um);
     let refitted = !fitted.is_empty() && fitted.iter().all(|c| c.rms_after_um.is_some());
     let mut candidate = Candidate {
-        effect: effect.name(),
+        effect: effect.clone(),
         verdict: Verdict::ScreenedOut,
         reason: String::new(),
         rms_before_um,
@@ -825,14 +823,52 @@ fn fmt_um(v: f64) -> String {
 /// One step of forward selection.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct LedgerStep {
-    /// `"base"` for the starting model, else the effect added at this step.
-    pub added: String,
-    pub effects: Vec<String>,
+    /// What this step added (written `"base"` for the starting model, else the effect's name).
+    pub added: Added,
+    pub effects: Vec<Effect>,
     pub rms_um: Vec<(String, f64)>,
     pub fleet_rms_um: f64,
     /// The added effect's ΔBIC and p-value (absent for the starting model).
     pub delta_bic: Option<f64>,
     pub p_value: Option<f64>,
+}
+
+/// What a ledger step added to the model before it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Added {
+    /// The starting model: nothing added.
+    Base,
+    Effect(Effect),
+}
+
+impl Added {
+    /// `"base"`, or the effect's name.
+    pub fn name(&self) -> String {
+        match self {
+            Added::Base => "base".into(),
+            Added::Effect(e) => e.name(),
+        }
+    }
+
+    /// The axis label of the step in the ledger figures: `base`, `+EFFECT`.
+    pub fn label(&self) -> String {
+        match self {
+            Added::Base => "base".into(),
+            Added::Effect(e) => format!("+{}", e.name()),
+        }
+    }
+}
+
+impl std::fmt::Display for Added {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(&self.name())
+    }
+}
+
+impl Serialize for Added {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(&self.name())
+    }
 }
 
 /// One path through forward selection: its ledger, its models and the sum of its steps' ΔBIC.
@@ -866,7 +902,7 @@ pub fn forward_selection(
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let beam = beam.max(1);
     let mut paths = vec![SelectionPath {
-        ledger: vec![ledger_step("base".into(), &start, None, None)],
+        ledger: vec![ledger_step(Added::Base, &start, None, None)],
         models: start,
         delta_bic: 0.0,
         finished: false,
@@ -882,7 +918,7 @@ pub fn forward_selection(
             };
             let proposed: Vec<Candidate> = candidates
                 .into_iter()
-                .filter(|c| c.proposed() && Effect::parse(&c.effect).is_ok())
+                .filter(Candidate::proposed)
                 .take(beam)
                 .collect();
             if proposed.is_empty() {
@@ -902,12 +938,10 @@ pub fn forward_selection(
         let chosen: Vec<(usize, Candidate)> = extensions
             .into_iter()
             .filter(|(i, c)| {
-                let mut set = effect_names_of(&paths[*i].models);
-                set.push(c.effect.clone());
-                let mut set: Vec<String> = set
+                let mut set: Vec<String> = effects_of(&paths[*i].models)
                     .iter()
-                    .filter_map(|n| Effect::parse(n).ok())
-                    .map(|e| term_identity(&e))
+                    .chain([&c.effect])
+                    .map(term_identity)
                     .collect();
                 set.sort();
                 seen.insert(set)
@@ -930,11 +964,11 @@ pub fn forward_selection(
     (best.ledger, best.models)
 }
 
-/// The effect names of a fleet's models (one model for all bars).
-fn effect_names_of(models: &[BarModel]) -> Vec<String> {
+/// The effects of a fleet's models (one model for all bars).
+fn effects_of(models: &[BarModel]) -> Vec<Effect> {
     models
         .first()
-        .map(BarModel::effect_names)
+        .map(|m| m.effects.clone())
         .unwrap_or_default()
 }
 
@@ -946,10 +980,7 @@ fn rank_candidates_for(
     criteria: &Criteria,
     refits: &Refits,
 ) -> Vec<Candidate> {
-    let effects = models
-        .first()
-        .map(|m| m.effects.clone())
-        .unwrap_or_default();
+    let effects = effects_of(models);
     let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
     let bases = screen_bases(&pairs);
     let diagnoses: Vec<BarDiagnosis> = pairs
@@ -968,7 +999,7 @@ fn extend_path(
     candidate: &Candidate,
     refits: &Refits,
 ) -> SelectionPath {
-    let effect = Effect::parse(&candidate.effect).expect("checked when chosen");
+    let effect = &candidate.effect;
     // A bar whose extended fit fails keeps its model (it is reported as not improved). The
     // refits are those the candidate's evaluation made.
     let models: Vec<BarModel> = series
@@ -976,7 +1007,7 @@ fn extend_path(
         .zip(path.models.par_iter())
         .map(|(s, m)| {
             refits
-                .refit(s, m, &effect)
+                .refit(s, m, effect)
                 .model
                 .clone()
                 .unwrap_or_else(|_| m.clone())
@@ -984,7 +1015,7 @@ fn extend_path(
         .collect();
     let mut ledger = path.ledger.clone();
     ledger.push(ledger_step(
-        candidate.effect.clone(),
+        Added::Effect(effect.clone()),
         &models,
         candidate.delta_bic,
         candidate.p_value,
@@ -1022,7 +1053,7 @@ pub fn forward_selection_of_bar(
         return BarLedger {
             bar,
             steps: vec![ledger_step(
-                "base".into(),
+                Added::Base,
                 std::slice::from_ref(&model),
                 None,
                 None,
@@ -1050,7 +1081,7 @@ pub fn forward_selection_of_bar(
 }
 
 fn ledger_step(
-    added: String,
+    added: Added,
     models: &[BarModel],
     delta_bic: Option<f64>,
     p_value: Option<f64>,
@@ -1062,7 +1093,7 @@ fn ledger_step(
         .sum();
     LedgerStep {
         added,
-        effects: models.first().map(|m| m.effect_names()).unwrap_or_default(),
+        effects: effects_of(models),
         rms_um: models.iter().map(|m| (m.bar.clone(), m.rms_um)).collect(),
         fleet_rms_um: if n_total > 0 {
             (ss / n_total as f64).sqrt()

@@ -78,6 +78,20 @@ pub enum Effect {
     },
 }
 
+/// An effect is written as its name (`diagnosis.json`, `summary.json`), the form `--add-effect`
+/// and `[model] effects` accept.
+impl serde::Serialize for Effect {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(&self.name())
+    }
+}
+
+impl std::fmt::Display for Effect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(&self.name())
+    }
+}
+
 /// The named effects of the catalogue (`physics.md`), in display order.
 pub const CATALOGUE: &[&str] = &[
     "fixed_part",

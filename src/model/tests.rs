@@ -525,3 +525,42 @@ fn one_length_leaves_the_scale_out_and_says_why() {
     assert_eq!(kept, base_effects());
     assert!(out.is_empty());
 }
+
+#[test]
+fn every_effect_name_round_trips_through_parse_name_display_and_json() {
+    let mut names: Vec<String> = CATALOGUE.iter().map(|n| n.to_string()).collect();
+    for transform in ["lag", "rate", "level"] {
+        for channel in ["T1", "event:head_power", "t4-t1", "length_mm", "a:b"] {
+            names.push(format!("{transform}:{channel}"));
+            names.push(format!("{transform}:{channel}@1800"));
+            names.push(format!("{transform}:{channel}@0.5"));
+        }
+    }
+    for name in &names {
+        let effect = Effect::parse(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(&effect.name(), name);
+        assert_eq!(&effect.to_string(), name);
+        assert_eq!(Effect::parse(&effect.name()).unwrap(), effect);
+        assert_eq!(serde_json::to_string(&effect).unwrap(), format!("{name:?}"));
+    }
+    assert_eq!(
+        CATALOGUE
+            .iter()
+            .map(|n| Effect::parse(n).unwrap())
+            .filter(|e| matches!(e, Effect::Channel { .. }))
+            .count(),
+        0
+    );
+    for bad in [
+        "",
+        "lag",
+        "lag:",
+        "lag:T1@",
+        "lag:T1@-3",
+        "lag:T1@x",
+        "warp:T1",
+        "Scale",
+    ] {
+        assert!(Effect::parse(bad).is_err(), "{bad:?} parsed");
+    }
+}

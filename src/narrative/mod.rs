@@ -7,6 +7,7 @@
 pub mod fit_report;
 pub mod page;
 
+use crate::model::Effect;
 use crate::pipeline::{RunPlan, RunResults, Stage};
 
 /// What the diagnosis concludes for the fleet.
@@ -16,7 +17,7 @@ pub enum Conclusion {
     Adequate { min_gain_um: f64 },
     /// The top proposed candidate, and the fleet RMS before and after adding it.
     Missing {
-        effect: String,
+        effect: Effect,
         rms_before_um: f64,
         rms_after_um: f64,
     },
@@ -223,14 +224,14 @@ fn reference_line(results: &RunResults) -> Option<ReferenceLine> {
 
 /// The command line that reruns `plan` with `effect` added: `dbbcal run PIPELINE` with every
 /// effect beyond the base as `--add-effect`, or the stage subcommand with `--effects`.
-pub fn add_effect_command(plan: &RunPlan, effect: &str) -> String {
+pub fn add_effect_command(plan: &RunPlan, effect: &Effect) -> String {
     let base: Vec<String> = crate::model::base_effects()
         .iter()
         .map(|e| e.name())
         .collect();
     let mut effects: Vec<String> = plan.effects.iter().map(|e| e.name()).collect();
-    if !effects.iter().any(|e| e == effect) {
-        effects.push(effect.to_string());
+    if !plan.effects.contains(effect) {
+        effects.push(effect.name());
     }
     let campaign = shell_word(&plan.campaign_dir.display().to_string());
     let out = plan
@@ -302,7 +303,7 @@ mod tests {
     #[test]
     fn the_conclusion_names_the_effect_and_the_numbers() {
         let c = Conclusion::Missing {
-            effect: "head_heating".into(),
+            effect: Effect::HeadHeating,
             rms_before_um: 0.1199,
             rms_after_um: 0.0201,
         };

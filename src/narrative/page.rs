@@ -204,7 +204,7 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
             "<tr{}><td><code>{}</code></td><td>{}</td><td class=\"num\">{:.4} → {:.4}</td>\
              <td class=\"num\">{}</td><td class=\"num\">{}</td><td>{}<br><small>{}</small></td></tr>",
             if c.proposed() { " class=\"proposed\"" } else { "" },
-            escape(&c.effect),
+            escape(&c.effect.name()),
             verdict_word(c.verdict),
             c.rms_before_um,
             c.rms_after_um.unwrap_or(c.screened_rms_after_um),
@@ -227,7 +227,7 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
             let _ = writeln!(
                 h,
                 "<tr><td><code>{}</code></td><td class=\"num\">{:.4} → {:.4}</td><td><small>{}</small></td></tr>",
-                escape(&c.effect),
+                escape(&c.effect.name()),
                 c.rms_before_um,
                 c.screened_rms_after_um,
                 escape(&c.reason)

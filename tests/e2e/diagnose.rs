@@ -70,7 +70,7 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
     let rank = diagnosis
         .candidates
         .iter()
-        .position(|c| c.effect == expected)
+        .position(|c| c.effect.name() == expected)
         .map_or("-".to_string(), |r| (r + 1).to_string());
     let first = &diagnosis.candidates[0];
 
@@ -125,7 +125,8 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
         }
     }
     assert_eq!(
-        first.effect, expected,
+        first.effect.name(),
+        expected,
         "{name}: expected {expected} first, ranking {ranking:?}"
     );
     assert!(

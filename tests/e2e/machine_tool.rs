@@ -214,7 +214,7 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
     let best_channel_term = d
         .candidates
         .iter()
-        .filter(|c| c.effect.starts_with("lag:"))
+        .filter(|c| c.effect.name().starts_with("lag:"))
         .filter_map(|c| {
             c.per_bar
                 .iter()
