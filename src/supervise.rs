@@ -689,12 +689,10 @@ impl fmt::Display for Crash {
                 .collect::<Vec<_>>()
                 .join(", ")
         };
+        let killed = "the analysis process was killed (SIGKILL: out of memory, or by someone)";
         match d.reading.len() {
-            _ if d.signal == libc::SIGKILL && !d.reading.is_empty() => write!(
-                f,
-                "the analysis process was killed (SIGKILL: out of memory, or by someone) while reading {}; {output}",
-                files()
-            ),
+            0 if d.signal == libc::SIGKILL => write!(f, "{killed}; {output}"),
+            _ if d.signal == libc::SIGKILL => write!(f, "{killed} while reading {}; {output}", files()),
             0 => write!(f, "the analysis process crashed ({why}); {output}"),
             1 => write!(
                 f,
@@ -774,7 +772,11 @@ mod tests {
         assert!(two.blames_input());
         let killed = Crash(death(libc::SIGKILL, &["a.parquet"]));
         assert!(killed.to_string().contains("killed (SIGKILL"));
+        assert!(killed.to_string().contains("while reading a.parquet"));
         assert!(!killed.blames_input());
+        assert!(!Crash(death(libc::SIGKILL, &[]))
+            .to_string()
+            .contains("reading"));
         let none = Crash(Death {
             swap: Swap::Done,
             ..death(libc::SIGBUS, &[])
