@@ -38,7 +38,8 @@ const AFTER_HELP: &str = "Examples:
 
 Exit codes:
   0    every bar processed; the output is in place
-  1    another error (e.g. the output could not be written); the previous output is unchanged
+  1    another error (e.g. the output could not be written, or the analysis was killed); the
+       previous output is unchanged
   2    command-line usage error (nothing read or written)
   3    unusable input or configuration, or an output location dbbcal may not write (refused
        before any work; the previous output is unchanged)

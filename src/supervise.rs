@@ -385,8 +385,17 @@ pub struct Supervised {
 /// a thread. The child must call [`child_init`].
 pub fn spawn(cmd: &mut Command) -> std::io::Result<Supervised> {
     let mut fds = [0 as RawFd; 2];
-    // SAFETY: pipe2 writes two fds into the array.
-    if unsafe { libc::pipe2(fds.as_mut_ptr(), libc::O_CLOEXEC) } != 0 {
+    // SAFETY: pipe2/pipe write two fds into the array; fcntl on those fds.
+    #[cfg(target_os = "linux")]
+    let failed = unsafe { libc::pipe2(fds.as_mut_ptr(), libc::O_CLOEXEC) } != 0;
+    #[cfg(not(target_os = "linux"))]
+    let failed = unsafe {
+        libc::pipe(fds.as_mut_ptr()) != 0
+            || fds
+                .iter()
+                .any(|&fd| libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) == -1)
+    };
+    if failed {
         return Err(std::io::Error::last_os_error());
     }
     let [read_fd, write_fd] = fds;
