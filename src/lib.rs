@@ -18,3 +18,4 @@ pub mod report;
 pub mod runner;
 pub mod series;
 pub mod simulate;
+pub mod supervise;

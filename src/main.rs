@@ -1,5 +1,9 @@
 //! The `dbbcal` command line: clap flags are parsed first, then turned into a validated
 //! [`RunPlan`] before any heavy IO; errors get their context here (anyhow) and one clear line.
+//!
+//! The commands that read campaign parquet run in a supervised child of this process
+//! ([`dbbcal::supervise`]): a crash no `catch_unwind` can catch (polars aborting on a corrupt
+//! page) still ends in one line naming the file, exit 3, and nothing left in the output location.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -11,6 +15,7 @@ use clap::{Args, CommandFactory, Parser, Subcommand};
 
 use dbbcal::pipeline::{RunPlan, Stage};
 use dbbcal::runner::{self, RunStatus};
+use dbbcal::supervise::{Crash, Ending, SupervisedAlloc};
 
 /// Exit codes (also in `--help` and the README). 2 is clap's for a command-line usage error.
 const EXIT_OTHER: u8 = 1;
@@ -18,6 +23,9 @@ const EXIT_UNUSABLE_INPUT: u8 = 3;
 const EXIT_SOME_BARS_FAILED: u8 = 4;
 const EXIT_NO_BAR_SUCCEEDED: u8 = 5;
 const EXIT_OUTPUT_BUSY: u8 = 6;
+
+/// How long a probe of one file after a crash may take (`supervise::probe`).
+const PROBE_LIMIT: std::time::Duration = std::time::Duration::from_secs(120);
 
 const AFTER_HELP: &str = "Examples:
   dbbcal run pipelines/nightly.toml                      # the shipped sample -> reports/<campaign id>
@@ -30,7 +38,8 @@ const AFTER_HELP: &str = "Examples:
 
 Exit codes:
   0    every bar processed; the output is in place
-  1    another error (e.g. the output could not be written); the previous output is unchanged
+  1    another error (e.g. the output could not be written, or the analysis was killed); the
+       previous output is unchanged
   2    command-line usage error (nothing read or written)
   3    unusable input or configuration, or an output location dbbcal may not write (refused
        before any work; the previous output is unchanged)
@@ -78,6 +87,7 @@ impl ColorWhen {
 
 #[derive(Subcommand)]
 enum Command {
+    // (see `Command::reads_campaign` when adding one)
     /// Run the staged jobs of a pipeline TOML (stages, model effects, options).
     Run {
         /// The pipeline file, e.g. pipelines/nightly.toml.
@@ -122,6 +132,22 @@ enum Command {
     },
 }
 
+impl Command {
+    /// The commands that decode campaign parquet: they run in a supervised child.
+    fn reads_campaign(&self) -> bool {
+        match self {
+            Command::Run { .. }
+            | Command::Ingest(_)
+            | Command::Identify(_)
+            | Command::Match(_)
+            | Command::Report(_)
+            | Command::Calibrate(_)
+            | Command::Compensate(_) => true,
+            Command::Show { .. } | Command::Completions { .. } | Command::Simulate { .. } => false,
+        }
+    }
+}
+
 #[derive(Args)]
 struct IoArgs {
     /// Campaign directory (default: the pipeline's, else data/sample).
@@ -158,19 +184,32 @@ struct ModelArgs {
     bin_s: Option<f64>,
 }
 
-/// mimalloc: see Cargo.toml for why and what it measured.
+/// mimalloc: see Cargo.toml for why and what it measured. The wrapper changes nothing but the
+/// failure of an absurd allocation in a supervised child (`dbbcal::supervise`).
 #[global_allocator]
-static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+static GLOBAL: SupervisedAlloc<mimalloc::MiMalloc> = SupervisedAlloc(mimalloc::MiMalloc);
 
 fn main() -> ExitCode {
+    let supervised = dbbcal::supervise::child_init();
+    if let Some(file) = std::env::var_os(dbbcal::supervise::PROBE_ENV).filter(|_| supervised) {
+        // A probe (`supervise::probe`): the answer is whether this process survives.
+        let _ = dbbcal::io::decode_whole_file(std::path::Path::new(&file));
+        return ExitCode::SUCCESS;
+    }
     let cli = Cli::parse();
     let color = cli.color.enabled(std::io::stderr().is_terminal());
     init_tracing(cli.verbose, color);
-    dbbcal::output::install_signal_handlers();
     let say = Say {
         quiet: cli.quiet,
         color,
     };
+    if !supervised && cli.command.reads_campaign() {
+        match dbbcal::supervise::run_self_supervised() {
+            Ok(ending) => return supervisor_exit(ending, say),
+            Err(e) => tracing::debug!("the run goes on without a supervisor: {e}"),
+        }
+    }
+    dbbcal::output::install_signal_handlers();
     let started = std::time::Instant::now();
     match execute(cli.command, say, cli.color) {
         Ok(None) => ExitCode::SUCCESS,
@@ -199,6 +238,51 @@ fn main() -> ExitCode {
             })
         }
     }
+}
+
+/// The supervisor's end: the child's exit code; or, when the child died from a signal, clean up
+/// what it left beside the output and say one line: interrupted (128 + the signal), or crashed
+/// (exit 3 when files were being decoded, they are named; else 1).
+fn supervisor_exit(ending: Ending, say: Say) -> ExitCode {
+    let (mut death, interrupted) = match ending {
+        Ending::Exited(code) => return ExitCode::from(u8::try_from(code).unwrap_or(EXIT_OTHER)),
+        Ending::Interrupted(d) => (d, true),
+        Ending::Crashed(d) => (d, false),
+    };
+    if death.fault_kill {
+        // `DBBCAL_FAULT=kill@K` stands for a power cut: the supervisor dies too, unclean.
+        // SAFETY: a signal to this process.
+        unsafe { libc::kill(libc::getpid(), libc::SIGKILL) };
+    }
+    let cleanup = match death
+        .output
+        .as_deref()
+        .map(dbbcal::output::clean_up_after_dead_run)
+    {
+        Some(Err(e)) => format!(" (could not clean up after it: {e})"),
+        _ => String::new(),
+    };
+    if interrupted {
+        say.error(&format!(
+            "interrupted ({}); the previous output is unchanged{cleanup}",
+            dbbcal::supervise::signal_name(death.signal)
+        ));
+        return ExitCode::from((128 + death.signal).clamp(0, 255) as u8);
+    }
+    if death.reading.len() > 1 && death.signal != libc::SIGKILL {
+        // A scan of several files: find which of them crash the decoder alone.
+        let crashed = dbbcal::supervise::probe(&death.reading, PROBE_LIMIT);
+        if !crashed.is_empty() {
+            death.reading = crashed;
+        }
+    }
+    let crash = Crash(death);
+    say.error(&format!("error: {crash}{cleanup}"));
+    ExitCode::from(if crash.blames_input() {
+        EXIT_UNUSABLE_INPUT
+    } else {
+        EXIT_OTHER
+    })
 }
 
 fn no_bar_succeeded(failed: &[(String, String)]) -> String {

@@ -9,8 +9,17 @@
 //! catches those at the file boundary (`io::guard`) and names the file. So any panic that
 //! reaches the caller fails here, and so does a hang. `DBBCAL_FUZZ_STRICT=0` tolerates panics
 //! raised inside polars (to look at this crate's own panics alone).
+//!
+//! Some corrupt pages make polars *abort* the process (an allocation of ~2.3e18 bytes, e.g.
+//! `PROPTEST_RNG_SEED=14`), which nothing in-process can catch. So each case is read in a child
+//! process (this test binary, running [`one_case_in_a_supervised_child`]) started by the very
+//! code that supervises `dbbcal` ([`crate::supervise::spawn`]): a case passes when the child
+//! reads it cleanly (an error of one line, or data), or when it dies from a crash signal and the
+//! supervisor's trail names exactly the fuzzed file, the line `dbbcal` would print. A crash
+//! whose trail names no file, or another, fails; so does a hang (the child is killed).
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
@@ -19,6 +28,7 @@ use proptest::prelude::*;
 
 use super::{read_campaign, read_campaign_binned, write_table, Column, Table};
 use crate::campaign::prop_tests::cases;
+use crate::supervise::{self, Crash, Ending};
 
 /// A case that has not returned after this long is a hang.
 const CASE_TIMEOUT: Duration = Duration::from_secs(20);
@@ -210,6 +220,82 @@ fn check(dir: &Path) {
     }
 }
 
+/// The campaign a child reads (set by [`check_in_child`]).
+const CASE_ENV: &str = "DBBCAL_FUZZ_CASE";
+
+/// The child's half of [`check_in_child`]: reads the campaign named by [`CASE_ENV`] as
+/// [`check`] does. Run alone (no [`CASE_ENV`]) it has nothing to read and returns.
+#[test]
+fn one_case_in_a_supervised_child() {
+    let Some(dir) = std::env::var_os(CASE_ENV) else {
+        return;
+    };
+    assert!(supervise::child_init(), "{CASE_ENV} set, but no supervisor");
+    check(Path::new(&dir));
+}
+
+/// How a case read in a child ended: `Ok(None)` read (data or one-line errors), `Ok(Some(line))`
+/// crashed with the trail naming exactly `dir`'s fuzzed file (`line`: what `dbbcal` says),
+/// `Err` anything else.
+fn check_in_child(dir: &Path) -> Result<Option<String>, String> {
+    let log = tempfile::NamedTempFile::new().unwrap();
+    let mut cmd = Command::new(std::env::current_exe().unwrap());
+    cmd.args([
+        "--exact",
+        "io::fuzz_tests::one_case_in_a_supervised_child",
+        "--test-threads=1",
+        "--nocapture",
+    ])
+    .env(CASE_ENV, dir)
+    .stdin(Stdio::null())
+    .stdout(log.reopen().unwrap())
+    .stderr(log.reopen().unwrap());
+    let (ending, timed_out) = supervise::spawn(&mut cmd)
+        .unwrap()
+        .wait_at_most(3 * CASE_TIMEOUT)
+        .unwrap();
+    let output = std::fs::read_to_string(log.path()).unwrap_or_default();
+    if timed_out {
+        return Err(format!(
+            "no answer within {:?} (hang): {output}",
+            3 * CASE_TIMEOUT
+        ));
+    }
+    let fuzzed = dir.join("encoders/fuzzed.parquet");
+    match ending {
+        Ending::Exited(0) if output.contains("1 passed") => Ok(None),
+        Ending::Exited(code) => Err(format!("the child exited {code}: {output}")),
+        Ending::Crashed(d) if d.reading == [fuzzed.clone()] && d.signal != libc::SIGKILL => {
+            Ok(Some(Crash(d).to_string()))
+        }
+        Ending::Crashed(d) | Ending::Interrupted(d) => Err(format!(
+            "the child died from {} with {:?} in progress (expected {}): {output}",
+            supervise::signal_name(d.signal),
+            d.reading,
+            fuzzed.display()
+        )),
+    }
+}
+
+/// A page of the tiny base with four bytes set (the case `PROPTEST_RNG_SEED=14` found): polars
+/// asks for 2 305 843 009 213 693 936 bytes to decode its validity and aborts. The supervisor
+/// names the file; the same file is in the e2e tests (`bad_input`), where `dbbcal` says so.
+#[test]
+fn a_page_that_aborts_the_decoder_is_named_by_the_supervisor() {
+    let bytes = std::fs::read("tests/data/page-validity-abort.parquet").unwrap();
+    let dir = campaign_with(&bytes);
+    let line = check_in_child(dir.path())
+        .unwrap()
+        .expect("the decoder no longer aborts on this page: is polars fixed? then move the file to the ordinary corrupt cases");
+    assert!(
+        line.starts_with(&format!(
+            "{}: the parquet decoder crashed (SIGABRT",
+            dir.path().join("encoders/fuzzed.parquet").display()
+        )),
+        "{line}"
+    );
+}
+
 #[test]
 fn the_unmutated_bases_read() {
     for b in bases() {
@@ -224,6 +310,10 @@ proptest! {
     #[test]
     fn fuzzed_encoder_files_never_panic_or_hang(b in bytes()) {
         let dir = campaign_with(&b.make());
-        check(dir.path());
+        match check_in_child(dir.path()) {
+            Ok(None) => {}
+            Ok(Some(line)) => eprintln!("{b:?}: crash named: {line}"),
+            Err(e) => panic!("{b:?}: {e}"),
+        }
     }
 }

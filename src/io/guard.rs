@@ -2,6 +2,10 @@
 //! every read of a file runs under [`guarded`], which turns a panic into one
 //! [`IngestError::Panicked`] line naming the file (exit 3). While a guard is active the panic
 //! hook stays silent (the message becomes the error's); outside it the default hook prints.
+//!
+//! An abort (an allocation failure) cannot be caught here: each guard also tells a supervising
+//! process which files are being decoded ([`crate::supervise::reading`]), so that the
+//! supervisor can name them when the process dies.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
@@ -30,6 +34,18 @@ pub(crate) fn guarded<T>(
     path: &Path,
     f: impl FnOnce() -> Result<T, IngestError>,
 ) -> Result<T, IngestError> {
+    guarded_scan(path, &[path], f)
+}
+
+/// [`guarded`] for one scan of several files (`all`, `path` among them): a panic is named by
+/// `path`, a crash by every file of `all` (the scan may be decoding any of them).
+#[allow(clippy::result_large_err)] // IngestError, as every reader's: one error, once per run
+pub(crate) fn guarded_scan<T>(
+    path: &Path,
+    all: &[&Path],
+    f: impl FnOnce() -> Result<T, IngestError>,
+) -> Result<T, IngestError> {
+    let _reading = crate::supervise::reading(all.iter().copied());
     install_quiet_hook();
     ACTIVE.fetch_add(1, Ordering::SeqCst);
     let result = catch_unwind(AssertUnwindSafe(f));
@@ -44,6 +60,32 @@ pub(crate) fn guarded<T>(
             path: path.to_path_buf(),
             message: one_line(message),
         })
+    })
+}
+
+/// Decodes every column of every row of `path`, dropping the rows as they stream: the
+/// supervisor's probe of one file after a scan of several crashed (`crate::supervise::probe`).
+/// Whether the process survives is the answer; the error is only for the caller's log.
+#[allow(clippy::result_large_err)] // IngestError, as every reader's
+pub fn decode_whole_file(path: &Path) -> Result<(), IngestError> {
+    use polars::lazy::dsl::Engine;
+    use polars::prelude::*;
+    let failed = |e: PolarsError| IngestError::NotParquet {
+        path: path.to_path_buf(),
+        reason: one_line(e),
+    };
+    guarded(path, || {
+        let source = PlRefPath::try_from_path(path).map_err(failed)?;
+        let args = ScanArgsParquet {
+            glob: false,
+            ..Default::default()
+        };
+        let drop_rows = PlanCallback::new(|_: DataFrame| Ok(false));
+        LazyFrame::scan_parquet(source, args)
+            .and_then(|lazy| lazy.sink_batches(drop_rows, true, None))
+            .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
+            .map(|_| ())
+            .map_err(failed)
     })
 }
 

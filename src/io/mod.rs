@@ -23,6 +23,7 @@ use std::path::{Path, PathBuf};
 use crate::campaign::CampaignError;
 use crate::series::CampaignLogs;
 
+pub use guard::decode_whole_file;
 pub use table::{write_table, write_table_csv, Column, Table};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use polars::lazy::dsl::Engine;
 use polars::prelude::*;
 
-use super::guard::guarded;
+use super::guard::{guarded, guarded_scan};
 use super::inputs::{CampaignFiles, MANIFEST};
 use super::repeats::{RepeatSketch, RepeatWindows};
 use super::{format_ns, one_line, IngestError};
@@ -1542,7 +1542,8 @@ fn stream_files(
             }
             Ok(false) // keep going
         });
-        guarded(first, || {
+        let scanned: Vec<&Path> = members.iter().map(|&i| files[i].as_path()).collect();
+        guarded_scan(first, &scanned, || {
             lazy.select(exprs)
                 .sink_batches(callback, true, None)
                 .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))

@@ -71,6 +71,7 @@ pub fn kill_point(what: &str, path: &Path) {
 }
 
 fn kill() -> ! {
+    crate::supervise::note(crate::supervise::Note::FaultKill);
     // SAFETY: sending a signal to our own process.
     unsafe {
         libc::kill(libc::getpid(), libc::SIGKILL);

@@ -14,6 +14,9 @@
 //!    `renameat2(RENAME_EXCHANGE)`, so `OUT` never vanishes, even for a moment.
 //! 3. Ctrl-C / SIGTERM during the run: the partial folder and the lock are removed and the old
 //!    output is untouched ([`install_signal_handlers`]).
+//! 4. A run that died without cleaning up (a crash in a dependency, the OOM killer): its
+//!    supervisor removes the partial folder and the lock ([`clean_up_after_dead_run`],
+//!    `crate::supervise`), else the next run does.
 //!
 //! [`fault`] lets the crash tests kill the process or fail a write at every step.
 
@@ -131,6 +134,7 @@ impl OutputTarget {
         let parent = parent_of(out);
         std::fs::create_dir_all(&parent).map_err(OutputError::io(&parent))?;
         let lock_path = parent.join(format!(".{name}.lock"));
+        crate::supervise::note(crate::supervise::Note::Output(out));
         // A signal waits until the lock is taken and known to the handler, which removes it.
         let _signals_wait = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
         let lock = take_lock(&lock_path).map_err(|e| match e {
@@ -166,9 +170,11 @@ impl OutputTarget {
         build: impl FnOnce(&Path) -> Result<(), E>,
     ) -> Result<(), WriteFailure<E>> {
         self.remove_dead_partials();
-        let partial = self
-            .parent
-            .join(format!(".{}.partial-{}", self.name, std::process::id()));
+        let partial = self.parent.join(format!(
+            ".{}.partial-{}",
+            self.name,
+            crate::supervise::run_pid()
+        ));
         let _ = std::fs::remove_dir_all(&partial);
         in_progress(Some(Cleanup {
             partial: partial.clone(),
@@ -200,36 +206,20 @@ impl OutputTarget {
         build(partial).map_err(WriteFailure::Build)
     }
 
-    /// Partial folders of runs that died (this run holds the lock, so no live run owns one):
-    /// only `.OUT.partial-<digits>` folders that are empty or hold the marker.
     fn remove_dead_partials(&self) {
-        let prefix = format!(".{}.partial-", self.name);
-        let Ok(entries) = std::fs::read_dir(&self.parent) else {
-            return;
-        };
-        for e in entries.flatten() {
-            let file_name = e.file_name();
-            let Some(pid) = file_name.to_str().and_then(|n| n.strip_prefix(&prefix)) else {
-                continue;
-            };
-            let path = e.path();
-            let is_dir = e.file_type().is_ok_and(|t| t.is_dir());
-            let empty = std::fs::read_dir(&path).is_ok_and(|mut d| d.next().is_none());
-            if is_dir && pid.bytes().all(|b| b.is_ascii_digit()) && (empty || holds_marker(&path)) {
-                tracing::info!("removing {} (left by a run that died)", path.display());
-                let _ = std::fs::remove_dir_all(&path);
-            }
-        }
+        remove_dead_partials(&self.parent, &self.name);
     }
 
     /// `partial` → `OUT`, the previous `OUT` → `OUT.prev`. Signals wait until this is done.
     fn swap(&self, partial: &Path) -> Result<(), OutputError> {
         let _guard = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
+        crate::supervise::note(crate::supervise::Note::SwapBegun);
         let result = self.swap_in(partial);
         if result.is_ok() {
             // From here a signal finds the new output in place and nothing to clean up.
             in_progress(None);
             REPLACED.store(true, std::sync::atomic::Ordering::SeqCst);
+            crate::supervise::note(crate::supervise::Note::SwapDone);
         }
         result
     }
@@ -283,6 +273,57 @@ impl Drop for OutputTarget {
         let _ = std::fs::remove_file(&self.lock_path);
         let _ = self.lock.unlock();
     }
+}
+
+/// Partial folders of runs that died, beside the output `name` in `parent` (the caller holds the
+/// lock, so no live run owns one): only `.OUT.partial-<digits>` folders that are empty or hold
+/// the marker.
+fn remove_dead_partials(parent: &Path, name: &str) {
+    let prefix = format!(".{name}.partial-");
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let file_name = e.file_name();
+        let Some(pid) = file_name.to_str().and_then(|n| n.strip_prefix(&prefix)) else {
+            continue;
+        };
+        let path = e.path();
+        let is_dir = e.file_type().is_ok_and(|t| t.is_dir());
+        let empty = std::fs::read_dir(&path).is_ok_and(|mut d| d.next().is_none());
+        if is_dir && pid.bytes().all(|b| b.is_ascii_digit()) && (empty || holds_marker(&path)) {
+            tracing::info!("removing {} (left by a run that died)", path.display());
+            let _ = std::fs::remove_dir_all(&path);
+        }
+    }
+}
+
+/// After a run on `out` died without cleaning up (killed by a signal it could not handle; its
+/// supervisor calls this, `crate::supervise`): removes what the next run would, the partial
+/// folders of dead runs and the lock file, taking the lock first. Nothing is touched when
+/// another run holds the lock by now (`Ok(false)`), nor when the folder beside `out` is gone.
+pub fn clean_up_after_dead_run(out: &Path) -> Result<bool, OutputError> {
+    let Some(name) = final_name(out) else {
+        return Ok(false);
+    };
+    let parent = parent_of(out);
+    let lock_path = parent.join(format!(".{name}.lock"));
+    let lock = match take_lock(&lock_path) {
+        Ok(lock) => lock,
+        Err(LockError::Busy) => return Ok(false),
+        Err(LockError::Io(e)) if e.kind() == std::io::ErrorKind::NotFound => return Ok(false),
+        Err(LockError::Io(source)) => {
+            return Err(OutputError::Io {
+                path: lock_path,
+                source,
+            })
+        }
+    };
+    remove_dead_partials(&parent, &name);
+    // As in `OutputTarget::drop`: the file goes while the lock is held.
+    let removed = std::fs::remove_file(&lock_path).map_err(OutputError::io(&lock_path));
+    let _ = lock.unlock();
+    removed.map(|()| true)
 }
 
 /// A failed [`OutputTarget::write`]: the build's own error, or the output's.
@@ -556,6 +597,48 @@ mod tests {
         assert!(check_overlap(&c.join("out"), &c).is_err());
         assert!(check_overlap(c.parent().unwrap(), &c).is_err());
         assert!(check_overlap(&c.with_file_name("camp-out"), &c).is_ok());
+    }
+
+    #[test]
+    fn after_a_dead_run_its_partial_folders_and_lock_go_unless_another_run_holds_the_lock() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path();
+        let marker = serde_json::to_string(&Marker::new(
+            "c",
+            Default::default(),
+            Default::default(),
+            Default::default(),
+        ))
+        .unwrap();
+        let make = |held: bool| {
+            std::fs::create_dir_all(d.join(".out.partial-123")).unwrap();
+            std::fs::write(d.join(".out.partial-123").join(MARKER), &marker).unwrap();
+            std::fs::create_dir_all(d.join(".out.partial-124")).unwrap();
+            std::fs::create_dir_all(d.join(".out.partial-mine")).unwrap();
+            std::fs::write(d.join(".out.partial-mine/x"), "x").unwrap();
+            let lock = File::create(d.join(".out.lock")).unwrap();
+            if held {
+                lock.try_lock().unwrap();
+            }
+            lock
+        };
+        let names = || {
+            let mut v: Vec<String> = std::fs::read_dir(d)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            v.sort();
+            v
+        };
+        let other_run = make(true);
+        assert!(!clean_up_after_dead_run(&d.join("out")).unwrap());
+        assert_eq!(names().len(), 4, "{:?}", names());
+        drop(other_run);
+        let _file = make(false);
+        assert!(clean_up_after_dead_run(&d.join("out")).unwrap());
+        assert_eq!(names(), [".out.partial-mine"]);
+        assert!(!clean_up_after_dead_run(&d.join("gone/out")).unwrap());
+        assert!(!d.join("gone").exists());
     }
 
     #[test]

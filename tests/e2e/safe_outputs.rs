@@ -452,3 +452,106 @@ fn an_interrupt_at_any_moment_leaves_no_lock_and_no_partial_folder() {
     }
     assert!(interrupted >= 1, "no run was interrupted");
 }
+
+/// The analysis runs in a child of the `dbbcal` the user started (`dbbcal::supervise`); the
+/// partial folder is named after the latter. The child's pid (the only child of `parent`).
+fn analysis_child(parent: u32) -> u32 {
+    let start = std::time::Instant::now();
+    loop {
+        let path = format!("/proc/{parent}/task/{parent}/children");
+        let children = std::fs::read_to_string(&path).unwrap_or_default();
+        if let Some(pid) = children.split_whitespace().next() {
+            return pid.parse().unwrap();
+        }
+        assert!(start.elapsed().as_secs() < 30, "no child of {parent}");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
+
+/// Start `report` stalled at its third write step (inside the partial folder) and wait until the
+/// partial folder holds the marker; `group`: in a process group of its own (a terminal's job).
+fn stalled_run(c: &Path, out: &Path, group: bool) -> (std::process::Child, PathBuf) {
+    use std::os::unix::process::CommandExt;
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_dbbcal"));
+    cmd.args(["report", "--campaign", s(c), "--out", s(out)])
+        .env("DBBCAL_FAULT", "stall@3")
+        .stderr(std::process::Stdio::piped());
+    if group {
+        cmd.process_group(0);
+    }
+    let child = cmd.spawn().unwrap();
+    let partial = out
+        .parent()
+        .unwrap()
+        .join(format!(".out.partial-{}", child.id()));
+    let start = std::time::Instant::now();
+    while !partial.join(dbbcal::output::MARKER).exists() {
+        assert!(start.elapsed().as_secs() < 30, "no partial folder appeared");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    (child, partial)
+}
+
+/// `stderr` without the fault injection's own line (`dbbcal: fault point K (...)`).
+fn without_fault_line(stderr: &[u8]) -> String {
+    String::from_utf8_lossy(stderr)
+        .lines()
+        .filter(|l| !l.starts_with("dbbcal: fault point"))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The OOM killer (or anyone) kills the analysis process with SIGKILL while it writes: the
+/// `dbbcal` the user started removes the partial folder and the lock, says one line, exits 1;
+/// the old output is unchanged.
+#[test]
+fn an_analysis_killed_by_sigkill_is_cleaned_up_after_by_its_supervisor() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let out = tmp.path().join("out");
+    copy_dir(earlier_output(), &out);
+    let old = snapshot(&out);
+    let (child, partial) = stalled_run(&c, &out, false);
+    let analysis = analysis_child(child.id());
+    assert_ne!(analysis, child.id());
+    // SAFETY: a signal to a process this test started (through `dbbcal`).
+    unsafe { libc::kill(analysis as i32, libc::SIGKILL) };
+    let r = child.wait_with_output().unwrap();
+    let stderr = without_fault_line(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert_one_line(
+        &stderr,
+        &["killed (SIGKILL", "the previous output is unchanged"],
+        "SIGKILL",
+    );
+    assert!(!partial.exists(), "the partial folder is left");
+    assert!(snapshot(&out) == old);
+    assert_no_leftovers(tmp.path(), "SIGKILL to the analysis");
+}
+
+/// Ctrl-C (or a hang-up) on a terminal reaches every process of the job, `dbbcal` and its
+/// analysis child: exit 130 (129), one line, no partial folder or lock, the old output unchanged.
+#[test]
+fn a_terminal_interrupt_reaching_both_processes_ends_cleanly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let out = tmp.path().join("out");
+    for (signal, code) in [(libc::SIGINT, 130), (libc::SIGHUP, 129)] {
+        let _ = std::fs::remove_dir_all(&out);
+        copy_dir(earlier_output(), &out);
+        let old = snapshot(&out);
+        let (child, partial) = stalled_run(&c, &out, true);
+        assert_ne!(analysis_child(child.id()), child.id());
+        // SAFETY: a signal to the process group of a process this test started.
+        unsafe { libc::kill(-(child.id() as i32), signal) };
+        let r = child.wait_with_output().unwrap();
+        let stderr = without_fault_line(&r.stderr);
+        let what = format!("signal {signal} to the job");
+        assert_eq!(r.status.code(), Some(code), "{what}: {stderr}");
+        assert_one_line(&stderr, &["interrupted", "unchanged"], &what);
+        assert!(!partial.exists(), "{what}: the partial folder is left");
+        assert!(snapshot(&out) == old, "{what}");
+        assert_no_leftovers(tmp.path(), &what);
+    }
+}
