@@ -226,7 +226,10 @@ fn write_outputs(
     headline: &Headline,
     dir: &Path,
 ) -> Result<()> {
-    write_json(&dir.join("summary.json"), &pipeline::summary(plan, results))?;
+    write_json(
+        &dir.join("summary.json"),
+        &crate::output::summary::summary(plan, results),
+    )?;
     write_json(&dir.join("inputs.json"), &results.inputs)?;
     if plan.runs(Stage::Identify) {
         write_table(plan, &dir.join("models.parquet"), &models_table(results))?;
@@ -234,7 +237,7 @@ fn write_outputs(
     if let Some(d) = &results.diagnosis {
         write_json(
             &dir.join("diagnosis.json"),
-            &pipeline::diagnosis_record(plan, results, d),
+            &crate::output::diagnosis::diagnosis_record(plan, results, d),
         )?;
     }
     if let Some(ba) = &results.before_after {

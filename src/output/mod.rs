@@ -19,8 +19,13 @@
 //!    `crate::supervise`), else the next run does.
 //!
 //! [`fault`] lets the crash tests kill the process or fail a write at every step.
+//!
+//! The JSON formats live here too, each converting typed results to text in one place:
+//! [`summary`] (`summary.json`) and [`diagnosis`] (`diagnosis.json`).
 
+pub mod diagnosis;
 pub mod fault;
+pub mod summary;
 
 use std::fs::File;
 use std::path::{Component, Path, PathBuf};

@@ -8,6 +8,7 @@ use proptest::prelude::*;
 
 use super::*;
 use crate::campaign::prop_tests::{apply, cases, edit};
+use crate::model::Effect;
 
 /// Every key of a pipeline file, at valid values, on the shipped sample.
 const FULL: &str = r#"

@@ -1,0 +1,178 @@
+//! `summary.json`: the stable contract for cron jobs and dashboards (README, "summary.json").
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use crate::identify::Estimate;
+use crate::model::Effect;
+use crate::pipeline::{RunPlan, RunResults, Stage};
+use crate::series::InputFile;
+
+/// `summary.json`: the stable contract for cron jobs and dashboards.
+#[derive(Debug, Serialize)]
+pub struct Summary {
+    pub dbbcal_version: String,
+    pub campaign: String,
+    pub pipeline: PipelineRecord,
+    pub inputs: Vec<InputFile>,
+    pub model: ModelRecord,
+    pub bars: Vec<BarSummary>,
+    pub failed_bars: Vec<FailedBar>,
+    pub reference: Option<ReferenceSummary>,
+    /// What ingest dropped, counted and flagged, per bar, sensor, events and files.
+    pub quality: crate::series::Quality,
+}
+
+#[derive(Debug, Serialize)]
+pub struct PipelineRecord {
+    pub name: String,
+    pub path: Option<String>,
+    pub sha256: Option<String>,
+    pub stages: Vec<Stage>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ModelRecord {
+    pub effects: Vec<String>,
+    /// Bin length of the compressed readings, s (0: every reading). The fits, RMS and sample
+    /// counts are those of every reading either way (`series::bins`); residual statistics and
+    /// figures then show the bins' nodes.
+    pub bin_s: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ParamValue {
+    pub value: f64,
+    pub u: f64,
+    pub u_naive: f64,
+    pub ci95: [f64; 2],
+    /// Per end of `ci95`: the end is the time constants' search bound, not a limit set by the
+    /// data ([`Estimate::ci95_at_search_bound`]).
+    pub ci95_at_search_bound: [bool; 2],
+}
+
+#[derive(Debug, Serialize)]
+pub struct BarSummary {
+    pub bar: String,
+    pub effects: Vec<String>,
+    pub params: BTreeMap<String, ParamValue>,
+    pub correlation: CorrelationRecord,
+    pub rms_um: f64,
+    pub n_samples: usize,
+    pub dropped_outside_mounts: usize,
+    pub hac_batch_samples: usize,
+    /// The base paths' initial-state gains (nuisance parameters like the zeros: each lag's
+    /// departure from steady state at the bar's first fitted sample times its expansion, ppm).
+    pub initial_state: BTreeMap<String, ParamValue>,
+    /// Parameters of the model's effects that this bar's data cannot determine (left out of its
+    /// fit), with the reason: e.g. `beta_ppm_per_k` and `tau_s_s` of a bar mounted on one length.
+    pub not_identifiable: Vec<crate::model::NotIdentifiable>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct CorrelationRecord {
+    pub names: Vec<String>,
+    pub matrix: Vec<Vec<f64>>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct FailedBar {
+    pub bar: String,
+    pub error: String,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ReferenceSummary {
+    pub bar: String,
+    pub rule: &'static str,
+    pub compared_at_mm: f64,
+    pub limit_um: f64,
+    pub mismatch_um: BTreeMap<String, f64>,
+    pub flagged: Vec<String>,
+    pub scaled_distance_to_mean: BTreeMap<String, f64>,
+}
+
+fn param_value(e: &Estimate) -> ParamValue {
+    ParamValue {
+        value: e.value,
+        u: e.u,
+        u_naive: e.u_naive,
+        ci95: e.ci95,
+        ci95_at_search_bound: e.ci95_at_search_bound,
+    }
+}
+
+pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
+    let bars = r
+        .bars
+        .iter()
+        .map(|o| BarSummary {
+            bar: o.model.bar.clone(),
+            effects: o.model.effect_names(),
+            params: o
+                .model
+                .params
+                .iter()
+                .map(|p| (p.name.clone(), param_value(p)))
+                .collect(),
+            correlation: CorrelationRecord {
+                names: o.model.params.iter().map(|p| p.name.clone()).collect(),
+                matrix: o.model.correlation.clone(),
+            },
+            rms_um: o.model.rms_um,
+            n_samples: o.model.n_samples,
+            dropped_outside_mounts: o.series.dropped_outside_mounts,
+            hac_batch_samples: o.model.hac_batch_len,
+            initial_state: o
+                .model
+                .initial_state
+                .iter()
+                .map(|p| (p.name.clone(), param_value(p)))
+                .collect(),
+            not_identifiable: o.model.not_identifiable.clone(),
+        })
+        .collect();
+    let reference = r.reference.as_ref().map(|rr| ReferenceSummary {
+        bar: rr.choice.bar.clone(),
+        rule: if rr.choice.fleet_mean.iter().all(|v| v.is_finite()) {
+            "nearest the fleet mean in (alpha, beta, tau_R, tau_S) scaled by the fleet standard deviation"
+        } else {
+            "nearest the fleet mean in (alpha, tau_R) scaled by the fleet standard deviation (beta and tau_S are not identifiable: every bar on one length)"
+        },
+        compared_at_mm: rr.distance_mm,
+        limit_um: rr.limit_um,
+        mismatch_um: rr.mismatches.iter().map(|m| (m.bar.clone(), m.max_abs_um)).collect(),
+        flagged: rr.mismatches.iter().filter(|m| m.flagged).map(|m| m.bar.clone()).collect(),
+        scaled_distance_to_mean: rr.choice.distance.iter().cloned().collect(),
+    });
+    Summary {
+        dbbcal_version: env!("CARGO_PKG_VERSION").to_string(),
+        campaign: r.campaign.id.clone(),
+        pipeline: PipelineRecord {
+            name: plan.pipeline_name.clone(),
+            path: plan
+                .pipeline_source
+                .as_ref()
+                .map(|(p, _)| p.display().to_string()),
+            sha256: plan.pipeline_source.as_ref().map(|(_, h)| h.clone()),
+            stages: plan.stages.clone(),
+        },
+        inputs: r.inputs.clone(),
+        model: ModelRecord {
+            effects: plan.effects.iter().map(Effect::name).collect(),
+            bin_s: plan.bin_s,
+        },
+        bars,
+        failed_bars: r
+            .failed
+            .iter()
+            .map(|(bar, error)| FailedBar {
+                bar: bar.clone(),
+                error: error.clone(),
+            })
+            .collect(),
+        reference,
+        quality: r.quality.clone(),
+    }
+}

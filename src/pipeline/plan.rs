@@ -1,0 +1,699 @@
+//! The pipeline file (`pipelines/*.toml`): one section per stage, its defaults and limits, and
+//! [`RunPlan`], its validated form, checked against the campaign manifest before any parquet file
+//! is read.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::campaign::Campaign;
+use crate::model::Effect;
+
+/// The stages a pipeline may run, in execution order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    Ingest,
+    Identify,
+    Match,
+    MatchStudy,
+    Diagnose,
+    Calibrate,
+    Compensate,
+    Acceptance,
+    Report,
+}
+
+impl Stage {
+    /// The stages `self` needs before it.
+    pub fn with_prerequisites(self) -> Vec<Stage> {
+        use Stage::*;
+        match self {
+            Ingest => vec![Ingest],
+            Identify => vec![Ingest, Identify],
+            Match => vec![Ingest, Identify, Match],
+            MatchStudy => vec![Ingest, Identify, Match, MatchStudy],
+            Diagnose => vec![Ingest, Identify, Diagnose],
+            Calibrate => vec![Ingest, Identify, Calibrate],
+            Compensate => vec![Ingest, Identify, Match, Calibrate, Compensate],
+            Acceptance => vec![Ingest, Identify, Match, Calibrate, Compensate, Acceptance],
+            Report => vec![Ingest, Identify, Match, Report],
+        }
+    }
+}
+
+/// A pipeline file (`pipelines/*.toml`), as written.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineFile {
+    pub pipeline: PipelineSection,
+    #[serde(default)]
+    pub model: ModelSection,
+    #[serde(default, rename = "match")]
+    pub matching: MatchSection,
+    #[serde(default)]
+    pub diagnose: DiagnoseSection,
+    #[serde(default)]
+    pub acceptance: AcceptanceSection,
+    #[serde(default)]
+    pub report: ReportSection,
+    #[serde(default)]
+    pub output: OutputSection,
+}
+
+/// `[report]`: what the data cannot say and a filed report must (ISO/IEC 17025 §7.8): the lab's
+/// template fields, printed on the report page's provenance; absent ones stay blank lines.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ReportSection {
+    pub laboratory: Option<String>,
+    pub address: Option<String>,
+    pub customer: Option<String>,
+    /// The report's or certificate's unique identification.
+    pub report_id: Option<String>,
+    pub signatory: Option<String>,
+}
+
+/// `[output]`: extra formats.
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// Also write the tables (`models.parquet`, `compensated.parquet`) as CSV.
+    #[serde(default)]
+    pub csv: bool,
+}
+
+/// `[acceptance]`: compensation and acceptance options (`calibrate`, `compensate`, `acceptance`).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct AcceptanceSection {
+    /// Tolerance on the compensated centre-distance error, ± µm (patent: ±1 µm).
+    #[serde(default = "default_limit")]
+    pub tolerance_um: f64,
+    /// Standard uncertainty of the temperature measurement, K (uncertainty budget).
+    #[serde(default = "default_u_temperature")]
+    pub u_temperature_k: f64,
+    /// Also compensate the modelled reference-to-working difference.
+    #[serde(default)]
+    pub model_difference: bool,
+    /// A reference reading farther than this from a working sample is not used, s.
+    #[serde(default = "default_max_gap")]
+    pub max_gap_s: f64,
+}
+
+impl Default for AcceptanceSection {
+    fn default() -> Self {
+        Self {
+            tolerance_um: default_limit(),
+            u_temperature_k: default_u_temperature(),
+            model_difference: false,
+            max_gap_s: default_max_gap(),
+        }
+    }
+}
+
+fn default_u_temperature() -> f64 {
+    0.05
+}
+fn default_max_gap() -> f64 {
+    300.0
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiagnoseSection {
+    /// Forward selection adds at most this many effects (0: rank candidates only).
+    #[serde(default = "default_forward_steps")]
+    pub forward_steps: usize,
+    /// Forward selection keeps this many best paths at each step (1: plain greedy).
+    #[serde(default = "default_beam")]
+    pub beam: usize,
+    /// Tolerance the bars serve, µm: a candidate is proposed only when the fleet RMS it removes
+    /// is at least 0.5 % of it (and 5 % of the noise floor; `diagnose::Criteria`). Absent: the
+    /// matching limit `[match] limit_um`.
+    #[serde(default)]
+    pub tolerance_um: Option<f64>,
+}
+
+impl Default for DiagnoseSection {
+    fn default() -> Self {
+        Self {
+            forward_steps: default_forward_steps(),
+            beam: default_beam(),
+            tolerance_um: None,
+        }
+    }
+}
+
+fn default_forward_steps() -> usize {
+    3
+}
+fn default_beam() -> usize {
+    3
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineSection {
+    pub name: String,
+    pub stages: Vec<Stage>,
+    /// Default campaign directory, relative to the working directory.
+    #[serde(default)]
+    pub campaign: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSection {
+    /// Effect names (see `model::Effect::parse`); the base model when absent.
+    #[serde(default = "default_effects")]
+    pub effects: Vec<String>,
+    /// Generic terms spelled out (`[[model.term]]`): the same as `"lag:H1@1800"` in `effects`.
+    #[serde(default)]
+    pub term: Vec<GenericTerm>,
+    /// Compress each bar's readings into bins of this many seconds, two weighted nodes a bin,
+    /// exact for the fits (`series::bins`; 0: every reading). At most an hour. Absent or
+    /// `"auto"`: chosen from the campaign (`series::automatic_bin_s`: 60 s for logs of 6 s or
+    /// faster) and checked against the fitted time constants (`runner`).
+    #[serde(default, deserialize_with = "bin_s_or_auto")]
+    pub bin_s: Option<f64>,
+}
+
+/// A generic term defined in the pipeline TOML: `transform` of `channel`, starting at `tau_s`.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GenericTerm {
+    pub channel: String,
+    pub transform: crate::model::Transform,
+    #[serde(default)]
+    pub tau_s: Option<f64>,
+}
+
+impl GenericTerm {
+    fn effect(&self) -> Effect {
+        Effect::Channel {
+            transform: self.transform,
+            channel: self.channel.clone(),
+            tau0_s: self.tau_s,
+        }
+    }
+}
+
+impl Default for ModelSection {
+    fn default() -> Self {
+        Self {
+            effects: default_effects(),
+            term: Vec::new(),
+            bin_s: None,
+        }
+    }
+}
+
+fn default_effects() -> Vec<String> {
+    crate::model::base_effects()
+        .iter()
+        .map(Effect::name)
+        .collect()
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MatchSection {
+    /// Flag bars whose predicted mismatch exceeds this, µm (the patent's ±1 µm).
+    #[serde(default = "default_limit")]
+    pub limit_um: f64,
+    /// Plate length id at which bars are compared; the middle plate length when absent.
+    #[serde(default)]
+    pub at_length: Option<String>,
+    /// Grid step of the measured-drift matching study, s.
+    #[serde(default = "default_study_step")]
+    pub study_step_s: f64,
+}
+
+impl Default for MatchSection {
+    fn default() -> Self {
+        Self {
+            limit_um: default_limit(),
+            at_length: None,
+            study_step_s: default_study_step(),
+        }
+    }
+}
+
+fn default_limit() -> f64 {
+    1.0
+}
+fn default_study_step() -> f64 {
+    60.0
+}
+
+/// Errors that make a run impossible (unusable input or configuration).
+#[derive(Debug, thiserror::Error)]
+pub enum PlanError {
+    #[error("{path}: {message}")]
+    Pipeline { path: String, message: String },
+    #[error("campaign directory {0} does not exist or has no campaign.toml")]
+    NoCampaign(String),
+    #[error("{0}")]
+    Effect(#[from] crate::model::UnknownEffect),
+    /// `campaign.toml` read at plan time (cheap, before any parquet file) is not usable.
+    #[error(transparent)]
+    Campaign(Box<crate::campaign::CampaignError>),
+    /// The plan names something the campaign's manifest does not declare (one line, naming the
+    /// key).
+    #[error("{0}")]
+    NotInCampaign(String),
+}
+
+/// The allowed range of every number a pipeline file (or a command-line option) sets, checked
+/// before any IO on the campaign: `(key, low, high, unit)`, both ends included. NaN and
+/// infinities (TOML's `nan`, `inf`) are outside every range.
+pub mod limits {
+    /// `[match] limit_um`, `[diagnose] tolerance_um`, `[acceptance] tolerance_um`: µm (a ballbar's
+    /// tolerances are microns; 1 mm is far beyond any).
+    pub const TOLERANCE_UM: (f64, f64) = (1e-6, 1e3);
+    /// `[match] study_step_s`: the measured-drift grid step, s (one second to a day).
+    pub const STUDY_STEP_S: (f64, f64) = (1.0, 86_400.0);
+    /// `[acceptance] u_temperature_k`: standard uncertainty of the air temperature, K.
+    pub const U_TEMPERATURE_K: (f64, f64) = (0.0, 10.0);
+    /// `[acceptance] max_gap_s`: one second to 30 days.
+    pub const MAX_GAP_S: (f64, f64) = (1.0, 30.0 * 86_400.0);
+    /// A starting time constant (`[[model.term]] tau_s`, the `@TAU_S` of an effect name), s: the
+    /// range the model evaluates time constants in (`ln tau` clamped to [0, ln 1e9]).
+    pub const TAU_S: (f64, f64) = (1.0, 1e9);
+    /// `[diagnose] forward_steps` (0: rank the candidates only).
+    pub const FORWARD_STEPS: (usize, usize) = (0, 10);
+    /// `[diagnose] beam` (1: plain greedy selection).
+    pub const BEAM: (usize, usize) = (1, 10);
+}
+
+/// `value` within `[lo, hi]` (finite), or the one-line message that names `key` and the range.
+fn check_range(key: &str, value: f64, (lo, hi): (f64, f64), unit: &str) -> Result<(), String> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {} is out of range: it must be a finite number from {lo} to {hi}{unit}",
+            crate::campaign::display_number(value)
+        ))
+    }
+}
+
+fn check_count(key: &str, value: usize, (lo, hi): (usize, usize)) -> Result<(), String> {
+    if (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {value} is out of range: it must be a whole number from {lo} to {hi}"
+        ))
+    }
+}
+
+impl PipelineFile {
+    /// Every number of the file in its range ([`limits`]); the message names the key.
+    pub fn check_numbers(&self) -> Result<(), String> {
+        use limits::*;
+        let m = &self.matching;
+        check_range("match.limit_um", m.limit_um, TOLERANCE_UM, " µm")?;
+        check_range("match.study_step_s", m.study_step_s, STUDY_STEP_S, " s")?;
+        let d = &self.diagnose;
+        check_count("diagnose.forward_steps", d.forward_steps, FORWARD_STEPS)?;
+        check_count("diagnose.beam", d.beam, BEAM)?;
+        if let Some(t) = d.tolerance_um {
+            check_range("diagnose.tolerance_um", t, TOLERANCE_UM, " µm")?;
+        }
+        let a = &self.acceptance;
+        check_range(
+            "acceptance.tolerance_um",
+            a.tolerance_um,
+            TOLERANCE_UM,
+            " µm",
+        )?;
+        check_range(
+            "acceptance.u_temperature_k",
+            a.u_temperature_k,
+            U_TEMPERATURE_K,
+            " K",
+        )?;
+        check_range("acceptance.max_gap_s", a.max_gap_s, MAX_GAP_S, " s")?;
+        if let Some(bin_s) = self.model.bin_s {
+            check_bin_s("model.bin_s", bin_s)?;
+        }
+        for (i, t) in self.model.term.iter().enumerate() {
+            if let Some(tau) = t.tau_s {
+                check_range(&format!("model.term[{i}].tau_s"), tau, TAU_S, " s")?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A bin length (`[model] bin_s`, `--bin-s`): 0 (every reading) to [`crate::series::MAX_BIN_S`].
+pub fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
+    check_range(key, bin_s, (0.0, crate::series::MAX_BIN_S), " s")
+}
+
+/// An effect's starting time constant (`@TAU_S`) in [`limits::TAU_S`].
+fn check_effect(e: &Effect) -> Result<(), String> {
+    match e {
+        Effect::Channel {
+            tau0_s: Some(tau), ..
+        } => check_range(
+            &format!("{:?}: the starting time constant @TAU_S", e.name()),
+            *tau,
+            limits::TAU_S,
+            " s",
+        ),
+        _ => Ok(()),
+    }
+}
+
+/// Channel names every campaign has (`model::channels::resolve`).
+const BUILT_IN_CHANNELS: [&str; 4] = [
+    "time_since_mount_h",
+    "time_of_day_h",
+    "length_mm",
+    "tilt_deg",
+];
+
+/// Whether `channel` can exist in `campaign` as far as `campaign.toml` tells: a declared sensor,
+/// a difference `A-B` of two, `event:KIND` (events are only known once read), or a built-in
+/// channel ([`crate::model::channels::resolve`] resolves them the same way).
+fn channel_declared(campaign: &Campaign, channel: &str) -> bool {
+    let sensor = |id: &str| campaign.sensor(id).is_some();
+    sensor(channel)
+        || channel
+            .split_once('-')
+            .is_some_and(|(a, b)| sensor(a) && sensor(b))
+        || channel
+            .strip_prefix("event:")
+            .is_some_and(|kind| !kind.is_empty())
+        || BUILT_IN_CHANNELS.contains(&channel)
+}
+
+/// The plan's references into the campaign, against its manifest (read before any parquet
+/// file): `[match] at_length` a plate length, every `lag:`/`rate:`/`level:` channel one the
+/// campaign can provide. `effects`: each effect with the key it came from.
+fn check_against_campaign(
+    campaign: &Campaign,
+    manifest_path: &str,
+    effects: &[(Effect, String)],
+    matching: &MatchSection,
+    pipeline_path: &str,
+) -> Result<(), String> {
+    if let Some(id) = &matching.at_length {
+        if !campaign.plate.lengths.iter().any(|l| &l.id == id) {
+            let known: Vec<&str> = campaign
+                .plate
+                .lengths
+                .iter()
+                .map(|l| l.id.as_str())
+                .collect();
+            return Err(format!(
+                "{pipeline_path}: match.at_length = {id:?} is not a plate length of {manifest_path} (known: {})",
+                if known.is_empty() { "none".to_string() } else { known.join(", ") }
+            ));
+        }
+    }
+    for (e, key) in effects {
+        if let Effect::Channel { channel, .. } = e {
+            if !channel_declared(campaign, channel) {
+                let sensors: Vec<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
+                return Err(format!(
+                    "{key}: {:?}: no channel {channel:?} in {manifest_path} (sensors: {}; \
+                     or a difference A-B of two, event:KIND, {})",
+                    e.name(),
+                    if sensors.is_empty() {
+                        "none".to_string()
+                    } else {
+                        sensors.join(", ")
+                    },
+                    BUILT_IN_CHANNELS.join(", ")
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A path for a one-line message: control characters escaped.
+fn shown(path: &Path) -> String {
+    path.display()
+        .to_string()
+        .chars()
+        .flat_map(|c| {
+            if c.is_control() {
+                c.escape_debug().collect::<Vec<_>>()
+            } else {
+                vec![c]
+            }
+        })
+        .collect()
+}
+
+/// Reads and validates `dir/campaign.toml` (cheap: no parquet file is opened).
+fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
+    let path = dir.join("campaign.toml");
+    let file = shown(&path);
+    let text = std::fs::read_to_string(&path).map_err(|e| PlanError::Pipeline {
+        path: file.clone(),
+        message: format!("cannot read: {e}"),
+    })?;
+    let boxed = |e| PlanError::Campaign(Box::new(e));
+    let manifest = crate::campaign::Manifest::from_toml_str(&text, &file).map_err(boxed)?;
+    let campaign = Campaign::from_manifest_at(manifest, &file).map_err(boxed)?;
+    Ok((campaign, file))
+}
+
+/// A validated run: what to read, what to do, where to write.
+#[derive(Debug, Clone)]
+pub struct RunPlan {
+    pub pipeline_name: String,
+    /// The pipeline file and its hash (`None` for stage subcommands).
+    pub pipeline_source: Option<(PathBuf, String)>,
+    pub stages: Vec<Stage>,
+    pub campaign_dir: PathBuf,
+    /// `None`: `reports/<campaign id>`, decided after the manifest is read.
+    pub out_dir: Option<PathBuf>,
+    pub effects: Vec<Effect>,
+    /// Bin length of the compressed readings, s (0: every reading).
+    pub bin_s: f64,
+    /// `bin_s` is chosen from the campaign before ingest (`io::automatic_bin_s`; the runner
+    /// replaces it): no `[model] bin_s` or `--bin-s` was given.
+    pub automatic_bins: bool,
+    pub matching: MatchSection,
+    pub diagnose: DiagnoseSection,
+    pub acceptance: AcceptanceSection,
+    pub report: ReportSection,
+    pub output: OutputSection,
+}
+
+impl RunPlan {
+    /// Validate a pipeline file plus command-line overrides.
+    pub fn from_pipeline_file(
+        path: &Path,
+        campaign: Option<PathBuf>,
+        out: Option<PathBuf>,
+        add_effects: &[String],
+    ) -> Result<RunPlan, PlanError> {
+        let perr = |message: String| PlanError::Pipeline {
+            path: shown(path),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| perr(format!("cannot read: {e}")))?;
+        let file: PipelineFile =
+            toml::from_str(&text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
+        if file.pipeline.stages.is_empty() {
+            return Err(perr("pipeline.stages is empty".into()));
+        }
+        // Every number first, before anything of the campaign is touched.
+        file.check_numbers().map_err(perr)?;
+        let mut stages: Vec<Stage> = file
+            .pipeline
+            .stages
+            .iter()
+            .flat_map(|s| s.with_prerequisites())
+            .collect();
+        stages.sort();
+        stages.dedup();
+        let mut names: Vec<(String, String)> = file
+            .model
+            .effects
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (e.clone(), format!("{}: model.effects[{i}]", shown(path))))
+            .collect();
+        for (i, t) in file.model.term.iter().enumerate() {
+            names.push((
+                t.effect().name(),
+                format!("{}: model.term[{i}]", shown(path)),
+            ));
+        }
+        names.extend(
+            add_effects
+                .iter()
+                .map(|e| (e.clone(), "--add-effect".to_string())),
+        );
+        let campaign_dir = campaign
+            .or(file.pipeline.campaign.clone())
+            .unwrap_or_else(|| PathBuf::from("data/sample"));
+        let sha = sha256_hex(text.as_bytes());
+        let mut plan = RunPlan::new(
+            file.pipeline.name.clone(),
+            Some((path.to_path_buf(), sha)),
+            stages,
+            campaign_dir,
+            out,
+            &names,
+            file.matching,
+        )?;
+        plan.diagnose = file.diagnose;
+        if let Some(bin_s) = file.model.bin_s {
+            (plan.bin_s, plan.automatic_bins) = (bin_s, false);
+        }
+        plan.acceptance = file.acceptance;
+        plan.report = file.report;
+        plan.output = file.output;
+        Ok(plan)
+    }
+
+    /// A plan for one stage subcommand (and the stages it needs).
+    pub fn for_stage(
+        stage: Stage,
+        campaign: PathBuf,
+        out: Option<PathBuf>,
+        effects: &[String],
+    ) -> Result<RunPlan, PlanError> {
+        let names: Vec<(String, String)> = if effects.is_empty() {
+            default_effects()
+                .into_iter()
+                .map(|e| (e, "the base model".to_string()))
+                .collect()
+        } else {
+            effects
+                .iter()
+                .map(|e| (e.clone(), "--effects/--add-effect".to_string()))
+                .collect()
+        };
+        RunPlan::new(
+            format!("{stage:?}").to_lowercase(),
+            None,
+            stage.with_prerequisites(),
+            campaign,
+            out,
+            &names,
+            MatchSection::default(),
+        )
+    }
+
+    fn new(
+        name: String,
+        source: Option<(PathBuf, String)>,
+        stages: Vec<Stage>,
+        campaign_dir: PathBuf,
+        out_dir: Option<PathBuf>,
+        effect_names: &[(String, String)],
+        matching: MatchSection,
+    ) -> Result<RunPlan, PlanError> {
+        let effects = validated_effects(&campaign_dir, effect_names, &matching, source.as_ref())?;
+        Ok(RunPlan {
+            pipeline_name: name,
+            pipeline_source: source,
+            stages,
+            campaign_dir,
+            out_dir,
+            effects,
+            bin_s: 0.0,
+            automatic_bins: true,
+            matching,
+            diagnose: DiagnoseSection::default(),
+            acceptance: AcceptanceSection::default(),
+            report: ReportSection::default(),
+            output: OutputSection::default(),
+        })
+    }
+
+    pub fn runs(&self, stage: Stage) -> bool {
+        self.stages.contains(&stage)
+    }
+
+    /// The command line's model overrides: `--effects` (replacing the plan's, when not empty),
+    /// then `--add-effect`; validated against the campaign like the pipeline's own.
+    pub fn with_effects(
+        mut self,
+        replace: &[String],
+        add: &[String],
+    ) -> Result<RunPlan, PlanError> {
+        let mut names: Vec<(String, String)> = if replace.is_empty() {
+            self.effects
+                .iter()
+                .map(|e| (e.name(), "model.effects".to_string()))
+                .collect()
+        } else {
+            replace
+                .iter()
+                .map(|e| (e.clone(), "--effects".to_string()))
+                .collect()
+        };
+        names.extend(add.iter().map(|e| (e.clone(), "--add-effect".to_string())));
+        self.effects = validated_effects(
+            &self.campaign_dir,
+            &names,
+            &self.matching,
+            self.pipeline_source.as_ref(),
+        )?;
+        Ok(self)
+    }
+}
+
+/// Parse, range-check and deduplicate `effect_names` (each with the key that named it), and
+/// check them against the campaign's manifest (cheap to read) before any parquet.
+fn validated_effects(
+    campaign_dir: &Path,
+    effect_names: &[(String, String)],
+    matching: &MatchSection,
+    source: Option<&(PathBuf, String)>,
+) -> Result<Vec<Effect>, PlanError> {
+    let mut keyed: Vec<(Effect, String)> = Vec::new();
+    for (n, key) in effect_names {
+        let e = Effect::parse(n)?;
+        check_effect(&e).map_err(|message| PlanError::Pipeline {
+            path: key.clone(),
+            message,
+        })?;
+        if !keyed.iter().any(|(k, _)| *k == e) {
+            keyed.push((e, key.clone()));
+        }
+    }
+    if !campaign_dir.join("campaign.toml").is_file() {
+        return Err(PlanError::NoCampaign(shown(campaign_dir)));
+    }
+    let (campaign, manifest_path) = read_campaign_manifest(campaign_dir)?;
+    let pipeline_path = source.map_or("plan".to_string(), |(p, _)| shown(p));
+    check_against_campaign(&campaign, &manifest_path, &keyed, matching, &pipeline_path)
+        .map_err(PlanError::NotInCampaign)?;
+    Ok(keyed.into_iter().map(|(e, _)| e).collect())
+}
+
+/// `bin_s = 60` or `bin_s = "auto"` (= absent).
+fn bin_s_or_auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum BinS {
+        Seconds(f64),
+        Word(String),
+    }
+    match BinS::deserialize(d)? {
+        BinS::Seconds(s) => Ok(Some(s)),
+        BinS::Word(w) if w == "auto" => Ok(None),
+        BinS::Word(w) => Err(serde::de::Error::custom(format!(
+            "model.bin_s must be a number of seconds or \"auto\", not {w:?}"
+        ))),
+    }
+}
+
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    let digest = Sha256::digest(bytes);
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}

@@ -1,0 +1,122 @@
+//! What the stages hand each other and the outputs: plain data, no IO.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use crate::campaign::Campaign;
+use crate::diagnose::{self, BarDiagnosis, Candidate, LedgerStep};
+use crate::identify::BarModel;
+use crate::matching::{MatchStudy, Mismatch, ReferenceChoice, TemperatureHistory};
+use crate::series::{BarSeries, InputFile};
+
+/// One bar's outcome.
+#[derive(Debug, Clone)]
+pub struct BarOutcome {
+    pub series: BarSeries,
+    pub model: BarModel,
+}
+
+/// Everything a run produced, as plain data.
+#[derive(Debug, Clone)]
+pub struct RunResults {
+    pub campaign: Campaign,
+    pub inputs: Vec<InputFile>,
+    pub bars: Vec<BarOutcome>,
+    pub failed: Vec<(String, String)>,
+    pub reference: Option<ReferenceReport>,
+    pub study: Option<MatchStudy>,
+    pub history: TemperatureHistory,
+    pub diagnosis: Option<Diagnosis>,
+    /// When the model has more than the base effects: base-model RMS beside the model's.
+    pub before_after: Option<BeforeAfter>,
+    /// Calibrate stage: per-bar centre-distance functions.
+    pub calibration: Option<CalibrationStage>,
+    /// Compensate stage: every working mount, compensated.
+    pub compensation: Option<CompensationStage>,
+    /// Acceptance stage: one entry per working bar on a known length.
+    pub acceptance: Option<Vec<crate::acceptance::BarAcceptance>>,
+    /// What ingest dropped, counted and flagged (`series::quality`).
+    pub quality: crate::series::Quality,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationStage {
+    pub bars: Vec<crate::calibrate::BarCalibration>,
+    pub failed: Vec<(String, String)>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct CompensationStage {
+    pub working: Vec<crate::compensate::WorkingSeries>,
+    pub failed: Vec<(String, String)>,
+}
+
+/// The diagnose stage's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    pub bars: Vec<BarDiagnosis>,
+    /// What each temperature sensor plausibly measures (profiled on the first bar's timeline).
+    pub sensors: Vec<diagnose::sensors::SensorProfile>,
+    /// When a candidate is proposed (noise floor, tolerance, materiality threshold).
+    pub criteria: diagnose::Criteria,
+    pub candidates: Vec<Candidate>,
+    pub unavailable: Vec<diagnose::Unavailable>,
+    pub ledger: Vec<LedgerStep>,
+    /// Each bar's own forward selection, same order as `bars`.
+    pub bar_ledgers: Vec<diagnose::BarLedger>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BeforeAfter {
+    pub before_effects: Vec<String>,
+    pub after_effects: Vec<String>,
+    pub bars: Vec<BarBeforeAfter>,
+    pub fleet_rms_before_um: f64,
+    pub fleet_rms_after_um: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BarBeforeAfter {
+    pub bar: String,
+    pub rms_before_um: f64,
+    pub rms_after_um: f64,
+    /// Base parameters before and after: how much adding the effects moved them.
+    pub params_before: BTreeMap<String, f64>,
+    pub params_after: BTreeMap<String, f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceReport {
+    pub choice: ReferenceChoice,
+    pub distance_mm: f64,
+    pub limit_um: f64,
+    pub mismatches: Vec<Mismatch>,
+}
+
+impl RunResults {
+    /// Identified bars, before any later stage has filled its result in.
+    pub(super) fn before_stages(
+        campaign: Campaign,
+        inputs: Vec<InputFile>,
+        history: TemperatureHistory,
+        bars: Vec<BarOutcome>,
+        failed: Vec<(String, String)>,
+    ) -> Self {
+        RunResults {
+            campaign,
+            inputs,
+            bars,
+            failed,
+            reference: None,
+            study: None,
+            history,
+            diagnosis: None,
+            before_after: None,
+            calibration: None,
+            compensation: None,
+            acceptance: None,
+            quality: Default::default(),
+        }
+    }
+}
