@@ -217,26 +217,6 @@ pub struct FleetAcceptance {
     pub modes: Vec<String>,
 }
 
-/// A failure named in an output: the bar and one line of why.
-#[derive(Debug, Clone, Serialize)]
-pub struct FailedRecord {
-    pub bar: String,
-    pub error: String,
-}
-
-/// `acceptance.json`.
-#[derive(Debug, Serialize)]
-pub struct AcceptanceRecord<'a> {
-    pub campaign: &'a str,
-    pub decision_rule: &'static str,
-    pub tolerance_um: f64,
-    pub u_temperature_k: f64,
-    pub inputs: &'a [crate::series::InputFile],
-    pub fleet: FleetAcceptance,
-    pub bars: &'a [BarAcceptance],
-    pub not_accepted: Vec<FailedRecord>,
-}
-
 /// Summarise the fleet: counts of decisions, worst errors, RMS over all samples.
 pub fn fleet(bars: &[BarAcceptance]) -> FleetAcceptance {
     let count = |d: Decision| bars.iter().filter(|b| b.decision == d).count();

@@ -150,6 +150,18 @@ pub enum CompensateError {
     Model { bar: String, reason: String },
 }
 
+impl CompensateError {
+    /// The bar that could not be compensated.
+    pub fn bar(&self) -> &str {
+        match self {
+            CompensateError::NotCalibrated { bar }
+            | CompensateError::OtherEpoch { bar, .. }
+            | CompensateError::NoReadings { bar, .. }
+            | CompensateError::Model { bar, .. } => bar,
+        }
+    }
+}
+
 /// A reference bar's measured thermal error over one reference mount.
 struct RefTrack<'a> {
     bar: &'a CompBar<'a>,

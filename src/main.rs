@@ -285,10 +285,11 @@ fn supervisor_exit(ending: Ending, say: Say) -> ExitCode {
     })
 }
 
-fn no_bar_succeeded(failed: &[(String, String)]) -> String {
+fn no_bar_succeeded(failed: &[dbbcal::pipeline::BarFailure]) -> String {
     let reasons: Vec<String> = failed
         .iter()
-        .map(|(bar, why)| {
+        .map(|f| {
+            let (bar, why) = (&f.bar, &f.error);
             let why = why.strip_prefix(&format!("bar {bar}: ")).unwrap_or(why);
             format!("{bar}: {why}")
         })

@@ -20,7 +20,7 @@ pub enum RunStatus {
     AllBars,
     SomeBarsFailed(usize),
     /// Every bar failed (bar, reason): nothing was written and the previous output is as it was.
-    NoBarSucceeded(Vec<(String, String)>),
+    NoBarSucceeded(Vec<pipeline::BarFailure>),
 }
 
 /// What a run leaves for the command line to say.
@@ -306,42 +306,23 @@ fn models_table(results: &RunResults) -> io::Table {
 }
 
 /// `calibration.json`, `compensation.json` + `compensated.parquet`, `acceptance.json`: what the
-/// calibrate, compensate and acceptance stages produced.
+/// calibrate, compensate and acceptance stages produced (formats in `output::stage_records`).
 fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -> Result<()> {
-    use crate::acceptance::FailedRecord;
-    let failed = |v: &[(String, String)]| {
-        v.iter()
-            .map(|(bar, error)| FailedRecord {
-                bar: bar.clone(),
-                error: error.clone(),
-            })
-            .collect::<Vec<_>>()
-    };
-    let campaign = results.campaign.id.as_str();
-    if let Some(c) = &results.calibration {
-        let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "bars": &c.bars, "failed_bars": failed(&c.failed) });
-        write_json(&dir.join("calibration.json"), &record)?;
+    use crate::output::stage_records as records;
+    // These two go through a `serde_json::Value`, whose maps sort their keys at every level:
+    // the files have always been written so.
+    if let Some(record) = records::calibration_record(results) {
+        write_json(&dir.join("calibration.json"), &serde_json::to_value(&record)?)?;
     }
-    if let Some(c) = &results.compensation {
-        let record = serde_json::json!({ "campaign": campaign, "inputs": &results.inputs, "options": &plan.acceptance, "working": &c.working, "failed": failed(&c.failed) });
-        write_json(&dir.join("compensation.json"), &record)?;
+    if let Some(record) = records::compensation_record(plan, results) {
+        write_json(&dir.join("compensation.json"), &serde_json::to_value(&record)?)?;
         write_table(
             plan,
             &dir.join("compensated.parquet"),
-            &compensated_table(results, &c.working),
+            &compensated_table(results, record.working),
         )?;
     }
-    if let (Some(a), Some(c)) = (&results.acceptance, &results.compensation) {
-        let record = crate::acceptance::AcceptanceRecord {
-            campaign,
-            decision_rule: crate::acceptance::DECISION_RULE,
-            tolerance_um: plan.acceptance.tolerance_um,
-            u_temperature_k: plan.acceptance.u_temperature_k,
-            inputs: &results.inputs,
-            fleet: crate::acceptance::fleet(a),
-            bars: a,
-            not_accepted: failed(&c.failed),
-        };
+    if let Some(record) = records::acceptance_record(plan, results) {
         write_json(&dir.join("acceptance.json"), &record)?;
     }
     Ok(())

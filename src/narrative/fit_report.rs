@@ -48,8 +48,8 @@ pub fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headline) -> 
     }
     if !results.failed.is_empty() {
         let _ = writeln!(md, "## Failed bars\n");
-        for (bar, why) in &results.failed {
-            let _ = writeln!(md, "- **{bar}**: {why}");
+        for f in &results.failed {
+            let _ = writeln!(md, "- **{}**: {}", f.bar, f.error);
         }
         md.push('\n');
     }

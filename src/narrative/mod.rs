@@ -8,7 +8,7 @@ pub mod fit_report;
 pub mod page;
 
 use crate::model::Effect;
-use crate::pipeline::{RunPlan, RunResults, Stage};
+use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};
 
 /// What the diagnosis concludes for the fleet.
 #[derive(Debug, Clone, PartialEq)]
@@ -39,7 +39,7 @@ pub struct Headline {
     pub campaign: String,
     pub pipeline: String,
     pub bars_ok: usize,
-    pub failed: Vec<(String, String)>,
+    pub failed: Vec<BarFailure>,
     /// Quadratic mean of the bars' RMS residuals (µm), as the diagnosis' fleet RMS.
     pub fleet_rms_um: Option<f64>,
     pub noise_floor_um: Option<f64>,
@@ -102,7 +102,7 @@ impl Headline {
                     self.bars_ok,
                     self.failed
                         .iter()
-                        .map(|(bar, _)| bar.as_str())
+                        .map(|f| f.bar.as_str())
                         .collect::<Vec<_>>()
                         .join(", ")
                 ),
@@ -184,13 +184,16 @@ fn acceptance_counts(plan: &RunPlan, results: &RunResults) -> Option<(usize, usi
 fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
     let mut notes = Vec::new();
     if let Some(c) = &results.calibration {
-        for (bar, why) in &c.failed {
-            notes.push(format!("no centre-distance function for {bar}: {why}"));
+        for f in &c.failed {
+            notes.push(format!(
+                "no centre-distance function for {}: {}",
+                f.bar, f.error
+            ));
         }
     }
     if let Some(c) = &results.compensation {
-        for (bar, why) in &c.failed {
-            notes.push(format!("{bar} not compensated: {why}"));
+        for f in &c.failed {
+            notes.push(format!("{} not compensated: {}", f.bar, f.error));
         }
     }
     if plan.runs(Stage::Acceptance) && results.acceptance.as_ref().is_none_or(|a| a.is_empty()) {

@@ -149,13 +149,13 @@ fn bars(h: &mut String, plan: &RunPlan, results: &RunResults, headline: &Headlin
             m.rms_um
         );
     }
-    for (bar, why) in &headline.failed {
+    for f in &headline.failed {
         let _ = writeln!(
             h,
             "<tr class=\"failed\"><td>{}</td><td colspan=\"{}\">failed: {}</td></tr>",
-            escape(bar),
+            escape(&f.bar),
             names.len() + 3,
-            escape(why)
+            escape(&f.error)
         );
     }
     h.push_str("</tbody></table></section>\n");

@@ -21,10 +21,12 @@
 //! [`fault`] lets the crash tests kill the process or fail a write at every step.
 //!
 //! The JSON formats live here too, each converting typed results to text in one place:
-//! [`summary`] (`summary.json`) and [`diagnosis`] (`diagnosis.json`).
+//! [`summary`] (`summary.json`), [`diagnosis`] (`diagnosis.json`), [`stage_records`]
+//! (`calibration.json`, `compensation.json`, `acceptance.json`).
 
 pub mod diagnosis;
 pub mod fault;
+pub mod stage_records;
 pub mod summary;
 
 use std::fs::File;

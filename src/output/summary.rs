@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use crate::identify::Estimate;
 use crate::model::Effect;
-use crate::pipeline::{RunPlan, RunResults, Stage};
+use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};
 use crate::series::InputFile;
 
 /// `summary.json`: the stable contract for cron jobs and dashboards.
@@ -18,7 +18,7 @@ pub struct Summary {
     pub inputs: Vec<InputFile>,
     pub model: ModelRecord,
     pub bars: Vec<BarSummary>,
-    pub failed_bars: Vec<FailedBar>,
+    pub failed_bars: Vec<BarFailure>,
     pub reference: Option<ReferenceSummary>,
     /// What ingest dropped, counted and flagged, per bar, sensor, events and files.
     pub quality: crate::series::Quality,
@@ -74,12 +74,6 @@ pub struct BarSummary {
 pub struct CorrelationRecord {
     pub names: Vec<String>,
     pub matrix: Vec<Vec<f64>>,
-}
-
-#[derive(Debug, Serialize)]
-pub struct FailedBar {
-    pub bar: String,
-    pub error: String,
 }
 
 #[derive(Debug, Serialize)]
@@ -164,14 +158,7 @@ pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
             bin_s: plan.bin_s,
         },
         bars,
-        failed_bars: r
-            .failed
-            .iter()
-            .map(|(bar, error)| FailedBar {
-                bar: bar.clone(),
-                error: error.clone(),
-            })
-            .collect(),
+        failed_bars: r.failed.clone(),
         reference,
         quality: r.quality.clone(),
     }

@@ -23,7 +23,8 @@ pub struct RunResults {
     pub campaign: Campaign,
     pub inputs: Vec<InputFile>,
     pub bars: Vec<BarOutcome>,
-    pub failed: Vec<(String, String)>,
+    /// Bars identify could not fit (`failed_bars` in `summary.json`).
+    pub failed: Vec<BarFailure>,
     pub reference: Option<ReferenceReport>,
     pub study: Option<MatchStudy>,
     pub history: TemperatureHistory,
@@ -40,17 +41,42 @@ pub struct RunResults {
     pub quality: crate::series::Quality,
 }
 
-#[derive(Debug, Clone, Serialize)]
-pub struct CalibrationStage {
-    pub bars: Vec<crate::calibrate::BarCalibration>,
-    pub failed: Vec<(String, String)>,
+/// A bar a stage could not process, and why: one bad bar never stops the others. Written as
+/// `{bar, error}` in every JSON output that lists failures.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct BarFailure {
+    pub bar: String,
+    pub error: String,
 }
 
-#[derive(Debug, Clone, Serialize)]
-pub struct CompensationStage {
-    pub working: Vec<crate::compensate::WorkingSeries>,
-    pub failed: Vec<(String, String)>,
+/// What a per-bar stage gave: the bars it processed, and those it could not.
+#[derive(Debug, Clone)]
+pub struct StageOutcome<T> {
+    pub ok: Vec<T>,
+    pub failed: Vec<BarFailure>,
 }
+
+impl<T> StageOutcome<T> {
+    /// Per-bar results, in their order, split into the processed and the failed.
+    pub fn from_results(results: impl IntoIterator<Item = (String, Result<T, String>)>) -> Self {
+        let mut outcome = StageOutcome {
+            ok: Vec::new(),
+            failed: Vec::new(),
+        };
+        for (bar, result) in results {
+            match result {
+                Ok(t) => outcome.ok.push(t),
+                Err(error) => outcome.failed.push(BarFailure { bar, error }),
+            }
+        }
+        outcome
+    }
+}
+
+/// Calibrate stage: per-bar centre-distance functions.
+pub type CalibrationStage = StageOutcome<crate::calibrate::BarCalibration>;
+/// Compensate stage: every working mount, compensated.
+pub type CompensationStage = StageOutcome<crate::compensate::WorkingSeries>;
 
 /// The diagnose stage's result.
 #[derive(Debug, Clone, Serialize)]
@@ -101,7 +127,7 @@ impl RunResults {
         inputs: Vec<InputFile>,
         history: TemperatureHistory,
         bars: Vec<BarOutcome>,
-        failed: Vec<(String, String)>,
+        failed: Vec<BarFailure>,
     ) -> Self {
         RunResults {
             campaign,

@@ -95,18 +95,12 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
             .collect()
     });
     progress.finish_and_clear();
-    let mut ok = Vec::new();
-    let mut failed = Vec::new();
-    for (id, r) in outcomes {
-        match r {
-            Ok(o) => ok.push(o),
-            Err(e) => {
-                tracing::info!("{e}"); // in failed_bars and the final line
-                failed.push((id, e));
-            }
-        }
+    let identified = StageOutcome::from_results(outcomes);
+    for f in &identified.failed {
+        tracing::info!("{}", f.error); // in failed_bars and the final line
     }
-    let mut results = RunResults::before_stages(campaign, inputs, history, ok, failed);
+    let mut results =
+        RunResults::before_stages(campaign, inputs, history, identified.ok, identified.failed);
     results.quality = quality;
     if plan.runs(Stage::Match) {
         run_match(plan, &mut results);

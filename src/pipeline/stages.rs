@@ -17,28 +17,23 @@ use super::*;
 
 /// Calibrate every identified bar (a bar that cannot be calibrated is listed, the others go on).
 pub(super) fn run_calibrate(r: &RunResults) -> CalibrationStage {
-    let outcomes: Vec<Result<crate::calibrate::BarCalibration, String>> = r
+    let outcomes: Vec<(String, Result<crate::calibrate::BarCalibration, String>)> = r
         .bars
         .par_iter()
         .map(|o| {
-            crate::calibrate::calibrate_bar(&o.series, &o.model, &r.campaign)
-                .map_err(|e| e.to_string())
+            let calibrated = crate::calibrate::calibrate_bar(&o.series, &o.model, &r.campaign);
+            (o.model.bar.clone(), calibrated.map_err(|e| e.to_string()))
         })
         .collect();
-    let mut stage = CalibrationStage {
-        bars: Vec::new(),
-        failed: Vec::new(),
-    };
-    for (o, c) in r.bars.iter().zip(outcomes) {
-        match c {
-            Ok(c) => stage.bars.push(c),
-            Err(e) => {
-                tracing::warn!("{e}");
-                stage.failed.push((o.model.bar.clone(), e));
-            }
-        }
+    logged(StageOutcome::from_results(outcomes))
+}
+
+/// `outcome`, its failures logged as warnings (they are also in the stage's JSON).
+fn logged<T>(outcome: StageOutcome<T>) -> StageOutcome<T> {
+    for f in &outcome.failed {
+        tracing::warn!("{}", f.error);
     }
-    stage
+    outcome
 }
 
 /// Compensate every working mount (check lengths and devices).
@@ -46,7 +41,7 @@ pub(super) fn run_compensate(plan: &RunPlan, r: &RunResults) -> CompensationStag
     let cals = r
         .calibration
         .as_ref()
-        .map(|c| c.bars.as_slice())
+        .map(|c| c.ok.as_slice())
         .unwrap_or_default();
     let bars: Vec<crate::compensate::CompBar> = r
         .bars
@@ -66,26 +61,13 @@ pub(super) fn run_compensate(plan: &RunPlan, r: &RunResults) -> CompensationStag
         model_difference: plan.acceptance.model_difference,
         max_gap_s: plan.acceptance.max_gap_s,
     };
-    let mut stage = CompensationStage {
-        working: Vec::new(),
-        failed: Vec::new(),
-    };
-    for w in crate::compensate::compensate(&bars, &r.campaign, &fleet_distance, &options) {
-        match w {
-            Ok(w) => stage.working.push(w),
-            Err(e) => {
-                tracing::warn!("{e}");
-                let bar = match &e {
-                    crate::compensate::CompensateError::NotCalibrated { bar }
-                    | crate::compensate::CompensateError::Model { bar, .. } => bar.clone(),
-                    crate::compensate::CompensateError::OtherEpoch { bar, .. }
-                    | crate::compensate::CompensateError::NoReadings { bar, .. } => bar.clone(),
-                };
-                stage.failed.push((bar, e.to_string()));
-            }
-        }
-    }
-    stage
+    let outcomes = crate::compensate::compensate(&bars, &r.campaign, &fleet_distance, &options)
+        .into_iter()
+        .map(|w| match w {
+            Ok(w) => (w.bar.clone(), Ok(w)),
+            Err(e) => (e.bar().to_string(), Err(e.to_string())),
+        });
+    logged(StageOutcome::from_results(outcomes))
 }
 
 /// Accept every compensated working series on a known length.
@@ -100,10 +82,10 @@ pub(super) fn run_acceptance(
         tolerance_um: plan.acceptance.tolerance_um,
         u_temperature_k: plan.acceptance.u_temperature_k,
     };
-    comp.working
+    comp.ok
         .iter()
         .filter_map(|w| {
-            let c = cal.bars.iter().find(|c| c.bar == w.bar)?;
+            let c = cal.ok.iter().find(|c| c.bar == w.bar)?;
             let resolution_nm = r.campaign.bar(&w.bar).map_or(0.0, |b| b.resolution_nm);
             crate::acceptance::accept(w, c, resolution_nm, &options)
         })

@@ -50,8 +50,8 @@ fn calibration_two_references_and_acceptance_on_a_matched_fleet() {
         "calibration failures: {:?}",
         cal.failed
     );
-    assert_eq!(cal.bars.len(), truth.bars.len());
-    for c in &cal.bars {
+    assert_eq!(cal.ok.len(), truth.bars.len());
+    for c in &cal.ok {
         let forms: Vec<String> = c
             .forms
             .iter()

@@ -170,11 +170,11 @@ fn one_length_bar_in_a_rotating_fleet_is_left_out_of_matching_only() {
     let cal = results.calibration.as_ref().unwrap();
     for bar in ["B01", "B02", "B03"] {
         assert!(
-            cal.bars.iter().any(|c| c.bar == bar) || cal.failed.iter().any(|(b, _)| b == bar),
+            cal.ok.iter().any(|c| c.bar == bar) || cal.failed.iter().any(|f| f.bar == bar),
             "{bar}: {:?}",
             cal.failed
         );
     }
-    assert!(cal.bars.iter().any(|c| c.bar == "B01"), "{:?}", cal.failed);
+    assert!(cal.ok.iter().any(|c| c.bar == "B01"), "{:?}", cal.failed);
     eprintln!("calibration failures: {:?}", cal.failed);
 }
