@@ -8,7 +8,7 @@
 use serde::Serialize;
 
 use crate::calibrate::{u_from_lengths_um, BarCalibration};
-use crate::compensate::WorkingSeries;
+use crate::compensate::{CompensationMode, WorkingSeries};
 
 /// The rule in one short line, for figures.
 pub const DECISION_RULE_SHORT: &str = "ISO 14253-1: pass only if max|e| + U ≤ tolerance, fail only if max|e| − U > tolerance, otherwise no decision.";
@@ -98,7 +98,7 @@ pub struct BarAcceptance {
     pub bar: String,
     pub length_id: String,
     pub length_mm: f64,
-    pub mode: String,
+    pub mode: CompensationMode,
     pub references: Vec<String>,
     pub n_samples: usize,
     pub max_abs_error_um: f64,
@@ -183,7 +183,7 @@ pub fn accept(
         bar: w.bar.clone(),
         length_id: w.length_id.clone()?,
         length_mm: w.length_mm?,
-        mode: w.mode.clone(),
+        mode: w.mode,
         references: w.references.iter().map(|r| r.bar.clone()).collect(),
         n_samples: after.len(),
         max_abs_error_um: stats.max_abs_um,
@@ -214,7 +214,7 @@ pub struct FleetAcceptance {
     pub rms_before_um: f64,
     pub max_u_k2_um: f64,
     /// Every compensation mode that ran.
-    pub modes: Vec<String>,
+    pub modes: Vec<CompensationMode>,
 }
 
 /// Summarise the fleet: counts of decisions, worst errors, RMS over all samples.
@@ -230,8 +230,8 @@ pub fn fleet(bars: &[BarAcceptance]) -> FleetAcceptance {
     };
     let after = all(&|b| &b.error_um);
     let before = all(&|b| &b.error_before_um);
-    let mut modes: Vec<String> = bars.iter().map(|b| b.mode.clone()).collect();
-    modes.sort();
+    let mut modes: Vec<CompensationMode> = bars.iter().map(|b| b.mode).collect();
+    modes.sort_by_key(|m| m.name());
     modes.dedup();
     FleetAcceptance {
         n_bars: bars.len(),

@@ -53,26 +53,57 @@ impl Default for CompensateOptions {
 }
 
 /// Where a working bar's thermal error came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
+    /// Interpolated between the two reference bars nearest in length (patent).
     TwoReferences,
+    /// One reference bar's measured error.
     OneReference,
+    /// The working bar's own thermal model (no reference mounted at the time).
     Model,
 }
 
-impl Mode {
-    pub fn name(self, model_difference: bool) -> String {
-        let base = match self {
+/// How one working mount was compensated: its [`Mode`], and whether the models' difference
+/// between the working and the reference bars was added (never with [`Mode::Model`]). Written
+/// as its name: `two_references`, `one_reference`, `model`, with `+model_difference`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct CompensationMode {
+    pub source: Mode,
+    pub model_difference: bool,
+}
+
+impl CompensationMode {
+    pub fn new(source: Mode, model_difference: bool) -> CompensationMode {
+        CompensationMode {
+            source,
+            model_difference: model_difference && source != Mode::Model,
+        }
+    }
+
+    pub fn name(self) -> String {
+        let base = match self.source {
             Mode::TwoReferences => "two_references",
             Mode::OneReference => "one_reference",
             Mode::Model => "model",
         };
-        if model_difference && self != Mode::Model {
+        if self.model_difference {
             format!("{base}+model_difference")
         } else {
             base.to_string()
         }
+    }
+}
+
+impl std::fmt::Display for CompensationMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(&self.name())
+    }
+}
+
+impl Serialize for CompensationMode {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(&self.name())
     }
 }
 
@@ -97,8 +128,7 @@ pub struct WorkingSeries {
     pub length_mm: Option<f64>,
     pub u_length_um: f64,
     pub device: Option<String>,
-    /// `mode` as printed: `two_references`, `one_reference`, `model`, `+model_difference`.
-    pub mode: String,
+    pub mode: CompensationMode,
     pub references: Vec<ReferenceUse>,
     /// Distance used for the interpolation between references, mm.
     pub distance_for_weights_mm: f64,
@@ -480,7 +510,7 @@ fn compensate_mount(
             .and_then(|id| campaign.plate.lengths.iter().find(|l| &l.id == id))
             .map_or(0.0, |l| l.u_um),
         device: span.device.clone(),
-        mode: mode.name(options.model_difference),
+        mode: CompensationMode::new(mode, options.model_difference),
         references: refs
             .iter()
             .zip(&w)
@@ -589,10 +619,14 @@ mod tests {
         let w_mid: f64 = (325.0 - 250.0) / (400.0 - 250.0);
         assert!((w_mid - 0.5).abs() < 1e-12);
         assert_eq!(
-            Mode::TwoReferences.name(true),
+            CompensationMode::new(Mode::TwoReferences, true).name(),
             "two_references+model_difference"
         );
-        assert_eq!(Mode::Model.name(true), "model");
+        assert_eq!(CompensationMode::new(Mode::Model, true).name(), "model");
+        assert_eq!(
+            CompensationMode::new(Mode::OneReference, false).to_string(),
+            "one_reference"
+        );
     }
 
     #[test]

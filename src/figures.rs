@@ -228,7 +228,7 @@ fn acceptance_fleet(acc: &[crate::acceptance::BarAcceptance]) -> report::SeriesP
         title: format!("Fleet acceptance — {} pass, {} fail, {} no decision (tolerance ±{tol} µm)", f.n_pass, f.n_fail, f.n_no_decision),
         subtitle: format!(
             "Modes: {}. Max|e| {:.3} µm compensated, {:.3} µm without; RMS {:.3} vs {:.3} µm; largest U(k=2) {:.3} µm.\n{}",
-            f.modes.join(", "), f.max_abs_error_um, f.max_abs_error_before_um, f.rms_um, f.rms_before_um, f.max_u_k2_um, crate::acceptance::DECISION_RULE_SHORT
+            f.modes.iter().map(|m| m.name()).collect::<Vec<_>>().join(", "), f.max_abs_error_um, f.max_abs_error_before_um, f.rms_um, f.rms_before_um, f.max_u_k2_um, crate::acceptance::DECISION_RULE_SHORT
         ),
         x_axis: report::XAxis::TimeSeconds,
         panels: vec![
@@ -243,7 +243,14 @@ fn acceptance_rms(acc: &[crate::acceptance::BarAcceptance]) -> report::BeforeAft
     report::BeforeAfterFigure {
         title: "Acceptance — RMS error per working bar without and with thermal compensation"
             .into(),
-        subtitle: format!("Modes: {}", f.modes.join(", ")),
+        subtitle: format!(
+            "Modes: {}",
+            f.modes
+                .iter()
+                .map(|m| m.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
         bar_names: acc
             .iter()
             .map(|a| format!("{}@{}", a.bar, a.length_id))

@@ -312,10 +312,16 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
     // These two go through a `serde_json::Value`, whose maps sort their keys at every level:
     // the files have always been written so.
     if let Some(record) = records::calibration_record(results) {
-        write_json(&dir.join("calibration.json"), &serde_json::to_value(&record)?)?;
+        write_json(
+            &dir.join("calibration.json"),
+            &serde_json::to_value(&record)?,
+        )?;
     }
     if let Some(record) = records::compensation_record(plan, results) {
-        write_json(&dir.join("compensation.json"), &serde_json::to_value(&record)?)?;
+        write_json(
+            &dir.join("compensation.json"),
+            &serde_json::to_value(&record)?,
+        )?;
         write_table(
             plan,
             &dir.join("compensated.parquet"),
@@ -339,7 +345,7 @@ fn compensated_table(
     for w in working {
         for k in 0..w.t_s.len() {
             bar.push(w.bar.clone());
-            mode.push(w.mode.clone());
+            mode.push(w.mode.name());
             mount.push(w.mount as i64);
             t.push(w.t_s[k]);
             d.push(w.distance_mm[k]);

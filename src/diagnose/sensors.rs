@@ -11,6 +11,7 @@
 
 use serde::Serialize;
 
+use crate::campaign::SensorKind;
 use crate::model::{channels, lag};
 use crate::series::BarSeries;
 
@@ -29,8 +30,9 @@ const FAST_SMOOTHING_S: f64 = 600.0;
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct SensorProfile {
     pub sensor: String,
-    /// `air`, `plate` or `other`, as declared in `campaign.toml`.
-    pub declared_kind: String,
+    /// `air`, `plate` or `other`: the bar's air sensor(s) and the plate sensor as
+    /// `campaign.toml` declares them, every other sensor `other`.
+    pub declared_kind: SensorKind,
     /// Max − min over the bar's log, K.
     pub range_k: f64,
     /// RMS of what a 10-min zero-phase smoothing removes (fluctuations faster than about an
@@ -106,7 +108,7 @@ pub fn sensor_profiles(series: &BarSeries) -> Vec<SensorProfile> {
         .iter()
         .map(|(name, celsius)| {
             let kind = declared_kind(series, name);
-            let own_air = kind == "air" || series.air_c == *celsius;
+            let own_air = kind == SensorKind::Air || series.air_c == *celsius;
             profile(
                 name,
                 kind,
@@ -119,13 +121,13 @@ pub fn sensor_profiles(series: &BarSeries) -> Vec<SensorProfile> {
         .collect()
 }
 
-fn declared_kind(series: &BarSeries, name: &str) -> &'static str {
+fn declared_kind(series: &BarSeries, name: &str) -> SensorKind {
     if series.air_sensor_ids.iter().any(|s| s == name) {
-        "air"
+        SensorKind::Air
     } else if series.plate_sensor_id.as_deref() == Some(name) {
-        "plate"
+        SensorKind::Plate
     } else {
-        "other"
+        SensorKind::Other
     }
 }
 
@@ -133,7 +135,7 @@ fn declared_kind(series: &BarSeries, name: &str) -> &'static str {
 /// response explains most of what the air leaves.
 fn profile(
     name: &str,
-    declared_kind: &str,
+    declared_kind: SensorKind,
     t: &[f64],
     x: &[f64],
     air: Option<&channels::Channel>,
@@ -192,7 +194,7 @@ fn profile(
     };
     let mut p = SensorProfile {
         sensor: name.to_string(),
-        declared_kind: declared_kind.to_string(),
+        declared_kind,
         range_k: hi - lo,
         fast_fluctuation_k,
         air_share,
@@ -216,9 +218,9 @@ fn is_near_source(p: &SensorProfile) -> bool {
 /// The profile in a few words: "follows the air (16 min), heated by 'spindle' (on/off, 32 min)".
 fn summarise(p: &SensorProfile) -> String {
     let mut parts = Vec::new();
-    match p.declared_kind.as_str() {
-        "air" => parts.push("air sensor".to_string()),
-        "plate" => parts.push("plate sensor".to_string()),
+    match p.declared_kind {
+        SensorKind::Air => parts.push("air sensor".to_string()),
+        SensorKind::Plate => parts.push("plate sensor".to_string()),
         _ => {}
     }
     if p.air_share.is_some_and(|s| s >= DRIVEN_SHARE) {
@@ -292,9 +294,9 @@ fn least_squares_rss(x: &[f64], columns: &[&Vec<f64>]) -> f64 {
 
 /// The profile in words.
 fn describe(p: &SensorProfile) -> String {
-    let mut parts = vec![match p.declared_kind.as_str() {
-        "air" => format!("air sensor, range {:.1} K", p.range_k),
-        "plate" => format!("plate sensor, range {:.1} K", p.range_k),
+    let mut parts = vec![match p.declared_kind {
+        SensorKind::Air => format!("air sensor, range {:.1} K", p.range_k),
+        SensorKind::Plate => format!("plate sensor, range {:.1} K", p.range_k),
         _ => format!("range {:.1} K", p.range_k),
     }];
     let follows_air = p.air_share.is_some_and(|s| s >= DRIVEN_SHARE);
@@ -329,7 +331,7 @@ fn describe(p: &SensorProfile) -> String {
                 100.0 * p.event_share
             ));
         }
-        _ if !follows_air && p.declared_kind != "air" => parts.push(
+        _ if !follows_air && p.declared_kind != SensorKind::Air => parts.push(
             "moves mostly on its own: a slow part of the structure or a heat source nobody logs"
                 .into(),
         ),
@@ -387,7 +389,14 @@ mod tests {
         let motor: Vec<f64> = heat.iter().zip(&air).map(|(h, a)| a + 0.002 * h).collect();
         let air_channel = channels::Channel::Sampled(air.clone());
         let events = vec![("spindle".to_string(), power)];
-        let p = profile("t5", "other", &t, &motor, Some(&air_channel), &events);
+        let p = profile(
+            "t5",
+            SensorKind::Other,
+            &t,
+            &motor,
+            Some(&air_channel),
+            &events,
+        );
         assert_eq!(p.event.as_deref(), Some("spindle"), "{p:?}");
         assert_eq!(p.event_tau_s, 960.0);
         assert!(p.event_share > 0.99, "{p:?}");
@@ -398,7 +407,14 @@ mod tests {
         );
 
         // A sensor in the air: follows it, nothing left for the events.
-        let p = profile("t2", "other", &t, &air, Some(&air_channel), &events);
+        let p = profile(
+            "t2",
+            SensorKind::Other,
+            &t,
+            &air,
+            Some(&air_channel),
+            &events,
+        );
         assert!(
             p.description.contains("follows the air"),
             "{}",

@@ -306,7 +306,7 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
             escape(&a.bar),
             escape(&a.length_id),
             a.length_mm,
-            escape(&a.mode),
+            escape(&a.mode.name()),
             a.max_abs_error_um,
             a.pv_um,
             a.rms_um,

@@ -111,7 +111,7 @@ fn calibration_two_references_and_acceptance_on_a_matched_fleet() {
             a.u_k2_um,
             a.decision.as_str()
         );
-        assert_eq!(a.mode, "two_references");
+        assert_eq!(a.mode.name(), "two_references");
         assert_eq!(a.references, ["B01", "B02"]);
         assert!(
             a.max_abs_error_um <= 0.3,
