@@ -27,22 +27,22 @@ use crate::series::{BarSeries, EventKind};
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct CalibrationPoint {
     /// Index into the bar's `BarSeries::mounts`.
-    pub mount: usize,
+    pub(crate) mount: usize,
     pub length_id: String,
     /// True centre distance `D_i` (calibrated plate length), mm.
     pub length_mm: f64,
     /// Standard uncertainty of `D_i`, µm.
-    pub u_length_um: f64,
+    pub(crate) u_length_um: f64,
     pub tilt_deg: f64,
     /// Indicated reading `k n` brought to the reference temperature, mm.
     pub reading_mm: f64,
     /// Standard uncertainty of the mean reading (scatter over the mount, autocorrelation
     /// accounted for), µm.
-    pub u_reading_um: f64,
+    pub(crate) u_reading_um: f64,
     /// Counter epoch: number of `rezero` events before the point.
-    pub epoch: usize,
-    pub purpose: Purpose,
-    pub n_samples: usize,
+    pub(crate) epoch: usize,
+    pub(crate) purpose: Purpose,
+    pub(crate) n_samples: usize,
 }
 
 /// The tilt function of a gravity-sag term (`physics.md`: largest horizontal, zero vertical).
@@ -78,7 +78,7 @@ pub enum Form {
 }
 
 /// Every form, simplest first (ties in cross-validated error go to the simpler form).
-pub const FORMS: [Form; 9] = [
+pub(crate) const FORMS: [Form; 9] = [
     Form::Linear,
     Form::Quadratic,
     Form::Sag {
@@ -165,16 +165,16 @@ impl Serialize for Form {
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct DistanceFunction {
     pub form: Form,
-    pub reading_centre_mm: f64,
-    pub reading_half_range_mm: f64,
+    pub(crate) reading_centre_mm: f64,
+    pub(crate) reading_half_range_mm: f64,
     /// Coefficient names and values (µm), parametric forms only.
-    pub coefficients: Vec<(String, f64)>,
+    pub(crate) coefficients: Vec<(String, f64)>,
     /// The patent's `a` (1/mm), `b` (1) and `c` (mm) of the tilt-free part, quadratic forms only.
-    pub patent_abc: Option<[f64; 3]>,
+    pub(crate) patent_abc: Option<[f64; 3]>,
     /// Table form: (tilt, [(reading mm, correction µm)] sorted by reading), sorted by tilt.
-    pub table: Vec<(f64, Vec<(f64, f64)>)>,
+    pub(crate) table: Vec<(f64, Vec<(f64, f64)>)>,
     /// RMS of the fit residuals at the points, µm.
-    pub fit_rms_um: f64,
+    pub(crate) fit_rms_um: f64,
 }
 
 impl DistanceFunction {
@@ -200,21 +200,21 @@ impl DistanceFunction {
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct FormScore {
     pub form: Form,
-    pub n_params: usize,
+    pub(crate) n_params: usize,
     /// RMS of the leave-one-point-out prediction errors, µm (`None`: the form cannot be fitted).
     pub cv_rms_um: Option<f64>,
-    pub cv_max_abs_um: Option<f64>,
+    pub(crate) cv_max_abs_um: Option<f64>,
     /// RMS of the residuals of the fit on all points, µm.
-    pub fit_rms_um: Option<f64>,
+    pub(crate) fit_rms_um: Option<f64>,
     /// Why the form could not be fitted or cross-validated.
-    pub note: Option<String>,
+    pub(crate) note: Option<String>,
 }
 
 /// A point left out of the calibration, and why.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct ExcludedPoint {
-    pub point: CalibrationPoint,
-    pub reason: String,
+pub(crate) struct ExcludedPoint {
+    pub(crate) point: CalibrationPoint,
+    pub(crate) reason: String,
 }
 
 /// A bar's calibration.
@@ -222,9 +222,9 @@ pub struct ExcludedPoint {
 pub struct BarCalibration {
     pub bar: String,
     /// The counter epoch the function is valid in.
-    pub epoch: usize,
+    pub(crate) epoch: usize,
     pub points: Vec<CalibrationPoint>,
-    pub excluded: Vec<ExcludedPoint>,
+    pub(crate) excluded: Vec<ExcludedPoint>,
     pub forms: Vec<FormScore>,
     pub chosen: DistanceFunction,
     /// Cross-validated RMS error of the chosen form, µm: the calibration-function term of the
@@ -252,7 +252,7 @@ pub enum CalibrateError {
 
 /// Tilt of the bar at sample `i` (`campaign-format.md`): the mount's own `tilt_deg`, else the
 /// latest `tilt` event at or before the sample, else the plate's.
-pub fn tilt_at_deg(series: &BarSeries, campaign: &Campaign, i: usize) -> f64 {
+pub(crate) fn tilt_at_deg(series: &BarSeries, campaign: &Campaign, i: usize) -> f64 {
     let explicit = series.mount_of[i]
         .and_then(|m| {
             campaign
@@ -277,7 +277,7 @@ fn latest_tilt_event(series: &BarSeries, t_s: f64) -> Option<f64> {
 }
 
 /// Counter epoch of each sample: the number of `rezero` events at or before it.
-pub fn counter_epochs(series: &BarSeries) -> Vec<usize> {
+pub(crate) fn counter_epochs(series: &BarSeries) -> Vec<usize> {
     let rezeros: Vec<f64> = series
         .events
         .iter()
@@ -292,7 +292,7 @@ pub fn counter_epochs(series: &BarSeries) -> Vec<usize> {
 }
 
 /// The indicated reading `k n` in µm at sample `i` (plate expansion removed).
-pub fn reading_um(series: &BarSeries, i: usize) -> f64 {
+pub(crate) fn reading_um(series: &BarSeries, i: usize) -> f64 {
     series.y_um[i] + series.zero_segment[i].map_or(0.0, |s| series.segment_offset_um[s as usize])
 }
 
@@ -301,7 +301,7 @@ pub fn reading_um(series: &BarSeries, i: usize) -> f64 {
 /// Calibration points of one bar: one per (plate mount, counter epoch, tilt), check mounts left
 /// out (they verify, never fit). The reading at the reference temperature is the mean over the
 /// mount of the reading minus the model's thermal error.
-pub fn calibration_points(
+pub(crate) fn calibration_points(
     series: &BarSeries,
     model: &BarModel,
     campaign: &Campaign,
@@ -424,7 +424,10 @@ impl Separable for LinearProblem {
 }
 
 /// Fit one form to `points` (all assumed in one counter epoch).
-pub fn fit_form(form: Form, points: &[CalibrationPoint]) -> Result<DistanceFunction, String> {
+pub(crate) fn fit_form(
+    form: Form,
+    points: &[CalibrationPoint],
+) -> Result<DistanceFunction, String> {
     if points.is_empty() {
         return Err("no points".into());
     }
@@ -572,7 +575,7 @@ fn table_correction_um(table: &[(f64, Vec<(f64, f64)>)], reading_mm: f64, tilt_d
 }
 
 /// Leave-one-point-out prediction errors (µm) of `form`.
-pub fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64>, String> {
+pub(crate) fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64>, String> {
     (0..points.len())
         .map(|k| {
             let rest: Vec<CalibrationPoint> = points
@@ -689,7 +692,7 @@ pub fn calibrate_points(
 }
 
 /// Calibrate one bar from its series and identified model.
-pub fn calibrate_bar(
+pub(crate) fn calibrate_bar(
     series: &BarSeries,
     model: &BarModel,
     campaign: &Campaign,
@@ -700,7 +703,7 @@ pub fn calibrate_bar(
 /// Sensitivity of the calibrated distance at (`reading_mm`, `tilt_deg`) to each point's true
 /// length (dimensionless weights, by linearity of every form in the lengths): the plate-length
 /// uncertainties propagate as `sqrt(sum w_i^2 u_i^2)`.
-pub fn length_weights(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> Vec<f64> {
+pub(crate) fn length_weights(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> Vec<f64> {
     let base = cal.chosen.distance_mm(reading_mm, tilt_deg);
     (0..cal.points.len())
         .map(|k| {
@@ -713,7 +716,7 @@ pub fn length_weights(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> V
 }
 
 /// Standard uncertainty (µm) of the calibrated distance from the plate lengths used in the fit.
-pub fn u_from_lengths_um(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> f64 {
+pub(crate) fn u_from_lengths_um(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> f64 {
     length_weights(cal, reading_mm, tilt_deg)
         .iter()
         .zip(&cal.points)

@@ -9,7 +9,7 @@
 use serde::{Deserialize, Serialize};
 
 /// Nanoseconds since 1970-01-01T00:00:00Z.
-pub type TimeNs = i64;
+pub(crate) type TimeNs = i64;
 
 // ---------------------------------------------------------------- manifest, as written in TOML
 
@@ -113,42 +113,42 @@ pub struct MountDecl {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Campaign {
-    pub id: String,
-    pub reference_temperature_c: f64,
-    pub plate: Plate,
-    pub sensors: Vec<Sensor>,
-    pub bars: Vec<Bar>,
+    pub(crate) id: String,
+    pub(crate) reference_temperature_c: f64,
+    pub(crate) plate: Plate,
+    pub(crate) sensors: Vec<Sensor>,
+    pub(crate) bars: Vec<Bar>,
     /// Sorted by (bar, from_ns).
     pub mounts: Vec<Mount>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
-pub struct Plate {
-    pub material: String,
-    pub cte_ppm_per_k: f64,
-    pub tilt_deg: f64,
-    pub lengths: Vec<PlateLength>,
+pub(crate) struct Plate {
+    pub(crate) material: String,
+    pub(crate) cte_ppm_per_k: f64,
+    pub(crate) tilt_deg: f64,
+    pub(crate) lengths: Vec<PlateLength>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
-pub struct Sensor {
-    pub id: String,
-    pub kind: SensorKind,
+pub(crate) struct Sensor {
+    pub(crate) id: String,
+    pub(crate) kind: SensorKind,
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Bar {
-    pub id: String,
-    pub resolution_nm: f64,
+    pub(crate) id: String,
+    pub(crate) resolution_nm: f64,
     /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel.
-    pub fixed_length_mm: f64,
+    pub(crate) fixed_length_mm: f64,
     /// The air sensor nearest the bar; `None` = mean of all air sensors.
-    pub sensor: Option<String>,
+    pub(crate) sensor: Option<String>,
 }
 
 /// Where a bar sat during a mount.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Place {
+pub(crate) enum Place {
     /// On a plate socket pair of known centre distance.
     Length(PlateLength),
     /// On a target device: true distance unknown.
@@ -158,13 +158,13 @@ pub enum Place {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mount {
     pub bar: String,
-    pub place: Place,
+    pub(crate) place: Place,
     /// Tilt from horizontal, degrees: the mount's, else the plate's.
-    pub tilt_deg: f64,
+    pub(crate) tilt_deg: f64,
     /// Whether the mount gave its own `tilt_deg` (it then wins over `tilt` events, see
     /// `calibrate::tilt_at_deg`).
-    pub tilt_explicit: bool,
-    pub purpose: Purpose,
+    pub(crate) tilt_explicit: bool,
+    pub(crate) purpose: Purpose,
     pub from_ns: TimeNs,
     pub to_ns: TimeNs,
 }
@@ -173,13 +173,13 @@ impl Campaign {
     pub fn bar(&self, id: &str) -> Option<&Bar> {
         self.bars.iter().find(|b| b.id == id)
     }
-    pub fn sensor(&self, id: &str) -> Option<&Sensor> {
+    pub(crate) fn sensor(&self, id: &str) -> Option<&Sensor> {
         self.sensors.iter().find(|s| s.id == id)
     }
     pub fn mounts_of<'a>(&'a self, bar: &'a str) -> impl Iterator<Item = &'a Mount> + 'a {
         self.mounts.iter().filter(move |m| m.bar == bar)
     }
-    pub fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
+    pub(crate) fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
         self.sensors.iter().filter(|s| s.kind == SensorKind::Air)
     }
 }
@@ -230,30 +230,30 @@ pub enum CampaignError {
 /// The allowed ranges of the manifest's numbers (both ends included; NaN and infinities are
 /// outside every range). Generous: they refuse what no real campaign holds (a typo, a unit
 /// mix-up, TOML's `nan`/`inf`), not unusual set-ups.
-pub mod limits {
+pub(crate) mod limits {
     /// `campaign.id`: at most this many characters of `[A-Za-z0-9._-]`, no leading dot (it names
     /// the default output folder `reports/<id>`).
-    pub const ID_MAX_CHARS: usize = 100;
+    pub(crate) const ID_MAX_CHARS: usize = 100;
     /// `campaign.reference_temperature_c`, °C.
-    pub const REFERENCE_TEMPERATURE_C: (f64, f64) = (-100.0, 200.0);
+    pub(crate) const REFERENCE_TEMPERATURE_C: (f64, f64) = (-100.0, 200.0);
     /// `plate.cte_ppm_per_k`, ppm/K (Zerodur ~0, steel ~12, aluminium ~23).
-    pub const CTE_PPM_PER_K: (f64, f64) = (-100.0, 100.0);
+    pub(crate) const CTE_PPM_PER_K: (f64, f64) = (-100.0, 100.0);
     /// `plate.tilt_deg`, `mount[].tilt_deg`: from horizontal, degrees.
-    pub const TILT_DEG: (f64, f64) = (-90.0, 90.0);
+    pub(crate) const TILT_DEG: (f64, f64) = (-90.0, 90.0);
     /// `plate.length[].mm`, `bar[].fixed_length_mm`: above 0, at most 10 m.
-    pub const LENGTH_MM: (f64, f64) = (0.0, 10_000.0);
+    pub(crate) const LENGTH_MM: (f64, f64) = (0.0, 10_000.0);
     /// `plate.length[].u_um`: 0 to 1 mm.
-    pub const U_UM: (f64, f64) = (0.0, 1_000.0);
+    pub(crate) const U_UM: (f64, f64) = (0.0, 1_000.0);
     /// `bar[].resolution_nm`: above 0, at most 1 mm a count.
-    pub const RESOLUTION_NM: (f64, f64) = (0.0, 1e6);
+    pub(crate) const RESOLUTION_NM: (f64, f64) = (0.0, 1e6);
     /// `mount[].from`, `mount[].to`: from 1970-01-01T00:00:00Z (included) to
     /// 2200-01-01T00:00:00Z (excluded), ns since the epoch.
-    pub const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
+    pub(crate) const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
 }
 
 /// A number for a one-line message: plain decimals, an exponent for very large or small ones
 /// (`1e300`, not three hundred digits).
-pub fn display_number(v: f64) -> String {
+pub(crate) fn display_number(v: f64) -> String {
     if v.is_finite() && v != 0.0 && !(1e-6..1e15).contains(&v.abs()) {
         format!("{v:e}")
     } else {
@@ -266,7 +266,7 @@ const MANIFEST_FILE: &str = "campaign.toml";
 
 impl Manifest {
     /// Parses `campaign.toml` text; `file` is only used in error messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<Manifest, CampaignError> {
+    pub(crate) fn from_toml_str(text: &str, file: &str) -> Result<Manifest, CampaignError> {
         toml::from_str(text).map_err(|e| {
             let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
             CampaignError::Syntax {
@@ -302,7 +302,7 @@ fn one_line(s: &str) -> String {
 
 /// Converts a TOML datetime to nanoseconds since the epoch. A datetime without offset is UTC;
 /// a date or time alone is an error (the string says why).
-pub fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
+pub(crate) fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
     let (Some(d), Some(t)) = (dt.date, dt.time) else {
         return Err(format!(
             "{dt} is not a date-time (need e.g. 2026-11-01T00:00:00Z)"
@@ -367,7 +367,10 @@ impl Campaign {
     }
 
     /// As [`Campaign::from_manifest`], naming `file` in messages.
-    pub fn from_manifest_at(manifest: Manifest, file: &str) -> Result<Campaign, CampaignError> {
+    pub(crate) fn from_manifest_at(
+        manifest: Manifest,
+        file: &str,
+    ) -> Result<Campaign, CampaignError> {
         let v = Validator { file };
         v.campaign_section(&manifest.campaign)?;
         v.plate(&manifest.plate)?;
@@ -409,7 +412,7 @@ impl Campaign {
 /// `campaign.id` names the default output folder (`reports/<id>`): non-empty, at most
 /// [`limits::ID_MAX_CHARS`] characters of `[A-Za-z0-9._-]`, not starting with a dot (no hidden
 /// folder, no `..`, no path separator).
-pub fn check_campaign_id(id: &str) -> Result<(), String> {
+pub(crate) fn check_campaign_id(id: &str) -> Result<(), String> {
     if id.is_empty() {
         return Err("is empty".into());
     }

@@ -255,10 +255,10 @@ fn check_usable(campaign: &Campaign, path: &Path) -> Result<(), IngestError> {
 
 /// The three tables, split per bar / sensor and sorted.
 pub(crate) struct Tables {
-    pub bars: BTreeMap<String, BarLog>,
-    pub bins: BTreeMap<String, BarBins>,
-    pub sensors: BTreeMap<String, SensorLog>,
-    pub events: Vec<Event>,
+    pub(crate) bars: BTreeMap<String, BarLog>,
+    pub(crate) bins: BTreeMap<String, BarBins>,
+    pub(crate) sensors: BTreeMap<String, SensorLog>,
+    pub(crate) events: Vec<Event>,
 }
 
 /// `bin_s > 0`: every bar's encoder rows go straight into compressed bins of `bin_s` seconds

@@ -29,7 +29,7 @@ pub enum Column {
 }
 
 impl Column {
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         match self {
             Column::F64(v) => v.len(),
             Column::OptF64(v) => v.len(),
@@ -76,7 +76,7 @@ impl Column {
 /// Named columns, in output order.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Table {
-    pub columns: Vec<(String, Column)>,
+    pub(crate) columns: Vec<(String, Column)>,
 }
 
 impl Table {
@@ -91,7 +91,7 @@ impl Table {
     }
 
     /// Rows of the table (of its first column; [`write_table`] checks they all agree).
-    pub fn height(&self) -> usize {
+    pub(crate) fn height(&self) -> usize {
         self.columns.first().map_or(0, |(_, c)| c.len())
     }
 }

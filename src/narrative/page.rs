@@ -14,7 +14,7 @@ use crate::figures::{FigureFile, FigureKind};
 use crate::pipeline::{RunPlan, RunResults};
 
 /// The page, byte-identical for the same inputs and plan.
-pub fn page(
+pub(crate) fn page(
     plan: &RunPlan,
     results: &RunResults,
     headline: &Headline,
@@ -437,7 +437,7 @@ fn figure(h: &mut String, f: &FigureFile) {
 }
 
 /// Text for HTML element content and attribute values.
-pub fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {

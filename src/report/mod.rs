@@ -39,24 +39,24 @@ pub use series_panels::{render_series_panels, SeriesPanel, SeriesPanelsFigure, X
 
 /// A named line: `y[i]` at `x[i]` (same length; NaN values leave a gap).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct NamedSeries {
+pub(crate) struct NamedSeries {
     pub name: String,
-    pub x: Vec<f64>,
-    pub y: Vec<f64>,
+    pub(crate) x: Vec<f64>,
+    pub(crate) y: Vec<f64>,
 }
 
 /// Named values at the categories of a figure (e.g. one bar's RMS after each model step).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct NamedValues {
+pub(crate) struct NamedValues {
     pub name: String,
-    pub values: Vec<f64>,
+    pub(crate) values: Vec<f64>,
 }
 
 /// A horizontal reference line (tolerance, noise level, ...) with its legend label.
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct RefLine {
-    pub label: String,
-    pub value: f64,
+pub(crate) struct RefLine {
+    pub(crate) label: String,
+    pub(crate) value: f64,
 }
 
 /// Why a figure could not be written; every variant names the output file.

@@ -114,36 +114,36 @@ pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
 /// bin's start) and of the counts `c`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct BinMoments {
-    pub n: u64,
+    pub(crate) n: u64,
     /// First and last reading, µs since the bin's start.
-    pub first_us: i64,
-    pub last_us: i64,
+    pub(crate) first_us: i64,
+    pub(crate) last_us: i64,
     /// Smallest and largest counts of the bin: a jump or a counter wrap inside a bin shows as
     /// a spread far beyond the noise (`series::quality`).
-    pub min_counts: i64,
-    pub max_counts: i64,
-    pub su: i128,
-    pub suu: i128,
-    pub suuu: i128,
-    pub sc: i128,
-    pub suc: i128,
-    pub scc: i128,
+    pub(crate) min_counts: i64,
+    pub(crate) max_counts: i64,
+    pub(crate) su: i128,
+    pub(crate) suu: i128,
+    pub(crate) suuu: i128,
+    pub(crate) sc: i128,
+    pub(crate) suc: i128,
+    pub(crate) scc: i128,
 }
 
 /// One node of a compressed bin: a weighted pseudo-reading.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Node {
     /// Time since the bin's start, µs.
-    pub offset_us: f64,
+    pub(crate) offset_us: f64,
     /// Number of readings the node stands for (the two weights of a bin sum to its `n`).
-    pub weight: f64,
+    pub(crate) weight: f64,
     /// The bin's least-squares line at the node, counts.
-    pub counts: f64,
+    pub(crate) counts: f64,
 }
 
 impl BinMoments {
     /// Add readings of this bin (times in ns, the bin starting at `start_ns`).
-    pub fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
+    pub(crate) fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
         let mut run = BinMoments::default();
         let (mut first, mut last) = (i64::MAX, i64::MIN);
         let (mut low, mut high) = (i64::MAX, i64::MIN);
@@ -172,7 +172,7 @@ impl BinMoments {
     /// Add one reading of this bin: [`BinMoments::add_run`] of one row, without a second sum
     /// to merge.
     #[inline]
-    pub fn add_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) {
+    pub(crate) fn add_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) {
         let u = (t - start_ns) / NS_PER_US;
         if self.n == 0 {
             (self.first_us, self.last_us) = (u, u);
@@ -199,7 +199,7 @@ impl BinMoments {
     /// reading removed is a copy of one that stays (a duplicate row), and a bin left empty
     /// becomes the empty bin. Returns `false` (and changes nothing) on an empty bin.
     #[inline]
-    pub fn remove_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) -> bool {
+    pub(crate) fn remove_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) -> bool {
         if self.n == 0 {
             return false;
         }
@@ -220,7 +220,7 @@ impl BinMoments {
     }
 
     /// Sums of two parts of one bin.
-    pub fn merge(&mut self, other: &BinMoments) {
+    pub(crate) fn merge(&mut self, other: &BinMoments) {
         if other.n == 0 {
             return;
         }
@@ -243,7 +243,7 @@ impl BinMoments {
 
     /// The bin's nodes (two; one when its readings share one time) and the scatter of its counts
     /// about its least-squares line, counts².
-    pub fn nodes(&self) -> (Vec<Node>, f64) {
+    pub(crate) fn nodes(&self) -> (Vec<Node>, f64) {
         if self.n == 0 {
             return (Vec::new(), 0.0);
         }
@@ -296,8 +296,8 @@ pub enum Region {
 /// one another in time and each region's bins start at or after the region's start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct BinKey {
-    pub start_ns: TimeNs,
-    pub region: Region,
+    pub(crate) start_ns: TimeNs,
+    pub(crate) region: Region,
 }
 
 /// Where one bar's bins lie: its mounts and `rezero` events, and the bin length.
@@ -557,7 +557,7 @@ impl BinAccumulator {
     /// [`LATEST_READING_NS`], |counts| ≤ [`MAX_ABS_COUNTS`], at most [`MAX_BAR_READINGS`] in
     /// all): out of those bounds the bin arithmetic could wrap, so nothing of the call is added
     /// and the first offending value is returned.
-    pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
+    pub(crate) fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
         let n = time_ns.len().min(counts.len());
         let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
         check_readings(time_ns, counts)?;
@@ -578,7 +578,11 @@ impl BinAccumulator {
     /// overlapping files both hold): each row's bin loses that reading's integer moments, so
     /// the bins equal those of the readings without the removed rows. A row whose bin holds
     /// nothing is refused ([`BinError::NotAdded`]); the rows before it stay removed.
-    pub fn remove_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
+    pub(crate) fn remove_all(
+        &mut self,
+        time_ns: &[TimeNs],
+        counts: &[i64],
+    ) -> Result<(), BinError> {
         let n = time_ns.len().min(counts.len());
         check_readings(&time_ns[..n], &counts[..n])?;
         for (&t, &c) in time_ns.iter().zip(counts) {
@@ -755,7 +759,7 @@ impl BinAccumulator {
     }
 
     /// The bins, in time order.
-    pub fn finish(self) -> BarBins {
+    pub(crate) fn finish(self) -> BarBins {
         let mut bins: Vec<(BinKey, BinMoments)> = Vec::new();
         for span in &self.spans {
             let mut pages: Vec<(i64, u32)> = span
@@ -846,8 +850,8 @@ impl Span {
 /// One bar's readings as bins, in time order.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarBins {
-    pub bin_ns: TimeNs,
-    pub bins: Vec<(BinKey, BinMoments)>,
+    pub(crate) bin_ns: TimeNs,
+    pub(crate) bins: Vec<(BinKey, BinMoments)>,
 }
 
 /// Weighted pseudo-readings: what a series is built from ([`BarBins::readings`]; a full-rate
@@ -855,18 +859,18 @@ pub struct BarBins {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Readings {
     /// Node times, ns (rounded), sorted.
-    pub time_ns: Vec<TimeNs>,
-    pub counts: Vec<f64>,
-    pub weight: Vec<f64>,
+    pub(crate) time_ns: Vec<TimeNs>,
+    pub(crate) counts: Vec<f64>,
+    pub(crate) weight: Vec<f64>,
     /// Scatter of each bin's counts about its line, counts², carried by the bin's first node
     /// (0 on the others).
-    pub line_rss_counts2: Vec<f64>,
+    pub(crate) line_rss_counts2: Vec<f64>,
 }
 
 impl BarBins {
     /// Bins of a log held in memory (the same sums as streaming it through a
     /// [`BinAccumulator`]).
-    pub fn from_log(
+    pub(crate) fn from_log(
         grid: BinGrid,
         time_ns: &[TimeNs],
         counts: &[i64],
@@ -877,14 +881,14 @@ impl BarBins {
     }
 
     /// Time of the first reading.
-    pub fn first_reading_ns(&self) -> Option<TimeNs> {
+    pub(crate) fn first_reading_ns(&self) -> Option<TimeNs> {
         self.bins
             .first()
             .map(|(k, m)| k.start_ns + m.first_us * NS_PER_US)
     }
 
     /// Number of readings.
-    pub fn n_readings(&self) -> u64 {
+    pub(crate) fn n_readings(&self) -> u64 {
         self.bins.iter().map(|(_, m)| m.n).sum()
     }
 
@@ -903,7 +907,7 @@ impl BarBins {
     /// moved gains by up to two standard uncertainties on a 1 Hz campaign. With these samples
     /// the lag at the nodes is the full-rate one. Counts of a weight-0 sample are interpolated
     /// between its nodes (for plots only).
-    pub fn readings(&self, knots: &[TimeNs]) -> Readings {
+    pub(crate) fn readings(&self, knots: &[TimeNs]) -> Readings {
         let mut out = Readings::default();
         // Previous node (time, counts) and the last reading of its bin.
         let mut last: Option<(TimeNs, f64, TimeNs)> = None;
