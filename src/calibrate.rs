@@ -309,7 +309,8 @@ pub(crate) fn calibration_points(
     let epochs = counter_epochs(series);
     let mut groups: std::collections::BTreeMap<(usize, usize, i64), Vec<(f64, f64)>> =
         Default::default();
-    for i in 0..series.t_s.len() {
+    // One epoch per sample (`counter_epochs`).
+    for (i, &epoch) in epochs.iter().enumerate() {
         // Weight-0 samples (the lag grid of a compressed series) are not readings.
         let Some(m) = series.mount_of[i].filter(|_| series.weight[i] > 0.0) else {
             continue;
@@ -322,7 +323,7 @@ pub(crate) fn calibration_points(
             continue;
         };
         let tilt_key = (tilt_at_deg(series, campaign, i) * 1000.0).round() as i64;
-        let key = (m as usize, epochs[i], tilt_key);
+        let key = (m as usize, epoch, tilt_key);
         let value = reading_um(series, i) - thermal;
         groups
             .entry(key)

@@ -1130,7 +1130,7 @@ fn variance_time_plateau(residuals: &[f64], short: usize, longest: usize) -> usi
     let n = residuals.len();
     let mean = residuals.iter().sum::<f64>() / n as f64;
     let var = residuals.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / n as f64;
-    if !(var > 0.0) || short >= longest {
+    if var.is_nan() || var <= 0.0 || short >= longest {
         return short;
     }
     let mut prefix = Vec::with_capacity(n + 1);
@@ -1205,7 +1205,7 @@ fn initial_autocorrelation(x: &[f64]) -> Vec<f64> {
     let mean = x.iter().sum::<f64>() / n as f64;
     let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
     let c0 = dot(&centred, &centred);
-    if !(c0 > 0.0) {
+    if c0.is_nan() || c0 <= 0.0 {
         return vec![1.0];
     }
     let mut acf = vec![1.0];

@@ -236,7 +236,7 @@ fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     let mut best = f64::NAN;
     for (x, y) in a.iter().zip(b) {
         let d = (x - y).abs();
-        if d.is_finite() && !(d <= best) {
+        if d.is_finite() && (best.is_nan() || d > best) {
             best = d;
         }
     }

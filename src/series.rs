@@ -305,7 +305,7 @@ impl BarSeries {
         t0_ns: TimeNs,
         bin_s: f64,
     ) -> Result<BarSeries, SeriesError> {
-        if !(bin_s > 0.0) {
+        if bin_s.is_nan() || bin_s <= 0.0 {
             let n = log.time_ns.len();
             let readings = with_knots_between(
                 Readings {
@@ -486,7 +486,7 @@ impl BarSeries {
     /// Bin edges are decided on integer nanoseconds (`t_s` rounded to ns), so a 1 Hz log gives
     /// bins of exactly `bin_s` samples.
     pub(crate) fn binned_copy(&self, bin_s: f64) -> BarSeries {
-        if !(bin_s > 0.0) || self.t_s.len() < 2 {
+        if bin_s.is_nan() || bin_s <= 0.0 || self.t_s.len() < 2 {
             return self.clone();
         }
         let time_ns: Vec<TimeNs> = self

@@ -232,8 +232,11 @@ impl Candidate {
 /// is itself a refit of the same cache or the identified model).
 #[derive(Default)]
 pub(crate) struct Refits {
-    fits: Mutex<HashMap<(String, Vec<String>), Arc<Refit>>>,
+    fits: Mutex<RefitCache>,
 }
+
+/// Refits by (bar, effect names in the order added).
+type RefitCache = HashMap<(String, Vec<String>), Arc<Refit>>;
 
 /// One exact refit, and the log-likelihood of its residual under its own noise model (fitted
 /// when a test first asks for it).
@@ -266,7 +269,7 @@ impl Refits {
         self.lock().entry(key).or_insert(fitted).clone()
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<(String, Vec<String>), Arc<Refit>>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, RefitCache> {
         self.fits.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
@@ -699,7 +702,7 @@ pub(crate) fn lr_p_value(
     added_params: usize,
 ) -> f64 {
     let lr = 2.0 * (extended_log_likelihood - base_log_likelihood);
-    if !(lr > 0.0) {
+    if lr.is_nan() || lr <= 0.0 {
         return 1.0;
     }
     ChiSquared::new(added_params as f64)

@@ -103,7 +103,7 @@ fn cumulative_periodogram(r: &[f64]) -> (Vec<f64>, Vec<f64>, f64) {
         .map(|c| c.norm_sqr())
         .collect();
     let total: f64 = power.iter().sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return (Vec::new(), Vec::new(), f64::NAN);
     }
     let mut acc = 0.0;

@@ -201,7 +201,7 @@ fn hac_score(x: &DMatrix<f64>, r: &[f64], batch: usize) -> f64 {
     }
     v *= n_batches as f64 / (n_batches - k) as f64;
     let scale = v.diagonal().max();
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return 0.0;
     }
     match v.svd(true, true).solve(&s, 1e-12 * scale) {
@@ -220,7 +220,7 @@ fn absorbed_rss(x: &DMatrix<f64>, q: &DMatrix<f64>, r: &[f64]) -> f64 {
     let normal = outside.tr_mul(&outside);
     let rhs = outside.tr_mul(&nalgebra::DVector::from_column_slice(r));
     let scale = normal.diagonal().max();
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return 0.0;
     }
     match normal.svd(true, true).solve(&rhs, 1e-12 * scale) {

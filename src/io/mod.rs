@@ -58,8 +58,8 @@ pub enum IngestError {
         expected: &'static str,
     },
     #[error(
-        "{}: {rows} rows ({first} .. {last}) have {column} \"{id}\", which campaign.toml does not declare (known: {known})",
-        path.display()
+        "{}: {rows} rows ({} .. {}) have {column} \"{id}\", which campaign.toml does not declare (known: {known})",
+        path.display(), format_ns(*first_ns), format_ns(*last_ns)
     )]
     UnknownId {
         path: PathBuf,
@@ -67,8 +67,9 @@ pub enum IngestError {
         column: &'static str,
         id: String,
         rows: u64,
-        first: String,
-        last: String,
+        /// Time of the first and the last of those rows, ns since the epoch (UTC).
+        first_ns: i64,
+        last_ns: i64,
         known: String,
     },
     #[error("{}: column `{column}` has {count} null values", path.display())]

@@ -234,7 +234,7 @@ fn held_start(series: &BarSeries, kind: &str, first_s: f64, values: &[f64]) -> (
     match kind {
         "head_power" => {
             let logged_before = series.t_s.first().is_some_and(|&t| t < first_s);
-            let powered = logged_before || !(first_value > 0.0);
+            let powered = logged_before || first_value.is_nan() || first_value <= 0.0;
             if powered {
                 (
                     1.0,

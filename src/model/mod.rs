@@ -151,7 +151,7 @@ impl Effect {
         let (channel, tau0_s) = match channel.rsplit_once('@') {
             Some((ch, tau)) => {
                 let tau: f64 = tau.parse().map_err(|_| UnknownEffect(s.to_string()))?;
-                if !(tau > 0.0) {
+                if tau.is_nan() || tau <= 0.0 {
                     return Err(UnknownEffect(s.to_string()));
                 }
                 (ch, Some(tau))
@@ -811,7 +811,7 @@ pub(crate) fn decay(
             1.0
         } else {
             match previous {
-                Some((_, ep)) if ep == 0.0 => 0.0,
+                Some((_, 0.0)) => 0.0,
                 Some((tp, ep)) if tp >= t_ref => {
                     let dt = t - tp;
                     let bits = dt.to_bits();
@@ -882,7 +882,8 @@ pub(crate) fn identifiable_effects(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
             (lo.min(v), hi.max(v))
         });
-    if !(hi - lo <= ONE_LENGTH_SPREAD_MM) {
+    let spread_mm = hi - lo;
+    if spread_mm.is_nan() || spread_mm > ONE_LENGTH_SPREAD_MM {
         return (effects.to_vec(), Vec::new());
     }
     let mut params = vec![

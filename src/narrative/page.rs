@@ -294,7 +294,7 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
          <th>PV µm</th><th>RMS µm</th><th>U (k = 2) µm</th><th>decision</th></tr></thead><tbody>\n",
     );
     for a in acc {
-        let decision = serde_json::to_value(&a.decision)
+        let decision = serde_json::to_value(a.decision)
             .ok()
             .and_then(|v| v.as_str().map(str::to_string))
             .unwrap_or_default();

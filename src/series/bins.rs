@@ -100,7 +100,7 @@ pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
         *span = (span.0.min(m.from_ns), span.1.max(m.to_ns));
     }
     let span_s: f64 = spans.values().map(|(a, b)| (b - a) as f64 * 1e-9).sum();
-    if encoder_rows == 0 || !(span_s > 0.0) {
+    if encoder_rows == 0 || span_s.is_nan() || span_s <= 0.0 {
         return 0.0;
     }
     if span_s / encoder_rows as f64 <= AUTOMATIC_MAX_INTERVAL_S {

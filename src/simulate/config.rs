@@ -877,7 +877,7 @@ impl SimConfig {
         if r.door_rate_per_day > 1440.0 {
             return Err(invalid("room.door_rate_per_day", "more than one a minute"));
         }
-        if !(r.temperature_sample_s >= 0.1) {
+        if r.temperature_sample_s.is_nan() || r.temperature_sample_s < 0.1 {
             return Err(invalid(
                 "room.temperature_sample_s",
                 "must be at least 0.1 s",
