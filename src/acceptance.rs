@@ -33,17 +33,22 @@ impl Default for AcceptanceOptions {
     }
 }
 
+/// The ISO 14253-1 decision on a working bar: its worst error against the tolerance, with U.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum Decision {
+    /// Conformance proven: worst error + U is within the tolerance.
     #[serde(rename = "pass")]
     Pass,
+    /// Non-conformance proven: worst error − U exceeds the tolerance.
     #[serde(rename = "fail")]
     Fail,
+    /// Neither proven (the error is within U of the tolerance, or not finite).
     #[serde(rename = "no decision")]
     NoDecision,
 }
 
 impl Decision {
+    /// The decision as written in `summary.json`: `pass`, `fail` or `no decision`.
     pub fn as_str(self) -> &'static str {
         match self {
             Decision::Pass => "pass",
@@ -56,6 +61,7 @@ impl Decision {
 /// Max |e|, peak-to-valley and RMS of an error series, µm.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct ErrorStats {
+    /// Largest absolute error, µm.
     pub max_abs_um: f64,
     pub(crate) pv_um: f64,
     pub(crate) rms_um: f64,
@@ -95,20 +101,30 @@ pub(crate) struct BudgetTerm {
 /// One working bar's acceptance on one known length.
 #[derive(Debug, Clone, Serialize)]
 pub struct BarAcceptance {
+    /// Working bar id.
     pub bar: String,
     pub(crate) length_id: String,
     pub(crate) length_mm: f64,
+    /// How it was compensated: `two_references`, `one_reference` or `model`, with
+    /// `+model_difference` when the modelled reference-to-working difference was added.
     pub mode: String,
+    /// Ids of the reference bars used.
     pub references: Vec<String>,
     pub(crate) n_samples: usize,
+    /// Largest absolute error after compensation, µm.
     pub max_abs_error_um: f64,
+    /// Peak-to-valley of the error after compensation, µm.
     pub pv_um: f64,
+    /// RMS of the error after compensation, µm.
     pub rms_um: f64,
+    /// The same statistics before compensation.
     pub before: ErrorStats,
     pub(crate) budget: Vec<BudgetTerm>,
     pub(crate) u_c_um: f64,
+    /// Expanded uncertainty U (k = 2), µm.
     pub u_k2_um: f64,
     pub(crate) tolerance_um: f64,
+    /// The ISO 14253-1 decision against the tolerance.
     pub decision: Decision,
     /// Time (s since campaign start) and errors after / before compensation, µm.
     #[serde(skip)]

@@ -28,11 +28,13 @@ use crate::series::{BarSeries, EventKind};
 pub struct CalibrationPoint {
     /// Index into the bar's `BarSeries::mounts`.
     pub(crate) mount: usize,
+    /// The plate length's id (`plate.length[].id`).
     pub length_id: String,
     /// True centre distance `D_i` (calibrated plate length), mm.
     pub length_mm: f64,
     /// Standard uncertainty of `D_i`, µm.
     pub(crate) u_length_um: f64,
+    /// Tilt of the bar from horizontal at this point, degrees.
     pub tilt_deg: f64,
     /// Indicated reading `k n` brought to the reference temperature, mm.
     pub reading_mm: f64,
@@ -48,7 +50,9 @@ pub struct CalibrationPoint {
 /// The tilt function of a gravity-sag term (`physics.md`: largest horizontal, zero vertical).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SagTilt {
+    /// `f(A) = cos A`.
     Cos,
+    /// `f(A) = cos² A`.
     Cos2,
 }
 
@@ -71,7 +75,12 @@ pub enum Form {
     Quadratic,
     /// Quadratic plus gravity sag `f(A) (s0 + s1 u + ...)`, a polynomial of degree
     /// `length_degree` in the normalised reading `u` (the sag grows with the bar's length).
-    Sag { tilt: SagTilt, length_degree: u8 },
+    Sag {
+        /// The tilt function `f(A)`.
+        tilt: SagTilt,
+        /// Degree of the polynomial in `u`.
+        length_degree: u8,
+    },
     /// A table of the points, interpolated linearly in `k n` within a tilt and linearly in tilt
     /// between tilts (extrapolated from the end segments).
     Table,
@@ -147,6 +156,7 @@ impl Form {
         }
     }
 
+    /// Whether the form has a gravity-sag term.
     pub fn has_sag(self) -> bool {
         matches!(self, Form::Sag { .. })
     }
@@ -164,6 +174,7 @@ impl Serialize for Form {
 /// `u = (k n − centre) / half_range`, which keeps the columns well conditioned.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct DistanceFunction {
+    /// The form fitted.
     pub form: Form,
     pub(crate) reading_centre_mm: f64,
     pub(crate) reading_half_range_mm: f64,
@@ -199,6 +210,7 @@ impl DistanceFunction {
 /// One form's cross-validation result.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct FormScore {
+    /// The form scored.
     pub form: Form,
     pub(crate) n_params: usize,
     /// RMS of the leave-one-point-out prediction errors, µm (`None`: the form cannot be fitted).
@@ -220,12 +232,16 @@ pub(crate) struct ExcludedPoint {
 /// A bar's calibration.
 #[derive(Debug, Clone, Serialize)]
 pub struct BarCalibration {
+    /// Bar id.
     pub bar: String,
     /// The counter epoch the function is valid in.
     pub(crate) epoch: usize,
+    /// The calibration points fitted (those of `epoch`).
     pub points: Vec<CalibrationPoint>,
     pub(crate) excluded: Vec<ExcludedPoint>,
+    /// Every form tried, with its cross-validation score.
     pub forms: Vec<FormScore>,
+    /// The function chosen by leave-one-point-out cross-validation.
     pub chosen: DistanceFunction,
     /// Cross-validated RMS error of the chosen form, µm: the calibration-function term of the
     /// uncertainty budget.
@@ -240,12 +256,27 @@ impl BarCalibration {
     }
 }
 
+/// Why a bar has no centre-distance function.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum CalibrateError {
+    /// Fewer than 3 calibration points in the counter epoch.
     #[error("bar {bar}: {n} calibration point(s) in counter epoch {epoch}; at least 3 are needed")]
-    TooFewPoints { bar: String, n: usize, epoch: usize },
+    TooFewPoints {
+        /// Bar id.
+        bar: String,
+        /// Points found.
+        n: usize,
+        /// The counter epoch (`rezero` events before it).
+        epoch: usize,
+    },
+    /// No form could be fitted.
     #[error("bar {bar}: no form of the centre-distance function could be fitted ({reasons})")]
-    NoForm { bar: String, reasons: String },
+    NoForm {
+        /// Bar id.
+        bar: String,
+        /// Why each form failed.
+        reasons: String,
+    },
 }
 
 // ------------------------------------------------------------------------------------ tilt

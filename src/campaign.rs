@@ -13,104 +13,147 @@ pub(crate) type TimeNs = i64;
 
 // ---------------------------------------------------------------- manifest, as written in TOML
 
+/// `campaign.toml` as written (`shared/spec/campaign-format.md`), not yet validated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Manifest {
+    /// `[campaign]`.
     pub campaign: CampaignSection,
+    /// `[plate]`.
     pub plate: PlateSection,
+    /// `[[sensor]]`: the temperature sensors.
     #[serde(default)]
     pub sensor: Vec<SensorDecl>,
+    /// `[[bar]]`: the ballbars.
     #[serde(default)]
     pub bar: Vec<BarDecl>,
+    /// `[[mount]]`: where each bar sat, and when.
     #[serde(default)]
     pub mount: Vec<MountDecl>,
 }
 
+/// `[campaign]`: id and reference temperature.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CampaignSection {
+    /// Campaign id (names the default output folder `reports/<id>`).
     pub id: String,
+    /// Reference temperature T0, °C.
     pub reference_temperature_c: f64,
 }
 
+/// `[plate]`: the calibration plate.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PlateSection {
+    /// Plate material (free text).
     pub material: String,
+    /// Declared expansion coefficient of the plate, ppm/K; 0 when absent.
     #[serde(default)]
     pub cte_ppm_per_k: f64,
     /// Plate tilt from horizontal, degrees; 0 when absent.
     #[serde(default)]
     pub tilt_deg: f64,
+    /// `[[plate.length]]`: the calibrated socket-pair distances.
     #[serde(default)]
     pub length: Vec<PlateLength>,
 }
 
+/// One calibrated socket-pair distance on the plate.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PlateLength {
+    /// Length id (what `mount[].length` names).
     pub id: String,
+    /// Calibrated centre distance, mm.
     pub mm: f64,
     /// Standard uncertainty (k = 1) of the calibrated length, micrometres.
     pub u_um: f64,
 }
 
+/// What a temperature sensor measures (`sensor[].kind`).
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[serde(rename_all = "lowercase")]
 pub enum SensorKind {
+    /// Air near the bars.
     Air,
+    /// The plate.
     Plate,
+    /// A bar itself.
     Bar,
+    /// A read head.
     Head,
+    /// Anything else (a machine part, coolant, …).
     Other,
 }
 
+/// `[[sensor]]`: one temperature sensor.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SensorDecl {
+    /// Sensor id (the `sensor` column of `temperatures/*.parquet`).
     pub id: String,
+    /// What it measures.
     pub kind: SensorKind,
 }
 
+/// `[[bar]]`: one ballbar.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BarDecl {
+    /// Bar id (the `bar` column of `encoders/*.parquet`).
     pub id: String,
+    /// Encoder resolution, nm a count.
     pub resolution_nm: f64,
+    /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel, mm.
     pub fixed_length_mm: f64,
+    /// The air sensor nearest the bar; absent: the mean of all air sensors.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor: Option<String>,
 }
 
+/// What a mount is for (`mount[].purpose`).
 #[derive(
     Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash, Default,
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Purpose {
+    /// A calibration point, and data for the thermal model (the default).
     #[default]
     Calibration,
+    /// The bar serves as a reference bar during the mount.
     Reference,
+    /// A known length used only to verify the result, never fitted.
     Check,
 }
 
+/// `[[mount]]`: one bar on a plate length or a device for a time span.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MountDecl {
+    /// Bar id.
     pub bar: String,
+    /// Plate length id (on the plate); absent on a device.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length: Option<String>,
+    /// Device name (on a target device, true distance unknown); absent on the plate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub device: Option<String>,
+    /// Tilt of the bar from horizontal, degrees; absent: the plate's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_deg: Option<f64>,
+    /// What the mount is for; absent: calibration.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub purpose: Option<Purpose>,
+    /// Start of the mount (UTC).
     pub from: toml::value::Datetime,
+    /// End of the mount (UTC).
     pub to: toml::value::Datetime,
 }
 
 // ---------------------------------------------------------------- validated campaign
 
+/// A validated campaign: every reference in the manifest checked, times in ns.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Campaign {
     pub(crate) id: String,
@@ -136,6 +179,7 @@ pub(crate) struct Sensor {
     pub(crate) kind: SensorKind,
 }
 
+/// A declared bar, validated.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Bar {
     pub(crate) id: String,
@@ -155,8 +199,10 @@ pub(crate) enum Place {
     Device(String),
 }
 
+/// A validated mount.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mount {
+    /// Bar id.
     pub bar: String,
     pub(crate) place: Place,
     /// Tilt from horizontal, degrees: the mount's, else the plate's.
@@ -165,17 +211,21 @@ pub struct Mount {
     /// `calibrate::tilt_at_deg`).
     pub(crate) tilt_explicit: bool,
     pub(crate) purpose: Purpose,
+    /// Start, ns since the epoch (UTC).
     pub from_ns: TimeNs,
+    /// End, ns since the epoch (UTC).
     pub to_ns: TimeNs,
 }
 
 impl Campaign {
+    /// The bar `id`, if declared.
     pub fn bar(&self, id: &str) -> Option<&Bar> {
         self.bars.iter().find(|b| b.id == id)
     }
     pub(crate) fn sensor(&self, id: &str) -> Option<&Sensor> {
         self.sensors.iter().find(|s| s.id == id)
     }
+    /// The mounts of bar `bar`, in the campaign's order.
     pub fn mounts_of<'a>(&'a self, bar: &'a str) -> impl Iterator<Item = &'a Mount> + 'a {
         self.mounts.iter().filter(move |m| m.bar == bar)
     }
@@ -194,27 +244,41 @@ pub enum CampaignError {
     /// The text is not TOML, or does not have the manifest's shape (unknown or missing key).
     #[error("{file}:{line}:{column}: {message}")]
     Syntax {
+        /// The manifest's file name.
         file: String,
+        /// Line of the error (0 when unknown).
         line: usize,
+        /// Column of the error (0 when unknown).
         column: usize,
+        /// The TOML parser's message.
         message: String,
     },
     /// Two entries of one table share an id.
     #[error("{file}: {table}[{second}]: id {id:?} is already used by {table}[{first}]")]
     DuplicateId {
+        /// The manifest's file name.
         file: String,
+        /// The table (e.g. `bar`).
         table: &'static str,
+        /// The repeated id.
         id: String,
+        /// Index of the entry that has it first.
         first: usize,
+        /// Index of the repeat.
         second: usize,
     },
     /// A reference to something the manifest does not declare.
     #[error("{file}: {key}: {field} {value:?} is not {what} (known: {known})")]
     Unknown {
+        /// The manifest's file name.
         file: String,
+        /// The key holding the reference (e.g. `mount[3]`).
         key: String,
+        /// The field that names it (e.g. `bar`).
         field: &'static str,
+        /// The name given.
         value: String,
+        /// What it should name (e.g. `a declared bar`).
         what: &'static str,
         /// The names that are declared, comma-separated (`Box<str>`, not `String`: keeps the
         /// error, and every `Result` carrying it, under 128 bytes).
@@ -223,8 +287,11 @@ pub enum CampaignError {
     /// Any other invalid value.
     #[error("{file}: {key}: {problem}")]
     Invalid {
+        /// The manifest's file name.
         file: String,
+        /// The key with the invalid value.
         key: String,
+        /// What is wrong with it.
         problem: String,
     },
 }

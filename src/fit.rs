@@ -62,8 +62,15 @@ pub trait Separable: Sync {
 /// Why a fit could not be done.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum FitError {
+    /// Fewer samples than parameters.
     #[error("too few samples ({n}) for {p} parameters")]
-    TooFewSamples { n: usize, p: usize },
+    TooFewSamples {
+        /// Samples.
+        n: usize,
+        /// Parameters.
+        p: usize,
+    },
+    /// The basis is singular; names the term that cannot be separated.
     #[error("the basis is singular: {0} cannot be separated from the other terms with these data")]
     Singular(String),
     /// Parameters the data cannot determine: a direction of the model's Jacobian that the data
@@ -71,9 +78,16 @@ pub enum FitError {
     /// vanishes once the mount zeros are taken out. Reported instead of an estimate whose
     /// uncertainty would come from a (pseudo-)inverse of a singular matrix.
     #[error("not identifiable: these data cannot determine {params} ({reason})")]
-    NotIdentifiable { params: String, reason: String },
+    NotIdentifiable {
+        /// The parameters concerned.
+        params: String,
+        /// Why the data cannot determine them.
+        reason: String,
+    },
+    /// The solver did not converge (its message).
     #[error("the solver did not converge ({0})")]
     NoConvergence(String),
+    /// NaN or infinite values in the data or the model.
     #[error("non-finite values in the data or the model")]
     NonFinite,
 }
@@ -82,11 +96,13 @@ pub enum FitError {
 /// nonlinear parameters.
 #[derive(Debug, Clone)]
 pub struct Fit {
+    /// Parameter names, same order as `values`.
     pub names: Vec<String>,
     /// Linear coefficients then nonlinear parameters.
     pub values: Vec<f64>,
     pub(crate) n_linear: usize,
     pub(crate) residuals: Vec<f64>,
+    /// Residual sum of squares at the minimum.
     pub rss: f64,
     pub(crate) n_obs: usize,
     /// `s² (JᵀJ)⁻¹`: valid only for white residuals.
@@ -102,6 +118,7 @@ pub struct Fit {
     /// as `values`: at most about [`Fit::hac_dof`], fewer when a few batches carry most of that
     /// parameter's information. Intervals use Student's t with these.
     pub(crate) hac_dof_param: Vec<f64>,
+    /// Solver iterations.
     pub iterations: usize,
 }
 
@@ -109,12 +126,14 @@ impl Fit {
     pub(crate) fn n_params(&self) -> usize {
         self.values.len()
     }
+    /// Residual degrees of freedom: observations − parameters, at least 1.
     pub fn dof(&self) -> usize {
         self.n_obs.saturating_sub(self.n_params()).max(1)
     }
     pub(crate) fn rms(&self) -> f64 {
         (self.rss / self.n_obs.max(1) as f64).sqrt()
     }
+    /// Standard error of parameter `i` for white residuals (from `s² (JᵀJ)⁻¹`).
     pub fn se_naive(&self, i: usize) -> f64 {
         self.cov_naive[(i, i)].max(0.0).sqrt()
     }

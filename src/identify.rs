@@ -11,7 +11,9 @@ use crate::series::BarSeries;
 /// One estimated parameter.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Estimate {
+    /// Physical parameter name (e.g. `alpha_ppm_per_k`), unit in the name.
     pub name: String,
+    /// Estimate, in the unit its name says.
     pub value: f64,
     /// Standard uncertainty (k = 1) that accounts for autocorrelated residuals (batch-means HAC).
     pub u: f64,
@@ -32,6 +34,7 @@ pub struct Estimate {
 /// A bar's identified model.
 #[derive(Debug, Clone)]
 pub struct BarModel {
+    /// Bar id.
     pub bar: String,
     pub(crate) effects: Vec<Effect>,
     /// Gains and time constants (physical names), without the mount zeros and the initial-state
@@ -52,9 +55,12 @@ pub struct BarModel {
     pub(crate) zeros_um: Vec<f64>,
     /// Correlation matrix of `params` (HAC), same order.
     pub(crate) correlation: Vec<Vec<f64>>,
+    /// RMS residual, µm.
     pub rms_um: f64,
+    /// Samples fitted.
     pub n_samples: usize,
     pub(crate) bic: f64,
+    /// Gaussian log-likelihood of the fit at the ML variance `rss / n`.
     pub log_likelihood: f64,
     pub(crate) n_params: usize,
     /// Model value (µm) on the bar's whole timeline, zeros included where a segment applies.
@@ -76,15 +82,29 @@ pub struct BarModel {
     coarse_theta: Option<Vec<f64>>,
 }
 
+/// Why a bar could not be identified.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum IdentifyError {
+    /// The model could not be built for this bar.
     #[error("bar {bar}: {source}")]
-    Model { bar: String, source: ModelError },
+    Model {
+        /// Bar id.
+        bar: String,
+        /// Why.
+        source: ModelError,
+    },
+    /// The fit failed.
     #[error("bar {bar}: {source}")]
-    Fit { bar: String, source: FitError },
+    Fit {
+        /// Bar id.
+        bar: String,
+        /// Why.
+        source: FitError,
+    },
 }
 
 impl BarModel {
+    /// The parameter `name`, if the model has it.
     pub fn param(&self, name: &str) -> Option<&Estimate> {
         self.params.iter().find(|p| p.name == name)
     }

@@ -31,8 +31,10 @@ pub struct MatchInput {
     pub(crate) measured_um: Vec<f64>,
 }
 
+/// The reference bar: the one nearest the fleet mean.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ReferenceChoice {
+    /// Its id.
     pub bar: String,
     /// Scaled distance of every bar to the fleet mean, same order as the input.
     pub(crate) distance: Vec<(String, f64)>,
@@ -113,8 +115,10 @@ pub(crate) fn predicted_error_um(
         .collect()
 }
 
+/// How far one bar's thermal error is from the reference's.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Mismatch {
+    /// Bar id.
     pub bar: String,
     /// max |e_bar(t) - e_reference(t)| over the history, µm.
     pub(crate) max_abs_um: f64,

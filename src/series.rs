@@ -34,10 +34,13 @@ pub struct InputFile {
 /// One event row (`events/*.parquet`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Event {
+    /// Time, ns since the epoch (UTC).
     pub time_ns: TimeNs,
     /// `None`: the whole setup.
     pub bar: Option<String>,
+    /// What happened.
     pub kind: EventKind,
+    /// The value of a valued kind (`head_power`: 1 on, 0 off; `tilt`: degrees).
     pub value: Option<f64>,
 }
 
@@ -104,7 +107,9 @@ impl Ord for EventKind {
 /// once [`interpolate_temperatures`] has run (ingest leaves `celsius` empty).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarLog {
+    /// Reading times, ns since the epoch (UTC).
     pub time_ns: Vec<TimeNs>,
+    /// Encoder counts at each time.
     pub counts: Vec<i64>,
     /// Sensor id -> temperature (°C) at each `time_ns`.
     pub(crate) celsius: BTreeMap<String, Vec<f64>>,
@@ -113,7 +118,9 @@ pub struct BarLog {
 /// A sensor's own log, sorted by time.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SensorLog {
+    /// Reading times, ns since the epoch (UTC).
     pub time_ns: Vec<TimeNs>,
+    /// Temperature at each time, °C.
     pub celsius: Vec<f64>,
 }
 
@@ -139,7 +146,9 @@ pub struct CampaignLogs {
 /// A bar's raw encoder readings (what a logger writes), not necessarily sorted.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct EncoderLog {
+    /// Reading times, ns since the epoch (UTC).
     pub time_ns: Vec<TimeNs>,
+    /// Encoder counts at each time.
     pub counts: Vec<i64>,
 }
 
@@ -151,6 +160,7 @@ pub struct CampaignTables {
     pub encoders: BTreeMap<String, EncoderLog>,
     /// Sensor id -> readings.
     pub temperatures: BTreeMap<String, SensorLog>,
+    /// Event rows.
     pub events: Vec<Event>,
 }
 

@@ -461,6 +461,7 @@ pub enum Ending {
 /// A child that died from a signal, and what its trail says.
 #[derive(Debug, Clone)]
 pub struct Death {
+    /// The signal that killed it.
     pub signal: i32,
     /// The files it was decoding (each once, sorted).
     pub reading: Vec<PathBuf>,

@@ -88,6 +88,8 @@ pub struct Criteria {
 }
 
 impl Criteria {
+    /// Criteria for a fleet with this reading-noise floor and tolerance (µm): `min_gain_um` from
+    /// both, the tests at the default family-wise level.
     pub fn new(noise_floor_um: f64, tolerance_um: f64) -> Criteria {
         Criteria {
             noise_floor_um,
@@ -131,8 +133,10 @@ impl Criteria {
     }
 }
 
+/// How much of a bar's residual one channel's first-order response explains.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ChannelScore {
+    /// Channel name.
     pub channel: String,
     /// Fraction of the residual's RSS its best first-order response removes when added to the
     /// model (the linearised refit of [`screen`]).
@@ -141,8 +145,10 @@ pub struct ChannelScore {
     pub(crate) tau_s: f64,
 }
 
+/// One bar's diagnosis: its residual and its channel ranking.
 #[derive(Debug, Clone, Serialize)]
 pub struct BarDiagnosis {
+    /// Bar id.
     pub bar: String,
     pub(crate) effects: Vec<Effect>,
     pub(crate) rms_um: f64,
@@ -155,7 +161,9 @@ pub struct BarDiagnosis {
 /// One candidate effect's result on one bar.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct CandidateOnBar {
+    /// Bar id.
     pub bar: String,
+    /// RMS residual of the bar's model without it, µm.
     pub rms_before_um: f64,
     /// The RMS after adding it, predicted by the screen (linearised refit).
     pub screened_rms_after_um: f64,
@@ -187,10 +195,12 @@ pub enum Verdict {
     ScreenedOut,
 }
 
+/// One candidate effect fleet-wide: screen, exact refits, tests and verdict.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Candidate {
     /// Written as its name, accepted verbatim by `--add-effect`.
     pub effect: Effect,
+    /// What the diagnosis concludes.
     pub verdict: Verdict,
     /// The verdict in words, with the numbers it rests on.
     pub reason: String,
@@ -203,16 +213,20 @@ pub struct Candidate {
     pub screened_shift_um: f64,
     /// Fleet RMS after the exact refit (absent when screened out).
     pub rms_after_um: Option<f64>,
+    /// Fleet-wide ΔBIC of adding it (negative: better); absent when screened out.
     pub delta_bic: Option<f64>,
     /// Fleet-wide p-value (Fisher's method over the bars' likelihood-ratio tests).
     pub p_value: Option<f64>,
+    /// Bars on which it is significant on their own.
     pub bars_improved: usize,
     /// Statistically significant (5 % family-wise).
     pub(crate) significant: bool,
     /// Its RMS reduction, or how much it moves the model's own terms, reaches
     /// [`Criteria::min_gain_um`].
     pub(crate) material: bool,
+    /// What the effect is, in words.
     pub explanation: String,
+    /// Its result on each bar.
     pub per_bar: Vec<CandidateOnBar>,
 }
 
@@ -832,7 +846,9 @@ pub struct LedgerStep {
     /// What this step added (written `"base"` for the starting model, else the effect's name).
     pub added: Added,
     pub(crate) effects: Vec<Effect>,
+    /// Each bar's RMS residual after this step, µm.
     pub rms_um: Vec<(String, f64)>,
+    /// Fleet RMS residual after this step, µm.
     pub fleet_rms_um: f64,
     /// The added effect's ΔBIC and p-value (absent for the starting model).
     pub(crate) delta_bic: Option<f64>,
@@ -844,6 +860,7 @@ pub struct LedgerStep {
 pub enum Added {
     /// The starting model: nothing added.
     Base,
+    /// An effect (written as its name).
     Effect(Effect),
 }
 
@@ -1037,7 +1054,9 @@ fn extend_path(
 /// One bar's own forward selection.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct BarLedger {
+    /// Bar id.
     pub bar: String,
+    /// The steps, the starting model first.
     pub steps: Vec<LedgerStep>,
 }
 

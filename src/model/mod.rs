@@ -72,8 +72,11 @@ pub enum Effect {
     Creep,
     /// Generic term: `transform` of a named channel (see [`channels`]).
     Channel {
+        /// How the channel enters.
         transform: Transform,
+        /// The channel's name.
         channel: String,
+        /// Starting time constant given after `@` in the name, s; `None`: the default start.
         tau0_s: Option<f64>,
     },
 }
@@ -358,13 +361,20 @@ type TermColumn = (Arc<Vec<f64>>, Option<Arc<Vec<f64>>>);
 /// A model that cannot be built for a bar.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum ModelError {
+    /// An effect's channel term could not be built.
     #[error("effect {effect}: {source}")]
     Channel {
+        /// The effect's name.
         effect: String,
+        /// Why.
         source: ChannelError,
     },
+    /// The effect acts through the base paths, and the model has neither.
     #[error("effect {effect} acts through the base paths: add fixed_part or scale to the model")]
-    NoBasePath { effect: String },
+    NoBasePath {
+        /// The effect's name.
+        effect: String,
+    },
 }
 
 impl<'a> ThermalProblem<'a> {

@@ -36,7 +36,9 @@ pub(crate) struct ReferenceLine {
 /// The night in a few numbers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Headline {
+    /// Campaign id.
     pub campaign: String,
+    /// The pipeline's name.
     pub pipeline: String,
     pub(crate) bars_ok: usize,
     pub(crate) failed: Vec<(String, String)>,

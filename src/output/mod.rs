@@ -36,14 +36,26 @@ pub const MARKER: &str = "dbbcal-output.json";
 pub enum OutputError {
     /// The location is not one dbbcal may write: refused before any work.
     #[error("--out {path}: refused: {why}")]
-    Refused { path: PathBuf, why: String },
+    Refused {
+        /// The output location.
+        path: PathBuf,
+        /// Why it is refused.
+        why: String,
+    },
     /// Another run holds the lock on this output.
     #[error("--out {path}: another dbbcal run is writing this output now (lock {lock}); try again when it has finished")]
-    Busy { path: PathBuf, lock: PathBuf },
+    Busy {
+        /// The output location.
+        path: PathBuf,
+        /// The lock file.
+        lock: PathBuf,
+    },
     /// A file-system operation failed while writing.
     #[error("{path}: {source}")]
     Io {
+        /// The file or folder.
         path: PathBuf,
+        /// The OS error.
         source: std::io::Error,
     },
 }

@@ -64,25 +64,42 @@ pub(crate) struct RefLine {
 pub enum ReportError {
     /// The spec is structurally inconsistent (e.g. two arrays that must match in length).
     #[error("figure {path}: invalid spec: {reason}")]
-    InvalidSpec { path: PathBuf, reason: String },
+    InvalidSpec {
+        /// The figure's file.
+        path: PathBuf,
+        /// What is inconsistent.
+        reason: String,
+    },
     /// The embedded font could not be registered (a build defect).
     #[error("figure {path}: the embedded font could not be registered")]
-    Font { path: PathBuf },
+    Font {
+        /// The figure's file.
+        path: PathBuf,
+    },
     /// The output directory could not be created.
     #[error("figure {path}: cannot create the output directory: {source}")]
     CreateDir {
+        /// The figure's file.
         path: PathBuf,
+        /// The OS error.
         source: std::io::Error,
     },
     /// The file could not be written.
     #[error("figure {path}: cannot write: {source}")]
     Write {
+        /// The figure's file.
         path: PathBuf,
+        /// The OS error.
         source: std::io::Error,
     },
     /// plotters failed while drawing or encoding the PNG.
     #[error("figure {path}: drawing failed: {message}")]
-    Draw { path: PathBuf, message: String },
+    Draw {
+        /// The figure's file.
+        path: PathBuf,
+        /// plotters' message.
+        message: String,
+    },
 }
 
 /// Checks that `a` and `b` have the same length, naming them in the error text.

@@ -18,7 +18,10 @@ pub enum XAxis {
     #[default]
     TimeSeconds,
     /// Plain values, with the axis title (including the unit).
-    Values { label: String },
+    Values {
+        /// Axis title, with the unit.
+        label: String,
+    },
 }
 
 /// One panel: its series, y-axis title and horizontal reference lines.

@@ -53,14 +53,27 @@ pub const MAX_BAR_READINGS: u64 = 1 << 31;
 /// that no caller can make it wrap, panic or loop.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BinError {
+    /// A reading time outside 1980-01-01 .. 2200-01-01.
     #[error("reading time {time_ns} ns is outside 1980-01-01 .. 2200-01-01")]
-    TimeOutOfRange { time_ns: TimeNs },
+    TimeOutOfRange {
+        /// The time, ns since the epoch.
+        time_ns: TimeNs,
+    },
+    /// Counts beyond ±2^48.
     #[error("counts {counts} exceed ±2^48")]
-    CountsOutOfRange { counts: i64 },
+    CountsOutOfRange {
+        /// The counts.
+        counts: i64,
+    },
+    /// More than 2^31 readings for one bar.
     #[error("more than 2^31 readings for one bar")]
     TooManyReadings,
+    /// A reading removed from a bin that holds none.
     #[error("reading at {time_ns} ns removed from a bin that holds no reading")]
-    NotAdded { time_ns: TimeNs },
+    NotAdded {
+        /// Its time, ns since the epoch.
+        time_ns: TimeNs,
+    },
 }
 
 /// Whether `t` is an accepted reading time ([`EARLIEST_READING_NS`] ..
@@ -80,6 +93,11 @@ pub const AUTOMATIC_BIN_S: f64 = 60.0;
 /// times, weight 0) stand for them. Slower logs gain little and keep every reading.
 pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
 
+/// A fitted time constant should span at least this many bins: the compression's straight line
+/// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
+/// length set, a run whose fit finds a shorter one reads the campaign again with shorter bins.
+pub const MIN_BINS_PER_TAU: f64 = 10.0;
+
 /// The bin length for a campaign of `encoder_rows` readings when none is set (`[model] bin_s`
 /// and `--bin-s` absent): [`AUTOMATIC_BIN_S`] when the bars' mean interval between readings is
 /// at most [`AUTOMATIC_MAX_INTERVAL_S`], else 0 (every reading). The interval is the bars'
@@ -88,11 +106,6 @@ pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
 /// any row is read, and the same for any row order or file layout. A bar that logged only part
 /// of its span makes the interval look longer (no compression), never shorter; rows logged
 /// outside the spans make it look shorter.
-/// A fitted time constant should span at least this many bins: the compression's straight line
-/// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
-/// length set, a run whose fit finds a shorter one reads the campaign again with shorter bins.
-pub const MIN_BINS_PER_TAU: f64 = 10.0;
-
 pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
     let mut spans: std::collections::BTreeMap<&str, (TimeNs, TimeNs)> = Default::default();
     for m in &campaign.mounts {
@@ -287,7 +300,12 @@ impl BinMoments {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Region {
     /// Inside the bar's mount (index into `Campaign::mounts`), after this many `rezero` events.
-    Segment { mount: usize, rezeros: usize },
+    Segment {
+        /// Index into `Campaign::mounts`.
+        mount: usize,
+        /// `rezero` events since the mount began.
+        rezeros: usize,
+    },
     /// Handling time (outside every mount).
     Outside,
 }
@@ -536,6 +554,7 @@ impl Divide {
 }
 
 impl BinAccumulator {
+    /// An empty accumulator on `grid`.
     pub fn new(grid: BinGrid) -> BinAccumulator {
         BinAccumulator {
             bin_ns: grid.bin_ns,

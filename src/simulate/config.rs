@@ -15,10 +15,12 @@ use crate::campaign::PlateLength;
 pub struct SimConfig {
     /// Seed of every random draw: same seed, same campaign.
     pub seed: u64,
+    /// Campaign id written to the manifest.
     pub campaign_id: String,
     /// Campaign start (UTC), a TOML datetime or an RFC 3339 string.
     #[serde(with = "start_time")]
     pub start: DateTime<Utc>,
+    /// Campaign length, days.
     pub duration_days: f64,
     /// Encoder sampling period, seconds.
     pub sample_s: f64,
@@ -34,12 +36,17 @@ pub struct SimConfig {
     /// Keep the noise-free thermal error of every encoder row in [`super::Simulation`]
     /// (memory: 8 bytes a row).
     pub record_true_error: bool,
+    /// The plate.
     pub plate: PlateConfig,
     /// Explicit bars; when empty, `fleet` (or its default) generates them.
     pub bars: Vec<BarConfig>,
+    /// A generated fleet (when `bars` is empty; its default when absent).
     pub fleet: Option<FleetConfig>,
+    /// The room's air.
     pub room: RoomConfig,
+    /// Which bar is mounted where, and when.
     pub schedule: ScheduleConfig,
+    /// Effects beyond the base model, each off by default.
     pub effects: EffectsConfig,
     /// Geometric errors and gravity sag of the bars (neutral by default).
     pub geometry: GeometryConfig,
@@ -78,9 +85,12 @@ impl GenerationConfig {
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum AirBetweenReadings {
+    /// The room's own continuous air (the default).
     #[default]
     Continuous,
+    /// The air at the last reading, held until the next.
     Held,
+    /// The air at the readings, interpolated linearly.
     Interpolated,
 }
 
@@ -116,16 +126,25 @@ pub struct BarConfig {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct FleetConfig {
+    /// Number of bars.
     pub n_bars: usize,
     /// Ids are `{id_prefix}{01..}`.
     pub id_prefix: String,
+    /// Mean `I_min`, mm.
     pub fixed_length_mm: f64,
+    /// Standard deviation of `I_min` across bars, mm.
     pub fixed_length_sd_mm: f64,
+    /// Mean alpha (fixed part), ppm/K.
     pub alpha_ppm_per_k: f64,
+    /// Standard deviation of alpha across bars, ppm/K.
     pub alpha_sd_ppm_per_k: f64,
+    /// Mean beta (scale), ppm/K.
     pub beta_ppm_per_k: f64,
+    /// Standard deviation of beta across bars, ppm/K.
     pub beta_sd_ppm_per_k: f64,
+    /// Median time constant of the fixed part (tau_R), s.
     pub tau_r_s: f64,
+    /// Median time constant of the scale (tau_S), s.
     pub tau_s_s: f64,
     /// Relative (log-normal) spread of both time constants.
     pub tau_rel_sd: f64,
@@ -164,8 +183,9 @@ pub struct RoomConfig {
     pub(crate) gradient_daily_k: f64,
     pub(crate) gradient_ac_k: f64,
     pub(crate) gradient_wander_k: f64,
-    /// Sensor noise (white Gaussian, K) and temperature logging period (s).
+    /// Sensor noise (white Gaussian), K.
     pub(crate) sensor_noise_k: f64,
+    /// Temperature logging period, s.
     pub temperature_sample_s: f64,
     /// Log a plate sensor `P1` (kind plate) even when the plate does not expand.
     pub(crate) plate_sensor: bool,
@@ -315,6 +335,7 @@ impl SagForm {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Mismatch {
+    /// Bar id.
     pub bar: String,
     #[serde(default = "one")]
     pub(crate) alpha_factor: f64,
@@ -332,9 +353,11 @@ fn one() -> f64 {
     1.0
 }
 
+/// A bar that stays on one plate length all campaign, with purpose `reference`.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ReferenceMount {
+    /// Bar id.
     pub bar: String,
     /// A plate length id.
     pub length: String,
@@ -344,12 +367,19 @@ pub struct ReferenceMount {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
 #[serde(deny_unknown_fields, default)]
 pub struct EffectsConfig {
+    /// Read-head self-heating.
     pub head_heating: HeadHeating,
+    /// A second thermal path of the fixed part.
     pub second_path: SecondPath,
+    /// The bar sees a mix of T1 and T2 while it declares T1.
     pub sensor_gradient: SensorGradient,
+    /// Settling after each mount.
     pub settling: Settling,
+    /// Undeclared plate expansion.
     pub plate_expansion: PlateExpansion,
+    /// Slow linear trend of the reading.
     pub creep: Creep,
+    /// A channel outside the catalogue.
     pub hidden_channel: HiddenChannel,
 }
 
@@ -359,8 +389,11 @@ pub struct EffectsConfig {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct HeadHeating {
+    /// Switched on.
     pub enabled: bool,
+    /// Growth of the bar with the head on, in steady state, µm.
     pub amplitude_um: f64,
+    /// Time constant of the heating, s.
     pub tau_s: f64,
     /// Relative (log-normal) spread of amplitude and tau across bars.
     pub spread: f64,
@@ -372,8 +405,9 @@ pub struct HeadHeating {
     /// When the head is switched: exponential on and off durations, or off once a day.
     #[serde(skip_serializing_if = "is_default")]
     pub schedule: HeadSchedule,
-    /// Mean on and off durations (exponential, `schedule = "random"`), hours.
+    /// Mean on duration (exponential, `schedule = "random"`), hours.
     pub mean_on_h: f64,
+    /// Mean off duration (exponential, `schedule = "random"`), hours.
     pub mean_off_h: f64,
     /// Shortest and longest off time, hours (`schedule = "daily"`: once a day, at a random time
     /// of day, for a duration drawn uniformly from this range).
@@ -419,6 +453,7 @@ pub enum HeadSchedule {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SecondPath {
+    /// Switched on.
     pub enabled: bool,
     pub(crate) gain_ppm_per_k: f64,
     pub(crate) tau_s: f64,
@@ -429,6 +464,7 @@ pub struct SecondPath {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorGradient {
+    /// Switched on.
     pub enabled: bool,
     pub(crate) weight_t2: f64,
 }
@@ -438,8 +474,10 @@ pub struct SensorGradient {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct Settling {
+    /// Switched on.
     pub enabled: bool,
     pub(crate) amplitude_um: f64,
+    /// Settling time constant, s.
     pub tau_s: f64,
 }
 
@@ -448,6 +486,7 @@ pub struct Settling {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlateExpansion {
+    /// Switched on.
     pub enabled: bool,
     pub(crate) cte_ppm_per_k: f64,
 }
@@ -466,6 +505,7 @@ pub struct Creep {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct HiddenChannel {
+    /// Switched on.
     pub enabled: bool,
     pub(crate) sensor_id: String,
     pub(crate) base_c: f64,

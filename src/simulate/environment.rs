@@ -12,9 +12,12 @@ use super::lag::FirstOrderLag;
 use super::{stream_rng, streams, Grid};
 use crate::series::SensorLog;
 
-/// Sensor ids the simulator writes.
+// Sensor ids the simulator writes.
+/// Id of the first air sensor.
 pub const AIR_LOW: &str = "T1";
+/// Id of the second air sensor.
 pub const AIR_HIGH: &str = "T2";
+/// Id of the plate sensor (kind plate).
 pub const PLATE: &str = "P1";
 
 const DAY_S: f64 = 86400.0;

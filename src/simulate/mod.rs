@@ -58,22 +58,36 @@ use schedule::{BarPlan, PlannedMount, Site};
 const MAX_GRID_POINTS: usize = 100_000_000;
 const MAX_ENCODER_ROWS: usize = 500_000_000;
 
+/// Why a simulation could not be configured, run or written.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
+    /// A configuration value out of range.
     #[error("simulation config: `{key}` {reason}")]
-    Invalid { key: String, reason: String },
+    Invalid {
+        /// The key.
+        key: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The configuration is not a valid `SimConfig` in TOML.
     #[error("simulation config: {0}")]
     Toml(#[from] toml::de::Error),
+    /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: String,
+        /// The OS error.
         #[source]
         source: std::io::Error,
     },
+    /// `truth.json` could not be serialised.
     #[error("truth.json: {0}")]
     Json(#[from] serde_json::Error),
+    /// A time, ns since the epoch, outside the representable range.
     #[error("time {0} ns outside the representable range")]
     Time(i64),
+    /// Writing the campaign failed.
     #[error("writing the campaign: {0}")]
     Write(#[from] crate::io::WriteError),
 }
@@ -81,8 +95,11 @@ pub enum SimError {
 /// A simulated campaign: what `io::write_campaign` writes, plus the truth.
 #[derive(Debug, Clone)]
 pub struct Simulation {
+    /// The campaign's `campaign.toml`.
     pub manifest: Manifest,
+    /// The campaign's encoder, temperature and event tables.
     pub tables: CampaignTables,
+    /// What was simulated (written as `truth.json`).
     pub truth: Truth,
     /// Bar id -> noise-free thermal error (indicated − true, µm) of each encoder row; empty
     /// unless `record_true_error`.

@@ -27,13 +27,16 @@ pub struct Truth {
     /// Names of the effects switched on (as in `[effects]`).
     pub(crate) effects_on: Vec<String>,
     pub(crate) plate: PlateTruth,
+    /// Each bar's true parameters.
     pub bars: Vec<BarTruth>,
+    /// Each mount as simulated.
     pub mounts: Vec<MountTruth>,
     pub(crate) n_door_events: usize,
     /// Encoder rows written, all bars.
     pub(crate) n_encoder_rows: usize,
 }
 
+/// The plate as simulated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct PlateTruth {
     /// Expansion written in the manifest, ppm/K.
@@ -49,15 +52,21 @@ pub struct PlateTruth {
 /// A bar's true parameters (`physics.md` notation) and its extra terms, when on.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct BarTruth {
+    /// Bar id.
     pub id: String,
     /// `I_min`, millimetres.
     pub fixed_length_mm: f64,
     /// Distance at which the counter reads zero, millimetres.
     pub(crate) d_zero_mm: f64,
+    /// Encoder resolution, nm a count.
     pub resolution_nm: f64,
+    /// True alpha (fixed part), ppm/K.
     pub alpha_ppm_per_k: f64,
+    /// True beta (scale), ppm/K.
     pub beta_ppm_per_k: f64,
+    /// True tau_R, s.
     pub tau_r_s: f64,
+    /// True tau_S, s.
     pub tau_s_s: f64,
     /// The sensor the manifest names for the bar.
     pub(crate) declared_sensor: String,
@@ -105,18 +114,23 @@ impl BarTruth {
     }
 }
 
+/// A bar's read-head heating as simulated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct HeadTruth {
+    /// Growth of the bar with the head on, in steady state, µm.
     pub amplitude_um: f64,
+    /// Time constant of the heating, s.
     pub tau_s: f64,
 }
 
+/// A bar's second thermal path as simulated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct SecondPathTruth {
     pub(crate) gain_ppm_per_k: f64,
     pub(crate) tau_s: f64,
 }
 
+/// The hidden channel's effect on a bar as simulated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct ChannelTruth {
     pub(crate) sensor: String,
@@ -128,6 +142,7 @@ pub struct ChannelTruth {
 /// One mount as simulated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct MountTruth {
+    /// Bar id.
     pub bar: String,
     /// The plate length id; empty on a device.
     pub(crate) length: String,
@@ -137,9 +152,11 @@ pub struct MountTruth {
     /// Tilt of the bar from horizontal during the mount, degrees.
     #[serde(default)]
     pub(crate) tilt_deg: f64,
+    /// What the mount is for.
     pub purpose: Purpose,
     /// RFC 3339, UTC (the manifest's `from`/`to`).
     pub from: String,
+    /// End, RFC 3339, UTC (the manifest's `to`).
     pub to: String,
     /// Calibrated length, mm (true at `T0` of the plate); on a device its true distance.
     pub(crate) length_mm: f64,
