@@ -62,6 +62,15 @@ pub(crate) enum Mode {
 }
 
 impl Mode {
+    /// The mode of a working bar with `n` usable references.
+    fn for_references(n: usize) -> Mode {
+        match n {
+            2 => Mode::TwoReferences,
+            1 => Mode::OneReference,
+            _ => Mode::Model,
+        }
+    }
+
     pub(crate) fn name(self, model_difference: bool) -> String {
         let base = match self {
             Mode::TwoReferences => "two_references",
@@ -436,27 +445,14 @@ fn compensate_mount(
         .zip(&thermal_um)
         .map(|((&i, a), e)| cal.chosen.distance_mm((reading_um(s, i) - e) * 1e-3, *a))
         .collect();
-    let mode = match refs.len() {
-        2 => Mode::TwoReferences,
-        1 => Mode::OneReference,
-        _ => Mode::Model,
-    };
+    let mode = Mode::for_references(refs.len());
     let n_ref = idx.len() - n_model_fallback;
     let rms_delta = if n_ref > 0 {
         (delta_sq / n_ref as f64).sqrt()
     } else {
         0.0
     };
-    let budget = thermal_budget(
-        b,
-        &refs,
-        &w,
-        d_p,
-        &idx,
-        mode,
-        rms_delta,
-        options.model_difference,
-    );
+    let budget = thermal_budget(b, &refs, &w, d_p, &idx, rms_delta, options.model_difference);
     Ok(WorkingSeries {
         bar,
         mount: m,
@@ -512,17 +508,16 @@ fn sensitivity_um_per_k(model: &BarModel, i_min_mm: f64, i_p_mm: f64) -> (f64, f
 /// - parameters: `u(alpha) I_min, u(beta) I_p` times the RMS temperature excursion (model mode),
 ///   plus each reference's anchor (its mean excursion), weighted;
 /// - temperature: sensitivities combined without correlation credit (conservative).
-#[allow(clippy::too_many_arguments)]
 fn thermal_budget(
     b: &CompBar,
     refs: &[&RefTrack],
     w: &[f64],
     d_p: f64,
     idx: &[usize],
-    mode: Mode,
     rms_delta: f64,
     model_difference: bool,
 ) -> (f64, f64, f64) {
+    let mode = Mode::for_references(refs.len());
     let s = b.series;
     let dt_rms = (idx
         .iter()

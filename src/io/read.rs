@@ -575,6 +575,9 @@ fn footer_rows_each(files: &[PathBuf]) -> Result<Vec<u64>, IngestError> {
 
 // ---------------------------------------------------------------- encoders, streamed
 
+/// The rows of a batch that are kept: bar indices, times (ns) and counts, same length.
+type KeptRows = (Vec<u32>, Vec<i64>, Vec<i64>);
+
 /// Rows of one bar gathered from every file and batch: kept (in arrival order), or added to the
 /// bar's compressed bins as they arrive (`series::BinAccumulator`: order-free integer sums).
 enum BarRows {
@@ -838,14 +841,13 @@ impl EncoderSink {
     /// Counts that are not a clean int64 column (nulls, floats, values beyond ±2^48): missing
     /// ones (null, NaN, ±inf) dropped and counted per bar; whole floats converted exactly; the
     /// batch refused (`None`, rows in `bad`) on a fraction or a value out of range.
-    #[allow(clippy::type_complexity)]
     fn checked_counts(
         &mut self,
         ids: &[u32],
         time: &[i64],
         counts: &Column,
         offset: u64,
-    ) -> PolarsResult<Option<(Vec<u32>, Vec<i64>, Vec<i64>)>> {
+    ) -> PolarsResult<Option<KeptRows>> {
         const FRACTION: &str = "hold counts that are not whole numbers";
         const RANGE: &str = "hold counts beyond ±2^48";
         let values: Vec<Option<f64>> = match counts.dtype() {

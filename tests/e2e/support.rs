@@ -73,7 +73,6 @@ pub(crate) fn run_cli(args: &[&str]) -> (i32, String, String) {
 /// `temperature_sample_s`; the truth's air between two temperature readings is `air` and the
 /// room runs `prehistory_hours` before the logging starts (the bars are then not in steady state
 /// at their first reading).
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn base_only_config(
     seed: u64,
     air: simulate::AirBetweenReadings,
