@@ -11,17 +11,17 @@ use crate::calibrate::{u_from_lengths_um, BarCalibration};
 use crate::compensate::{CompensationMode, WorkingSeries};
 
 /// The rule in one short line, for figures.
-pub const DECISION_RULE_SHORT: &str = "ISO 14253-1: pass only if max|e| + U ≤ tolerance, fail only if max|e| − U > tolerance, otherwise no decision.";
+pub(crate) const DECISION_RULE_SHORT: &str = "ISO 14253-1: pass only if max|e| + U ≤ tolerance, fail only if max|e| − U > tolerance, otherwise no decision.";
 
 /// The ISO 14253-1 decision rule, as printed in every output.
-pub const DECISION_RULE: &str = "ISO 14253-1: pass only when max|error| + U <= tolerance (conformance proven); fail only when max|error| - U > tolerance (non-conformance proven); otherwise no decision. U is the expanded uncertainty (k = 2).";
+pub(crate) const DECISION_RULE: &str = "ISO 14253-1: pass only when max|error| + U <= tolerance (conformance proven); fail only when max|error| - U > tolerance (non-conformance proven); otherwise no decision. U is the expanded uncertainty (k = 2).";
 
 #[derive(Debug, Clone, Serialize)]
-pub struct AcceptanceOptions {
+pub(crate) struct AcceptanceOptions {
     /// Tolerance on the centre-distance error, ± µm (the patent's ±1 µm by default).
-    pub tolerance_um: f64,
+    pub(crate) tolerance_um: f64,
     /// Standard uncertainty of the temperature measurement, K.
-    pub u_temperature_k: f64,
+    pub(crate) u_temperature_k: f64,
 }
 
 impl Default for AcceptanceOptions {
@@ -33,17 +33,22 @@ impl Default for AcceptanceOptions {
     }
 }
 
+/// The ISO 14253-1 decision on a working bar: its worst error against the tolerance, with U.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum Decision {
+    /// Conformance proven: worst error + U is within the tolerance.
     #[serde(rename = "pass")]
     Pass,
+    /// Non-conformance proven: worst error − U exceeds the tolerance.
     #[serde(rename = "fail")]
     Fail,
+    /// Neither proven (the error is within U of the tolerance, or not finite).
     #[serde(rename = "no decision")]
     NoDecision,
 }
 
 impl Decision {
+    /// The decision as written in `summary.json`: `pass`, `fail` or `no decision`.
     pub fn as_str(self) -> &'static str {
         match self {
             Decision::Pass => "pass",
@@ -56,13 +61,14 @@ impl Decision {
 /// Max |e|, peak-to-valley and RMS of an error series, µm.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct ErrorStats {
+    /// Largest absolute error, µm.
     pub max_abs_um: f64,
-    pub pv_um: f64,
-    pub rms_um: f64,
+    pub(crate) pv_um: f64,
+    pub(crate) rms_um: f64,
 }
 
 impl ErrorStats {
-    pub fn of(e: &[f64]) -> ErrorStats {
+    pub(crate) fn of(e: &[f64]) -> ErrorStats {
         let finite: Vec<f64> = e.iter().copied().filter(|v| v.is_finite()).collect();
         if finite.is_empty() {
             return ErrorStats {
@@ -86,41 +92,51 @@ impl ErrorStats {
 
 /// One term of the budget: a standard uncertainty (k = 1), µm.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct BudgetTerm {
+pub(crate) struct BudgetTerm {
     pub name: String,
-    pub u_um: f64,
-    pub note: String,
+    pub(crate) u_um: f64,
+    pub(crate) note: String,
 }
 
 /// One working bar's acceptance on one known length.
 #[derive(Debug, Clone, Serialize)]
 pub struct BarAcceptance {
+    /// Working bar id.
     pub bar: String,
-    pub length_id: String,
-    pub length_mm: f64,
+    pub(crate) length_id: String,
+    pub(crate) length_mm: f64,
+    /// How it was compensated: `two_references`, `one_reference` or `model`, with
+    /// `+model_difference` when the modelled reference-to-working difference was added.
     pub mode: CompensationMode,
+    /// Ids of the reference bars used.
     pub references: Vec<String>,
-    pub n_samples: usize,
+    pub(crate) n_samples: usize,
+    /// Largest absolute error after compensation, µm.
     pub max_abs_error_um: f64,
+    /// Peak-to-valley of the error after compensation, µm.
     pub pv_um: f64,
+    /// RMS of the error after compensation, µm.
     pub rms_um: f64,
+    /// The same statistics before compensation.
     pub before: ErrorStats,
-    pub budget: Vec<BudgetTerm>,
-    pub u_c_um: f64,
+    pub(crate) budget: Vec<BudgetTerm>,
+    pub(crate) u_c_um: f64,
+    /// Expanded uncertainty U (k = 2), µm.
     pub u_k2_um: f64,
-    pub tolerance_um: f64,
+    pub(crate) tolerance_um: f64,
+    /// The ISO 14253-1 decision against the tolerance.
     pub decision: Decision,
     /// Time (s since campaign start) and errors after / before compensation, µm.
     #[serde(skip)]
-    pub t_s: Vec<f64>,
+    pub(crate) t_s: Vec<f64>,
     #[serde(skip)]
-    pub error_um: Vec<f64>,
+    pub(crate) error_um: Vec<f64>,
     #[serde(skip)]
-    pub error_before_um: Vec<f64>,
+    pub(crate) error_before_um: Vec<f64>,
 }
 
 /// The ISO 14253-1 decision for a worst error `max_abs_um` with expanded uncertainty `u_k2_um`.
-pub fn decide(max_abs_um: f64, u_k2_um: f64, tolerance_um: f64) -> Decision {
+pub(crate) fn decide(max_abs_um: f64, u_k2_um: f64, tolerance_um: f64) -> Decision {
     if !(max_abs_um.is_finite() && u_k2_um.is_finite()) {
         return Decision::NoDecision;
     }
@@ -134,7 +150,7 @@ pub fn decide(max_abs_um: f64, u_k2_um: f64, tolerance_um: f64) -> Decision {
 }
 
 /// The uncertainty budget (standard uncertainties, k = 1) of a compensated working series.
-pub fn budget(
+pub(crate) fn budget(
     w: &WorkingSeries,
     cal: &BarCalibration,
     resolution_nm: f64,
@@ -168,7 +184,7 @@ fn representative_reading_mm(w: &WorkingSeries, cal: &BarCalibration) -> f64 {
 }
 
 /// Accept one working series on a known length.
-pub fn accept(
+pub(crate) fn accept(
     w: &WorkingSeries,
     cal: &BarCalibration,
     resolution_nm: f64,
@@ -203,22 +219,22 @@ pub fn accept(
 
 /// The fleet's acceptance at a glance.
 #[derive(Debug, Clone, Serialize)]
-pub struct FleetAcceptance {
-    pub n_bars: usize,
-    pub n_pass: usize,
-    pub n_fail: usize,
-    pub n_no_decision: usize,
-    pub max_abs_error_um: f64,
-    pub max_abs_error_before_um: f64,
-    pub rms_um: f64,
-    pub rms_before_um: f64,
-    pub max_u_k2_um: f64,
+pub(crate) struct FleetAcceptance {
+    pub(crate) n_bars: usize,
+    pub(crate) n_pass: usize,
+    pub(crate) n_fail: usize,
+    pub(crate) n_no_decision: usize,
+    pub(crate) max_abs_error_um: f64,
+    pub(crate) max_abs_error_before_um: f64,
+    pub(crate) rms_um: f64,
+    pub(crate) rms_before_um: f64,
+    pub(crate) max_u_k2_um: f64,
     /// Every compensation mode that ran.
-    pub modes: Vec<CompensationMode>,
+    pub(crate) modes: Vec<CompensationMode>,
 }
 
 /// Summarise the fleet: counts of decisions, worst errors, RMS over all samples.
-pub fn fleet(bars: &[BarAcceptance]) -> FleetAcceptance {
+pub(crate) fn fleet(bars: &[BarAcceptance]) -> FleetAcceptance {
     let count = |d: Decision| bars.iter().filter(|b| b.decision == d).count();
     let all = |f: &dyn Fn(&BarAcceptance) -> &Vec<f64>| {
         ErrorStats::of(

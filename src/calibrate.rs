@@ -27,28 +27,32 @@ use crate::series::{BarSeries, EventKind};
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct CalibrationPoint {
     /// Index into the bar's `BarSeries::mounts`.
-    pub mount: usize,
+    pub(crate) mount: usize,
+    /// The plate length's id (`plate.length[].id`).
     pub length_id: String,
     /// True centre distance `D_i` (calibrated plate length), mm.
     pub length_mm: f64,
     /// Standard uncertainty of `D_i`, µm.
-    pub u_length_um: f64,
+    pub(crate) u_length_um: f64,
+    /// Tilt of the bar from horizontal at this point, degrees.
     pub tilt_deg: f64,
     /// Indicated reading `k n` brought to the reference temperature, mm.
     pub reading_mm: f64,
     /// Standard uncertainty of the mean reading (scatter over the mount, autocorrelation
     /// accounted for), µm.
-    pub u_reading_um: f64,
+    pub(crate) u_reading_um: f64,
     /// Counter epoch: number of `rezero` events before the point.
-    pub epoch: usize,
-    pub purpose: Purpose,
-    pub n_samples: usize,
+    pub(crate) epoch: usize,
+    pub(crate) purpose: Purpose,
+    pub(crate) n_samples: usize,
 }
 
 /// The tilt function of a gravity-sag term (`physics.md`: largest horizontal, zero vertical).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SagTilt {
+    /// `f(A) = cos A`.
     Cos,
+    /// `f(A) = cos² A`.
     Cos2,
 }
 
@@ -71,14 +75,19 @@ pub enum Form {
     Quadratic,
     /// Quadratic plus gravity sag `f(A) (s0 + s1 u + ...)`, a polynomial of degree
     /// `length_degree` in the normalised reading `u` (the sag grows with the bar's length).
-    Sag { tilt: SagTilt, length_degree: u8 },
+    Sag {
+        /// The tilt function `f(A)`.
+        tilt: SagTilt,
+        /// Degree of the polynomial in `u`.
+        length_degree: u8,
+    },
     /// A table of the points, interpolated linearly in `k n` within a tilt and linearly in tilt
     /// between tilts (extrapolated from the end segments).
     Table,
 }
 
 /// Every form, simplest first (ties in cross-validated error go to the simpler form).
-pub const FORMS: [Form; 9] = [
+pub(crate) const FORMS: [Form; 9] = [
     Form::Linear,
     Form::Quadratic,
     Form::Sag {
@@ -147,6 +156,7 @@ impl Form {
         }
     }
 
+    /// Whether the form has a gravity-sag term.
     pub fn has_sag(self) -> bool {
         matches!(self, Form::Sag { .. })
     }
@@ -164,17 +174,18 @@ impl Serialize for Form {
 /// `u = (k n − centre) / half_range`, which keeps the columns well conditioned.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct DistanceFunction {
+    /// The form fitted.
     pub form: Form,
-    pub reading_centre_mm: f64,
-    pub reading_half_range_mm: f64,
+    pub(crate) reading_centre_mm: f64,
+    pub(crate) reading_half_range_mm: f64,
     /// Coefficient names and values (µm), parametric forms only.
-    pub coefficients: Vec<(String, f64)>,
+    pub(crate) coefficients: Vec<(String, f64)>,
     /// The patent's `a` (1/mm), `b` (1) and `c` (mm) of the tilt-free part, quadratic forms only.
-    pub patent_abc: Option<[f64; 3]>,
+    pub(crate) patent_abc: Option<[f64; 3]>,
     /// Table form: (tilt, [(reading mm, correction µm)] sorted by reading), sorted by tilt.
-    pub table: Vec<(f64, Vec<(f64, f64)>)>,
+    pub(crate) table: Vec<(f64, Vec<(f64, f64)>)>,
     /// RMS of the fit residuals at the points, µm.
-    pub fit_rms_um: f64,
+    pub(crate) fit_rms_um: f64,
 }
 
 impl DistanceFunction {
@@ -199,33 +210,38 @@ impl DistanceFunction {
 /// One form's cross-validation result.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct FormScore {
+    /// The form scored.
     pub form: Form,
-    pub n_params: usize,
+    pub(crate) n_params: usize,
     /// RMS of the leave-one-point-out prediction errors, µm (`None`: the form cannot be fitted).
     pub cv_rms_um: Option<f64>,
-    pub cv_max_abs_um: Option<f64>,
+    pub(crate) cv_max_abs_um: Option<f64>,
     /// RMS of the residuals of the fit on all points, µm.
-    pub fit_rms_um: Option<f64>,
+    pub(crate) fit_rms_um: Option<f64>,
     /// Why the form could not be fitted or cross-validated.
-    pub note: Option<String>,
+    pub(crate) note: Option<String>,
 }
 
 /// A point left out of the calibration, and why.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct ExcludedPoint {
-    pub point: CalibrationPoint,
-    pub reason: String,
+pub(crate) struct ExcludedPoint {
+    pub(crate) point: CalibrationPoint,
+    pub(crate) reason: String,
 }
 
 /// A bar's calibration.
 #[derive(Debug, Clone, Serialize)]
 pub struct BarCalibration {
+    /// Bar id.
     pub bar: String,
     /// The counter epoch the function is valid in.
-    pub epoch: usize,
+    pub(crate) epoch: usize,
+    /// The calibration points fitted (those of `epoch`).
     pub points: Vec<CalibrationPoint>,
-    pub excluded: Vec<ExcludedPoint>,
+    pub(crate) excluded: Vec<ExcludedPoint>,
+    /// Every form tried, with its cross-validation score.
     pub forms: Vec<FormScore>,
+    /// The function chosen by leave-one-point-out cross-validation.
     pub chosen: DistanceFunction,
     /// Cross-validated RMS error of the chosen form, µm: the calibration-function term of the
     /// uncertainty budget.
@@ -240,19 +256,34 @@ impl BarCalibration {
     }
 }
 
+/// Why a bar has no centre-distance function.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum CalibrateError {
+    /// Fewer than 3 calibration points in the counter epoch.
     #[error("bar {bar}: {n} calibration point(s) in counter epoch {epoch}; at least 3 are needed")]
-    TooFewPoints { bar: String, n: usize, epoch: usize },
+    TooFewPoints {
+        /// Bar id.
+        bar: String,
+        /// Points found.
+        n: usize,
+        /// The counter epoch (`rezero` events before it).
+        epoch: usize,
+    },
+    /// No form could be fitted.
     #[error("bar {bar}: no form of the centre-distance function could be fitted ({reasons})")]
-    NoForm { bar: String, reasons: String },
+    NoForm {
+        /// Bar id.
+        bar: String,
+        /// Why each form failed.
+        reasons: String,
+    },
 }
 
 // ------------------------------------------------------------------------------------ tilt
 
 /// Tilt of the bar at sample `i` (`campaign-format.md`): the mount's own `tilt_deg`, else the
 /// latest `tilt` event at or before the sample, else the plate's.
-pub fn tilt_at_deg(series: &BarSeries, campaign: &Campaign, i: usize) -> f64 {
+pub(crate) fn tilt_at_deg(series: &BarSeries, campaign: &Campaign, i: usize) -> f64 {
     let explicit = series.mount_of[i]
         .and_then(|m| {
             campaign
@@ -277,7 +308,7 @@ fn latest_tilt_event(series: &BarSeries, t_s: f64) -> Option<f64> {
 }
 
 /// Counter epoch of each sample: the number of `rezero` events at or before it.
-pub fn counter_epochs(series: &BarSeries) -> Vec<usize> {
+pub(crate) fn counter_epochs(series: &BarSeries) -> Vec<usize> {
     let rezeros: Vec<f64> = series
         .events
         .iter()
@@ -292,7 +323,7 @@ pub fn counter_epochs(series: &BarSeries) -> Vec<usize> {
 }
 
 /// The indicated reading `k n` in µm at sample `i` (plate expansion removed).
-pub fn reading_um(series: &BarSeries, i: usize) -> f64 {
+pub(crate) fn reading_um(series: &BarSeries, i: usize) -> f64 {
     series.y_um[i] + series.zero_segment[i].map_or(0.0, |s| series.segment_offset_um[s as usize])
 }
 
@@ -301,7 +332,7 @@ pub fn reading_um(series: &BarSeries, i: usize) -> f64 {
 /// Calibration points of one bar: one per (plate mount, counter epoch, tilt), check mounts left
 /// out (they verify, never fit). The reading at the reference temperature is the mean over the
 /// mount of the reading minus the model's thermal error.
-pub fn calibration_points(
+pub(crate) fn calibration_points(
     series: &BarSeries,
     model: &BarModel,
     campaign: &Campaign,
@@ -309,7 +340,8 @@ pub fn calibration_points(
     let epochs = counter_epochs(series);
     let mut groups: std::collections::BTreeMap<(usize, usize, i64), Vec<(f64, f64)>> =
         Default::default();
-    for i in 0..series.t_s.len() {
+    // One epoch per sample (`counter_epochs`).
+    for (i, &epoch) in epochs.iter().enumerate() {
         // Weight-0 samples (the lag grid of a compressed series) are not readings.
         let Some(m) = series.mount_of[i].filter(|_| series.weight[i] > 0.0) else {
             continue;
@@ -322,7 +354,7 @@ pub fn calibration_points(
             continue;
         };
         let tilt_key = (tilt_at_deg(series, campaign, i) * 1000.0).round() as i64;
-        let key = (m as usize, epochs[i], tilt_key);
+        let key = (m as usize, epoch, tilt_key);
         let value = reading_um(series, i) - thermal;
         groups
             .entry(key)
@@ -424,7 +456,10 @@ impl Separable for LinearProblem {
 }
 
 /// Fit one form to `points` (all assumed in one counter epoch).
-pub fn fit_form(form: Form, points: &[CalibrationPoint]) -> Result<DistanceFunction, String> {
+pub(crate) fn fit_form(
+    form: Form,
+    points: &[CalibrationPoint],
+) -> Result<DistanceFunction, String> {
     if points.is_empty() {
         return Err("no points".into());
     }
@@ -572,7 +607,7 @@ fn table_correction_um(table: &[(f64, Vec<(f64, f64)>)], reading_mm: f64, tilt_d
 }
 
 /// Leave-one-point-out prediction errors (µm) of `form`.
-pub fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64>, String> {
+pub(crate) fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64>, String> {
     (0..points.len())
         .map(|k| {
             let rest: Vec<CalibrationPoint> = points
@@ -689,7 +724,7 @@ pub fn calibrate_points(
 }
 
 /// Calibrate one bar from its series and identified model.
-pub fn calibrate_bar(
+pub(crate) fn calibrate_bar(
     series: &BarSeries,
     model: &BarModel,
     campaign: &Campaign,
@@ -700,7 +735,7 @@ pub fn calibrate_bar(
 /// Sensitivity of the calibrated distance at (`reading_mm`, `tilt_deg`) to each point's true
 /// length (dimensionless weights, by linearity of every form in the lengths): the plate-length
 /// uncertainties propagate as `sqrt(sum w_i^2 u_i^2)`.
-pub fn length_weights(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> Vec<f64> {
+pub(crate) fn length_weights(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> Vec<f64> {
     let base = cal.chosen.distance_mm(reading_mm, tilt_deg);
     (0..cal.points.len())
         .map(|k| {
@@ -713,7 +748,7 @@ pub fn length_weights(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> V
 }
 
 /// Standard uncertainty (µm) of the calibrated distance from the plate lengths used in the fit.
-pub fn u_from_lengths_um(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> f64 {
+pub(crate) fn u_from_lengths_um(cal: &BarCalibration, reading_mm: f64, tilt_deg: f64) -> f64 {
     length_weights(cal, reading_mm, tilt_deg)
         .iter()
         .zip(&cal.points)

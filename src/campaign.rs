@@ -9,177 +9,227 @@
 use serde::{Deserialize, Serialize};
 
 /// Nanoseconds since 1970-01-01T00:00:00Z.
-pub type TimeNs = i64;
+pub(crate) type TimeNs = i64;
 
 // ---------------------------------------------------------------- manifest, as written in TOML
 
+/// `campaign.toml` as written (`shared/spec/campaign-format.md`), not yet validated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Manifest {
+    /// `[campaign]`.
     pub campaign: CampaignSection,
+    /// `[plate]`.
     pub plate: PlateSection,
+    /// `[[sensor]]`: the temperature sensors.
     #[serde(default)]
     pub sensor: Vec<SensorDecl>,
+    /// `[[bar]]`: the ballbars.
     #[serde(default)]
     pub bar: Vec<BarDecl>,
+    /// `[[mount]]`: where each bar sat, and when.
     #[serde(default)]
     pub mount: Vec<MountDecl>,
 }
 
+/// `[campaign]`: id and reference temperature.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CampaignSection {
+    /// Campaign id (names the default output folder `reports/<id>`).
     pub id: String,
+    /// Reference temperature T0, °C.
     pub reference_temperature_c: f64,
 }
 
+/// `[plate]`: the calibration plate.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PlateSection {
+    /// Plate material (free text).
     pub material: String,
+    /// Declared expansion coefficient of the plate, ppm/K; 0 when absent.
     #[serde(default)]
     pub cte_ppm_per_k: f64,
     /// Plate tilt from horizontal, degrees; 0 when absent.
     #[serde(default)]
     pub tilt_deg: f64,
+    /// `[[plate.length]]`: the calibrated socket-pair distances.
     #[serde(default)]
     pub length: Vec<PlateLength>,
 }
 
+/// One calibrated socket-pair distance on the plate.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PlateLength {
+    /// Length id (what `mount[].length` names).
     pub id: String,
+    /// Calibrated centre distance, mm.
     pub mm: f64,
     /// Standard uncertainty (k = 1) of the calibrated length, micrometres.
     pub u_um: f64,
 }
 
+/// What a temperature sensor measures (`sensor[].kind`).
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[serde(rename_all = "lowercase")]
 pub enum SensorKind {
+    /// Air near the bars.
     Air,
+    /// The plate.
     Plate,
+    /// A bar itself.
     Bar,
+    /// A read head.
     Head,
+    /// Anything else (a machine part, coolant, …).
     Other,
 }
 
+/// `[[sensor]]`: one temperature sensor.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SensorDecl {
+    /// Sensor id (the `sensor` column of `temperatures/*.parquet`).
     pub id: String,
+    /// What it measures.
     pub kind: SensorKind,
 }
 
+/// `[[bar]]`: one ballbar.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BarDecl {
+    /// Bar id (the `bar` column of `encoders/*.parquet`).
     pub id: String,
+    /// Encoder resolution, nm a count.
     pub resolution_nm: f64,
+    /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel, mm.
     pub fixed_length_mm: f64,
+    /// The air sensor nearest the bar; absent: the mean of all air sensors.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor: Option<String>,
 }
 
+/// What a mount is for (`mount[].purpose`).
 #[derive(
     Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash, Default,
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Purpose {
+    /// A calibration point, and data for the thermal model (the default).
     #[default]
     Calibration,
+    /// The bar serves as a reference bar during the mount.
     Reference,
+    /// A known length used only to verify the result, never fitted.
     Check,
 }
 
+/// `[[mount]]`: one bar on a plate length or a device for a time span.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MountDecl {
+    /// Bar id.
     pub bar: String,
+    /// Plate length id (on the plate); absent on a device.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length: Option<String>,
+    /// Device name (on a target device, true distance unknown); absent on the plate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub device: Option<String>,
+    /// Tilt of the bar from horizontal, degrees; absent: the plate's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_deg: Option<f64>,
+    /// What the mount is for; absent: calibration.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub purpose: Option<Purpose>,
+    /// Start of the mount (UTC).
     pub from: toml::value::Datetime,
+    /// End of the mount (UTC).
     pub to: toml::value::Datetime,
 }
 
 // ---------------------------------------------------------------- validated campaign
 
+/// A validated campaign: every reference in the manifest checked, times in ns.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Campaign {
-    pub id: String,
-    pub reference_temperature_c: f64,
-    pub plate: Plate,
-    pub sensors: Vec<Sensor>,
-    pub bars: Vec<Bar>,
+    pub(crate) id: String,
+    pub(crate) reference_temperature_c: f64,
+    pub(crate) plate: Plate,
+    pub(crate) sensors: Vec<Sensor>,
+    pub(crate) bars: Vec<Bar>,
     /// Sorted by (bar, from_ns).
     pub mounts: Vec<Mount>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
-pub struct Plate {
-    pub material: String,
-    pub cte_ppm_per_k: f64,
-    pub tilt_deg: f64,
-    pub lengths: Vec<PlateLength>,
+pub(crate) struct Plate {
+    pub(crate) material: String,
+    pub(crate) cte_ppm_per_k: f64,
+    pub(crate) tilt_deg: f64,
+    pub(crate) lengths: Vec<PlateLength>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
-pub struct Sensor {
-    pub id: String,
-    pub kind: SensorKind,
+pub(crate) struct Sensor {
+    pub(crate) id: String,
+    pub(crate) kind: SensorKind,
 }
 
+/// A declared bar, validated.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Bar {
-    pub id: String,
-    pub resolution_nm: f64,
+    pub(crate) id: String,
+    pub(crate) resolution_nm: f64,
     /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel.
-    pub fixed_length_mm: f64,
+    pub(crate) fixed_length_mm: f64,
     /// The air sensor nearest the bar; `None` = mean of all air sensors.
-    pub sensor: Option<String>,
+    pub(crate) sensor: Option<String>,
 }
 
 /// Where a bar sat during a mount.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Place {
+pub(crate) enum Place {
     /// On a plate socket pair of known centre distance.
     Length(PlateLength),
     /// On a target device: true distance unknown.
     Device(String),
 }
 
+/// A validated mount.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mount {
+    /// Bar id.
     pub bar: String,
-    pub place: Place,
+    pub(crate) place: Place,
     /// Tilt from horizontal, degrees: the mount's, else the plate's.
-    pub tilt_deg: f64,
+    pub(crate) tilt_deg: f64,
     /// Whether the mount gave its own `tilt_deg` (it then wins over `tilt` events, see
     /// `calibrate::tilt_at_deg`).
-    pub tilt_explicit: bool,
-    pub purpose: Purpose,
+    pub(crate) tilt_explicit: bool,
+    pub(crate) purpose: Purpose,
+    /// Start, ns since the epoch (UTC).
     pub from_ns: TimeNs,
+    /// End, ns since the epoch (UTC).
     pub to_ns: TimeNs,
 }
 
 impl Campaign {
+    /// The bar `id`, if declared.
     pub fn bar(&self, id: &str) -> Option<&Bar> {
         self.bars.iter().find(|b| b.id == id)
     }
-    pub fn sensor(&self, id: &str) -> Option<&Sensor> {
+    pub(crate) fn sensor(&self, id: &str) -> Option<&Sensor> {
         self.sensors.iter().find(|s| s.id == id)
     }
+    /// The mounts of bar `bar`, in the campaign's order.
     pub fn mounts_of<'a>(&'a self, bar: &'a str) -> impl Iterator<Item = &'a Mount> + 'a {
         self.mounts.iter().filter(move |m| m.bar == bar)
     }
-    pub fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
+    pub(crate) fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
         self.sensors.iter().filter(|s| s.kind == SensorKind::Air)
     }
 }
@@ -194,35 +244,54 @@ pub enum CampaignError {
     /// The text is not TOML, or does not have the manifest's shape (unknown or missing key).
     #[error("{file}:{line}:{column}: {message}")]
     Syntax {
+        /// The manifest's file name.
         file: String,
+        /// Line of the error (0 when unknown).
         line: usize,
+        /// Column of the error (0 when unknown).
         column: usize,
+        /// The TOML parser's message.
         message: String,
     },
     /// Two entries of one table share an id.
     #[error("{file}: {table}[{second}]: id {id:?} is already used by {table}[{first}]")]
     DuplicateId {
+        /// The manifest's file name.
         file: String,
+        /// The table (e.g. `bar`).
         table: &'static str,
+        /// The repeated id.
         id: String,
+        /// Index of the entry that has it first.
         first: usize,
+        /// Index of the repeat.
         second: usize,
     },
     /// A reference to something the manifest does not declare.
     #[error("{file}: {key}: {field} {value:?} is not {what} (known: {known})")]
     Unknown {
+        /// The manifest's file name.
         file: String,
+        /// The key holding the reference (e.g. `mount[3]`).
         key: String,
+        /// The field that names it (e.g. `bar`).
         field: &'static str,
+        /// The name given.
         value: String,
+        /// What it should name (e.g. `a declared bar`).
         what: &'static str,
-        known: String,
+        /// The names that are declared, comma-separated (`Box<str>`, not `String`: keeps the
+        /// error, and every `Result` carrying it, under 128 bytes).
+        known: Box<str>,
     },
     /// Any other invalid value.
     #[error("{file}: {key}: {problem}")]
     Invalid {
+        /// The manifest's file name.
         file: String,
+        /// The key with the invalid value.
         key: String,
+        /// What is wrong with it.
         problem: String,
     },
 }
@@ -230,30 +299,30 @@ pub enum CampaignError {
 /// The allowed ranges of the manifest's numbers (both ends included; NaN and infinities are
 /// outside every range). Generous: they refuse what no real campaign holds (a typo, a unit
 /// mix-up, TOML's `nan`/`inf`), not unusual set-ups.
-pub mod limits {
+pub(crate) mod limits {
     /// `campaign.id`: at most this many characters of `[A-Za-z0-9._-]`, no leading dot (it names
     /// the default output folder `reports/<id>`).
-    pub const ID_MAX_CHARS: usize = 100;
+    pub(crate) const ID_MAX_CHARS: usize = 100;
     /// `campaign.reference_temperature_c`, °C.
-    pub const REFERENCE_TEMPERATURE_C: (f64, f64) = (-100.0, 200.0);
+    pub(crate) const REFERENCE_TEMPERATURE_C: (f64, f64) = (-100.0, 200.0);
     /// `plate.cte_ppm_per_k`, ppm/K (Zerodur ~0, steel ~12, aluminium ~23).
-    pub const CTE_PPM_PER_K: (f64, f64) = (-100.0, 100.0);
+    pub(crate) const CTE_PPM_PER_K: (f64, f64) = (-100.0, 100.0);
     /// `plate.tilt_deg`, `mount[].tilt_deg`: from horizontal, degrees.
-    pub const TILT_DEG: (f64, f64) = (-90.0, 90.0);
+    pub(crate) const TILT_DEG: (f64, f64) = (-90.0, 90.0);
     /// `plate.length[].mm`, `bar[].fixed_length_mm`: above 0, at most 10 m.
-    pub const LENGTH_MM: (f64, f64) = (0.0, 10_000.0);
+    pub(crate) const LENGTH_MM: (f64, f64) = (0.0, 10_000.0);
     /// `plate.length[].u_um`: 0 to 1 mm.
-    pub const U_UM: (f64, f64) = (0.0, 1_000.0);
+    pub(crate) const U_UM: (f64, f64) = (0.0, 1_000.0);
     /// `bar[].resolution_nm`: above 0, at most 1 mm a count.
-    pub const RESOLUTION_NM: (f64, f64) = (0.0, 1e6);
+    pub(crate) const RESOLUTION_NM: (f64, f64) = (0.0, 1e6);
     /// `mount[].from`, `mount[].to`: from 1970-01-01T00:00:00Z (included) to
     /// 2200-01-01T00:00:00Z (excluded), ns since the epoch.
-    pub const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
+    pub(crate) const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
 }
 
 /// A number for a one-line message: plain decimals, an exponent for very large or small ones
 /// (`1e300`, not three hundred digits).
-pub fn display_number(v: f64) -> String {
+pub(crate) fn display_number(v: f64) -> String {
     if v.is_finite() && v != 0.0 && !(1e-6..1e15).contains(&v.abs()) {
         format!("{v:e}")
     } else {
@@ -266,7 +335,7 @@ const MANIFEST_FILE: &str = "campaign.toml";
 
 impl Manifest {
     /// Parses `campaign.toml` text; `file` is only used in error messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<Manifest, CampaignError> {
+    pub(crate) fn from_toml_str(text: &str, file: &str) -> Result<Manifest, CampaignError> {
         toml::from_str(text).map_err(|e| {
             let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
             CampaignError::Syntax {
@@ -302,7 +371,7 @@ fn one_line(s: &str) -> String {
 
 /// Converts a TOML datetime to nanoseconds since the epoch. A datetime without offset is UTC;
 /// a date or time alone is an error (the string says why).
-pub fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
+pub(crate) fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
     let (Some(d), Some(t)) = (dt.date, dt.time) else {
         return Err(format!(
             "{dt} is not a date-time (need e.g. 2026-11-01T00:00:00Z)"
@@ -367,7 +436,10 @@ impl Campaign {
     }
 
     /// As [`Campaign::from_manifest`], naming `file` in messages.
-    pub fn from_manifest_at(manifest: Manifest, file: &str) -> Result<Campaign, CampaignError> {
+    pub(crate) fn from_manifest_at(
+        manifest: Manifest,
+        file: &str,
+    ) -> Result<Campaign, CampaignError> {
         let v = Validator { file };
         v.campaign_section(&manifest.campaign)?;
         v.plate(&manifest.plate)?;
@@ -409,7 +481,7 @@ impl Campaign {
 /// `campaign.id` names the default output folder (`reports/<id>`): non-empty, at most
 /// [`limits::ID_MAX_CHARS`] characters of `[A-Za-z0-9._-]`, not starting with a dot (no hidden
 /// folder, no `..`, no path separator).
-pub fn check_campaign_id(id: &str) -> Result<(), String> {
+pub(crate) fn check_campaign_id(id: &str) -> Result<(), String> {
     if id.is_empty() {
         return Err("is empty".into());
     }
@@ -465,13 +537,14 @@ impl Validator<'_> {
             value: value.to_string(),
             what,
             known: if known.is_empty() {
-                "none".to_string()
+                "none".into()
             } else {
                 known
                     .iter()
                     .map(|k| k.escape_debug().to_string())
                     .collect::<Vec<_>>()
                     .join(", ")
+                    .into()
             },
         }
     }
@@ -485,7 +558,6 @@ impl Validator<'_> {
     }
 
     /// `value` finite and within `range`; `open_low`: the low end itself is refused (`> lo`).
-    #[allow(clippy::result_large_err)] // as every check here: one error, built once per run
     fn in_range(
         &self,
         key: &str,
@@ -670,7 +742,6 @@ impl Validator<'_> {
             false,
             " degrees",
         )?;
-        #[allow(clippy::result_large_err)]
         let time = |name: &str, dt: &toml::value::Datetime| {
             let ns = toml_datetime_to_ns(dt)
                 .map_err(|e| self.invalid(key.clone(), format!("{name}: {e}")))?;

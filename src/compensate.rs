@@ -29,18 +29,18 @@ use crate::series::BarSeries;
 
 /// What compensation needs of one bar.
 #[derive(Debug, Clone, Copy)]
-pub struct CompBar<'a> {
-    pub series: &'a BarSeries,
-    pub model: &'a BarModel,
-    pub calibration: Option<&'a BarCalibration>,
+pub(crate) struct CompBar<'a> {
+    pub(crate) series: &'a BarSeries,
+    pub(crate) model: &'a BarModel,
+    pub(crate) calibration: Option<&'a BarCalibration>,
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct CompensateOptions {
+pub(crate) struct CompensateOptions {
     /// Also compensate the modelled reference-to-working difference.
-    pub model_difference: bool,
+    pub(crate) model_difference: bool,
     /// A reference reading farther than this from a working sample is not used, s.
-    pub max_gap_s: f64,
+    pub(crate) max_gap_s: f64,
 }
 
 impl Default for CompensateOptions {
@@ -55,7 +55,7 @@ impl Default for CompensateOptions {
 /// Where a working bar's thermal error came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum Mode {
+pub(crate) enum Mode {
     /// Interpolated between the two reference bars nearest in length (patent).
     TwoReferences,
     /// One reference bar's measured error.
@@ -64,23 +64,35 @@ pub enum Mode {
     Model,
 }
 
+impl Mode {
+    /// The mode of a working bar with `n` usable references.
+    fn for_references(n: usize) -> Mode {
+        match n {
+            2 => Mode::TwoReferences,
+            1 => Mode::OneReference,
+            _ => Mode::Model,
+        }
+    }
+}
+
 /// How one working mount was compensated: its [`Mode`], and whether the models' difference
 /// between the working and the reference bars was added (never with [`Mode::Model`]). Written
 /// as its name: `two_references`, `one_reference`, `model`, with `+model_difference`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct CompensationMode {
-    pub source: Mode,
-    pub model_difference: bool,
+    pub(crate) source: Mode,
+    pub(crate) model_difference: bool,
 }
 
 impl CompensationMode {
-    pub fn new(source: Mode, model_difference: bool) -> CompensationMode {
+    pub(crate) fn new(source: Mode, model_difference: bool) -> CompensationMode {
         CompensationMode {
             source,
             model_difference: model_difference && source != Mode::Model,
         }
     }
 
+    /// `two_references`, `one_reference` or `model`, with `+model_difference`.
     pub fn name(self) -> String {
         let base = match self.source {
             Mode::TwoReferences => "two_references",
@@ -109,54 +121,54 @@ impl Serialize for CompensationMode {
 
 /// A reference used for one working mount.
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct ReferenceUse {
-    pub bar: String,
-    pub length_id: String,
-    pub length_mm: f64,
+pub(crate) struct ReferenceUse {
+    pub(crate) bar: String,
+    pub(crate) length_id: String,
+    pub(crate) length_mm: f64,
     /// Interpolation weight at the working bar's distance.
-    pub weight: f64,
+    pub(crate) weight: f64,
 }
 
 /// One working mount, compensated.
 #[derive(Debug, Clone, Serialize)]
 pub struct WorkingSeries {
-    pub bar: String,
+    pub(crate) bar: String,
     /// Index into the bar's `BarSeries::mounts`.
-    pub mount: usize,
-    pub length_id: Option<String>,
+    pub(crate) mount: usize,
+    pub(crate) length_id: Option<String>,
     /// Known true distance (plate length), mm.
-    pub length_mm: Option<f64>,
-    pub u_length_um: f64,
-    pub device: Option<String>,
-    pub mode: CompensationMode,
-    pub references: Vec<ReferenceUse>,
+    pub(crate) length_mm: Option<f64>,
+    pub(crate) u_length_um: f64,
+    pub(crate) device: Option<String>,
+    pub(crate) mode: CompensationMode,
+    pub(crate) references: Vec<ReferenceUse>,
     /// Distance used for the interpolation between references, mm.
-    pub distance_for_weights_mm: f64,
-    pub tilt_deg: f64,
+    pub(crate) distance_for_weights_mm: f64,
+    pub(crate) tilt_deg: f64,
     #[serde(skip)]
-    pub t_s: Vec<f64>,
+    pub(crate) t_s: Vec<f64>,
     /// Compensated centre distance, mm.
     #[serde(skip)]
     pub distance_mm: Vec<f64>,
     /// `D(n, A)` without thermal compensation, mm.
     #[serde(skip)]
-    pub uncompensated_mm: Vec<f64>,
+    pub(crate) uncompensated_mm: Vec<f64>,
     /// Thermal error removed, µm.
     #[serde(skip)]
-    pub thermal_um: Vec<f64>,
+    pub(crate) thermal_um: Vec<f64>,
     /// Samples without a reference reading near them (compensated by the model instead).
-    pub n_model_fallback: usize,
+    pub(crate) n_model_fallback: usize,
     /// Samples of another counter epoch than the calibration's (not converted).
-    pub n_other_epoch: usize,
+    pub(crate) n_other_epoch: usize,
     /// Thermal terms of the uncertainty budget (k = 1), µm, and the temperature sensitivity.
-    pub u_thermal_residual_um: f64,
-    pub u_thermal_params_um: f64,
-    pub temperature_sensitivity_um_per_k: f64,
+    pub(crate) u_thermal_residual_um: f64,
+    pub(crate) u_thermal_params_um: f64,
+    pub(crate) temperature_sensitivity_um_per_k: f64,
 }
 
 impl WorkingSeries {
     /// Compensated and uncompensated errors against the known length, µm.
-    pub fn errors_um(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+    pub(crate) fn errors_um(&self) -> Option<(Vec<f64>, Vec<f64>)> {
         let l = self.length_mm?;
         Some((
             self.distance_mm.iter().map(|d| (d - l) * 1e3).collect(),
@@ -169,7 +181,7 @@ impl WorkingSeries {
 }
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
-pub enum CompensateError {
+pub(crate) enum CompensateError {
     #[error("bar {bar}: no calibration, so no centre-distance function")]
     NotCalibrated { bar: String },
     #[error("bar {bar}, mount {mount}: no sample in the calibration's counter epoch (the counter was re-zeroed; calibrate again after the re-zero)")]
@@ -205,14 +217,14 @@ struct RefTrack<'a> {
 }
 
 /// Whether a mount is a working mount: a check length or a device.
-pub fn is_working(series: &BarSeries, mount: usize) -> bool {
+pub(crate) fn is_working(series: &BarSeries, mount: usize) -> bool {
     let m = &series.mounts[mount];
     m.device.is_some() || (m.length_mm.is_some() && m.purpose == Purpose::Check)
 }
 
 /// Compensate every working mount of every bar. `fleet_distance`: each bar's scaled distance to
 /// the fleet mean (`matching::choose_reference`); the nearest is preferred as reference.
-pub fn compensate(
+pub(crate) fn compensate(
     bars: &[CompBar],
     campaign: &Campaign,
     fleet_distance: &BTreeMap<String, f64>,
@@ -478,27 +490,14 @@ fn compensate_mount(
         .zip(&thermal_um)
         .map(|((&i, a), e)| cal.chosen.distance_mm((reading_um(s, i) - e) * 1e-3, *a))
         .collect();
-    let mode = match refs.len() {
-        2 => Mode::TwoReferences,
-        1 => Mode::OneReference,
-        _ => Mode::Model,
-    };
+    let mode = Mode::for_references(refs.len());
     let n_ref = idx.len() - n_model_fallback;
     let rms_delta = if n_ref > 0 {
         (delta_sq / n_ref as f64).sqrt()
     } else {
         0.0
     };
-    let budget = thermal_budget(
-        b,
-        &refs,
-        &w,
-        d_p,
-        &idx,
-        mode,
-        rms_delta,
-        options.model_difference,
-    );
+    let budget = thermal_budget(b, &refs, &w, d_p, &idx, rms_delta, options.model_difference);
     Ok(WorkingSeries {
         bar,
         mount: m,
@@ -554,17 +553,16 @@ fn sensitivity_um_per_k(model: &BarModel, i_min_mm: f64, i_p_mm: f64) -> (f64, f
 /// - parameters: `u(alpha) I_min, u(beta) I_p` times the RMS temperature excursion (model mode),
 ///   plus each reference's anchor (its mean excursion), weighted;
 /// - temperature: sensitivities combined without correlation credit (conservative).
-#[allow(clippy::too_many_arguments)]
 fn thermal_budget(
     b: &CompBar,
     refs: &[&RefTrack],
     w: &[f64],
     d_p: f64,
     idx: &[usize],
-    mode: Mode,
     rms_delta: f64,
     model_difference: bool,
 ) -> (f64, f64, f64) {
+    let mode = Mode::for_references(refs.len());
     let s = b.series;
     let dt_rms = (idx
         .iter()

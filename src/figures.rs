@@ -10,7 +10,7 @@ use crate::report::{self, NamedSeries, ReportError};
 
 /// Which part of a report a figure belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FigureKind {
+pub(crate) enum FigureKind {
     BarFit,
     Fleet,
     MatchStudy,
@@ -22,15 +22,15 @@ pub enum FigureKind {
 
 /// A figure written: its file name in `figures/`, what it shows, and its bar when it has one.
 #[derive(Debug, Clone)]
-pub struct FigureFile {
-    pub file: String,
-    pub kind: FigureKind,
-    pub bar: Option<String>,
-    pub caption: String,
+pub(crate) struct FigureFile {
+    pub(crate) file: String,
+    pub(crate) kind: FigureKind,
+    pub(crate) bar: Option<String>,
+    pub(crate) caption: String,
 }
 
 /// Every figure the run's stages call for, into `dir`; returns what was written, in order.
-pub fn render_all(
+pub(crate) fn render_all(
     plan: &RunPlan,
     results: &RunResults,
     dir: &Path,

@@ -62,8 +62,15 @@ pub trait Separable: Sync {
 /// Why a fit could not be done.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum FitError {
+    /// Fewer samples than parameters.
     #[error("too few samples ({n}) for {p} parameters")]
-    TooFewSamples { n: usize, p: usize },
+    TooFewSamples {
+        /// Samples.
+        n: usize,
+        /// Parameters.
+        p: usize,
+    },
+    /// The basis is singular; names the term that cannot be separated.
     #[error("the basis is singular: {0} cannot be separated from the other terms with these data")]
     Singular(String),
     /// Parameters the data cannot determine: a direction of the model's Jacobian that the data
@@ -71,9 +78,16 @@ pub enum FitError {
     /// vanishes once the mount zeros are taken out. Reported instead of an estimate whose
     /// uncertainty would come from a (pseudo-)inverse of a singular matrix.
     #[error("not identifiable: these data cannot determine {params} ({reason})")]
-    NotIdentifiable { params: String, reason: String },
+    NotIdentifiable {
+        /// The parameters concerned.
+        params: String,
+        /// Why the data cannot determine them.
+        reason: String,
+    },
+    /// The solver did not converge (its message).
     #[error("the solver did not converge ({0})")]
     NoConvergence(String),
+    /// NaN or infinite values in the data or the model.
     #[error("non-finite values in the data or the model")]
     NonFinite,
 }
@@ -82,63 +96,68 @@ pub enum FitError {
 /// nonlinear parameters.
 #[derive(Debug, Clone)]
 pub struct Fit {
+    /// Parameter names, same order as `values`.
     pub names: Vec<String>,
     /// Linear coefficients then nonlinear parameters.
     pub values: Vec<f64>,
-    pub n_linear: usize,
-    pub residuals: Vec<f64>,
+    pub(crate) n_linear: usize,
+    pub(crate) residuals: Vec<f64>,
+    /// Residual sum of squares at the minimum.
     pub rss: f64,
-    pub n_obs: usize,
+    pub(crate) n_obs: usize,
     /// `s² (JᵀJ)⁻¹`: valid only for white residuals.
-    pub cov_naive: DMatrix<f64>,
+    pub(crate) cov_naive: DMatrix<f64>,
     /// Batch-means HAC sandwich: honest under autocorrelated residuals.
-    pub cov_hac: DMatrix<f64>,
+    pub(crate) cov_hac: DMatrix<f64>,
     /// Batch length (samples) used by the HAC estimate.
-    pub hac_batch_len: usize,
+    pub(crate) hac_batch_len: usize,
     /// Number of batches − number of parameters: the degrees of freedom the HAC variance would
     /// have if every batch carried the same share of information.
     pub hac_dof: usize,
     /// Effective (Satterthwaite) degrees of freedom of each parameter's HAC variance, same order
     /// as `values`: at most about [`Fit::hac_dof`], fewer when a few batches carry most of that
     /// parameter's information. Intervals use Student's t with these.
-    pub hac_dof_param: Vec<f64>,
+    pub(crate) hac_dof_param: Vec<f64>,
+    /// Solver iterations.
     pub iterations: usize,
 }
 
 impl Fit {
-    pub fn n_params(&self) -> usize {
+    pub(crate) fn n_params(&self) -> usize {
         self.values.len()
     }
+    /// Residual degrees of freedom: observations − parameters, at least 1.
     pub fn dof(&self) -> usize {
         self.n_obs.saturating_sub(self.n_params()).max(1)
     }
-    pub fn rms(&self) -> f64 {
+    pub(crate) fn rms(&self) -> f64 {
         (self.rss / self.n_obs.max(1) as f64).sqrt()
     }
+    /// Standard error of parameter `i` for white residuals (from `s² (JᵀJ)⁻¹`).
     pub fn se_naive(&self, i: usize) -> f64 {
         self.cov_naive[(i, i)].max(0.0).sqrt()
     }
-    pub fn se_hac(&self, i: usize) -> f64 {
+    pub(crate) fn se_hac(&self, i: usize) -> f64 {
         self.cov_hac[(i, i)].max(0.0).sqrt()
     }
     /// Half-width factor of a 95 % interval from the HAC standard error of parameter `i`:
     /// Student's t quantile with [`Fit::hac_dof_param`]`[i]` degrees of freedom.
-    pub fn t95(&self, i: usize) -> f64 {
+    pub(crate) fn t95(&self, i: usize) -> f64 {
         t_quantile_975(self.hac_dof_param[i])
     }
 
     /// Gaussian log-likelihood at the ML variance `rss / n`.
-    pub fn log_likelihood(&self) -> f64 {
+    pub(crate) fn log_likelihood(&self) -> f64 {
         let n = self.n_obs as f64;
         -0.5 * n * ((2.0 * std::f64::consts::PI * self.rss / n).ln() + 1.0)
     }
     /// Bayesian information criterion (`k` counts the noise variance too).
-    pub fn bic(&self) -> f64 {
+    pub(crate) fn bic(&self) -> f64 {
         let k = self.n_params() as f64 + 1.0;
         -2.0 * self.log_likelihood() + k * (self.n_obs as f64).ln()
     }
     /// Correlation matrix of the HAC covariance.
-    pub fn correlation(&self) -> DMatrix<f64> {
+    pub(crate) fn correlation(&self) -> DMatrix<f64> {
         let p = self.n_params();
         DMatrix::from_fn(p, p, |i, j| {
             let d = (self.cov_hac[(i, i)] * self.cov_hac[(j, j)]).sqrt();
@@ -241,7 +260,7 @@ pub fn fit<P: Separable>(
 /// The least-squares time constants of `problem` from `theta0` (the Brent start first if
 /// `brent_start`), and the number of model evaluations: [`fit`] without its uncertainties, for
 /// starts and refits that need only the minimum.
-pub fn minimise<P: Separable>(
+pub(crate) fn minimise<P: Separable>(
     problem: &P,
     theta0: &[f64],
     brent_start: bool,
@@ -269,7 +288,7 @@ pub fn minimise<P: Separable>(
 }
 
 /// Residual sum of squares of the variable-projection functional at `theta`.
-pub fn projected_rss<P: Separable>(problem: &P, theta: &[f64]) -> f64 {
+pub(crate) fn projected_rss<P: Separable>(problem: &P, theta: &[f64]) -> f64 {
     let phi = problem.basis(theta);
     let y = problem.observations();
     match solve_linear(&phi, y) {
@@ -294,7 +313,7 @@ pub fn projected_rss<P: Separable>(problem: &P, theta: &[f64]) -> f64 {
 /// suffice, a fraction of the evaluations Levenberg-Marquardt spends on its own tolerances.
 /// Every trial is an upper bound of the profile. `None` when the basis is singular or
 /// non-finite at the start.
-pub fn profile_rss<P: Separable>(
+pub(crate) fn profile_rss<P: Separable>(
     problem: &P,
     start: &[f64],
     k: usize,
@@ -372,7 +391,7 @@ pub fn profile_rss<P: Separable>(
 /// Illinois variant of regula falsi to `PROFILE_TOL · step`. A side that does not cross within
 /// the problem's start search interval (or 64 steps when it has none) ends there. `None` when a
 /// profile refit fails.
-pub fn profile_interval<P: Separable>(
+pub(crate) fn profile_interval<P: Separable>(
     problem: &P,
     theta_hat: &[f64],
     k: usize,
@@ -475,13 +494,13 @@ pub fn profile_interval<P: Separable>(
 
 /// A profile-likelihood interval of one nonlinear parameter ([`profile_interval`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ProfileInterval {
+pub(crate) struct ProfileInterval {
     /// Lower and upper end, in the parameter's own scale.
-    pub ends: [f64; 2],
+    pub(crate) ends: [f64; 2],
     /// The profile RSS never reached the cut on that side before the problem's search bound
     /// ([`Separable::start_search_interval`], else 64 steps): the end is the bound, and the
     /// data do not limit the parameter there.
-    pub at_search_bound: [bool; 2],
+    pub(crate) at_search_bound: [bool; 2],
 }
 
 /// Accuracy of a profile interval's ends, relative to the Wald half-width: far below what
@@ -716,23 +735,23 @@ fn levenberg_marquardt<P: Separable>(
 
 /// The Jacobian of `problem`'s model in all parameters at `theta`, the linear coefficients
 /// solved there (`None` when the basis is singular).
-pub fn jacobian_at<P: Separable>(problem: &P, theta: &[f64]) -> Option<DMatrix<f64>> {
+pub(crate) fn jacobian_at<P: Separable>(problem: &P, theta: &[f64]) -> Option<DMatrix<f64>> {
     linearise(problem, theta).map(|l| l.jacobian)
 }
 
 /// A model linearised at fixed nonlinear parameters: what a score (Lagrange-multiplier) test of
 /// an added term needs.
-pub struct Linearised {
+pub(crate) struct Linearised {
     /// Jacobian in all parameters, `n × p`: the directions a refit can move the model in.
-    pub jacobian: DMatrix<f64>,
+    pub(crate) jacobian: DMatrix<f64>,
     /// Observations minus the model, the linear coefficients solved at `theta` (the engine's
     /// rows, as [`Separable::observations`]).
-    pub residuals: Vec<f64>,
+    pub(crate) residuals: Vec<f64>,
 }
 
 /// `problem` linearised at `theta` (the linear coefficients solved there); `None` when the basis
 /// is singular.
-pub fn linearise<P: Separable>(problem: &P, theta: &[f64]) -> Option<Linearised> {
+pub(crate) fn linearise<P: Separable>(problem: &P, theta: &[f64]) -> Option<Linearised> {
     let phi = problem.basis(theta);
     let y = problem.observations();
     let coef = solve_linear(&phi, y)?;
@@ -751,7 +770,7 @@ pub fn linearise<P: Separable>(problem: &P, theta: &[f64]) -> Option<Linearised>
 /// Fitting the term to the residual alone misses terms whose benefit comes with moving the
 /// model's own parameters (on the machine-tool run, a channel explaining 0.5 % of the
 /// residual alone removed 28 % of it once the model was refitted with it).
-pub struct Orthogonalised<'a, P> {
+pub(crate) struct Orthogonalised<'a, P> {
     inner: &'a P,
     /// Orthonormal basis of the removed directions, `n × r`.
     q: std::borrow::Cow<'a, DMatrix<f64>>,
@@ -761,7 +780,8 @@ pub struct Orthogonalised<'a, P> {
 impl<'a, P: Separable> Orthogonalised<'a, P> {
     /// `directions`: `n × k` columns, possibly rank-deficient (directions with a singular value
     /// below `1e-10` of the largest are dropped).
-    pub fn new(inner: &'a P, directions: &DMatrix<f64>) -> Self {
+    #[cfg(test)]
+    pub(crate) fn new(inner: &'a P, directions: &DMatrix<f64>) -> Self {
         Self::with_orthonormal_basis(
             inner,
             std::borrow::Cow::Owned(orthonormal_basis(directions)),
@@ -770,7 +790,10 @@ impl<'a, P: Separable> Orthogonalised<'a, P> {
 
     /// As [`Orthogonalised::new`], with the directions' [`orthonormal_basis`] computed once by
     /// the caller (screening many terms against one model).
-    pub fn with_orthonormal_basis(inner: &'a P, q: std::borrow::Cow<'a, DMatrix<f64>>) -> Self {
+    pub(crate) fn with_orthonormal_basis(
+        inner: &'a P,
+        q: std::borrow::Cow<'a, DMatrix<f64>>,
+    ) -> Self {
         let y0 = DVector::from_column_slice(inner.observations());
         let y = (&y0 - q.as_ref() * (q.tr_mul(&y0)))
             .iter()
@@ -787,7 +810,7 @@ impl<'a, P: Separable> Orthogonalised<'a, P> {
 
 /// Orthonormal basis of the span of `a`'s columns (columns scaled to unit norm first;
 /// directions with a singular value below `1e-10` of the largest dropped).
-pub fn orthonormal_basis(a: &DMatrix<f64>) -> DMatrix<f64> {
+pub(crate) fn orthonormal_basis(a: &DMatrix<f64>) -> DMatrix<f64> {
     if a.ncols() == 0 || a.nrows() == 0 {
         return DMatrix::zeros(a.nrows(), 0);
     }
@@ -912,7 +935,7 @@ fn covariances(
 /// (beta then well determined at 0, tau_S with a large u), `tau_R` so (the estimate wanders to
 /// 1e9 s) ~5e-5. A linear temperature ramp (no time constant can be told from a mount's zero)
 /// gives ~1e-16.
-pub const MIN_RELATIVE_SINGULAR_VALUE: f64 = 1e-8;
+pub(crate) const MIN_RELATIVE_SINGULAR_VALUE: f64 = 1e-8;
 
 /// A parameter is named as undetermined when its share of a singular direction (the absolute
 /// component of the unit right singular vector) is at least this.
@@ -925,7 +948,7 @@ const UNDETERMINED_LOADING: f64 = 0.1;
 /// Columns are scaled to unit norm first: gains and `ln tau` derivatives differ by orders of
 /// magnitude that say nothing about identifiability. Cost `O(n p²)` (SVD of the `n × p`
 /// Jacobian, no left vectors).
-pub fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>, f64)> {
+pub(crate) fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>, f64)> {
     let p = jac.ncols();
     if p == 0 || jac.nrows() == 0 {
         return None;
@@ -960,7 +983,7 @@ pub fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>, f64)> 
 }
 
 /// Student's t quantile 0.975 with `dof` degrees of freedom (1.96 if `dof` is not usable).
-pub fn t_quantile_975(dof: f64) -> f64 {
+pub(crate) fn t_quantile_975(dof: f64) -> f64 {
     use statrs::distribution::{ContinuousCDF, StudentsT};
     StudentsT::new(0.0, 1.0, dof.max(1.0))
         .map(|t| t.inverse_cdf(0.975))
@@ -1126,7 +1149,7 @@ fn variance_time_plateau(residuals: &[f64], short: usize, longest: usize) -> usi
     let n = residuals.len();
     let mean = residuals.iter().sum::<f64>() / n as f64;
     let var = residuals.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / n as f64;
-    if !(var > 0.0) || short >= longest {
+    if var.is_nan() || var <= 0.0 || short >= longest {
         return short;
     }
     let mut prefix = Vec::with_capacity(n + 1);
@@ -1180,7 +1203,7 @@ fn initial_positive_sums(acf: &[f64]) -> (f64, f64) {
 
 /// Integrated autocorrelation time `1 + 2 Σ ρ_k`, summed until the ACF first drops below zero
 /// (Geyer's initial positive sequence, simplified), in samples.
-pub fn integrated_autocorrelation_time(x: &[f64]) -> f64 {
+pub(crate) fn integrated_autocorrelation_time(x: &[f64]) -> f64 {
     initial_positive_sums(&initial_autocorrelation(x)).0
 }
 
@@ -1201,7 +1224,7 @@ fn initial_autocorrelation(x: &[f64]) -> Vec<f64> {
     let mean = x.iter().sum::<f64>() / n as f64;
     let centred: Vec<f64> = x.iter().map(|v| v - mean).collect();
     let c0 = dot(&centred, &centred);
-    if !(c0 > 0.0) {
+    if c0.is_nan() || c0 <= 0.0 {
         return vec![1.0];
     }
     let mut acf = vec![1.0];
@@ -1219,7 +1242,7 @@ fn initial_autocorrelation(x: &[f64]) -> Vec<f64> {
 }
 
 /// Sample autocorrelation for lags `0..=max_lag` (biased estimator, FFT-based).
-pub fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
+pub(crate) fn autocorrelation(x: &[f64], max_lag: usize) -> Vec<f64> {
     let n = x.len();
     if n == 0 {
         return Vec::new();

@@ -11,64 +11,70 @@ use crate::series::BarSeries;
 /// One estimated parameter.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Estimate {
+    /// Physical parameter name (e.g. `alpha_ppm_per_k`), unit in the name.
     pub name: String,
+    /// Estimate, in the unit its name says.
     pub value: f64,
     /// Standard uncertainty (k = 1) that accounts for autocorrelated residuals (batch-means HAC).
     pub u: f64,
     /// The textbook `s² (JᵀJ)⁻¹` standard error, valid only for white residuals.
-    pub u_naive: f64,
+    pub(crate) u_naive: f64,
     /// 95 % interval. Gains: `value ± t u`, Student's t on the parameter's effective
     /// (Satterthwaite) HAC degrees of freedom ([`BarModel::dof`]). Time constants from
     /// [`identify`]: the adjusted profile-likelihood interval of `ln tau`, mapped to seconds
     /// (asymmetric; the profile RSS cut where a linear model would give `ln tau ± t u_ln`);
     /// from [`identify_from`] (diagnosis trial fits): the Wald interval `exp(ln tau ± t u_ln)`.
-    pub ci95: [f64; 2],
+    pub(crate) ci95: [f64; 2],
     /// Per end of `ci95`: the profile never rose to the cut before the search bound of the time
     /// constants (60 s, 30 days), so that end is the bound and the data do not limit the time
     /// constant on that side. Always `false` for gains and Wald intervals.
-    pub ci95_at_search_bound: [bool; 2],
+    pub(crate) ci95_at_search_bound: [bool; 2],
 }
 
 /// A bar's identified model.
 #[derive(Debug, Clone)]
 pub struct BarModel {
+    /// Bar id.
     pub bar: String,
-    pub effects: Vec<Effect>,
+    pub(crate) effects: Vec<Effect>,
     /// Gains and time constants (physical names), without the mount zeros and the initial-state
     /// gains.
     pub params: Vec<Estimate>,
     /// The base paths' initial-state gains (`initial_fixed_ppm`, `initial_scale_ppm`: each lag's
     /// departure from steady state at the first fitted sample times its expansion), nuisance
     /// parameters like the zeros ([`crate::model::INITIAL_FIXED`]).
-    pub initial_state: Vec<Estimate>,
+    pub(crate) initial_state: Vec<Estimate>,
     /// Every linear gain of the fit in the model's column order (params' gains and the
     /// initial-state gains interleaved as [`ThermalProblem::gain_names`] lists them): what
     /// multiplies [`ThermalProblem::full_columns`].
-    pub gains: Vec<f64>,
+    pub(crate) gains: Vec<f64>,
     /// Parameters of the effects asked for that this bar's data cannot determine, left out of
     /// the fit, with the reason ([`crate::model::identifiable_effects`]).
     pub not_identifiable: Vec<NotIdentifiable>,
     /// Zero of each zero segment, µm.
-    pub zeros_um: Vec<f64>,
+    pub(crate) zeros_um: Vec<f64>,
     /// Correlation matrix of `params` (HAC), same order.
-    pub correlation: Vec<Vec<f64>>,
+    pub(crate) correlation: Vec<Vec<f64>>,
+    /// RMS residual, µm.
     pub rms_um: f64,
+    /// Samples fitted.
     pub n_samples: usize,
-    pub bic: f64,
+    pub(crate) bic: f64,
+    /// Gaussian log-likelihood of the fit at the ML variance `rss / n`.
     pub log_likelihood: f64,
-    pub n_params: usize,
+    pub(crate) n_params: usize,
     /// Model value (µm) on the bar's whole timeline, zeros included where a segment applies.
     pub model_um: Vec<f64>,
     /// Thermal part of the model only (no zeros), on the whole timeline.
-    pub thermal_um: Vec<f64>,
+    pub(crate) thermal_um: Vec<f64>,
     /// Residual at the fitted samples (same order as `series.fit_index`).
     pub residuals_um: Vec<f64>,
     /// Nonlinear parameters as fitted (`ln tau`), to restart related fits.
-    pub theta: Vec<f64>,
-    pub hac_batch_len: usize,
+    pub(crate) theta: Vec<f64>,
+    pub(crate) hac_batch_len: usize,
     /// Effective degrees of freedom of each parameter's HAC variance (same order as `params`,
     /// [`fit::Fit::hac_dof_param`]).
-    pub dof: Vec<f64>,
+    pub(crate) dof: Vec<f64>,
     /// Index in `theta` of each parameter that is a time constant (same order as `params`).
     theta_index: Vec<Option<usize>>,
     /// The time constants fitted on the series' coarse copy ([`coarse_start`]), where the fit
@@ -76,22 +82,36 @@ pub struct BarModel {
     coarse_theta: Option<Vec<f64>>,
 }
 
+/// Why a bar could not be identified.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum IdentifyError {
+    /// The model could not be built for this bar.
     #[error("bar {bar}: {source}")]
-    Model { bar: String, source: ModelError },
+    Model {
+        /// Bar id.
+        bar: String,
+        /// Why.
+        source: ModelError,
+    },
+    /// The fit failed.
     #[error("bar {bar}: {source}")]
-    Fit { bar: String, source: FitError },
+    Fit {
+        /// Bar id.
+        bar: String,
+        /// Why.
+        source: FitError,
+    },
 }
 
 impl BarModel {
+    /// The parameter `name`, if the model has it.
     pub fn param(&self, name: &str) -> Option<&Estimate> {
         self.params.iter().find(|p| p.name == name)
     }
-    pub fn value(&self, name: &str) -> Option<f64> {
+    pub(crate) fn value(&self, name: &str) -> Option<f64> {
         self.param(name).map(|p| p.value)
     }
-    pub fn effect_names(&self) -> Vec<String> {
+    pub(crate) fn effect_names(&self) -> Vec<String> {
         self.effects.iter().map(Effect::name).collect()
     }
 }
@@ -238,7 +258,7 @@ fn profile_on_series(series: &BarSeries, model: &mut BarModel) {
 /// default can trap a direct fit in a local minimum worse than the smaller model; the staged
 /// fit cannot be worse than the smaller model (the new gain may stay zero), so adding an effect
 /// never raises the RMS, and `--add-effect X` finds at least what the diagnosis reported.
-pub fn identify_from(
+pub(crate) fn identify_from(
     series: &BarSeries,
     effects: &[Effect],
     start: Option<&BarModel>,
@@ -298,7 +318,7 @@ fn fit_from(
 /// constant temperature), and what is left is rounding (~1e-14 of the column). Taken as it is,
 /// the engine would scale that rounding to a unit column and fit the noise with it: a gain of
 /// any value with an uncertainty that means nothing.
-pub const VANISHED_COLUMN: f64 = 1e-9;
+pub(crate) const VANISHED_COLUMN: f64 = 1e-9;
 
 /// The gains of `problem` at `theta` whose columns vanish within every zero segment
 /// ([`VANISHED_COLUMN`]), as the error that names them; `None` when none does.

@@ -14,35 +14,38 @@ use serde::Serialize;
 use crate::model::lag::lag;
 
 /// The four base parameters used for matching, in the order of `physics.md`.
-pub const MATCH_PARAMS: [&str; 4] = ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
+pub(crate) const MATCH_PARAMS: [&str; 4] =
+    ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
 
 /// What matching needs of one identified bar.
 #[derive(Debug, Clone)]
 pub struct MatchInput {
-    pub bar: String,
-    pub fixed_length_mm: f64,
+    pub(crate) bar: String,
+    pub(crate) fixed_length_mm: f64,
     /// Values of [`MATCH_PARAMS`], in order; NaN for a parameter the bar's data cannot
     /// determine (`beta` and `tau_S` of a bar mounted on one length: its `alpha` and `tau_R`
     /// then describe the whole bar at that length).
-    pub params: [f64; 4],
+    pub(crate) params: [f64; 4],
     /// Measured thermal error (reading minus the fitted zero), µm, at `t_s` (fitted samples).
-    pub t_s: Vec<f64>,
-    pub measured_um: Vec<f64>,
+    pub(crate) t_s: Vec<f64>,
+    pub(crate) measured_um: Vec<f64>,
 }
 
+/// The reference bar: the one nearest the fleet mean.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ReferenceChoice {
+    /// Its id.
     pub bar: String,
     /// Scaled distance of every bar to the fleet mean, same order as the input.
-    pub distance: Vec<(String, f64)>,
-    pub fleet_mean: [f64; 4],
-    pub fleet_spread: [f64; 4],
+    pub(crate) distance: Vec<(String, f64)>,
+    pub(crate) fleet_mean: [f64; 4],
+    pub(crate) fleet_spread: [f64; 4],
 }
 
 /// Pick the bar nearest the fleet mean in parameters scaled by the fleet's standard deviation,
 /// over the parameters every bar has (a parameter some bar lacks has NaN mean and spread).
 /// `None` for an empty fleet.
-pub fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
+pub(crate) fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
     if bars.is_empty() {
         return None;
     }
@@ -82,16 +85,16 @@ pub fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
 /// A temperature history to evaluate models on.
 #[derive(Debug, Clone)]
 pub struct TemperatureHistory {
-    pub t_s: Vec<f64>,
+    pub(crate) t_s: Vec<f64>,
     /// Air temperature minus the reference temperature, K.
-    pub delta_c: Vec<f64>,
+    pub(crate) delta_c: Vec<f64>,
 }
 
 /// Base-model thermal error (µm) of a bar at centre distance `distance_mm` over `history`
 /// (`physics.md`: `-(alpha I_min lag(T; tau_R) + beta I_p lag(T; tau_S))`). A bar without
 /// `beta` (identified on one length) has only its fixed part: its error at its own length,
 /// whatever `distance_mm` is.
-pub fn predicted_error_um(
+pub(crate) fn predicted_error_um(
     bar: &MatchInput,
     history: &TemperatureHistory,
     distance_mm: f64,
@@ -112,16 +115,18 @@ pub fn predicted_error_um(
         .collect()
 }
 
+/// How far one bar's thermal error is from the reference's.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Mismatch {
+    /// Bar id.
     pub bar: String,
     /// max |e_bar(t) - e_reference(t)| over the history, µm.
-    pub max_abs_um: f64,
-    pub flagged: bool,
+    pub(crate) max_abs_um: f64,
+    pub(crate) flagged: bool,
 }
 
 /// Predicted mismatch of every bar against `reference` (the reference itself is left out).
-pub fn predicted_mismatch(
+pub(crate) fn predicted_mismatch(
     bars: &[MatchInput],
     reference: &str,
     history: &TemperatureHistory,
@@ -154,19 +159,19 @@ pub fn predicted_mismatch(
 /// times both were measured (µm); NaN where they never overlap, and on the diagonal.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct MatchStudy {
-    pub bars: Vec<String>,
-    pub matrix_um: Vec<Vec<f64>>,
+    pub(crate) bars: Vec<String>,
+    pub(crate) matrix_um: Vec<Vec<f64>>,
     /// Each candidate's worst mismatch against the others.
-    pub worst_um: Vec<f64>,
-    pub nearest_mean: String,
-    pub best: String,
+    pub(crate) worst_um: Vec<f64>,
+    pub(crate) nearest_mean: String,
+    pub(crate) best: String,
     /// How much worse the nearest-the-mean pick is than the best candidate (µm, ≥ 0).
-    pub excess_um: f64,
+    pub(crate) excess_um: f64,
 }
 
 /// Evaluate every bar as a reference against all others on the measured drifts, on a common
 /// grid of `step_s` (each bar's nearest sample within `step_s / 2`).
-pub fn measured_mismatch_matrix(
+pub(crate) fn measured_mismatch_matrix(
     bars: &[MatchInput],
     nearest_mean: &str,
     step_s: f64,
@@ -235,7 +240,7 @@ fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     let mut best = f64::NAN;
     for (x, y) in a.iter().zip(b) {
         let d = (x - y).abs();
-        if d.is_finite() && !(d <= best) {
+        if d.is_finite() && (best.is_nan() || d > best) {
             best = d;
         }
     }

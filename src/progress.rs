@@ -5,7 +5,7 @@ use std::io::IsTerminal;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// A progress bar of `len` steps labelled `label`, hidden when nobody is watching.
-pub fn bar(len: u64, label: &str) -> ProgressBar {
+pub(crate) fn bar(len: u64, label: &str) -> ProgressBar {
     if std::env::var_os("CI").is_some() || !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();
     }

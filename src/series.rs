@@ -11,11 +11,11 @@ use crate::campaign::{Bar, Campaign, TimeNs};
 
 mod bins;
 pub mod quality;
+pub use bins::MAX_BIN_S;
 pub use bins::{
     automatic_bin_s, reading_time_ok, BarBins, BinAccumulator, BinError, BinGrid, BinKey,
     BinMoments, Node, Readings, Region, AUTOMATIC_BIN_S, AUTOMATIC_MAX_INTERVAL_S,
-    EARLIEST_READING_NS, LATEST_READING_NS, MAX_ABS_COUNTS, MAX_BAR_READINGS, MAX_BIN_S,
-    MIN_BINS_PER_TAU,
+    EARLIEST_READING_NS, LATEST_READING_NS, MAX_ABS_COUNTS, MAX_BAR_READINGS, MIN_BINS_PER_TAU,
 };
 pub use quality::Quality;
 
@@ -23,21 +23,24 @@ pub use quality::Quality;
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct InputFile {
     /// Path relative to the campaign directory, `/`-separated.
-    pub path: String,
-    pub sha256: String,
-    pub bytes: u64,
+    pub(crate) path: String,
+    pub(crate) sha256: String,
+    pub(crate) bytes: u64,
     /// Another input file with the same bytes (same sha256): this one was not read again.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub duplicate_of: Option<String>,
+    pub(crate) duplicate_of: Option<String>,
 }
 
 /// One event row (`events/*.parquet`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Event {
+    /// Time, ns since the epoch (UTC).
     pub time_ns: TimeNs,
     /// `None`: the whole setup.
     pub bar: Option<String>,
+    /// What happened.
     pub kind: EventKind,
+    /// The value of a valued kind (`head_power`: 1 on, 0 off; `tilt`: degrees).
     pub value: Option<f64>,
 }
 
@@ -104,34 +107,38 @@ impl Ord for EventKind {
 /// once [`interpolate_temperatures`] has run (ingest leaves `celsius` empty).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarLog {
+    /// Reading times, ns since the epoch (UTC).
     pub time_ns: Vec<TimeNs>,
+    /// Encoder counts at each time.
     pub counts: Vec<i64>,
     /// Sensor id -> temperature (°C) at each `time_ns`.
-    pub celsius: BTreeMap<String, Vec<f64>>,
+    pub(crate) celsius: BTreeMap<String, Vec<f64>>,
 }
 
 /// A sensor's own log, sorted by time.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SensorLog {
+    /// Reading times, ns since the epoch (UTC).
     pub time_ns: Vec<TimeNs>,
+    /// Temperature at each time, °C.
     pub celsius: Vec<f64>,
 }
 
 /// Everything a campaign directory holds, validated and sorted.
 #[derive(Debug, Clone)]
 pub struct CampaignLogs {
-    pub campaign: Campaign,
+    pub(crate) campaign: Campaign,
     /// Every file read (manifest first), sorted by path.
-    pub inputs: Vec<InputFile>,
+    pub(crate) inputs: Vec<InputFile>,
     /// Bar id -> its log. Every manifest bar has an entry (possibly empty).
     pub bars: BTreeMap<String, BarLog>,
     /// Bar id -> its readings compressed into bins while ingest streamed them
     /// (`io::read_campaign_binned`); such a bar's log in `bars` is empty. Empty otherwise.
-    pub bins: BTreeMap<String, BarBins>,
+    pub(crate) bins: BTreeMap<String, BarBins>,
     /// Sensor id -> its log. Every manifest sensor has an entry (possibly empty).
-    pub sensors: BTreeMap<String, SensorLog>,
+    pub(crate) sensors: BTreeMap<String, SensorLog>,
     /// Sorted by time.
-    pub events: Vec<Event>,
+    pub(crate) events: Vec<Event>,
     /// What ingest dropped, counted and flagged (`summary.json` → `quality`).
     pub quality: Quality,
 }
@@ -139,7 +146,9 @@ pub struct CampaignLogs {
 /// A bar's raw encoder readings (what a logger writes), not necessarily sorted.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct EncoderLog {
+    /// Reading times, ns since the epoch (UTC).
     pub time_ns: Vec<TimeNs>,
+    /// Encoder counts at each time.
     pub counts: Vec<i64>,
 }
 
@@ -151,24 +160,25 @@ pub struct CampaignTables {
     pub encoders: BTreeMap<String, EncoderLog>,
     /// Sensor id -> readings.
     pub temperatures: BTreeMap<String, SensorLog>,
+    /// Event rows.
     pub events: Vec<Event>,
 }
 
 /// A mount as the fits see it.
 #[derive(Debug, Clone, PartialEq)]
-pub struct MountSpan {
+pub(crate) struct MountSpan {
     /// Index into `Campaign::mounts`.
-    pub campaign_index: usize,
+    pub(crate) campaign_index: usize,
     /// Plate length id and its calibrated centre distance; `None` on a device.
-    pub length_id: Option<String>,
-    pub length_mm: Option<f64>,
+    pub(crate) length_id: Option<String>,
+    pub(crate) length_mm: Option<f64>,
     /// `I_p = D_p - I_min` (physics.md): scale travel at this mount, mm (0 on a device).
-    pub i_p_mm: f64,
-    pub tilt_deg: f64,
-    pub purpose: crate::campaign::Purpose,
-    pub device: Option<String>,
-    pub from_s: f64,
-    pub to_s: f64,
+    pub(crate) i_p_mm: f64,
+    pub(crate) tilt_deg: f64,
+    pub(crate) purpose: crate::campaign::Purpose,
+    pub(crate) device: Option<String>,
+    pub(crate) from_s: f64,
+    pub(crate) to_s: f64,
 }
 
 impl MountSpan {
@@ -197,7 +207,7 @@ impl MountSpan {
 
     /// Whether the thermal model is fitted on this mount: a plate length used for calibration
     /// or as a reference (checks are never fitted; devices have no known distance).
-    pub fn is_fitted(&self) -> bool {
+    pub(crate) fn is_fitted(&self) -> bool {
         self.length_mm.is_some() && self.purpose != crate::campaign::Purpose::Check
     }
 }
@@ -205,51 +215,51 @@ impl MountSpan {
 /// One bar's data as the fits use it. Every vector is indexed by sample, sorted by time.
 #[derive(Debug, Clone)]
 pub struct BarSeries {
-    pub bar: Bar,
-    pub reference_temperature_c: f64,
+    pub(crate) bar: Bar,
+    pub(crate) reference_temperature_c: f64,
     /// Time origin of `t_s`: the campaign's first mount start.
-    pub t0_ns: TimeNs,
+    pub(crate) t0_ns: TimeNs,
     /// Seconds since `t0_ns`; the bar's whole log, handling time included, so that lags carry
     /// the thermal state through the gaps between mounts.
-    pub t_s: Vec<f64>,
+    pub(crate) t_s: Vec<f64>,
     /// Indicated reading `k * counts` in micrometres, minus the plate's known expansion
     /// (`campaign-format.md`: true distance grows by `cte * (T_plate - T0)`), minus the median
     /// of its zero segment: the thermal error up to each segment's unknown zero.
-    pub y_um: Vec<f64>,
+    pub(crate) y_um: Vec<f64>,
     /// Mount of each sample, `None` for handling time.
-    pub mount_of: Vec<Option<u32>>,
+    pub(crate) mount_of: Vec<Option<u32>>,
     /// Zero segment of each sample (a mount, split at `rezero` events), `None` outside mounts.
-    pub zero_segment: Vec<Option<u32>>,
-    pub n_zero_segments: usize,
+    pub(crate) zero_segment: Vec<Option<u32>>,
+    pub(crate) n_zero_segments: usize,
     /// What was subtracted from each zero segment (its median, µm): `y_um + offset` is the
     /// indicated reading `k * counts` (minus known plate expansion) that calibration needs.
-    pub segment_offset_um: Vec<f64>,
-    pub mounts: Vec<MountSpan>,
+    pub(crate) segment_offset_um: Vec<f64>,
+    pub(crate) mounts: Vec<MountSpan>,
     /// The bar's air temperature: its `sensor`, else the mean of the air sensors.
-    pub air_c: Vec<f64>,
+    pub(crate) air_c: Vec<f64>,
     /// Every sensor at the sample times.
-    pub celsius: BTreeMap<String, Vec<f64>>,
+    pub(crate) celsius: BTreeMap<String, Vec<f64>>,
     /// The campaign's air sensors, and its plate sensor if any.
-    pub air_sensor_ids: Vec<String>,
-    pub plate_sensor_id: Option<String>,
+    pub(crate) air_sensor_ids: Vec<String>,
+    pub(crate) plate_sensor_id: Option<String>,
     /// Samples used by the thermal fit (inside fitted mounts), ascending.
-    pub fit_index: Vec<usize>,
+    pub(crate) fit_index: Vec<usize>,
     /// Number of readings each sample stands for: 1 for a logged reading, the node weight for a
     /// compressed bin ([`bins`]), the sum of its parts for a bin mean. Fits are weighted by it.
-    pub weight: Vec<f64>,
+    pub(crate) weight: Vec<f64>,
     /// Scatter (µm²) of the readings of the fitted compressed bins about each bin's straight
     /// line: the part of a fit's RSS at full rate that the nodes do not carry ([`bins`]); 0 for
     /// a series of logged readings.
-    pub within_bin_rss_um2: f64,
+    pub(crate) within_bin_rss_um2: f64,
     /// Readings outside every mount of the bar (handling time), dropped from the fits.
-    pub dropped_outside_mounts: usize,
+    pub(crate) dropped_outside_mounts: usize,
     /// The bar's own events and the setup-wide ones, sorted by time, times in seconds.
     pub events: Vec<(f64, Event)>,
 }
 
 /// Why a bar's series could not be built.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
-pub enum SeriesError {
+pub(crate) enum SeriesError {
     #[error("bar {bar}: no encoder readings")]
     NoReadings { bar: String },
     #[error("bar {bar}: no readings inside any plate mount")]
@@ -266,7 +276,8 @@ impl BarSeries {
     /// Build bar `bar_id`'s series from its log, every reading a sample (taken by value: the
     /// series owns the data, so a large campaign is never held twice), with the temperatures
     /// the log carries ([`interpolate_temperatures`]) and the campaign's events.
-    pub fn build(
+    #[cfg(test)]
+    pub(crate) fn build(
         campaign: &Campaign,
         events: &[Event],
         bar_id: &str,
@@ -293,8 +304,9 @@ impl BarSeries {
     /// `bin_s <= 0`: every reading, as [`BarSeries::build`]. Temperatures are interpolated from
     /// `sensors` at the samples' times here (`knots`: [`sensor_knots`] of `sensors`, used with
     /// bins). The full-rate log lives only inside this call.
+    // The lint is right; bundling the inputs changes the call in pipeline.rs (issue 15, later).
     #[allow(clippy::too_many_arguments)]
-    pub fn build_binned(
+    pub(crate) fn build_binned(
         campaign: &Campaign,
         events: &[Event],
         bar_id: &str,
@@ -304,7 +316,7 @@ impl BarSeries {
         t0_ns: TimeNs,
         bin_s: f64,
     ) -> Result<BarSeries, SeriesError> {
-        if !(bin_s > 0.0) {
+        if bin_s.is_nan() || bin_s <= 0.0 {
             let n = log.time_ns.len();
             let readings = with_knots_between(
                 Readings {
@@ -333,7 +345,7 @@ impl BarSeries {
     /// Bar `bar_id`'s series from its compressed bins (ingest can make them while it streams the
     /// encoder files), temperatures interpolated from `sensors` at the nodes' times. `knots`:
     /// [`sensor_knots`] of `sensors`.
-    pub fn from_bins(
+    pub(crate) fn from_bins(
         campaign: &Campaign,
         events: &[Event],
         bar_id: &str,
@@ -435,7 +447,8 @@ impl BarSeries {
 
     /// A series from plain vectors (no campaign files): for tests and tools that make their own
     /// data. Samples are assigned to `mounts` by time; `y_um` is taken as it is.
-    pub fn from_vectors(
+    #[cfg(test)]
+    pub(crate) fn from_vectors(
         bar: Bar,
         reference_temperature_c: f64,
         t_s: Vec<f64>,
@@ -483,8 +496,8 @@ impl BarSeries {
     ///
     /// Bin edges are decided on integer nanoseconds (`t_s` rounded to ns), so a 1 Hz log gives
     /// bins of exactly `bin_s` samples.
-    pub fn binned_copy(&self, bin_s: f64) -> BarSeries {
-        if !(bin_s > 0.0) || self.t_s.len() < 2 {
+    pub(crate) fn binned_copy(&self, bin_s: f64) -> BarSeries {
+        if bin_s.is_nan() || bin_s <= 0.0 || self.t_s.len() < 2 {
             return self.clone();
         }
         let time_ns: Vec<TimeNs> = self
@@ -561,7 +574,7 @@ impl BarSeries {
     /// The series without its samples (every per-sample vector emptied): the bar, its mounts,
     /// zero-segment offsets and `dropped_outside_mounts` stay. For runs that need nothing of a
     /// bar but its fitted model once it is identified.
-    pub fn without_samples(self) -> BarSeries {
+    pub(crate) fn without_samples(self) -> BarSeries {
         BarSeries {
             t_s: Vec::new(),
             y_um: Vec::new(),
@@ -576,7 +589,7 @@ impl BarSeries {
     }
 
     /// Number of readings the fitted samples stand for.
-    pub fn fitted_readings(&self) -> usize {
+    pub(crate) fn fitted_readings(&self) -> usize {
         self.fit_index
             .iter()
             .map(|&i| self.weight[i])
@@ -587,7 +600,7 @@ impl BarSeries {
     /// A residual at the fitted samples (µm) weighed by the square root of each sample's weight:
     /// under white noise every value then has the variance of one reading, which is what a
     /// noise model of the residual needs when the samples are compressed bins.
-    pub fn weighted_residuals(&self, residuals_um: &[f64]) -> Vec<f64> {
+    pub(crate) fn weighted_residuals(&self, residuals_um: &[f64]) -> Vec<f64> {
         residuals_um
             .iter()
             .zip(&self.fit_index)
@@ -596,7 +609,7 @@ impl BarSeries {
     }
 
     /// `I_p` of each sample (0 outside mounts).
-    pub fn i_p_mm(&self) -> Vec<f64> {
+    pub(crate) fn i_p_mm(&self) -> Vec<f64> {
         self.mount_of
             .iter()
             .map(|m| m.map_or(0.0, |m| self.mounts[m as usize].i_p_mm))
@@ -679,7 +692,7 @@ fn with_knots_between(readings: Readings, knots: &[TimeNs]) -> Readings {
 /// Every sensor's reading times, sorted and deduplicated: the knots of the temperature
 /// interpolation, which a compressed series keeps as samples ([`BarSeries::from_bins`]). The
 /// same for every bar, so made once per campaign.
-pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
+pub(crate) fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
     let mut knots: Vec<TimeNs> = sensors
         .values()
         .flat_map(|s| s.time_ns.iter().copied())
@@ -690,7 +703,7 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
 }
 
 /// Every sensor's temperature at the sorted times `time_ns` (see [`interpolate_temperatures`]).
-pub fn temperatures_at(
+pub(crate) fn temperatures_at(
     time_ns: &[TimeNs],
     sensors: &BTreeMap<String, SensorLog>,
 ) -> BTreeMap<String, Vec<f64>> {

@@ -40,7 +40,7 @@ use std::process::Command;
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Set in the child's environment: `<supervisor pid>:<breadcrumb fd>`.
-pub const ENV: &str = "DBBCAL_SUPERVISOR";
+pub(crate) const ENV: &str = "DBBCAL_SUPERVISOR";
 
 /// Set in a probe child's environment (see [`probe`]): the one file it decodes.
 pub const PROBE_ENV: &str = "DBBCAL_PROBE";
@@ -129,7 +129,7 @@ pub fn is_supervised() -> bool {
 
 /// The pid of the run as the user sees it: the supervisor's in a supervised child, else this
 /// process'. Partial output folders are named after it (`.OUT.partial-<pid>`).
-pub fn run_pid() -> u32 {
+pub(crate) fn run_pid() -> u32 {
     CHANNEL
         .get()
         .map_or_else(std::process::id, |c| c.supervisor)
@@ -170,7 +170,7 @@ fn send(tag: u8, id: u32, payload: &[u8]) {
 
 /// The decode of some files, in progress until dropped (see [`reading`]).
 #[must_use]
-pub struct Reading(Option<u32>);
+pub(crate) struct Reading(Option<u32>);
 
 impl Drop for Reading {
     fn drop(&mut self) {
@@ -182,7 +182,7 @@ impl Drop for Reading {
 
 /// Tell the supervisor that `paths` are being decoded until the returned value is dropped
 /// (also when unwinding). Unsupervised: nothing, at the cost of one atomic load.
-pub fn reading<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Reading {
+pub(crate) fn reading<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Reading {
     if CHANNEL.get().is_none() {
         return Reading(None);
     }
@@ -200,7 +200,7 @@ pub fn reading<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Reading {
 
 /// What the output code tells the supervisor (`output::OutputTarget`, `output::fault`).
 #[derive(Debug, Clone, Copy)]
-pub enum Note<'a> {
+pub(crate) enum Note<'a> {
     /// The output folder about to be locked: cleaned up after a crash.
     Output(&'a Path),
     /// The swap into place begins.
@@ -213,7 +213,7 @@ pub enum Note<'a> {
 }
 
 /// Tell the supervisor (nothing when unsupervised).
-pub fn note(n: Note<'_>) {
+pub(crate) fn note(n: Note<'_>) {
     match n {
         Note::Output(p) => send(OUTPUT, 0, p.as_os_str().as_bytes()),
         Note::SwapBegun => send(SWAP_BEGUN, 0, &[]),
@@ -299,7 +299,7 @@ fn failed(size: usize) {
 
 /// Where the child's output swap stood when it died.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Swap {
+pub(crate) enum Swap {
     #[default]
     NotBegun,
     Begun,
@@ -356,26 +356,22 @@ impl Trail {
 }
 
 /// A child process to signal only while it has not been reaped (its pid cannot be reused).
-pub struct ChildHandle {
+pub(crate) struct ChildHandle {
     pid: u32,
     alive: Mutex<bool>,
 }
 
 impl ChildHandle {
     /// Send `signal` to the child if it has not been reaped yet; whether it was sent.
-    pub fn signal(&self, signal: i32) -> bool {
+    pub(crate) fn signal(&self, signal: i32) -> bool {
         let alive = self.alive.lock().unwrap_or_else(|e| e.into_inner());
         // SAFETY: a signal to our own, not yet reaped child.
         *alive && unsafe { libc::kill(self.pid as libc::pid_t, signal) } == 0
     }
-
-    pub fn pid(&self) -> u32 {
-        self.pid
-    }
 }
 
 /// A running supervised child (see [`spawn`]).
-pub struct Supervised {
+pub(crate) struct Supervised {
     child: std::process::Child,
     handle: Arc<ChildHandle>,
     trail: std::thread::JoinHandle<Trail>,
@@ -383,7 +379,7 @@ pub struct Supervised {
 
 /// Start `cmd` as a supervised child: a breadcrumb pipe is passed to it ([`ENV`]) and read on
 /// a thread. The child must call [`child_init`].
-pub fn spawn(cmd: &mut Command) -> std::io::Result<Supervised> {
+pub(crate) fn spawn(cmd: &mut Command) -> std::io::Result<Supervised> {
     let mut fds = [0 as RawFd; 2];
     // SAFETY: pipe2/pipe write two fds into the array; fcntl on those fds.
     #[cfg(target_os = "linux")]
@@ -465,26 +461,30 @@ pub enum Ending {
 /// A child that died from a signal, and what its trail says.
 #[derive(Debug, Clone)]
 pub struct Death {
+    /// The signal that killed it.
     pub signal: i32,
     /// The files it was decoding (each once, sorted).
     pub reading: Vec<PathBuf>,
     /// The output folder it had claimed.
     pub output: Option<PathBuf>,
-    pub swap: Swap,
+    pub(crate) swap: Swap,
     /// The bytes of the allocation that failed ([`SupervisedAlloc`]).
-    pub allocation: Option<u64>,
+    pub(crate) allocation: Option<u64>,
     /// It killed itself at an injected fault point (`DBBCAL_FAULT=kill@K`).
     pub fault_kill: bool,
 }
 
 impl Supervised {
-    pub fn handle(&self) -> Arc<ChildHandle> {
+    pub(crate) fn handle(&self) -> Arc<ChildHandle> {
         self.handle.clone()
     }
 
     /// [`Supervised::wait`], killing the child (SIGKILL) if it has not ended within `limit`;
     /// whether it was killed so.
-    pub fn wait_at_most(self, limit: std::time::Duration) -> std::io::Result<(Ending, bool)> {
+    pub(crate) fn wait_at_most(
+        self,
+        limit: std::time::Duration,
+    ) -> std::io::Result<(Ending, bool)> {
         use std::sync::atomic::{AtomicBool, Ordering};
         let (handle, done, late) = (
             self.handle(),
@@ -512,7 +512,7 @@ impl Supervised {
     }
 
     /// Wait for the child to end, then read the rest of its trail.
-    pub fn wait(mut self) -> std::io::Result<Ending> {
+    pub(crate) fn wait(mut self) -> std::io::Result<Ending> {
         // Wait without reaping: until `alive` is false the pid stays the child's, so a signal
         // forwarded meanwhile cannot reach another process.
         loop {

@@ -5,7 +5,7 @@ use crate::model::{Effect, Transform};
 
 /// What an effect means physically and what to check; channel terms name what their sensors
 /// plausibly are (`profiles`, see [`super::sensors`]).
-pub fn explain_with(effect: &Effect, profiles: &[super::sensors::SensorProfile]) -> String {
+pub(crate) fn explain_with(effect: &Effect, profiles: &[super::sensors::SensorProfile]) -> String {
     match effect {
         Effect::Channel {
             transform, channel, ..
@@ -18,7 +18,7 @@ pub fn explain_with(effect: &Effect, profiles: &[super::sensors::SensorProfile])
 }
 
 /// What an effect means physically and what to check.
-pub fn explain(effect: &Effect) -> String {
+pub(crate) fn explain(effect: &Effect) -> String {
     match effect {
         Effect::FixedPart => "Expansion of the fixed part (balls, bases, tubes) with its own time constant: the patent's alpha, tau_R.".into(),
         Effect::Scale => "Expansion of the scale between its start and the read head, growing with the travel I_p: the patent's beta, tau_S. Check: bars on different plate lengths drift differently.".into(),
@@ -43,7 +43,7 @@ fn channel_explanation(transform: Transform, what: &str) -> String {
 }
 
 /// A channel name in words.
-pub fn describe_channel(channel: &str) -> String {
+pub(crate) fn describe_channel(channel: &str) -> String {
     if let Some(kind) = channel.strip_prefix("event:") {
         return match kind {
             "head_power" => "read-head power (head_power events)".into(),

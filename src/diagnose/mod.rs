@@ -23,11 +23,11 @@
 //!
 //! Everything here is computation on plain data; the pipeline writes and draws the results.
 
-pub mod explain;
-pub mod noise;
-pub mod residual;
-pub mod screen;
-pub mod sensors;
+pub(crate) mod explain;
+pub(crate) mod noise;
+pub(crate) mod residual;
+pub(crate) mod screen;
+pub(crate) mod sensors;
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -46,48 +46,50 @@ use screen::{Screen, ScreenBase};
 /// `ALPHA / number of candidates` (Bonferroni). 5 %, the level of CTSM-R's likelihood-ratio
 /// tests; the likelihoods carry a noise model of the residual ([`noise`]), so autocorrelated
 /// residuals do not make everything significant (the base-only campaign raises no alarm).
-pub const ALPHA: f64 = 0.05;
+pub(crate) const ALPHA: f64 = 0.05;
 /// How many of the best-explaining channels get a generic `lag:` candidate.
-pub const CHANNEL_CANDIDATES: usize = 10;
+pub(crate) const CHANNEL_CANDIDATES: usize = 10;
 /// A candidate is material when the fleet RMS it removes is at least this share of the
 /// reading-noise floor ...
-pub const MATERIAL_SHARE_OF_NOISE: f64 = 0.05;
+pub(crate) const MATERIAL_SHARE_OF_NOISE: f64 = 0.05;
 /// ... and at least this share of the tolerance the bars serve (`[diagnose] tolerance_um`,
 /// by default the matching limit): 5 nm for the patent's ±1 µm.
-pub const MATERIAL_SHARE_OF_TOLERANCE: f64 = 0.005;
+pub(crate) const MATERIAL_SHARE_OF_TOLERANCE: f64 = 0.005;
 /// A candidate is refitted exactly when its screened (linearised) gain is at least this share
 /// of the materiality threshold, or when its screened shift of the model's own terms is and its
 /// score test is significant: the linearised refit can underestimate what the exact refit
 /// removes, never by half on the hidden-effect campaigns of the tests.
-pub const SCREEN_SHARE: f64 = 0.5;
+pub(crate) const SCREEN_SHARE: f64 = 0.5;
 /// ... and when it is at least this share of the best-screened candidate's: a term that screens
 /// at a tenth of the best is no rival for the step (if it is real, it is found at a later step,
 /// once the best is in the model). Exact refits are the cost of the loop; this keeps them to the
 /// few candidates that compete.
-pub const RIVAL_SHARE: f64 = 0.1;
+pub(crate) const RIVAL_SHARE: f64 = 0.1;
 /// The shift of the model's own terms counts toward materiality only for a term that removes at
 /// least this share of the materiality threshold from the fleet RMS (1 %: 0.05 nm at the
 /// patent's ±1 µm; the hidden second thermal path of the tests removes 0.18 nm, an alias of the
 /// model's own lag 0.0004 nm).
-pub const SHIFT_TRACE_SHARE: f64 = 0.01;
+pub(crate) const SHIFT_TRACE_SHARE: f64 = 0.01;
 
 /// When a candidate is worth proposing.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct Criteria {
     /// Reading-noise floor of the fleet (µm): the quadratic mean over bars of the white-noise
     /// standard deviation under each residual ([`ScreenBase::white_noise_variance`]).
-    pub noise_floor_um: f64,
+    pub(crate) noise_floor_um: f64,
     /// Tolerance the bars serve (µm).
-    pub tolerance_um: f64,
+    pub(crate) tolerance_um: f64,
     /// The smallest change that matters (µm):
     /// `max(MATERIAL_SHARE_OF_NOISE × noise floor, MATERIAL_SHARE_OF_TOLERANCE × tolerance)`,
     /// for the fleet RMS a candidate removes and for how much it moves the model's own terms.
     pub min_gain_um: f64,
     /// Family-wise level of the likelihood-ratio tests.
-    pub alpha: f64,
+    pub(crate) alpha: f64,
 }
 
 impl Criteria {
+    /// Criteria for a fleet with this reading-noise floor and tolerance (µm): `min_gain_um` from
+    /// both, the tests at the default family-wise level.
     pub fn new(noise_floor_um: f64, tolerance_um: f64) -> Criteria {
         Criteria {
             noise_floor_um,
@@ -99,7 +101,7 @@ impl Criteria {
     }
 
     /// Criteria for a fleet's models ([`screen_bases`]): the noise floor from their residuals.
-    pub fn for_fleet(bases: &[Option<ScreenBase>], tolerance_um: f64) -> Criteria {
+    pub(crate) fn for_fleet(bases: &[Option<ScreenBase>], tolerance_um: f64) -> Criteria {
         let white: Vec<f64> = bases
             .par_iter()
             .flatten()
@@ -117,7 +119,7 @@ impl Criteria {
     /// Whether a candidate that removes `gain_um` of the fleet RMS and moves the model's own
     /// terms' prediction by `shift_um` (fleet RMS) matters. The shift counts only for a term
     /// that leaves a trace in the fit ([`Criteria::shift_counts`]).
-    pub fn is_material(&self, gain_um: f64, shift_um: f64) -> bool {
+    pub(crate) fn is_material(&self, gain_um: f64, shift_um: f64) -> bool {
         gain_um >= self.min_gain_um || (self.shift_counts(gain_um) && shift_um >= self.min_gain_um)
     }
 
@@ -126,28 +128,32 @@ impl Criteria {
     /// second lag of the same air at almost the same time constant) can shift the model's own
     /// terms by any amount while changing the fit by nothing: that shift is a
     /// reparametrisation the data do not determine, not a finding.
-    pub fn shift_counts(&self, gain_um: f64) -> bool {
+    pub(crate) fn shift_counts(&self, gain_um: f64) -> bool {
         gain_um >= SHIFT_TRACE_SHARE * self.min_gain_um
     }
 }
 
+/// How much of a bar's residual one channel's first-order response explains.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct ChannelScore {
+    /// Channel name.
     pub channel: String,
     /// Fraction of the residual's RSS its best first-order response removes when added to the
     /// model (the linearised refit of [`screen`]).
     pub explained_fraction: f64,
     /// Its time constant, s (NaN when it could not be screened).
-    pub tau_s: f64,
+    pub(crate) tau_s: f64,
 }
 
+/// One bar's diagnosis: its residual and its channel ranking.
 #[derive(Debug, Clone, Serialize)]
 pub struct BarDiagnosis {
+    /// Bar id.
     pub bar: String,
-    pub effects: Vec<Effect>,
-    pub rms_um: f64,
-    pub whiteness_p: f64,
-    pub stats: ResidualStats,
+    pub(crate) effects: Vec<Effect>,
+    pub(crate) rms_um: f64,
+    pub(crate) whiteness_p: f64,
+    pub(crate) stats: ResidualStats,
     /// Best first.
     pub channels: Vec<ChannelScore>,
 }
@@ -155,19 +161,21 @@ pub struct BarDiagnosis {
 /// One candidate effect's result on one bar.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct CandidateOnBar {
+    /// Bar id.
     pub bar: String,
+    /// RMS residual of the bar's model without it, µm.
     pub rms_before_um: f64,
     /// The RMS after adding it, predicted by the screen (linearised refit).
     pub screened_rms_after_um: f64,
     /// How much adding it moves the model's own terms' prediction, RMS (µm, screened:
     /// [`Screen::shift_rms_um`]).
-    pub screened_shift_um: f64,
+    pub(crate) screened_shift_um: f64,
     /// Exact refit (absent when the candidate was screened out).
     pub rms_after_um: Option<f64>,
-    pub delta_bic: Option<f64>,
-    pub p_value: Option<f64>,
+    pub(crate) delta_bic: Option<f64>,
+    pub(crate) p_value: Option<f64>,
     /// Significant on this bar alone (its own test at the family-wise threshold, ΔBIC < 0).
-    pub significant: bool,
+    pub(crate) significant: bool,
     /// Why it could not be fitted on this bar, if so.
     pub error: Option<String>,
 }
@@ -187,10 +195,12 @@ pub enum Verdict {
     ScreenedOut,
 }
 
+/// One candidate effect fleet-wide: screen, exact refits, tests and verdict.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Candidate {
     /// Written as its name, accepted verbatim by `--add-effect`.
     pub effect: Effect,
+    /// What the diagnosis concludes.
     pub verdict: Verdict,
     /// The verdict in words, with the numbers it rests on.
     pub reason: String,
@@ -203,16 +213,20 @@ pub struct Candidate {
     pub screened_shift_um: f64,
     /// Fleet RMS after the exact refit (absent when screened out).
     pub rms_after_um: Option<f64>,
+    /// Fleet-wide ΔBIC of adding it (negative: better); absent when screened out.
     pub delta_bic: Option<f64>,
     /// Fleet-wide p-value (Fisher's method over the bars' likelihood-ratio tests).
     pub p_value: Option<f64>,
+    /// Bars on which it is significant on their own.
     pub bars_improved: usize,
     /// Statistically significant (5 % family-wise).
-    pub significant: bool,
+    pub(crate) significant: bool,
     /// Its RMS reduction, or how much it moves the model's own terms, reaches
     /// [`Criteria::min_gain_um`].
-    pub material: bool,
+    pub(crate) material: bool,
+    /// What the effect is, in words.
     pub explanation: String,
+    /// Its result on each bar.
     pub per_bar: Vec<CandidateOnBar>,
 }
 
@@ -231,14 +245,17 @@ impl Candidate {
 /// with a given list of effects is fitted once (from the model without the last effect, which
 /// is itself a refit of the same cache or the identified model).
 #[derive(Default)]
-pub struct Refits {
-    fits: Mutex<HashMap<(String, Vec<String>), Arc<Refit>>>,
+pub(crate) struct Refits {
+    fits: Mutex<RefitCache>,
 }
+
+/// Refits by (bar, effect names in the order added).
+type RefitCache = HashMap<(String, Vec<String>), Arc<Refit>>;
 
 /// One exact refit, and the log-likelihood of its residual under its own noise model (fitted
 /// when a test first asks for it).
-pub struct Refit {
-    pub model: Result<BarModel, String>,
+pub(crate) struct Refit {
+    pub(crate) model: Result<BarModel, String>,
     noise_log_likelihood: OnceLock<f64>,
 }
 
@@ -252,7 +269,7 @@ impl Refit {
 
 impl Refits {
     /// `base` (fitted to `series`) with `effect` added and refitted.
-    pub fn refit(&self, series: &BarSeries, base: &BarModel, effect: &Effect) -> Arc<Refit> {
+    pub(crate) fn refit(&self, series: &BarSeries, base: &BarModel, effect: &Effect) -> Arc<Refit> {
         let mut effects = base.effects.clone();
         effects.push(effect.clone());
         let key = (base.bar.clone(), effects.iter().map(Effect::name).collect());
@@ -266,13 +283,13 @@ impl Refits {
         self.lock().entry(key).or_insert(fitted).clone()
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<(String, Vec<String>), Arc<Refit>>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, RefitCache> {
         self.fits.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 
 /// Each bar's model linearised for screening ([`ScreenBase`]); `None` where it cannot be.
-pub fn screen_bases(bars: &[(&BarSeries, &BarModel)]) -> Vec<Option<ScreenBase>> {
+pub(crate) fn screen_bases(bars: &[(&BarSeries, &BarModel)]) -> Vec<Option<ScreenBase>> {
     bars.par_iter()
         .map(|(s, m)| ScreenBase::new(s, m))
         .collect()
@@ -280,7 +297,7 @@ pub fn screen_bases(bars: &[(&BarSeries, &BarModel)]) -> Vec<Option<ScreenBase>>
 
 /// Diagnose one bar's fit: residual statistics and the channel ranking (`base`: the model
 /// linearised, [`screen_bases`]; without it no channel is ranked).
-pub fn diagnose_bar(
+pub(crate) fn diagnose_bar(
     series: &BarSeries,
     model: &BarModel,
     base: Option<&ScreenBase>,
@@ -351,7 +368,7 @@ fn term_identity(e: &Effect) -> String {
 /// The candidate effects for a fleet whose model is `effects`: catalogue effects not yet in the
 /// model, and `lag:CH` for the channels that explain most of the residuals fleet-wide; none
 /// whose term is already in the model or offered under its catalogue name.
-pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<Effect> {
+pub(crate) fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<Effect> {
     let mut taken: std::collections::BTreeSet<String> = effects.iter().map(term_identity).collect();
     let mut out: Vec<Effect> = CATALOGUE
         .iter()
@@ -380,7 +397,10 @@ pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<
 }
 
 /// Rewrite the channel candidates' explanations with what their sensors plausibly are.
-pub fn explain_candidates(candidates: &mut [Candidate], profiles: &[sensors::SensorProfile]) {
+pub(crate) fn explain_candidates(
+    candidates: &mut [Candidate],
+    profiles: &[sensors::SensorProfile],
+) {
     for c in candidates {
         c.explanation = explain::explain_with(&c.effect, profiles);
     }
@@ -390,8 +410,8 @@ pub fn explain_candidates(candidates: &mut [Candidate], profiles: &[sensors::Sen
 /// events), with the first bar's reason.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Unavailable {
-    pub effect: Effect,
-    pub reason: String,
+    pub(crate) effect: Effect,
+    pub(crate) reason: String,
 }
 
 /// Screen every candidate on every bar (`bases`: the bars' models linearised,
@@ -399,7 +419,7 @@ pub struct Unavailable {
 /// rank them: proposed first, then the other refitted ones (both by the fleet's ΔBIC), then the
 /// screened-out ones (by screened gain).
 /// Candidates that could not be built on any bar are listed apart.
-pub fn evaluate_candidates(
+pub(crate) fn evaluate_candidates(
     bars: &[(&BarSeries, &BarModel)],
     bases: &[Option<ScreenBase>],
     candidates: &[Effect],
@@ -662,7 +682,7 @@ fn prefer_named_effects(ranked: &mut [Candidate]) {
 
 /// Correlation beyond which two estimates are taken as one combination the data cannot split
 /// (e.g. two equal time constants with huge, cancelling gains: a derivative in disguise).
-pub const MAX_PARAM_CORRELATION: f64 = 0.9999;
+pub(crate) const MAX_PARAM_CORRELATION: f64 = 0.9999;
 
 /// The first pair of parameters of `model`, one of them new relative to `base`, whose
 /// estimates correlate beyond [`MAX_PARAM_CORRELATION`].
@@ -690,13 +710,13 @@ fn unidentifiable_pair(base: &BarModel, model: &BarModel) -> Option<(String, Str
 /// predictable (it adds its channel's sensor noise, or fits a slow wander with a smooth curve
 /// that jumps elsewhere) gets `p = 1`. Residuals are weighed by the square root of their
 /// samples' weights ([`BarSeries::weighted_residuals`]).
-pub fn lr_p_value(
+pub(crate) fn lr_p_value(
     base_log_likelihood: f64,
     extended_log_likelihood: f64,
     added_params: usize,
 ) -> f64 {
     let lr = 2.0 * (extended_log_likelihood - base_log_likelihood);
-    if !(lr > 0.0) {
+    if lr.is_nan() || lr <= 0.0 {
         return 1.0;
     }
     ChiSquared::new(added_params as f64)
@@ -825,12 +845,14 @@ fn fmt_um(v: f64) -> String {
 pub struct LedgerStep {
     /// What this step added (written `"base"` for the starting model, else the effect's name).
     pub added: Added,
-    pub effects: Vec<Effect>,
+    pub(crate) effects: Vec<Effect>,
+    /// Each bar's RMS residual after this step, µm.
     pub rms_um: Vec<(String, f64)>,
+    /// Fleet RMS residual after this step, µm.
     pub fleet_rms_um: f64,
     /// The added effect's ΔBIC and p-value (absent for the starting model).
-    pub delta_bic: Option<f64>,
-    pub p_value: Option<f64>,
+    pub(crate) delta_bic: Option<f64>,
+    pub(crate) p_value: Option<f64>,
 }
 
 /// What a ledger step added to the model before it.
@@ -838,6 +860,7 @@ pub struct LedgerStep {
 pub enum Added {
     /// The starting model: nothing added.
     Base,
+    /// An effect (written as its name).
     Effect(Effect),
 }
 
@@ -851,7 +874,7 @@ impl Added {
     }
 
     /// The axis label of the step in the ledger figures: `base`, `+EFFECT`.
-    pub fn label(&self) -> String {
+    pub(crate) fn label(&self) -> String {
         match self {
             Added::Base => "base".into(),
             Added::Effect(e) => format!("+{}", e.name()),
@@ -891,7 +914,7 @@ struct SelectionPath {
 /// end: a greedy first step that fits well alone can lead to a worse three-term model than the
 /// runner-up. `beam = 1` is plain greedy forward selection.
 /// `first_candidates` are the candidates already ranked for `start` (reused for the first step).
-pub fn forward_selection(
+pub(crate) fn forward_selection(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
@@ -1031,14 +1054,16 @@ fn extend_path(
 /// One bar's own forward selection.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct BarLedger {
+    /// Bar id.
     pub bar: String,
+    /// The steps, the starting model first.
     pub steps: Vec<LedgerStep>,
 }
 
 /// Forward selection on one bar alone: candidates from its own channel ranking (`diagnosis`
 /// of `model`), significance from its own likelihood-ratio tests, materiality by the fleet's
 /// `criteria`.
-pub fn forward_selection_of_bar(
+pub(crate) fn forward_selection_of_bar(
     series: &BarSeries,
     model: BarModel,
     base: &Option<ScreenBase>,

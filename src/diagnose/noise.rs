@@ -22,19 +22,19 @@ const LN_LAMBDA: (f64, f64) = (-25.0, 8.0);
 
 /// The maximum-likelihood noise model of one residual.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NoiseFit {
+pub(crate) struct NoiseFit {
     /// AR coefficient of the wander, per sample.
-    pub phi: f64,
+    pub(crate) phi: f64,
     /// Innovation variance of the wander over the white-noise variance.
-    pub lambda: f64,
+    pub(crate) lambda: f64,
     /// White-noise variance (concentrated), in the residual's unit squared.
-    pub white_variance: f64,
+    pub(crate) white_variance: f64,
     /// Maximised Gaussian log-likelihood of the residual.
-    pub log_likelihood: f64,
+    pub(crate) log_likelihood: f64,
 }
 
 /// Fit the AR(1)-plus-white-noise model to residual `r` by maximum likelihood.
-pub fn fit_noise(r: &[f64]) -> NoiseFit {
+pub(crate) fn fit_noise(r: &[f64]) -> NoiseFit {
     let outer = OuterCost { r };
     let best_u = brent_min(outer, LOG_ONE_MINUS_PHI, -2.0);
     let phi = 1.0 - 10f64.powf(best_u);
@@ -50,7 +50,7 @@ pub fn fit_noise(r: &[f64]) -> NoiseFit {
 }
 
 /// Exact Gaussian log-likelihood of `r` for given `φ`, `λ` (σ² concentrated out).
-pub fn kalman_likelihood(r: &[f64], phi: f64, lambda: f64) -> NoiseFit {
+pub(crate) fn kalman_likelihood(r: &[f64], phi: f64, lambda: f64) -> NoiseFit {
     let n = r.len();
     // Stationary prior of the wander, in units of σ².
     let mut p = if lambda > 0.0 {
@@ -105,7 +105,8 @@ pub fn kalman_likelihood(r: &[f64], phi: f64, lambda: f64) -> NoiseFit {
 
 /// Likelihood-ratio statistic `2 (ℓ₁ − ℓ₀)` of two residuals of the same samples, each under
 /// its own maximum-likelihood noise model; 0 when the second is not more likely.
-pub fn likelihood_ratio(base: &[f64], extended: &[f64]) -> f64 {
+#[cfg(test)]
+pub(crate) fn likelihood_ratio(base: &[f64], extended: &[f64]) -> f64 {
     let l0 = fit_noise(base).log_likelihood;
     let l1 = fit_noise(extended).log_likelihood;
     (2.0 * (l1 - l0)).max(0.0)

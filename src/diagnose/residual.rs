@@ -10,32 +10,32 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 use crate::fit::autocorrelation;
 
 #[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct ResidualStats {
-    pub rms_um: f64,
-    pub peak_to_valley_um: f64,
+pub(crate) struct ResidualStats {
+    pub(crate) rms_um: f64,
+    pub(crate) peak_to_valley_um: f64,
     /// `100 (1 - ‖y - ŷ‖ / ‖y - ȳ‖)`.
-    pub fit_percent: f64,
+    pub(crate) fit_percent: f64,
     /// Autocorrelation at lags `0..=acf.len()-1` (in samples).
-    pub acf: Vec<f64>,
+    pub(crate) acf: Vec<f64>,
     /// 95 % band for a white residual: `±1.96/√n`.
-    pub acf_band: f64,
-    pub ljung_box_q: f64,
-    pub ljung_box_lags: usize,
-    pub ljung_box_dof: usize,
+    pub(crate) acf_band: f64,
+    pub(crate) ljung_box_q: f64,
+    pub(crate) ljung_box_lags: usize,
+    pub(crate) ljung_box_dof: usize,
     /// p-value of the Ljung-Box test (small = not white).
-    pub whiteness_p: f64,
+    pub(crate) whiteness_p: f64,
     /// Integrated autocorrelation time, samples.
-    pub correlation_time_samples: f64,
+    pub(crate) correlation_time_samples: f64,
     /// Cumulative periodogram (thinned to ≤ 512 points) at `periodogram_freq_per_sample`.
-    pub cumulative_periodogram: Vec<f64>,
+    pub(crate) cumulative_periodogram: Vec<f64>,
     /// Frequencies of `cumulative_periodogram`, cycles per sample (`k / n`).
-    pub periodogram_freq_per_sample: Vec<f64>,
+    pub(crate) periodogram_freq_per_sample: Vec<f64>,
     /// 95 % Kolmogorov band half-width around the white-noise diagonal.
-    pub periodogram_band: f64,
+    pub(crate) periodogram_band: f64,
 }
 
 /// Statistics of residual `r` of a fit to `y` with `n_params` parameters.
-pub fn residual_stats(y: &[f64], r: &[f64], n_params: usize) -> ResidualStats {
+pub(crate) fn residual_stats(y: &[f64], r: &[f64], n_params: usize) -> ResidualStats {
     let n = r.len().max(1);
     let rms_um = (r.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
     let (lo, hi) = r
@@ -103,7 +103,7 @@ fn cumulative_periodogram(r: &[f64]) -> (Vec<f64>, Vec<f64>, f64) {
         .map(|c| c.norm_sqr())
         .collect();
     let total: f64 = power.iter().sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return (Vec::new(), Vec::new(), f64::NAN);
     }
     let mut acc = 0.0;

@@ -27,7 +27,7 @@ use crate::model::{Effect, ThermalProblem};
 use crate::series::BarSeries;
 
 /// A bar's fitted model linearised for screening.
-pub struct ScreenBase {
+pub(crate) struct ScreenBase {
     /// The series screened on: the bar's own, or its coarse copy when it is long.
     series: BarSeries,
     effects: Vec<Effect>,
@@ -52,30 +52,30 @@ pub struct ScreenBase {
 
 /// What a term would remove from a bar's residual, and change in its model, to first order.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Screen {
+pub(crate) struct Screen {
     /// RSS removed (µm², on the bar's own samples).
-    pub delta_rss_um2: f64,
+    pub(crate) delta_rss_um2: f64,
     /// The bar's RMS after adding the term, predicted (µm).
-    pub rms_after_um: f64,
+    pub(crate) rms_after_um: f64,
     /// How much the model's own terms would change their prediction when the term is added, RMS
     /// over the bar's samples (µm): the part of the new term's contribution `X c` that the
     /// current terms had absorbed, `‖P_J X c‖` (their linearised refit moves by `−P_J X c`). A
     /// term can remove little of the residual and still shift the model's parameters a lot
     /// (a second thermal path on `I_min` biases alpha while the RMS barely moves).
-    pub shift_rms_um: f64,
+    pub(crate) shift_rms_um: f64,
     /// The term's own time constant at the best screen (s), if it has one.
-    pub tau_s: Option<f64>,
+    pub(crate) tau_s: Option<f64>,
     /// Score (Lagrange-multiplier) statistic of the term, robust to autocorrelated residuals:
     /// `sᵀ V⁻¹ s` with `s = X̃ᵀ r` and `V` its batch-means variance; about χ² with
     /// [`Screen::dof`] degrees of freedom when the term is absent.
-    pub score: f64,
+    pub(crate) score: f64,
     /// The term's parameters (gains and time constants).
-    pub dof: usize,
+    pub(crate) dof: usize,
 }
 
 impl ScreenBase {
     /// Linearise `model` (fitted to `series`); `None` when the model cannot be rebuilt there.
-    pub fn new(series: &BarSeries, model: &BarModel) -> Option<ScreenBase> {
+    pub(crate) fn new(series: &BarSeries, model: &BarModel) -> Option<ScreenBase> {
         let screened =
             coarse_copy(series, COARSE_START_MIN_SAMPLES).unwrap_or_else(|| series.clone());
         let problem = ThermalProblem::new(&screened, &model.effects).ok()?;
@@ -108,7 +108,7 @@ impl ScreenBase {
     /// successive differences: `Σ (r_k − r_{k−1})² / (2 (n − 1))` of the weighted residual. A
     /// slow wander adds only its small change from one sample to the next, so this is the noise
     /// floor even where the model misses a slow effect.
-    pub fn white_noise_variance(&self) -> f64 {
+    pub(crate) fn white_noise_variance(&self) -> f64 {
         let r = &self.weighted_residuals;
         if r.len() < 2 {
             return f64::NAN;
@@ -118,14 +118,14 @@ impl ScreenBase {
     }
 
     /// The maximum-likelihood noise model of the model's residual ([`noise::fit_noise`]).
-    pub fn noise(&self) -> &NoiseFit {
+    pub(crate) fn noise(&self) -> &NoiseFit {
         self.noise
             .get_or_init(|| noise::fit_noise(&self.weighted_residuals))
     }
 
     /// Screen `effect` added to the model: the RSS its linearised refit removes. `Err` names why
     /// the term cannot be built for this bar (e.g. no events of its kind).
-    pub fn screen(&self, effect: &Effect) -> Result<Screen, String> {
+    pub(crate) fn screen(&self, effect: &Effect) -> Result<Screen, String> {
         let mut effects = self.effects.clone();
         effects.push(effect.clone());
         let problem = ThermalProblem::new(&self.series, &effects).map_err(|e| e.to_string())?;
@@ -173,7 +173,7 @@ impl ScreenBase {
     }
 
     /// The model's RSS on the bar's own samples (µm²).
-    pub fn rss_um2(&self) -> f64 {
+    pub(crate) fn rss_um2(&self) -> f64 {
         self.rss_um2
     }
 }
@@ -201,7 +201,7 @@ fn hac_score(x: &DMatrix<f64>, r: &[f64], batch: usize) -> f64 {
     }
     v *= n_batches as f64 / (n_batches - k) as f64;
     let scale = v.diagonal().max();
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return 0.0;
     }
     match v.svd(true, true).solve(&s, 1e-12 * scale) {
@@ -220,7 +220,7 @@ fn absorbed_rss(x: &DMatrix<f64>, q: &DMatrix<f64>, r: &[f64]) -> f64 {
     let normal = outside.tr_mul(&outside);
     let rhs = outside.tr_mul(&nalgebra::DVector::from_column_slice(r));
     let scale = normal.diagonal().max();
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return 0.0;
     }
     match normal.svd(true, true).solve(&rhs, 1e-12 * scale) {

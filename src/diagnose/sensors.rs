@@ -32,30 +32,30 @@ pub struct SensorProfile {
     pub sensor: String,
     /// `air`, `plate` or `other`: the bar's air sensor(s) and the plate sensor as
     /// `campaign.toml` declares them, every other sensor `other`.
-    pub declared_kind: SensorKind,
+    pub(crate) declared_kind: SensorKind,
     /// Max − min over the bar's log, K.
-    pub range_k: f64,
+    pub(crate) range_k: f64,
     /// RMS of what a 10-min zero-phase smoothing removes (fluctuations faster than about an
     /// hour), K.
     pub fast_fluctuation_k: f64,
     /// Share of the sensor's variance its best first-order response to the air explains
     /// (`None` for the air sensors themselves).
-    pub air_share: Option<f64>,
-    pub air_tau_s: f64,
+    pub(crate) air_share: Option<f64>,
+    pub(crate) air_tau_s: f64,
     /// The event kind whose first-order response explains most of what the air leaves; `KIND
     /// (on/off)` when the on/off state of valued events explains more than their value.
-    pub event: Option<String>,
-    pub event_tau_s: f64,
+    pub(crate) event: Option<String>,
+    pub(crate) event_tau_s: f64,
     /// Share of what the air leaves (of the whole variance for air sensors) that it explains.
-    pub event_share: f64,
+    pub(crate) event_share: f64,
     /// In words, for reports and explanations.
     pub description: String,
     /// The same in a few words, for figure captions.
-    pub summary: String,
+    pub(crate) summary: String,
 }
 
 /// Profiles of every sensor of `series`' campaign, by sensor name.
-pub fn sensor_profiles(series: &BarSeries) -> Vec<SensorProfile> {
+pub(crate) fn sensor_profiles(series: &BarSeries) -> Vec<SensorProfile> {
     let step = series.t_s.len().div_ceil(MAX_SAMPLES).max(1);
     let t: Vec<f64> = series.t_s.iter().step_by(step).copied().collect();
     let thin = |v: &[f64]| -> Vec<f64> { v.iter().step_by(step).copied().collect() };
@@ -248,7 +248,7 @@ fn summarise(p: &SensorProfile) -> String {
 }
 
 /// The sensors a channel term reads, in a few words each (empty for other channels).
-pub fn channel_sensor_summaries(channel: &str, profiles: &[SensorProfile]) -> Vec<String> {
+pub(crate) fn channel_sensor_summaries(channel: &str, profiles: &[SensorProfile]) -> Vec<String> {
     let names: Vec<&str> = match channel.split_once('-') {
         Some((a, b)) => vec![a, b],
         None => vec![channel],
@@ -356,7 +356,7 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// A channel name in words, with what its sensors plausibly are.
-pub fn describe_channel_with(channel: &str, profiles: &[SensorProfile]) -> String {
+pub(crate) fn describe_channel_with(channel: &str, profiles: &[SensorProfile]) -> String {
     let generic = super::explain::describe_channel(channel);
     let of = |s: &str| profiles.iter().find(|p| p.sensor == s);
     if let Some(p) = of(channel) {

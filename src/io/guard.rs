@@ -39,7 +39,6 @@ pub(crate) fn guarded<T>(
 
 /// [`guarded`] for one scan of several files (`all`, `path` among them): a panic is named by
 /// `path`, a crash by every file of `all` (the scan may be decoding any of them).
-#[allow(clippy::result_large_err)] // IngestError, as every reader's: one error, once per run
 pub(crate) fn guarded_scan<T>(
     path: &Path,
     all: &[&Path],
@@ -66,7 +65,6 @@ pub(crate) fn guarded_scan<T>(
 /// Decodes every column of every row of `path`, dropping the rows as they stream: the
 /// supervisor's probe of one file after a scan of several crashed (`crate::supervise::probe`).
 /// Whether the process survives is the answer; the error is only for the caller's log.
-#[allow(clippy::result_large_err)] // IngestError, as every reader's
 pub fn decode_whole_file(path: &Path) -> Result<(), IngestError> {
     use polars::lazy::dsl::Engine;
     use polars::prelude::*;

@@ -17,15 +17,15 @@ pub(crate) const EVENTS: &str = "events";
 
 /// The files of one campaign directory, each list sorted by path.
 pub(crate) struct CampaignFiles {
-    pub manifest: PathBuf,
-    pub encoders: Vec<PathBuf>,
-    pub temperatures: Vec<PathBuf>,
-    pub events: Vec<PathBuf>,
+    pub(crate) manifest: PathBuf,
+    pub(crate) encoders: Vec<PathBuf>,
+    pub(crate) temperatures: Vec<PathBuf>,
+    pub(crate) events: Vec<PathBuf>,
 }
 
 impl CampaignFiles {
     /// Lists the table files; encoders and temperatures must have at least one file each.
-    pub fn list(dir: &Path) -> Result<Self, IngestError> {
+    pub(crate) fn list(dir: &Path) -> Result<Self, IngestError> {
         Ok(Self {
             manifest: dir.join(MANIFEST),
             encoders: required_table(dir, ENCODERS)?,
@@ -34,7 +34,7 @@ impl CampaignFiles {
         })
     }
 
-    pub fn all(&self) -> Vec<PathBuf> {
+    pub(crate) fn all(&self) -> Vec<PathBuf> {
         let mut all = vec![self.manifest.clone()];
         all.extend(self.encoders.iter().cloned());
         all.extend(self.temperatures.iter().cloned());

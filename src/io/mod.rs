@@ -31,55 +31,100 @@ pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 /// column, id or key) that is wrong.
 #[derive(Debug, thiserror::Error)]
 pub enum IngestError {
+    /// No `campaign.toml` in the directory.
     #[error("{}: no campaign.toml here (not a campaign directory?)", dir.display())]
-    MissingManifest { dir: PathBuf },
+    MissingManifest {
+        /// The directory given.
+        dir: PathBuf,
+    },
+    /// A file could not be read.
     #[error("{}: cannot read: {message}", path.display())]
-    Io { path: PathBuf, message: String },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        message: String,
+    },
+    /// `campaign.toml` is invalid.
     #[error(transparent)]
     Manifest(#[from] CampaignError),
+    /// A required table has no parquet files.
     #[error("{}: no *.parquet files (the {table} table is required)", folder.display())]
     MissingTable {
+        /// The table's folder.
         folder: PathBuf,
+        /// The table (`encoders`, `temperatures`).
         table: &'static str,
     },
+    /// A file is not valid parquet.
     #[error("{}: not a valid parquet file: {reason}", path.display())]
-    NotParquet { path: PathBuf, reason: String },
+    NotParquet {
+        /// The file.
+        path: PathBuf,
+        /// The reader's message.
+        reason: String,
+    },
+    /// A required column is missing.
     #[error("{}: missing column `{column}` (found: {found})", path.display())]
     MissingColumn {
+        /// The file.
         path: PathBuf,
+        /// The column required.
         column: &'static str,
+        /// The columns the file has.
         found: String,
     },
+    /// A column has the wrong type.
     #[error("{}: column `{column}` has type {found}, expected {expected}", path.display())]
     WrongType {
+        /// The file.
         path: PathBuf,
+        /// The column.
         column: &'static str,
+        /// Its type.
         found: String,
+        /// The type required.
         expected: &'static str,
     },
+    /// Rows name a bar or sensor that `campaign.toml` does not declare.
     #[error(
-        "{}: {rows} rows ({first} .. {last}) have {column} \"{id}\", which campaign.toml does not declare (known: {known})",
-        path.display()
+        "{}: {rows} rows ({} .. {}) have {column} \"{id}\", which campaign.toml does not declare (known: {known})",
+        path.display(), format_ns(*first_ns), format_ns(*last_ns)
     )]
     UnknownId {
+        /// The file.
         path: PathBuf,
         /// `bar` or `sensor`.
         column: &'static str,
+        /// The undeclared id.
         id: String,
+        /// How many rows have it.
         rows: u64,
-        first: String,
-        last: String,
+        /// Time of the first of those rows, ns since the epoch (UTC).
+        first_ns: i64,
+        /// Time of the last of those rows, ns since the epoch (UTC).
+        last_ns: i64,
+        /// The declared ids, comma-separated.
         known: String,
     },
+    /// A column has null values.
     #[error("{}: column `{column}` has {count} null values", path.display())]
     Nulls {
+        /// The file.
         path: PathBuf,
+        /// The column.
         column: &'static str,
+        /// How many nulls.
         count: u64,
     },
     /// A polars failure that none of the checks above predicted (e.g. a corrupt data page).
     #[error("{context}: {message}")]
-    Polars { context: String, message: String },
+    Polars {
+        /// What was being read.
+        context: String,
+        /// polars' message.
+        message: String,
+    },
     /// Rows whose value cannot be read as what the spec says (a time out of range, counts that
     /// are not whole numbers): named by file, column and row range (counting from 0).
     #[error(
@@ -87,24 +132,46 @@ pub enum IngestError {
         path.display()
     )]
     BadRows {
+        /// The file.
         path: PathBuf,
+        /// The column.
         column: &'static str,
+        /// How many rows.
         rows: u64,
+        /// The first of them (from 0).
         first_row: u64,
+        /// The last of them (from 0).
         last_row: u64,
+        /// What is wrong with them.
         problem: String,
+        /// The first bad value.
         example: String,
     },
     /// A dependency panicked while reading the file (caught at the read, `io::guard`).
     #[error("{}: the parquet reader failed on this file (corrupt?): {message}", path.display())]
-    Panicked { path: PathBuf, message: String },
+    Panicked {
+        /// The file.
+        path: PathBuf,
+        /// The panic's message.
+        message: String,
+    },
     /// The file's size or modification time changed between hashing and the end of the read:
     /// the hash recorded would not be of the bytes analysed.
     #[error("{}: changed while it was being read ({what}); run again on a stable copy", path.display())]
-    ChangedDuringRun { path: PathBuf, what: String },
+    ChangedDuringRun {
+        /// The file.
+        path: PathBuf,
+        /// What changed.
+        what: String,
+    },
     /// A campaign that cannot give any result (no bars, no mounts, no air for a bar).
     #[error("{}: {problem}", path.display())]
-    UnusableCampaign { path: PathBuf, problem: String },
+    UnusableCampaign {
+        /// The campaign's directory or file concerned.
+        path: PathBuf,
+        /// Why no result is possible.
+        problem: String,
+    },
 }
 
 /// Reads a campaign directory (see `shared/spec/campaign-format.md`): the manifest, every

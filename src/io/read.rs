@@ -20,7 +20,7 @@ use polars::prelude::*;
 use super::guard::{guarded, guarded_scan};
 use super::inputs::{CampaignFiles, MANIFEST};
 use super::repeats::{RepeatSketch, RepeatWindows};
-use super::{format_ns, one_line, IngestError};
+use super::{one_line, IngestError};
 use crate::campaign::{Campaign, Manifest, SensorKind};
 use crate::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
 use crate::series::{
@@ -255,10 +255,10 @@ fn check_usable(campaign: &Campaign, path: &Path) -> Result<(), IngestError> {
 
 /// The three tables, split per bar / sensor and sorted.
 pub(crate) struct Tables {
-    pub bars: BTreeMap<String, BarLog>,
-    pub bins: BTreeMap<String, BarBins>,
-    pub sensors: BTreeMap<String, SensorLog>,
-    pub events: Vec<Event>,
+    pub(crate) bars: BTreeMap<String, BarLog>,
+    pub(crate) bins: BTreeMap<String, BarBins>,
+    pub(crate) sensors: BTreeMap<String, SensorLog>,
+    pub(crate) events: Vec<Event>,
 }
 
 /// `bin_s > 0`: every bar's encoder rows go straight into compressed bins of `bin_s` seconds
@@ -575,6 +575,9 @@ fn footer_rows_each(files: &[PathBuf]) -> Result<Vec<u64>, IngestError> {
 
 // ---------------------------------------------------------------- encoders, streamed
 
+/// The rows of a batch that are kept: bar indices, times (ns) and counts, same length.
+type KeptRows = (Vec<u32>, Vec<i64>, Vec<i64>);
+
 /// Rows of one bar gathered from every file and batch: kept (in arrival order), or added to the
 /// bar's compressed bins as they arrive (`series::BinAccumulator`: order-free integer sums).
 enum BarRows {
@@ -584,8 +587,9 @@ enum BarRows {
     },
     /// Added to the bar's bins as they arrive; `repeats` marks where its times may repeat
     /// (`None`: a bar without mounts).
+    /// (`Box`: the accumulator is ~300 bytes, the other variants 48 or none.)
     Binned {
-        bins: BinAccumulator,
+        bins: Box<BinAccumulator>,
         repeats: Option<RepeatSketch>,
     },
     /// Not kept (a pass that only looks for nulls and undeclared ids).
@@ -837,14 +841,13 @@ impl EncoderSink {
     /// Counts that are not a clean int64 column (nulls, floats, values beyond ±2^48): missing
     /// ones (null, NaN, ±inf) dropped and counted per bar; whole floats converted exactly; the
     /// batch refused (`None`, rows in `bad`) on a fraction or a value out of range.
-    #[allow(clippy::type_complexity)]
     fn checked_counts(
         &mut self,
         ids: &[u32],
         time: &[i64],
         counts: &Column,
         offset: u64,
-    ) -> PolarsResult<Option<(Vec<u32>, Vec<i64>, Vec<i64>)>> {
+    ) -> PolarsResult<Option<KeptRows>> {
         const FRACTION: &str = "hold counts that are not whole numbers";
         const RANGE: &str = "hold counts beyond ±2^48";
         let values: Vec<Option<f64>> = match counts.dtype() {
@@ -1018,7 +1021,7 @@ fn read_encoders(
 ) -> Result<Encoders, IngestError> {
     let keep = |id: &str| match grids.get(id) {
         Some((grid, repeats)) => BarRows::Binned {
-            bins: BinAccumulator::new(grid.clone()),
+            bins: Box::new(BinAccumulator::new(grid.clone())),
             repeats: repeats.clone(),
         },
         None => BarRows::Kept {
@@ -1077,8 +1080,8 @@ fn read_encoders(
             column: "bar",
             id,
             rows: u.rows,
-            first: format_ns(u.first_ns),
-            last: format_ns(u.last_ns),
+            first_ns: u.first_ns,
+            last_ns: u.last_ns,
             known: bar_ids.iter().copied().collect::<Vec<_>>().join(", "),
         });
     }
@@ -1705,8 +1708,8 @@ fn check_ids(
             column: id_column,
             id: row.id,
             rows: row.rows,
-            first: format_ns(row.first_ns),
-            last: format_ns(row.last_ns),
+            first_ns: row.first_ns,
+            last_ns: row.last_ns,
             known: known.iter().copied().collect::<Vec<_>>().join(", "),
         });
     }

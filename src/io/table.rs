@@ -10,10 +10,13 @@ use super::write::{write_parquet, WriteError};
 /// One output column: its values, all columns of a [`Table`] having the same length.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Column {
+    /// Floats.
     F64(Vec<f64>),
     /// Nullable floats (`None` is written as a parquet null).
     OptF64(Vec<Option<f64>>),
+    /// Integers.
     I64(Vec<i64>),
+    /// Strings.
     Str(Vec<String>),
     /// Timestamps, nanoseconds since the Unix epoch, written as a naive (= UTC) `Datetime(ns)`.
     TimeNs(Vec<i64>),
@@ -22,14 +25,17 @@ pub enum Column {
     /// Raw timestamps in `unit` (`None`: null), naive or in `zone` (e.g. `"UTC"`): how a
     /// logger may write them, for tests of odd inputs.
     Time {
+        /// Values in `unit`; `None` is a null.
         raw: Vec<Option<i64>>,
+        /// Unit of `raw`.
         unit: super::TimeUnit,
+        /// Time zone of the column; `None`: naive.
         zone: Option<String>,
     },
 }
 
 impl Column {
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         match self {
             Column::F64(v) => v.len(),
             Column::OptF64(v) => v.len(),
@@ -41,6 +47,7 @@ impl Column {
         }
     }
 
+    /// Whether the column has no rows.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -76,10 +83,11 @@ impl Column {
 /// Named columns, in output order.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Table {
-    pub columns: Vec<(String, Column)>,
+    pub(crate) columns: Vec<(String, Column)>,
 }
 
 impl Table {
+    /// An empty table.
     pub fn new() -> Self {
         Self::default()
     }
@@ -91,7 +99,7 @@ impl Table {
     }
 
     /// Rows of the table (of its first column; [`write_table`] checks they all agree).
-    pub fn height(&self) -> usize {
+    pub(crate) fn height(&self) -> usize {
         self.columns.first().map_or(0, |(_, c)| c.len())
     }
 }

@@ -16,9 +16,12 @@ use crate::series::CampaignTables;
 /// Resolution of the written `time` columns (values are floored to it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum TimeUnit {
+    /// Nanoseconds.
     #[default]
     Ns,
+    /// Microseconds.
     Us,
+    /// Milliseconds.
     Ms,
 }
 
@@ -46,6 +49,7 @@ impl TimeUnit {
 pub struct WriteOptions {
     /// One file per UTC day (`2026-11-01.parquet`) instead of one per table.
     pub split_by_day: bool,
+    /// Unit of the timestamp columns.
     pub time_unit: TimeUnit,
     /// Shuffle the rows inside each file (seeded by `seed`).
     pub shuffle_rows: bool,
@@ -54,28 +58,65 @@ pub struct WriteOptions {
     pub interleave_rows: bool,
     /// Write `bar` / `sensor` as dictionary (categorical) columns.
     pub dictionary_strings: bool,
+    /// Seed of the row shuffle.
     pub seed: u64,
 }
 
+/// Why a campaign or an output table could not be written.
 #[derive(Debug, thiserror::Error)]
 pub enum WriteError {
+    /// A file could not be written.
     #[error("{}: {message}", path.display())]
-    Io { path: PathBuf, message: String },
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        message: String,
+    },
+    /// polars could not write a table.
     #[error("{}: {message}", path.display())]
-    Polars { path: PathBuf, message: String },
+    Polars {
+        /// The file.
+        path: PathBuf,
+        /// polars' message.
+        message: String,
+    },
+    /// The manifest could not be serialised.
     #[error("{}: cannot serialise the manifest: {message}", path.display())]
-    Manifest { path: PathBuf, message: String },
+    Manifest {
+        /// The file.
+        path: PathBuf,
+        /// The serialiser's message.
+        message: String,
+    },
+    /// The columns of a table differ in length.
     #[error("{}: column `{column}` has {rows} rows, expected {expected}", path.display())]
     RaggedTable {
+        /// The file.
         path: PathBuf,
+        /// The column.
         column: String,
+        /// Its rows.
         rows: usize,
+        /// The table's rows.
         expected: usize,
     },
+    /// Two columns share a name.
     #[error("{}: column `{column}` appears twice", path.display())]
-    DuplicateColumn { path: PathBuf, column: String },
+    DuplicateColumn {
+        /// The file.
+        path: PathBuf,
+        /// The name.
+        column: String,
+    },
+    /// More rows than polars can index.
     #[error("{}: more rows than polars can index ({rows})", path.display())]
-    TooManyRows { path: PathBuf, rows: usize },
+    TooManyRows {
+        /// The file.
+        path: PathBuf,
+        /// The rows.
+        rows: usize,
+    },
 }
 
 /// Writes `campaign.toml` and the three tables under `dir` (created if needed). Existing

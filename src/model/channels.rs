@@ -12,7 +12,7 @@ use super::lag;
 
 /// A channel's samples at the bar's times, or impulse times.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Channel {
+pub(crate) enum Channel {
     Sampled(Vec<f64>),
     /// Times (s, sorted) of unit impulses.
     Impulses(Vec<f64>),
@@ -39,7 +39,7 @@ pub enum ChannelError {
 
 impl Channel {
     /// First-order lag of the channel (impulses: their unit responses).
-    pub fn lag(
+    pub(crate) fn lag(
         &self,
         t_s: &[f64],
         tau_s: f64,
@@ -55,7 +55,7 @@ impl Channel {
     }
 
     /// The channel's level (impulses: 1 at the first sample at or after each impulse).
-    pub fn level(&self, n: usize) -> Vec<f64> {
+    pub(crate) fn level(&self, n: usize) -> Vec<f64> {
         match self {
             Channel::Sampled(u) => u.clone(),
             Channel::Impulses(_) => vec![0.0; n],
@@ -65,7 +65,7 @@ impl Channel {
 }
 
 /// Resolve a channel name for a bar.
-pub fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> {
+pub(crate) fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> {
     if let Some(c) = series.celsius.get(name) {
         return Ok(Channel::Sampled(c.clone()));
     }
@@ -109,12 +109,12 @@ pub fn resolve(series: &BarSeries, name: &str) -> Result<Channel, ChannelError> 
 
 /// Events of one kind for the bar: a held series when they carry values, impulses otherwise.
 /// The held series' value before the first event follows [`held_start`]'s rules.
-pub fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelError> {
+pub(crate) fn event_channel(series: &BarSeries, kind: &str) -> Result<Channel, ChannelError> {
     held_event_channel(series, kind).map(|(channel, _)| channel)
 }
 
 /// [`event_channel`], and for a held series what the data leave unknown about its start.
-pub fn held_event_channel(
+pub(crate) fn held_event_channel(
     series: &BarSeries,
     kind: &str,
 ) -> Result<(Channel, HeldStart), ChannelError> {
@@ -178,26 +178,26 @@ fn held_at(t_s: &[f64], switch_s: &[f64], values: &[f64]) -> Vec<f64> {
 /// What the data leave unknown about a held event series' start, to be fitted by the model
 /// (see [`held_start`]). The default: nothing.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct HeldStart {
+pub(crate) struct HeldStart {
     /// The value before the first event cannot be told (a free level, fitted from the fitted
     /// readings before the first event). Its placeholder in the channel is the first value.
-    pub free_level: Option<FreeLevel>,
+    pub(crate) free_level: Option<FreeLevel>,
     /// The first-order state at the first fitted reading is not known to be steady: its
     /// deviation, decaying with the term's time constant from that reading on, is fitted.
-    pub free_deviation_from_s: Option<f64>,
+    pub(crate) free_deviation_from_s: Option<f64>,
 }
 
 /// The samples before a kind's first event, whose level is fitted.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FreeLevel {
+pub(crate) struct FreeLevel {
     /// The first event's time, s: the level holds before it.
-    pub until_s: f64,
+    pub(crate) until_s: f64,
 }
 
 impl HeldStart {
     /// The indicator of the free level (1 before the first event, 0 from it on), as a held
     /// input on `t_s`, or `None`.
-    pub fn level_channel(&self, t_s: &[f64]) -> Option<Channel> {
+    pub(crate) fn level_channel(&self, t_s: &[f64]) -> Option<Channel> {
         let until_s = self.free_level?.until_s;
         let switch_s = vec![
             t_s.first().copied().unwrap_or(0.0).min(until_s) - 1.0,
@@ -234,7 +234,7 @@ fn held_start(series: &BarSeries, kind: &str, first_s: f64, values: &[f64]) -> (
     match kind {
         "head_power" => {
             let logged_before = series.t_s.first().is_some_and(|&t| t < first_s);
-            let powered = logged_before || !(first_value > 0.0);
+            let powered = logged_before || first_value.is_nan() || first_value <= 0.0;
             if powered {
                 (
                     1.0,
@@ -273,7 +273,7 @@ fn held_start(series: &BarSeries, kind: &str, first_s: f64, values: &[f64]) -> (
 }
 
 /// Mean of the other air sensors minus the bar's own.
-pub fn air_gradient(series: &BarSeries) -> Result<Channel, ChannelError> {
+pub(crate) fn air_gradient(series: &BarSeries) -> Result<Channel, ChannelError> {
     let own = series.bar.sensor.as_ref().ok_or(ChannelError::NoGradient)?;
     let own_c = series.celsius.get(own).ok_or(ChannelError::NoGradient)?;
     let others: Vec<&Vec<f64>> = series
@@ -294,7 +294,7 @@ pub fn air_gradient(series: &BarSeries) -> Result<Channel, ChannelError> {
 }
 
 /// The plate sensor's temperature.
-pub fn plate_temperature(series: &BarSeries) -> Result<Vec<f64>, ChannelError> {
+pub(crate) fn plate_temperature(series: &BarSeries) -> Result<Vec<f64>, ChannelError> {
     series
         .plate_sensor_id
         .as_ref()
@@ -304,7 +304,7 @@ pub fn plate_temperature(series: &BarSeries) -> Result<Vec<f64>, ChannelError> {
 }
 
 /// Every channel the diagnosis can offer for this bar (names accepted by [`resolve`]).
-pub fn available(series: &BarSeries) -> Vec<String> {
+pub(crate) fn available(series: &BarSeries) -> Vec<String> {
     let mut names: Vec<String> = series.celsius.keys().cloned().collect();
     let sensors: Vec<String> = series.celsius.keys().cloned().collect();
     for (i, a) in sensors.iter().enumerate() {

@@ -14,7 +14,7 @@
 //! The state starts in equilibrium with the first input (`x0 = u0`).
 
 /// The lag `x` of `u` sampled at `t_s`, and optionally `dx/d ln tau`.
-pub fn lag(
+pub(crate) fn lag(
     t_s: &[f64],
     u: &[f64],
     tau_s: f64,
@@ -125,7 +125,7 @@ impl StepFactorCache {
 /// delay the signal by `tau`, the forward-backward pair does not (a ramp comes out unchanged; a
 /// sinusoid of angular frequency `w` is scaled by `1 / (1 + (w tau)^2)` with no phase shift),
 /// while white sensor noise is cut by about `dt / (2 tau)` in variance.
-pub fn zero_phase_lag(t_s: &[f64], u: &[f64], tau_s: f64) -> Vec<f64> {
+pub(crate) fn zero_phase_lag(t_s: &[f64], u: &[f64], tau_s: f64) -> Vec<f64> {
     let (forward, _) = lag(t_s, u, tau_s, false);
     let t_rev: Vec<f64> = t_s.iter().rev().map(|t| -t).collect();
     let f_rev: Vec<f64> = forward.into_iter().rev().collect();
@@ -136,7 +136,7 @@ pub fn zero_phase_lag(t_s: &[f64], u: &[f64], tau_s: f64) -> Vec<f64> {
 
 /// Response of a unit first-order system to unit impulses at `events_s` (sorted), sampled at
 /// `t_s`: `x(t) = Σ_{e ≤ t} exp(-(t - e)/tau)`, and optionally `dx/d ln tau`.
-pub fn impulse_lag(
+pub(crate) fn impulse_lag(
     t_s: &[f64],
     events_s: &[f64],
     tau_s: f64,
@@ -175,7 +175,7 @@ pub fn impulse_lag(
 /// sampled at `t_s`, and optionally `dx/d ln tau`. Exact at any sampling: the switches are
 /// integrated at their own times, so an input that changes while no sample is logged (a read
 /// head switched off between readings) is still seen. Starts in equilibrium.
-pub fn held_lag(
+pub(crate) fn held_lag(
     t_s: &[f64],
     switch_s: &[f64],
     values: &[f64],

@@ -10,8 +10,8 @@
 //! Sign convention (`physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
 //! error is `-dD`; gains are reported with the physical sign (positive = expands when warmed).
 
-pub mod channels;
-pub mod lag;
+pub(crate) mod channels;
+pub(crate) mod lag;
 
 use std::sync::{Arc, Mutex};
 
@@ -72,8 +72,11 @@ pub enum Effect {
     Creep,
     /// Generic term: `transform` of a named channel (see [`channels`]).
     Channel {
+        /// How the channel enters.
         transform: Transform,
+        /// The channel's name.
         channel: String,
+        /// Starting time constant given after `@` in the name, s; `None`: the default start.
         tau0_s: Option<f64>,
     },
 }
@@ -93,7 +96,7 @@ impl std::fmt::Display for Effect {
 }
 
 /// The named effects of the catalogue (`physics.md`), in display order.
-pub const CATALOGUE: &[&str] = &[
+pub(crate) const CATALOGUE: &[&str] = &[
     "fixed_part",
     "scale",
     "head_heating",
@@ -107,8 +110,8 @@ pub const CATALOGUE: &[&str] = &[
 /// Names of the base paths' initial-state gains: the lag's departure from steady state at the
 /// bar's first fitted sample times the path's expansion (ppm = ppm/K · K), nuisance gains like
 /// the zeros ([`initial_state`]).
-pub const INITIAL_FIXED: &str = "initial_fixed_ppm";
-pub const INITIAL_SCALE: &str = "initial_scale_ppm";
+pub(crate) const INITIAL_FIXED: &str = "initial_fixed_ppm";
+pub(crate) const INITIAL_SCALE: &str = "initial_scale_ppm";
 
 /// The base model of `physics.md`.
 pub fn base_effects() -> Vec<Effect> {
@@ -151,7 +154,7 @@ impl Effect {
         let (channel, tau0_s) = match channel.rsplit_once('@') {
             Some((ch, tau)) => {
                 let tau: f64 = tau.parse().map_err(|_| UnknownEffect(s.to_string()))?;
-                if !(tau > 0.0) {
+                if tau.is_nan() || tau <= 0.0 {
                     return Err(UnknownEffect(s.to_string()));
                 }
                 (ch, Some(tau))
@@ -192,7 +195,7 @@ impl Effect {
 
     /// Name of the linear gain and its unit (for `air_gradient`, which has two gains, the gain on
     /// the fixed part; see [`Effect::gain_names`]).
-    pub fn gain_name(&self) -> String {
+    pub(crate) fn gain_name(&self) -> String {
         match self {
             Effect::FixedPart => "alpha_ppm_per_k".into(),
             Effect::Scale => "beta_ppm_per_k".into(),
@@ -210,7 +213,7 @@ impl Effect {
 
     /// Names of the effect's linear gains, one per column it adds (`settling`, whose amplitudes
     /// are per zero segment, is named `settling_K_um` by the problem).
-    pub fn gain_names(&self) -> Vec<String> {
+    pub(crate) fn gain_names(&self) -> Vec<String> {
         match self {
             Effect::AirGradient => vec![
                 "gradient_fixed_ppm_per_k".into(),
@@ -244,7 +247,7 @@ impl Effect {
 
     /// Name of the effect's own time constant, if it has one (`air_gradient` shares the base
     /// paths' `tau_r_s` and `tau_s_s`).
-    pub fn tau_name(&self) -> Option<String> {
+    pub(crate) fn tau_name(&self) -> Option<String> {
         match self {
             Effect::FixedPart => Some("tau_r_s".into()),
             Effect::Scale => Some("tau_s_s".into()),
@@ -358,13 +361,20 @@ type TermColumn = (Arc<Vec<f64>>, Option<Arc<Vec<f64>>>);
 /// A model that cannot be built for a bar.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 pub enum ModelError {
+    /// An effect's channel term could not be built.
     #[error("effect {effect}: {source}")]
     Channel {
+        /// The effect's name.
         effect: String,
+        /// Why.
         source: ChannelError,
     },
+    /// The effect acts through the base paths, and the model has neither.
     #[error("effect {effect} acts through the base paths: add fixed_part or scale to the model")]
-    NoBasePath { effect: String },
+    NoBasePath {
+        /// The effect's name.
+        effect: String,
+    },
 }
 
 impl<'a> ThermalProblem<'a> {
@@ -506,7 +516,7 @@ impl<'a> ThermalProblem<'a> {
     }
 
     /// Residuals in µm at the fitted samples from the engine's (weighted) residuals.
-    pub fn unweighted(&self, residuals: &[f64]) -> Vec<f64> {
+    pub(crate) fn unweighted(&self, residuals: &[f64]) -> Vec<f64> {
         residuals
             .iter()
             .zip(&self.sqrt_weight)
@@ -521,7 +531,7 @@ impl<'a> ThermalProblem<'a> {
 
     /// The zeros (µm) of a fit with `gains` at `theta`: each segment's mean of reading minus
     /// thermal model over its fitted samples; 0 for a segment without fitted samples.
-    pub fn zeros_um(&self, theta: &[f64], gains: &[f64]) -> Vec<f64> {
+    pub(crate) fn zeros_um(&self, theta: &[f64], gains: &[f64]) -> Vec<f64> {
         let columns = self.full_columns(theta);
         let means = self.segment_means(self.series.fit_index.iter().map(|&i| {
             let thermal: f64 = columns.iter().zip(gains).map(|(c, g)| c[i] * g).sum();
@@ -534,7 +544,7 @@ impl<'a> ThermalProblem<'a> {
     }
 
     /// `theta0`: `ln tau` of every term with a time constant.
-    pub fn theta0(&self) -> Vec<f64> {
+    pub(crate) fn theta0(&self) -> Vec<f64> {
         self.tau_terms
             .iter()
             .map(|&i| self.terms[i].effect.tau0_s().ln())
@@ -542,17 +552,17 @@ impl<'a> ThermalProblem<'a> {
     }
 
     /// The effects asked for (some of their terms may be left out: [`Self::not_identifiable`]).
-    pub fn effects(&self) -> Vec<Effect> {
+    pub(crate) fn effects(&self) -> Vec<Effect> {
         self.effects.clone()
     }
 
     /// The terms of the effects asked for that this bar's data cannot determine, left out.
-    pub fn not_identifiable(&self) -> &[NotIdentifiable] {
+    pub(crate) fn not_identifiable(&self) -> &[NotIdentifiable] {
         &self.not_identifiable
     }
 
     /// Names of the time constants in `theta` order (e.g. `tau_r_s`).
-    pub fn tau_names(&self) -> Vec<String> {
+    pub(crate) fn tau_names(&self) -> Vec<String> {
         self.tau_terms
             .iter()
             .map(|&i| self.terms[i].effect.tau_name().unwrap_or_default())
@@ -561,7 +571,7 @@ impl<'a> ThermalProblem<'a> {
 
     /// Per gain column: whether it is a nuisance gain (an initial-state transient, like the
     /// zeros not a property of the bar) rather than a parameter of the model.
-    pub fn nuisance_gains(&self) -> Vec<bool> {
+    pub(crate) fn nuisance_gains(&self) -> Vec<bool> {
         self.gain_columns()
             .into_iter()
             .map(|(j, _)| self.terms[j].kind == TermKind::InitialState)
@@ -590,12 +600,12 @@ impl<'a> ThermalProblem<'a> {
     }
 
     /// Number of linear columns before the zeros.
-    pub fn n_gains(&self) -> usize {
+    pub(crate) fn n_gains(&self) -> usize {
         self.gain_columns().len()
     }
 
     /// Names of the gain columns, in order.
-    pub fn gain_names(&self) -> Vec<String> {
+    pub(crate) fn gain_names(&self) -> Vec<String> {
         self.gain_columns()
             .into_iter()
             .map(|(j, k)| match k {
@@ -616,7 +626,7 @@ impl<'a> ThermalProblem<'a> {
 
     /// The model's gain columns for every sample of the bar (not only the fitted ones), for
     /// plotting and for evaluating the model outside its fit mounts.
-    pub fn full_columns(&self, theta: &[f64]) -> Vec<Vec<f64>> {
+    pub(crate) fn full_columns(&self, theta: &[f64]) -> Vec<Vec<f64>> {
         let per_term: Vec<Arc<Vec<f64>>> = (0..self.terms.len())
             .map(|j| self.term_column(j, theta, false).0)
             .collect();
@@ -811,7 +821,7 @@ pub(crate) fn decay(
             1.0
         } else {
             match previous {
-                Some((_, ep)) if ep == 0.0 => 0.0,
+                Some((_, 0.0)) => 0.0,
                 Some((tp, ep)) if tp >= t_ref => {
                     let dt = t - tp;
                     let bits = dt.to_bits();
@@ -848,8 +858,8 @@ pub(crate) fn decay(
 /// A group of parameters of the effects asked for that one bar's data cannot determine, and why.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NotIdentifiable {
-    pub params: Vec<String>,
-    pub reason: String,
+    pub(crate) params: Vec<String>,
+    pub(crate) reason: String,
 }
 
 /// Travel spread (mm) below which a bar's fitted mounts are taken as one length.
@@ -865,7 +875,7 @@ const ONE_LENGTH_SPREAD_MM: f64 = 1e-6;
 /// the fixed part's `alpha` and `tau_R` then describe the whole bar at that length (its
 /// expansion referred to `I_min`: `alpha + beta I_p / I_min` when the taus are close). A second
 /// time constant, if the data call for one, is the diagnosis' `second_path`.
-pub fn identifiable_effects(
+pub(crate) fn identifiable_effects(
     series: &BarSeries,
     effects: &[Effect],
 ) -> (Vec<Effect>, Vec<NotIdentifiable>) {
@@ -882,7 +892,8 @@ pub fn identifiable_effects(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
             (lo.min(v), hi.max(v))
         });
-    if !(hi - lo <= ONE_LENGTH_SPREAD_MM) {
+    let spread_mm = hi - lo;
+    if spread_mm.is_nan() || spread_mm > ONE_LENGTH_SPREAD_MM {
         return (effects.to_vec(), Vec::new());
     }
     let mut params = vec![
@@ -907,7 +918,7 @@ pub fn identifiable_effects(
 }
 
 /// Time constant of the zero-phase smoothing of the plate sensor, seconds.
-pub const PLATE_SMOOTHING_S: f64 = 300.0;
+pub(crate) const PLATE_SMOOTHING_S: f64 = 300.0;
 
 /// The plate temperature the expansion follows: its sensor smoothed forward and backward with
 /// [`PLATE_SMOOTHING_S`] ([`lag::zero_phase_lag`]).
@@ -919,7 +930,7 @@ pub const PLATE_SMOOTHING_S: f64 = 300.0;
 /// time constant and is not separable from the bar's own lags; smoothing both ways removes the
 /// noise without delay (a daily cycle keeps 99.98 % of its amplitude).
 /// A gap in the readings (non-finite values) is left as it is: smoothing would spread it.
-pub fn plate_temperature(t_s: &[f64], sensor_c: &[f64]) -> Vec<f64> {
+pub(crate) fn plate_temperature(t_s: &[f64], sensor_c: &[f64]) -> Vec<f64> {
     if sensor_c.iter().any(|v| !v.is_finite()) {
         return sensor_c.to_vec();
     }

@@ -10,13 +10,13 @@ use crate::series::MIN_BINS_PER_TAU as BINS_PER_TAU;
 
 /// Correlations of parameters listed when |r| is above this (lmfit lists above 0.1 by default;
 /// a metrologist reading for trouble wants the near-collinear pairs only).
-pub const STRONG_CORRELATION: f64 = 0.9;
+pub(crate) const STRONG_CORRELATION: f64 = 0.9;
 /// Fewer effective degrees of freedom than this in a parameter's HAC variance: its interval
 /// rests on too few independent batches of residuals and is flagged.
-pub const FEW_BATCHES_DOF: f64 = 10.0;
+pub(crate) const FEW_BATCHES_DOF: f64 = 10.0;
 
 /// The whole report, Markdown.
-pub fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headline) -> String {
+pub(crate) fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headline) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Fit report: campaign {}\n", results.campaign.id);
     let effects: Vec<String> = plan.effects.iter().map(|e| e.name()).collect();
@@ -133,7 +133,7 @@ fn bar_section(
 
 /// `value` and `u` as a metrologist writes them (GUM 7.2.6): `u` to two significant digits,
 /// `value` to the same decimal place.
-pub fn value_and_uncertainty(value: f64, u: f64) -> (String, String) {
+pub(crate) fn value_and_uncertainty(value: f64, u: f64) -> (String, String) {
     if !(u.is_finite() && u > 0.0 && value.is_finite()) {
         return (sig(value), sig(u));
     }
@@ -165,7 +165,7 @@ fn sig(v: f64) -> String {
 }
 
 /// Parameter pairs with |r| above [`STRONG_CORRELATION`], strongest first.
-pub fn strong_correlations(o: &BarOutcome) -> Vec<(String, String, f64)> {
+pub(crate) fn strong_correlations(o: &BarOutcome) -> Vec<(String, String, f64)> {
     let m = &o.model;
     let mut pairs = Vec::new();
     for i in 0..m.params.len() {
@@ -182,7 +182,7 @@ pub fn strong_correlations(o: &BarOutcome) -> Vec<(String, String, f64)> {
 
 /// Something a reader must know before using a bar's numbers.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Warning {
+pub(crate) enum Warning {
     /// The 95 % interval of a time constant ends at the search bound on `side`.
     Unbounded {
         param: String,
@@ -204,7 +204,7 @@ pub enum Warning {
 
 impl Warning {
     /// In plain words (the fit report).
-    pub fn sentence(&self) -> String {
+    pub(crate) fn sentence(&self) -> String {
         match self {
             Warning::Unbounded { param, side, bound } => format!(
                 "{param}: the data do not bound it {side}; its 95 % interval ends at the search bound ({})",
@@ -226,7 +226,7 @@ impl Warning {
 }
 
 /// The bar's warnings; `bin_s`: the length of the compressed bins (0: every reading).
-pub fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
+pub(crate) fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
     let m = &o.model;
     let mut out = Vec::new();
     for p in m.params.iter().filter(|p| p.name.starts_with("tau")) {
@@ -267,7 +267,7 @@ pub fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
 }
 
 /// The warnings as short tags (the page's table of bars), one per kind.
-pub fn short_flags(warnings: &[Warning]) -> Vec<String> {
+pub(crate) fn short_flags(warnings: &[Warning]) -> Vec<String> {
     let mut unbounded = Vec::new();
     let mut few = Vec::new();
     let mut flags = Vec::new();
@@ -297,7 +297,7 @@ pub fn short_flags(warnings: &[Warning]) -> Vec<String> {
 
 /// A bar's data quality in one line (`summary.json` → `quality` has the ranges), if anything was
 /// dropped or flagged.
-pub fn quality_line(q: &crate::series::quality::ChannelQuality) -> Option<String> {
+pub(crate) fn quality_line(q: &crate::series::quality::ChannelQuality) -> Option<String> {
     let mut kinds: Vec<(String, usize)> = Vec::new();
     for f in &q.flags {
         let kind = serde_json::to_value(f.kind)

@@ -4,15 +4,15 @@
 //!
 //! Plain data in, text out: no IO, no pixels.
 
-pub mod fit_report;
-pub mod page;
+pub(crate) mod fit_report;
+pub(crate) mod page;
 
 use crate::model::Effect;
 use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};
 
 /// What the diagnosis concludes for the fleet.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Conclusion {
+pub(crate) enum Conclusion {
     /// No candidate is both significant and material.
     Adequate { min_gain_um: f64 },
     /// The top proposed candidate, and the fleet RMS before and after adding it.
@@ -25,36 +25,38 @@ pub enum Conclusion {
 
 /// The reference bar and the worst predicted mismatch against it.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ReferenceLine {
-    pub bar: String,
-    pub worst_bar: Option<String>,
-    pub worst_mismatch_um: f64,
-    pub limit_um: f64,
-    pub flagged: usize,
+pub(crate) struct ReferenceLine {
+    pub(crate) bar: String,
+    pub(crate) worst_bar: Option<String>,
+    pub(crate) worst_mismatch_um: f64,
+    pub(crate) limit_um: f64,
+    pub(crate) flagged: usize,
 }
 
 /// The night in a few numbers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Headline {
+    /// Campaign id.
     pub campaign: String,
+    /// The pipeline's name.
     pub pipeline: String,
-    pub bars_ok: usize,
-    pub failed: Vec<BarFailure>,
+    pub(crate) bars_ok: usize,
+    pub(crate) failed: Vec<BarFailure>,
     /// Quadratic mean of the bars' RMS residuals (µm), as the diagnosis' fleet RMS.
-    pub fleet_rms_um: Option<f64>,
-    pub noise_floor_um: Option<f64>,
-    pub reference: Option<ReferenceLine>,
-    pub conclusion: Option<Conclusion>,
+    pub(crate) fleet_rms_um: Option<f64>,
+    pub(crate) noise_floor_um: Option<f64>,
+    pub(crate) reference: Option<ReferenceLine>,
+    pub(crate) conclusion: Option<Conclusion>,
     /// The command that adds the proposed effect (same campaign, same output).
-    pub next_command: Option<String>,
+    pub(crate) next_command: Option<String>,
     /// Acceptance, when it ran on working bars: (pass, fail, no decision, tolerance µm).
-    pub acceptance: Option<(usize, usize, usize, f64)>,
+    pub(crate) acceptance: Option<(usize, usize, usize, f64)>,
     /// Why a stage has nothing to show, and bars a later stage left out, in words.
-    pub notes: Vec<String>,
+    pub(crate) notes: Vec<String>,
 }
 
 impl Headline {
-    pub fn from_results(plan: &RunPlan, results: &RunResults) -> Headline {
+    pub(crate) fn from_results(plan: &RunPlan, results: &RunResults) -> Headline {
         let conclusion =
             results
                 .diagnosis
@@ -153,7 +155,7 @@ impl Headline {
 }
 
 /// The diagnosis' conclusion in one sentence.
-pub fn conclusion_text(c: &Conclusion) -> String {
+pub(crate) fn conclusion_text(c: &Conclusion) -> String {
     match c {
         Conclusion::Adequate { min_gain_um } => format!(
             "model adequate: no candidate effect is both significant and material (≥ {min_gain_um:.4} µm)"
@@ -227,7 +229,7 @@ fn reference_line(results: &RunResults) -> Option<ReferenceLine> {
 
 /// The command line that reruns `plan` with `effect` added: `dbbcal run PIPELINE` with every
 /// effect beyond the base as `--add-effect`, or the stage subcommand with `--effects`.
-pub fn add_effect_command(plan: &RunPlan, effect: &Effect) -> String {
+pub(crate) fn add_effect_command(plan: &RunPlan, effect: &Effect) -> String {
     let base: Vec<String> = crate::model::base_effects()
         .iter()
         .map(|e| e.name())
@@ -283,7 +285,7 @@ fn stage_command(stage: Stage) -> &'static str {
 }
 
 /// `s` quoted for a POSIX shell when it holds anything beyond `[A-Za-z0-9._/:,@=+-]`.
-pub fn shell_word(s: &str) -> String {
+pub(crate) fn shell_word(s: &str) -> String {
     let plain = |c: char| c.is_ascii_alphanumeric() || "._/:,@=+-".contains(c);
     if !s.is_empty() && s.chars().all(plain) {
         s.to_string()

@@ -14,7 +14,7 @@ use crate::figures::{FigureFile, FigureKind};
 use crate::pipeline::{RunPlan, RunResults};
 
 /// The page, byte-identical for the same inputs and plan.
-pub fn page(
+pub(crate) fn page(
     plan: &RunPlan,
     results: &RunResults,
     headline: &Headline,
@@ -294,7 +294,7 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
          <th>PV µm</th><th>RMS µm</th><th>U (k = 2) µm</th><th>decision</th></tr></thead><tbody>\n",
     );
     for a in acc {
-        let decision = serde_json::to_value(&a.decision)
+        let decision = serde_json::to_value(a.decision)
             .ok()
             .and_then(|v| v.as_str().map(str::to_string))
             .unwrap_or_default();
@@ -437,7 +437,7 @@ fn figure(h: &mut String, f: &FigureFile) {
 }
 
 /// Text for HTML element content and attribute values.
-pub fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {

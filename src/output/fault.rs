@@ -49,7 +49,7 @@ fn next(what: &str, path: &Path) -> Option<Fault> {
 }
 
 /// A step that may fail: killed or failed with ENOSPC when the configured point is this one.
-pub fn point(what: &str, path: &Path) -> std::io::Result<()> {
+pub(crate) fn point(what: &str, path: &Path) -> std::io::Result<()> {
     match next(what, path) {
         Some(Fault::Kill(_)) => kill(),
         Some(Fault::NoSpace(_)) => Err(std::io::Error::from_raw_os_error(libc::ENOSPC)),
@@ -62,7 +62,7 @@ pub fn point(what: &str, path: &Path) -> std::io::Result<()> {
 }
 
 /// A step after which an error can no longer be undone: only a kill is injected here.
-pub fn kill_point(what: &str, path: &Path) {
+pub(crate) fn kill_point(what: &str, path: &Path) {
     match next(what, path) {
         Some(Fault::Kill(_)) => kill(),
         Some(_) => eprintln!("dbbcal: fault point takes kills only: nothing injected"),

@@ -24,10 +24,10 @@
 //! [`summary`] (`summary.json`), [`diagnosis`] (`diagnosis.json`), [`stage_records`]
 //! (`calibration.json`, `compensation.json`, `acceptance.json`).
 
-pub mod diagnosis;
-pub mod fault;
-pub mod stage_records;
-pub mod summary;
+pub(crate) mod diagnosis;
+pub(crate) mod fault;
+pub(crate) mod stage_records;
+pub(crate) mod summary;
 
 use std::fs::File;
 use std::path::{Component, Path, PathBuf};
@@ -43,14 +43,26 @@ pub const MARKER: &str = "dbbcal-output.json";
 pub enum OutputError {
     /// The location is not one dbbcal may write: refused before any work.
     #[error("--out {path}: refused: {why}")]
-    Refused { path: PathBuf, why: String },
+    Refused {
+        /// The output location.
+        path: PathBuf,
+        /// Why it is refused.
+        why: String,
+    },
     /// Another run holds the lock on this output.
     #[error("--out {path}: another dbbcal run is writing this output now (lock {lock}); try again when it has finished")]
-    Busy { path: PathBuf, lock: PathBuf },
+    Busy {
+        /// The output location.
+        path: PathBuf,
+        /// The lock file.
+        lock: PathBuf,
+    },
     /// A file-system operation failed while writing.
     #[error("{path}: {source}")]
     Io {
+        /// The file or folder.
         path: PathBuf,
+        /// The OS error.
         source: std::io::Error,
     },
 }
@@ -66,19 +78,19 @@ impl OutputError {
 
 /// What the marker file says: which tool and version wrote the folder, from which inputs.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Marker {
-    pub tool: String,
-    pub version: String,
+pub(crate) struct Marker {
+    pub(crate) tool: String,
+    pub(crate) version: String,
     /// The campaign id, the stages run and the model's effects.
-    pub campaign: String,
-    pub stages: serde_json::Value,
-    pub effects: serde_json::Value,
+    pub(crate) campaign: String,
+    pub(crate) stages: serde_json::Value,
+    pub(crate) effects: serde_json::Value,
     /// Every input file (relative path, bytes, sha256), as in `inputs.json`.
-    pub inputs: serde_json::Value,
+    pub(crate) inputs: serde_json::Value,
 }
 
 impl Marker {
-    pub fn new(
+    pub(crate) fn new(
         campaign: &str,
         stages: serde_json::Value,
         effects: serde_json::Value,
@@ -105,7 +117,7 @@ fn holds_marker(dir: &Path) -> bool {
 
 /// An output location that passed every check and is locked for this run.
 #[derive(Debug)]
-pub struct OutputTarget {
+pub(crate) struct OutputTarget {
     out: PathBuf,
     parent: PathBuf,
     name: String,
@@ -116,7 +128,7 @@ pub struct OutputTarget {
 impl OutputTarget {
     /// Check `out` against `campaign` and take the lock; nothing is written but the parent
     /// folder (created) and the lock file.
-    pub fn claim(out: &Path, campaign: &Path) -> Result<OutputTarget, OutputError> {
+    pub(crate) fn claim(out: &Path, campaign: &Path) -> Result<OutputTarget, OutputError> {
         let refused = |why: String| OutputError::Refused {
             path: out.to_path_buf(),
             why,
@@ -164,14 +176,14 @@ impl OutputTarget {
         })
     }
 
-    pub fn path(&self) -> &Path {
+    pub(crate) fn path(&self) -> &Path {
         &self.out
     }
 
     /// Build the new output with `build` (given the partial folder, which already holds the
     /// marker) and swap it into place. On any error the partial folder is removed and `OUT`
     /// is as it was.
-    pub fn write<E>(
+    pub(crate) fn write<E>(
         self,
         marker: &Marker,
         build: impl FnOnce(&Path) -> Result<(), E>,
@@ -335,13 +347,13 @@ pub fn clean_up_after_dead_run(out: &Path) -> Result<bool, OutputError> {
 
 /// A failed [`OutputTarget::write`]: the build's own error, or the output's.
 #[derive(Debug)]
-pub enum WriteFailure<E> {
+pub(crate) enum WriteFailure<E> {
     Build(E),
     Output(OutputError),
 }
 
 /// Write `bytes` to `path` (a new file in a partial folder), through the fault points.
-pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     fault::point("write", path).map_err(OutputError::io(path))?;
     std::fs::write(path, bytes).map_err(OutputError::io(path))
 }
@@ -417,7 +429,7 @@ fn sibling(out: &Path, name: &str) -> PathBuf {
 }
 
 /// `path` made absolute, symlinks resolved in the part that exists, `.` and `..` removed.
-pub fn resolve(path: &Path) -> std::io::Result<PathBuf> {
+pub(crate) fn resolve(path: &Path) -> std::io::Result<PathBuf> {
     let absolute = std::path::absolute(path)?;
     let mut existing = absolute.as_path();
     let mut rest = Vec::new();

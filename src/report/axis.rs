@@ -19,18 +19,18 @@ pub(crate) enum TickLabels {
 /// One axis of a panel, in plot coordinates (log10 of the value on a log axis).
 #[derive(Debug, Clone)]
 pub(crate) struct Axis {
-    pub lo: f64,
-    pub hi: f64,
-    pub ticks: Vec<f64>,
-    pub minor: Vec<f64>,
-    pub labels: TickLabels,
-    pub desc: String,
+    pub(crate) lo: f64,
+    pub(crate) hi: f64,
+    pub(crate) ticks: Vec<f64>,
+    pub(crate) minor: Vec<f64>,
+    pub(crate) labels: TickLabels,
+    pub(crate) desc: String,
 }
 
 impl Axis {
     /// A linear axis covering `values` (non-finite skipped) with 4 % padding, optionally
     /// forced to include zero; `target` is the wanted number of ticks.
-    pub fn linear<I: IntoIterator<Item = f64>>(
+    pub(crate) fn linear<I: IntoIterator<Item = f64>>(
         values: I,
         include_zero: bool,
         target: usize,
@@ -58,7 +58,7 @@ impl Axis {
     }
 
     /// A linear axis over exactly `[lo, hi]` (degenerate ranges padded).
-    pub fn fixed(lo: f64, hi: f64, target: usize, desc: &str) -> Self {
+    pub(crate) fn fixed(lo: f64, hi: f64, target: usize, desc: &str) -> Self {
         let (lo, hi) = pad_range(lo, hi);
         let step = nice_step((hi - lo) / target.max(2) as f64);
         let ticks = steps_between(lo, hi, step);
@@ -76,7 +76,7 @@ impl Axis {
 
     /// A time axis over `secs` (seconds since campaign start, non-finite skipped), shown in the
     /// unit that suits the span.
-    pub fn time<I: IntoIterator<Item = f64>>(secs: I, target: usize) -> (Self, TimeUnit) {
+    pub(crate) fn time<I: IntoIterator<Item = f64>>(secs: I, target: usize) -> (Self, TimeUnit) {
         let (lo, hi) = finite_minmax(secs).unwrap_or((0.0, 3600.0));
         let unit = TimeUnit::for_span(hi - lo);
         let desc = format!("time since campaign start ({})", unit.symbol());
@@ -87,7 +87,7 @@ impl Axis {
     }
 
     /// The same axis without its description (for panels stacked above the one that has it).
-    pub fn without_desc(&self) -> Self {
+    pub(crate) fn without_desc(&self) -> Self {
         Self {
             desc: String::new(),
             ..self.clone()
@@ -95,7 +95,7 @@ impl Axis {
     }
 
     /// A log10 axis covering the positive finite `values`, ticks at 1-2-5 × decades.
-    pub fn log<I: IntoIterator<Item = f64>>(values: I, desc: &str) -> Self {
+    pub(crate) fn log<I: IntoIterator<Item = f64>>(values: I, desc: &str) -> Self {
         let logs = values.into_iter().filter(|v| *v > 0.0).map(f64::log10);
         let (lo, hi) = finite_minmax(logs).unwrap_or((-1.0, 1.0));
         let (lo, hi) = if hi - lo < 0.3 {
@@ -117,7 +117,7 @@ impl Axis {
 
     /// A category axis: category `i` sits at `i` (or `n-1-i` when `reversed`, so the first
     /// category is at the top of a vertical axis).
-    pub fn categories(names: &[String], reversed: bool, desc: &str) -> Self {
+    pub(crate) fn categories(names: &[String], reversed: bool, desc: &str) -> Self {
         let n = names.len().max(1);
         let ticks = (0..names.len()).map(|i| i as f64).collect();
         let labels = TickLabels::Categories {
@@ -135,7 +135,7 @@ impl Axis {
     }
 
     /// An axis over `[lo, hi]` without ticks or labels.
-    pub fn hidden(lo: f64, hi: f64) -> Self {
+    pub(crate) fn hidden(lo: f64, hi: f64) -> Self {
         let labels = TickLabels::Hidden;
         Self {
             lo,
@@ -148,17 +148,17 @@ impl Axis {
     }
 
     /// Whether values go through log10 before plotting.
-    pub fn is_log(&self) -> bool {
+    pub(crate) fn is_log(&self) -> bool {
         matches!(self.labels, TickLabels::Log)
     }
 
     /// Whether this is a category axis.
-    pub fn is_categorical(&self) -> bool {
+    pub(crate) fn is_categorical(&self) -> bool {
         matches!(self.labels, TickLabels::Categories { .. })
     }
 
     /// Plot coordinate of category `i` (`i` itself unless reversed).
-    pub fn category(&self, i: usize) -> f64 {
+    pub(crate) fn category(&self, i: usize) -> f64 {
         match &self.labels {
             TickLabels::Categories {
                 names,
@@ -169,7 +169,7 @@ impl Axis {
     }
 
     /// A data value in plot coordinates; `None` for NaN/inf or non-positive on a log axis.
-    pub fn map(&self, v: f64) -> Option<f64> {
+    pub(crate) fn map(&self, v: f64) -> Option<f64> {
         let p = if self.is_log() {
             if v > 0.0 {
                 v.log10()
@@ -183,7 +183,7 @@ impl Axis {
     }
 
     /// The label of the tick at plot coordinate `v`.
-    pub fn label(&self, v: f64) -> String {
+    pub(crate) fn label(&self, v: f64) -> String {
         match &self.labels {
             TickLabels::Numeric { decimals } => format_fixed(v, *decimals),
             TickLabels::Log => format_significant(10f64.powf(v)),
@@ -193,7 +193,7 @@ impl Axis {
     }
 
     /// All tick labels, for measuring label areas.
-    pub fn tick_labels(&self) -> Vec<String> {
+    pub(crate) fn tick_labels(&self) -> Vec<String> {
         self.ticks.iter().map(|t| self.label(*t)).collect()
     }
 }
@@ -325,7 +325,7 @@ pub(crate) enum TimeUnit {
 
 impl TimeUnit {
     /// Minutes up to 3 h, hours up to 3 days, days beyond.
-    pub fn for_span(span_s: f64) -> Self {
+    pub(crate) fn for_span(span_s: f64) -> Self {
         if span_s <= 3.0 * 3600.0 {
             Self::Minutes
         } else if span_s <= 3.0 * 86_400.0 {
@@ -336,7 +336,7 @@ impl TimeUnit {
     }
 
     /// Seconds per unit.
-    pub fn seconds(self) -> f64 {
+    pub(crate) fn seconds(self) -> f64 {
         match self {
             Self::Minutes => 60.0,
             Self::Hours => 3600.0,
@@ -345,7 +345,7 @@ impl TimeUnit {
     }
 
     /// Unit symbol for axis labels.
-    pub fn symbol(self) -> &'static str {
+    pub(crate) fn symbol(self) -> &'static str {
         match self {
             Self::Minutes => "min",
             Self::Hours => "h",
@@ -354,7 +354,7 @@ impl TimeUnit {
     }
 
     /// `secs` converted to this unit.
-    pub fn convert(self, secs: &[f64]) -> Vec<f64> {
+    pub(crate) fn convert(self, secs: &[f64]) -> Vec<f64> {
         secs.iter().map(|s| s / self.seconds()).collect()
     }
 }

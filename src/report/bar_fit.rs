@@ -15,19 +15,19 @@ use super::{check_series, same_len, validated, NamedSeries, ReportError};
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarFitFigure {
     /// Title, e.g. "Bar B03 — first-order thermal model".
-    pub title: String,
+    pub(crate) title: String,
     /// Line(s) under the title, typically the fitted parameters; `\n` starts a new line.
-    pub subtitle: String,
+    pub(crate) subtitle: String,
     /// Sample times of `measured_um` and `model_um`, seconds since campaign start.
-    pub time_s: Vec<f64>,
+    pub(crate) time_s: Vec<f64>,
     /// Measured thermal error (µm); may hold 100k+ points (decimated per pixel column).
-    pub measured_um: Vec<f64>,
+    pub(crate) measured_um: Vec<f64>,
     /// Model prediction at `time_s` (µm). The residual drawn is `measured − model`.
-    pub model_um: Vec<f64>,
+    pub(crate) model_um: Vec<f64>,
     /// Temperatures (°C), each with its own times in seconds since campaign start.
-    pub temperatures_c: Vec<NamedSeries>,
+    pub(crate) temperatures_c: Vec<NamedSeries>,
     /// Mount changes, seconds since campaign start (faint vertical lines in every panel).
-    pub mount_boundaries_s: Vec<f64>,
+    pub(crate) mount_boundaries_s: Vec<f64>,
     /// Warnings about the model shown under the subtitle in red, one line each (e.g. parameters
     /// the data cannot determine).
     pub notes: Vec<String>,

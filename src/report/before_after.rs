@@ -12,20 +12,20 @@ use super::{same_len, validated, ReportError};
 /// Per-bar RMS before and after, with optional fleet totals as a last group.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BeforeAfterFigure {
-    pub title: String,
+    pub(crate) title: String,
     /// Line(s) under the title; `\n` starts a new line.
-    pub subtitle: String,
-    pub bar_names: Vec<String>,
+    pub(crate) subtitle: String,
+    pub(crate) bar_names: Vec<String>,
     /// RMS per bar before (µm), `bar_names` order.
-    pub before_um: Vec<f64>,
+    pub(crate) before_um: Vec<f64>,
     /// RMS per bar after (µm), `bar_names` order.
-    pub after_um: Vec<f64>,
+    pub(crate) after_um: Vec<f64>,
     /// Fleet totals (µm); the "fleet" group is drawn when either is given.
-    pub fleet_before_um: Option<f64>,
-    pub fleet_after_um: Option<f64>,
+    pub(crate) fleet_before_um: Option<f64>,
+    pub(crate) fleet_after_um: Option<f64>,
     /// Legend labels; empty means "before" / "after".
-    pub before_label: String,
-    pub after_label: String,
+    pub(crate) before_label: String,
+    pub(crate) after_label: String,
 }
 
 impl BeforeAfterFigure {

@@ -16,31 +16,31 @@ pub struct ParameterPanel {
     /// Name as shown in the panel title, e.g. "alpha_ppm_per_k".
     pub name: String,
     /// Unit for the y axis, e.g. "ppm/K" or "s".
-    pub unit: String,
+    pub(crate) unit: String,
     /// Value per bar, in [`FleetFigure::bar_names`] order (NaN: not identified).
-    pub values: Vec<f64>,
+    pub(crate) values: Vec<f64>,
     /// Expanded uncertainty (95 %) per bar, same order (NaN: no error bar).
-    pub u95: Vec<f64>,
+    pub(crate) u95: Vec<f64>,
     /// Fleet mean; `None` draws the mean of the finite values.
-    pub fleet_mean: Option<f64>,
+    pub(crate) fleet_mean: Option<f64>,
 }
 
 /// Fleet overview: one small panel per parameter and the mismatch-vs-reference panel.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FleetFigure {
-    pub title: String,
+    pub(crate) title: String,
     /// Line(s) under the title; `\n` starts a new line.
-    pub subtitle: String,
+    pub(crate) subtitle: String,
     /// Bar identifiers, the category axis of every panel.
-    pub bar_names: Vec<String>,
-    pub parameters: Vec<ParameterPanel>,
+    pub(crate) bar_names: Vec<String>,
+    pub(crate) parameters: Vec<ParameterPanel>,
     /// Index into `bar_names` of the reference bar (highlighted everywhere).
-    pub reference: Option<usize>,
+    pub(crate) reference: Option<usize>,
     /// Predicted mismatch of each bar against the reference (µm), `bar_names` order; empty
     /// leaves the panel with a "no data" note.
-    pub mismatch_um: Vec<f64>,
+    pub(crate) mismatch_um: Vec<f64>,
     /// Acceptance limit (µm, e.g. 1.0): bars with |mismatch| above it are flagged.
-    pub mismatch_limit_um: f64,
+    pub(crate) mismatch_limit_um: f64,
 }
 
 impl FleetFigure {

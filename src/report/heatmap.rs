@@ -18,32 +18,32 @@ use super::{same_len, validated, ReportError};
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MatrixHighlight {
     /// Legend text, e.g. "nearest the fleet mean: B03".
-    pub label: String,
+    pub(crate) label: String,
     /// Row index to outline.
-    pub row: Option<usize>,
+    pub(crate) row: Option<usize>,
     /// Column index to outline.
-    pub col: Option<usize>,
+    pub(crate) col: Option<usize>,
 }
 
 /// A matrix of values with row and column labels.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct HeatMapFigure {
-    pub title: String,
+    pub(crate) title: String,
     /// Line(s) under the title; `\n` starts a new line.
-    pub subtitle: String,
+    pub(crate) subtitle: String,
     /// Row labels, top to bottom (e.g. candidate reference bars).
-    pub row_labels: Vec<String>,
+    pub(crate) row_labels: Vec<String>,
     /// Column labels, left to right (e.g. the other bars).
-    pub col_labels: Vec<String>,
+    pub(crate) col_labels: Vec<String>,
     /// Axis titles, e.g. "candidate reference" and "other bar".
-    pub row_axis_label: String,
-    pub col_axis_label: String,
+    pub(crate) row_axis_label: String,
+    pub(crate) col_axis_label: String,
     /// `values[row][col]`; NaN cells are grey with a dash.
-    pub values: Vec<Vec<f64>>,
+    pub(crate) values: Vec<Vec<f64>>,
     /// Unit of the values, e.g. "µm" (colour-scale title).
-    pub unit: String,
+    pub(crate) unit: String,
     /// Outlined rows/columns, drawn in accent colours with a legend line above the matrix.
-    pub highlights: Vec<MatrixHighlight>,
+    pub(crate) highlights: Vec<MatrixHighlight>,
 }
 
 impl HeatMapFigure {

@@ -13,19 +13,19 @@ use super::{same_len, validated, NamedValues, ReportError};
 /// RMS after each model step.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LedgerFigure {
-    pub title: String,
+    pub(crate) title: String,
     /// Line(s) under the title; `\n` starts a new line.
-    pub subtitle: String,
+    pub(crate) subtitle: String,
     /// Step labels along x, e.g. "base", "+head_heating", "+sag".
-    pub steps: Vec<String>,
+    pub(crate) steps: Vec<String>,
     /// Per bar: RMS residual (µm) after each step (NaN: not evaluated).
-    pub bars: Vec<NamedValues>,
+    pub(crate) bars: Vec<NamedValues>,
     /// Fleet RMS (µm) after each step (thick line; empty: not drawn).
-    pub fleet_rms_um: Vec<f64>,
+    pub(crate) fleet_rms_um: Vec<f64>,
     /// Measurement noise level (µm), drawn dashed.
-    pub noise_um: Option<f64>,
+    pub(crate) noise_um: Option<f64>,
     /// Logarithmic y axis (non-positive values are then skipped).
-    pub log_y: bool,
+    pub(crate) log_y: bool,
 }
 
 impl LedgerFigure {

@@ -25,8 +25,8 @@ pub(crate) enum Mark {
 /// One legend line: a symbol and its label.
 #[derive(Debug, Clone)]
 pub(crate) struct LegendEntry {
-    pub label: String,
-    pub mark: Mark,
+    pub(crate) label: String,
+    pub(crate) mark: Mark,
 }
 
 const SAMPLE_W: i32 = 34;
@@ -150,14 +150,14 @@ const OCC_W: usize = 40;
 const OCC_H: usize = 24;
 
 impl Occupancy {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self {
             cells: vec![false; OCC_W * OCC_H],
         }
     }
 
     /// Marks the point at fractions (`fx` right, `fy` up) of the area.
-    pub fn mark(&mut self, fx: f64, fy: f64) {
+    pub(crate) fn mark(&mut self, fx: f64, fy: f64) {
         if !(0.0..=1.0).contains(&fx) || !(0.0..=1.0).contains(&fy) {
             return;
         }
@@ -167,7 +167,7 @@ impl Occupancy {
     }
 
     /// Marks the straight segment between two fractional points.
-    pub fn mark_segment(&mut self, a: (f64, f64), b: (f64, f64)) {
+    pub(crate) fn mark_segment(&mut self, a: (f64, f64), b: (f64, f64)) {
         let steps = (((b.0 - a.0).abs() * OCC_W as f64)
             .max((b.1 - a.1).abs() * OCC_H as f64)
             .ceil() as usize)
@@ -183,7 +183,7 @@ impl Occupancy {
     }
 
     /// Marks the rectangle between two fractional corners.
-    pub fn mark_rect(&mut self, a: (f64, f64), b: (f64, f64)) {
+    pub(crate) fn mark_rect(&mut self, a: (f64, f64), b: (f64, f64)) {
         let (x0, x1) = (a.0.min(b.0).max(0.0), a.0.max(b.0).min(1.0));
         let (y0, y1) = (a.1.min(b.1).max(0.0), a.1.max(b.1).min(1.0));
         let nx = ((x1 - x0) * OCC_W as f64).ceil() as usize + 1;
@@ -215,7 +215,7 @@ impl Occupancy {
     /// Top-left pixel of the corner (upper right, upper left, lower right, lower left, in that
     /// order of preference) where a `size` box over a `dim` area covers the fewest data cells,
     /// and how many it covers.
-    pub fn best_corner(&self, size: (i32, i32), dim: (i32, i32)) -> ((i32, i32), usize) {
+    pub(crate) fn best_corner(&self, size: (i32, i32), dim: (i32, i32)) -> ((i32, i32), usize) {
         let m = 10;
         let corners = [
             (dim.0 - size.0 - m, m),

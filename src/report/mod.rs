@@ -39,24 +39,24 @@ pub use series_panels::{render_series_panels, SeriesPanel, SeriesPanelsFigure, X
 
 /// A named line: `y[i]` at `x[i]` (same length; NaN values leave a gap).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct NamedSeries {
+pub(crate) struct NamedSeries {
     pub name: String,
-    pub x: Vec<f64>,
-    pub y: Vec<f64>,
+    pub(crate) x: Vec<f64>,
+    pub(crate) y: Vec<f64>,
 }
 
 /// Named values at the categories of a figure (e.g. one bar's RMS after each model step).
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct NamedValues {
+pub(crate) struct NamedValues {
     pub name: String,
-    pub values: Vec<f64>,
+    pub(crate) values: Vec<f64>,
 }
 
 /// A horizontal reference line (tolerance, noise level, ...) with its legend label.
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct RefLine {
-    pub label: String,
-    pub value: f64,
+pub(crate) struct RefLine {
+    pub(crate) label: String,
+    pub(crate) value: f64,
 }
 
 /// Why a figure could not be written; every variant names the output file.
@@ -64,25 +64,42 @@ pub struct RefLine {
 pub enum ReportError {
     /// The spec is structurally inconsistent (e.g. two arrays that must match in length).
     #[error("figure {path}: invalid spec: {reason}")]
-    InvalidSpec { path: PathBuf, reason: String },
+    InvalidSpec {
+        /// The figure's file.
+        path: PathBuf,
+        /// What is inconsistent.
+        reason: String,
+    },
     /// The embedded font could not be registered (a build defect).
     #[error("figure {path}: the embedded font could not be registered")]
-    Font { path: PathBuf },
+    Font {
+        /// The figure's file.
+        path: PathBuf,
+    },
     /// The output directory could not be created.
     #[error("figure {path}: cannot create the output directory: {source}")]
     CreateDir {
+        /// The figure's file.
         path: PathBuf,
+        /// The OS error.
         source: std::io::Error,
     },
     /// The file could not be written.
     #[error("figure {path}: cannot write: {source}")]
     Write {
+        /// The figure's file.
         path: PathBuf,
+        /// The OS error.
         source: std::io::Error,
     },
     /// plotters failed while drawing or encoding the PNG.
     #[error("figure {path}: drawing failed: {message}")]
-    Draw { path: PathBuf, message: String },
+    Draw {
+        /// The figure's file.
+        path: PathBuf,
+        /// plotters' message.
+        message: String,
+    },
 }
 
 /// Checks that `a` and `b` have the same length, naming them in the error text.

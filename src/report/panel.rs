@@ -50,8 +50,8 @@ type Coord = Cartesian2d<Ticked, Ticked>;
 pub(crate) struct Panel<'a, 'b> {
     chart: ChartContext<'a, BitMapBackend<'b>, Coord>,
     area: &'a Area<'b>,
-    pub x: Axis,
-    pub y: Axis,
+    pub(crate) x: Axis,
+    pub(crate) y: Axis,
     /// Right end of the caption text (pixels in `area`), where a legend row may start.
     caption_end: i32,
     legend: Vec<LegendEntry>,
@@ -123,13 +123,18 @@ pub(crate) fn x_area_height(area: &Area<'_>, x: &Axis) -> u32 {
 impl<'a, 'b> Panel<'a, 'b> {
     /// Builds the chart on `area` with a caption (left-aligned above the plot, may be empty),
     /// axes, grid and tick labels.
-    pub fn new(area: &'a Area<'b>, caption: &str, x: Axis, y: Axis) -> Result<Self, DrawError> {
+    pub(crate) fn new(
+        area: &'a Area<'b>,
+        caption: &str,
+        x: Axis,
+        y: Axis,
+    ) -> Result<Self, DrawError> {
         Self::aligned(area, caption, x, y, (0, 0))
     }
 
     /// Like [`Panel::new`] with at least `min_labels.0` pixels left of and `min_labels.1` below
     /// the plot, so neighbouring panels line up (see [`y_area_width`], [`x_area_height`]).
-    pub fn aligned(
+    pub(crate) fn aligned(
         area: &'a Area<'b>,
         caption: &str,
         x: Axis,
@@ -238,7 +243,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// Adds a legend line (empty labels and repeats are ignored).
-    pub fn legend_entry(&mut self, label: &str, mark: Mark) {
+    pub(crate) fn legend_entry(&mut self, label: &str, mark: Mark) {
         if !label.is_empty() && !self.legend.iter().any(|e| e.label == label) {
             self.legend.push(LegendEntry {
                 label: label.to_string(),
@@ -249,7 +254,12 @@ impl<'a, 'b> Panel<'a, 'b> {
 
     /// A polyline through `(xs[i], ys[i])`, broken at unplottable values and decimated to a few
     /// points per pixel column.
-    pub fn line(&mut self, xs: &[f64], ys: &[f64], style: ShapeStyle) -> Result<(), DrawError> {
+    pub(crate) fn line(
+        &mut self,
+        xs: &[f64],
+        ys: &[f64],
+        style: ShapeStyle,
+    ) -> Result<(), DrawError> {
         let columns = self.chart.plotting_area().dim_in_pixel().0 as usize;
         let pts: Vec<Option<(f64, f64)>> =
             xs.iter().zip(ys).map(|(x, y)| self.map(*x, *y)).collect();
@@ -270,7 +280,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// A dashed straight line between two data points.
-    pub fn dashed(
+    pub(crate) fn dashed(
         &mut self,
         a: (f64, f64),
         b: (f64, f64),
@@ -285,7 +295,12 @@ impl<'a, 'b> Panel<'a, 'b> {
 
     /// A horizontal line across the panel at data value `y` (dashed or solid); skipped when
     /// outside the axis range (plotters would clamp it onto the edge).
-    pub fn hline(&mut self, y: f64, style: ShapeStyle, dashed: bool) -> Result<(), DrawError> {
+    pub(crate) fn hline(
+        &mut self,
+        y: f64,
+        style: ShapeStyle,
+        dashed: bool,
+    ) -> Result<(), DrawError> {
         let Some(py) = self
             .y
             .map(y)
@@ -304,7 +319,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// A vertical line across the panel at data value `x`; skipped when outside the range.
-    pub fn vline(&mut self, x: f64, style: ShapeStyle) -> Result<(), DrawError> {
+    pub(crate) fn vline(&mut self, x: f64, style: ShapeStyle) -> Result<(), DrawError> {
         let Some(px) = self
             .x
             .map(x)
@@ -320,7 +335,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// A rectangle between two data corners; a corner off a log axis snaps to the axis end.
-    pub fn rect(
+    pub(crate) fn rect(
         &mut self,
         a: (f64, f64),
         b: (f64, f64),
@@ -345,7 +360,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// A filled vertical bar centred on `x`, `half_width` wide each side, from `from` to `to`.
-    pub fn bar(
+    pub(crate) fn bar(
         &mut self,
         x: f64,
         half_width: f64,
@@ -362,7 +377,7 @@ impl<'a, 'b> Panel<'a, 'b> {
 
     /// A small value label just beyond the end of a bar at (`x`, `y`): above it if `y` ≥ 0,
     /// below it otherwise.
-    pub fn bar_label(&mut self, x: f64, y: f64, s: &str) -> Result<(), DrawError> {
+    pub(crate) fn bar_label(&mut self, x: f64, y: f64, s: &str) -> Result<(), DrawError> {
         let v = if y >= 0.0 { VPos::Bottom } else { VPos::Top };
         self.text(
             x,
@@ -373,7 +388,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// A vertical error bar from `lo` to `hi` at `x` with caps `half_width` wide (data units).
-    pub fn error_bar(
+    pub(crate) fn error_bar(
         &mut self,
         x: f64,
         lo: f64,
@@ -396,7 +411,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// Filled circles of `radius` pixels at the plottable points.
-    pub fn points(
+    pub(crate) fn points(
         &mut self,
         xs: &[f64],
         ys: &[f64],
@@ -423,7 +438,13 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// Text anchored at a data point (skipped if the point cannot be drawn).
-    pub fn text(&mut self, x: f64, y: f64, s: &str, style: TextStyle<'_>) -> Result<(), DrawError> {
+    pub(crate) fn text(
+        &mut self,
+        x: f64,
+        y: f64,
+        s: &str,
+        style: TextStyle<'_>,
+    ) -> Result<(), DrawError> {
         if let Some(p) = self.map(x, y) {
             self.chart
                 .draw_series(std::iter::once(Text::new(s.to_string(), p, style)))?;
@@ -432,7 +453,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// A small label on a white box just above the data point (`x`, `y`).
-    pub fn tag(&mut self, x: f64, y: f64, s: &str) -> Result<(), DrawError> {
+    pub(crate) fn tag(&mut self, x: f64, y: f64, s: &str) -> Result<(), DrawError> {
         let Some(p) = self.map(x, y) else {
             return Ok(());
         };
@@ -451,7 +472,7 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// Grey "no data" in the middle of the panel.
-    pub fn no_data(&mut self, what: &str) -> Result<(), DrawError> {
+    pub(crate) fn no_data(&mut self, what: &str) -> Result<(), DrawError> {
         let st = style::text(CAPTION_PX, style::MUTED, (HPos::Center, VPos::Center));
         let mid = ((self.x.lo + self.x.hi) / 2.0, (self.y.lo + self.y.hi) / 2.0);
         self.chart.draw_series(std::iter::once(Text::new(
@@ -463,18 +484,18 @@ impl<'a, 'b> Panel<'a, 'b> {
     }
 
     /// Pixel size of one data unit along x, for sizing text in cells.
-    pub fn px_per_x(&self) -> f64 {
+    pub(crate) fn px_per_x(&self) -> f64 {
         f64::from(self.chart.plotting_area().dim_in_pixel().0) / (self.x.hi - self.x.lo)
     }
 
     /// Pixel size of one data unit along y.
-    pub fn px_per_y(&self) -> f64 {
+    pub(crate) fn px_per_y(&self) -> f64 {
         f64::from(self.chart.plotting_area().dim_in_pixel().1) / (self.y.hi - self.y.lo)
     }
 
     /// Draws the legend inside the plot in the corner covering the least data; if every
     /// corner would hide data, in the caption band right of the caption when it fits there.
-    pub fn finish(self) -> Result<(), DrawError> {
+    pub(crate) fn finish(self) -> Result<(), DrawError> {
         if self.legend.is_empty() {
             return Ok(());
         }

@@ -15,23 +15,23 @@ use super::{same_len, validated, ReportError};
 /// Residual diagnostics for one bar.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ResidualDiagnosticsFigure {
-    pub title: String,
+    pub(crate) title: String,
     /// Line(s) under the title; `\n` starts a new line.
-    pub subtitle: String,
+    pub(crate) subtitle: String,
     /// Residual autocorrelation at lags 0, 1, 2, … × `lag_step_s`.
-    pub acf: Vec<f64>,
+    pub(crate) acf: Vec<f64>,
     /// Time between consecutive ACF lags (s).
-    pub lag_step_s: f64,
+    pub(crate) lag_step_s: f64,
     /// Number of residual samples behind the ACF (sets the ±1.96/√n band; 0: no band).
-    pub n_samples: usize,
+    pub(crate) n_samples: usize,
     /// Frequencies of the cumulative periodogram (Hz), ascending.
-    pub cpgram_freq_hz: Vec<f64>,
+    pub(crate) cpgram_freq_hz: Vec<f64>,
     /// Cumulative periodogram (0 → 1) at `cpgram_freq_hz`.
-    pub cpgram: Vec<f64>,
+    pub(crate) cpgram: Vec<f64>,
     /// Channel names (temperatures, candidate effects, ...).
-    pub channels: Vec<String>,
+    pub(crate) channels: Vec<String>,
     /// Fraction (0..1) of the residual each channel explains, `channels` order.
-    pub explained_fraction: Vec<f64>,
+    pub(crate) explained_fraction: Vec<f64>,
 }
 
 impl ResidualDiagnosticsFigure {

@@ -18,29 +18,32 @@ pub enum XAxis {
     #[default]
     TimeSeconds,
     /// Plain values, with the axis title (including the unit).
-    Values { label: String },
+    Values {
+        /// Axis title, with the unit.
+        label: String,
+    },
 }
 
 /// One panel: its series, y-axis title and horizontal reference lines.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SeriesPanel {
-    pub title: String,
+    pub(crate) title: String,
     /// Y-axis title including the unit, e.g. "compensated error (µm)".
-    pub y_label: String,
-    pub series: Vec<NamedSeries>,
+    pub(crate) y_label: String,
+    pub(crate) series: Vec<NamedSeries>,
     /// Horizontal lines (e.g. "tolerance" at +1 and −1); lines sharing a label share a colour
     /// and a legend line.
-    pub ref_lines: Vec<RefLine>,
+    pub(crate) ref_lines: Vec<RefLine>,
 }
 
 /// Stacked panels sharing the x axis.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SeriesPanelsFigure {
-    pub title: String,
+    pub(crate) title: String,
     /// Line(s) under the title; `\n` starts a new line.
-    pub subtitle: String,
-    pub x_axis: XAxis,
-    pub panels: Vec<SeriesPanel>,
+    pub(crate) subtitle: String,
+    pub(crate) x_axis: XAxis,
+    pub(crate) panels: Vec<SeriesPanel>,
 }
 
 impl SeriesPanelsFigure {

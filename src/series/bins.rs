@@ -53,14 +53,27 @@ pub const MAX_BAR_READINGS: u64 = 1 << 31;
 /// that no caller can make it wrap, panic or loop.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BinError {
+    /// A reading time outside 1980-01-01 .. 2200-01-01.
     #[error("reading time {time_ns} ns is outside 1980-01-01 .. 2200-01-01")]
-    TimeOutOfRange { time_ns: TimeNs },
+    TimeOutOfRange {
+        /// The time, ns since the epoch.
+        time_ns: TimeNs,
+    },
+    /// Counts beyond ±2^48.
     #[error("counts {counts} exceed ±2^48")]
-    CountsOutOfRange { counts: i64 },
+    CountsOutOfRange {
+        /// The counts.
+        counts: i64,
+    },
+    /// More than 2^31 readings for one bar.
     #[error("more than 2^31 readings for one bar")]
     TooManyReadings,
+    /// A reading removed from a bin that holds none.
     #[error("reading at {time_ns} ns removed from a bin that holds no reading")]
-    NotAdded { time_ns: TimeNs },
+    NotAdded {
+        /// Its time, ns since the epoch.
+        time_ns: TimeNs,
+    },
 }
 
 /// Whether `t` is an accepted reading time ([`EARLIEST_READING_NS`] ..
@@ -80,6 +93,11 @@ pub const AUTOMATIC_BIN_S: f64 = 60.0;
 /// times, weight 0) stand for them. Slower logs gain little and keep every reading.
 pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
 
+/// A fitted time constant should span at least this many bins: the compression's straight line
+/// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
+/// length set, a run whose fit finds a shorter one reads the campaign again with shorter bins.
+pub const MIN_BINS_PER_TAU: f64 = 10.0;
+
 /// The bin length for a campaign of `encoder_rows` readings when none is set (`[model] bin_s`
 /// and `--bin-s` absent): [`AUTOMATIC_BIN_S`] when the bars' mean interval between readings is
 /// at most [`AUTOMATIC_MAX_INTERVAL_S`], else 0 (every reading). The interval is the bars'
@@ -88,11 +106,6 @@ pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
 /// any row is read, and the same for any row order or file layout. A bar that logged only part
 /// of its span makes the interval look longer (no compression), never shorter; rows logged
 /// outside the spans make it look shorter.
-/// A fitted time constant should span at least this many bins: the compression's straight line
-/// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
-/// length set, a run whose fit finds a shorter one reads the campaign again with shorter bins.
-pub const MIN_BINS_PER_TAU: f64 = 10.0;
-
 pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
     let mut spans: std::collections::BTreeMap<&str, (TimeNs, TimeNs)> = Default::default();
     for m in &campaign.mounts {
@@ -100,7 +113,7 @@ pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
         *span = (span.0.min(m.from_ns), span.1.max(m.to_ns));
     }
     let span_s: f64 = spans.values().map(|(a, b)| (b - a) as f64 * 1e-9).sum();
-    if encoder_rows == 0 || !(span_s > 0.0) {
+    if encoder_rows == 0 || span_s.is_nan() || span_s <= 0.0 {
         return 0.0;
     }
     if span_s / encoder_rows as f64 <= AUTOMATIC_MAX_INTERVAL_S {
@@ -114,36 +127,36 @@ pub fn automatic_bin_s(campaign: &Campaign, encoder_rows: u64) -> f64 {
 /// bin's start) and of the counts `c`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct BinMoments {
-    pub n: u64,
+    pub(crate) n: u64,
     /// First and last reading, µs since the bin's start.
-    pub first_us: i64,
-    pub last_us: i64,
+    pub(crate) first_us: i64,
+    pub(crate) last_us: i64,
     /// Smallest and largest counts of the bin: a jump or a counter wrap inside a bin shows as
     /// a spread far beyond the noise (`series::quality`).
-    pub min_counts: i64,
-    pub max_counts: i64,
-    pub su: i128,
-    pub suu: i128,
-    pub suuu: i128,
-    pub sc: i128,
-    pub suc: i128,
-    pub scc: i128,
+    pub(crate) min_counts: i64,
+    pub(crate) max_counts: i64,
+    pub(crate) su: i128,
+    pub(crate) suu: i128,
+    pub(crate) suuu: i128,
+    pub(crate) sc: i128,
+    pub(crate) suc: i128,
+    pub(crate) scc: i128,
 }
 
 /// One node of a compressed bin: a weighted pseudo-reading.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Node {
     /// Time since the bin's start, µs.
-    pub offset_us: f64,
+    pub(crate) offset_us: f64,
     /// Number of readings the node stands for (the two weights of a bin sum to its `n`).
-    pub weight: f64,
+    pub(crate) weight: f64,
     /// The bin's least-squares line at the node, counts.
-    pub counts: f64,
+    pub(crate) counts: f64,
 }
 
 impl BinMoments {
     /// Add readings of this bin (times in ns, the bin starting at `start_ns`).
-    pub fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
+    pub(crate) fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
         let mut run = BinMoments::default();
         let (mut first, mut last) = (i64::MAX, i64::MIN);
         let (mut low, mut high) = (i64::MAX, i64::MIN);
@@ -172,7 +185,7 @@ impl BinMoments {
     /// Add one reading of this bin: [`BinMoments::add_run`] of one row, without a second sum
     /// to merge.
     #[inline]
-    pub fn add_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) {
+    pub(crate) fn add_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) {
         let u = (t - start_ns) / NS_PER_US;
         if self.n == 0 {
             (self.first_us, self.last_us) = (u, u);
@@ -199,7 +212,7 @@ impl BinMoments {
     /// reading removed is a copy of one that stays (a duplicate row), and a bin left empty
     /// becomes the empty bin. Returns `false` (and changes nothing) on an empty bin.
     #[inline]
-    pub fn remove_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) -> bool {
+    pub(crate) fn remove_one(&mut self, start_ns: TimeNs, t: TimeNs, c: i64) -> bool {
         if self.n == 0 {
             return false;
         }
@@ -220,7 +233,7 @@ impl BinMoments {
     }
 
     /// Sums of two parts of one bin.
-    pub fn merge(&mut self, other: &BinMoments) {
+    pub(crate) fn merge(&mut self, other: &BinMoments) {
         if other.n == 0 {
             return;
         }
@@ -243,7 +256,7 @@ impl BinMoments {
 
     /// The bin's nodes (two; one when its readings share one time) and the scatter of its counts
     /// about its least-squares line, counts².
-    pub fn nodes(&self) -> (Vec<Node>, f64) {
+    pub(crate) fn nodes(&self) -> (Vec<Node>, f64) {
         if self.n == 0 {
             return (Vec::new(), 0.0);
         }
@@ -287,7 +300,12 @@ impl BinMoments {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Region {
     /// Inside the bar's mount (index into `Campaign::mounts`), after this many `rezero` events.
-    Segment { mount: usize, rezeros: usize },
+    Segment {
+        /// Index into `Campaign::mounts`.
+        mount: usize,
+        /// `rezero` events since the mount began.
+        rezeros: usize,
+    },
     /// Handling time (outside every mount).
     Outside,
 }
@@ -296,8 +314,8 @@ pub enum Region {
 /// one another in time and each region's bins start at or after the region's start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct BinKey {
-    pub start_ns: TimeNs,
-    pub region: Region,
+    pub(crate) start_ns: TimeNs,
+    pub(crate) region: Region,
 }
 
 /// Where one bar's bins lie: its mounts and `rezero` events, and the bin length.
@@ -536,6 +554,7 @@ impl Divide {
 }
 
 impl BinAccumulator {
+    /// An empty accumulator on `grid`.
     pub fn new(grid: BinGrid) -> BinAccumulator {
         BinAccumulator {
             bin_ns: grid.bin_ns,
@@ -557,7 +576,7 @@ impl BinAccumulator {
     /// [`LATEST_READING_NS`], |counts| ≤ [`MAX_ABS_COUNTS`], at most [`MAX_BAR_READINGS`] in
     /// all): out of those bounds the bin arithmetic could wrap, so nothing of the call is added
     /// and the first offending value is returned.
-    pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
+    pub(crate) fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
         let n = time_ns.len().min(counts.len());
         let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
         check_readings(time_ns, counts)?;
@@ -578,7 +597,11 @@ impl BinAccumulator {
     /// overlapping files both hold): each row's bin loses that reading's integer moments, so
     /// the bins equal those of the readings without the removed rows. A row whose bin holds
     /// nothing is refused ([`BinError::NotAdded`]); the rows before it stay removed.
-    pub fn remove_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
+    pub(crate) fn remove_all(
+        &mut self,
+        time_ns: &[TimeNs],
+        counts: &[i64],
+    ) -> Result<(), BinError> {
         let n = time_ns.len().min(counts.len());
         check_readings(&time_ns[..n], &counts[..n])?;
         for (&t, &c) in time_ns.iter().zip(counts) {
@@ -755,7 +778,7 @@ impl BinAccumulator {
     }
 
     /// The bins, in time order.
-    pub fn finish(self) -> BarBins {
+    pub(crate) fn finish(self) -> BarBins {
         let mut bins: Vec<(BinKey, BinMoments)> = Vec::new();
         for span in &self.spans {
             let mut pages: Vec<(i64, u32)> = span
@@ -846,8 +869,8 @@ impl Span {
 /// One bar's readings as bins, in time order.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarBins {
-    pub bin_ns: TimeNs,
-    pub bins: Vec<(BinKey, BinMoments)>,
+    pub(crate) bin_ns: TimeNs,
+    pub(crate) bins: Vec<(BinKey, BinMoments)>,
 }
 
 /// Weighted pseudo-readings: what a series is built from ([`BarBins::readings`]; a full-rate
@@ -855,18 +878,18 @@ pub struct BarBins {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Readings {
     /// Node times, ns (rounded), sorted.
-    pub time_ns: Vec<TimeNs>,
-    pub counts: Vec<f64>,
-    pub weight: Vec<f64>,
+    pub(crate) time_ns: Vec<TimeNs>,
+    pub(crate) counts: Vec<f64>,
+    pub(crate) weight: Vec<f64>,
     /// Scatter of each bin's counts about its line, counts², carried by the bin's first node
     /// (0 on the others).
-    pub line_rss_counts2: Vec<f64>,
+    pub(crate) line_rss_counts2: Vec<f64>,
 }
 
 impl BarBins {
     /// Bins of a log held in memory (the same sums as streaming it through a
     /// [`BinAccumulator`]).
-    pub fn from_log(
+    pub(crate) fn from_log(
         grid: BinGrid,
         time_ns: &[TimeNs],
         counts: &[i64],
@@ -877,14 +900,14 @@ impl BarBins {
     }
 
     /// Time of the first reading.
-    pub fn first_reading_ns(&self) -> Option<TimeNs> {
+    pub(crate) fn first_reading_ns(&self) -> Option<TimeNs> {
         self.bins
             .first()
             .map(|(k, m)| k.start_ns + m.first_us * NS_PER_US)
     }
 
     /// Number of readings.
-    pub fn n_readings(&self) -> u64 {
+    pub(crate) fn n_readings(&self) -> u64 {
         self.bins.iter().map(|(_, m)| m.n).sum()
     }
 
@@ -903,7 +926,7 @@ impl BarBins {
     /// moved gains by up to two standard uncertainties on a 1 Hz campaign. With these samples
     /// the lag at the nodes is the full-rate one. Counts of a weight-0 sample are interpolated
     /// between its nodes (for plots only).
-    pub fn readings(&self, knots: &[TimeNs]) -> Readings {
+    pub(crate) fn readings(&self, knots: &[TimeNs]) -> Readings {
         let mut out = Readings::default();
         // Previous node (time, counts) and the last reading of its bin.
         let mut last: Option<(TimeNs, f64, TimeNs)> = None;

@@ -24,103 +24,103 @@ use crate::campaign::{Campaign, SensorKind, TimeNs};
 /// A step between consecutive pieces (or a spread inside a bin) is a jump when it exceeds this
 /// many robust standard deviations of the segment's steps (1.4826 × their median absolute
 /// deviation) ...
-pub const JUMP_NOISE_FACTOR: f64 = 20.0;
+pub(crate) const JUMP_NOISE_FACTOR: f64 = 20.0;
 /// ... and at least this much (µm): the thermal drift between two readings of a bar is far
 /// below a micrometre (0.4 µm/h for 400 mm, 1 ppm/K, 1 K/h), so a noise-free log does not flag
 /// every count.
-pub const JUMP_FLOOR_UM: f64 = 1.0;
+pub(crate) const JUMP_FLOOR_UM: f64 = 1.0;
 /// A bin's spread (largest − smallest counts) is a jump when it exceeds this many times the
 /// segment's median bin spread (and [`JUMP_FLOOR_UM`]).
-pub const BIN_SPREAD_FACTOR: f64 = 4.0;
+pub(crate) const BIN_SPREAD_FACTOR: f64 = 4.0;
 /// The period of a 32-bit counter, counts.
-pub const WRAP_COUNTS: i64 = 1 << 32;
+pub(crate) const WRAP_COUNTS: i64 = 1 << 32;
 /// A jump of at least half a 32-bit counter's period is a counter wrap (no bar moves by
 /// 2³¹ counts, 10.7 m at 5 nm, within a mount): the mount is left out of the fits.
-pub const WRAP_MIN_JUMP_COUNTS: i64 = 1 << 31;
+pub(crate) const WRAP_MIN_JUMP_COUNTS: i64 = 1 << 31;
 /// A run of readings with one count value is a frozen encoder when it lasts at least this long
 /// (s) ...
-pub const STUCK_MIN_S: f64 = 3600.0;
+pub(crate) const STUCK_MIN_S: f64 = 3600.0;
 /// ... holds at least this many readings ...
-pub const STUCK_MIN_READINGS: u64 = 10;
+pub(crate) const STUCK_MIN_READINGS: u64 = 10;
 /// ... and the bar's air (its sensor, else the air sensors) moved at least this much meanwhile
 /// (K; a window with no air reading counts as moving): 0.05 K on 230 mm at 1 ppm/K is 11 nm,
 /// two counts of 5 nm, and reading noise alone changes the count of a live encoder.
-pub const STUCK_MIN_AIR_CHANGE_K: f64 = 0.05;
+pub(crate) const STUCK_MIN_AIR_CHANGE_K: f64 = 0.05;
 /// Readings more than this long (s) before a bar's first mount or after its last are flagged:
 /// a clock reset or a wrong day file.
-pub const FAR_OUTSIDE_MOUNTS_S: f64 = 86_400.0;
+pub(crate) const FAR_OUTSIDE_MOUNTS_S: f64 = 86_400.0;
 
 /// A gap inside a mount is flagged when no reading comes for longer than this many times the
 /// bar's median interval between readings ...
-pub const GAP_INTERVAL_FACTOR: f64 = 10.0;
+pub(crate) const GAP_INTERVAL_FACTOR: f64 = 10.0;
 /// ... and at least this long (s).
-pub const GAP_MIN_S: f64 = 600.0;
+pub(crate) const GAP_MIN_S: f64 = 600.0;
 
 /// The gap threshold for a bar whose median interval between readings is `median_interval_ns`.
-pub fn gap_threshold_ns(median_interval_ns: f64) -> TimeNs {
+pub(crate) fn gap_threshold_ns(median_interval_ns: f64) -> TimeNs {
     (GAP_INTERVAL_FACTOR * median_interval_ns).max(GAP_MIN_S * 1e9) as TimeNs
 }
 
 /// Everything ingest found, per bar, sensor, the events and the files.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Quality {
-    pub bars: BTreeMap<String, ChannelQuality>,
-    pub sensors: BTreeMap<String, ChannelQuality>,
-    pub events: ChannelQuality,
+    pub(crate) bars: BTreeMap<String, ChannelQuality>,
+    pub(crate) sensors: BTreeMap<String, ChannelQuality>,
+    pub(crate) events: ChannelQuality,
     /// Campaign-wide flags: byte-identical files read once, naive and zoned time columns mixed.
-    pub files: Vec<Flag>,
+    pub(crate) files: Vec<Flag>,
 }
 
 impl Quality {
     /// Why bar `bar` has no usable signal, if it has none (it then fails alone).
-    pub fn unusable(&self, bar: &str) -> Option<&str> {
+    pub(crate) fn unusable(&self, bar: &str) -> Option<&str> {
         self.bars.get(bar).and_then(|q| q.unusable.as_deref())
     }
 }
 
 /// Counts of one bar's, sensor's or the events' rows, and the flags raised on them.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct ChannelQuality {
+pub(crate) struct ChannelQuality {
     /// Rows read (before anything was dropped).
-    pub rows: u64,
+    pub(crate) rows: u64,
     /// Rows whose value was null / NaN / ±infinite (dropped).
-    pub null: u64,
-    pub nan: u64,
-    pub inf: u64,
+    pub(crate) null: u64,
+    pub(crate) nan: u64,
+    pub(crate) inf: u64,
     /// Exact copies of another row (same time and value; counted once, the copies dropped).
-    pub duplicate_rows: u64,
+    pub(crate) duplicate_rows: u64,
     /// Readings of a frozen encoder or of a mount left out for a counter wrap (dropped).
-    pub fault_rows: u64,
+    pub(crate) fault_rows: u64,
     /// Every row dropped: `null + nan + inf + duplicate_rows + fault_rows`.
-    pub dropped_rows: u64,
-    pub flags: Vec<Flag>,
+    pub(crate) dropped_rows: u64,
+    pub(crate) flags: Vec<Flag>,
     /// Set when no usable reading is left: the bar fails alone with this reason.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub unusable: Option<String>,
+    pub(crate) unusable: Option<String>,
 }
 
 /// What was found, where and how big.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Flag {
-    pub kind: FlagKind,
+pub(crate) struct Flag {
+    pub(crate) kind: FlagKind,
     /// RFC 3339 UTC, first and last affected reading (absent for file-level flags).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub from: Option<String>,
+    pub(crate) from: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub to: Option<String>,
+    pub(crate) to: Option<String>,
     /// Rows (or readings) concerned.
-    pub rows: u64,
+    pub(crate) rows: u64,
     /// Signed size of a jump or wrap, counts and µm.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub size_counts: Option<f64>,
+    pub(crate) size_counts: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub size_um: Option<f64>,
-    pub note: String,
+    pub(crate) size_um: Option<f64>,
+    pub(crate) note: String,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum FlagKind {
+pub(crate) enum FlagKind {
     /// Null, NaN or infinite values dropped.
     MissingValues,
     DuplicateRows,
@@ -146,7 +146,13 @@ pub fn format_ns(ns: TimeNs) -> String {
 }
 
 impl Flag {
-    pub fn at(kind: FlagKind, from_ns: TimeNs, to_ns: TimeNs, rows: u64, note: String) -> Flag {
+    pub(crate) fn at(
+        kind: FlagKind,
+        from_ns: TimeNs,
+        to_ns: TimeNs,
+        rows: u64,
+        note: String,
+    ) -> Flag {
         Flag {
             kind,
             from: Some(format_ns(from_ns)),
@@ -158,7 +164,7 @@ impl Flag {
         }
     }
 
-    pub fn file(kind: FlagKind, rows: u64, note: String) -> Flag {
+    pub(crate) fn file(kind: FlagKind, rows: u64, note: String) -> Flag {
         Flag {
             kind,
             from: None,
@@ -179,16 +185,16 @@ impl Flag {
 
 /// Time range and number of rows of dropped values, kept while rows stream by.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Missing {
-    pub null: u64,
-    pub nan: u64,
-    pub inf: u64,
+pub(crate) struct Missing {
+    pub(crate) null: u64,
+    pub(crate) nan: u64,
+    pub(crate) inf: u64,
     /// First and last time of a dropped row (`None` before any).
-    pub range: Option<(TimeNs, TimeNs)>,
+    pub(crate) range: Option<(TimeNs, TimeNs)>,
 }
 
 impl Missing {
-    pub fn add(&mut self, t: TimeNs, value: Option<f64>) {
+    pub(crate) fn add(&mut self, t: TimeNs, value: Option<f64>) {
         match value {
             None => self.null += 1,
             Some(v) if v.is_nan() => self.nan += 1,
@@ -197,21 +203,12 @@ impl Missing {
         self.range = Some(self.range.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
     }
 
-    pub fn merge(&mut self, other: &Missing) {
-        self.null += other.null;
-        self.nan += other.nan;
-        self.inf += other.inf;
-        if let Some((a, b)) = other.range {
-            self.range = Some(self.range.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
-        }
-    }
-
-    pub fn total(&self) -> u64 {
+    pub(crate) fn total(&self) -> u64 {
         self.null + self.nan + self.inf
     }
 
     /// Adds the counts and, when any, a `missing_values` flag to `q`.
-    pub fn record(&self, q: &mut ChannelQuality, what: &str) {
+    pub(crate) fn record(&self, q: &mut ChannelQuality, what: &str) {
         q.null += self.null;
         q.nan += self.nan;
         q.inf += self.inf;
@@ -231,7 +228,7 @@ impl Missing {
 }
 
 /// Drops exact duplicates from sorted `(time, value)` columns; returns how many and the range.
-pub fn dedup_sorted<V: PartialEq + Copy>(
+pub(crate) fn dedup_sorted<V: PartialEq + Copy>(
     time_ns: &mut Vec<TimeNs>,
     values: &mut Vec<V>,
 ) -> (u64, Option<(TimeNs, TimeNs)>) {
@@ -255,7 +252,7 @@ pub fn dedup_sorted<V: PartialEq + Copy>(
 }
 
 /// Records `dropped` duplicates (range `range`) in `q`.
-pub fn record_duplicates(
+pub(crate) fn record_duplicates(
     q: &mut ChannelQuality,
     dropped: u64,
     range: Option<(TimeNs, TimeNs)>,
@@ -272,7 +269,7 @@ pub fn record_duplicates(
 
 /// Readings of one bar at one time with different counts, in rows sorted by (time, counts)
 /// without exact duplicates: a `conflicting_readings` flag (range, rows concerned), or `None`.
-pub fn conflicting_sorted(time_ns: &[TimeNs], counts: &[i64], note: &str) -> Option<Flag> {
+pub(crate) fn conflicting_sorted(time_ns: &[TimeNs], counts: &[i64], note: &str) -> Option<Flag> {
     let n = time_ns.len().min(counts.len());
     let (mut rows, mut range) = (0u64, None::<(TimeNs, TimeNs)>);
     let mut i = 0;
@@ -690,7 +687,7 @@ fn unusable_reason(q: &ChannelQuality, bar: &str) -> String {
 
 /// Checks a bar's sorted full-rate log: drops exact duplicates, flags jumps, wraps and frozen
 /// runs, drops the readings of frozen runs and of mounts with a wrap.
-pub fn check_log(
+pub(crate) fn check_log(
     campaign: &Campaign,
     events: &[Event],
     sensors: &BTreeMap<String, SensorLog>,
@@ -751,7 +748,7 @@ pub fn check_log(
 
 /// [`check_log`] for a bar compressed into bins while it streamed: each bin is a piece; bins
 /// of frozen runs and of mounts with a wrap are dropped.
-pub fn check_bins(
+pub(crate) fn check_bins(
     campaign: &Campaign,
     events: &[Event],
     sensors: &BTreeMap<String, SensorLog>,

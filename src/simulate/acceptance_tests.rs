@@ -216,8 +216,7 @@ fn calibration_phase_covers_every_length_and_tilt() {
             let from = parse_ns(&m.from);
             let plate = tilt_events
                 .iter()
-                .filter(|e| e.time_ns <= from)
-                .last()
+                .rfind(|e| e.time_ns <= from)
                 .unwrap()
                 .value
                 .unwrap();
@@ -268,8 +267,7 @@ fn reference_check_and_device_layout() {
         sim.truth
             .mounts
             .iter()
-            .filter(|m| m.bar == id)
-            .last()
+            .rfind(|m| m.bar == id)
             .unwrap()
             .clone()
     };
@@ -303,13 +301,7 @@ fn reference_check_and_device_layout() {
         ),
         ("", Some("hexapod-1"), 333.3, 45.0)
     );
-    let decl = sim
-        .manifest
-        .mount
-        .iter()
-        .filter(|m| m.bar == "B05")
-        .last()
-        .unwrap();
+    let decl = sim.manifest.mount.iter().rfind(|m| m.bar == "B05").unwrap();
     assert_eq!(
         (decl.length.as_ref(), decl.device.as_deref()),
         (None, Some("hexapod-1"))
@@ -434,13 +426,7 @@ fn neutral_defaults_leave_the_base_campaign_unchanged() {
 /// phase, mean removed (`physics.md`, two reference bars), noise-free.
 fn worst_compensated_um(sim: &Simulation, check: &str) -> f64 {
     let at = |id: &str| -> std::collections::BTreeMap<i64, (f64, f64)> {
-        let m = sim
-            .truth
-            .mounts
-            .iter()
-            .filter(|m| m.bar == id)
-            .last()
-            .unwrap();
+        let m = sim.truth.mounts.iter().rfind(|m| m.bar == id).unwrap();
         mounted_rows(sim, id)
             .filter(|(_, mm)| mm.from == m.from)
             .map(|(row, mm)| {

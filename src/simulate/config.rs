@@ -3,8 +3,6 @@
 //! Every section has defaults, so an empty file is a valid (6-bar, 4-day) campaign. All extra
 //! effects are off by default. [`SimConfig::validate`] rejects bad input with the key's name.
 
-use std::path::Path;
-
 use chrono::{DateTime, Utc};
 use serde::{Deserialize, Serialize};
 
@@ -17,10 +15,12 @@ use crate::campaign::PlateLength;
 pub struct SimConfig {
     /// Seed of every random draw: same seed, same campaign.
     pub seed: u64,
+    /// Campaign id written to the manifest.
     pub campaign_id: String,
     /// Campaign start (UTC), a TOML datetime or an RFC 3339 string.
     #[serde(with = "start_time")]
     pub start: DateTime<Utc>,
+    /// Campaign length, days.
     pub duration_days: f64,
     /// Encoder sampling period, seconds.
     pub sample_s: f64,
@@ -36,12 +36,17 @@ pub struct SimConfig {
     /// Keep the noise-free thermal error of every encoder row in [`super::Simulation`]
     /// (memory: 8 bytes a row).
     pub record_true_error: bool,
+    /// The plate.
     pub plate: PlateConfig,
     /// Explicit bars; when empty, `fleet` (or its default) generates them.
     pub bars: Vec<BarConfig>,
+    /// A generated fleet (when `bars` is empty; its default when absent).
     pub fleet: Option<FleetConfig>,
+    /// The room's air.
     pub room: RoomConfig,
+    /// Which bar is mounted where, and when.
     pub schedule: ScheduleConfig,
+    /// Effects beyond the base model, each off by default.
     pub effects: EffectsConfig,
     /// Geometric errors and gravity sag of the bars (neutral by default).
     pub geometry: GeometryConfig,
@@ -71,7 +76,7 @@ pub struct GenerationConfig {
 }
 
 impl GenerationConfig {
-    pub fn is_default(&self) -> bool {
+    pub(crate) fn is_default(&self) -> bool {
         *self == Self::default()
     }
 }
@@ -80,9 +85,12 @@ impl GenerationConfig {
 #[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum AirBetweenReadings {
+    /// The room's own continuous air (the default).
     #[default]
     Continuous,
+    /// The air at the last reading, held until the next.
     Held,
+    /// The air at the readings, interpolated linearly.
     Interpolated,
 }
 
@@ -90,44 +98,53 @@ pub enum AirBetweenReadings {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlateConfig {
-    pub material: String,
+    pub(crate) material: String,
     /// Declared (manifest) expansion of the plate, ppm/K; the `plate_expansion` effect adds an
     /// undeclared part.
-    pub cte_ppm_per_k: f64,
-    pub tilt_deg: f64,
+    pub(crate) cte_ppm_per_k: f64,
+    pub(crate) tilt_deg: f64,
     /// Time constant of the plate temperature behind the air (T1), seconds.
-    pub thermal_tau_s: f64,
+    pub(crate) thermal_tau_s: f64,
     /// Calibrated socket-pair distances, as in `campaign.toml`.
-    pub length: Vec<PlateLength>,
+    pub(crate) length: Vec<PlateLength>,
 }
 
 /// One bar given explicitly.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BarConfig {
-    pub id: String,
+    pub(crate) id: String,
     /// `I_min` of `physics.md`.
-    pub fixed_length_mm: f64,
-    pub alpha_ppm_per_k: f64,
-    pub beta_ppm_per_k: f64,
-    pub tau_r_s: f64,
-    pub tau_s_s: f64,
+    pub(crate) fixed_length_mm: f64,
+    pub(crate) alpha_ppm_per_k: f64,
+    pub(crate) beta_ppm_per_k: f64,
+    pub(crate) tau_r_s: f64,
+    pub(crate) tau_s_s: f64,
 }
 
 /// A fleet of nominally equal bars with a spread around the mean (drawn from the seed).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct FleetConfig {
+    /// Number of bars.
     pub n_bars: usize,
     /// Ids are `{id_prefix}{01..}`.
     pub id_prefix: String,
+    /// Mean `I_min`, mm.
     pub fixed_length_mm: f64,
+    /// Standard deviation of `I_min` across bars, mm.
     pub fixed_length_sd_mm: f64,
+    /// Mean alpha (fixed part), ppm/K.
     pub alpha_ppm_per_k: f64,
+    /// Standard deviation of alpha across bars, ppm/K.
     pub alpha_sd_ppm_per_k: f64,
+    /// Mean beta (scale), ppm/K.
     pub beta_ppm_per_k: f64,
+    /// Standard deviation of beta across bars, ppm/K.
     pub beta_sd_ppm_per_k: f64,
+    /// Median time constant of the fixed part (tau_R), s.
     pub tau_r_s: f64,
+    /// Median time constant of the scale (tau_S), s.
     pub tau_s_s: f64,
     /// Relative (log-normal) spread of both time constants.
     pub tau_rel_sd: f64,
@@ -137,53 +154,54 @@ pub struct FleetConfig {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct RoomConfig {
-    pub mean_c: f64,
+    pub(crate) mean_c: f64,
     /// Amplitude of the daily sinusoid, K.
-    pub daily_amplitude_k: f64,
+    pub(crate) daily_amplitude_k: f64,
     /// Local (UTC) hour of the daily maximum.
-    pub daily_peak_hour: f64,
+    pub(crate) daily_peak_hour: f64,
     /// Air-conditioning cycle (triangle wave): period in seconds, amplitude in K.
-    pub ac_period_s: f64,
-    pub ac_amplitude_k: f64,
+    pub(crate) ac_period_s: f64,
+    pub(crate) ac_amplitude_k: f64,
     /// Linear drift over the campaign, K/day.
-    pub drift_k_per_day: f64,
+    pub(crate) drift_k_per_day: f64,
     /// Slow random wander (sum of sinusoids of 1.5–6 days), amplitude K.
-    pub wander_k: f64,
+    pub(crate) wander_k: f64,
     /// Door openings: Poisson rate, bump height (K), rise and decay time constants (s).
-    pub door_rate_per_day: f64,
-    pub door_amplitude_k: f64,
-    pub door_rise_s: f64,
-    pub door_decay_s: f64,
+    pub(crate) door_rate_per_day: f64,
+    pub(crate) door_amplitude_k: f64,
+    pub(crate) door_rise_s: f64,
+    pub(crate) door_decay_s: f64,
     /// Programmed set-point steps (the patent's step of room temperature, used to identify the
     /// time constants): the set point alternates between `+setpoint_step_k / 2` and
     /// `-setpoint_step_k / 2` every `setpoint_half_period_s`, and the air follows each change
     /// first-order with `setpoint_settle_s` (the air-conditioning loop). 0 K: no steps.
     pub setpoint_step_k: f64,
-    pub setpoint_half_period_s: f64,
-    pub setpoint_settle_s: f64,
+    pub(crate) setpoint_half_period_s: f64,
+    pub(crate) setpoint_settle_s: f64,
     /// Vertical gradient T2 − T1: mean, daily amplitude, AC-synchronous amplitude, slow wander (K).
-    pub gradient_k: f64,
-    pub gradient_daily_k: f64,
-    pub gradient_ac_k: f64,
-    pub gradient_wander_k: f64,
-    /// Sensor noise (white Gaussian, K) and temperature logging period (s).
-    pub sensor_noise_k: f64,
+    pub(crate) gradient_k: f64,
+    pub(crate) gradient_daily_k: f64,
+    pub(crate) gradient_ac_k: f64,
+    pub(crate) gradient_wander_k: f64,
+    /// Sensor noise (white Gaussian), K.
+    pub(crate) sensor_noise_k: f64,
+    /// Temperature logging period, s.
     pub temperature_sample_s: f64,
     /// Log a plate sensor `P1` (kind plate) even when the plate does not expand.
-    pub plate_sensor: bool,
+    pub(crate) plate_sensor: bool,
 }
 
 /// Mount schedule: rotating bars visit every plate length in turn, with handling gaps.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct ScheduleConfig {
-    pub mount_days: f64,
+    pub(crate) mount_days: f64,
     /// Handling time between mounts (no mount; readings still logged), minutes.
-    pub gap_minutes: f64,
+    pub(crate) gap_minutes: f64,
     /// Bar `i` starts `i * stagger_minutes` later (modulo a mount), so gaps do not coincide.
-    pub stagger_minutes: f64,
+    pub(crate) stagger_minutes: f64,
     /// During handling the bar rests at a random offset up to this many mm from the socket length.
-    pub handling_offset_mm: f64,
+    pub(crate) handling_offset_mm: f64,
     /// Plate length ids the rotating bars visit in turn (bar `i` starts at the `i`-th); empty:
     /// every plate length. One id puts every mount of every rotating bar on that one length (a
     /// one-length campaign, like a machine tool's spindle: `beta` cannot be identified).
@@ -194,11 +212,11 @@ pub struct ScheduleConfig {
     pub reference: Vec<ReferenceMount>,
     /// Optional calibration phase at the start: every bar visits every (plate length, tilt).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub calibration: Option<CalibrationPhase>,
+    pub(crate) calibration: Option<CalibrationPhase>,
     /// Optional fixed layout of the non-reference bars after the calibration phase (else they
     /// rotate over the plate lengths).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub working: Option<WorkingLayout>,
+    pub(crate) working: Option<WorkingLayout>,
 }
 
 /// The calibration phase (`physics.md`, calibration unit, point 1): the plate is tilted to each
@@ -210,8 +228,8 @@ pub struct ScheduleConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct CalibrationPhase {
     /// Plate tilts from horizontal, degrees, in [0, 90], in visiting order.
-    pub tilts_deg: Vec<f64>,
-    pub mount_hours: f64,
+    pub(crate) tilts_deg: Vec<f64>,
+    pub(crate) mount_hours: f64,
 }
 
 /// Where the non-reference (working) bars sit for the rest of the campaign after the
@@ -220,13 +238,13 @@ pub struct CalibrationPhase {
 #[serde(deny_unknown_fields)]
 pub struct WorkingLayout {
     /// The plate length id the working bars sit on (at the plate tilt).
-    pub length: String,
+    pub(crate) length: String,
     /// `check` (known length used only to verify; the default) or `calibration`.
     #[serde(default = "check_purpose")]
-    pub purpose: crate::campaign::Purpose,
+    pub(crate) purpose: crate::campaign::Purpose,
     /// Bars on a target device instead of the plate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub device: Option<DeviceLayout>,
+    pub(crate) device: Option<DeviceLayout>,
 }
 
 fn check_purpose() -> crate::campaign::Purpose {
@@ -238,13 +256,13 @@ fn check_purpose() -> crate::campaign::Purpose {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DeviceLayout {
-    pub id: String,
+    pub(crate) id: String,
     /// Bar ids mounted on the device.
-    pub bars: Vec<String>,
+    pub(crate) bars: Vec<String>,
     /// True centre distance of the device's ball pair, mm.
     pub distance_mm: f64,
     /// Tilt of the bars on the device from horizontal, degrees, in [0, 90].
-    pub tilt_deg: f64,
+    pub(crate) tilt_deg: f64,
 }
 
 /// Geometric, time-invariant errors (`physics.md`, "The instrument"): fleet mean and spread of
@@ -261,18 +279,18 @@ pub struct DeviceLayout {
 #[serde(deny_unknown_fields, default)]
 pub struct GeometryConfig {
     /// Linear scale error, ppm (normal spread `scale_sd_ppm`).
-    pub scale_ppm: f64,
-    pub scale_sd_ppm: f64,
+    pub(crate) scale_ppm: f64,
+    pub(crate) scale_sd_ppm: f64,
     /// Quadratic scale nonlinearity `q`, ppm per mm of travel.
-    pub nonlinearity_ppm_per_mm: f64,
-    pub nonlinearity_sd_ppm_per_mm: f64,
+    pub(crate) nonlinearity_ppm_per_mm: f64,
+    pub(crate) nonlinearity_sd_ppm_per_mm: f64,
     /// Misalignment of the scale to the ball-centre line, mrad.
-    pub cosine_mrad: f64,
-    pub cosine_sd_mrad: f64,
+    pub(crate) cosine_mrad: f64,
+    pub(crate) cosine_sd_mrad: f64,
     /// Counter zero offset from `I_min`, µm.
-    pub zero_offset_um: f64,
-    pub zero_offset_sd_um: f64,
-    pub sag: SagConfig,
+    pub(crate) zero_offset_um: f64,
+    pub(crate) zero_offset_sd_um: f64,
+    pub(crate) sag: SagConfig,
 }
 
 /// Gravity sag (`physics.md`): the chord between the ball centres shortens as the bar bends, so
@@ -282,12 +300,12 @@ pub struct GeometryConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct SagConfig {
     /// Sag at horizontal and `L = ref_mm`, µm (0 = no sag).
-    pub amplitude_um: f64,
+    pub(crate) amplitude_um: f64,
     /// Relative (log-normal) spread of the amplitude across bars.
-    pub spread: f64,
-    pub form: SagForm,
-    pub ref_mm: f64,
-    pub exponent: f64,
+    pub(crate) spread: f64,
+    pub(crate) form: SagForm,
+    pub(crate) ref_mm: f64,
+    pub(crate) exponent: f64,
 }
 
 /// The tilt dependence of the sag.
@@ -303,7 +321,7 @@ pub enum SagForm {
 
 impl SagForm {
     /// `f(A)` of the sag, `A` in degrees.
-    pub fn factor(self, tilt_deg: f64) -> f64 {
+    pub(crate) fn factor(self, tilt_deg: f64) -> f64 {
         let c = tilt_deg.to_radians().cos();
         match self {
             Self::Cos => c,
@@ -317,26 +335,29 @@ impl SagForm {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Mismatch {
+    /// Bar id.
     pub bar: String,
     #[serde(default = "one")]
-    pub alpha_factor: f64,
+    pub(crate) alpha_factor: f64,
     #[serde(default = "one")]
-    pub beta_factor: f64,
+    pub(crate) beta_factor: f64,
     #[serde(default = "one")]
-    pub tau_r_factor: f64,
+    pub(crate) tau_r_factor: f64,
     #[serde(default = "one")]
-    pub tau_s_factor: f64,
+    pub(crate) tau_s_factor: f64,
     #[serde(default = "one")]
-    pub sag_factor: f64,
+    pub(crate) sag_factor: f64,
 }
 
 fn one() -> f64 {
     1.0
 }
 
+/// A bar that stays on one plate length all campaign, with purpose `reference`.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ReferenceMount {
+    /// Bar id.
     pub bar: String,
     /// A plate length id.
     pub length: String,
@@ -346,12 +367,19 @@ pub struct ReferenceMount {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
 #[serde(deny_unknown_fields, default)]
 pub struct EffectsConfig {
+    /// Read-head self-heating.
     pub head_heating: HeadHeating,
+    /// A second thermal path of the fixed part.
     pub second_path: SecondPath,
+    /// The bar sees a mix of T1 and T2 while it declares T1.
     pub sensor_gradient: SensorGradient,
+    /// Settling after each mount.
     pub settling: Settling,
+    /// Undeclared plate expansion.
     pub plate_expansion: PlateExpansion,
+    /// Slow linear trend of the reading.
     pub creep: Creep,
+    /// A channel outside the catalogue.
     pub hidden_channel: HiddenChannel,
 }
 
@@ -361,8 +389,11 @@ pub struct EffectsConfig {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct HeadHeating {
+    /// Switched on.
     pub enabled: bool,
+    /// Growth of the bar with the head on, in steady state, µm.
     pub amplitude_um: f64,
+    /// Time constant of the heating, s.
     pub tau_s: f64,
     /// Relative (log-normal) spread of amplitude and tau across bars.
     pub spread: f64,
@@ -374,8 +405,9 @@ pub struct HeadHeating {
     /// When the head is switched: exponential on and off durations, or off once a day.
     #[serde(skip_serializing_if = "is_default")]
     pub schedule: HeadSchedule,
-    /// Mean on and off durations (exponential, `schedule = "random"`), hours.
+    /// Mean on duration (exponential, `schedule = "random"`), hours.
     pub mean_on_h: f64,
+    /// Mean off duration (exponential, `schedule = "random"`), hours.
     pub mean_off_h: f64,
     /// Shortest and longest off time, hours (`schedule = "daily"`: once a day, at a random time
     /// of day, for a duration drawn uniformly from this range).
@@ -421,18 +453,20 @@ pub enum HeadSchedule {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SecondPath {
+    /// Switched on.
     pub enabled: bool,
-    pub gain_ppm_per_k: f64,
-    pub tau_s: f64,
-    pub spread: f64,
+    pub(crate) gain_ppm_per_k: f64,
+    pub(crate) tau_s: f64,
+    pub(crate) spread: f64,
 }
 
 /// The bar sees `(1 - weight_t2) * T1 + weight_t2 * T2` while it declares T1.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorGradient {
+    /// Switched on.
     pub enabled: bool,
-    pub weight_t2: f64,
+    pub(crate) weight_t2: f64,
 }
 
 /// After each mount the reading carries `a * exp(-(t - from) / tau_s)`, `a` drawn per mount in
@@ -440,8 +474,10 @@ pub struct SensorGradient {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct Settling {
+    /// Switched on.
     pub enabled: bool,
-    pub amplitude_um: f64,
+    pub(crate) amplitude_um: f64,
+    /// Settling time constant, s.
     pub tau_s: f64,
 }
 
@@ -450,17 +486,18 @@ pub struct Settling {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct PlateExpansion {
+    /// Switched on.
     pub enabled: bool,
-    pub cte_ppm_per_k: f64,
+    pub(crate) cte_ppm_per_k: f64,
 }
 
 /// Slow linear trend of the reading, µm/day (spread across bars, relative log-normal).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct Creep {
-    pub enabled: bool,
-    pub rate_um_per_day: f64,
-    pub spread: f64,
+    pub(crate) enabled: bool,
+    pub(crate) rate_um_per_day: f64,
+    pub(crate) spread: f64,
 }
 
 /// A channel outside the catalogue: a nearby machine's temperature (sensor of kind `other`),
@@ -468,19 +505,20 @@ pub struct Creep {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct HiddenChannel {
+    /// Switched on.
     pub enabled: bool,
-    pub sensor_id: String,
-    pub base_c: f64,
-    pub amplitude_k: f64,
-    pub mean_on_h: f64,
-    pub mean_off_h: f64,
+    pub(crate) sensor_id: String,
+    pub(crate) base_c: f64,
+    pub(crate) amplitude_k: f64,
+    pub(crate) mean_on_h: f64,
+    pub(crate) mean_off_h: f64,
     /// Time constant of the machine's own temperature, seconds.
-    pub signal_tau_s: f64,
-    pub noise_k: f64,
+    pub(crate) signal_tau_s: f64,
+    pub(crate) noise_k: f64,
     /// Growth of the bar per kelvin of the channel, µm/K, and its time constant.
-    pub gain_um_per_k: f64,
-    pub tau_s: f64,
-    pub spread: f64,
+    pub(crate) gain_um_per_k: f64,
+    pub(crate) tau_s: f64,
+    pub(crate) spread: f64,
 }
 
 // ---------------------------------------------------------------- defaults
@@ -710,7 +748,8 @@ impl SimConfig {
     }
 
     /// Read, parse and validate a TOML file.
-    pub fn load(path: &Path) -> Result<Self, SimError> {
+    #[cfg(test)]
+    pub(crate) fn load(path: &std::path::Path) -> Result<Self, SimError> {
         let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
             path: path.display().to_string(),
             source,
@@ -724,7 +763,7 @@ impl SimConfig {
     }
 
     /// Check every field a simulation depends on; the error names the key.
-    pub fn validate(&self) -> Result<(), SimError> {
+    pub(crate) fn validate(&self) -> Result<(), SimError> {
         positive("duration_days", self.duration_days)?;
         positive("sample_s", self.sample_s)?;
         positive("max_internal_step_s", self.max_internal_step_s)?;
@@ -878,7 +917,7 @@ impl SimConfig {
         if r.door_rate_per_day > 1440.0 {
             return Err(invalid("room.door_rate_per_day", "more than one a minute"));
         }
-        if !(r.temperature_sample_s >= 0.1) {
+        if r.temperature_sample_s.is_nan() || r.temperature_sample_s < 0.1 {
             return Err(invalid(
                 "room.temperature_sample_s",
                 "must be at least 0.1 s",
@@ -1186,11 +1225,11 @@ mod start_time {
     use chrono::{DateTime, Utc};
     use serde::{de::Error, Deserialize, Deserializer, Serializer};
 
-    pub fn serialize<S: Serializer>(t: &DateTime<Utc>, s: S) -> Result<S::Ok, S::Error> {
+    pub(crate) fn serialize<S: Serializer>(t: &DateTime<Utc>, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(&t.to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true))
     }
 
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<DateTime<Utc>, D::Error> {
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<DateTime<Utc>, D::Error> {
         let text = match toml::Value::deserialize(d)? {
             toml::Value::Datetime(dt) => dt.to_string(),
             toml::Value::String(s) => s,

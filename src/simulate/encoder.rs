@@ -19,24 +19,24 @@ use crate::series::EncoderLog;
 /// What one bar's simulation yields.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct BarRun {
-    pub log: EncoderLog,
+    pub(crate) log: EncoderLog,
     /// Noise-free thermal error (indicated − true), µm, per row of `log`; empty unless recorded.
-    pub true_error_um: Vec<f64>,
+    pub(crate) true_error_um: Vec<f64>,
 }
 
 /// Everything constant during one bar's run.
 pub(crate) struct BarSetup<'a> {
-    pub bar: &'a BarTruth,
-    pub plan: &'a BarPlan,
-    pub index: usize,
-    pub lengths_mm: &'a [f64],
-    pub seed: u64,
-    pub start_ns: i64,
-    pub reference_temperature_c: f64,
-    pub noise_um: f64,
+    pub(crate) bar: &'a BarTruth,
+    pub(crate) plan: &'a BarPlan,
+    pub(crate) index: usize,
+    pub(crate) lengths_mm: &'a [f64],
+    pub(crate) seed: u64,
+    pub(crate) start_ns: i64,
+    pub(crate) reference_temperature_c: f64,
+    pub(crate) noise_um: f64,
     /// True plate expansion, ppm/K (declared + undeclared).
-    pub plate_cte_ppm_per_k: f64,
-    pub record_true_error: bool,
+    pub(crate) plate_cte_ppm_per_k: f64,
+    pub(crate) record_true_error: bool,
 }
 
 /// The bar's lagged states: `x' = (u - x) / tau` for each path (`physics.md`).

@@ -12,9 +12,12 @@ use super::lag::FirstOrderLag;
 use super::{stream_rng, streams, Grid};
 use crate::series::SensorLog;
 
-/// Sensor ids the simulator writes.
+// Sensor ids the simulator writes.
+/// Id of the first air sensor.
 pub const AIR_LOW: &str = "T1";
+/// Id of the second air sensor.
 pub const AIR_HIGH: &str = "T2";
+/// Id of the plate sensor (kind plate).
 pub const PLATE: &str = "P1";
 
 const DAY_S: f64 = 86400.0;
@@ -24,23 +27,23 @@ const DAY_S: f64 = 86400.0;
 pub(crate) struct Environment {
     /// Air at bar height, °C: what drives the bars (and what T1 reads at its reading times,
     /// before noise).
-    pub t1_c: Vec<f64>,
+    pub(crate) t1_c: Vec<f64>,
     /// Air above the bars, °C (what T2 reads, before noise).
-    pub t2_c: Vec<f64>,
+    pub(crate) t2_c: Vec<f64>,
     /// Plate temperature: T1 lagged by `plate.thermal_tau_s`.
-    pub plate_c: Vec<f64>,
+    pub(crate) plate_c: Vec<f64>,
     /// The hidden channel's true value, °C, when the effect is on.
-    pub hidden_c: Option<Vec<f64>>,
+    pub(crate) hidden_c: Option<Vec<f64>>,
     /// Door openings, seconds after the start (whole seconds).
-    pub door_times_s: Vec<f64>,
+    pub(crate) door_times_s: Vec<f64>,
     /// The room before the logging starts (`generation.prehistory_hours`), on the same grid,
     /// ending at the start (its last point is the first of `t1_c`, `t2_c`); empty without one.
-    pub pre_t1_c: Vec<f64>,
-    pub pre_t2_c: Vec<f64>,
-    pub pre_hidden_c: Option<Vec<f64>>,
+    pub(crate) pre_t1_c: Vec<f64>,
+    pub(crate) pre_t2_c: Vec<f64>,
+    pub(crate) pre_hidden_c: Option<Vec<f64>>,
     /// The air is constant over each grid step (`generation.air_between_readings = "held"`):
     /// the bars integrate it held, not linearly.
-    pub air_held: bool,
+    pub(crate) air_held: bool,
 }
 
 /// A sum of sinusoids `sum a sin(w t + phi)`: the slow random wander of the room.
@@ -81,7 +84,7 @@ fn door_bump(t_s: f64, rise_s: f64, decay_s: f64) -> f64 {
 }
 
 impl Environment {
-    pub fn build(cfg: &SimConfig, grid: &Grid) -> Self {
+    pub(crate) fn build(cfg: &SimConfig, grid: &Grid) -> Self {
         let room = &cfg.room;
         let mut rng = stream_rng(cfg.seed, streams::ROOM);
         let wander = Sinusoids::random(&mut rng, 3, room.wander_k, 1.5, 6.0);
@@ -161,7 +164,7 @@ impl Environment {
 
     /// The logged temperature sensors: T1, T2, optionally P1 and the hidden channel, each with
     /// white Gaussian noise, sampled every `room.temperature_sample_s`.
-    pub fn sensor_logs(
+    pub(crate) fn sensor_logs(
         &self,
         cfg: &SimConfig,
         grid: &Grid,

@@ -18,18 +18,18 @@ use super::config::SagForm;
 #[serde(default)]
 pub struct BarGeometry {
     /// Linear scale error `s`, ppm.
-    pub scale_ppm: f64,
+    pub(crate) scale_ppm: f64,
     /// Quadratic nonlinearity `q`, ppm per mm of travel.
-    pub nonlinearity_ppm_per_mm: f64,
+    pub(crate) nonlinearity_ppm_per_mm: f64,
     /// Scale misalignment `theta`, mrad.
-    pub cosine_mrad: f64,
+    pub(crate) cosine_mrad: f64,
     /// `D_zero - I_min`, µm (already included in `BarTruth::d_zero_mm`).
-    pub zero_offset_um: f64,
+    pub(crate) zero_offset_um: f64,
     /// Sag `s0` at horizontal and `L = sag_ref_mm`, µm; positive = the reading is long.
-    pub sag_um: f64,
-    pub sag_form: SagForm,
-    pub sag_ref_mm: f64,
-    pub sag_exponent: f64,
+    pub(crate) sag_um: f64,
+    pub(crate) sag_form: SagForm,
+    pub(crate) sag_ref_mm: f64,
+    pub(crate) sag_exponent: f64,
 }
 
 /// Newton iterations of the inverse: quadratic convergence from `x = y`, a few suffice.
@@ -38,7 +38,7 @@ const NEWTON_TOL_MM: f64 = 1e-13;
 
 impl BarGeometry {
     /// No term at all: `D = D_zero + k n` exactly.
-    pub fn is_ideal(&self) -> bool {
+    pub(crate) fn is_ideal(&self) -> bool {
         self.scale_ppm == 0.0
             && self.nonlinearity_ppm_per_mm == 0.0
             && self.cosine_mrad == 0.0
@@ -46,7 +46,7 @@ impl BarGeometry {
     }
 
     /// Sag at tilt `tilt_deg` and centre distance `length_mm`, µm (reading long by this).
-    pub fn sag_at_um(&self, tilt_deg: f64, length_mm: f64) -> f64 {
+    pub(crate) fn sag_at_um(&self, tilt_deg: f64, length_mm: f64) -> f64 {
         if self.sag_um == 0.0 {
             return 0.0;
         }
@@ -56,14 +56,19 @@ impl BarGeometry {
     }
 
     /// `D(x, A) - D_zero`, mm, for the indicated travel `travel_mm = k n`.
-    pub fn true_travel_mm(&self, travel_mm: f64, tilt_deg: f64, d_zero_mm: f64) -> f64 {
+    pub(crate) fn true_travel_mm(&self, travel_mm: f64, tilt_deg: f64, d_zero_mm: f64) -> f64 {
         let scale = travel_mm * (1.0 + self.scale_ppm * 1e-6)
             + self.nonlinearity_ppm_per_mm * 1e-6 * travel_mm * travel_mm;
         scale / self.cos_theta() - self.sag_at_um(tilt_deg, d_zero_mm + travel_mm) * 1e-3
     }
 
     /// The indicated travel `x` (mm) at which `D(x, A) - D_zero = true_travel_mm` (Newton).
-    pub fn indicated_travel_mm(&self, true_travel_mm: f64, tilt_deg: f64, d_zero_mm: f64) -> f64 {
+    pub(crate) fn indicated_travel_mm(
+        &self,
+        true_travel_mm: f64,
+        tilt_deg: f64,
+        d_zero_mm: f64,
+    ) -> f64 {
         if self.is_ideal() {
             return true_travel_mm;
         }

@@ -14,12 +14,12 @@ pub(crate) struct FirstOrderLag {
     gain_u0: f64,
     gain_u1: f64,
     /// The lagged value.
-    pub state: f64,
+    pub(crate) state: f64,
 }
 
 impl FirstOrderLag {
     /// A lag of time constant `tau_s` on the step `step_s`, starting in equilibrium with `input`.
-    pub fn new(tau_s: f64, step_s: f64, input: f64) -> Self {
+    pub(crate) fn new(tau_s: f64, step_s: f64, input: f64) -> Self {
         let ratio = step_s / tau_s;
         let decay = (-ratio).exp();
         // 1 - e, accurate for small ratios.
@@ -39,14 +39,14 @@ impl FirstOrderLag {
 
     /// Advance one step with the input going linearly from `u0` to `u1`.
     #[inline]
-    pub fn step_linear(&mut self, u0: f64, u1: f64) -> f64 {
+    pub(crate) fn step_linear(&mut self, u0: f64, u1: f64) -> f64 {
         self.state = self.decay * self.state + self.gain_u0 * u0 + self.gain_u1 * u1;
         self.state
     }
 
     /// Advance one step with the input held at `u`.
     #[inline]
-    pub fn step_held(&mut self, u: f64) -> f64 {
+    pub(crate) fn step_held(&mut self, u: f64) -> f64 {
         self.step_linear(u, u)
     }
 }

@@ -18,14 +18,14 @@
 //! counts follow its true geometric map `D(n, A)` (scale error, nonlinearity, cosine error,
 //! zero offset, gravity sag, `geometry.rs`), and `[[mismatch]]` makes chosen bars different.
 
-pub mod config;
+pub(crate) mod config;
 mod encoder;
 mod environment;
 mod fleet;
 mod geometry;
 mod lag;
 mod schedule;
-pub mod truth;
+pub(crate) mod truth;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -58,22 +58,36 @@ use schedule::{BarPlan, PlannedMount, Site};
 const MAX_GRID_POINTS: usize = 100_000_000;
 const MAX_ENCODER_ROWS: usize = 500_000_000;
 
+/// Why a simulation could not be configured, run or written.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
+    /// A configuration value out of range.
     #[error("simulation config: `{key}` {reason}")]
-    Invalid { key: String, reason: String },
+    Invalid {
+        /// The key.
+        key: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The configuration is not a valid `SimConfig` in TOML.
     #[error("simulation config: {0}")]
     Toml(#[from] toml::de::Error),
+    /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: String,
+        /// The OS error.
         #[source]
         source: std::io::Error,
     },
+    /// `truth.json` could not be serialised.
     #[error("truth.json: {0}")]
     Json(#[from] serde_json::Error),
+    /// A time, ns since the epoch, outside the representable range.
     #[error("time {0} ns outside the representable range")]
     Time(i64),
+    /// Writing the campaign failed.
     #[error("writing the campaign: {0}")]
     Write(#[from] crate::io::WriteError),
 }
@@ -81,8 +95,11 @@ pub enum SimError {
 /// A simulated campaign: what `io::write_campaign` writes, plus the truth.
 #[derive(Debug, Clone)]
 pub struct Simulation {
+    /// The campaign's `campaign.toml`.
     pub manifest: Manifest,
+    /// The campaign's encoder, temperature and event tables.
     pub tables: CampaignTables,
+    /// What was simulated (written as `truth.json`).
     pub truth: Truth,
     /// Bar id -> noise-free thermal error (indicated − true, µm) of each encoder row; empty
     /// unless `record_true_error`.
@@ -91,15 +108,15 @@ pub struct Simulation {
 
 /// Seeded random streams, one per purpose (bar-indexed ones add the bar index).
 pub(crate) mod streams {
-    pub const ROOM: u64 = 1;
-    pub const FLEET: u64 = 2;
-    pub const HIDDEN: u64 = 3;
-    pub const SENSOR: u64 = 10;
-    pub const SCHEDULE: u64 = 1_000;
-    pub const HEAD: u64 = 2_000;
-    pub const BAR_EFFECTS: u64 = 3_000;
-    pub const BAR_NOISE: u64 = 4_000;
-    pub const GEOMETRY: u64 = 5_000;
+    pub(crate) const ROOM: u64 = 1;
+    pub(crate) const FLEET: u64 = 2;
+    pub(crate) const HIDDEN: u64 = 3;
+    pub(crate) const SENSOR: u64 = 10;
+    pub(crate) const SCHEDULE: u64 = 1_000;
+    pub(crate) const HEAD: u64 = 2_000;
+    pub(crate) const BAR_EFFECTS: u64 = 3_000;
+    pub(crate) const BAR_NOISE: u64 = 4_000;
+    pub(crate) const GEOMETRY: u64 = 5_000;
 }
 
 /// The random stream `stream` of seed `seed`.
@@ -113,16 +130,16 @@ pub(crate) fn stream_rng(seed: u64, stream: u64) -> ChaCha8Rng {
 /// grid steps per sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Grid {
-    pub sample_ns: i64,
-    pub steps_per_sample: usize,
-    pub step_s: f64,
-    pub n_samples: usize,
+    pub(crate) sample_ns: i64,
+    pub(crate) steps_per_sample: usize,
+    pub(crate) step_s: f64,
+    pub(crate) n_samples: usize,
     /// Campaign duration, whole seconds.
-    pub duration_ns: i64,
+    pub(crate) duration_ns: i64,
 }
 
 impl Grid {
-    pub fn new(cfg: &SimConfig) -> Result<Self, SimError> {
+    pub(crate) fn new(cfg: &SimConfig) -> Result<Self, SimError> {
         let duration_ns = (cfg.duration_days * 86400.0).round() as i64 * 1_000_000_000;
         let sample_ns = (cfg.sample_s * 1e9).round() as i64;
         if duration_ns <= 0 || sample_ns <= 0 {
@@ -149,13 +166,13 @@ impl Grid {
         Ok(grid)
     }
 
-    pub fn n_points(&self) -> usize {
+    pub(crate) fn n_points(&self) -> usize {
         self.n_samples
             .saturating_mul(self.steps_per_sample)
             .saturating_add(1)
     }
 
-    pub fn duration_s(&self) -> f64 {
+    pub(crate) fn duration_s(&self) -> f64 {
         self.duration_ns as f64 * 1e-9
     }
 }
@@ -469,7 +486,7 @@ fn build_truth(
 }
 
 /// Names of the effects switched on, in catalogue order.
-pub fn effects_on(e: &EffectsConfig) -> Vec<String> {
+pub(crate) fn effects_on(e: &EffectsConfig) -> Vec<String> {
     [
         ("head_heating", e.head_heating.enabled),
         ("second_path", e.second_path.enabled),
@@ -493,7 +510,7 @@ pub fn write(sim: &Simulation, dir: &Path, opts: &crate::io::WriteOptions) -> Re
 }
 
 /// Write `truth.json` (pretty) in `dir`, creating the directory.
-pub fn write_truth(truth: &Truth, dir: &Path) -> Result<(), SimError> {
+pub(crate) fn write_truth(truth: &Truth, dir: &Path) -> Result<(), SimError> {
     let io_err = |source| SimError::Io {
         path: dir.display().to_string(),
         source,

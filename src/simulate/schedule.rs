@@ -21,19 +21,19 @@ pub(crate) enum Site {
 /// One mount: the bar sits on `site` at `tilt_deg` during `[from_ns, to_ns]`.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct PlannedMount {
-    pub site: Site,
+    pub(crate) site: Site,
     /// Tilt of the bar from horizontal, degrees.
-    pub tilt_deg: f64,
-    pub purpose: Purpose,
-    pub from_ns: i64,
-    pub to_ns: i64,
+    pub(crate) tilt_deg: f64,
+    pub(crate) purpose: Purpose,
+    pub(crate) from_ns: i64,
+    pub(crate) to_ns: i64,
     /// Settling amplitude (µm added to the reading at `from_ns`), 0 when the effect is off.
-    pub settling_um: f64,
+    pub(crate) settling_um: f64,
 }
 
 impl PlannedMount {
     /// The nominal centre distance of the site, mm (calibrated length or device distance).
-    pub fn nominal_mm(&self, lengths_mm: &[f64]) -> f64 {
+    pub(crate) fn nominal_mm(&self, lengths_mm: &[f64]) -> f64 {
         match &self.site {
             Site::Length(i) => lengths_mm[*i],
             Site::Device { distance_mm, .. } => *distance_mm,
@@ -41,7 +41,7 @@ impl PlannedMount {
     }
 
     #[cfg(test)]
-    pub fn length_index(&self) -> Option<usize> {
+    pub(crate) fn length_index(&self) -> Option<usize> {
         match self.site {
             Site::Length(i) => Some(i),
             Site::Device { .. } => None,
@@ -53,22 +53,22 @@ impl PlannedMount {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct BarPlan {
     /// Sorted, disjoint.
-    pub mounts: Vec<PlannedMount>,
+    pub(crate) mounts: Vec<PlannedMount>,
     /// Offset (mm) from the socket path where the bar rests during gap `k` (the gap before
     /// mount `k`; the last entry is the gap after the last mount, if any).
-    pub handling_offset_mm: Vec<f64>,
+    pub(crate) handling_offset_mm: Vec<f64>,
     /// Start of every handling gap (a `handling` event each).
-    pub handling_ns: Vec<i64>,
+    pub(crate) handling_ns: Vec<i64>,
     /// Head power switches, on encoder sample times, each flipping the power (from off, the
     /// first being "on" at 0, unless `head_powered_at_start`); empty when the head is always on.
-    pub head_toggles_ns: Vec<i64>,
+    pub(crate) head_toggles_ns: Vec<i64>,
     /// The head is powered before its first switch (no "on" event at the start).
-    pub head_powered_at_start: bool,
+    pub(crate) head_powered_at_start: bool,
     /// The head's heat at the start is its steady state when powered (it has been on for long),
     /// not cold.
-    pub head_warm_at_start: bool,
+    pub(crate) head_warm_at_start: bool,
     /// Tilt of the bar when it has no mount before or after (the plate's), degrees.
-    pub rest_tilt_deg: f64,
+    pub(crate) rest_tilt_deg: f64,
 }
 
 /// Where a bar is at one instant.
@@ -370,7 +370,7 @@ fn daily_off(rng: &mut impl Rng, off_h: [f64; 2], duration_s: f64) -> Vec<f64> {
 impl BarPlan {
     /// Where the bar is at `t_ns`. `cursor` is a hint (index of the current or next mount) that
     /// makes a forward sweep linear.
-    pub fn place_at(&self, t_ns: i64, lengths_mm: &[f64], cursor: &mut usize) -> Place {
+    pub(crate) fn place_at(&self, t_ns: i64, lengths_mm: &[f64], cursor: &mut usize) -> Place {
         while *cursor < self.mounts.len() && self.mounts[*cursor].to_ns < t_ns {
             *cursor += 1;
         }

@@ -196,8 +196,8 @@ fn base_noise_study() {
                 }
                 ratios.push(o.rms_ratio);
                 true_ratios.push(o.true_start_ratio);
-                for k in 0..4 {
-                    worst[k] = worst[k].max(o.worst_u[k].abs());
+                for (w, u) in worst.iter_mut().zip(&o.worst_u) {
+                    *w = w.max(u.abs());
                 }
                 zs.extend(o.z.iter().copied());
                 std::fs::remove_dir_all(&c.dir).ok();

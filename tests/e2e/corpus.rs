@@ -9,7 +9,7 @@ use std::sync::OnceLock;
 use crate::support::run_cli;
 
 /// Every file under `dir` (relative path → bytes); empty when `dir` does not exist.
-pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+pub(crate) fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
     fn walk(root: &Path, dir: &Path, files: &mut BTreeMap<PathBuf, Vec<u8>>) {
         let Ok(entries) = std::fs::read_dir(dir) else {
             return;
@@ -34,7 +34,7 @@ pub fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 }
 
 /// Copy the folder `from` to `to` (which must not exist).
-pub fn copy_dir(from: &Path, to: &Path) {
+pub(crate) fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for e in std::fs::read_dir(from).unwrap().flatten() {
         let target = to.join(e.file_name());
@@ -48,7 +48,7 @@ pub fn copy_dir(from: &Path, to: &Path) {
 
 /// A real output folder of an earlier, successful run (`dbbcal ingest` on the shipped sample),
 /// made once per test process.
-pub fn earlier_output() -> &'static Path {
+pub(crate) fn earlier_output() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let root = tempfile::tempdir().unwrap().keep();
@@ -66,7 +66,7 @@ pub fn earlier_output() -> &'static Path {
 }
 
 /// Names in `dir` that look like leftovers of a run (partial folders, old outputs, locks).
-pub fn leftovers(dir: &Path) -> Vec<String> {
+pub(crate) fn leftovers(dir: &Path) -> Vec<String> {
     std::fs::read_dir(dir)
         .map(|entries| {
             entries
@@ -81,7 +81,7 @@ pub fn leftovers(dir: &Path) -> Vec<String> {
 /// Run `command` on `campaign` with `--out` a sibling folder `<campaign>-out` that holds an
 /// earlier output; expect exit `code`, exactly one non-empty stderr line containing every
 /// `needles`, no panic, the earlier output unchanged byte for byte and no leftovers beside it.
-pub fn check_refused(campaign: &Path, command: &[&str], code: i32, needles: &[&str]) {
+pub(crate) fn check_refused(campaign: &Path, command: &[&str], code: i32, needles: &[&str]) {
     let name = campaign.file_name().unwrap().to_str().unwrap();
     let out = campaign.parent().unwrap().join(format!("{name}-out"));
     let _ = std::fs::remove_dir_all(&out);
@@ -111,13 +111,13 @@ pub fn check_refused(campaign: &Path, command: &[&str], code: i32, needles: &[&s
 }
 
 /// No partial folder, old output or lock is left in `dir`.
-pub fn assert_no_leftovers(dir: &Path, what: &str) {
+pub(crate) fn assert_no_leftovers(dir: &Path, what: &str) {
     let left = leftovers(dir);
     assert!(left.is_empty(), "{what}: leftovers {left:?}");
 }
 
 /// `stderr` is one non-empty line holding every `needles`, and no panic.
-pub fn assert_one_line(stderr: &str, needles: &[&str], what: &str) {
+pub(crate) fn assert_one_line(stderr: &str, needles: &[&str], what: &str) {
     assert!(!stderr.contains("panicked"), "{what}: {stderr}");
     let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
     assert_eq!(lines.len(), 1, "{what}: one line expected, got: {stderr}");

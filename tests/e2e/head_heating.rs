@@ -92,7 +92,7 @@ fn check(name: &str, cfg: SimConfig) {
                 p.value,
                 (p.value - truth) / truth.abs() * 100.0
             ));
-            if !(z.abs() < 3.0) {
+            if z.is_nan() || z.abs() >= 3.0 {
                 failures.push(format!("{}: {param} {z:+.1} u", m.bar));
             }
         }

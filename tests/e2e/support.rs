@@ -6,13 +6,13 @@ use dbbcal::pipeline::{analyse, RunPlan, RunResults, Stage};
 use dbbcal::simulate::{self, SimConfig, Truth};
 
 /// A simulation TOML of the repository (e.g. `pipelines/sim-sample.toml`).
-pub fn sim_config(path: &str) -> SimConfig {
+pub(crate) fn sim_config(path: &str) -> SimConfig {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
     toml::from_str(&text).unwrap_or_else(|e| panic!("{path}: {e}"))
 }
 
 /// Simulate `cfg` into a fresh directory under `root`; returns the directory and the truth.
-pub fn simulate_campaign(root: &Path, name: &str, cfg: &SimConfig) -> (PathBuf, Truth) {
+pub(crate) fn simulate_campaign(root: &Path, name: &str, cfg: &SimConfig) -> (PathBuf, Truth) {
     let dir = root.join(name);
     let sim = simulate::generate(cfg).unwrap_or_else(|e| panic!("simulate {name}: {e}"));
     simulate::write(&sim, &dir, &dbbcal::io::WriteOptions::default())
@@ -21,13 +21,13 @@ pub fn simulate_campaign(root: &Path, name: &str, cfg: &SimConfig) -> (PathBuf, 
 }
 
 /// Ingest + the analysis stages `stage` needs, with `effects`.
-pub fn analyse_campaign(dir: &Path, stage: Stage, effects: &[&str]) -> RunResults {
+pub(crate) fn analyse_campaign(dir: &Path, stage: Stage, effects: &[&str]) -> RunResults {
     analyse_campaign_binned(dir, stage, effects, 0.0, false)
 }
 
 /// [`analyse_campaign`] with readings compressed into bins of `bin_s` seconds: by ingest while it
 /// streams (`streamed`), else from each bar's log in memory.
-pub fn analyse_campaign_binned(
+pub(crate) fn analyse_campaign_binned(
     dir: &Path,
     stage: Stage,
     effects: &[&str],
@@ -47,12 +47,12 @@ pub fn analyse_campaign_binned(
 }
 
 /// Relative error |est − truth| / |truth|.
-pub fn rel(est: f64, truth: f64) -> f64 {
+pub(crate) fn rel(est: f64, truth: f64) -> f64 {
     (est - truth).abs() / truth.abs()
 }
 
 /// Run the `dbbcal` binary; returns (exit code, stdout, stderr).
-pub fn run_cli(args: &[&str]) -> (i32, String, String) {
+pub(crate) fn run_cli(args: &[&str]) -> (i32, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dbbcal"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -73,8 +73,7 @@ pub fn run_cli(args: &[&str]) -> (i32, String, String) {
 /// `temperature_sample_s`; the truth's air between two temperature readings is `air` and the
 /// room runs `prehistory_hours` before the logging starts (the bars are then not in steady state
 /// at their first reading).
-#[allow(clippy::too_many_arguments)]
-pub fn base_only_config(
+pub(crate) fn base_only_config(
     seed: u64,
     air: simulate::AirBetweenReadings,
     prehistory_hours: f64,
@@ -101,19 +100,19 @@ pub fn base_only_config(
 }
 
 /// A simulated campaign on disk with its truth and the reading noise it actually drew.
-pub struct NoisyCampaign {
-    pub dir: PathBuf,
-    pub truth: Truth,
+pub(crate) struct NoisyCampaign {
+    pub(crate) dir: PathBuf,
+    pub(crate) truth: Truth,
     /// Per bar: RMS of the noise actually added to its fitted readings (white noise and
     /// quantization: reading minus true thermal error, each mount's mean removed), µm. What a
     /// model that contains the truth fits down to (a little below, by its parameters).
-    pub noise_rms_um: std::collections::BTreeMap<String, f64>,
+    pub(crate) noise_rms_um: std::collections::BTreeMap<String, f64>,
     /// The same over every bar's fitted readings.
-    pub fleet_noise_rms_um: f64,
+    pub(crate) fleet_noise_rms_um: f64,
 }
 
 /// Simulate `cfg` (with `record_true_error` on) into `root/name` and measure the noise it drew.
-pub fn noisy_campaign(root: &Path, name: &str, cfg: &SimConfig) -> NoisyCampaign {
+pub(crate) fn noisy_campaign(root: &Path, name: &str, cfg: &SimConfig) -> NoisyCampaign {
     let mut cfg = cfg.clone();
     cfg.record_true_error = true;
     let dir = root.join(name);
@@ -162,7 +161,7 @@ pub fn noisy_campaign(root: &Path, name: &str, cfg: &SimConfig) -> NoisyCampaign
 /// 4 days) with the truth's air between readings `air`, the room running `prehistory_hours`
 /// before the logging, and encoder and temperature periods `sample_s` and
 /// `temperature_sample_s`, in a fresh directory under `root`.
-pub fn base_only_campaign(
+pub(crate) fn base_only_campaign(
     root: &Path,
     seed: u64,
     air: simulate::AirBetweenReadings,
@@ -188,7 +187,7 @@ pub fn base_only_campaign(
 
 /// [`run_cli`] with extra environment variables on the child process (e.g.
 /// `RAYON_NUM_THREADS`).
-pub fn run_cli_env(args: &[&str], env: &[(&str, &str)]) -> (i32, String, String) {
+pub(crate) fn run_cli_env(args: &[&str], env: &[(&str, &str)]) -> (i32, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dbbcal"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
