@@ -194,7 +194,7 @@ pub(crate) enum CompensateError {
 
 impl CompensateError {
     /// The bar that could not be compensated.
-    pub fn bar(&self) -> &str {
+    pub(crate) fn bar(&self) -> &str {
         match self {
             CompensateError::NotCalibrated { bar }
             | CompensateError::OtherEpoch { bar, .. }

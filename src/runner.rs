@@ -17,7 +17,9 @@ use crate::pipeline::{self, RunPlan, RunResults, Stage};
 /// How a run ended when it produced output.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum RunStatus {
+    /// Every bar processed.
     AllBars,
+    /// This many bars failed (listed in `failed_bars`); the others are in the output.
     SomeBarsFailed(usize),
     /// Every bar failed (bar, reason): nothing was written and the previous output is as it was.
     NoBarSucceeded(Vec<pipeline::BarFailure>),
@@ -26,6 +28,7 @@ pub enum RunStatus {
 /// What a run leaves for the command line to say.
 #[derive(Debug, Clone)]
 pub struct Outcome {
+    /// How the run ended.
     pub status: RunStatus,
     /// The output folder, when one was written.
     pub out: Option<PathBuf>,

@@ -1060,6 +1060,14 @@ pub struct BarLedger {
     pub steps: Vec<LedgerStep>,
 }
 
+/// How far forward selection searches: at most `max_steps` effects added, the `beam` best
+/// paths kept at each step (`[diagnose] forward_steps`, `beam`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Search {
+    pub(crate) max_steps: usize,
+    pub(crate) beam: usize,
+}
+
 /// Forward selection on one bar alone: candidates from its own channel ranking (`diagnosis`
 /// of `model`), significance from its own likelihood-ratio tests, materiality by the fleet's
 /// `criteria`.
@@ -1068,11 +1076,11 @@ pub(crate) fn forward_selection_of_bar(
     model: BarModel,
     base: &Option<ScreenBase>,
     diagnosis: &BarDiagnosis,
-    max_steps: usize,
-    beam: usize,
+    search: Search,
     criteria: &Criteria,
     refits: &Refits,
 ) -> BarLedger {
+    let Search { max_steps, beam } = search;
     let bar = model.bar.clone();
     if max_steps == 0 {
         return BarLedger {

@@ -12,48 +12,48 @@ use super::summary::ModelRecord;
 /// `diagnosis.json`: per bar where the model fails, and the ranked candidate effects (every
 /// `effect` string is accepted verbatim by `--add-effect`).
 #[derive(Debug, Serialize)]
-pub struct DiagnosisRecord<'a> {
-    pub campaign: &'a str,
-    pub model: ModelRecord,
-    pub inputs: &'a [InputFile],
-    pub bars: Vec<BarDiagnosisRecord<'a>>,
+pub(crate) struct DiagnosisRecord<'a> {
+    pub(crate) campaign: &'a str,
+    pub(crate) model: ModelRecord,
+    pub(crate) inputs: &'a [InputFile],
+    pub(crate) bars: Vec<BarDiagnosisRecord<'a>>,
     /// What each temperature sensor plausibly measures, judged from its signal.
-    pub sensors: &'a [diagnose::sensors::SensorProfile],
+    pub(crate) sensors: &'a [diagnose::sensors::SensorProfile],
     /// When a candidate is proposed: significant and removing at least `min_gain_um` of the
     /// fleet RMS.
-    pub criteria: &'a diagnose::Criteria,
+    pub(crate) criteria: &'a diagnose::Criteria,
     /// Every candidate: `verdict` proposed / immaterial / not_significant / screened_out, with
     /// its `reason`.
-    pub candidates: &'a [Candidate],
+    pub(crate) candidates: &'a [Candidate],
     /// Candidates that could not be fitted on any bar, with the reason.
-    pub unavailable: &'a [diagnose::Unavailable],
+    pub(crate) unavailable: &'a [diagnose::Unavailable],
     /// Fleet-wide forward selection: one model for every bar.
-    pub ledger: &'a [LedgerStep],
+    pub(crate) ledger: &'a [LedgerStep],
     /// Each bar's own forward selection.
-    pub bar_ledgers: &'a [diagnose::BarLedger],
+    pub(crate) bar_ledgers: &'a [diagnose::BarLedger],
 }
 
 #[derive(Debug, Serialize)]
-pub struct BarDiagnosisRecord<'a> {
-    pub bar: &'a str,
-    pub rms_um: f64,
-    pub peak_to_valley_um: f64,
-    pub fit_percent: f64,
-    pub whiteness_p: f64,
-    pub ljung_box_q: f64,
-    pub residual_correlation_time_samples: f64,
-    pub channels: Vec<ChannelRecord<'a>>,
+pub(crate) struct BarDiagnosisRecord<'a> {
+    pub(crate) bar: &'a str,
+    pub(crate) rms_um: f64,
+    pub(crate) peak_to_valley_um: f64,
+    pub(crate) fit_percent: f64,
+    pub(crate) whiteness_p: f64,
+    pub(crate) ljung_box_q: f64,
+    pub(crate) residual_correlation_time_samples: f64,
+    pub(crate) channels: Vec<ChannelRecord<'a>>,
 }
 
 #[derive(Debug, Serialize)]
-pub struct ChannelRecord<'a> {
-    pub channel: &'a str,
-    pub explained_fraction: f64,
-    pub tau_s: f64,
-    pub description: String,
+pub(crate) struct ChannelRecord<'a> {
+    pub(crate) channel: &'a str,
+    pub(crate) explained_fraction: f64,
+    pub(crate) tau_s: f64,
+    pub(crate) description: String,
 }
 
-pub fn diagnosis_record<'a>(
+pub(crate) fn diagnosis_record<'a>(
     plan: &RunPlan,
     r: &'a RunResults,
     d: &'a Diagnosis,

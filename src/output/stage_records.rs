@@ -13,39 +13,39 @@ use crate::series::InputFile;
 
 /// `calibration.json`.
 #[derive(Debug, Serialize)]
-pub struct CalibrationRecord<'a> {
-    pub bars: &'a [BarCalibration],
-    pub campaign: &'a str,
-    pub failed_bars: &'a [BarFailure],
-    pub inputs: &'a [InputFile],
+pub(crate) struct CalibrationRecord<'a> {
+    pub(crate) bars: &'a [BarCalibration],
+    pub(crate) campaign: &'a str,
+    pub(crate) failed_bars: &'a [BarFailure],
+    pub(crate) inputs: &'a [InputFile],
 }
 
 /// `compensation.json`.
 #[derive(Debug, Serialize)]
-pub struct CompensationRecord<'a> {
-    pub campaign: &'a str,
-    pub failed: &'a [BarFailure],
-    pub inputs: &'a [InputFile],
-    pub options: &'a AcceptanceSection,
-    pub working: &'a [WorkingSeries],
+pub(crate) struct CompensationRecord<'a> {
+    pub(crate) campaign: &'a str,
+    pub(crate) failed: &'a [BarFailure],
+    pub(crate) inputs: &'a [InputFile],
+    pub(crate) options: &'a AcceptanceSection,
+    pub(crate) working: &'a [WorkingSeries],
 }
 
 /// `acceptance.json`.
 #[derive(Debug, Serialize)]
-pub struct AcceptanceRecord<'a> {
-    pub campaign: &'a str,
-    pub decision_rule: &'static str,
-    pub tolerance_um: f64,
-    pub u_temperature_k: f64,
-    pub inputs: &'a [InputFile],
-    pub fleet: FleetAcceptance,
-    pub bars: &'a [BarAcceptance],
+pub(crate) struct AcceptanceRecord<'a> {
+    pub(crate) campaign: &'a str,
+    pub(crate) decision_rule: &'static str,
+    pub(crate) tolerance_um: f64,
+    pub(crate) u_temperature_k: f64,
+    pub(crate) inputs: &'a [InputFile],
+    pub(crate) fleet: FleetAcceptance,
+    pub(crate) bars: &'a [BarAcceptance],
     /// Working bars the compensate stage could not process.
-    pub not_accepted: &'a [BarFailure],
+    pub(crate) not_accepted: &'a [BarFailure],
 }
 
 /// The calibrate stage's record, if it ran.
-pub fn calibration_record<'a>(results: &'a RunResults) -> Option<CalibrationRecord<'a>> {
+pub(crate) fn calibration_record<'a>(results: &'a RunResults) -> Option<CalibrationRecord<'a>> {
     let c = results.calibration.as_ref()?;
     Some(CalibrationRecord {
         bars: &c.ok,
@@ -56,7 +56,7 @@ pub fn calibration_record<'a>(results: &'a RunResults) -> Option<CalibrationReco
 }
 
 /// The compensate stage's record, if it ran.
-pub fn compensation_record<'a>(
+pub(crate) fn compensation_record<'a>(
     plan: &'a RunPlan,
     results: &'a RunResults,
 ) -> Option<CompensationRecord<'a>> {
@@ -71,7 +71,7 @@ pub fn compensation_record<'a>(
 }
 
 /// The acceptance stage's record, if it ran (it needs the compensate stage's).
-pub fn acceptance_record<'a>(
+pub(crate) fn acceptance_record<'a>(
     plan: &RunPlan,
     results: &'a RunResults,
 ) -> Option<AcceptanceRecord<'a>> {

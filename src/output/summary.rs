@@ -11,80 +11,80 @@ use crate::series::InputFile;
 
 /// `summary.json`: the stable contract for cron jobs and dashboards.
 #[derive(Debug, Serialize)]
-pub struct Summary {
-    pub dbbcal_version: String,
-    pub campaign: String,
-    pub pipeline: PipelineRecord,
-    pub inputs: Vec<InputFile>,
-    pub model: ModelRecord,
-    pub bars: Vec<BarSummary>,
-    pub failed_bars: Vec<BarFailure>,
-    pub reference: Option<ReferenceSummary>,
+pub(crate) struct Summary {
+    pub(crate) dbbcal_version: String,
+    pub(crate) campaign: String,
+    pub(crate) pipeline: PipelineRecord,
+    pub(crate) inputs: Vec<InputFile>,
+    pub(crate) model: ModelRecord,
+    pub(crate) bars: Vec<BarSummary>,
+    pub(crate) failed_bars: Vec<BarFailure>,
+    pub(crate) reference: Option<ReferenceSummary>,
     /// What ingest dropped, counted and flagged, per bar, sensor, events and files.
-    pub quality: crate::series::Quality,
+    pub(crate) quality: crate::series::Quality,
 }
 
 #[derive(Debug, Serialize)]
-pub struct PipelineRecord {
-    pub name: String,
-    pub path: Option<String>,
-    pub sha256: Option<String>,
-    pub stages: Vec<Stage>,
+pub(crate) struct PipelineRecord {
+    pub(crate) name: String,
+    pub(crate) path: Option<String>,
+    pub(crate) sha256: Option<String>,
+    pub(crate) stages: Vec<Stage>,
 }
 
 #[derive(Debug, Serialize)]
-pub struct ModelRecord {
-    pub effects: Vec<String>,
+pub(crate) struct ModelRecord {
+    pub(crate) effects: Vec<String>,
     /// Bin length of the compressed readings, s (0: every reading). The fits, RMS and sample
     /// counts are those of every reading either way (`series::bins`); residual statistics and
     /// figures then show the bins' nodes.
-    pub bin_s: f64,
+    pub(crate) bin_s: f64,
 }
 
 #[derive(Debug, Serialize)]
-pub struct ParamValue {
-    pub value: f64,
-    pub u: f64,
-    pub u_naive: f64,
-    pub ci95: [f64; 2],
+pub(crate) struct ParamValue {
+    pub(crate) value: f64,
+    pub(crate) u: f64,
+    pub(crate) u_naive: f64,
+    pub(crate) ci95: [f64; 2],
     /// Per end of `ci95`: the end is the time constants' search bound, not a limit set by the
     /// data ([`Estimate::ci95_at_search_bound`]).
-    pub ci95_at_search_bound: [bool; 2],
+    pub(crate) ci95_at_search_bound: [bool; 2],
 }
 
 #[derive(Debug, Serialize)]
-pub struct BarSummary {
-    pub bar: String,
-    pub effects: Vec<String>,
-    pub params: BTreeMap<String, ParamValue>,
-    pub correlation: CorrelationRecord,
-    pub rms_um: f64,
-    pub n_samples: usize,
-    pub dropped_outside_mounts: usize,
-    pub hac_batch_samples: usize,
+pub(crate) struct BarSummary {
+    pub(crate) bar: String,
+    pub(crate) effects: Vec<String>,
+    pub(crate) params: BTreeMap<String, ParamValue>,
+    pub(crate) correlation: CorrelationRecord,
+    pub(crate) rms_um: f64,
+    pub(crate) n_samples: usize,
+    pub(crate) dropped_outside_mounts: usize,
+    pub(crate) hac_batch_samples: usize,
     /// The base paths' initial-state gains (nuisance parameters like the zeros: each lag's
     /// departure from steady state at the bar's first fitted sample times its expansion, ppm).
-    pub initial_state: BTreeMap<String, ParamValue>,
+    pub(crate) initial_state: BTreeMap<String, ParamValue>,
     /// Parameters of the model's effects that this bar's data cannot determine (left out of its
     /// fit), with the reason: e.g. `beta_ppm_per_k` and `tau_s_s` of a bar mounted on one length.
-    pub not_identifiable: Vec<crate::model::NotIdentifiable>,
+    pub(crate) not_identifiable: Vec<crate::model::NotIdentifiable>,
 }
 
 #[derive(Debug, Serialize)]
-pub struct CorrelationRecord {
-    pub names: Vec<String>,
-    pub matrix: Vec<Vec<f64>>,
+pub(crate) struct CorrelationRecord {
+    pub(crate) names: Vec<String>,
+    pub(crate) matrix: Vec<Vec<f64>>,
 }
 
 #[derive(Debug, Serialize)]
-pub struct ReferenceSummary {
-    pub bar: String,
-    pub rule: &'static str,
-    pub compared_at_mm: f64,
-    pub limit_um: f64,
-    pub mismatch_um: BTreeMap<String, f64>,
-    pub flagged: Vec<String>,
-    pub scaled_distance_to_mean: BTreeMap<String, f64>,
+pub(crate) struct ReferenceSummary {
+    pub(crate) bar: String,
+    pub(crate) rule: &'static str,
+    pub(crate) compared_at_mm: f64,
+    pub(crate) limit_um: f64,
+    pub(crate) mismatch_um: BTreeMap<String, f64>,
+    pub(crate) flagged: Vec<String>,
+    pub(crate) scaled_distance_to_mean: BTreeMap<String, f64>,
 }
 
 fn param_value(e: &Estimate) -> ParamValue {
@@ -97,7 +97,7 @@ fn param_value(e: &Estimate) -> ParamValue {
     }
 }
 
-pub fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
+pub(crate) fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
     let bars = r
         .bars
         .iter()

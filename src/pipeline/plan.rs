@@ -14,20 +14,29 @@ use crate::model::Effect;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Stage {
+    /// Read the campaign's parquet logs (always runs).
     Ingest,
+    /// Fit each bar's thermal model (alpha, beta, tau_R, tau_S, and any added effects).
     Identify,
+    /// Pick the reference bar nearest the fleet mean; predicted mismatches against it.
     Match,
+    /// Mismatch of every pair of bars over the campaign's temperature history (heat map).
     MatchStudy,
+    /// Where the model fails, the candidate effects ranked, forward selection.
     Diagnose,
+    /// Tilt-dependent centre-distance functions on the plate's calibrated lengths.
     Calibrate,
+    /// Working bars compensated by the reference bars.
     Compensate,
+    /// Working bars accepted or not against the tolerance (decision rule in the README).
     Acceptance,
+    /// The PNG figures, `report.md` and `index.html`.
     Report,
 }
 
 impl Stage {
     /// The stages `self` needs before it.
-    pub fn with_prerequisites(self) -> Vec<Stage> {
+    pub(crate) fn with_prerequisites(self) -> Vec<Stage> {
         use Stage::*;
         match self {
             Ingest => vec![Ingest],
@@ -46,60 +55,60 @@ impl Stage {
 /// A pipeline file (`pipelines/*.toml`), as written.
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct PipelineFile {
-    pub pipeline: PipelineSection,
+pub(crate) struct PipelineFile {
+    pub(crate) pipeline: PipelineSection,
     #[serde(default)]
-    pub model: ModelSection,
+    pub(crate) model: ModelSection,
     #[serde(default, rename = "match")]
-    pub matching: MatchSection,
+    pub(crate) matching: MatchSection,
     #[serde(default)]
-    pub diagnose: DiagnoseSection,
+    pub(crate) diagnose: DiagnoseSection,
     #[serde(default)]
-    pub acceptance: AcceptanceSection,
+    pub(crate) acceptance: AcceptanceSection,
     #[serde(default)]
-    pub report: ReportSection,
+    pub(crate) report: ReportSection,
     #[serde(default)]
-    pub output: OutputSection,
+    pub(crate) output: OutputSection,
 }
 
 /// `[report]`: what the data cannot say and a filed report must (ISO/IEC 17025 §7.8): the lab's
 /// template fields, printed on the report page's provenance; absent ones stay blank lines.
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct ReportSection {
-    pub laboratory: Option<String>,
-    pub address: Option<String>,
-    pub customer: Option<String>,
+pub(crate) struct ReportSection {
+    pub(crate) laboratory: Option<String>,
+    pub(crate) address: Option<String>,
+    pub(crate) customer: Option<String>,
     /// The report's or certificate's unique identification.
-    pub report_id: Option<String>,
-    pub signatory: Option<String>,
+    pub(crate) report_id: Option<String>,
+    pub(crate) signatory: Option<String>,
 }
 
 /// `[output]`: extra formats.
 #[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
-pub struct OutputSection {
+pub(crate) struct OutputSection {
     /// Also write the tables (`models.parquet`, `compensated.parquet`) as CSV.
     #[serde(default)]
-    pub csv: bool,
+    pub(crate) csv: bool,
 }
 
 /// `[acceptance]`: compensation and acceptance options (`calibrate`, `compensate`, `acceptance`).
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct AcceptanceSection {
+pub(crate) struct AcceptanceSection {
     /// Tolerance on the compensated centre-distance error, ± µm (patent: ±1 µm).
     #[serde(default = "default_limit")]
-    pub tolerance_um: f64,
+    pub(crate) tolerance_um: f64,
     /// Standard uncertainty of the temperature measurement, K (uncertainty budget).
     #[serde(default = "default_u_temperature")]
-    pub u_temperature_k: f64,
+    pub(crate) u_temperature_k: f64,
     /// Also compensate the modelled reference-to-working difference.
     #[serde(default)]
-    pub model_difference: bool,
+    pub(crate) model_difference: bool,
     /// A reference reading farther than this from a working sample is not used, s.
     #[serde(default = "default_max_gap")]
-    pub max_gap_s: f64,
+    pub(crate) max_gap_s: f64,
 }
 
 impl Default for AcceptanceSection {
@@ -120,6 +129,7 @@ fn default_max_gap() -> f64 {
     300.0
 }
 
+/// `[diagnose]`: forward selection and the materiality rule.
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct DiagnoseSection {
@@ -128,12 +138,12 @@ pub struct DiagnoseSection {
     pub forward_steps: usize,
     /// Forward selection keeps this many best paths at each step (1: plain greedy).
     #[serde(default = "default_beam")]
-    pub beam: usize,
+    pub(crate) beam: usize,
     /// Tolerance the bars serve, µm: a candidate is proposed only when the fleet RMS it removes
     /// is at least 0.5 % of it (and 5 % of the noise floor; `diagnose::Criteria`). Absent: the
     /// matching limit `[match] limit_um`.
     #[serde(default)]
-    pub tolerance_um: Option<f64>,
+    pub(crate) tolerance_um: Option<f64>,
 }
 
 impl Default for DiagnoseSection {
@@ -155,39 +165,39 @@ fn default_beam() -> usize {
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct PipelineSection {
-    pub name: String,
-    pub stages: Vec<Stage>,
+pub(crate) struct PipelineSection {
+    pub(crate) name: String,
+    pub(crate) stages: Vec<Stage>,
     /// Default campaign directory, relative to the working directory.
     #[serde(default)]
-    pub campaign: Option<PathBuf>,
+    pub(crate) campaign: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct ModelSection {
+pub(crate) struct ModelSection {
     /// Effect names (see `model::Effect::parse`); the base model when absent.
     #[serde(default = "default_effects")]
-    pub effects: Vec<String>,
+    pub(crate) effects: Vec<String>,
     /// Generic terms spelled out (`[[model.term]]`): the same as `"lag:H1@1800"` in `effects`.
     #[serde(default)]
-    pub term: Vec<GenericTerm>,
+    pub(crate) term: Vec<GenericTerm>,
     /// Compress each bar's readings into bins of this many seconds, two weighted nodes a bin,
     /// exact for the fits (`series::bins`; 0: every reading). At most an hour. Absent or
     /// `"auto"`: chosen from the campaign (`series::automatic_bin_s`: 60 s for logs of 6 s or
     /// faster) and checked against the fitted time constants (`runner`).
     #[serde(default, deserialize_with = "bin_s_or_auto")]
-    pub bin_s: Option<f64>,
+    pub(crate) bin_s: Option<f64>,
 }
 
 /// A generic term defined in the pipeline TOML: `transform` of `channel`, starting at `tau_s`.
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct GenericTerm {
-    pub channel: String,
-    pub transform: crate::model::Transform,
+pub(crate) struct GenericTerm {
+    pub(crate) channel: String,
+    pub(crate) transform: crate::model::Transform,
     #[serde(default)]
-    pub tau_s: Option<f64>,
+    pub(crate) tau_s: Option<f64>,
 }
 
 impl GenericTerm {
@@ -219,16 +229,16 @@ fn default_effects() -> Vec<String> {
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct MatchSection {
+pub(crate) struct MatchSection {
     /// Flag bars whose predicted mismatch exceeds this, µm (the patent's ±1 µm).
     #[serde(default = "default_limit")]
-    pub limit_um: f64,
+    pub(crate) limit_um: f64,
     /// Plate length id at which bars are compared; the middle plate length when absent.
     #[serde(default)]
-    pub at_length: Option<String>,
+    pub(crate) at_length: Option<String>,
     /// Grid step of the measured-drift matching study, s.
     #[serde(default = "default_study_step")]
-    pub study_step_s: f64,
+    pub(crate) study_step_s: f64,
 }
 
 impl Default for MatchSection {
@@ -251,10 +261,18 @@ fn default_study_step() -> f64 {
 /// Errors that make a run impossible (unusable input or configuration).
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
+    /// The pipeline file (`path`) cannot be read or is not valid; `message` says where.
     #[error("{path}: {message}")]
-    Pipeline { path: String, message: String },
+    Pipeline {
+        /// The pipeline file.
+        path: String,
+        /// What is wrong, naming the key.
+        message: String,
+    },
+    /// The campaign directory named does not exist or has no `campaign.toml`.
     #[error("campaign directory {0} does not exist or has no campaign.toml")]
     NoCampaign(String),
+    /// An effect name (`--add-effect`, `[model] effects`) that is not understood.
     #[error("{0}")]
     Effect(#[from] crate::model::UnknownEffect),
     /// `campaign.toml` read at plan time (cheap, before any parquet file) is not usable.
@@ -269,23 +287,23 @@ pub enum PlanError {
 /// The allowed range of every number a pipeline file (or a command-line option) sets, checked
 /// before any IO on the campaign: `(key, low, high, unit)`, both ends included. NaN and
 /// infinities (TOML's `nan`, `inf`) are outside every range.
-pub mod limits {
+pub(crate) mod limits {
     /// `[match] limit_um`, `[diagnose] tolerance_um`, `[acceptance] tolerance_um`: µm (a ballbar's
     /// tolerances are microns; 1 mm is far beyond any).
-    pub const TOLERANCE_UM: (f64, f64) = (1e-6, 1e3);
+    pub(crate) const TOLERANCE_UM: (f64, f64) = (1e-6, 1e3);
     /// `[match] study_step_s`: the measured-drift grid step, s (one second to a day).
-    pub const STUDY_STEP_S: (f64, f64) = (1.0, 86_400.0);
+    pub(crate) const STUDY_STEP_S: (f64, f64) = (1.0, 86_400.0);
     /// `[acceptance] u_temperature_k`: standard uncertainty of the air temperature, K.
-    pub const U_TEMPERATURE_K: (f64, f64) = (0.0, 10.0);
+    pub(crate) const U_TEMPERATURE_K: (f64, f64) = (0.0, 10.0);
     /// `[acceptance] max_gap_s`: one second to 30 days.
-    pub const MAX_GAP_S: (f64, f64) = (1.0, 30.0 * 86_400.0);
+    pub(crate) const MAX_GAP_S: (f64, f64) = (1.0, 30.0 * 86_400.0);
     /// A starting time constant (`[[model.term]] tau_s`, the `@TAU_S` of an effect name), s: the
     /// range the model evaluates time constants in (`ln tau` clamped to [0, ln 1e9]).
-    pub const TAU_S: (f64, f64) = (1.0, 1e9);
+    pub(crate) const TAU_S: (f64, f64) = (1.0, 1e9);
     /// `[diagnose] forward_steps` (0: rank the candidates only).
-    pub const FORWARD_STEPS: (usize, usize) = (0, 10);
+    pub(crate) const FORWARD_STEPS: (usize, usize) = (0, 10);
     /// `[diagnose] beam` (1: plain greedy selection).
-    pub const BEAM: (usize, usize) = (1, 10);
+    pub(crate) const BEAM: (usize, usize) = (1, 10);
 }
 
 /// `value` within `[lo, hi]` (finite), or the one-line message that names `key` and the range.
@@ -312,7 +330,7 @@ fn check_count(key: &str, value: usize, (lo, hi): (usize, usize)) -> Result<(), 
 
 impl PipelineFile {
     /// Every number of the file in its range ([`limits`]); the message names the key.
-    pub fn check_numbers(&self) -> Result<(), String> {
+    pub(crate) fn check_numbers(&self) -> Result<(), String> {
         use limits::*;
         let m = &self.matching;
         check_range("match.limit_um", m.limit_um, TOLERANCE_UM, " µm")?;
@@ -350,7 +368,7 @@ impl PipelineFile {
 }
 
 /// A bin length (`[model] bin_s`, `--bin-s`): 0 (every reading) to [`crate::series::MAX_BIN_S`].
-pub fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
+pub(crate) fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
     check_range(key, bin_s, (0.0, crate::series::MAX_BIN_S), " s")
 }
 
@@ -469,24 +487,25 @@ fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
 /// A validated run: what to read, what to do, where to write.
 #[derive(Debug, Clone)]
 pub struct RunPlan {
-    pub pipeline_name: String,
+    pub(crate) pipeline_name: String,
     /// The pipeline file and its hash (`None` for stage subcommands).
-    pub pipeline_source: Option<(PathBuf, String)>,
-    pub stages: Vec<Stage>,
-    pub campaign_dir: PathBuf,
+    pub(crate) pipeline_source: Option<(PathBuf, String)>,
+    pub(crate) stages: Vec<Stage>,
+    pub(crate) campaign_dir: PathBuf,
     /// `None`: `reports/<campaign id>`, decided after the manifest is read.
-    pub out_dir: Option<PathBuf>,
-    pub effects: Vec<Effect>,
+    pub(crate) out_dir: Option<PathBuf>,
+    pub(crate) effects: Vec<Effect>,
     /// Bin length of the compressed readings, s (0: every reading).
     pub bin_s: f64,
     /// `bin_s` is chosen from the campaign before ingest (`io::automatic_bin_s`; the runner
     /// replaces it): no `[model] bin_s` or `--bin-s` was given.
     pub automatic_bins: bool,
-    pub matching: MatchSection,
+    pub(crate) matching: MatchSection,
+    /// `[diagnose]`, as given or defaulted.
     pub diagnose: DiagnoseSection,
-    pub acceptance: AcceptanceSection,
-    pub report: ReportSection,
-    pub output: OutputSection,
+    pub(crate) acceptance: AcceptanceSection,
+    pub(crate) report: ReportSection,
+    pub(crate) output: OutputSection,
 }
 
 impl RunPlan {
@@ -614,7 +633,7 @@ impl RunPlan {
         })
     }
 
-    pub fn runs(&self, stage: Stage) -> bool {
+    pub(crate) fn runs(&self, stage: Stage) -> bool {
         self.stages.contains(&stage)
     }
 
@@ -693,7 +712,7 @@ fn bin_s_or_auto<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f64>, 
     }
 }
 
-pub fn sha256_hex(bytes: &[u8]) -> String {
+pub(crate) fn sha256_hex(bytes: &[u8]) -> String {
     let digest = Sha256::digest(bytes);
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }

@@ -13,52 +13,63 @@ use crate::series::{BarSeries, InputFile};
 /// One bar's outcome.
 #[derive(Debug, Clone)]
 pub struct BarOutcome {
+    /// The bar's series as fitted (readings or bins, temperatures, mounts).
     pub series: BarSeries,
+    /// Its fitted thermal model.
     pub model: BarModel,
 }
 
 /// Everything a run produced, as plain data.
 #[derive(Debug, Clone)]
 pub struct RunResults {
-    pub campaign: Campaign,
-    pub inputs: Vec<InputFile>,
+    pub(crate) campaign: Campaign,
+    pub(crate) inputs: Vec<InputFile>,
+    /// Every bar identify fitted, in the campaign's order.
     pub bars: Vec<BarOutcome>,
     /// Bars identify could not fit (`failed_bars` in `summary.json`).
     pub failed: Vec<BarFailure>,
+    /// Match stage: the reference bar and the mismatches against it.
     pub reference: Option<ReferenceReport>,
-    pub study: Option<MatchStudy>,
-    pub history: TemperatureHistory,
+    pub(crate) study: Option<MatchStudy>,
+    pub(crate) history: TemperatureHistory,
+    /// Diagnose stage.
     pub diagnosis: Option<Diagnosis>,
     /// When the model has more than the base effects: base-model RMS beside the model's.
-    pub before_after: Option<BeforeAfter>,
+    pub(crate) before_after: Option<BeforeAfter>,
     /// Calibrate stage: per-bar centre-distance functions.
     pub calibration: Option<CalibrationStage>,
     /// Compensate stage: every working mount, compensated.
-    pub compensation: Option<CompensationStage>,
+    pub(crate) compensation: Option<CompensationStage>,
     /// Acceptance stage: one entry per working bar on a known length.
     pub acceptance: Option<Vec<crate::acceptance::BarAcceptance>>,
     /// What ingest dropped, counted and flagged (`series::quality`).
-    pub quality: crate::series::Quality,
+    pub(crate) quality: crate::series::Quality,
 }
 
 /// A bar a stage could not process, and why: one bad bar never stops the others. Written as
 /// `{bar, error}` in every JSON output that lists failures.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct BarFailure {
+    /// The bar's id.
     pub bar: String,
+    /// Why, in one line.
     pub error: String,
 }
 
 /// What a per-bar stage gave: the bars it processed, and those it could not.
 #[derive(Debug, Clone)]
 pub struct StageOutcome<T> {
+    /// The bars processed, in the campaign's order.
     pub ok: Vec<T>,
+    /// The bars the stage could not process.
     pub failed: Vec<BarFailure>,
 }
 
 impl<T> StageOutcome<T> {
     /// Per-bar results, in their order, split into the processed and the failed.
-    pub fn from_results(results: impl IntoIterator<Item = (String, Result<T, String>)>) -> Self {
+    pub(crate) fn from_results(
+        results: impl IntoIterator<Item = (String, Result<T, String>)>,
+    ) -> Self {
         let mut outcome = StageOutcome {
             ok: Vec::new(),
             failed: Vec::new(),
@@ -74,49 +85,55 @@ impl<T> StageOutcome<T> {
 }
 
 /// Calibrate stage: per-bar centre-distance functions.
-pub type CalibrationStage = StageOutcome<crate::calibrate::BarCalibration>;
+pub(crate) type CalibrationStage = StageOutcome<crate::calibrate::BarCalibration>;
 /// Compensate stage: every working mount, compensated.
-pub type CompensationStage = StageOutcome<crate::compensate::WorkingSeries>;
+pub(crate) type CompensationStage = StageOutcome<crate::compensate::WorkingSeries>;
 
 /// The diagnose stage's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
+    /// Per bar: where its model fails (residual statistics, channels).
     pub bars: Vec<BarDiagnosis>,
     /// What each temperature sensor plausibly measures (profiled on the first bar's timeline).
     pub sensors: Vec<diagnose::sensors::SensorProfile>,
     /// When a candidate is proposed (noise floor, tolerance, materiality threshold).
     pub criteria: diagnose::Criteria,
+    /// The candidate effects, best first, each with its verdict and the numbers behind it.
     pub candidates: Vec<Candidate>,
-    pub unavailable: Vec<diagnose::Unavailable>,
+    pub(crate) unavailable: Vec<diagnose::Unavailable>,
+    /// The fleet-wide forward selection: RMS as effects are added.
     pub ledger: Vec<LedgerStep>,
     /// Each bar's own forward selection, same order as `bars`.
     pub bar_ledgers: Vec<diagnose::BarLedger>,
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct BeforeAfter {
-    pub before_effects: Vec<String>,
-    pub after_effects: Vec<String>,
-    pub bars: Vec<BarBeforeAfter>,
-    pub fleet_rms_before_um: f64,
-    pub fleet_rms_after_um: f64,
+pub(crate) struct BeforeAfter {
+    pub(crate) before_effects: Vec<String>,
+    pub(crate) after_effects: Vec<String>,
+    pub(crate) bars: Vec<BarBeforeAfter>,
+    pub(crate) fleet_rms_before_um: f64,
+    pub(crate) fleet_rms_after_um: f64,
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct BarBeforeAfter {
-    pub bar: String,
-    pub rms_before_um: f64,
-    pub rms_after_um: f64,
+pub(crate) struct BarBeforeAfter {
+    pub(crate) bar: String,
+    pub(crate) rms_before_um: f64,
+    pub(crate) rms_after_um: f64,
     /// Base parameters before and after: how much adding the effects moved them.
-    pub params_before: BTreeMap<String, f64>,
-    pub params_after: BTreeMap<String, f64>,
+    pub(crate) params_before: BTreeMap<String, f64>,
+    pub(crate) params_after: BTreeMap<String, f64>,
 }
 
+/// The match stage's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct ReferenceReport {
+    /// The reference bar, nearest the fleet mean, and every bar's distance to that mean.
     pub choice: ReferenceChoice,
-    pub distance_mm: f64,
-    pub limit_um: f64,
+    pub(crate) distance_mm: f64,
+    pub(crate) limit_um: f64,
+    /// Each bar's predicted mismatch against the reference.
     pub mismatches: Vec<Mismatch>,
 }
 

@@ -10,7 +10,7 @@ use super::*;
 
 /// Run `f` and log how long it took (`DBBCAL_LOG=info`): stage timings go to the log, never
 /// into the byte-identical outputs.
-pub fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
+pub(crate) fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
     let start = std::time::Instant::now();
     let out = f();
     tracing::info!("{what}: {:.3} s", start.elapsed().as_secs_f64());

@@ -127,7 +127,7 @@ pub(super) fn air_history(
         .iter()
         .map(|l| to_s(*l.time_ns.last().unwrap_or(&0)))
         .fold(f64::NEG_INFINITY, f64::max);
-    if logs.is_empty() || !(end > start) {
+    if logs.is_empty() || end.partial_cmp(&start) != Some(std::cmp::Ordering::Greater) {
         return TemperatureHistory {
             t_s: vec![],
             delta_c: vec![],
@@ -355,8 +355,10 @@ pub(super) fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
                     o.model.clone(),
                     b,
                     d,
-                    plan.diagnose.forward_steps,
-                    plan.diagnose.beam,
+                    diagnose::Search {
+                        max_steps: plan.diagnose.forward_steps,
+                        beam: plan.diagnose.beam,
+                    },
                     &criteria,
                     &refits,
                 )
