@@ -556,8 +556,8 @@ mod tests {
     use super::*;
     use crate::campaign::Bar;
     use crate::fit::Separable;
-    use crate::model::lag::lag;
     use crate::series::MountSpan;
+    use crate::signal::lag::lag;
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
     use rayon::prelude::*;

@@ -17,5 +17,6 @@ pub mod progress;
 pub mod report;
 pub mod runner;
 pub mod series;
+pub(crate) mod signal;
 pub mod simulate;
 pub mod supervise;

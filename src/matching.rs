@@ -11,7 +11,7 @@
 
 use serde::Serialize;
 
-use crate::model::lag::lag;
+use crate::signal::lag::lag;
 
 /// The four base parameters used for matching, in the order of `physics.md`.
 pub(crate) const MATCH_PARAMS: [&str; 4] =

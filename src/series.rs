@@ -630,7 +630,7 @@ pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, Sen
 /// that falls strictly between two consecutive readings.
 ///
 /// Why: lags are computed along the series' own times, the input held linear between them
-/// (`model::lag`). Where a bar logs nothing for a while (a read head switched off for hours: no
+/// (`signal::lag`). Where a bar logs nothing for a while (a read head switched off for hours: no
 /// encoder rows, `campaign-format.md`) the air went on changing and the sensors went on logging;
 /// bridged by a straight line, the lags enter every later reading with the wrong state (measured:
 /// 2.4-4 nm RMS noise-free and tau_S off by up to 50 % on a 5-day campaign with a head off 1.5-4 h
@@ -867,7 +867,7 @@ fn air_temperature(
 
 /// Remove the known plate expansion from the reading (only when the manifest gives a CTE and
 /// a plate sensor exists), with the plate temperature the `plate_expansion` term uses
-/// ([`crate::model::plate_temperature`]: the sensor smoothed without delay).
+/// ([`crate::signal::plate_temperature`]: the sensor smoothed without delay).
 fn subtract_plate_expansion(
     campaign: &Campaign,
     celsius: &BTreeMap<String, Vec<f64>>,
@@ -890,7 +890,7 @@ fn subtract_plate_expansion(
     let Some(tp) = celsius.get(&plate.id) else {
         return;
     };
-    let tp = crate::model::plate_temperature(t_s, tp);
+    let tp = crate::signal::plate_temperature(t_s, tp);
     for (i, y) in y_um.iter_mut().enumerate() {
         if let Some(mm) = mount_of[i].and_then(|m| mounts[m as usize].length_mm) {
             *y -= cte * mm * 1e-3 * (tp[i] - campaign.reference_temperature_c);

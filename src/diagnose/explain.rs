@@ -1,20 +1,33 @@
 //! One line per effect, in physical words: what the effect means and what to check on the
 //! bench. These strings go verbatim into `diagnosis.json` and the reports.
 
+use super::sensors::SensorProfile;
 use crate::model::{Effect, Transform};
 
 /// What an effect means physically and what to check; channel terms name what their sensors
 /// plausibly are (`profiles`, see [`super::sensors`]).
-pub(crate) fn explain_with(effect: &Effect, profiles: &[super::sensors::SensorProfile]) -> String {
+pub(crate) fn explain_with(effect: &Effect, profiles: &[SensorProfile]) -> String {
     match effect {
         Effect::Channel {
             transform, channel, ..
-        } => channel_explanation(
-            *transform,
-            &super::sensors::describe_channel_with(channel, profiles),
-        ),
+        } => channel_explanation(*transform, &describe_channel_with(channel, profiles)),
         other => explain(other),
     }
+}
+
+/// A channel name in words, with what its sensors plausibly are.
+pub(crate) fn describe_channel_with(channel: &str, profiles: &[SensorProfile]) -> String {
+    let generic = describe_channel(channel);
+    let of = |s: &str| profiles.iter().find(|p| p.sensor == s);
+    if let Some(p) = of(channel) {
+        return format!("{generic} ({})", p.description);
+    }
+    if let Some((a, b)) = channel.split_once('-') {
+        if let (Some(pa), Some(pb)) = (of(a), of(b)) {
+            return format!("{generic}: {a} {}; {b} {}", pa.description, pb.description);
+        }
+    }
+    generic
 }
 
 /// What an effect means physically and what to check.

@@ -12,8 +12,9 @@
 use serde::Serialize;
 
 use crate::campaign::SensorKind;
-use crate::model::{channels, lag};
+use crate::model::channels;
 use crate::series::BarSeries;
+use crate::signal::lag;
 
 /// At most this many samples are used (the series is thinned evenly); the drivers are slow.
 const MAX_SAMPLES: usize = 20_000;
@@ -353,21 +354,6 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
         n += 1;
     }
     (s / n.max(1) as f64).sqrt()
-}
-
-/// A channel name in words, with what its sensors plausibly are.
-pub(crate) fn describe_channel_with(channel: &str, profiles: &[SensorProfile]) -> String {
-    let generic = super::explain::describe_channel(channel);
-    let of = |s: &str| profiles.iter().find(|p| p.sensor == s);
-    if let Some(p) = of(channel) {
-        return format!("{generic} ({})", p.description);
-    }
-    if let Some((a, b)) = channel.split_once('-') {
-        if let (Some(pa), Some(pb)) = (of(a), of(b)) {
-            return format!("{generic}: {a} {}; {b} {}", pa.description, pb.description);
-        }
-    }
-    generic
 }
 
 #[cfg(test)]

@@ -3,8 +3,8 @@
 
 use super::*;
 use crate::campaign::Bar;
-use crate::model::lag::lag;
 use crate::series::MountSpan;
+use crate::signal::lag::lag;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 

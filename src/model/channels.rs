@@ -8,7 +8,7 @@
 
 use crate::series::BarSeries;
 
-use super::lag;
+use crate::signal::lag;
 
 /// A channel's samples at the bar's times, or impulse times.
 #[derive(Debug, Clone, PartialEq)]

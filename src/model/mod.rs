@@ -11,7 +11,6 @@
 //! error is `-dD`; gains are reported with the physical sign (positive = expands when warmed).
 
 pub(crate) mod channels;
-pub(crate) mod lag;
 
 use std::sync::{Arc, Mutex};
 
@@ -20,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::fit::Separable;
 use crate::series::BarSeries;
+use crate::signal::plate_temperature;
 use channels::{Channel, ChannelError};
 
 /// How a generic channel enters the model.
@@ -915,26 +915,6 @@ pub(crate) fn identifiable_effects(
         .cloned()
         .collect();
     (kept, vec![NotIdentifiable { params, reason }])
-}
-
-/// Time constant of the zero-phase smoothing of the plate sensor, seconds.
-pub(crate) const PLATE_SMOOTHING_S: f64 = 300.0;
-
-/// The plate temperature the expansion follows: its sensor smoothed forward and backward with
-/// [`PLATE_SMOOTHING_S`] ([`lag::zero_phase_lag`]).
-///
-/// The plate is a massive, slow body (hours), its sensor noisy. Taken raw, the sensor's white
-/// noise is an error in the regressor: it biases the expansion gain towards zero, and with it
-/// every gain correlated with it (the plate follows the same air as the bar's lags, so alpha and
-/// beta take several standard uncertainties of bias). A causal lag would delay the plate by its
-/// time constant and is not separable from the bar's own lags; smoothing both ways removes the
-/// noise without delay (a daily cycle keeps 99.98 % of its amplitude).
-/// A gap in the readings (non-finite values) is left as it is: smoothing would spread it.
-pub(crate) fn plate_temperature(t_s: &[f64], sensor_c: &[f64]) -> Vec<f64> {
-    if sensor_c.iter().any(|v| !v.is_finite()) {
-        return sensor_c.to_vec();
-    }
-    lag::zero_phase_lag(t_s, sensor_c, PLATE_SMOOTHING_S)
 }
 
 /// Bind an effect to a bar's data: its input channel and per-sample scale, one term per column

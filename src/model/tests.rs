@@ -7,6 +7,7 @@ use super::*;
 use crate::campaign::Bar;
 use crate::fit::Separable;
 use crate::series::MountSpan;
+use crate::signal::lag;
 
 const I_MIN: f64 = 230.0;
 

@@ -83,7 +83,7 @@ pub(crate) fn diagnosis_record<'a>(
                         channel: &c.channel,
                         explained_fraction: c.explained_fraction,
                         tau_s: c.tau_s,
-                        description: diagnose::sensors::describe_channel_with(
+                        description: diagnose::explain::describe_channel_with(
                             &c.channel, &d.sensors,
                         ),
                     })

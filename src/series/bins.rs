@@ -919,7 +919,7 @@ impl BarBins {
     /// * the first reading, and the last reading before and the first after every longer gap.
     ///
     /// Why: lags are computed along the series' own times, the input held linear between them
-    /// (`model::lag`). At full rate every sensor reading lies on the encoder's grid, so the
+    /// (`signal::lag`). At full rate every sensor reading lies on the encoder's grid, so the
     /// lag sees each kink of the interpolated temperature, starts at the first reading and
     /// bridges a gap from its last reading to its next; along the nodes alone it would see a
     /// coarser line (mostly sensor noise, smoothed) and start and bridge elsewhere, which
