@@ -182,3 +182,60 @@ fn run_takes_the_stage_overrides_and_writes_csv_when_asked() {
         "{stderr}"
     );
 }
+
+/// The README's `summary.json` row is the contract: every key the sample run writes, at the top
+/// level, per bar, per parameter and in `reference`, is named there in backticks.
+#[test]
+fn the_readme_names_every_field_of_summary_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let (code, _, stderr) = run_cli(&[
+        "run",
+        "pipelines/nightly.toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let s = read_json(&out.join("summary.json"));
+    let readme =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let row = readme
+        .lines()
+        .find(|l| l.starts_with("| `summary.json` |"))
+        .expect("the README's output table has a summary.json row");
+    let keys =
+        |v: &serde_json::Value| -> Vec<String> { v.as_object().unwrap().keys().cloned().collect() };
+    let bar = &s["bars"][0];
+    let param = bar["params"].as_object().unwrap().values().next().unwrap();
+    let mut missing = Vec::new();
+    for (part, names) in [
+        ("top level", keys(&s)),
+        ("bars[]", keys(bar)),
+        ("params", keys(param)),
+        ("reference", keys(&s["reference"])),
+        ("model", keys(&s["model"])),
+        ("pipeline", keys(&s["pipeline"])),
+    ] {
+        for name in names {
+            let mentioned = row.contains(&format!("`{name}`"))
+                || row.contains(&format!("{{{name},"))
+                || row.contains(&format!(" {name},"))
+                || row.contains(&format!(" {name}}}"))
+                || row.contains(&format!("({name},"))
+                || row.contains(&format!("`{name} "))
+                || row.contains(&format!("`{name}."))
+                || row.contains(&format!(".{name}`"))
+                || row.contains(&format!("({name}, "))
+                || row.contains(&format!(" {name})"))
+                || row.contains(&format!("{{{name}: "))
+                || row.contains(&format!(" {name}: "));
+            if !mentioned {
+                missing.push(format!("{part}: {name}"));
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "not in the README's summary.json row: {missing:?}"
+    );
+}
