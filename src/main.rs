@@ -418,7 +418,7 @@ fn execute(
 fn stage_plan(stage: Stage, a: StageArgs) -> anyhow::Result<RunPlan> {
     let campaign =
         a.io.campaign
-            .unwrap_or_else(|| PathBuf::from("data/sample"));
+            .unwrap_or_else(|| PathBuf::from(dbbcal::pipeline::DEFAULT_CAMPAIGN_DIR));
     let mut effects = a.model.effects.clone();
     if effects.is_empty() && !a.model.add_effect.is_empty() {
         effects = dbbcal::model::base_effects()
@@ -428,7 +428,7 @@ fn stage_plan(stage: Stage, a: StageArgs) -> anyhow::Result<RunPlan> {
     }
     effects.extend(a.model.add_effect.iter().cloned());
     let plan = RunPlan::for_stage(stage, campaign, a.io.out, &effects)?;
-    with_bin_s(plan, a.model.bin_s)
+    Ok(plan.with_bin_s(a.model.bin_s)?)
 }
 
 /// `run`'s model overrides: `--effects` (replacing the pipeline's), `--add-effect`, `--bin-s`.
@@ -438,22 +438,7 @@ fn with_model_overrides(plan: RunPlan, m: &ModelArgs) -> anyhow::Result<RunPlan>
     } else {
         plan.with_effects(&m.effects, &m.add_effect)?
     };
-    with_bin_s(plan, m.bin_s)
-}
-
-/// `--bin-s`, range-checked.
-fn with_bin_s(mut plan: RunPlan, bin_s: Option<f64>) -> anyhow::Result<RunPlan> {
-    use dbbcal::pipeline::PlanError;
-    if bin_s.is_some_and(|b| !(0.0..=dbbcal::series::MAX_BIN_S).contains(&b)) {
-        anyhow::bail!(PlanError::Pipeline {
-            path: "--bin-s".into(),
-            message: format!("must be between 0 and {} s", dbbcal::series::MAX_BIN_S)
-        });
-    }
-    if let Some(bin_s) = bin_s {
-        (plan.bin_s, plan.automatic_bins) = (bin_s, false);
-    }
-    Ok(plan)
+    Ok(plan.with_bin_s(m.bin_s)?)
 }
 
 /// `dbbcal show OUT`: the fit report, headings and warnings coloured on a terminal.

@@ -98,7 +98,7 @@ pub(crate) struct OutputSection {
 #[serde(deny_unknown_fields)]
 pub(crate) struct AcceptanceSection {
     /// Tolerance on the compensated centre-distance error, ± µm (patent: ±1 µm).
-    #[serde(default = "default_limit")]
+    #[serde(default = "default_tolerance")]
     pub(crate) tolerance_um: f64,
     /// Standard uncertainty of the temperature measurement, K (uncertainty budget).
     #[serde(default = "default_u_temperature")]
@@ -114,19 +114,23 @@ pub(crate) struct AcceptanceSection {
 impl Default for AcceptanceSection {
     fn default() -> Self {
         Self {
-            tolerance_um: default_limit(),
+            tolerance_um: default_tolerance(),
             u_temperature_k: default_u_temperature(),
-            model_difference: false,
+            model_difference: crate::compensate::CompensateOptions::default().model_difference,
             max_gap_s: default_max_gap(),
         }
     }
 }
 
+// The stages' own defaults, written once, in their modules.
+fn default_tolerance() -> f64 {
+    crate::acceptance::AcceptanceOptions::default().tolerance_um
+}
 fn default_u_temperature() -> f64 {
-    0.05
+    crate::acceptance::AcceptanceOptions::default().u_temperature_k
 }
 fn default_max_gap() -> f64 {
-    300.0
+    crate::compensate::CompensateOptions::default().max_gap_s
 }
 
 /// `[diagnose]`: forward selection and the materiality rule.
@@ -367,6 +371,10 @@ impl PipelineFile {
     }
 }
 
+/// The campaign a plan reads when neither the pipeline file nor the command line names one: the
+/// shipped sample.
+pub const DEFAULT_CAMPAIGN_DIR: &str = "data/sample";
+
 /// A bin length (`[model] bin_s`, `--bin-s`): 0 (every reading) to [`crate::series::MAX_BIN_S`].
 pub(crate) fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
     check_range(key, bin_s, (0.0, crate::series::MAX_BIN_S), " s")
@@ -556,7 +564,7 @@ impl RunPlan {
         );
         let campaign_dir = campaign
             .or(file.pipeline.campaign.clone())
-            .unwrap_or_else(|| PathBuf::from("data/sample"));
+            .unwrap_or_else(|| PathBuf::from(DEFAULT_CAMPAIGN_DIR));
         let sha = sha256_hex(text.as_bytes());
         let mut plan = RunPlan::new(
             file.pipeline.name.clone(),
@@ -635,6 +643,18 @@ impl RunPlan {
 
     pub(crate) fn runs(&self, stage: Stage) -> bool {
         self.stages.contains(&stage)
+    }
+
+    /// The command line's `--bin-s`, range-checked like `[model] bin_s`; `None` keeps the plan's.
+    pub fn with_bin_s(mut self, bin_s: Option<f64>) -> Result<RunPlan, PlanError> {
+        if let Some(bin_s) = bin_s {
+            check_bin_s("--bin-s", bin_s).map_err(|message| PlanError::Pipeline {
+                path: "the command line".into(),
+                message,
+            })?;
+            (self.bin_s, self.automatic_bins) = (bin_s, false);
+        }
+        Ok(self)
     }
 
     /// The command line's model overrides: `--effects` (replacing the plan's, when not empty),
