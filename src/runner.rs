@@ -110,13 +110,11 @@ pub fn run(plan: &RunPlan) -> Result<Outcome> {
 /// bins that short time constant allows (at most twice; below 1 s, every reading).
 fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
     let automatic = plan.automatic_bins;
-    let mut plan = RunPlan {
-        automatic_bins: false,
-        ..plan.clone()
+    let mut plan = if automatic {
+        plan.with_chosen_bins(io::automatic_bin_s(&plan.campaign_dir)?)
+    } else {
+        plan.clone()
     };
-    if automatic {
-        plan.bin_s = io::automatic_bin_s(&plan.campaign_dir)?;
-    }
     for pass in 0.. {
         let logs = pipeline::timed("ingest", || {
             io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
@@ -133,7 +131,7 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
                     crate::series::MIN_BINS_PER_TAU,
                     plan.bin_s
                 );
-                plan.bin_s = bin_s;
+                plan = plan.with_chosen_bins(bin_s);
             }
             _ => return Ok((plan, results)),
         }

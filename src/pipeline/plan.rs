@@ -504,13 +504,13 @@ pub struct RunPlan {
     pub(crate) out_dir: Option<PathBuf>,
     pub(crate) effects: Vec<Effect>,
     /// Bin length of the compressed readings, s (0: every reading).
-    pub bin_s: f64,
+    pub(crate) bin_s: f64,
     /// `bin_s` is chosen from the campaign before ingest (`io::automatic_bin_s`; the runner
     /// replaces it): no `[model] bin_s` or `--bin-s` was given.
-    pub automatic_bins: bool,
+    pub(crate) automatic_bins: bool,
     pub(crate) matching: MatchSection,
     /// `[diagnose]`, as given or defaulted.
-    pub diagnose: DiagnoseSection,
+    pub(crate) diagnose: DiagnoseSection,
     pub(crate) acceptance: AcceptanceSection,
     pub(crate) report: ReportSection,
     pub(crate) output: OutputSection,
@@ -643,6 +643,28 @@ impl RunPlan {
 
     pub(crate) fn runs(&self, stage: Stage) -> bool {
         self.stages.contains(&stage)
+    }
+
+    /// The plan with `[diagnose] forward_steps = steps`, range-checked like the pipeline file's.
+    pub fn with_forward_steps(mut self, steps: usize) -> Result<RunPlan, PlanError> {
+        check_count("diagnose.forward_steps", steps, limits::FORWARD_STEPS).map_err(|message| {
+            PlanError::Pipeline {
+                path: "the plan".into(),
+                message,
+            }
+        })?;
+        self.diagnose.forward_steps = steps;
+        Ok(self)
+    }
+
+    /// The plan with the bin length chosen for it (the runner's automatic choice, after the
+    /// plan was validated: within [`check_bin_s`]'s range by construction).
+    pub(crate) fn with_chosen_bins(&self, bin_s: f64) -> RunPlan {
+        RunPlan {
+            bin_s,
+            automatic_bins: false,
+            ..self.clone()
+        }
     }
 
     /// The command line's `--bin-s`, range-checked like `[model] bin_s`; `None` keeps the plan's.

@@ -37,8 +37,9 @@ fn config(seed: u64, switch: impl FnOnce(&mut SimConfig)) -> SimConfig {
 fn check(name: &str, cfg: SimConfig, expected: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let (dir, truth) = simulate_campaign(tmp.path(), name, &cfg);
-    let mut plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[]).unwrap();
-    plan.diagnose.forward_steps = 0;
+    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
+        .and_then(|p| p.with_forward_steps(0))
+        .unwrap();
     let logs = dbbcal::io::read_campaign(&dir).unwrap();
     let results = analyse(&plan, logs);
     let diagnosis = results.diagnosis.as_ref().expect("diagnosis");
@@ -199,8 +200,9 @@ fn an_effect_outside_the_catalogue_is_caught_by_a_channel_term() {
 fn base_only_campaign_raises_no_false_alarm() {
     let tmp = tempfile::tempdir().unwrap();
     let (dir, _) = simulate_campaign(tmp.path(), "clean", &config(37, |_| {}));
-    let mut plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[]).unwrap();
-    plan.diagnose.forward_steps = 0;
+    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
+        .and_then(|p| p.with_forward_steps(0))
+        .unwrap();
     let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
     let d = results.diagnosis.unwrap();
     let alarms: Vec<String> = d

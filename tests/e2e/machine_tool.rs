@@ -146,8 +146,9 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
     if let Ok(keep) = std::env::var("DBB_FL_CAMPAIGN") {
         convert(Path::new(&keep));
     }
-    let mut plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[]).unwrap();
-    plan.diagnose.forward_steps = 3;
+    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
+        .and_then(|p| p.with_forward_steps(3))
+        .unwrap();
     let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
     assert!(results.failed.is_empty(), "{:?}", results.failed);
     let d = results.diagnosis.as_ref().unwrap();

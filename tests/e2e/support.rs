@@ -35,8 +35,9 @@ pub(crate) fn analyse_campaign_binned(
     streamed: bool,
 ) -> RunResults {
     let effects: Vec<String> = effects.iter().map(|s| s.to_string()).collect();
-    let mut plan = RunPlan::for_stage(stage, dir.to_path_buf(), None, &effects).expect("plan");
-    plan.bin_s = bin_s;
+    let plan = RunPlan::for_stage(stage, dir.to_path_buf(), None, &effects)
+        .and_then(|p| p.with_bin_s(Some(bin_s)))
+        .expect("plan");
     let logs = if streamed {
         dbbcal::io::read_campaign_binned(dir, bin_s)
     } else {
