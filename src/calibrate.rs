@@ -21,7 +21,7 @@ use serde::Serialize;
 use crate::campaign::{Campaign, Purpose};
 use crate::fit::{self, FitOptions, Separable};
 use crate::identify::BarModel;
-use crate::series::{BarSeries, EventKind};
+use crate::series::BarSeries;
 
 /// One calibration point: a bar on a plate length at one tilt, within one counter epoch.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -279,54 +279,6 @@ pub enum CalibrateError {
     },
 }
 
-// ------------------------------------------------------------------------------------ tilt
-
-/// Tilt of the bar at sample `i` (`campaign-format.md`): the mount's own `tilt_deg`, else the
-/// latest `tilt` event at or before the sample, else the plate's.
-pub(crate) fn tilt_at_deg(series: &BarSeries, campaign: &Campaign, i: usize) -> f64 {
-    let explicit = series.mount_of[i]
-        .and_then(|m| {
-            campaign
-                .mounts
-                .get(series.mounts[m as usize].campaign_index)
-        })
-        .filter(|m| m.tilt_explicit)
-        .map(|m| m.tilt_deg);
-    explicit
-        .or_else(|| latest_tilt_event(series, series.t_s[i]))
-        .unwrap_or(campaign.plate.tilt_deg)
-}
-
-fn latest_tilt_event(series: &BarSeries, t_s: f64) -> Option<f64> {
-    series
-        .events
-        .iter()
-        .take_while(|(t, _)| *t <= t_s)
-        .filter(|(_, e)| e.kind == EventKind::Tilt)
-        .filter_map(|(_, e)| e.value.filter(|v| v.is_finite()))
-        .last()
-}
-
-/// Counter epoch of each sample: the number of `rezero` events at or before it.
-pub(crate) fn counter_epochs(series: &BarSeries) -> Vec<usize> {
-    let rezeros: Vec<f64> = series
-        .events
-        .iter()
-        .filter(|(_, e)| e.kind == EventKind::Rezero)
-        .map(|(t, _)| *t)
-        .collect();
-    series
-        .t_s
-        .iter()
-        .map(|t| rezeros.partition_point(|r| r <= t))
-        .collect()
-}
-
-/// The indicated reading `k n` in µm at sample `i` (plate expansion removed).
-pub(crate) fn reading_um(series: &BarSeries, i: usize) -> f64 {
-    series.y_um[i] + series.zero_segment[i].map_or(0.0, |s| series.segment_offset_um[s as usize])
-}
-
 // ------------------------------------------------------------------------------------ points
 
 /// Calibration points of one bar: one per (plate mount, counter epoch, tilt), check mounts left
@@ -337,7 +289,7 @@ pub(crate) fn calibration_points(
     model: &BarModel,
     campaign: &Campaign,
 ) -> Vec<CalibrationPoint> {
-    let epochs = counter_epochs(series);
+    let epochs = series.counter_epochs();
     let mut groups: std::collections::BTreeMap<(usize, usize, i64), Vec<(f64, f64)>> =
         Default::default();
     // One epoch per sample (`counter_epochs`).
@@ -353,9 +305,9 @@ pub(crate) fn calibration_points(
         let Some(thermal) = model.thermal_um.get(i).copied().filter(|v| v.is_finite()) else {
             continue;
         };
-        let tilt_key = (tilt_at_deg(series, campaign, i) * 1000.0).round() as i64;
+        let tilt_key = (series.tilt_at_deg(campaign, i) * 1000.0).round() as i64;
         let key = (m as usize, epoch, tilt_key);
-        let value = reading_um(series, i) - thermal;
+        let value = series.reading_um(i) - thermal;
         groups
             .entry(key)
             .or_default()

@@ -208,7 +208,7 @@ pub struct Mount {
     /// Tilt from horizontal, degrees: the mount's, else the plate's.
     pub(crate) tilt_deg: f64,
     /// Whether the mount gave its own `tilt_deg` (it then wins over `tilt` events, see
-    /// `calibrate::tilt_at_deg`).
+    /// `BarSeries::tilt_at_deg`).
     pub(crate) tilt_explicit: bool,
     pub(crate) purpose: Purpose,
     /// Start, ns since the epoch (UTC).

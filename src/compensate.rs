@@ -21,7 +21,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::calibrate::{counter_epochs, reading_um, tilt_at_deg, BarCalibration};
+use crate::calibrate::BarCalibration;
 use crate::campaign::{Campaign, Purpose};
 use crate::identify::BarModel;
 use crate::model::ThermalProblem;
@@ -276,7 +276,7 @@ fn reference_tracks<'a>(b: &'a CompBar<'a>, campaign: &Campaign) -> Vec<RefTrack
         let measured_um = idx
             .iter()
             .zip(&anchors)
-            .map(|(&i, a)| reading_um(s, i) - a)
+            .map(|(&i, a)| s.reading_um(i) - a)
             .collect();
         let mean_dt_k = idx
             .iter()
@@ -302,13 +302,13 @@ fn anchors_um(s: &BarSeries, model: &BarModel, campaign: &Campaign, idx: &[usize
     let key = |i: usize| {
         (
             s.zero_segment[i],
-            (tilt_at_deg(s, campaign, i) * 1000.0).round() as i64,
+            (s.tilt_at_deg(campaign, i) * 1000.0).round() as i64,
         )
     };
     let mut sums: BTreeMap<(Option<u32>, i64), (f64, usize)> = BTreeMap::new();
     for &i in idx {
         let e = sums.entry(key(i)).or_default();
-        e.0 += reading_um(s, i) - model.thermal_um[i];
+        e.0 += s.reading_um(i) - model.thermal_um[i];
         e.1 += 1;
     }
     idx.iter()
@@ -426,7 +426,7 @@ fn compensate_mount(
         .calibration
         .ok_or_else(|| CompensateError::NotCalibrated { bar: bar.clone() })?;
     let span = &s.mounts[m];
-    let epochs = counter_epochs(s);
+    let epochs = s.counter_epochs();
     // Readings only: weight-0 samples are a compressed series' lag grid.
     let all: Vec<usize> = (0..s.t_s.len())
         .filter(|&i| s.mount_of[i] == Some(m as u32) && s.weight[i] > 0.0)
@@ -442,11 +442,11 @@ fn compensate_mount(
     if idx.is_empty() {
         return Err(CompensateError::OtherEpoch { bar, mount: m });
     }
-    let tilts: Vec<f64> = idx.iter().map(|&i| tilt_at_deg(s, campaign, i)).collect();
+    let tilts: Vec<f64> = idx.iter().map(|&i| s.tilt_at_deg(campaign, i)).collect();
     let uncompensated_mm: Vec<f64> = idx
         .iter()
         .zip(&tilts)
-        .map(|(&i, a)| cal.chosen.distance_mm(reading_um(s, i) * 1e-3, *a))
+        .map(|(&i, a)| cal.chosen.distance_mm(s.reading_um(i) * 1e-3, *a))
         .collect();
     let d_p = span.length_mm.unwrap_or_else(|| median(&uncompensated_mm));
     let own = model_thermal_at(b, m, d_p - s.bar.fixed_length_mm).map_err(|reason| {
@@ -488,7 +488,7 @@ fn compensate_mount(
         .iter()
         .zip(&tilts)
         .zip(&thermal_um)
-        .map(|((&i, a), e)| cal.chosen.distance_mm((reading_um(s, i) - e) * 1e-3, *a))
+        .map(|((&i, a), e)| cal.chosen.distance_mm((s.reading_um(i) - e) * 1e-3, *a))
         .collect();
     let mode = Mode::for_references(refs.len());
     let n_ref = idx.len() - n_model_fallback;

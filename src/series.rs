@@ -273,6 +273,47 @@ pub(crate) enum SeriesError {
 }
 
 impl BarSeries {
+    /// Tilt of the bar at sample `i` (`campaign-format.md`): the mount's own `tilt_deg`, else
+    /// the latest `tilt` event at or before the sample, else the plate's.
+    pub(crate) fn tilt_at_deg(&self, campaign: &Campaign, i: usize) -> f64 {
+        let explicit = self.mount_of[i]
+            .and_then(|m| campaign.mounts.get(self.mounts[m as usize].campaign_index))
+            .filter(|m| m.tilt_explicit)
+            .map(|m| m.tilt_deg);
+        explicit
+            .or_else(|| self.latest_tilt_event(self.t_s[i]))
+            .unwrap_or(campaign.plate.tilt_deg)
+    }
+
+    fn latest_tilt_event(&self, t_s: f64) -> Option<f64> {
+        self.events
+            .iter()
+            .take_while(|(t, _)| *t <= t_s)
+            .filter(|(_, e)| e.kind == EventKind::Tilt)
+            .filter_map(|(_, e)| e.value.filter(|v| v.is_finite()))
+            .last()
+    }
+
+    /// Counter epoch of each sample: the number of `rezero` events at or before it.
+    pub(crate) fn counter_epochs(&self) -> Vec<usize> {
+        let rezeros: Vec<f64> = self
+            .events
+            .iter()
+            .filter(|(_, e)| e.kind == EventKind::Rezero)
+            .map(|(t, _)| *t)
+            .collect();
+        self.t_s
+            .iter()
+            .map(|t| rezeros.partition_point(|r| r <= t))
+            .collect()
+    }
+
+    /// The indicated reading `k n` in µm at sample `i`: the measured value with its zero
+    /// segment's offset added back (plate expansion removed).
+    pub(crate) fn reading_um(&self, i: usize) -> f64 {
+        self.y_um[i] + self.zero_segment[i].map_or(0.0, |s| self.segment_offset_um[s as usize])
+    }
+
     /// Build bar `bar_id`'s series from its log, every reading a sample (taken by value: the
     /// series owns the data, so a large campaign is never held twice), with the temperatures
     /// the log carries ([`interpolate_temperatures`]) and the campaign's events.
