@@ -3,7 +3,7 @@
 
 use dbbcal::simulate::{FleetConfig, SimConfig};
 
-use crate::support::{run_cli, simulate_campaign};
+use crate::support::{run_cli, run_pipeline_ok, simulate_campaign};
 
 fn read_json(path: &std::path::Path) -> serde_json::Value {
     serde_json::from_str(
@@ -189,13 +189,7 @@ fn run_takes_the_stage_overrides_and_writes_csv_when_asked() {
 fn the_readme_names_every_field_of_summary_json() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
-    let (code, _, stderr) = run_cli(&[
-        "run",
-        "pipelines/nightly.toml",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    run_pipeline_ok("pipelines/nightly.toml", &out);
     let s = read_json(&out.join("summary.json"));
     let readme =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();

@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 
 use dbbcal::simulate::{FleetConfig, SimConfig};
 
-use crate::support::{run_cli, sim_config, simulate_campaign};
+use crate::support::{run_cli, run_pipeline_ok, sim_config, simulate_campaign};
 
 /// A 2-bar, 3-day campaign with head heating, run through `pipelines/nightly.toml` once per
 /// test process: (campaign, output, stderr of the run).
@@ -303,13 +303,7 @@ document.getElementById("f").addEventListener("load", () => {{
 fn acceptance_with_nothing_to_accept_says_why() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("acc");
-    let (code, _, stderr) = run_cli(&[
-        "run",
-        "pipelines/acceptance.toml",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    let stderr = run_pipeline_ok("pipelines/acceptance.toml", &out);
     assert!(
         stderr.contains("nothing to accept") && stderr.contains("purpose = \"check\""),
         "{stderr}"

@@ -202,3 +202,10 @@ pub(crate) fn run_cli_env(args: &[&str], env: &[(&str, &str)]) -> (i32, String, 
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// `dbbcal run PIPELINE --out OUT` (a file under `pipelines/`), asserted to exit 0; its stderr.
+pub(crate) fn run_pipeline_ok(pipeline: &str, out: &Path) -> String {
+    let (code, _, stderr) = run_cli(&["run", pipeline, "--out", out.to_str().unwrap()]);
+    assert_eq!(code, 0, "{pipeline}: {stderr}");
+    stderr
+}
