@@ -22,7 +22,7 @@ ingest + identify for the base model (``../shared/spec/physics.md``, ``ARCHITECT
    matrix [lag columns | one-hot segment columns].
 
 The lag is the exact first-order-hold discretisation of a first-order low-pass for irregular
-samples (dbbcal's ``model/lag.rs``)::
+samples (dbbcal's ``signal/lag.rs``)::
 
     a = exp(-dt/tau),  m = (u_k - u_{k-1}) / dt
     x_k = a x_{k-1} + u_k - a u_{k-1} - m tau (1 - a),   x_0 = u_0

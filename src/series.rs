@@ -272,6 +272,18 @@ pub(crate) enum SeriesError {
     Readings { bar: String, reason: String },
 }
 
+/// What every bar's series is built from, the same for the whole fleet: the manifest, the
+/// events, the sensors' logs and their reading times (`knots`: [`sensor_knots`]), and the
+/// campaign's time origin.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FleetContext<'a> {
+    pub(crate) campaign: &'a Campaign,
+    pub(crate) events: &'a [Event],
+    pub(crate) sensors: &'a BTreeMap<String, SensorLog>,
+    pub(crate) knots: &'a [TimeNs],
+    pub(crate) t0_ns: TimeNs,
+}
+
 impl BarSeries {
     /// Tilt of the bar at sample `i` (`campaign-format.md`): the mount's own `tilt_deg`, else
     /// the latest `tilt` event at or before the sample, else the plate's.
@@ -345,18 +357,19 @@ impl BarSeries {
     /// `bin_s <= 0`: every reading, as [`BarSeries::build`]. Temperatures are interpolated from
     /// `sensors` at the samples' times here (`knots`: [`sensor_knots`] of `sensors`, used with
     /// bins). The full-rate log lives only inside this call.
-    // The lint is right; bundling the inputs changes the call in pipeline.rs (issue 15, later).
-    #[allow(clippy::too_many_arguments)]
     pub(crate) fn build_binned(
-        campaign: &Campaign,
-        events: &[Event],
+        fleet: &FleetContext<'_>,
         bar_id: &str,
         mut log: BarLog,
-        sensors: &BTreeMap<String, SensorLog>,
-        knots: &[TimeNs],
-        t0_ns: TimeNs,
         bin_s: f64,
     ) -> Result<BarSeries, SeriesError> {
+        let FleetContext {
+            campaign,
+            events,
+            sensors,
+            knots,
+            t0_ns,
+        } = *fleet;
         if bin_s.is_nan() || bin_s <= 0.0 {
             let n = log.time_ns.len();
             let readings = with_knots_between(
@@ -380,24 +393,27 @@ impl BarSeries {
             }
         })?;
         drop(log);
-        Self::from_bins(campaign, events, bar_id, &bins, sensors, knots, t0_ns)
+        Self::from_bins(fleet, bar_id, &bins)
     }
 
     /// Bar `bar_id`'s series from its compressed bins (ingest can make them while it streams the
     /// encoder files), temperatures interpolated from `sensors` at the nodes' times. `knots`:
     /// [`sensor_knots`] of `sensors`.
     pub(crate) fn from_bins(
-        campaign: &Campaign,
-        events: &[Event],
+        fleet: &FleetContext<'_>,
         bar_id: &str,
         bins: &BarBins,
-        sensors: &BTreeMap<String, SensorLog>,
-        knots: &[TimeNs],
-        t0_ns: TimeNs,
     ) -> Result<BarSeries, SeriesError> {
-        let readings = with_knots_between(bins.readings(knots), knots);
-        let celsius = temperatures_at(&readings.time_ns, sensors);
-        Self::from_readings(campaign, events, bar_id, readings, celsius, t0_ns)
+        let readings = with_knots_between(bins.readings(fleet.knots), fleet.knots);
+        let celsius = temperatures_at(&readings.time_ns, fleet.sensors);
+        Self::from_readings(
+            fleet.campaign,
+            fleet.events,
+            bar_id,
+            readings,
+            celsius,
+            fleet.t0_ns,
+        )
     }
 
     /// The series of weighted readings with every sensor's temperature at their times.

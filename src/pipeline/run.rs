@@ -3,7 +3,7 @@
 use rayon::prelude::*;
 
 use crate::identify::identify;
-use crate::series::{BarSeries, CampaignLogs};
+use crate::series::{BarSeries, CampaignLogs, FleetContext};
 
 use super::stages::*;
 use super::*;
@@ -58,6 +58,13 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         .any(|s| plan.runs(s));
     let progress = crate::progress::bar(bars.len() as u64, "identify");
     let knots = crate::series::sensor_knots(&sensors);
+    let fleet = FleetContext {
+        campaign: &campaign,
+        events: &events,
+        sensors: &sensors,
+        knots: &knots,
+        t0_ns: t0,
+    };
     let outcomes: Vec<(String, Result<BarOutcome, String>)> = timed("identify", || {
         bars.into_iter()
             .map(|(id, log)| {
@@ -73,12 +80,8 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
                     return (id, Err(why.to_string()));
                 }
                 let series = match binned {
-                    Some(b) => {
-                        BarSeries::from_bins(&campaign, &events, &id, &b, &sensors, &knots, t0)
-                    }
-                    None => BarSeries::build_binned(
-                        &campaign, &events, &id, log, &sensors, &knots, t0, plan.bin_s,
-                    ),
+                    Some(b) => BarSeries::from_bins(&fleet, &id, &b),
+                    None => BarSeries::build_binned(&fleet, &id, log, plan.bin_s),
                 };
                 let r = series.map_err(|e| e.to_string()).and_then(|series| {
                     let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;

@@ -236,9 +236,13 @@ fn build_binned_keeps_every_reading_in_weighted_nodes() {
     let mut with_temperatures = log.clone();
     interpolate_temperatures(&mut with_temperatures, &sensors);
     let full = BarSeries::build(&c, &events, "B01", with_temperatures, T0).expect("series");
-    let unbinned =
-        BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, &knots, T0, 0.0)
-            .expect("series");
+    let unbinned = BarSeries::build_binned(
+        &fleet(&c, &events, &sensors, &knots),
+        "B01",
+        log.clone(),
+        0.0,
+    )
+    .expect("series");
     // The same readings, and (weight 0) the sensor readings that fall between two of them
     // (the jittered last hour, the 7-s hole).
     let weighted = |s: &BarSeries| -> (Vec<f64>, Vec<f64>) {
@@ -251,9 +255,13 @@ fn build_binned_keeps_every_reading_in_weighted_nodes() {
     assert_eq!(unbinned.fit_index.len(), full.fit_index.len());
     assert!(unbinned.t_s.len() > full.t_s.len());
     for bin_s in [1.0, 10.0, 30.0, 60.0] {
-        let b =
-            BarSeries::build_binned(&c, &events, "B01", log.clone(), &sensors, &knots, T0, bin_s)
-                .expect("series");
+        let b = BarSeries::build_binned(
+            &fleet(&c, &events, &sensors, &knots),
+            "B01",
+            log.clone(),
+            bin_s,
+        )
+        .expect("series");
         assert_eq!(b.n_zero_segments, full.n_zero_segments, "bin_s {bin_s}");
         assert_eq!(b.fitted_readings(), full.fit_index.len(), "bin_s {bin_s}");
         assert_eq!(b.dropped_outside_mounts, full.dropped_outside_mounts);
@@ -320,8 +328,9 @@ fn sensor_readings_in_a_gap_of_the_log_are_kept_as_samples() {
     interpolate_temperatures(&mut with_temperatures, &sensors);
     let plain = BarSeries::build(&c, &[], "B01", with_temperatures, T0).expect("series");
     for bin_s in [0.0, 60.0] {
-        let s = BarSeries::build_binned(&c, &[], "B01", log.clone(), &sensors, &knots, T0, bin_s)
-            .expect("series");
+        let s =
+            BarSeries::build_binned(&fleet(&c, &[], &sensors, &knots), "B01", log.clone(), bin_s)
+                .expect("series");
         let t1 = &sensors["T1"];
         for &t in &in_gap {
             let t_s = (t - T0) as f64 * 1e-9;
@@ -414,4 +423,20 @@ fn event_kinds_round_trip_through_their_words_and_sort_by_them() {
         sorted.iter().map(EventKind::as_str).collect::<Vec<_>>(),
         by_word
     );
+}
+
+/// The fleet context of the tests' one-bar campaigns (time origin `T0`).
+fn fleet<'a>(
+    c: &'a Campaign,
+    events: &'a [Event],
+    sensors: &'a BTreeMap<String, SensorLog>,
+    knots: &'a [TimeNs],
+) -> FleetContext<'a> {
+    FleetContext {
+        campaign: c,
+        events,
+        sensors,
+        knots,
+        t0_ns: T0,
+    }
 }
