@@ -4,17 +4,21 @@
 //! conflicting readings (same time, other counts) are neighbours. Streamed into bins, the rows
 //! are never held, so each binned bar gets a [`RepeatSketch`]: one bit per slot of `2^k` ns
 //! over its mounted time line (±24 h). A row whose slot is already set is a *candidate*: two
-//! readings within one slot. Slots are a quarter of the bar's mean reading interval or less, so
-//! distinct readings of a regular logger rarely share one, and every repeated time does. The
-//! candidates' windows are read again afterwards (`read::resolve_repeats`) and compared
-//! exactly; the sketch only decides where to look. It costs one bit test per row, whatever the
-//! row order, and memory of a few bits per reading (at most [`MAX_SKETCH_BITS`] a bar).
+//! readings within one slot. Slots are a quarter of the fleet's mean reading interval or less,
+//! and at most 0.27 s, so distinct readings of a regular logger rarely share one, and every
+//! repeated time does. The candidates' windows are read again afterwards
+//! (`read::resolve_repeats`) and compared exactly; the sketch only decides where to look. It
+//! costs one bit test per row, whatever the row order, and one bit per slot (at most
+//! [`MAX_SKETCH_BITS`] a bar).
 
 use crate::campaign::Campaign;
 use crate::series::quality::FAR_OUTSIDE_MOUNTS_S;
 
 /// Most bits of one bar's sketch (8 MiB): slots grow coarser beyond.
 pub(crate) const MAX_SKETCH_BITS: u64 = 1 << 26;
+/// Slots of at most 2^28 ns (0.27 s): a bar logging at 1 Hz among bars logging once a minute
+/// still has a slot a reading (a 30-day campaign then takes 1.2 MiB a bar).
+const MAX_SLOT_SHIFT: u32 = 28;
 /// Candidates beyond this share of the bar's rows read the whole bar again instead of windows.
 const MAX_CANDIDATE_SHARE: u64 = 8;
 
@@ -53,9 +57,11 @@ impl RepeatSketch {
             .saturating_sub(margin);
         let to = mounts.map(|m| m.to_ns).max()?.saturating_add(margin);
         let span_ns = to.checked_sub(from).filter(|&s| s > 0)? as u64;
-        // A slot of at most a quarter of the mean interval, a power of two ns (a shift per row).
+        // A slot of at most a quarter of the mean interval, a power of two ns (a shift per row),
+        // and never above [`MAX_SLOT_SHIFT`]: the mean is the fleet's, and a bar logging faster
+        // than the others would otherwise share its slots between distinct readings.
         let quarter = span_ns / rows_per_bar.max(1) / 4;
-        let mut shift = quarter.max(1).ilog2();
+        let mut shift = quarter.max(1).ilog2().min(MAX_SLOT_SHIFT);
         while (span_ns >> shift) >= MAX_SKETCH_BITS {
             shift += 1;
         }
