@@ -1009,4 +1009,4 @@ fn bin_groups(
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

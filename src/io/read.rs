@@ -292,7 +292,8 @@ pub(crate) fn read_tables(
     let events = read_events(&files.events, &bar_ids, &mut zones, &mut quality.events)?;
     // The footers' rows: at full rate each bar's log is reserved once from them (no doubling
     // overshoot); with bins they set the slot width of each bar's repeat sketch.
-    let footer_total = footer_rows(&files.encoders)?;
+    let footers = footer_rows_each(&files.encoders)?;
+    let footer_total = footers.iter().fold(0u64, |a, &n| a.saturating_add(n));
     let rows_per_bar = footer_total / bar_ids.len().max(1) as u64;
     let grids: BTreeMap<String, (BinGrid, Option<RepeatSketch>)> = if bin_s > 0.0 {
         bar_ids
@@ -311,7 +312,14 @@ pub(crate) fn read_tables(
     } else {
         0
     };
-    let encoders = read_encoders(&files.encoders, &bar_ids, &grids, rows_hint, &mut zones)?;
+    let encoders = read_encoders(
+        &files.encoders,
+        &footers,
+        &bar_ids,
+        &grids,
+        rows_hint,
+        &mut zones,
+    )?;
     tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
 
     let mut sensors = BTreeMap::new();
@@ -1014,6 +1022,7 @@ impl EncoderSink {
 /// encoder rows the files' footers announce (per-bar logs are reserved from it).
 fn read_encoders(
     files: &[PathBuf],
+    footer_rows: &[u64],
     bar_ids: &BTreeSet<&str>,
     grids: &BTreeMap<String, (BinGrid, Option<RepeatSketch>)>,
     rows_hint: usize,
@@ -1034,20 +1043,21 @@ fn read_encoders(
     // a null or an undeclared id found there is attributed by a second pass, file by file,
     // that keeps no rows (only on that error path).
     let clean = |s: &EncoderSink| s.nulls.is_empty() && s.unknown.is_empty() && s.bad.is_empty();
-    let sink = match stream_encoders(files, bar_ids, &keep, true, zones) {
+    let sink = match stream_encoders(files, footer_rows, bar_ids, &keep, true, zones) {
         Ok(sink) if clean(&sink) => sink,
         Ok(_) => match stream_encoders(
             files,
+            footer_rows,
             bar_ids,
             &|_| BarRows::Dropped,
             false,
             &mut Vec::new(),
         )? {
             check if !clean(&check) => check,
-            _ => stream_encoders(files, bar_ids, &keep, false, &mut Vec::new())?,
+            _ => stream_encoders(files, footer_rows, bar_ids, &keep, false, &mut Vec::new())?,
         },
         // The failing file named by a scan of its own.
-        Err(_) => stream_encoders(files, bar_ids, &keep, false, &mut Vec::new())?,
+        Err(_) => stream_encoders(files, footer_rows, bar_ids, &keep, false, &mut Vec::new())?,
     };
     if let Some((&(column, file), &count)) = sink.nulls.iter().next() {
         return Err(IngestError::Nulls {
@@ -1421,9 +1431,11 @@ struct Encoders {
 /// Streams every encoder file into a sink with rows `rows(id)` per declared bar: polars
 /// decodes while a second thread splits and accumulates the batches it hands over (a bounded
 /// queue, so at most a few batches wait): the two overlap on two cores. `shared_scans`: files
-/// of one schema share a scan (their batches then carry no file index).
+/// of one schema share a scan (their batches then carry no file index; `footer_rows`, each
+/// file's, attribute their rows).
 fn stream_encoders(
     files: &[PathBuf],
+    footer_rows: &[u64],
     bar_ids: &BTreeSet<&str>,
     rows: &dyn Fn(&str) -> BarRows,
     shared_scans: bool,
@@ -1458,7 +1470,7 @@ fn stream_encoders(
             }
             Ok(sink)
         });
-        let streamed = stream_files(files, batches, shared_scans, zones);
+        let streamed = stream_files(files, footer_rows, batches, shared_scans, zones);
         let sink = consumer
             .join()
             .map_err(|_| IngestError::Polars {
@@ -1472,9 +1484,10 @@ fn stream_encoders(
 
 /// Streams every encoder file, sending each batch with its file's index (`u32::MAX` from a scan
 /// shared by several files) to `batches`. `shared_scans`: consecutive files of one schema are
-/// read by one scan; else one scan a file.
+/// read by one scan; else one scan a file. `footer_rows`: each file's rows, as its footer says.
 fn stream_files(
     files: &[PathBuf],
+    footer_rows: &[u64],
     batches: std::sync::mpsc::SyncSender<(u32, TimeColumn, DataFrame)>,
     shared_scans: bool,
     zones: &mut Vec<(PathBuf, bool)>,
@@ -1503,13 +1516,10 @@ fn stream_files(
                     PlRefPath::try_from_path(&files[i]).map_err(|e| not_parquet(&files[i], e))
                 })
                 .collect::<Result<_, _>>()?;
-            let member_files: Vec<PathBuf> = members.iter().map(|&i| files[i].clone()).collect();
-            let rows = footer_rows_each(&member_files)?;
             let cursor = FileCursor::new(
                 members
                     .iter()
-                    .map(|&i| u32::try_from(i).unwrap_or(u32::MAX))
-                    .zip(rows)
+                    .map(|&i| (u32::try_from(i).unwrap_or(u32::MAX), footer_rows[i]))
                     .collect(),
             );
             let shared = LazyFrame::scan_parquet_files(paths.into(), scan_args())

@@ -156,51 +156,23 @@ mod tests {
         assert_eq!(clean.windows(), RepeatWindows::None);
     }
 
-    /// One bar mounted for 30 days from 2026-11-01.
-    fn thirty_day_campaign() -> Campaign {
-        let manifest = r#"
-[campaign]
-id = "c"
-reference_temperature_c = 20.0
-[plate]
-material = "zerodur"
-tilt_deg = 0.0
-[[plate.length]]
-id = "l"
-mm = 400.0
-u_um = 0.1
-[[sensor]]
-id = "T1"
-kind = "air"
-[[bar]]
-id = "B01"
-resolution_nm = 5.0
-fixed_length_mm = 230.0
-[[mount]]
-bar = "B01"
-length = "l"
-from = 2026-11-01T00:00:00Z
-to = 2026-12-01T00:00:00Z
-"#;
-        Campaign::from_manifest(crate::campaign::Manifest::from_toml_str(manifest, "m").unwrap())
-            .unwrap()
-    }
-
     #[test]
     fn a_bar_logging_at_1_hz_in_a_fleet_logging_once_a_minute_keeps_a_slot_a_reading() {
-        let c = thirty_day_campaign();
-        // The fleet's mean: one reading a minute over 30 days.
-        let mut s = RepeatSketch::new(&c, "B01", 30 * 1440).unwrap();
-        assert!(s.shift <= MAX_SLOT_SHIFT, "slot 2^{} ns", s.shift);
-        assert!((s.span_ns >> s.shift) < MAX_SKETCH_BITS);
+        // B01: 4 h of mounts, checked over 52 h; the fleet's mean: one reading a minute.
+        let c = crate::series::tests::campaign();
+        let mut s = RepeatSketch::new(&c, "B01", 52 * 60).unwrap();
+        assert_eq!(
+            s.shift, MAX_SLOT_SHIFT,
+            "a minute's quarter is above the cap"
+        );
         let start = c.mounts[0].from_ns;
-        let day: Vec<i64> = (0..86_400).map(|i| start + i * 1_000_000_000).collect();
-        s.add(&day);
-        s.add(&[day[1234]]);
+        let hours: Vec<i64> = (0..4 * 3600).map(|i| start + i * 1_000_000_000).collect();
+        s.add(&hours);
+        s.add(&[hours[1234]]);
         match s.windows() {
             RepeatWindows::Windows(w) => {
                 assert_eq!(w.len(), 1, "{w:?}");
-                assert!(w[0].0 <= day[1234] && day[1234] <= w[0].1);
+                assert!(w[0].0 <= hours[1234] && hours[1234] <= w[0].1);
             }
             other => panic!("{other:?}"),
         }

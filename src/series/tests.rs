@@ -53,7 +53,9 @@ from = 2026-11-01T03:00:00Z
 to = 2026-11-01T04:00:00Z
 "#;
 
-fn campaign() -> Campaign {
+/// One bar, B01, mounted from 2026-11-01 00:00 to 04:00 UTC (min, max, a hexapod). Shared with
+/// other modules' tests.
+pub(crate) fn campaign() -> Campaign {
     Campaign::from_manifest(Manifest::from_toml_str(MANIFEST, "m").expect("toml")).expect("valid")
 }
 
