@@ -148,7 +148,7 @@ def main():
                     decode_s[size] = floor["stream_best_s"]
                     fr = f"{decode_s[size] / scan_s[size]:.1f}" if size in scan_s else "–"
                     w(f"| {label} | {enc_rows.get(size, 0):,} | dbbcal's polars decoding the encoder files, batches dropped "
-                      f"(`examples/decode_floor.rs`, streamed, best of 3; the floor under ingest) | {fmt(decode_s[size])} | "
+                      f"(`crates/io/examples/decode_floor.rs`, streamed, best of 3; the floor under ingest) | {fmt(decode_s[size])} | "
                       f"– | {rf['mb']:.0f} | {fr} | "
                       f"{rf['before']:.2f} / {rf['after']:.2f} | {rf['status']} |")
     extrapolated_full = False

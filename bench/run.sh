@@ -3,13 +3,13 @@
 #
 #     bench/run.sh
 #
-# 1. builds the release binary and examples/decode_floor.rs (feature bench-tools);
+# 1. builds the release binary and crates/io/examples/decode_floor.rs (feature bench-tools);
 # 2. generates the benchmark campaigns into bench/out/ if missing (sim-bench*.toml: 12 bars at
 #    1 Hz for 7.5, 15 and 30 days = 7.8 / 15.6 / 31.1 M encoder rows) and the small sample one;
 # 3. checks on the sample campaign that bench/python_equivalent.py and dbbcal agree (1e-3 relative);
 # 4. measures wall time and peak RSS (/usr/bin/time -v) of, per campaign size:
 #      dbbcal ingest, dbbcal identify (= ingest + identify), bench/bare_scan.py (best of 3),
-#    examples/decode_floor.rs (dbbcal's polars decoding the encoder files and nothing else: the
+#    crates/io/examples/decode_floor.rs (dbbcal's polars decoding the encoder files and nothing else: the
 #    floor under ingest, best of 3), and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
 #    PY_BARS bars, extrapolated to all 12 -- plus the --project-zeros variant on all bars;
 # 5. rewrites the 30-day campaign into the row orders a logger of many bars leaves (bench/layouts.py:
@@ -68,8 +68,9 @@ if ! python3 -c 'import polars, scipy, numpy' 2>/dev/null; then
     python3 -m pip install --quiet polars scipy numpy
 fi
 
-say "cargo build --release --features bench-tools (CARGO_TARGET_DIR=$CARGO_TARGET_DIR)"
-cargo build --release --features bench-tools --bin dbbcal --example decode_floor
+say "cargo build --release, and the decode floor (CARGO_TARGET_DIR=$CARGO_TARGET_DIR)"
+cargo build --release --bin dbbcal
+cargo build --release -p dbbcal-io --features bench-tools --example decode_floor
 mkdir -p "$OUT"
 cp "$CARGO_TARGET_DIR/release/dbbcal" "$BIN"
 cp "$CARGO_TARGET_DIR/release/examples/decode_floor" "$OUT/decode_floor"

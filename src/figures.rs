@@ -38,13 +38,18 @@ pub(crate) fn render_all(
     let mut written = Vec::new();
     let mut add = |file: String, kind, bar: Option<&str>, caption: String| {
         let path = dir.join(&file);
+        // The report crate draws; writing into the output is this crate's, and a fault point.
+        crate::output::fault::point("write", &path).map_err(|source| ReportError::Write {
+            path: path.clone(),
+            source,
+        })?;
         written.push(FigureFile {
             file,
             kind,
             bar: bar.map(str::to_string),
             caption,
         });
-        path
+        Ok::<_, ReportError>(path)
     };
     for o in &results.bars {
         let bar = o.model.bar.as_str();
@@ -53,7 +58,7 @@ pub(crate) fn render_all(
             FigureKind::BarFit,
             Some(bar),
             format!("Bar {bar}: measured against model, temperatures, residual"),
-        );
+        )?;
         report::render_bar_fit(&bar_fit_figure(o), &path)?;
     }
     if !results.bars.is_empty() {
@@ -62,7 +67,7 @@ pub(crate) fn render_all(
             FigureKind::Fleet,
             None,
             "The fleet's parameters, the reference bar and the predicted mismatches".into(),
-        );
+        )?;
         report::render_fleet(&fleet(results), &path)?;
     }
     if plan.runs(Stage::MatchStudy) {
@@ -72,7 +77,7 @@ pub(crate) fn render_all(
                 FigureKind::MatchStudy,
                 None,
                 "Measured mismatch of every pair of bars".into(),
-            );
+            )?;
             report::render_heat_map(&heat_map(study), &path)?;
         }
     }
@@ -83,7 +88,7 @@ pub(crate) fn render_all(
                 FigureKind::Diagnosis,
                 Some(&bd.bar),
                 format!("Bar {}: residual diagnostics and channels ranked", bd.bar),
-            );
+            )?;
             report::render_residual_diagnostics(&residual_figure(bd, o, &d.sensors), &path)?;
         }
         if d.ledger.len() > 1 {
@@ -92,7 +97,7 @@ pub(crate) fn render_all(
                 FigureKind::Ledger,
                 None,
                 "Forward selection: the fleet RMS as effects are added".into(),
-            );
+            )?;
             report::render_ledger(&ledger(&d.ledger, &d.sensors, plan.diagnose.beam), &path)?;
         }
         for bl in d.bar_ledgers.iter().filter(|bl| bl.steps.len() > 1) {
@@ -101,7 +106,7 @@ pub(crate) fn render_all(
                 FigureKind::Ledger,
                 Some(&bl.bar),
                 format!("Bar {}: forward selection", bl.bar),
-            );
+            )?;
             report::render_ledger(&bar_ledger(bl, &d.sensors, plan.diagnose.beam), &path)?;
         }
     }
@@ -111,7 +116,7 @@ pub(crate) fn render_all(
             FigureKind::BeforeAfter,
             None,
             "RMS per bar with the base model and with the effects added".into(),
-        );
+        )?;
         report::render_before_after(&before_after(ba), &path)?;
     }
     if let Some(acc) = &results.acceptance {
@@ -128,7 +133,7 @@ pub(crate) fn render_all(
                     "Bar {} on {}: error before and after compensation",
                     a.bar, a.length_id
                 ),
-            );
+            )?;
             report::render_series_panels(&acceptance_sheet(a), &path)?;
         }
         if !acc.is_empty() {
@@ -137,14 +142,14 @@ pub(crate) fn render_all(
                 FigureKind::Acceptance,
                 None,
                 "Every working bar's error after compensation".into(),
-            );
+            )?;
             report::render_series_panels(&acceptance_fleet(acc), &path)?;
             let path = add(
                 "acceptance-rms.png".into(),
                 FigureKind::Acceptance,
                 None,
                 "RMS error before and after compensation".into(),
-            );
+            )?;
             report::render_before_after(&acceptance_rms(acc), &path)?;
         }
     }

@@ -1,22 +1,21 @@
 //! dbbcal: batch analysis of double-ballbar thermal campaigns. See ARCHITECTURE.md.
-pub mod acceptance;
-pub mod calibrate;
-pub mod campaign;
-pub mod compensate;
-pub mod diagnose;
+//!
+//! This crate is the application: the pipeline file and its run plan ([`pipeline`]), the
+//! commands ([`runner`]), every output file ([`output`]), the report page ([`narrative`]) and
+//! the figures' data ([`figures`]). The analysis, the parquet IO, the plotting and the simulator
+//! are the workspace's other crates, re-exported here under the module names the code and the
+//! tests use (`dbbcal::fit` is `dbbcal_core::fit`, `dbbcal::io` is `dbbcal_io`, ...).
+pub use dbbcal_core::{
+    acceptance, calibrate, campaign, compensate, diagnose, fit, identify, matching, model, series,
+};
+pub use dbbcal_io as io;
+pub use dbbcal_io::supervise;
+pub use dbbcal_report as report;
+pub use dbbcal_sim as simulate;
+
 pub mod figures;
-pub mod fit;
-pub mod identify;
-pub mod io;
-pub mod matching;
-pub mod model;
 pub mod narrative;
 pub mod output;
 pub mod pipeline;
 pub mod progress;
-pub mod report;
 pub mod runner;
-pub mod series;
-pub(crate) mod signal;
-pub mod simulate;
-pub mod supervise;

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use proptest::prelude::*;
 
 use super::*;
-use crate::campaign::prop_tests::{apply, cases, edit};
 use crate::model::Effect;
+use dbbcal_testkit::{apply, cases, edit};
 
 /// Every key of a pipeline file, at valid values, on the shipped sample.
 const FULL: &str = r#"

@@ -1,0 +1,1145 @@
+//! The campaign manifest (`campaign.toml`, see `shared/spec/campaign-format.md`) and its
+//! validated form.
+//!
+//! [`Manifest`] mirrors the TOML one to one (and is what `simulate` writes); [`Campaign`] is the
+//! validated, resolved form every later stage uses: mounts point at their plate length, times are
+//! integer nanoseconds since the Unix epoch (UTC), tilts are filled in from the plate.
+//! Validation lives in [`Campaign::from_manifest`]; every error names the key that is wrong.
+
+use serde::{Deserialize, Serialize};
+
+/// Nanoseconds since 1970-01-01T00:00:00Z.
+pub(crate) type TimeNs = i64;
+
+// ---------------------------------------------------------------- manifest, as written in TOML
+
+/// `campaign.toml` as written (`shared/spec/campaign-format.md`), not yet validated.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// `[campaign]`.
+    pub campaign: CampaignSection,
+    /// `[plate]`.
+    pub plate: PlateSection,
+    /// `[[sensor]]`: the temperature sensors.
+    #[serde(default)]
+    pub sensor: Vec<SensorDecl>,
+    /// `[[bar]]`: the ballbars.
+    #[serde(default)]
+    pub bar: Vec<BarDecl>,
+    /// `[[mount]]`: where each bar sat, and when.
+    #[serde(default)]
+    pub mount: Vec<MountDecl>,
+}
+
+/// `[campaign]`: id and reference temperature.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CampaignSection {
+    /// Campaign id (names the default output folder `reports/<id>`).
+    pub id: String,
+    /// Reference temperature T0, °C.
+    pub reference_temperature_c: f64,
+}
+
+/// `[plate]`: the calibration plate.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlateSection {
+    /// Plate material (free text).
+    pub material: String,
+    /// Declared expansion coefficient of the plate, ppm/K; 0 when absent.
+    #[serde(default)]
+    pub cte_ppm_per_k: f64,
+    /// Plate tilt from horizontal, degrees; 0 when absent.
+    #[serde(default)]
+    pub tilt_deg: f64,
+    /// `[[plate.length]]`: the calibrated socket-pair distances.
+    #[serde(default)]
+    pub length: Vec<PlateLength>,
+}
+
+/// One calibrated socket-pair distance on the plate.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlateLength {
+    /// Length id (what `mount[].length` names).
+    pub id: String,
+    /// Calibrated centre distance, mm.
+    pub mm: f64,
+    /// Standard uncertainty (k = 1) of the calibrated length, micrometres.
+    pub u_um: f64,
+}
+
+/// What a temperature sensor measures (`sensor[].kind`).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[serde(rename_all = "lowercase")]
+pub enum SensorKind {
+    /// Air near the bars.
+    Air,
+    /// The plate.
+    Plate,
+    /// A bar itself.
+    Bar,
+    /// A read head.
+    Head,
+    /// Anything else (a machine part, coolant, …).
+    Other,
+}
+
+/// `[[sensor]]`: one temperature sensor.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SensorDecl {
+    /// Sensor id (the `sensor` column of `temperatures/*.parquet`).
+    pub id: String,
+    /// What it measures.
+    pub kind: SensorKind,
+}
+
+/// `[[bar]]`: one ballbar.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BarDecl {
+    /// Bar id (the `bar` column of `encoders/*.parquet`).
+    pub id: String,
+    /// Encoder resolution, nm a count.
+    pub resolution_nm: f64,
+    /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel, mm.
+    pub fixed_length_mm: f64,
+    /// The air sensor nearest the bar; absent: the mean of all air sensors.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<String>,
+}
+
+/// What a mount is for (`mount[].purpose`).
+#[derive(
+    Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash, Default,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Purpose {
+    /// A calibration point, and data for the thermal model (the default).
+    #[default]
+    Calibration,
+    /// The bar serves as a reference bar during the mount.
+    Reference,
+    /// A known length used only to verify the result, never fitted.
+    Check,
+}
+
+/// `[[mount]]`: one bar on a plate length or a device for a time span.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MountDecl {
+    /// Bar id.
+    pub bar: String,
+    /// Plate length id (on the plate); absent on a device.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<String>,
+    /// Device name (on a target device, true distance unknown); absent on the plate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
+    /// Tilt of the bar from horizontal, degrees; absent: the plate's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_deg: Option<f64>,
+    /// What the mount is for; absent: calibration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub purpose: Option<Purpose>,
+    /// Start of the mount (UTC).
+    pub from: toml::value::Datetime,
+    /// End of the mount (UTC).
+    pub to: toml::value::Datetime,
+}
+
+// ---------------------------------------------------------------- validated campaign
+
+/// A validated campaign: every reference in the manifest checked, times in ns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Campaign {
+    /// The campaign's id (names the default output folder).
+    pub id: String,
+    /// The temperature the bars' lengths refer to, °C.
+    pub reference_temperature_c: f64,
+    /// The calibration plate.
+    pub plate: Plate,
+    /// The temperature sensors, in manifest order.
+    pub sensors: Vec<Sensor>,
+    /// The bars, in manifest order.
+    pub bars: Vec<Bar>,
+    /// Sorted by (bar, from_ns).
+    pub mounts: Vec<Mount>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+/// The calibration plate: its material and its calibrated lengths.
+pub struct Plate {
+    pub(crate) material: String,
+    pub(crate) cte_ppm_per_k: f64,
+    pub(crate) tilt_deg: f64,
+    /// The socket pairs of calibrated centre distance.
+    pub lengths: Vec<PlateLength>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+/// A declared temperature sensor.
+pub struct Sensor {
+    /// Its id, as in the temperature table.
+    pub id: String,
+    /// What it measures: the air or the plate.
+    pub kind: SensorKind,
+}
+
+/// A declared bar, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bar {
+    /// Its id, as in the encoder table.
+    pub id: String,
+    /// One encoder count, nm.
+    pub resolution_nm: f64,
+    /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel.
+    pub fixed_length_mm: f64,
+    /// The air sensor nearest the bar; `None` = mean of all air sensors.
+    pub sensor: Option<String>,
+}
+
+/// Where a bar sat during a mount.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Place {
+    /// On a plate socket pair of known centre distance.
+    Length(PlateLength),
+    /// On a target device: true distance unknown.
+    Device(String),
+}
+
+/// A validated mount.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mount {
+    /// Bar id.
+    pub bar: String,
+    /// Where the bar sat: a plate length or a device.
+    pub place: Place,
+    /// Tilt from horizontal, degrees: the mount's, else the plate's.
+    pub(crate) tilt_deg: f64,
+    /// Whether the mount gave its own `tilt_deg` (it then wins over `tilt` events, see
+    /// `BarSeries::tilt_at_deg`).
+    pub(crate) tilt_explicit: bool,
+    pub(crate) purpose: Purpose,
+    /// Start, ns since the epoch (UTC).
+    pub from_ns: TimeNs,
+    /// End, ns since the epoch (UTC).
+    pub to_ns: TimeNs,
+}
+
+impl Campaign {
+    /// The bar `id`, if declared.
+    pub fn bar(&self, id: &str) -> Option<&Bar> {
+        self.bars.iter().find(|b| b.id == id)
+    }
+    /// The sensor `id`, if declared.
+    pub fn sensor(&self, id: &str) -> Option<&Sensor> {
+        self.sensors.iter().find(|s| s.id == id)
+    }
+    /// The mounts of bar `bar`, in the campaign's order.
+    pub fn mounts_of<'a>(&'a self, bar: &'a str) -> impl Iterator<Item = &'a Mount> + 'a {
+        self.mounts.iter().filter(move |m| m.bar == bar)
+    }
+    /// The air sensors, in manifest order.
+    pub fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
+        self.sensors.iter().filter(|s| s.kind == SensorKind::Air)
+    }
+}
+
+// ---------------------------------------------------------------- validation
+
+/// A manifest that cannot be used. Every message is one line naming the file and the key.
+///
+/// Array indices in keys (`mount[3]`) count from 0 in file order, as in a TOML path.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CampaignError {
+    /// The text is not TOML, or does not have the manifest's shape (unknown or missing key).
+    #[error("{file}:{line}:{column}: {message}")]
+    Syntax {
+        /// The manifest's file name.
+        file: String,
+        /// Line of the error (0 when unknown).
+        line: usize,
+        /// Column of the error (0 when unknown).
+        column: usize,
+        /// The TOML parser's message.
+        message: String,
+    },
+    /// Two entries of one table share an id.
+    #[error("{file}: {table}[{second}]: id {id:?} is already used by {table}[{first}]")]
+    DuplicateId {
+        /// The manifest's file name.
+        file: String,
+        /// The table (e.g. `bar`).
+        table: &'static str,
+        /// The repeated id.
+        id: String,
+        /// Index of the entry that has it first.
+        first: usize,
+        /// Index of the repeat.
+        second: usize,
+    },
+    /// A reference to something the manifest does not declare.
+    #[error("{file}: {key}: {field} {value:?} is not {what} (known: {known})")]
+    Unknown {
+        /// The manifest's file name.
+        file: String,
+        /// The key holding the reference (e.g. `mount[3]`).
+        key: String,
+        /// The field that names it (e.g. `bar`).
+        field: &'static str,
+        /// The name given.
+        value: String,
+        /// What it should name (e.g. `a declared bar`).
+        what: &'static str,
+        /// The names that are declared, comma-separated (`Box<str>`, not `String`: keeps the
+        /// error, and every `Result` carrying it, under 128 bytes).
+        known: Box<str>,
+    },
+    /// Any other invalid value.
+    #[error("{file}: {key}: {problem}")]
+    Invalid {
+        /// The manifest's file name.
+        file: String,
+        /// The key with the invalid value.
+        key: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+}
+
+/// The allowed ranges of the manifest's numbers (both ends included; NaN and infinities are
+/// outside every range). Generous: they refuse what no real campaign holds (a typo, a unit
+/// mix-up, TOML's `nan`/`inf`), not unusual set-ups.
+pub(crate) mod limits {
+    /// `campaign.id`: at most this many characters of `[A-Za-z0-9._-]`, no leading dot (it names
+    /// the default output folder `reports/<id>`).
+    pub(crate) const ID_MAX_CHARS: usize = 100;
+    /// `campaign.reference_temperature_c`, °C.
+    pub(crate) const REFERENCE_TEMPERATURE_C: (f64, f64) = (-100.0, 200.0);
+    /// `plate.cte_ppm_per_k`, ppm/K (Zerodur ~0, steel ~12, aluminium ~23).
+    pub(crate) const CTE_PPM_PER_K: (f64, f64) = (-100.0, 100.0);
+    /// `plate.tilt_deg`, `mount[].tilt_deg`: from horizontal, degrees.
+    pub(crate) const TILT_DEG: (f64, f64) = (-90.0, 90.0);
+    /// `plate.length[].mm`, `bar[].fixed_length_mm`: above 0, at most 10 m.
+    pub(crate) const LENGTH_MM: (f64, f64) = (0.0, 10_000.0);
+    /// `plate.length[].u_um`: 0 to 1 mm.
+    pub(crate) const U_UM: (f64, f64) = (0.0, 1_000.0);
+    /// `bar[].resolution_nm`: above 0, at most 1 mm a count.
+    pub(crate) const RESOLUTION_NM: (f64, f64) = (0.0, 1e6);
+    /// `mount[].from`, `mount[].to`: from 1970-01-01T00:00:00Z (included) to
+    /// 2200-01-01T00:00:00Z (excluded), ns since the epoch.
+    pub(crate) const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
+}
+
+/// A number for a one-line message: plain decimals, an exponent for very large or small ones
+/// (`1e300`, not three hundred digits).
+pub fn display_number(v: f64) -> String {
+    if v.is_finite() && v != 0.0 && !(1e-6..1e15).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// The file name used in messages when the caller does not give one.
+const MANIFEST_FILE: &str = "campaign.toml";
+
+impl Manifest {
+    /// Parses `campaign.toml` text; `file` is only used in error messages.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Manifest, CampaignError> {
+        toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+            CampaignError::Syntax {
+                file: file.to_string(),
+                line,
+                column,
+                message: one_line(e.message()),
+            }
+        })
+    }
+
+    /// The manifest as TOML text (what `simulate` writes).
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string(self)
+    }
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let mut end = offset.min(text.len());
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    let before = &text[..end];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
+
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Converts a TOML datetime to nanoseconds since the epoch. A datetime without offset is UTC;
+/// a date or time alone is an error (the string says why).
+pub(crate) fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
+    let (Some(d), Some(t)) = (dt.date, dt.time) else {
+        return Err(format!(
+            "{dt} is not a date-time (need e.g. 2026-11-01T00:00:00Z)"
+        ));
+    };
+    let date =
+        chrono::NaiveDate::from_ymd_opt(i32::from(d.year), u32::from(d.month), u32::from(d.day))
+            .ok_or_else(|| format!("{dt}: no such date"))?;
+    // Leap seconds (second = 60) are folded into the next second by chrono's nanosecond field.
+    let (second, extra_ns) = if t.second == 60 {
+        (59, 1_000_000_000)
+    } else {
+        (t.second, 0)
+    };
+    let time = chrono::NaiveTime::from_hms_nano_opt(
+        u32::from(t.hour),
+        u32::from(t.minute),
+        u32::from(second),
+        t.nanosecond + extra_ns,
+    )
+    .ok_or_else(|| format!("{dt}: no such time of day"))?;
+    let local_ns = date
+        .and_time(time)
+        .and_utc()
+        .timestamp_nanos_opt()
+        .ok_or_else(|| format!("{dt} is outside 1677..2262 (nanosecond range)"))?;
+    let offset_minutes = match dt.offset {
+        None | Some(toml::value::Offset::Z) => 0,
+        Some(toml::value::Offset::Custom { minutes }) => i64::from(minutes),
+    };
+    local_ns
+        .checked_sub(offset_minutes * 60 * 1_000_000_000)
+        .ok_or_else(|| format!("{dt} is outside 1677..2262 (nanosecond range)"))
+}
+
+/// Converts nanoseconds since the epoch to a UTC TOML datetime (`...Z`), the inverse of
+/// [`toml_datetime_to_ns`].
+pub fn ns_to_toml_datetime(ns: TimeNs) -> toml::value::Datetime {
+    let t = chrono::DateTime::from_timestamp_nanos(ns);
+    use chrono::{Datelike, Timelike};
+    toml::value::Datetime {
+        date: Some(toml::value::Date {
+            // Years outside u16 cannot occur: i64 nanoseconds span 1677..2262.
+            year: u16::try_from(t.year()).unwrap_or(0),
+            month: t.month() as u8,
+            day: t.day() as u8,
+        }),
+        time: Some(toml::value::Time {
+            hour: t.hour() as u8,
+            minute: t.minute() as u8,
+            second: t.second() as u8,
+            nanosecond: t.nanosecond(),
+        }),
+        offset: Some(toml::value::Offset::Z),
+    }
+}
+
+impl Campaign {
+    /// Validates and resolves a manifest; messages name the file `campaign.toml`.
+    pub fn from_manifest(manifest: Manifest) -> Result<Campaign, CampaignError> {
+        Self::from_manifest_at(manifest, MANIFEST_FILE)
+    }
+
+    /// As [`Campaign::from_manifest`], naming `file` in messages.
+    pub fn from_manifest_at(manifest: Manifest, file: &str) -> Result<Campaign, CampaignError> {
+        let v = Validator { file };
+        v.campaign_section(&manifest.campaign)?;
+        v.plate(&manifest.plate)?;
+        v.sensors(&manifest.sensor)?;
+        v.bars(&manifest.bar, &manifest.sensor)?;
+        let mounts = v.mounts(&manifest)?;
+        Ok(Campaign {
+            id: manifest.campaign.id,
+            reference_temperature_c: manifest.campaign.reference_temperature_c,
+            plate: Plate {
+                material: manifest.plate.material,
+                cte_ppm_per_k: manifest.plate.cte_ppm_per_k,
+                tilt_deg: manifest.plate.tilt_deg,
+                lengths: manifest.plate.length,
+            },
+            sensors: manifest
+                .sensor
+                .into_iter()
+                .map(|s| Sensor {
+                    id: s.id,
+                    kind: s.kind,
+                })
+                .collect(),
+            bars: manifest
+                .bar
+                .into_iter()
+                .map(|b| Bar {
+                    id: b.id,
+                    resolution_nm: b.resolution_nm,
+                    fixed_length_mm: b.fixed_length_mm,
+                    sensor: b.sensor,
+                })
+                .collect(),
+            mounts,
+        })
+    }
+}
+
+/// `campaign.id` names the default output folder (`reports/<id>`): non-empty, at most
+/// [`limits::ID_MAX_CHARS`] characters of `[A-Za-z0-9._-]`, not starting with a dot (no hidden
+/// folder, no `..`, no path separator).
+pub(crate) fn check_campaign_id(id: &str) -> Result<(), String> {
+    if id.is_empty() {
+        return Err("is empty".into());
+    }
+    if id.chars().count() > limits::ID_MAX_CHARS {
+        return Err(format!(
+            "is {} characters long; at most {} are allowed",
+            id.chars().count(),
+            limits::ID_MAX_CHARS
+        ));
+    }
+    if let Some(c) = id
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-')))
+    {
+        return Err(format!(
+            "{id:?} contains {c:?}: only letters A-Z a-z, digits, '.', '_' and '-' are allowed (it names the output folder reports/<id>)"
+        ));
+    }
+    if id.starts_with('.') {
+        return Err(format!(
+            "{id:?} starts with a dot (it names the output folder reports/<id>)"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks of one manifest; holds the file name for messages.
+struct Validator<'a> {
+    file: &'a str,
+}
+
+impl Validator<'_> {
+    fn invalid(&self, key: impl Into<String>, problem: impl Into<String>) -> CampaignError {
+        CampaignError::Invalid {
+            file: self.file.to_string(),
+            key: key.into(),
+            problem: problem.into(),
+        }
+    }
+
+    fn unknown(
+        &self,
+        key: String,
+        field: &'static str,
+        value: &str,
+        what: &'static str,
+        known: &[&str],
+    ) -> CampaignError {
+        CampaignError::Unknown {
+            file: self.file.to_string(),
+            key,
+            field,
+            value: value.to_string(),
+            what,
+            known: if known.is_empty() {
+                "none".into()
+            } else {
+                known
+                    .iter()
+                    .map(|k| k.escape_debug().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+                    .into()
+            },
+        }
+    }
+
+    fn positive(&self, key: &str, name: &str, value: f64) -> Result<(), CampaignError> {
+        if value.is_finite() && value > 0.0 {
+            Ok(())
+        } else {
+            Err(self.invalid(key, format!("{name} = {value} must be a finite number > 0")))
+        }
+    }
+
+    /// `value` finite and within `range`; `open_low`: the low end itself is refused (`> lo`).
+    fn in_range(
+        &self,
+        key: &str,
+        name: &str,
+        value: f64,
+        (lo, hi): (f64, f64),
+        open_low: bool,
+        unit: &str,
+    ) -> Result<(), CampaignError> {
+        let low_ok = if open_low { value > lo } else { value >= lo };
+        if value.is_finite() && low_ok && value <= hi {
+            Ok(())
+        } else {
+            let low = if open_low { ">" } else { ">=" };
+            Err(self.invalid(
+                key,
+                format!(
+                    "{name} = {} is out of range: it must be a finite number {low} {lo} and <= {hi}{unit}",
+                    display_number(value)
+                ),
+            ))
+        }
+    }
+
+    fn unique_ids<'i>(
+        &self,
+        table: &'static str,
+        ids: impl Iterator<Item = &'i str>,
+    ) -> Result<(), CampaignError> {
+        let mut seen: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+        for (i, id) in ids.enumerate() {
+            if id.trim().is_empty() {
+                return Err(self.invalid(format!("{table}[{i}]"), "id is empty"));
+            }
+            if id.chars().any(char::is_control) {
+                return Err(self.invalid(
+                    format!("{table}[{i}]"),
+                    format!("id {id:?} contains a control character"),
+                ));
+            }
+            if let Some(&first) = seen.get(id) {
+                return Err(CampaignError::DuplicateId {
+                    file: self.file.to_string(),
+                    table,
+                    id: id.to_string(),
+                    first,
+                    second: i,
+                });
+            }
+            seen.insert(id, i);
+        }
+        Ok(())
+    }
+
+    fn campaign_section(&self, c: &CampaignSection) -> Result<(), CampaignError> {
+        if c.id.trim().is_empty() {
+            return Err(self.invalid("campaign.id", "is empty"));
+        }
+        check_campaign_id(&c.id).map_err(|problem| self.invalid("campaign.id", problem))?;
+        self.in_range(
+            "campaign",
+            "reference_temperature_c",
+            c.reference_temperature_c,
+            limits::REFERENCE_TEMPERATURE_C,
+            false,
+            " °C",
+        )
+    }
+
+    fn plate(&self, p: &PlateSection) -> Result<(), CampaignError> {
+        self.in_range(
+            "plate",
+            "cte_ppm_per_k",
+            p.cte_ppm_per_k,
+            limits::CTE_PPM_PER_K,
+            false,
+            " ppm/K",
+        )?;
+        self.in_range(
+            "plate",
+            "tilt_deg",
+            p.tilt_deg,
+            limits::TILT_DEG,
+            false,
+            " degrees",
+        )?;
+        self.unique_ids("plate.length", p.length.iter().map(|l| l.id.as_str()))?;
+        for (i, l) in p.length.iter().enumerate() {
+            let key = format!("plate.length[{i}] ({:?})", l.id);
+            self.positive(&key, "mm", l.mm)?;
+            self.in_range(&key, "mm", l.mm, limits::LENGTH_MM, true, " mm")?;
+            if !(l.u_um.is_finite() && l.u_um >= 0.0) {
+                return Err(self.invalid(
+                    key,
+                    format!("u_um = {} must be a finite number >= 0", l.u_um),
+                ));
+            }
+            self.in_range(&key, "u_um", l.u_um, limits::U_UM, false, " µm")?;
+        }
+        Ok(())
+    }
+
+    fn sensors(&self, sensors: &[SensorDecl]) -> Result<(), CampaignError> {
+        self.unique_ids("sensor", sensors.iter().map(|s| s.id.as_str()))
+    }
+
+    fn bars(&self, bars: &[BarDecl], sensors: &[SensorDecl]) -> Result<(), CampaignError> {
+        self.unique_ids("bar", bars.iter().map(|b| b.id.as_str()))?;
+        let sensor_ids: Vec<&str> = sensors.iter().map(|s| s.id.as_str()).collect();
+        for (i, b) in bars.iter().enumerate() {
+            let key = format!("bar[{i}] ({:?})", b.id);
+            self.positive(&key, "resolution_nm", b.resolution_nm)?;
+            self.in_range(
+                &key,
+                "resolution_nm",
+                b.resolution_nm,
+                limits::RESOLUTION_NM,
+                true,
+                " nm",
+            )?;
+            self.positive(&key, "fixed_length_mm", b.fixed_length_mm)?;
+            self.in_range(
+                &key,
+                "fixed_length_mm",
+                b.fixed_length_mm,
+                limits::LENGTH_MM,
+                true,
+                " mm",
+            )?;
+            if let Some(s) = &b.sensor {
+                if !sensor_ids.contains(&s.as_str()) {
+                    return Err(self.unknown(key, "sensor", s, "a declared sensor", &sensor_ids));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Resolves every mount, then sorts them by (bar, from) and checks for overlaps.
+    fn mounts(&self, m: &Manifest) -> Result<Vec<Mount>, CampaignError> {
+        let mut resolved: Vec<(usize, Mount)> = Vec::with_capacity(m.mount.len());
+        for (i, decl) in m.mount.iter().enumerate() {
+            resolved.push((i, self.mount(i, decl, m)?));
+        }
+        resolved.sort_by(|(ia, a), (ib, b)| {
+            (a.bar.as_str(), a.from_ns, *ia).cmp(&(b.bar.as_str(), b.from_ns, *ib))
+        });
+        for pair in resolved.windows(2) {
+            let ((ia, a), (ib, b)) = (&pair[0], &pair[1]);
+            if a.bar == b.bar && b.from_ns < a.to_ns {
+                return Err(self.invalid(
+                    format!("mount[{ib}] (bar {:?})", b.bar),
+                    format!(
+                        "interval {} .. {} overlaps mount[{ia}] ({} .. {})",
+                        m.mount[*ib].from, m.mount[*ib].to, m.mount[*ia].from, m.mount[*ia].to
+                    ),
+                ));
+            }
+        }
+        Ok(resolved.into_iter().map(|(_, mount)| mount).collect())
+    }
+
+    fn mount(&self, i: usize, d: &MountDecl, m: &Manifest) -> Result<Mount, CampaignError> {
+        let key = format!("mount[{i}] (bar {:?})", d.bar);
+        let bar_ids: Vec<&str> = m.bar.iter().map(|b| b.id.as_str()).collect();
+        let Some(bar) = m.bar.iter().find(|b| b.id == d.bar) else {
+            return Err(self.unknown(
+                format!("mount[{i}]"),
+                "bar",
+                &d.bar,
+                "a declared bar",
+                &bar_ids,
+            ));
+        };
+        let place = self.place(&key, d, bar, &m.plate)?;
+        let tilt_deg = d.tilt_deg.unwrap_or(m.plate.tilt_deg);
+        self.in_range(
+            &key,
+            "tilt_deg",
+            tilt_deg,
+            limits::TILT_DEG,
+            false,
+            " degrees",
+        )?;
+        let time = |name: &str, dt: &toml::value::Datetime| {
+            let ns = toml_datetime_to_ns(dt)
+                .map_err(|e| self.invalid(key.clone(), format!("{name}: {e}")))?;
+            let (lo, hi) = limits::MOUNT_TIME_NS;
+            if !(lo..hi).contains(&ns) {
+                return Err(self.invalid(
+                    key.clone(),
+                    format!(
+                        "{name} = {dt} is outside 1970-01-01T00:00:00Z .. 2200-01-01T00:00:00Z"
+                    ),
+                ));
+            }
+            Ok(ns)
+        };
+        let from_ns = time("from", &d.from)?;
+        let to_ns = time("to", &d.to)?;
+        if from_ns >= to_ns {
+            return Err(self.invalid(
+                key,
+                format!("from = {} is not before to = {}", d.from, d.to),
+            ));
+        }
+        Ok(Mount {
+            bar: d.bar.clone(),
+            place,
+            tilt_deg,
+            tilt_explicit: d.tilt_deg.is_some(),
+            purpose: d.purpose.unwrap_or_default(),
+            from_ns,
+            to_ns,
+        })
+    }
+
+    /// Exactly one of `length` / `device`; a length must exist and exceed the bar's fixed length.
+    fn place(
+        &self,
+        key: &str,
+        d: &MountDecl,
+        bar: &BarDecl,
+        plate: &PlateSection,
+    ) -> Result<Place, CampaignError> {
+        match (&d.length, &d.device) {
+            (Some(_), Some(_)) => {
+                Err(self.invalid(key, "gives both length and device (exactly one is allowed)"))
+            }
+            (None, None) => Err(self.invalid(
+                key,
+                "gives neither length nor device (exactly one is needed)",
+            )),
+            (None, Some(device)) if device.trim().is_empty() => {
+                Err(self.invalid(key, "device is empty"))
+            }
+            (None, Some(device)) => Ok(Place::Device(device.clone())),
+            (Some(length), None) => {
+                let Some(l) = plate.length.iter().find(|l| &l.id == length) else {
+                    let known: Vec<&str> = plate.length.iter().map(|l| l.id.as_str()).collect();
+                    return Err(self.unknown(
+                        key.to_string(),
+                        "length",
+                        length,
+                        "a plate length",
+                        &known,
+                    ));
+                };
+                if bar.fixed_length_mm > l.mm {
+                    return Err(self.invalid(
+                        key,
+                        format!(
+                            "bar fixed_length_mm = {} exceeds plate length \"{}\" = {} mm (scale travel would be negative)",
+                            bar.fixed_length_mm, l.id, l.mm
+                        ),
+                    ));
+                }
+                Ok(Place::Length(l.clone()))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    pub(super) const GOOD: &str = r#"
+[campaign]
+id = "lab"
+reference_temperature_c = 20.0
+
+[plate]
+material = "zerodur"
+tilt_deg = 60.0
+[[plate.length]]
+id = "min"
+mm = 250.0
+u_um = 0.15
+[[plate.length]]
+id = "max"
+mm = 400.0
+u_um = 0.2
+
+[[sensor]]
+id = "T1"
+kind = "air"
+
+[[bar]]
+id = "B02"
+resolution_nm = 5.0
+fixed_length_mm = 230.0
+[[bar]]
+id = "B01"
+resolution_nm = 5.0
+fixed_length_mm = 230.0
+sensor = "T1"
+
+[[mount]]
+bar = "B02"
+length = "max"
+from = 2026-11-02T00:00:00Z
+to = 2026-11-03T00:00:00Z
+[[mount]]
+bar = "B01"
+device = "hexapod-1"
+purpose = "check"
+tilt_deg = 10.0
+from = 2026-11-04T01:00:00+01:00
+to = 2026-11-06T00:00:00
+[[mount]]
+bar = "B01"
+length = "min"
+from = 2026-11-01T00:00:00Z
+to = 2026-11-04T00:00:00Z
+"#;
+
+    const DAY_NS: i64 = 86_400 * 1_000_000_000;
+    const NOV1: i64 = 1_793_491_200 * 1_000_000_000;
+
+    fn validate(text: &str) -> Result<Campaign, CampaignError> {
+        Campaign::from_manifest(Manifest::from_toml_str(text, "campaign.toml")?)
+    }
+
+    fn error(text: &str) -> String {
+        let msg = validate(text).expect_err("should fail").to_string();
+        assert!(!msg.contains('\n'), "not one line: {msg}");
+        msg
+    }
+
+    #[test]
+    fn resolves_sorts_and_fills_in() {
+        let c = validate(GOOD).expect("valid");
+        let order: Vec<(&str, i64)> = c
+            .mounts
+            .iter()
+            .map(|m| (m.bar.as_str(), m.from_ns))
+            .collect();
+        // Sorted by (bar, from); +01:00 offset and local (= UTC) datetimes converted.
+        assert_eq!(
+            order,
+            vec![
+                ("B01", NOV1),
+                ("B01", NOV1 + 3 * DAY_NS),
+                ("B02", NOV1 + DAY_NS)
+            ]
+        );
+        assert_eq!(c.mounts[1].to_ns, NOV1 + 5 * DAY_NS);
+        assert_eq!(
+            c.mounts[0].tilt_deg, 60.0,
+            "plate tilt when the mount has none"
+        );
+        assert_eq!(c.mounts[1].tilt_deg, 10.0);
+        assert_eq!(c.mounts[1].place, Place::Device("hexapod-1".into()));
+        assert_eq!(c.mounts[1].purpose, Purpose::Check);
+        assert_eq!(c.mounts[0].purpose, Purpose::Calibration);
+        assert!(matches!(&c.mounts[2].place, Place::Length(l) if l.id == "max" && l.mm == 400.0));
+        assert_eq!(c.bar("B01").and_then(|b| b.sensor.as_deref()), Some("T1"));
+    }
+
+    #[test]
+    fn manifest_round_trips_through_toml() {
+        let m = Manifest::from_toml_str(GOOD, "campaign.toml").expect("parse");
+        let text = m.to_toml_string().expect("serialise");
+        assert_eq!(Manifest::from_toml_str(&text, "x").expect("reparse"), m);
+    }
+
+    #[test]
+    fn time_conversion_round_trips() {
+        for ns in [0, NOV1, NOV1 + 123_456_789, -5_000_000_001] {
+            assert_eq!(toml_datetime_to_ns(&ns_to_toml_datetime(ns)), Ok(ns));
+        }
+    }
+
+    #[test]
+    fn syntax_errors_name_file_and_line() {
+        let msg = error(&GOOD.replace(
+            "resolution_nm = 5.0\nfixed_length_mm = 230.0\nsensor",
+            "resolution = 5.0\nfixed_length_mm = 230.0\nsensor",
+        ));
+        assert!(msg.starts_with("campaign.toml:"), "{msg}");
+        assert!(msg.contains("resolution"), "{msg}");
+        let msg = error("[campaign\nid = 1");
+        assert!(msg.starts_with("campaign.toml:1:"), "{msg}");
+    }
+
+    #[test]
+    fn duplicate_ids_are_named() {
+        let msg = error(
+            &GOOD
+                .replace("id = \"B02\"", "id = \"B01\"")
+                .replace("bar = \"B02\"", "bar = \"B01\""),
+        );
+        assert!(
+            msg.contains("campaign.toml: bar[1]: id \"B01\" is already used by bar[0]"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("id = \"max\"", "id = \"min\""));
+        assert!(
+            msg.contains("plate.length[1]: id \"min\" is already used by plate.length[0]"),
+            "{msg}"
+        );
+        let msg = error(&format!(
+            "{GOOD}\n[[sensor]]\nid = \"T1\"\nkind = \"bar\"\n"
+        ));
+        assert!(msg.contains("sensor[1]: id \"T1\""), "{msg}");
+    }
+
+    #[test]
+    fn unknown_references_are_named() {
+        let msg = error(&GOOD.replace("length = \"max\"", "length = \"huge\""));
+        assert_eq!(msg, "campaign.toml: mount[0] (bar \"B02\"): length \"huge\" is not a plate length (known: min, max)");
+        let msg = error(&GOOD.replace("bar = \"B02\"", "bar = \"B03\""));
+        assert!(
+            msg.contains("mount[0]: bar \"B03\" is not a declared bar (known: B02, B01)"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("sensor = \"T1\"", "sensor = \"T7\""));
+        assert!(
+            msg.contains("bar[1] (\"B01\"): sensor \"T7\" is not a declared sensor (known: T1)"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn place_must_be_length_xor_device() {
+        let msg = error(&GOOD.replace(
+            "device = \"hexapod-1\"",
+            "device = \"hexapod-1\"\nlength = \"min\"",
+        ));
+        assert!(
+            msg.contains("mount[1] (bar \"B01\"): gives both length and device"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("device = \"hexapod-1\"\n", ""));
+        assert!(
+            msg.contains("mount[1] (bar \"B01\"): gives neither length nor device"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn bad_intervals_are_named() {
+        let msg = error(&GOOD.replace("to = 2026-11-03T00:00:00Z", "to = 2026-11-02T00:00:00Z"));
+        assert!(
+            msg.contains("mount[0] (bar \"B02\"): from = 2026-11-02T00:00:00Z is not before to"),
+            "{msg}"
+        );
+        // The device mount starts (01:00+01:00 = 00:00Z) when the plate mount ends: touching is
+        // fine. One hour earlier overlaps.
+        let msg = error(&GOOD.replace(
+            "from = 2026-11-04T01:00:00+01:00",
+            "from = 2026-11-04T00:00:00+01:00",
+        ));
+        assert!(
+            msg.contains("mount[1] (bar \"B01\"): interval") && msg.contains("overlaps mount[2]"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("from = 2026-11-01T00:00:00Z", "from = 2026-11-01"));
+        assert!(
+            msg.contains("mount[2] (bar \"B01\"): from: 2026-11-01 is not a date-time"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn bad_numbers_are_named() {
+        let msg = error(&GOOD.replacen("resolution_nm = 5.0", "resolution_nm = 0.0", 1));
+        assert!(
+            msg.contains("bar[0] (\"B02\"): resolution_nm = 0 must be a finite number > 0"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replacen("fixed_length_mm = 230.0", "fixed_length_mm = -1.0", 1));
+        assert!(
+            msg.contains("bar[0] (\"B02\"): fixed_length_mm = -1"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace(
+            "fixed_length_mm = 230.0\nsensor",
+            "fixed_length_mm = 260.0\nsensor",
+        ));
+        assert!(msg.contains("mount[2] (bar \"B01\"): bar fixed_length_mm = 260 exceeds plate length \"min\" = 250 mm"), "{msg}");
+    }
+
+    #[test]
+    fn campaign_ids_name_a_folder() {
+        for ok in ["lab", "lab-a-2026-11", "a.b_c-D9", "x..y", &"a".repeat(100)] {
+            let text = GOOD.replace("id = \"lab\"", &format!("id = {ok:?}"));
+            validate(&text).unwrap_or_else(|e| panic!("{ok}: {e}"));
+        }
+        for (bad, why) in [
+            ("", "is empty"),
+            (".hidden", "starts with a dot"),
+            ("..", "starts with a dot"),
+            ("../../etc", "contains '/'"),
+            ("a/b", "contains '/'"),
+            ("a\\b", "contains '\\\\'"),
+            ("lab 1", "contains ' '"),
+            ("lab\n1", "contains '\\n'"),
+            ("läb", "contains 'ä'"),
+            (&"a".repeat(101), "101 characters long"),
+        ] {
+            let text = GOOD.replace("id = \"lab\"", &format!("id = {bad:?}"));
+            let msg = error(&text);
+            assert!(
+                msg.contains("campaign.toml: campaign.id: "),
+                "{bad:?}: {msg}"
+            );
+            assert!(msg.contains(why), "{bad:?}: {msg}");
+        }
+    }
+
+    #[test]
+    fn bar_and_sensor_ids_refuse_control_characters() {
+        let msg = error(
+            &GOOD
+                .replace("id = \"B02\"", "id = \"B\\u0007\"")
+                .replace("bar = \"B02\"", "bar = \"B\\u0007\""),
+        );
+        assert!(
+            msg.contains("bar[0]: id \"B\\u{7}\" contains a control character"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("id = \"T1\"", "id = \"T\\t1\""));
+        assert!(
+            msg.contains("sensor[0]: id \"T\\t1\" contains a control character"),
+            "{msg}"
+        );
+        let msg = error(&GOOD.replace("id = \"T1\"", "id = \"\""));
+        assert!(msg.contains("sensor[0]: id is empty"), "{msg}");
+        // Path-like bar ids are not refused here (the report makes file names safe).
+        let text = GOOD
+            .replace("id = \"B02\"", "id = \"../B 02\"")
+            .replace("bar = \"B02\"", "bar = \"../B 02\"");
+        validate(&text).expect("a path-like bar id is allowed");
+        // An unknown reference with a newline stays on one line.
+        let msg = error(&GOOD.replace("bar = \"B02\"", "bar = \"B\\n03\""));
+        assert!(
+            msg.contains("bar \"B\\n03\" is not a declared bar"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn every_number_is_range_checked() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("reference_temperature_c = 20.0", "reference_temperature_c = nan", "campaign: reference_temperature_c = NaN is out of range"),
+            ("reference_temperature_c = 20.0", "reference_temperature_c = 2000.0", "reference_temperature_c = 2000 is out of range: it must be a finite number >= -100 and <= 200 °C"),
+            ("material = \"zerodur\"", "material = \"zerodur\"\ncte_ppm_per_k = inf", "plate: cte_ppm_per_k = inf is out of range"),
+            ("tilt_deg = 60.0\n[[plate", "tilt_deg = 400.0\n[[plate", "plate: tilt_deg = 400 is out of range: it must be a finite number >= -90 and <= 90 degrees"),
+            ("tilt_deg = 10.0", "tilt_deg = -inf", "mount[1] (bar \"B01\"): tilt_deg = -inf is out of range"),
+            ("mm = 250.0", "mm = 1e9", "plate.length[0] (\"min\"): mm = 1000000000 is out of range"),
+            ("mm = 250.0", "mm = nan", "plate.length[0] (\"min\"): mm = NaN must be a finite number > 0"),
+            ("u_um = 0.15", "u_um = 5000.0", "plate.length[0] (\"min\"): u_um = 5000 is out of range"),
+            ("u_um = 0.15", "u_um = -inf", "u_um = -inf must be a finite number >= 0"),
+            ("resolution_nm = 5.0", "resolution_nm = 1e300", "bar[0] (\"B02\"): resolution_nm = 1e300 is out of range"),
+            ("resolution_nm = 5.0", "resolution_nm = nan", "bar[0] (\"B02\"): resolution_nm = NaN must be a finite number > 0"),
+            ("fixed_length_mm = 230.0", "fixed_length_mm = 1e5", "bar[0] (\"B02\"): fixed_length_mm = 100000 is out of range"),
+            ("from = 2026-11-02T00:00:00Z", "from = 1900-11-02T00:00:00Z", "mount[0] (bar \"B02\"): from = 1900-11-02T00:00:00Z is outside 1970-01-01T00:00:00Z .. 2200-01-01T00:00:00Z"),
+            ("to = 2026-11-03T00:00:00Z", "to = 2250-11-03T00:00:00Z", "mount[0] (bar \"B02\"): to = 2250-11-03T00:00:00Z is outside"),
+            ("to = 2026-11-03T00:00:00Z", "to = 9999-12-31T23:59:59-23:59", "mount[0] (bar \"B02\"): to: 9999-12-31T23:59:59-23:59 is outside 1677..2262"),
+            ("to = 2026-11-03T00:00:00Z", "to = 2262-04-11T23:47:16.854775807-01:00", "mount[0] (bar \"B02\"): to: 2262-04-11T23:47:16.854775807-01:00 is outside 1677..2262"),
+        ];
+        for (from, to, needle) in cases {
+            assert!(GOOD.contains(from), "{from}");
+            let msg = error(&GOOD.replacen(from, to, 1));
+            assert!(msg.contains(needle), "{to}: {msg}");
+        }
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod prop_tests;

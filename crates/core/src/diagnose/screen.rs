@@ -1,0 +1,290 @@
+//! Cheap screening of candidate terms: what adding a term to a bar's fitted model would buy,
+//! predicted from the model linearised at its estimates, without refitting it.
+//!
+//! This is the score (Lagrange-multiplier) form of the test of an added term. At the least-
+//! squares estimates the residual `r` is orthogonal to the model's Jacobian `J`; a refit with
+//! the new columns `X(τ)` moves the model, to first order, within `span(J, X)`, so the RSS it
+//! removes is the part of `r` along `X̃ = (I − P_J) X`, maximised over the term's own time
+//! constant `τ` (the one nonlinear direction the score test cannot linearise: Davies' problem,
+//! solved by searching it). The fitting engine does that search: the new terms, seen in the
+//! orthogonal complement of `J` ([`fit::Orthogonalised`]), are fitted to `r`.
+//!
+//! Long series are screened on their 300-s coarse copy, on which their fit also starts
+//! (`identify::coarse_copy`): the terms screened are smooth on that scale, and the prediction
+//! only decides which candidates get an exact refit ([`super::evaluate_candidates`]).
+//!
+//! Channel scores ([`super::diagnose_bar`]) are screens of `lag:CHANNEL` terms.
+
+use std::borrow::Cow;
+use std::sync::OnceLock;
+
+use nalgebra::DMatrix;
+
+use super::noise::{self, NoiseFit};
+use crate::fit::{self, Separable};
+use crate::identify::{coarse_copy, BarModel, COARSE_START_MIN_SAMPLES};
+use crate::model::{Effect, ThermalProblem};
+use crate::series::BarSeries;
+
+/// A bar's fitted model linearised for screening.
+pub struct ScreenBase {
+    /// The series screened on: the bar's own, or its coarse copy when it is long.
+    series: BarSeries,
+    effects: Vec<Effect>,
+    theta: Vec<f64>,
+    n_gains: usize,
+    /// The model's residual on `series` (engine rows: zeros projected out, weighted).
+    residuals: Vec<f64>,
+    /// Orthonormal basis of the model's Jacobian on `series`; `None` when it could not be
+    /// formed (singular basis), then terms are screened against the residual alone.
+    directions: Option<DMatrix<f64>>,
+    /// The model's RSS on the bar's own series (µm²) and the samples it stands for.
+    rss_um2: f64,
+    n_samples: usize,
+    /// The model's residual on the bar's own fitted samples, weighted
+    /// ([`BarSeries::weighted_residuals`]), and its noise model, fitted when first asked for.
+    weighted_residuals: Vec<f64>,
+    noise: OnceLock<NoiseFit>,
+    /// Batch length (rows of `series`) of the score's HAC variance: the model's own HAC batch
+    /// ([`BarModel::hac_batch_len`]) scaled to the screened rows.
+    score_batch_len: usize,
+}
+
+/// What a term would remove from a bar's residual, and change in its model, to first order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Screen {
+    /// RSS removed (µm², on the bar's own samples).
+    pub(crate) delta_rss_um2: f64,
+    /// The bar's RMS after adding the term, predicted (µm).
+    pub(crate) rms_after_um: f64,
+    /// How much the model's own terms would change their prediction when the term is added, RMS
+    /// over the bar's samples (µm): the part of the new term's contribution `X c` that the
+    /// current terms had absorbed, `‖P_J X c‖` (their linearised refit moves by `−P_J X c`). A
+    /// term can remove little of the residual and still shift the model's parameters a lot
+    /// (a second thermal path on `I_min` biases alpha while the RMS barely moves).
+    pub(crate) shift_rms_um: f64,
+    /// The term's own time constant at the best screen (s), if it has one.
+    pub(crate) tau_s: Option<f64>,
+    /// Score (Lagrange-multiplier) statistic of the term, robust to autocorrelated residuals:
+    /// `sᵀ V⁻¹ s` with `s = X̃ᵀ r` and `V` its batch-means variance; about χ² with
+    /// [`Screen::dof`] degrees of freedom when the term is absent.
+    pub(crate) score: f64,
+    /// The term's parameters (gains and time constants).
+    pub(crate) dof: usize,
+}
+
+impl ScreenBase {
+    /// Linearise `model` (fitted to `series`); `None` when the model cannot be rebuilt there.
+    pub(crate) fn new(series: &BarSeries, model: &BarModel) -> Option<ScreenBase> {
+        let screened =
+            coarse_copy(series, COARSE_START_MIN_SAMPLES).unwrap_or_else(|| series.clone());
+        let problem = ThermalProblem::new(&screened, &model.effects).ok()?;
+        let n_gains = problem.n_gains();
+        let residuals_len = problem.observations().len();
+        let (residuals, directions) = match fit::linearise(&problem, &model.theta) {
+            Some(l) => (l.residuals, Some(fit::orthonormal_basis(&l.jacobian))),
+            None => (problem.observations().to_vec(), None),
+        };
+        drop(problem);
+        Some(ScreenBase {
+            series: screened,
+            effects: model.effects.clone(),
+            theta: model.theta.clone(),
+            n_gains,
+            residuals,
+            directions,
+            rss_um2: model.rms_um.powi(2) * model.n_samples as f64,
+            n_samples: model.n_samples,
+            weighted_residuals: series.weighted_residuals(&model.residuals_um),
+            noise: OnceLock::new(),
+            score_batch_len: (model.hac_batch_len as f64 * residuals_len as f64
+                / series.fit_index.len().max(1) as f64)
+                .ceil()
+                .max(1.0) as usize,
+        })
+    }
+
+    /// Variance of the white reading noise under the model's residual (µm², per reading), from
+    /// successive differences: `Σ (r_k − r_{k−1})² / (2 (n − 1))` of the weighted residual. A
+    /// slow wander adds only its small change from one sample to the next, so this is the noise
+    /// floor even where the model misses a slow effect.
+    pub(crate) fn white_noise_variance(&self) -> f64 {
+        let r = &self.weighted_residuals;
+        if r.len() < 2 {
+            return f64::NAN;
+        }
+        let ss: f64 = r.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum();
+        ss / (2.0 * (r.len() - 1) as f64)
+    }
+
+    /// The maximum-likelihood noise model of the model's residual ([`noise::fit_noise`]).
+    pub(crate) fn noise(&self) -> &NoiseFit {
+        self.noise
+            .get_or_init(|| noise::fit_noise(&self.weighted_residuals))
+    }
+
+    /// Screen `effect` added to the model: the RSS its linearised refit removes. `Err` names why
+    /// the term cannot be built for this bar (e.g. no events of its kind).
+    pub(crate) fn screen(&self, effect: &Effect) -> Result<Screen, String> {
+        let mut effects = self.effects.clone();
+        effects.push(effect.clone());
+        let problem = ThermalProblem::new(&self.series, &effects).map_err(|e| e.to_string())?;
+        let terms = AddedTerms {
+            problem: &problem,
+            base_theta: &self.theta,
+            first_gain: self.n_gains,
+            n_gains: problem.n_gains(),
+            residuals: &self.residuals,
+        };
+        if terms.n_gains <= terms.first_gain {
+            return Err(format!("{} adds no term to this model", effect.name()));
+        }
+        let theta0 = problem.theta0()[self.theta.len()..].to_vec();
+        let (removed, theta) = match &self.directions {
+            Some(q) => removed_rss(
+                &fit::Orthogonalised::with_orthonormal_basis(&terms, Cow::Borrowed(q)),
+                &theta0,
+            ),
+            None => removed_rss(&terms, &theta0),
+        }
+        .ok_or_else(|| format!("{} cannot be separated from the model", effect.name()))?;
+        let delta_rss_um2 = removed.clamp(0.0, self.rss_um2);
+        let (shift_rss_um2, score) = match &self.directions {
+            Some(q) => {
+                let x = terms.basis(&theta);
+                let outside = &x - q * q.tr_mul(&x);
+                (
+                    absorbed_rss(&x, q, &self.residuals),
+                    hac_score(&outside, &self.residuals, self.score_batch_len),
+                )
+            }
+            None => (0.0, 0.0),
+        };
+        let n = self.n_samples.max(1) as f64;
+        let dof = terms.linear_names().len() + theta.len();
+        Ok(Screen {
+            score,
+            dof,
+            delta_rss_um2,
+            rms_after_um: ((self.rss_um2 - delta_rss_um2) / n).sqrt(),
+            shift_rms_um: (shift_rss_um2 / n).sqrt(),
+            tau_s: theta.first().map(|t| t.exp()),
+        })
+    }
+
+    /// The model's RSS on the bar's own samples (µm²).
+    pub(crate) fn rss_um2(&self) -> f64 {
+        self.rss_um2
+    }
+}
+
+/// The score statistic `sᵀ V⁻¹ s` of columns `x` (already orthogonal to the model's Jacobian)
+/// against residual `r`: `s = xᵀ r`, `V = B/(B − k) Σ_b g_b g_bᵀ` with `g_b` the score summed
+/// over consecutive batches of `batch` rows (the batch-means HAC of `fit`, for the score).
+fn hac_score(x: &DMatrix<f64>, r: &[f64], batch: usize) -> f64 {
+    let (n, k) = x.shape();
+    let n_batches = n.div_ceil(batch.max(1));
+    if k == 0 || n_batches <= k + 1 {
+        return 0.0;
+    }
+    let mut v = DMatrix::<f64>::zeros(k, k);
+    let mut s = nalgebra::DVector::<f64>::zeros(k);
+    let mut g = nalgebra::DVector::<f64>::zeros(k);
+    for start in (0..n).step_by(batch.max(1)) {
+        let end = (start + batch).min(n);
+        for j in 0..k {
+            let col = x.column(j);
+            g[j] = (start..end).map(|i| col[i] * r[i]).sum();
+        }
+        s += &g;
+        v.ger(1.0, &g, &g, 1.0);
+    }
+    v *= n_batches as f64 / (n_batches - k) as f64;
+    let scale = v.diagonal().max();
+    if scale.is_nan() || scale <= 0.0 {
+        return 0.0;
+    }
+    match v.svd(true, true).solve(&s, 1e-12 * scale) {
+        Ok(w) => s.dot(&w).max(0.0),
+        Err(_) => 0.0,
+    }
+}
+
+/// `‖P_J X c‖²`: with `q` an orthonormal basis of the model's Jacobian `J`, `x` the new
+/// columns and `c` their coefficients in the linearised refit (the fit of `(I − P_J) X` to the
+/// residual `r`, Frisch-Waugh-Lovell), the squared change of the model's own terms. 0 when the
+/// new columns have no part outside `span(J)`.
+fn absorbed_rss(x: &DMatrix<f64>, q: &DMatrix<f64>, r: &[f64]) -> f64 {
+    let qtx = q.tr_mul(x);
+    let outside = x - q * &qtx;
+    let normal = outside.tr_mul(&outside);
+    let rhs = outside.tr_mul(&nalgebra::DVector::from_column_slice(r));
+    let scale = normal.diagonal().max();
+    if scale.is_nan() || scale <= 0.0 {
+        return 0.0;
+    }
+    match normal.svd(true, true).solve(&rhs, 1e-12 * scale) {
+        Ok(c) => (qtx * c).norm_squared(),
+        Err(_) => 0.0,
+    }
+}
+
+/// The RSS of `problem`'s observations that its best fit removes, and its time constants there.
+fn removed_rss<P: Separable>(problem: &P, theta0: &[f64]) -> Option<(f64, Vec<f64>)> {
+    let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
+    let before: f64 = problem.observations().iter().map(|r| r * r).sum();
+    let after = fit::projected_rss(problem, &theta);
+    after.is_finite().then_some((before - after, theta))
+}
+
+/// The columns a candidate adds to a model, at the model's own time constants, fitted to the
+/// model's residual: a separable problem in the candidate's own parameters only.
+struct AddedTerms<'p, 'a> {
+    /// The extended model (the model's effects, then the candidate).
+    problem: &'p ThermalProblem<'a>,
+    /// The model's time constants (`ln tau`), held: the extended problem's first nonlinear ones.
+    base_theta: &'p [f64],
+    /// Index of the first gain column the candidate adds, and the number of gain columns.
+    first_gain: usize,
+    n_gains: usize,
+    residuals: &'p [f64],
+}
+
+impl AddedTerms<'_, '_> {
+    fn full_theta(&self, theta: &[f64]) -> Vec<f64> {
+        let mut full = self.base_theta.to_vec();
+        full.extend_from_slice(theta);
+        full
+    }
+
+    fn added_columns(&self, m: DMatrix<f64>) -> DMatrix<f64> {
+        m.columns(self.first_gain, self.n_gains - self.first_gain)
+            .into_owned()
+    }
+}
+
+impl Separable for AddedTerms<'_, '_> {
+    fn observations(&self) -> &[f64] {
+        self.residuals
+    }
+    fn nonlinear_names(&self) -> Vec<String> {
+        self.problem.nonlinear_names()[self.base_theta.len()..].to_vec()
+    }
+    fn linear_names(&self) -> Vec<String> {
+        self.problem.linear_names()[self.first_gain..self.n_gains].to_vec()
+    }
+    fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
+        self.added_columns(self.problem.basis(&self.full_theta(theta)))
+    }
+    fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
+        let full = self.full_theta(theta);
+        self.added_columns(
+            self.problem
+                .basis_derivative(&full, self.base_theta.len() + k),
+        )
+    }
+    fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
+        self.problem
+            .start_search_interval(self.base_theta.len() + k)
+    }
+}

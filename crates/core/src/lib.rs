@@ -1,0 +1,20 @@
+//! dbbcal-core: the analysis of a double-ballbar campaign, from plain typed series to results.
+//!
+//! The campaign's description ([`campaign`]), the bars' series ([`series`]), the thermal model
+//! and its terms ([`model`]), the one fitting engine ([`fit`]), and the stages built on them:
+//! [`identify`], [`matching`], [`diagnose`], [`calibrate`], [`compensate`], [`acceptance`].
+//!
+//! INVARIANT (enforced by this crate's dependencies): no polars, no plotters, no file IO but
+//! the text of a `campaign.toml` handed in by the caller. Ingest (`dbbcal-io`) gives this crate
+//! [`series::CampaignLogs`]; the application writes what it returns. See ARCHITECTURE.md.
+pub mod acceptance;
+pub mod calibrate;
+pub mod campaign;
+pub mod compensate;
+pub mod diagnose;
+pub mod fit;
+pub mod identify;
+pub mod matching;
+pub mod model;
+pub mod series;
+pub mod signal;

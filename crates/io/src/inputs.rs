@@ -1,0 +1,220 @@
+//! Finding a campaign's input files and hashing them for the provenance record.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+
+use super::IngestError;
+use dbbcal_core::series::quality::{Flag, FlagKind};
+use dbbcal_core::series::{InputFile, Quality};
+
+pub(crate) const MANIFEST: &str = "campaign.toml";
+pub(crate) const ENCODERS: &str = "encoders";
+pub(crate) const TEMPERATURES: &str = "temperatures";
+pub(crate) const EVENTS: &str = "events";
+
+/// The files of one campaign directory, each list sorted by path.
+pub(crate) struct CampaignFiles {
+    pub(crate) manifest: PathBuf,
+    pub(crate) encoders: Vec<PathBuf>,
+    pub(crate) temperatures: Vec<PathBuf>,
+    pub(crate) events: Vec<PathBuf>,
+}
+
+impl CampaignFiles {
+    /// Lists the table files; encoders and temperatures must have at least one file each.
+    pub(crate) fn list(dir: &Path) -> Result<Self, IngestError> {
+        Ok(Self {
+            manifest: dir.join(MANIFEST),
+            encoders: required_table(dir, ENCODERS)?,
+            temperatures: required_table(dir, TEMPERATURES)?,
+            events: parquet_files(&dir.join(EVENTS))?,
+        })
+    }
+
+    pub(crate) fn all(&self) -> Vec<PathBuf> {
+        let mut all = vec![self.manifest.clone()];
+        all.extend(self.encoders.iter().cloned());
+        all.extend(self.temperatures.iter().cloned());
+        all.extend(self.events.iter().cloned());
+        all
+    }
+}
+
+fn required_table(dir: &Path, table: &'static str) -> Result<Vec<PathBuf>, IngestError> {
+    let folder = dir.join(table);
+    let files = parquet_files(&folder)?;
+    if files.is_empty() {
+        return Err(IngestError::MissingTable { folder, table });
+    }
+    Ok(files)
+}
+
+/// `folder/*.parquet`, sorted; hidden files are skipped and a missing folder is empty.
+pub(crate) fn parquet_files(folder: &Path) -> Result<Vec<PathBuf>, IngestError> {
+    if !folder.is_dir() {
+        return Ok(Vec::new());
+    }
+    let io_err = |e: std::io::Error| IngestError::Io {
+        path: folder.to_path_buf(),
+        message: e.to_string(),
+    };
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(folder).map_err(io_err)? {
+        let path = entry.map_err(io_err)?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if path.is_file() && name.ends_with(".parquet") && !name.starts_with('.') {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// SHA-256 of every file, paths relative to `dir` and `/`-separated, sorted by path.
+pub(crate) fn hash_inputs(dir: &Path, files: &[PathBuf]) -> Result<Vec<InputFile>, IngestError> {
+    let mut inputs = files
+        .par_iter()
+        .map(|path| hash_file(dir, path))
+        .collect::<Result<Vec<_>, _>>()?;
+    inputs.sort_by(|a, b| a.path.cmp(&b.path));
+    Ok(inputs)
+}
+
+fn hash_file(dir: &Path, path: &Path) -> Result<InputFile, IngestError> {
+    let io_err = |e: std::io::Error| IngestError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let mut file = std::fs::File::open(path).map_err(io_err)?;
+    let mut hasher = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut bytes = 0u64;
+    loop {
+        let n = file.read(&mut buf).map_err(io_err)?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buf[..n]);
+        bytes += n as u64;
+    }
+    let hex = hasher
+        .finalize()
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect::<String>();
+    Ok(InputFile {
+        path: relative_slash_path(dir, path),
+        sha256: hex,
+        bytes,
+        duplicate_of: None,
+    })
+}
+
+fn relative_slash_path(dir: &Path, path: &Path) -> String {
+    let rel = path.strip_prefix(dir).unwrap_or(path);
+    rel.components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// Size and modification time of a file, taken before it is hashed.
+pub(crate) struct Stamp {
+    path: PathBuf,
+    bytes: u64,
+    modified: Option<std::time::SystemTime>,
+}
+
+fn stamp(path: &Path) -> Result<Stamp, IngestError> {
+    let meta = std::fs::metadata(path).map_err(|e| IngestError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    Ok(Stamp {
+        path: path.to_path_buf(),
+        bytes: meta.len(),
+        modified: meta.modified().ok(),
+    })
+}
+
+/// [`Stamp`]s of `files`, in order.
+pub(crate) fn stamps(files: &[PathBuf]) -> Result<Vec<Stamp>, IngestError> {
+    files.iter().map(|p| stamp(p)).collect()
+}
+
+/// The hashes are of the bytes analysed: each file kept the size and modification time it had
+/// before hashing until the read ended, and the hash covered exactly that many bytes.
+pub(crate) fn check_unchanged(
+    dir: &Path,
+    before: &[Stamp],
+    hashed: &[InputFile],
+) -> Result<(), IngestError> {
+    for old in before {
+        let now = stamp(&old.path)?;
+        let changed = |what: String| IngestError::ChangedDuringRun {
+            path: old.path.clone(),
+            what,
+        };
+        if now.bytes != old.bytes {
+            return Err(changed(format!("{} bytes, then {}", old.bytes, now.bytes)));
+        }
+        if now.modified != old.modified {
+            return Err(changed("modification time moved".into()));
+        }
+        let rel = relative_slash_path(dir, &old.path);
+        let hashed_bytes = hashed.iter().find(|f| f.path == rel).map(|f| f.bytes);
+        if let Some(b) = hashed_bytes.filter(|&b| b != old.bytes) {
+            return Err(changed(format!("{} bytes, {b} hashed", old.bytes)));
+        }
+    }
+    Ok(())
+}
+
+/// A file byte-identical to an earlier one (by path) of its table is not read again: it is
+/// dropped from `files`, marked `duplicate_of` in `inputs` and flagged in `quality.files`.
+pub(crate) fn skip_duplicate_files(
+    dir: &Path,
+    files: &mut CampaignFiles,
+    inputs: &mut [InputFile],
+    quality: &mut Quality,
+) {
+    let hash_of = |inputs: &[InputFile], path: &Path| {
+        let rel = relative_slash_path(dir, path);
+        inputs
+            .iter()
+            .find(|f| f.path == rel)
+            .map(|f| f.sha256.clone())
+    };
+    for table in [
+        &mut files.encoders,
+        &mut files.temperatures,
+        &mut files.events,
+    ] {
+        let mut seen: Vec<(String, String)> = Vec::new();
+        let mut kept = Vec::new();
+        for path in table.drain(..) {
+            let rel = relative_slash_path(dir, &path);
+            let hash = hash_of(inputs, &path).unwrap_or_default();
+            match seen.iter().find(|(h, _)| *h == hash) {
+                Some((_, first)) => {
+                    if let Some(f) = inputs.iter_mut().find(|f| f.path == rel) {
+                        f.duplicate_of = Some(first.clone());
+                    }
+                    let note =
+                        format!("{rel} is byte-identical to {first} (same sha256): read once");
+                    quality
+                        .files
+                        .push(Flag::file(FlagKind::DuplicateFile, 0, note));
+                }
+                None => {
+                    seen.push((hash, rel));
+                    kept.push(path);
+                }
+            }
+        }
+        *table = kept;
+    }
+}
