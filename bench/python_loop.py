@@ -33,7 +33,7 @@ clever tricks (no score tests, no screening, no compression, one process) and no
    refit every remaining candidate on every bar on top of it, up to ``--max-steps`` (3) steps.
    The first step reuses the ranking of 4.
 
-Candidates (as dbbcal's ``src/model/mod.rs`` and ``channels.rs``, roughly):
+Candidates (as dbbcal's ``crates/core/src/model/mod.rs`` and ``channels.rs``, roughly):
 
 - ``second_path``: ``-alpha2 I_min lag(T - T0; tau_2)`` (start 3 h);
 - ``air_gradient``: ``dT_grad`` = mean of the other air sensors - the bar's own sensor;

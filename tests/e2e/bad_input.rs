@@ -846,7 +846,7 @@ fn repeated_rows_inside_one_file_are_counted_once_and_conflicts_flagged_on_both_
 
 /// A page that makes polars abort the process (an allocation of ~2.3e18 bytes while decoding its
 /// validity; `tests/data/page-validity-abort.parquet` is the fuzz's seed-14 case, see
-/// `src/io/fuzz_tests.rs`). No `catch_unwind` can catch that: the supervising `dbbcal` names the
+/// `crates/io/src/fuzz_tests.rs`). No `catch_unwind` can catch that: the supervising `dbbcal` names the
 /// file in one line, exit 3, the earlier output unchanged and nothing left beside it. Alone, and
 /// in one scan with a valid file of the same schema (the supervisor then decodes each alone and
 /// names the corrupt one only).

@@ -2,6 +2,7 @@
 //! Data-driven through small `check(...)` helpers in each module.
 
 mod acceptance;
+mod architecture;
 mod bad_config;
 mod bad_input;
 mod base_noise;

@@ -4,7 +4,7 @@
 //!
 //! INVARIANT: this module is the only code in the crate that uses polars. Its public API speaks
 //! only in the crate's own types (`campaign`, `series`, [`Table`]), so a polars upgrade touches
-//! `src/io/` alone.
+//! `crates/io/src/` alone.
 
 mod guard;
 mod inputs;

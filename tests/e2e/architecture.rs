@@ -1,0 +1,87 @@
+//! The crate graph holds the architecture's invariants (ARCHITECTURE.md): the compiler then
+//! refuses polars outside `dbbcal-io` and plotters outside `dbbcal-report`. These tests hold the
+//! graph itself, transitively, from `Cargo.lock` (which lists every package's dependencies,
+//! dev-dependencies included: a dev-dependency that pulled polars into core's tests would fail
+//! here too, as it would make core's tests link polars).
+
+use std::collections::{BTreeMap, BTreeSet};
+
+fn lock_graph() -> BTreeMap<String, Vec<String>> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("Cargo.lock")).expect("Cargo.lock");
+    let lock: toml::Value = toml::from_str(&text).expect("Cargo.lock is TOML");
+    let mut graph = BTreeMap::new();
+    for p in lock["package"].as_array().expect("[[package]]") {
+        let name = p["name"].as_str().expect("name").to_string();
+        let deps = p
+            .get("dependencies")
+            .and_then(|d| d.as_array())
+            .map(|d| {
+                d.iter()
+                    // "name" or "name version" when two versions are locked.
+                    .filter_map(|v| v.as_str()?.split(' ').next().map(str::to_string))
+                    .collect()
+            })
+            .unwrap_or_default();
+        graph
+            .entry(name)
+            .or_insert_with(Vec::new)
+            .extend::<Vec<String>>(deps);
+    }
+    graph
+}
+
+/// Every package `from` depends on, directly or not (itself excluded).
+fn closure(graph: &BTreeMap<String, Vec<String>>, from: &str) -> BTreeSet<String> {
+    let mut seen = BTreeSet::new();
+    let mut todo = vec![from.to_string()];
+    while let Some(p) = todo.pop() {
+        for d in graph.get(&p).into_iter().flatten() {
+            if seen.insert(d.clone()) {
+                todo.push(d.clone());
+            }
+        }
+    }
+    seen
+}
+
+/// `krate`'s closure holds none of `forbidden`.
+fn check(krate: &str, forbidden: &[&str]) {
+    let graph = lock_graph();
+    assert!(graph.contains_key(krate), "{krate} is not in Cargo.lock");
+    let deps = closure(&graph, krate);
+    let found: Vec<&&str> = forbidden.iter().filter(|f| deps.contains(**f)).collect();
+    assert!(found.is_empty(), "{krate} depends on {found:?}");
+}
+
+#[test]
+fn the_analysis_crate_links_neither_polars_nor_plotters_nor_another_dbbcal_crate() {
+    check(
+        "dbbcal-core",
+        &[
+            "polars",
+            "plotters",
+            "dbbcal-io",
+            "dbbcal-report",
+            "dbbcal-sim",
+            "dbbcal",
+        ],
+    );
+}
+
+#[test]
+fn only_the_io_crate_and_what_builds_on_it_link_polars() {
+    check("dbbcal-report", &["polars", "dbbcal-core", "dbbcal-io"]);
+    check("dbbcal-testkit", &["polars", "plotters", "dbbcal-core"]);
+    check("dbbcal-io", &["plotters", "dbbcal-report", "dbbcal-sim"]);
+    check("dbbcal-sim", &["plotters", "dbbcal-report"]);
+    let graph = lock_graph();
+    assert!(
+        closure(&graph, "dbbcal-io").contains("polars"),
+        "the io crate reads parquet"
+    );
+    assert!(
+        closure(&graph, "dbbcal-report").contains("plotters"),
+        "the report crate draws"
+    );
+}
