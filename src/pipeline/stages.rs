@@ -12,6 +12,7 @@ use crate::identify::{identify_from, BarModel};
 use crate::matching::{self, MatchInput, TemperatureHistory};
 use crate::model::Effect;
 use crate::series::BarSeries;
+use dbbcal_core::signal::interpolate::{self, Beyond};
 
 use super::*;
 
@@ -139,7 +140,7 @@ pub(super) fn air_history(
     for l in &logs {
         let ts: Vec<f64> = l.time_ns.iter().map(|&t| to_s(t)).collect();
         for (s, t) in sum.iter_mut().zip(&t_s) {
-            *s += interpolate(&ts, &l.celsius, *t);
+            *s += interpolate::linear(&ts, &l.celsius, *t, Beyond::Hold);
         }
     }
     let k = logs.len() as f64;
@@ -150,21 +151,6 @@ pub(super) fn air_history(
             .map(|s| s / k - campaign.reference_temperature_c)
             .collect(),
     }
-}
-
-pub(super) fn interpolate(x: &[f64], y: &[f64], at: f64) -> f64 {
-    let i = x.partition_point(|&v| v <= at);
-    if i == 0 {
-        return y[0];
-    }
-    if i >= x.len() {
-        return y[x.len() - 1];
-    }
-    let (x0, x1) = (x[i - 1], x[i]);
-    if x1 <= x0 {
-        return y[i];
-    }
-    y[i - 1] + (y[i] - y[i - 1]) * (at - x0) / (x1 - x0)
 }
 
 /// What matching needs of an identified bar: `None` when its model lacks `alpha` or `tau_R`;

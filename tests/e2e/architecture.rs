@@ -85,3 +85,57 @@ fn only_the_io_crate_and_what_builds_on_it_link_polars() {
         "the report crate draws"
     );
 }
+
+/// Each package's features as `cargo tree` resolves them for `selection` (offline, locked).
+fn resolved_features(selection: &[&str]) -> BTreeMap<String, BTreeSet<String>> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = std::process::Command::new(cargo)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["tree", "--offline", "--locked", "--prefix", "none"])
+        .args(["-e", "normal,build,dev", "-f", "{p}|{f}"])
+        .args(selection)
+        .output()
+        .expect("cargo tree runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut features: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let line = line.trim_end_matches(" (*)");
+        if let Some((package, list)) = line.split_once('|') {
+            let set = features.entry(package.to_string()).or_default();
+            set.extend(
+                list.split(',')
+                    .filter(|f| !f.is_empty())
+                    .map(str::to_string),
+            );
+        }
+    }
+    features
+}
+
+/// `cargo test -p dbbcal-io` or `-p dbbcal-sim` resolves every package they share with the
+/// workspace with the workspace's features (the pins in `crates/io/Cargo.toml`): otherwise
+/// each such selection builds polars a second time.
+#[test]
+fn testing_one_member_reuses_the_workspaces_build_of_its_dependencies() {
+    let workspace = resolved_features(&["--workspace"]);
+    for member in ["dbbcal-io", "dbbcal-sim"] {
+        let alone = resolved_features(&["-p", member]);
+        let differ: Vec<&String> = alone
+            .iter()
+            .filter(|(p, f)| workspace.get(*p).is_some_and(|w| w != *f))
+            .map(|(p, _)| p)
+            .collect();
+        assert!(
+            differ.is_empty(),
+            "-p {member} resolves other features for {differ:?}"
+        );
+        assert!(
+            alone.keys().any(|p| p.starts_with("polars ")),
+            "{member} builds on polars"
+        );
+    }
+}

@@ -22,6 +22,7 @@ use crate::campaign::{Campaign, Purpose};
 use crate::fit::{self, FitOptions, Separable};
 use crate::identify::BarModel;
 use crate::series::BarSeries;
+use crate::signal::interpolate::{self, Beyond};
 
 /// One calibration point: a bar on a plate length at one tilt, within one counter epoch.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -533,21 +534,11 @@ fn merge_close(rows: &[(f64, f64)]) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Piecewise-linear interpolation (linear extrapolation from the end segments).
+/// Piecewise-linear interpolation in a table's rows, continued past its ends
+/// ([`Beyond::Extend`]).
 fn interpolate_rows(rows: &[(f64, f64)], x: f64) -> f64 {
-    match rows.len() {
-        0 => f64::NAN,
-        1 => rows[0].1,
-        n => {
-            let k = rows.partition_point(|r| r.0 <= x).clamp(1, n - 1);
-            let ((x0, y0), (x1, y1)) = (rows[k - 1], rows[k]);
-            if x1 > x0 {
-                y0 + (y1 - y0) * (x - x0) / (x1 - x0)
-            } else {
-                0.5 * (y0 + y1)
-            }
-        }
-    }
+    let (xs, ys): (Vec<f64>, Vec<f64>) = rows.iter().copied().unzip();
+    interpolate::linear(&xs, &ys, x, Beyond::Extend)
 }
 
 fn table_correction_um(table: &[(f64, Vec<(f64, f64)>)], reading_mm: f64, tilt_deg: f64) -> f64 {

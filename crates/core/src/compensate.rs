@@ -26,6 +26,7 @@ use crate::campaign::{Campaign, Purpose};
 use crate::identify::BarModel;
 use crate::model::ThermalProblem;
 use crate::series::BarSeries;
+use crate::signal::interpolate;
 
 /// What compensation needs of one bar.
 #[derive(Debug, Clone, Copy)]
@@ -351,19 +352,7 @@ fn anchors_um(s: &BarSeries, model: &BarModel, campaign: &Campaign, idx: &[usize
 
 /// Linear interpolation of a track at `t`, `None` when no sample lies within `max_gap_s`.
 fn at_time(t_s: &[f64], v: &[f64], t: f64, max_gap_s: f64) -> Option<f64> {
-    let k = t_s.partition_point(|x| *x <= t);
-    let before = k.checked_sub(1).map(|j| (t_s[j], v[j]));
-    let after = t_s.get(k).map(|x| (*x, v[k]));
-    match (before, after) {
-        (Some((t0, v0)), Some((t1, v1)))
-            if t - t0 <= max_gap_s && t1 - t <= max_gap_s && t1 > t0 =>
-        {
-            Some(v0 + (v1 - v0) * (t - t0) / (t1 - t0))
-        }
-        (Some((t0, v0)), _) if t - t0 <= max_gap_s => Some(v0),
-        (_, Some((t1, v1))) if t1 - t <= max_gap_s => Some(v1),
-        _ => None,
-    }
+    interpolate::within(t_s, v, t, max_gap_s)
 }
 
 /// References for a working mount: overlapping reference mounts of other bars, grouped by

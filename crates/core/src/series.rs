@@ -8,6 +8,7 @@
 use std::collections::BTreeMap;
 
 use crate::campaign::{Bar, Campaign, TimeNs};
+use crate::signal::interpolate;
 
 mod bins;
 pub mod quality;
@@ -806,27 +807,7 @@ pub(crate) fn temperatures_at(
         if sensor.time_ns.is_empty() {
             continue;
         }
-        let mut column = Vec::with_capacity(time_ns.len());
-        let mut j = 0;
-        for &t in time_ns {
-            while j + 1 < sensor.time_ns.len() && sensor.time_ns[j + 1] <= t {
-                j += 1;
-            }
-            let (t0, t1) = (
-                sensor.time_ns[j],
-                sensor
-                    .time_ns
-                    .get(j + 1)
-                    .copied()
-                    .unwrap_or(sensor.time_ns[j]),
-            );
-            column.push(if t <= t0 || t1 <= t0 {
-                sensor.celsius[j]
-            } else {
-                let w = (t - t0) as f64 / (t1 - t0) as f64;
-                sensor.celsius[j] + w * (sensor.celsius[j + 1] - sensor.celsius[j])
-            });
-        }
+        let column = interpolate::linear_ascending(&sensor.time_ns, &sensor.celsius, time_ns);
         out.insert(id.clone(), column);
     }
     out

@@ -11,6 +11,7 @@ use super::config::{AirBetweenReadings, HiddenChannel, RoomConfig, SimConfig};
 use super::lag::FirstOrderLag;
 use super::{stream_rng, streams, Grid};
 use dbbcal_core::series::SensorLog;
+use dbbcal_core::signal::interpolate::{self, Knot};
 
 // Sensor ids the simulator writes.
 /// Id of the first air sensor.
@@ -323,8 +324,8 @@ fn air_between_readings(series: &[f64], period: usize, pre: usize, held: bool) -
             if held || b == a {
                 series[a]
             } else {
-                let f = (i - a) as f64 / (b - a) as f64;
-                series[a] + f * (series[b] - series[a])
+                let index = |k: usize| k as i64;
+                i64::lerp(index(a), index(b), series[a], series[b], index(i))
             }
         })
         .collect()
@@ -394,22 +395,11 @@ fn sample_sensor(
     };
     for k in 0..n as i64 {
         let offset_ns = k * period_ns;
-        let value = interpolate(series, offset_ns as f64 * 1e-9 / grid.step_s);
+        let value = interpolate::on_grid(series, offset_ns as f64 * 1e-9 / grid.step_s);
         log.time_ns.push(start_ns + offset_ns);
         log.celsius.push(value + normal.sample(&mut rng));
     }
     log
-}
-
-/// Linear interpolation of `series` at fractional index `x` (clamped to the ends).
-fn interpolate(series: &[f64], x: f64) -> f64 {
-    let last = series.len() - 1;
-    let i = (x.floor().max(0.0) as usize).min(last);
-    if i == last {
-        return series[last];
-    }
-    let frac = x - i as f64;
-    series[i] + frac * (series[i + 1] - series[i])
 }
 
 #[cfg(test)]

@@ -1,7 +1,9 @@
 //! Signal processing on sampled series, with no knowledge of bars, campaigns or models: the
-//! first-order lag along irregular times (`lag`), and the plate sensor's zero-phase smoothing.
+//! first-order lag along irregular times (`lag`), the one piecewise-linear interpolator
+//! (`interpolate`), and the plate sensor's zero-phase smoothing.
 //! A leaf: `series`, `model`, `diagnose` and `matching` use it; it uses none of them.
 
+pub mod interpolate;
 pub(crate) mod lag;
 
 /// Time constant of the zero-phase smoothing of the plate sensor, seconds.
