@@ -7,8 +7,8 @@
 #   - the 12-bar, 30-day, 1 Hz benchmark campaign (31 M rows) in the three row orders of
 #     bench/layouts.py (run bench/run.sh first, or set LAYOUT_DIR to where they are), no option
 #     set (bins chosen automatically);
-# beside bench/python_loop.py, the same loop done plainly in polars + scipy, when python3 has
-# polars, scipy and numpy. Writes bench/results-nightly.md.
+# beside bench/python_loop.py, the same loop done plainly in polars + scipy (its default, both
+# starts, and --starts warm), when python3 has polars, scipy and numpy. Writes bench/results-nightly.md.
 #
 #   bench/nightly.sh                 # REPEAT=3 by default (best of)
 #   PY_BARS=2 bench/nightly.sh       # the Python loop on 2 of the bars (its own timings say so)
@@ -76,6 +76,8 @@ best_of() {
             args=()
             [ "$PY_BARS" = all ] || args=(--bars "$PY_BARS")
             /usr/bin/time -f "$c: %e s wall, %U s CPU, %M KB" python3 bench/python_loop.py "$OUT/$c" "${args[@]}" 2>&1 | tail -12
+            # One start per refit: the peer's cheapest variant (sometimes wrong, see README).
+            /usr/bin/time -f "$c warm: %e s wall, %U s CPU, %M KB" python3 bench/python_loop.py "$OUT/$c" --starts warm "${args[@]}" 2>&1 | tail -6
         done
         echo '```'
     else

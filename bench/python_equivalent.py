@@ -15,11 +15,15 @@ ingest + identify for the base model (``../shared/spec/physics.md``, ``ARCHITECT
    each zero segment's median (as dbbcal does; it keeps the finite-difference Jacobian clean); readings
    outside the bar's mounts on plate lengths (or on ``check`` mounts) are dropped from the fit,
    but the thermal lags run over the bar's whole timeline (handling gaps included), as in dbbcal;
-4. model  y = -(alpha*I_min*lag(T-T0; tau_R) + beta*I_p*lag(T-T0; tau_S))*1e-3 + zero[segment]
-   (a segment is a mount, split again at ``rezero`` events), fitted by variable projection:
-   ``scipy.optimize.least_squares`` over (ln tau_R, ln tau_S), and for every trial the linear
-   parameters (alpha, beta, one zero per segment) solved by ``numpy.linalg.lstsq`` on the design
-   matrix [lag columns | one-hot segment columns].
+4. model  y = -(alpha*I_min*lag(T-T0; tau_R) + beta*I_p*lag(T-T0; tau_S))*1e-3
+             + (g_R*I_min*d(tau_R) + g_S*I_p*d(tau_S))*1e-3 + zero[segment]
+   (a segment is a mount, split again at ``rezero`` events; d(tau) = exp(-(t - t_ref)/tau) for
+   t > t_ref, 1 before, t_ref the first fitted sample: dbbcal's initial-state decay of each base
+   path, ``initial_fixed_ppm``/``initial_scale_ppm``, since the bars are not in steady state when
+   logging starts), fitted by variable projection: ``scipy.optimize.least_squares`` over
+   (ln tau_R, ln tau_S), and for every trial the linear parameters (alpha, beta, g_R, g_S, one
+   zero per segment) solved by ``numpy.linalg.lstsq`` on the design matrix [lag and decay
+   columns | one-hot segment columns].
 
 The lag is the exact first-order-hold discretisation of a first-order low-pass for irregular
 samples (dbbcal's ``signal/lag.rs``)::
@@ -191,6 +195,7 @@ class BarProblem:
             mount_of, seg_full = mount_of[starts], seg_full[starts]
 
         self.n_total = t_rel.size
+        self.t_s = t_rel * 1e-9
         self.dt_ns = np.diff(t_rel)
         self.runs = constant_step_runs(self.dt_ns)
         self.u = u
@@ -208,31 +213,40 @@ class BarProblem:
             self.y[in_k] -= np.median(self.y[in_k])
         self.evaluations = 0
 
+    def decay(self, tau):
+        """The initial-state column's time course: 1 up to the first fitted sample, then
+        exp(-(t - t_ref)/tau), exactly 0 once below 1e-13 (as dbbcal's ``model::decay``)."""
+        t = self.t_s[self.fit]
+        e = np.exp(-np.maximum(t - t[0], 0.0) / tau)
+        return np.where(e < 1e-13, 0.0, e)
+
     def columns(self, theta):
         tau_r, tau_s = np.exp(theta)
         c_r = -self.i_min_mm * 1e-3 * lag(self.dt_ns, self.u, tau_r, self.runs)
         c_s = -self.i_p_mm * 1e-3 * lag(self.dt_ns, self.u, tau_s, self.runs)
-        return c_r[self.fit], c_s[self.fit]
+        d_r = self.i_min_mm * 1e-3 * self.decay(tau_r)
+        d_s = self.i_p_mm[self.fit] * 1e-3 * self.decay(tau_s)
+        return c_r[self.fit], c_s[self.fit], d_r, d_s
 
     def linear(self, theta, project_zeros=False):
         """(alpha, beta, zeros), residual for fixed time constants."""
         self.evaluations += 1
-        c_r, c_s = self.columns(theta)
-        n, s = self.y.size, self.n_segments
+        cols = self.columns(theta)
+        n, s, p = self.y.size, self.n_segments, len(cols)
         if not project_zeros:
-            design = np.zeros((n, 2 + s))
-            design[:, 0] = c_r
-            design[:, 1] = c_s
-            design[np.arange(n), 2 + self.segment] = 1.0
+            design = np.zeros((n, p + s))
+            for j, c in enumerate(cols):
+                design[:, j] = c
+            design[np.arange(n), p + self.segment] = 1.0
             coef = np.linalg.lstsq(design, self.y, rcond=None)[0]
             return coef, self.y - design @ coef
         counts = np.bincount(self.segment, minlength=s)
         demean = lambda v: v - (np.bincount(self.segment, v, minlength=s) / counts)[self.segment]
-        x = np.column_stack((demean(c_r), demean(c_s)))
-        ab = np.linalg.lstsq(x, demean(self.y), rcond=None)[0]
-        rest = self.y - c_r * ab[0] - c_s * ab[1]
+        x = np.column_stack([demean(c) for c in cols])
+        gains = np.linalg.lstsq(x, demean(self.y), rcond=None)[0]
+        rest = self.y - np.column_stack(cols) @ gains
         zeros = np.bincount(self.segment, rest, minlength=s) / counts
-        return np.concatenate((ab, zeros)), rest - zeros[self.segment]
+        return np.concatenate((gains, zeros)), rest - zeros[self.segment]
 
 
 def fit_bar(problem: BarProblem, project_zeros: bool) -> dict:
@@ -253,7 +267,9 @@ def fit_bar(problem: BarProblem, project_zeros: bool) -> dict:
         "beta_ppm_per_k": float(coef[1]),
         "tau_r_s": float(np.exp(res.x[0])),
         "tau_s_s": float(np.exp(res.x[1])),
-        "zeros_um": coef[2:].tolist(),
+        "initial_fixed_ppm": float(coef[2]),
+        "initial_scale_ppm": float(coef[3]),
+        "zeros_um": coef[4:].tolist(),
         "rms_um": float(np.sqrt(np.mean(resid**2))),
         "n_samples": int(problem.y.size),
         "dropped_outside_mounts": problem.dropped_outside_mounts,

@@ -16,7 +16,10 @@ clever tricks (no score tests, no screening, no compression, one process) and no
    switched off, no rows), the sensors' reading times inside it join the timeline as unfitted
    points, so the air is not taken as a straight line across the gap (without them the
    head-heating campaign stopped at 0.0208 µm instead of the 0.020 noise);
-3. **base fit** per bar: ``-(alpha I_min lag(T - T0; tau_R) + beta I_p lag(T - T0; tau_S)) + zero``
+3. **base fit** per bar: ``-(alpha I_min lag(T - T0; tau_R) + beta I_p lag(T - T0; tau_S))
+   + g_R I_min d(tau_R) + g_S I_p d(tau_S) + zero``, ``d(tau)`` the decay of each base path's
+   initial departure from steady state (``exp(-(t - t_ref)/tau)``, 1 before ``t_ref``, the first
+   fitted sample; dbbcal's ``initial_fixed_ppm``/``initial_scale_ppm``)
    by variable projection: ``scipy.optimize.least_squares`` (trf, finite-difference Jacobian)
    over ``ln tau`` within [60 s, 30 days], and at every trial the linear parameters by
    ``numpy.linalg.lstsq``. The zeros are projected out (each column and the readings demeaned
@@ -111,8 +114,8 @@ START_GRID_S = np.geomspace(120.0, 2 * 86400.0, 7)  # starting grid of a candida
 PLATE_SMOOTHING_S = 300.0
 ALPHA = 0.05
 GAIN_NAMES = {
-    "fixed_part": ["alpha_ppm_per_k"],
-    "scale": ["beta_ppm_per_k"],
+    "fixed_part": ["alpha_ppm_per_k", "initial_fixed_ppm"],
+    "scale": ["beta_ppm_per_k", "initial_scale_ppm"],
     "second_path": ["alpha2_ppm_per_k"],
     "air_gradient": ["gradient_fixed_ppm_per_k", "gradient_scale_ppm_per_k"],
     "creep": ["creep_um_per_day"],
@@ -317,9 +320,9 @@ def effect_spec(effect: str, bar: Bar, man) -> dict | None:
     mi = -bar.i_min_mm * 1e-3
     mp = -bar.i_p_mm * 1e-3
     if effect == "fixed_part":
-        return {"cols": [("air", mi, "tau_r")], "tau": "tau_r", "tau0": TAU0["tau_r"]}
+        return {"cols": [("air", mi, "tau_r"), ("initial", mi, "tau_r")], "tau": "tau_r", "tau0": TAU0["tau_r"]}
     if effect == "scale":
-        return {"cols": [("air", mp, "tau_s")], "tau": "tau_s", "tau0": TAU0["tau_s"]}
+        return {"cols": [("air", mp, "tau_s"), ("initial", mp, "tau_s")], "tau": "tau_s", "tau0": TAU0["tau_s"]}
     if effect == "second_path":
         return {"cols": [("air", mi, "second_path")], "tau": "second_path", "tau0": TAU0["second_path"]}
     if effect == "air_gradient":
@@ -387,7 +390,11 @@ class Model:
                     for k in range(b.n_seg):
                         cols.append(np.where(b.segment == k, e, 0.0))
                     continue
-                if key == "creep":
+                if key == "initial":
+                    since = np.maximum(b.t_s[b.fit] - b.t_s[b.fit[0]], 0.0)
+                    e = np.exp(-since / tau[tname])
+                    x = np.where(e < 1e-13, 0.0, e)
+                elif key == "creep":
                     x = b.t_s[b.fit] / 86400.0
                 elif key == "plate":
                     x = (b.length_mm * 1e-3 * b.plate)[b.fit]
