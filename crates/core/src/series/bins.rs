@@ -318,7 +318,42 @@ pub struct BinKey {
     pub(crate) region: Region,
 }
 
-/// Where one bar's bins lie: its mounts and `rezero` events, and the bin length.
+/// Where a bar's readings fall: its mounts and the `rezero` events that apply to it (the bins'
+/// grid and the quality checks read them alike).
+#[derive(Debug, Clone)]
+pub(crate) struct Segments {
+    /// `(from_ns, to_ns, index into Campaign::mounts)`, sorted by start (mounts of one bar do
+    /// not overlap).
+    pub(crate) mounts: Vec<(TimeNs, TimeNs, usize)>,
+    /// Times of the `rezero` events that apply to the bar, sorted.
+    pub(crate) rezeros: Vec<TimeNs>,
+}
+
+impl Segments {
+    /// The mounts and `rezero` events of bar `bar`.
+    pub(crate) fn new(campaign: &Campaign, events: &[Event], bar: &str) -> Segments {
+        let mut mounts: Vec<(TimeNs, TimeNs, usize)> = campaign
+            .mounts
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.bar == bar)
+            .map(|(i, m)| (m.from_ns, m.to_ns, i))
+            .collect();
+        mounts.sort();
+        let mut rezeros: Vec<TimeNs> = events
+            .iter()
+            .filter(|e| {
+                e.kind == crate::series::EventKind::Rezero
+                    && e.bar.as_deref().is_none_or(|b| b == bar)
+            })
+            .map(|e| e.time_ns)
+            .collect();
+        rezeros.sort();
+        Segments { mounts, rezeros }
+    }
+}
+
+/// Where one bar's bins lie: its mounts and `rezero` events ([`Segments`]), and the bin length.
 #[derive(Debug, Clone)]
 pub struct BinGrid {
     bin_ns: TimeNs,
@@ -333,23 +368,7 @@ impl BinGrid {
     /// The grid of bar `bar_id` for bins of `bin_s` seconds (at most [`MAX_BIN_S`]).
     pub fn new(campaign: &Campaign, events: &[Event], bar_id: &str, bin_s: f64) -> BinGrid {
         let bin_s = bin_s.clamp(1e-6, MAX_BIN_S);
-        let mut mounts: Vec<(TimeNs, TimeNs, usize)> = campaign
-            .mounts
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.bar == bar_id)
-            .map(|(i, m)| (m.from_ns, m.to_ns, i))
-            .collect();
-        mounts.sort();
-        let mut rezeros: Vec<TimeNs> = events
-            .iter()
-            .filter(|e| {
-                e.kind == crate::series::EventKind::Rezero
-                    && e.bar.as_deref().is_none_or(|b| b == bar_id)
-            })
-            .map(|e| e.time_ns)
-            .collect();
-        rezeros.sort();
+        let Segments { mounts, rezeros } = Segments::new(campaign, events, bar_id);
         BinGrid {
             bin_ns: ((bin_s * 1e9).round() as TimeNs).max(NS_PER_US),
             mounts,

@@ -18,6 +18,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use super::bins::Segments;
 use super::{BarBins, BarLog, Event, Region, SensorLog};
 use crate::campaign::{Campaign, SensorKind, TimeNs};
 
@@ -362,35 +363,7 @@ impl Piece {
     }
 }
 
-/// Where a bar's readings fall: its mounts and `rezero` events.
-struct Segments {
-    /// `(from, to, index into Campaign::mounts)`, sorted.
-    mounts: Vec<(TimeNs, TimeNs, usize)>,
-    rezeros: Vec<TimeNs>,
-}
-
 impl Segments {
-    fn new(campaign: &Campaign, events: &[Event], bar: &str) -> Segments {
-        let mut mounts: Vec<_> = campaign
-            .mounts
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.bar == bar)
-            .map(|(i, m)| (m.from_ns, m.to_ns, i))
-            .collect();
-        mounts.sort();
-        let mut rezeros: Vec<TimeNs> = events
-            .iter()
-            .filter(|e| {
-                e.kind == crate::series::EventKind::Rezero
-                    && e.bar.as_deref().is_none_or(|b| b == bar)
-            })
-            .map(|e| e.time_ns)
-            .collect();
-        rezeros.sort();
-        Segments { mounts, rezeros }
-    }
-
     fn region(&self, t: TimeNs) -> Region {
         let after = self.mounts.partition_point(|m| m.0 <= t);
         match after.checked_sub(1).map(|i| self.mounts[i]) {
