@@ -38,7 +38,8 @@ pub(crate) fn render_all(
     let mut written = Vec::new();
     let mut add = |file: String, kind, bar: Option<&str>, caption: String| {
         let path = dir.join(&file);
-        // The report crate draws; writing into the output is this crate's, and a fault point.
+        // The report crate draws; writing into the output is this crate's: a fault point here,
+        // and each figure drawn as one write step ([`drawn`]).
         crate::output::fault::point("write", &path).map_err(|source| ReportError::Write {
             path: path.clone(),
             source,
@@ -59,7 +60,7 @@ pub(crate) fn render_all(
             Some(bar),
             format!("Bar {bar}: measured against model, temperatures, residual"),
         )?;
-        report::render_bar_fit(&bar_fit_figure(o), &path)?;
+        drawn(|| report::render_bar_fit(&bar_fit_figure(o), &path))?;
     }
     if !results.bars.is_empty() {
         let path = add(
@@ -68,7 +69,7 @@ pub(crate) fn render_all(
             None,
             "The fleet's parameters, the reference bar and the predicted mismatches".into(),
         )?;
-        report::render_fleet(&fleet(results), &path)?;
+        drawn(|| report::render_fleet(&fleet(results), &path))?;
     }
     if plan.runs(Stage::MatchStudy) {
         if let Some(study) = &results.study {
@@ -78,7 +79,7 @@ pub(crate) fn render_all(
                 None,
                 "Measured mismatch of every pair of bars".into(),
             )?;
-            report::render_heat_map(&heat_map(study), &path)?;
+            drawn(|| report::render_heat_map(&heat_map(study), &path))?;
         }
     }
     if let Some(d) = &results.diagnosis {
@@ -89,7 +90,9 @@ pub(crate) fn render_all(
                 Some(&bd.bar),
                 format!("Bar {}: residual diagnostics and channels ranked", bd.bar),
             )?;
-            report::render_residual_diagnostics(&residual_figure(bd, o, &d.sensors), &path)?;
+            drawn(|| {
+                report::render_residual_diagnostics(&residual_figure(bd, o, &d.sensors), &path)
+            })?;
         }
         if d.ledger.len() > 1 {
             let path = add(
@@ -98,7 +101,9 @@ pub(crate) fn render_all(
                 None,
                 "Forward selection: the fleet RMS as effects are added".into(),
             )?;
-            report::render_ledger(&ledger(&d.ledger, &d.sensors, plan.diagnose.beam), &path)?;
+            drawn(|| {
+                report::render_ledger(&ledger(&d.ledger, &d.sensors, plan.diagnose.beam), &path)
+            })?;
         }
         for bl in d.bar_ledgers.iter().filter(|bl| bl.steps.len() > 1) {
             let path = add(
@@ -107,7 +112,9 @@ pub(crate) fn render_all(
                 Some(&bl.bar),
                 format!("Bar {}: forward selection", bl.bar),
             )?;
-            report::render_ledger(&bar_ledger(bl, &d.sensors, plan.diagnose.beam), &path)?;
+            drawn(|| {
+                report::render_ledger(&bar_ledger(bl, &d.sensors, plan.diagnose.beam), &path)
+            })?;
         }
     }
     if let Some(ba) = &results.before_after {
@@ -117,7 +124,7 @@ pub(crate) fn render_all(
             None,
             "RMS per bar with the base model and with the effects added".into(),
         )?;
-        report::render_before_after(&before_after(ba), &path)?;
+        drawn(|| report::render_before_after(&before_after(ba), &path))?;
     }
     if let Some(acc) = &results.acceptance {
         for a in acc {
@@ -134,7 +141,7 @@ pub(crate) fn render_all(
                     a.bar, a.length_id
                 ),
             )?;
-            report::render_series_panels(&acceptance_sheet(a), &path)?;
+            drawn(|| report::render_series_panels(&acceptance_sheet(a), &path))?;
         }
         if !acc.is_empty() {
             let path = add(
@@ -143,17 +150,24 @@ pub(crate) fn render_all(
                 None,
                 "Every working bar's error after compensation".into(),
             )?;
-            report::render_series_panels(&acceptance_fleet(acc), &path)?;
+            drawn(|| report::render_series_panels(&acceptance_fleet(acc), &path))?;
             let path = add(
                 "acceptance-rms.png".into(),
                 FigureKind::Acceptance,
                 None,
                 "RMS error before and after compensation".into(),
             )?;
-            report::render_before_after(&acceptance_rms(acc), &path)?;
+            drawn(|| report::render_before_after(&acceptance_rms(acc), &path))?;
         }
     }
     Ok(written)
+}
+
+/// Draws one figure as one write step of the output ([`crate::output::writing`]): a signal
+/// removes the partial folder before or after it, never while the PNG is being written.
+fn drawn(render: impl FnOnce() -> Result<(), ReportError>) -> Result<(), ReportError> {
+    let _step = crate::output::writing();
+    render()
 }
 
 fn tolerance_lines(t: f64) -> Vec<report::RefLine> {

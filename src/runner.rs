@@ -211,11 +211,15 @@ fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
 fn write_table(plan: &RunPlan, path: &Path, table: &io::Table) -> Result<()> {
     output::fault::point("write", path)
         .with_context(|| format!("cannot write {}", path.display()))?;
-    io::write_table(path, table)?;
+    {
+        let _step = output::writing();
+        io::write_table(path, table)?;
+    }
     if plan.output.csv {
         let csv = path.with_extension("csv");
         output::fault::point("write", &csv)
             .with_context(|| format!("cannot write {}", csv.display()))?;
+        let _step = output::writing();
         io::write_table_csv(&csv, table)?;
     }
     Ok(())
@@ -250,7 +254,11 @@ fn write_outputs(
     write_calibration_outputs(plan, results, dir)?;
     let figures = if plan.runs(Stage::Report) {
         let figures = dir.join("figures");
-        std::fs::create_dir_all(&figures)?;
+        {
+            // `create_dir`, not `_all`: a partial folder a signal removed is not made again.
+            let _step = output::writing();
+            std::fs::create_dir(&figures)?;
+        }
         crate::figures::render_all(plan, results, &figures)?
     } else {
         Vec::new()

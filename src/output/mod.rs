@@ -31,7 +31,7 @@ pub(crate) mod summary;
 
 use std::fs::File;
 use std::path::{Component, Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Mutex, RwLock, RwLockReadGuard};
 
 use serde::{Deserialize, Serialize};
 
@@ -216,9 +216,12 @@ impl OutputTarget {
         marker: &Marker,
         build: impl FnOnce(&Path) -> Result<(), E>,
     ) -> Result<(), WriteFailure<E>> {
-        std::fs::create_dir(partial)
-            .map_err(OutputError::io(partial))
-            .map_err(WriteFailure::Output)?;
+        {
+            let _step = writing();
+            std::fs::create_dir(partial)
+                .map_err(OutputError::io(partial))
+                .map_err(WriteFailure::Output)?;
+        }
         let mut text = serde_json::to_string_pretty(marker).expect("the marker serialises");
         text.push('\n');
         write_file(&partial.join(MARKER), text.as_bytes()).map_err(WriteFailure::Output)?;
@@ -355,7 +358,21 @@ pub(crate) enum WriteFailure<E> {
 /// Write `bytes` to `path` (a new file in a partial folder), through the fault points.
 pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     fault::point("write", path).map_err(OutputError::io(path))?;
+    let _step = writing();
     std::fs::write(path, bytes).map_err(OutputError::io(path))
+}
+
+/// Held shared by each step that creates or writes something in a partial folder, and taken
+/// exclusively by the signal handler: it removes the folder between two steps, never during
+/// one, and no step starts after it (a step half done could recreate the folder it just
+/// removed: `create_dir_all` of `figures/`).
+static WRITING: RwLock<()> = RwLock::new(());
+
+/// The guard of one write step into the output being built ([`WRITING`]). Not re-entrant:
+/// a step holding it must not call another that takes it (a signal waiting in between would
+/// deadlock the two); and taken after the step's fault point, whose `stall` must not hold it.
+pub(crate) fn writing() -> RwLockReadGuard<'static, ()> {
+    WRITING.read().unwrap_or_else(|e| e.into_inner())
 }
 
 /// fsync every file, then every folder, under `dir` (children before parents).
@@ -572,6 +589,8 @@ pub fn install_signal_handlers() {
     std::thread::spawn(move || {
         if let Some(signal) = signals.forever().next() {
             let _swap = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
+            // Kept until the exit: no write step runs from here on.
+            let _no_more_writes = WRITING.write().unwrap_or_else(|e| e.into_inner());
             if let Some(c) = IN_PROGRESS.lock().unwrap_or_else(|e| e.into_inner()).take() {
                 let _ = std::fs::remove_dir_all(&c.partial);
                 let _ = std::fs::remove_file(&c.lock);
