@@ -257,7 +257,8 @@ fn write_outputs(
         {
             // `create_dir`, not `_all`: a partial folder a signal removed is not made again.
             let _step = output::writing();
-            std::fs::create_dir(&figures)?;
+            std::fs::create_dir(&figures)
+                .with_context(|| format!("cannot create {}", figures.display()))?;
         }
         crate::figures::render_all(plan, results, &figures)?
     } else {

@@ -12,7 +12,7 @@ use crate::identify::{identify_from, BarModel};
 use crate::matching::{self, MatchInput, TemperatureHistory};
 use crate::model::Effect;
 use crate::series::BarSeries;
-use dbbcal_core::signal::interpolate::{self, Beyond};
+use dbbcal_core::signal::interpolate;
 
 use super::*;
 
@@ -139,8 +139,9 @@ pub(super) fn air_history(
     let mut sum = vec![0.0; n];
     for l in &logs {
         let ts: Vec<f64> = l.time_ns.iter().map(|&t| to_s(t)).collect();
-        for (s, t) in sum.iter_mut().zip(&t_s) {
-            *s += interpolate::linear(&ts, &l.celsius, *t, Beyond::Hold);
+        let at_history = interpolate::linear_ascending(&ts, &l.celsius, &t_s);
+        for (s, v) in sum.iter_mut().zip(at_history) {
+            *s += v;
         }
     }
     let k = logs.len() as f64;

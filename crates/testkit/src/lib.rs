@@ -192,9 +192,17 @@ pub fn apply(text: &str, edits: &[Edit]) -> String {
 }
 
 /// `rel` under the workspace's root: a member's tests run in the member's own folder, and the
-/// shipped sample, the pipelines and the test data live at the root.
+/// shipped sample, the pipelines and the test data live at the root. Found at run time (the
+/// nearest folder above the tested crate's `CARGO_MANIFEST_DIR` that holds `Cargo.lock`), not
+/// baked in when this crate is compiled: checkouts sharing one target directory share this
+/// crate's build, and a baked path would point into whichever checkout built it.
 pub fn repo_path(rel: &str) -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(rel)
+    let start = std::env::var_os("CARGO_MANIFEST_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::env::current_dir().expect("the tests' working directory"));
+    let root = start
+        .ancestors()
+        .find(|d| d.join("Cargo.lock").is_file())
+        .unwrap_or(&start);
+    root.join(rel)
 }
