@@ -7,7 +7,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 fn lock_graph() -> BTreeMap<String, Vec<String>> {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = crate::support::root();
     let text = std::fs::read_to_string(root.join("Cargo.lock")).expect("Cargo.lock");
     let lock: toml::Value = toml::from_str(&text).expect("Cargo.lock is TOML");
     let mut graph = BTreeMap::new();
@@ -90,7 +90,7 @@ fn only_the_io_crate_and_what_builds_on_it_link_polars() {
 fn resolved_features(selection: &[&str]) -> BTreeMap<String, BTreeSet<String>> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = std::process::Command::new(cargo)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .current_dir(crate::support::root())
         .args(["tree", "--offline", "--locked", "--prefix", "none"])
         .args(["-e", "normal,build,dev", "-f", "{p}|{f}"])
         .args(selection)

@@ -191,8 +191,7 @@ fn the_readme_names_every_field_of_summary_json() {
     let out = tmp.path().join("out");
     run_pipeline_ok("pipelines/nightly.toml", &out);
     let s = read_json(&out.join("summary.json"));
-    let readme =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let readme = std::fs::read_to_string(crate::support::root().join("README.md")).unwrap();
     let row = readme
         .lines()
         .find(|l| l.starts_with("| `summary.json` |"))

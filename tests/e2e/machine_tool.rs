@@ -25,8 +25,7 @@ fn datetime(ns: i64) -> toml::value::Datetime {
 /// Read `data.csv` into a campaign directory.
 fn convert(dir: &Path) {
     let csv = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/external/fl-thermal-machine-tool/data.csv"),
+        crate::support::root().join("../shared/external/fl-thermal-machine-tool/data.csv"),
     )
     .unwrap();
     let mut lines = csv.lines();

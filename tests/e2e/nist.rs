@@ -21,7 +21,7 @@ struct Certified {
 }
 
 fn nist_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/external/nist-strd")
+    crate::support::root().join("../shared/external/nist-strd")
 }
 
 /// Parse a NIST `.dat` file: `bK = start1 start2 certified sd` lines, the certified RSS, and the

@@ -17,7 +17,7 @@ fn dbbcal(args: &[&str], env: &[(&str, &str)]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dbbcal"))
         .args(args)
         .envs(env.iter().copied())
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .current_dir(crate::support::root())
         .env("CI", "1")
         .output()
         .expect("run dbbcal")

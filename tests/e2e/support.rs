@@ -56,7 +56,7 @@ pub(crate) fn rel(est: f64, truth: f64) -> f64 {
 pub(crate) fn run_cli(args: &[&str]) -> (i32, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dbbcal"))
         .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .current_dir(crate::support::root())
         .env("CI", "1")
         .output()
         .expect("run dbbcal");
@@ -191,7 +191,7 @@ pub(crate) fn base_only_campaign(
 pub(crate) fn run_cli_env(args: &[&str], env: &[(&str, &str)]) -> (i32, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dbbcal"))
         .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .current_dir(crate::support::root())
         .env("CI", "1")
         .envs(env.iter().copied())
         .output()
@@ -208,4 +208,13 @@ pub(crate) fn run_pipeline_ok(pipeline: &str, out: &Path) -> String {
     let (code, _, stderr) = run_cli(&["run", pipeline, "--out", out.to_str().unwrap()]);
     assert_eq!(code, 0, "{pipeline}: {stderr}");
     stderr
+}
+
+/// The repository root, read when the test runs (cargo sets `CARGO_MANIFEST_DIR` for it; tests
+/// also run there). Not `env!`: checkouts that share one target directory share this binary,
+/// and a path baked in at compile time would point into whichever checkout built it.
+pub(crate) fn root() -> PathBuf {
+    std::env::var_os("CARGO_MANIFEST_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| std::env::current_dir().expect("the tests' working directory"))
 }
