@@ -189,6 +189,21 @@ impl BadRange {
         }
     }
 
+    /// Adds `other` to the range kept under `key` (file, column, problem); the example is the
+    /// first row's.
+    fn merge_into<K: Ord>(ranges: &mut BTreeMap<K, BadRange>, key: K, other: BadRange) {
+        let Some(mine) = ranges.get_mut(&key) else {
+            ranges.insert(key, other);
+            return;
+        };
+        if other.first_row < mine.first_row {
+            mine.example = other.example;
+        }
+        mine.rows += other.rows;
+        mine.first_row = mine.first_row.min(other.first_row);
+        mine.last_row = mine.last_row.max(other.last_row);
+    }
+
     fn error(self, path: PathBuf, column: &'static str, problem: &str) -> IngestError {
         IngestError::BadRows {
             path,
@@ -271,25 +286,101 @@ pub(crate) fn read_tables(
 ) -> Result<Tables, IngestError> {
     let bar_ids: BTreeSet<&str> = campaign.bars.iter().map(|b| b.id.as_str()).collect();
     let sensor_ids: BTreeSet<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
-    let mut zones = Vec::new();
-
     let clock = std::time::Instant::now();
+    // The temperatures are read on a second thread while the encoder files stream: the bins do
+    // not need them, and the stream leaves a core partly idle (its consumer is serial). Errors
+    // keep their order: a temperature error is reported before any other.
+    let (temperatures, rest) = std::thread::scope(|scope| {
+        let temperatures = scope.spawn(|| read_temperatures(files, &sensor_ids));
+        let rest = read_events_and_encoders(files, campaign, &bar_ids, bin_s);
+        let temperatures = temperatures.join().unwrap_or_else(|_| {
+            Err(IngestError::Polars {
+                context: "temperatures".into(),
+                message: "the temperature reader panicked".into(),
+            })
+        });
+        (temperatures, rest)
+    });
+    let (sensors, sensor_quality, mut zones) = temperatures?;
+    let (events, event_quality, encoders, other_zones) = rest?;
+    tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
+    quality.sensors.extend(sensor_quality);
+    quality.events = event_quality;
+    zones.extend(other_zones);
+    let (mut bars, mut bins) = (encoders.logs, encoders.bins);
+    check_bars(campaign, &events, &sensors, &mut bars, &mut bins, quality);
+    for (id, (rows, missing)) in encoders.rows {
+        let q = quality.bars.entry(id).or_default();
+        q.rows = rows;
+        missing.record(q, "encoder rows");
+    }
+    for (id, overlap) in encoders.overlaps {
+        let q = quality.bars.entry(id).or_default();
+        q.duplicate_rows += overlap.removed;
+        q.dropped_rows += overlap.removed;
+        q.flags.extend(overlap.flags);
+    }
+    flag_mixed_zones(&zones, quality);
+    Ok(Tables {
+        bars,
+        bins,
+        sensors,
+        events,
+    })
+}
+
+/// Per sensor: its log and its quality record; and each temperature file's path and whether
+/// its times are zoned.
+type TemperatureTables = (
+    BTreeMap<String, SensorLog>,
+    BTreeMap<String, ChannelQuality>,
+    Vec<(PathBuf, bool)>,
+);
+
+/// Every temperature file, checked (nulls, undeclared sensors), as one log per declared sensor.
+fn read_temperatures(
+    files: &CampaignFiles,
+    sensor_ids: &BTreeSet<&str>,
+) -> Result<TemperatureTables, IngestError> {
+    let clock = std::time::Instant::now();
+    let mut zones = Vec::new();
     let temperatures = read_table(&files.temperatures, &TEMPERATURE_COLUMNS, &mut zones)?;
     let readings =
-        sensor_readings(&temperatures, &sensor_ids).map_err(polars_error("temperatures"))?;
+        sensor_readings(&temperatures, sensor_ids).map_err(polars_error("temperatures"))?;
     let matched = readings.values().map(DataFrame::height).sum();
     check_all_rows_known(
         &temperatures,
         matched,
         &files.temperatures,
         "sensor",
-        &sensor_ids,
+        sensor_ids,
     )?;
     drop(temperatures);
+    let mut sensors = BTreeMap::new();
+    let mut quality = BTreeMap::new();
+    for (id, df) in &readings {
+        let q: &mut ChannelQuality = quality.entry(id.clone()).or_default();
+        let log = sensor_log(df, q).map_err(polars_error("temperatures"))?;
+        sensors.insert(id.clone(), log);
+    }
     tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
+    Ok((sensors, quality, zones))
+}
 
-    // Events first: the bins of a bar never cross its rezero events.
-    let events = read_events(&files.events, &bar_ids, &mut zones, &mut quality.events)?;
+/// The events and their quality record, the encoder table, and each of their files' path and
+/// whether its times are zoned.
+type EventAndEncoderTables = (Vec<Event>, ChannelQuality, Encoders, Vec<(PathBuf, bool)>);
+
+/// The events first (the bins of a bar never cross its rezero events), then the encoders.
+fn read_events_and_encoders(
+    files: &CampaignFiles,
+    campaign: &Campaign,
+    bar_ids: &BTreeSet<&str>,
+    bin_s: f64,
+) -> Result<EventAndEncoderTables, IngestError> {
+    let mut zones = Vec::new();
+    let mut event_quality = ChannelQuality::default();
+    let events = read_events(&files.events, bar_ids, &mut zones, &mut event_quality)?;
     // The footers' rows: at full rate each bar's log is reserved once from them (no doubling
     // overshoot); with bins they set the slot width of each bar's repeat sketch.
     let footers = footer_rows_each(&files.encoders)?;
@@ -315,39 +406,12 @@ pub(crate) fn read_tables(
     let encoders = read_encoders(
         &files.encoders,
         &footers,
-        &bar_ids,
+        bar_ids,
         &grids,
         rows_hint,
         &mut zones,
     )?;
-    tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
-
-    let mut sensors = BTreeMap::new();
-    for (id, df) in &readings {
-        let q = quality.sensors.entry(id.clone()).or_default();
-        let log = sensor_log(df, q).map_err(polars_error("temperatures"))?;
-        sensors.insert(id.clone(), log);
-    }
-    let (mut bars, mut bins) = (encoders.logs, encoders.bins);
-    check_bars(campaign, &events, &sensors, &mut bars, &mut bins, quality);
-    for (id, (rows, missing)) in encoders.rows {
-        let q = quality.bars.entry(id).or_default();
-        q.rows = rows;
-        missing.record(q, "encoder rows");
-    }
-    for (id, overlap) in encoders.overlaps {
-        let q = quality.bars.entry(id).or_default();
-        q.duplicate_rows += overlap.removed;
-        q.dropped_rows += overlap.removed;
-        q.flags.extend(overlap.flags);
-    }
-    flag_mixed_zones(&zones, quality);
-    Ok(Tables {
-        bars,
-        bins,
-        sensors,
-        events,
-    })
+    Ok((events, event_quality, encoders, zones))
 }
 
 /// Every bar's encoder checks (`series::quality`), bars in parallel.
@@ -806,6 +870,82 @@ impl EncoderSink {
         Ok(())
     }
 
+    /// Adds what another consumer's sink gathered from its batches. Every part is a sum, a
+    /// count, a range or a set, so the merged sink is the one a single consumer would have
+    /// filled (full-rate rows differ only in order, and are sorted afterwards).
+    fn merge(&mut self, other: EncoderSink) {
+        for (key, n) in other.nulls {
+            *self.nulls.entry(key).or_insert(0) += n;
+        }
+        for (key, u) in other.unknown {
+            let entry = self.unknown.entry(key).or_insert(Unknown {
+                rows: 0,
+                first_ns: u.first_ns,
+                last_ns: u.last_ns,
+            });
+            entry.rows += u.rows;
+            entry.first_ns = entry.first_ns.min(u.first_ns);
+            entry.last_ns = entry.last_ns.max(u.last_ns);
+        }
+        for (key, b) in other.bad {
+            BadRange::merge_into(&mut self.bad, key, b);
+        }
+        for (key, r) in other.ranges {
+            let entry = self.ranges.entry(key).or_insert(FileRange {
+                rows: 0,
+                first_ns: r.first_ns,
+                last_ns: r.last_ns,
+            });
+            entry.rows += r.rows;
+            entry.first_ns = entry.first_ns.min(r.first_ns);
+            entry.last_ns = entry.last_ns.max(r.last_ns);
+        }
+        // Declared bars have the same indices in every sink (undeclared ids, numbered as they
+        // appear, are reported by name through `unknown`).
+        let declared = self.bars.len();
+        let longest = self.read.len().max(other.read.len()).min(declared);
+        if self.read.len() < longest {
+            self.read.resize(longest, (0, Missing::default()));
+        }
+        for (mine, theirs) in self.read.iter_mut().zip(&other.read).take(declared) {
+            mine.0 += theirs.0;
+            mine.1.merge(&theirs.1);
+        }
+        self.bin_error = match (self.bin_error.take(), other.bin_error) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        for (mine, theirs) in self.bars.iter_mut().zip(other.bars) {
+            match (mine, theirs) {
+                (
+                    BarRows::Kept { time_ns, counts },
+                    BarRows::Kept {
+                        time_ns: more_time,
+                        counts: more_counts,
+                    },
+                ) => {
+                    time_ns.extend_from_slice(&more_time);
+                    counts.extend_from_slice(&more_counts);
+                }
+                (
+                    BarRows::Binned { bins, repeats },
+                    BarRows::Binned {
+                        bins: more_bins,
+                        repeats: more_repeats,
+                    },
+                ) => {
+                    if let Err(e) = bins.merge(*more_bins) {
+                        self.bin_error.get_or_insert(e.to_string());
+                    }
+                    if let (Some(mine), Some(theirs)) = (repeats.as_mut(), more_repeats) {
+                        mine.merge(theirs);
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
     /// Times of the batch in ns, or `None` (rows recorded in `bad`) when one is out of range.
     fn times_ns(&mut self, raw: &[i64], offset: u64) -> Option<Vec<i64>> {
         let unit = self.time;
@@ -832,18 +972,7 @@ impl EncoderSink {
     }
 
     fn merge_bad(&mut self, column: &'static str, problem: &'static str, b: BadRange) {
-        let slot = self
-            .bad
-            .entry((self.file, column, problem))
-            .or_insert(BadRange {
-                rows: 0,
-                first_row: b.first_row,
-                last_row: b.last_row,
-                example: b.example.clone(),
-            });
-        slot.rows += b.rows;
-        slot.first_row = slot.first_row.min(b.first_row);
-        slot.last_row = slot.last_row.max(b.last_row);
+        BadRange::merge_into(&mut self.bad, (self.file, column, problem), b);
     }
 
     /// Counts that are not a clean int64 column (nulls, floats, values beyond ±2^48): missing
@@ -1428,20 +1557,35 @@ struct Encoders {
     overlaps: BTreeMap<String, Overlap>,
 }
 
-/// Streams every encoder file into a sink with rows `rows(id)` per declared bar: polars
-/// decodes while a second thread splits and accumulates the batches it hands over (a bounded
-/// queue, so at most a few batches wait): the two overlap on two cores. `shared_scans`: files
-/// of one schema share a scan (their batches then carry no file index; `footer_rows`, each
-/// file's, attribute their rows).
+/// One decoded batch of rows of one encoder file, as the consumers get it.
+struct Batch {
+    /// Index of the file.
+    file: u32,
+    /// The file's rows before this batch (bad rows are named by their row in the file).
+    row_offset: u64,
+    /// How the file stores its times.
+    time: TimeColumn,
+    frame: DataFrame,
+}
+
+/// Consumers of the decoded batches: each splits and accumulates whole batches into a sink of
+/// its own, and the sinks are merged at the end (bins and repeat sketches are order-free
+/// sums). One consumer was the stream's long pole: per row it costs more than polars' decoding.
+const BATCH_CONSUMERS: usize = 2;
+
+/// Streams every encoder file into sinks with rows `rows(id)` per declared bar, merged into
+/// one: polars decodes while [`BATCH_CONSUMERS`] threads split and accumulate the batches it
+/// hands over (a bounded queue, so at most a few batches wait). `shared_scans`: files of one
+/// schema share a scan (each batch is cut at the files' footer row counts, `footer_rows`).
 fn stream_encoders(
     files: &[PathBuf],
     footer_rows: &[u64],
     bar_ids: &BTreeSet<&str>,
-    rows: &dyn Fn(&str) -> BarRows,
+    rows: &(dyn Fn(&str) -> BarRows + Sync),
     shared_scans: bool,
     zones: &mut Vec<(PathBuf, bool)>,
 ) -> Result<EncoderSink, IngestError> {
-    let mut sink = EncoderSink {
+    let new_sink = || EncoderSink {
         file: 0,
         row_offset: 0,
         time: TimeColumn::of(None),
@@ -1458,37 +1602,59 @@ fn stream_encoders(
         grouped_counts: Vec::new(),
         group_start: Vec::new(),
     };
-    let (batches, received) = std::sync::mpsc::sync_channel::<(u32, TimeColumn, DataFrame)>(4);
+    let (batches, received) = std::sync::mpsc::sync_channel::<Batch>(4);
+    // Shared by the consumers only: when every consumer has stopped (an error), the receiver is
+    // dropped and polars' next send fails, which ends the scan.
+    let received = std::sync::Arc::new(std::sync::Mutex::new(received));
+    let consumer_failed = || IngestError::Polars {
+        context: "encoders".into(),
+        message: "a batch consumer panicked".into(),
+    };
     std::thread::scope(|scope| {
-        let consumer = scope.spawn(move || -> PolarsResult<EncoderSink> {
-            for (file, time, batch) in received {
-                if file != sink.file {
-                    sink.row_offset = 0;
-                }
-                (sink.file, sink.time) = (file, time);
-                sink.push(&batch)?;
-            }
-            Ok(sink)
-        });
+        let consumers: Vec<_> = (0..BATCH_CONSUMERS)
+            .map(|_| {
+                let mut sink = new_sink();
+                let received = received.clone();
+                scope.spawn(move || -> PolarsResult<EncoderSink> {
+                    loop {
+                        let next = match received.lock() {
+                            Ok(queue) => queue.recv(),
+                            Err(_) => break,
+                        };
+                        let Ok(batch) = next else { break };
+                        (sink.file, sink.row_offset, sink.time) =
+                            (batch.file, batch.row_offset, batch.time);
+                        sink.push(&batch.frame)?;
+                    }
+                    Ok(sink)
+                })
+            })
+            .collect();
+        drop(received);
         let streamed = stream_files(files, footer_rows, batches, shared_scans, zones);
-        let sink = consumer
-            .join()
-            .map_err(|_| IngestError::Polars {
-                context: "encoders".into(),
-                message: "the batch consumer panicked".into(),
-            })?
-            .map_err(polars_error("encoders"))?;
-        streamed.map(|()| sink)
+        let mut merged: Option<EncoderSink> = None;
+        for consumer in consumers {
+            let sink = consumer
+                .join()
+                .map_err(|_| consumer_failed())?
+                .map_err(polars_error("encoders"))?;
+            match merged.as_mut() {
+                None => merged = Some(sink),
+                Some(all) => all.merge(sink),
+            }
+        }
+        streamed?;
+        merged.ok_or_else(consumer_failed)
     })
 }
 
-/// Streams every encoder file, sending each batch with its file's index (`u32::MAX` from a scan
-/// shared by several files) to `batches`. `shared_scans`: consecutive files of one schema are
+/// Streams every encoder file, sending each batch with its file's index and its rows' offset in
+/// that file to `batches`. `shared_scans`: consecutive files of one schema are
 /// read by one scan; else one scan a file. `footer_rows`: each file's rows, as its footer says.
 fn stream_files(
     files: &[PathBuf],
     footer_rows: &[u64],
-    batches: std::sync::mpsc::SyncSender<(u32, TimeColumn, DataFrame)>,
+    batches: std::sync::mpsc::SyncSender<Batch>,
     shared_scans: bool,
     zones: &mut Vec<(PathBuf, bool)>,
 ) -> Result<(), IngestError> {
@@ -1535,21 +1701,32 @@ fn stream_files(
         // known (`FileRange`) without a per-row path column.
         let to_consumer = batches.clone();
         let batch_cursor = cursor.clone();
+        // Rows of a scan of one file sent so far: each batch's offset in its file.
+        let sent = std::sync::atomic::AtomicU64::new(0);
         let callback = PlanCallback::new(move |batch: DataFrame| {
-            let send = |file: u32, batch: DataFrame| {
+            let send = |file: u32, row_offset: u64, frame: DataFrame| {
                 to_consumer
-                    .send((file, time, batch))
-                    .map_err(|_| polars_err!(ComputeError: "the batch consumer stopped"))
+                    .send(Batch {
+                        file,
+                        row_offset,
+                        time,
+                        frame,
+                    })
+                    .map_err(|_| polars_err!(ComputeError: "the batch consumers stopped"))
             };
             match &batch_cursor {
-                None => send(file, batch)?,
+                None => {
+                    let rows = batch.height() as u64;
+                    let offset = sent.fetch_add(rows, std::sync::atomic::Ordering::Relaxed);
+                    send(file, offset, batch)?
+                }
                 Some(cursor) => {
                     let parts = cursor
                         .lock()
                         .map_err(|_| polars_err!(ComputeError: "the file cursor was poisoned"))?
                         .split(batch)?;
-                    for (file, part) in parts {
-                        send(file, part)?;
+                    for (file, offset, part) in parts {
+                        send(file, offset, part)?;
                     }
                 }
             }
@@ -1602,9 +1779,10 @@ impl FileCursor {
         }
     }
 
-    /// The next batch of the scan cut into runs of one file, each with its file's index. More
-    /// rows than the footers announce is an error (it cannot happen with valid footers).
-    fn split(&mut self, batch: DataFrame) -> PolarsResult<Vec<(u32, DataFrame)>> {
+    /// The next batch of the scan cut into runs of one file, each with its file's index and
+    /// the file's rows before it. More rows than the footers announce is an error (it cannot
+    /// happen with valid footers).
+    fn split(&mut self, batch: DataFrame) -> PolarsResult<Vec<(u32, u64, DataFrame)>> {
         let mut parts = Vec::with_capacity(1);
         let (mut start, n) = (0usize, batch.height());
         while start < n {
@@ -1618,7 +1796,8 @@ impl FileCursor {
             } else {
                 batch.slice(start as i64, take)
             };
-            parts.push((self.files[self.at].0, part));
+            let (file, rows) = self.files[self.at];
+            parts.push((file, rows - self.left, part));
             self.left -= take as u64;
             start += take;
         }
@@ -1905,14 +2084,19 @@ mod file_cursor_tests {
         DataFrame::new(n, vec![Column::new("time".into(), values)]).unwrap()
     }
 
-    fn firsts(parts: &[(u32, DataFrame)]) -> Vec<(u32, usize, i64)> {
+    /// (file, rows, first time) of each part; the parts' offsets in their files.
+    fn firsts(parts: &[(u32, u64, DataFrame)]) -> Vec<(u32, usize, i64)> {
         parts
             .iter()
-            .map(|(f, df)| {
+            .map(|(f, _, df)| {
                 let first = df.column("time").unwrap().i64().unwrap().get(0).unwrap();
                 (*f, df.height(), first)
             })
             .collect()
+    }
+
+    fn offsets(parts: &[(u32, u64, DataFrame)]) -> Vec<u64> {
+        parts.iter().map(|p| p.1).collect()
     }
 
     #[test]
@@ -1921,9 +2105,11 @@ mod file_cursor_tests {
         let mut cursor = FileCursor::new(vec![(3, 4), (5, 0), (7, 3), (9, 2)]);
         let parts = cursor.split(batch(6)).unwrap();
         assert_eq!(firsts(&parts), vec![(3, 4, 0), (7, 2, 4)]);
+        assert_eq!(offsets(&parts), vec![0, 0]);
         assert_eq!(cursor.unread(), Some((7, 1)));
         let parts = cursor.split(batch(3)).unwrap();
         assert_eq!(firsts(&parts), vec![(7, 1, 0), (9, 2, 1)]);
+        assert_eq!(offsets(&parts), vec![2, 0]);
         assert_eq!(cursor.unread(), None);
         assert!(cursor.split(batch(1)).is_err(), "rows beyond the footers");
     }

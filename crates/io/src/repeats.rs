@@ -33,6 +33,8 @@ pub(crate) struct RepeatSketch {
     bits: Vec<u64>,
     candidates: Vec<u64>,
     rows: u64,
+    /// Set by a [`RepeatSketch::merge`] of sketches made differently: look everywhere.
+    everything: bool,
 }
 
 /// Where a bar's rows may repeat: time windows `[from, to]` (ns, sorted, disjoint), or the
@@ -73,6 +75,7 @@ impl RepeatSketch {
             bits: vec![0; slots.div_ceil(64) as usize],
             candidates: Vec::new(),
             rows: 0,
+            everything: false,
         })
     }
 
@@ -94,13 +97,46 @@ impl RepeatSketch {
         }
     }
 
+    /// Adds the rows `other` marked, a sketch of the same bar made the same way (ingest's
+    /// consumers each mark one): a slot marked in both becomes a candidate, so the candidates
+    /// are those of one sketch given every row, one per row after a slot's first.
+    pub(crate) fn merge(&mut self, other: RepeatSketch) {
+        let same = (self.origin_ns, self.span_ns, self.shift, self.bits.len())
+            == (
+                other.origin_ns,
+                other.span_ns,
+                other.shift,
+                other.bits.len(),
+            );
+        self.rows += other.rows;
+        if !same {
+            // Cannot happen (every consumer clones one sketch per bar); were it to, every
+            // checked time is looked at again rather than a repeat missed.
+            self.everything = true;
+            return;
+        }
+        self.candidates.extend(other.candidates);
+        for (word, (mine, theirs)) in self.bits.iter_mut().zip(&other.bits).enumerate() {
+            let mut both = *mine & theirs;
+            while both != 0 {
+                self.candidates
+                    .push(((word as u64) << 6) | u64::from(both.trailing_zeros()));
+                both &= both - 1;
+            }
+            *mine |= theirs;
+        }
+    }
+
     /// Where repeated times may be: the candidate slots as merged time windows (two readings
     /// of one time always share a slot).
     pub(crate) fn windows(mut self) -> RepeatWindows {
+        let last = self.origin_ns + self.span_ns as i64 - 1;
+        if self.everything {
+            return RepeatWindows::Everything(self.origin_ns, last);
+        }
         if self.candidates.is_empty() {
             return RepeatWindows::None;
         }
-        let last = self.origin_ns + self.span_ns as i64 - 1;
         if self.candidates.len() as u64 > self.rows / MAX_CANDIDATE_SHARE {
             return RepeatWindows::Everything(self.origin_ns, last);
         }
@@ -133,6 +169,7 @@ mod tests {
             bits: vec![0; ((span_ns >> shift) + 1).div_ceil(64) as usize],
             candidates: Vec::new(),
             rows: 0,
+            everything: false,
         }
     }
 
@@ -155,6 +192,29 @@ mod tests {
         let mut clean = sketch(2_000_000, 8);
         clean.add(&times);
         assert_eq!(clean.windows(), RepeatWindows::None);
+    }
+
+    #[test]
+    fn sketches_merged_find_the_times_one_sketch_finds() {
+        let times: Vec<i64> = (0..1000).map(|i| 1_000 + i * 1024).collect();
+        // A time repeated across the two halves, one repeated within the second, one not at all.
+        let (mut first, mut second) = (sketch(2_000_000, 8), sketch(2_000_000, 8));
+        first.add(&times[..600]);
+        second.add(&times[600..]);
+        second.add(&[times[100], times[900]]);
+        let mut one = sketch(2_000_000, 8);
+        one.add(&times);
+        one.add(&[times[100], times[900]]);
+        first.merge(second);
+        assert_eq!(first.rows, one.rows);
+        assert_eq!(first.candidates.len(), one.candidates.len());
+        assert_eq!(first.windows(), one.windows());
+        let mut other_shift = sketch(2_000_000, 8);
+        other_shift.merge(sketch(2_000_000, 9));
+        assert!(matches!(
+            other_shift.windows(),
+            RepeatWindows::Everything(..)
+        ));
     }
 
     #[test]

@@ -68,6 +68,9 @@ pub enum BinError {
     /// More than 2^31 readings for one bar.
     #[error("more than 2^31 readings for one bar")]
     TooManyReadings,
+    /// Two accumulators merged that were not made on the same grid.
+    #[error("bins of different grids cannot be merged")]
+    OtherGrid,
     /// A reading removed from a bin that holds none.
     #[error("reading at {time_ns} ns removed from a bin that holds no reading")]
     NotAdded {
@@ -755,6 +758,54 @@ impl BinAccumulator {
         }
     }
 
+    /// Adds every reading of `other`, an accumulator made on the same grid: ingest's consumers
+    /// each fill one while the encoder batches stream, and merge them at the end. A bin's
+    /// moments are integer sums, so the result is exactly that of one accumulator given every
+    /// reading, in any order ([`BinError::OtherGrid`] for another grid, nothing added).
+    pub fn merge(&mut self, other: BinAccumulator) -> Result<(), BinError> {
+        let same_grid = other.bin_ns == self.bin_ns
+            && other.spans.len() == self.spans.len()
+            && other
+                .spans
+                .iter()
+                .zip(&self.spans)
+                .all(|(a, b)| (a.from, a.to, a.anchor) == (b.from, b.to, b.anchor));
+        if !same_grid {
+            return Err(BinError::OtherGrid);
+        }
+        self.readings = self
+            .readings
+            .checked_add(other.readings)
+            .filter(|&r| r <= MAX_BAR_READINGS)
+            .ok_or(BinError::TooManyReadings)?;
+        let Self { spans, pages, .. } = self;
+        let mut theirs: Vec<Option<Box<[BinMoments]>>> =
+            other.pages.into_iter().map(Some).collect();
+        for (span, their_span) in spans.iter_mut().zip(&other.spans) {
+            for (number, page) in their_span.pages() {
+                let Some(moments) = theirs[page as usize].take() else {
+                    continue;
+                };
+                let slot = span.slot(number);
+                match *slot {
+                    NO_PAGE => {
+                        *slot = pages.len() as u32;
+                        pages.push(moments);
+                    }
+                    mine => {
+                        let target = &mut pages[mine as usize];
+                        target
+                            .iter_mut()
+                            .zip(moments.iter())
+                            .for_each(|(a, b)| a.merge(b));
+                    }
+                }
+            }
+        }
+        self.current = None;
+        Ok(())
+    }
+
     /// The bin holding a reading at `t`, its page created if needed.
     fn locate(&mut self, t: TimeNs) -> Current {
         let s = match self.spans.get(self.last_span) {
@@ -796,16 +847,7 @@ impl BinAccumulator {
     pub fn finish(self) -> BarBins {
         let mut bins: Vec<(BinKey, BinMoments)> = Vec::new();
         for span in &self.spans {
-            let mut pages: Vec<(i64, u32)> = span
-                .slots
-                .iter()
-                .enumerate()
-                .filter(|(_, &p)| p != NO_PAGE)
-                .map(|(k, &p)| (span.base + k as i64, p))
-                .chain(span.far.iter().map(|(&k, &p)| (k, p)))
-                .collect();
-            pages.sort_unstable();
-            for (number, page) in pages {
+            for (number, page) in span.pages() {
                 for (index, moments) in self.pages[page as usize].iter().enumerate() {
                     if moments.n == 0 {
                         continue;
@@ -845,6 +887,21 @@ impl Span {
             slots: vec![NO_PAGE; dense as usize],
             far: std::collections::HashMap::new(),
         }
+    }
+
+    /// The pages holding readings: (page number, index into `BinAccumulator::pages`), by
+    /// page number.
+    fn pages(&self) -> Vec<(i64, u32)> {
+        let mut pages: Vec<(i64, u32)> = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter(|(_, &p)| p != NO_PAGE)
+            .map(|(k, &p)| (self.base + k as i64, p))
+            .chain(self.far.iter().map(|(&k, &p)| (k, p)))
+            .collect();
+        pages.sort_unstable();
+        pages
     }
 
     /// The page table entry of page `number`.
@@ -1143,6 +1200,23 @@ mod tests {
     }
 
     #[test]
+    fn accumulators_of_other_grids_are_not_merged() {
+        let (grid, time, counts) = five_hundred_readings();
+        let mut acc = BinAccumulator::new(grid.clone());
+        acc.add_all(&time, &counts).unwrap();
+        let coarser = BinGrid {
+            bin_ns: 2 * grid.bin_ns,
+            ..grid.clone()
+        };
+        let mut other = BinAccumulator::new(coarser);
+        other.add_all(&time, &counts).unwrap();
+        assert_eq!(acc.clone().merge(other), Err(BinError::OtherGrid));
+        let mut doubled = acc.clone();
+        doubled.merge(acc).unwrap();
+        assert_eq!(doubled.finish().n_readings(), 1000);
+    }
+
+    #[test]
     fn removing_readings_gives_back_the_bins_without_them() {
         let (grid, time, counts) = five_hundred_readings();
         let clean = BarBins::from_log(grid.clone(), &time, &counts).unwrap();
@@ -1376,6 +1450,27 @@ mod tests {
                     acc.add_all(tc, cc).unwrap();
                 }
                 prop_assert_eq!(acc.finish(), want);
+            }
+
+            /// Batches dealt between two accumulators (as ingest's two consumers take them) and
+            /// merged give the bins of one accumulator given every row.
+            #[test]
+            fn batches_dealt_to_two_accumulators_merge_to_the_same_bins(
+                rows in prop::collection::vec((-5_000i64..100_000, -100_000i64..100_000), 1..600),
+                deal in prop::collection::vec(any::<bool>(), 600),
+                batch in 1usize..300,
+                bin_s in 1i64..3600,
+            ) {
+                let time: Vec<TimeNs> = rows.iter().map(|r| B + r.0 * S + r.0 % 7).collect();
+                let counts: Vec<i64> = rows.iter().map(|r| r.1).collect();
+                let want = BarBins::from_log(grid(bin_s), &time, &counts).unwrap();
+                let mut two = [BinAccumulator::new(grid(bin_s)), BinAccumulator::new(grid(bin_s))];
+                for (k, (tc, cc)) in time.chunks(batch).zip(counts.chunks(batch)).enumerate() {
+                    two[usize::from(deal[k])].add_all(tc, cc).unwrap();
+                }
+                let [mut first, second] = two;
+                first.merge(second).unwrap();
+                prop_assert_eq!(first.finish(), want);
             }
 
             /// Extreme times and counts are refused (an error, nothing added), never a panic,

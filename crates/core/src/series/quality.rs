@@ -218,6 +218,17 @@ impl Missing {
         self.null + self.nan + self.inf
     }
 
+    /// Adds the values `other` counted (the same channel, other rows).
+    pub fn merge(&mut self, other: &Missing) {
+        self.null += other.null;
+        self.nan += other.nan;
+        self.inf += other.inf;
+        self.range = match (self.range, other.range) {
+            (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+            (a, b) => a.or(b),
+        };
+    }
+
     /// Adds the counts and, when any, a `missing_values` flag to `q`.
     pub fn record(&self, q: &mut ChannelQuality, what: &str) {
         q.null += self.null;
