@@ -121,6 +121,30 @@ fn relative_slash_path(dir: &Path, path: &Path) -> String {
         .join("/")
 }
 
+/// The files to hash before the read, and those whose hashes can wait until it ends: a file
+/// can be byte-identical to another of its table ([`skip_duplicate_files`]) only if it has the
+/// same size, so only files sharing their size with another of their table are hashed first;
+/// the others are hashed on a thread beside the read (the manifest among them).
+pub(crate) fn split_by_shared_size(
+    files: &CampaignFiles,
+    stamps: &[Stamp],
+) -> (Vec<PathBuf>, Vec<PathBuf>) {
+    let size = |path: &PathBuf| stamps.iter().find(|s| &s.path == path).map(|s| s.bytes);
+    let (mut first, mut later) = (Vec::new(), vec![files.manifest.clone()]);
+    for table in [&files.encoders, &files.temperatures, &files.events] {
+        let sizes: Vec<Option<u64>> = table.iter().map(size).collect();
+        for (path, bytes) in table.iter().zip(&sizes) {
+            let shared = sizes.iter().filter(|&s| s == bytes).count() > 1;
+            if shared || bytes.is_none() {
+                first.push(path.clone());
+            } else {
+                later.push(path.clone());
+            }
+        }
+    }
+    (first, later)
+}
+
 /// Size and modification time of a file, taken before it is hashed.
 pub(crate) struct Stamp {
     path: PathBuf,
@@ -175,6 +199,7 @@ pub(crate) fn check_unchanged(
 
 /// A file byte-identical to an earlier one (by path) of its table is not read again: it is
 /// dropped from `files`, marked `duplicate_of` in `inputs` and flagged in `quality.files`.
+/// Files absent from `inputs` (not hashed: see [`split_by_shared_size`]) are kept.
 pub(crate) fn skip_duplicate_files(
     dir: &Path,
     files: &mut CampaignFiles,
@@ -197,7 +222,11 @@ pub(crate) fn skip_duplicate_files(
         let mut kept = Vec::new();
         for path in table.drain(..) {
             let rel = relative_slash_path(dir, &path);
-            let hash = hash_of(inputs, &path).unwrap_or_default();
+            // Not hashed yet: its size is its table's alone, so it has no byte-identical twin.
+            let Some(hash) = hash_of(inputs, &path) else {
+                kept.push(path);
+                continue;
+            };
             match seen.iter().find(|(h, _)| *h == hash) {
                 Some((_, first)) => {
                     if let Some(f) = inputs.iter_mut().find(|f| f.path == rel) {
@@ -216,5 +245,66 @@ pub(crate) fn skip_duplicate_files(
             }
         }
         *table = kept;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_files_sharing_a_size_are_hashed_before_the_read_and_twins_are_found_among_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join(ENCODERS)).unwrap();
+        std::fs::create_dir(d.join(TEMPERATURES)).unwrap();
+        std::fs::write(d.join(MANIFEST), "manifest").unwrap();
+        for (name, bytes) in [("a", "xxxx"), ("b", "xxxx"), ("c", "yyyyy"), ("d", "zzzz")] {
+            std::fs::write(d.join(ENCODERS).join(format!("{name}.parquet")), bytes).unwrap();
+        }
+        // A temperature file of an encoder file's size: sizes are compared within a table.
+        std::fs::write(d.join(TEMPERATURES).join("t.parquet"), "wwwww").unwrap();
+        let mut files = CampaignFiles::list(d).unwrap();
+        let stamps = stamps(&files.all()).unwrap();
+        let (first, later) = split_by_shared_size(&files, &stamps);
+        let names = |paths: &[PathBuf]| -> Vec<String> {
+            paths.iter().map(|p| relative_slash_path(d, p)).collect()
+        };
+        assert_eq!(
+            names(&first),
+            [
+                "encoders/a.parquet",
+                "encoders/b.parquet",
+                "encoders/d.parquet"
+            ]
+        );
+        assert_eq!(
+            names(&later),
+            [
+                "campaign.toml",
+                "encoders/c.parquet",
+                "temperatures/t.parquet"
+            ]
+        );
+        let mut inputs = hash_inputs(d, &first).unwrap();
+        let mut quality = Quality::default();
+        skip_duplicate_files(d, &mut files, &mut inputs, &mut quality);
+        assert_eq!(
+            names(&files.encoders),
+            [
+                "encoders/a.parquet",
+                "encoders/c.parquet",
+                "encoders/d.parquet"
+            ]
+        );
+        assert_eq!(quality.files.len(), 1);
+        let b = inputs
+            .iter()
+            .find(|f| f.path == "encoders/b.parquet")
+            .unwrap();
+        assert_eq!(b.duplicate_of.as_deref(), Some("encoders/a.parquet"));
+        assert!(inputs
+            .iter()
+            .all(|f| f.path == "encoders/b.parquet" || f.duplicate_of.is_none()));
     }
 }

@@ -192,18 +192,33 @@ pub fn read_campaign(dir: &Path) -> Result<CampaignLogs, IngestError> {
 /// while they stream in ([`dbbcal_core::series::BarBins`], [`CampaignLogs::bins`]; the bar logs stay
 /// empty): a campaign at 1 Hz is never held at full rate. `bin_s <= 0`: [`read_campaign`].
 ///
-/// Every file is hashed first (`inputs.json`); a file byte-identical to an earlier one of its
-/// table is read once and flagged (`quality.files`); after the read every file's size and
+/// Every file is hashed (`inputs.json`): those sharing their size with another file of their
+/// table before the read, so that a file byte-identical to an earlier one of its table is read
+/// once and flagged (`quality.files`), the others beside the read; after it every file's size and
 /// modification time are checked against those taken before hashing, so the hashes recorded
 /// are of the bytes analysed ([`IngestError::ChangedDuringRun`] otherwise).
 pub fn read_campaign_binned(dir: &Path, bin_s: f64) -> Result<CampaignLogs, IngestError> {
     let campaign = read::read_manifest(dir)?;
     let mut files = inputs::CampaignFiles::list(dir)?;
     let stamps = inputs::stamps(&files.all())?;
-    let mut inputs = inputs::hash_inputs(dir, &files.all())?;
+    let (hash_first, hash_beside) = inputs::split_by_shared_size(&files, &stamps);
+    let mut inputs = inputs::hash_inputs(dir, &hash_first)?;
     let mut quality = dbbcal_core::series::Quality::default();
     inputs::skip_duplicate_files(dir, &mut files, &mut inputs, &mut quality);
-    let tables = read::read_tables(&files, &campaign, bin_s, &mut quality)?;
+    let (tables, hashed_beside) = std::thread::scope(|scope| {
+        let hashing = scope.spawn(|| inputs::hash_inputs(dir, &hash_beside));
+        let tables = read::read_tables(&files, &campaign, bin_s, &mut quality);
+        let hashed = hashing.join().unwrap_or_else(|_| {
+            Err(IngestError::Io {
+                path: dir.to_path_buf(),
+                message: "the input hashing thread panicked".into(),
+            })
+        });
+        (tables, hashed)
+    });
+    let tables = tables?;
+    inputs.extend(hashed_beside?);
+    inputs.sort_by(|a, b| a.path.cmp(&b.path));
     inputs::check_unchanged(dir, &stamps, &inputs)?;
     Ok(CampaignLogs {
         campaign,
