@@ -287,8 +287,8 @@ pub(crate) fn read_tables(
     let bar_ids: BTreeSet<&str> = campaign.bars.iter().map(|b| b.id.as_str()).collect();
     let sensor_ids: BTreeSet<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
     let clock = std::time::Instant::now();
-    // The temperatures are read on a second thread while the encoder files stream: the bins do
-    // not need them, and the stream leaves a core partly idle (its consumer is serial). Errors
+    // The temperatures are read on a thread of their own while the encoder files stream: the
+    // bins do not need them, and the stream does not keep both cores busy all the time. Errors
     // keep their order: a temperature error is reported before any other.
     let (temperatures, rest) = std::thread::scope(|scope| {
         let temperatures = scope.spawn(|| read_temperatures(files, &sensor_ids));

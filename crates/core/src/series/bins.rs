@@ -508,8 +508,11 @@ pub struct BinAccumulator {
     last_span: usize,
     /// Division by `bin_ns` (a reading out of time order needs one).
     divide: Divide,
-    /// Reused buffers of [`BinAccumulator::add_by_block`].
+    /// Reused buffers of [`BinAccumulator::add_by_block`] and
+    /// [`BinAccumulator::add_span_by_bin`].
     scratch: BlockScratch,
+    /// Reused buffers of [`BinAccumulator::add_by_bin`]'s split by span.
+    span_split: BlockScratch,
     /// Readings added so far (at most [`MAX_BAR_READINGS`]).
     readings: u64,
 }
@@ -539,13 +542,58 @@ fn check_readings(time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
 const MIN_BLOCK_SORT_ROWS: usize = 256;
 /// Most time blocks of one grouping.
 const MAX_SORT_BLOCKS: u64 = 1 << 16;
+/// Most spans (zero segments and handling times) rows out of order are split over before they
+/// are sorted by bin: a batch of a day file crosses a few; more go by blocks.
+const MAX_SPLIT_SPANS: usize = 64;
 
+/// The first and last of `time_ns`; `None` when empty.
+fn time_range(time_ns: &[TimeNs]) -> Option<(TimeNs, TimeNs)> {
+    let first = *time_ns.iter().min()?;
+    Some((first, *time_ns.iter().max()?))
+}
+
+/// Reused buffers of a counting sort of rows by a small key (time block, bin or span).
 #[derive(Debug, Clone, Default)]
 struct BlockScratch {
+    /// Each row's key.
     block: Vec<u32>,
+    /// `start[g]..start[g + 1]`: the sorted rows of key `g`.
     start: Vec<usize>,
+    next: Vec<usize>,
     time: Vec<TimeNs>,
     counts: Vec<i64>,
+}
+
+impl BlockScratch {
+    /// Stable counting sort of the rows `time_ns`/`counts` by their keys in `block` (each below
+    /// `groups`) into `time`/`counts`.
+    fn sort_by_block(&mut self, groups: usize, time_ns: &[TimeNs], counts: &[i64]) {
+        let Self {
+            block,
+            start,
+            next,
+            time,
+            counts: sorted_counts,
+        } = self;
+        start.clear();
+        start.resize(groups + 1, 0);
+        for &b in block.iter() {
+            start[b as usize + 1] += 1;
+        }
+        for g in 0..groups {
+            start[g + 1] += start[g];
+        }
+        next.clear();
+        next.extend_from_slice(&start[..groups]);
+        time.resize(block.len(), 0);
+        sorted_counts.resize(block.len(), 0);
+        for ((&b, &t), &c) in block.iter().zip(time_ns).zip(counts) {
+            let at = &mut next[b as usize];
+            time[*at] = t;
+            sorted_counts[*at] = c;
+            *at += 1;
+        }
+    }
 }
 
 /// Exact unsigned division by a fixed divisor with a multiplication: `m = ⌊(2⁶⁴ − 1) / d⌋`
@@ -586,6 +634,7 @@ impl BinAccumulator {
             last_span: 0,
             divide: Divide::new(grid.bin_ns as u64),
             scratch: BlockScratch::default(),
+            span_split: BlockScratch::default(),
             readings: 0,
         }
     }
@@ -636,59 +685,82 @@ impl BinAccumulator {
         Ok(())
     }
 
-    /// Rows out of time order that all fall in one span (the common case: a batch of a
-    /// shuffled day file, within one mount), sorted by bin with a counting sort and each bin's
-    /// rows summed in one run ([`BinMoments::add_run`], in registers), instead of one moments
-    /// update in memory per row. Returns `false`, adding nothing, when the rows cross a span
-    /// edge, lie before the first mount (the epoch grid) or are too sparse for the sort to pay
-    /// (fewer than two rows a bin): [`BinAccumulator::add_by_block`] takes them then. The sums
-    /// are integers, so the path taken changes no bit.
+    /// Rows out of time order (a batch of a shuffled file) sorted by bin, each bin's rows then
+    /// summed in one run ([`BinMoments::add_run`], in registers) instead of one moments update
+    /// in memory per row: the rows are split by span first (a counting sort over the few spans
+    /// they cover: a day file crosses a mount's end), then each span's rows by bin
+    /// ([`BinAccumulator::add_span_by_bin`]; a span's rows it declines go to
+    /// [`BinAccumulator::add_by_block`]). Returns `false`, adding nothing, for rows over more
+    /// than [`MAX_SPLIT_SPANS`] spans. The sums are integers, so the path taken changes no bit.
     fn add_by_bin(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> bool {
         let n = time_ns.len().min(counts.len());
-        let (first, last) = time_ns[..n]
-            .iter()
-            .fold((TimeNs::MAX, TimeNs::MIN), |(a, b), &t| {
-                (a.min(t), b.max(t))
-            });
-        let s = self.span_index(first);
+        let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
+        let Some((first, last)) = time_range(time_ns) else {
+            return true;
+        };
+        let (s0, s1) = (self.span_index(first), self.span_index(last));
+        if s0 == s1 {
+            if !self.add_span_by_bin(s0, time_ns, counts, (first, last)) {
+                self.add_by_block(time_ns, counts);
+            }
+            return true;
+        }
+        if s1 - s0 >= MAX_SPLIT_SPANS {
+            return false;
+        }
+        let edges: Vec<TimeNs> = self.spans[s0 + 1..=s1].iter().map(|s| s.from).collect();
+        let mut split = std::mem::take(&mut self.span_split);
+        split.block.clear();
+        split.block.extend(
+            time_ns
+                .iter()
+                .map(|&t| edges.partition_point(|&e| e <= t) as u32),
+        );
+        split.sort_by_block(s1 - s0 + 1, time_ns, counts);
+        for g in 0..=s1 - s0 {
+            let rows = split.start[g]..split.start[g + 1];
+            let (t, c) = (&split.time[rows.clone()], &split.counts[rows]);
+            let Some(range) = time_range(t) else {
+                continue;
+            };
+            if !self.add_span_by_bin(s0 + g, t, c, range) {
+                self.add_by_block(t, c);
+            }
+        }
+        self.span_split = split;
+        true
+    }
+
+    /// Rows of span `s` (`range`: their first and last time) sorted by bin with a counting sort
+    /// and each bin summed in one run. Returns `false`, adding nothing, for rows before the
+    /// first mount (the epoch grid) or too sparse for the sort to pay (fewer than two rows a
+    /// bin).
+    fn add_span_by_bin(
+        &mut self,
+        s: usize,
+        time_ns: &[TimeNs],
+        counts: &[i64],
+        (first, last): (TimeNs, TimeNs),
+    ) -> bool {
         let span = &self.spans[s];
-        if n == 0 || last >= span.to || span.anchor > span.from {
+        if span.anchor > span.from || first < span.from || last >= span.to {
             return false;
         }
         let anchor = span.anchor;
         let divide = self.divide;
-        let (k0, k1) = (
-            divide.quotient((first - anchor) as u64),
-            divide.quotient((last - anchor) as u64),
-        );
-        let bins = k1 - k0 + 1;
-        if bins > (n as u64 / 2).min(MAX_SORT_BLOCKS * PAGE_BINS as u64) {
+        let k0 = divide.quotient((first - anchor) as u64);
+        let bins = divide.quotient((last - anchor) as u64) - k0 + 1;
+        if bins > (time_ns.len() as u64 / 2).min(MAX_SORT_BLOCKS * PAGE_BINS as u64) {
             return false;
         }
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.block.clear();
         scratch.block.extend(
-            time_ns[..n]
+            time_ns
                 .iter()
                 .map(|&t| (divide.quotient((t - anchor) as u64) - k0) as u32),
         );
-        scratch.start.clear();
-        scratch.start.resize(bins as usize + 1, 0);
-        for &b in &scratch.block {
-            scratch.start[b as usize + 1] += 1;
-        }
-        for b in 0..bins as usize {
-            scratch.start[b + 1] += scratch.start[b];
-        }
-        scratch.time.resize(n, 0);
-        scratch.counts.resize(n, 0);
-        let mut next = scratch.start[..bins as usize].to_vec();
-        for ((&b, &t), &c) in scratch.block.iter().zip(time_ns).zip(counts) {
-            let at = &mut next[b as usize];
-            scratch.time[*at] = t;
-            scratch.counts[*at] = c;
-            *at += 1;
-        }
+        scratch.sort_by_block(bins as usize, time_ns, counts);
         for b in 0..bins as usize {
             let rows = scratch.start[b]..scratch.start[b + 1];
             if rows.is_empty() {
@@ -716,11 +788,9 @@ impl BinAccumulator {
     /// so the order changes no bit.
     fn add_by_block(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
         let n = time_ns.len();
-        let (first, last) = time_ns
-            .iter()
-            .fold((TimeNs::MAX, TimeNs::MIN), |(a, b), &t| {
-                (a.min(t), b.max(t))
-            });
+        let Some((first, last)) = time_range(time_ns) else {
+            return;
+        };
         let block_ns = (self.bin_ns as u64).saturating_mul(PAGE_BINS as u64);
         let blocks = (last.abs_diff(first) / block_ns).saturating_add(1);
         // Many blocks for few rows gain nothing (and cost their counters).
@@ -736,22 +806,7 @@ impl BinAccumulator {
                 .iter()
                 .map(|&t| divide.quotient(t.abs_diff(first)) as u32),
         );
-        scratch.start.clear();
-        scratch.start.resize(blocks as usize + 1, 0);
-        for &b in &scratch.block {
-            scratch.start[b as usize + 1] += 1;
-        }
-        for k in 0..blocks as usize {
-            scratch.start[k + 1] += scratch.start[k];
-        }
-        scratch.time.resize(n, 0);
-        scratch.counts.resize(n, 0);
-        for ((&b, &t), &c) in scratch.block.iter().zip(time_ns).zip(counts) {
-            let at = &mut scratch.start[b as usize];
-            scratch.time[*at] = t;
-            scratch.counts[*at] = c;
-            *at += 1;
-        }
+        scratch.sort_by_block(blocks as usize, time_ns, counts);
         self.add_scattered(&scratch.time, &scratch.counts);
         self.scratch = scratch;
     }
@@ -1551,9 +1606,30 @@ mod tests {
                     time.push(B + 30_000 * S + k as i64); // after the rezero: another span
                     counts.push(k as i64);
                 }
-                let want = BarBins::from_log(grid(bin_s), &time, &counts).unwrap();
+                let want = reference_bins(&grid(bin_s), &time, &counts);
                 let mut order: Vec<usize> = (0..time.len()).collect();
                 order.sort_by_key(|&i| keys[i % keys.len()]);
+                let t: Vec<TimeNs> = order.iter().map(|&i| time[i]).collect();
+                let c: Vec<i64> = order.iter().map(|&i| counts[i]).collect();
+                let mut acc = BinAccumulator::new(grid(bin_s));
+                acc.add_all(&t, &c).unwrap();
+                prop_assert_eq!(acc.finish(), want);
+            }
+
+            /// Shuffled rows over both mounts, the rezero and the handling time between them (a
+            /// day file crossing a mount's end: split by span, then sorted by bin) give the bins
+            /// of the definition.
+            #[test]
+            fn shuffled_rows_over_several_spans_give_the_same_bins(
+                rows in prop::collection::vec((1_000i64..90_000, -100_000i64..100_000), 256..1500),
+                keys in prop::collection::vec(any::<u32>(), 1500),
+                bin_s in 300i64..3600,
+            ) {
+                let time: Vec<TimeNs> = rows.iter().map(|r| B + r.0 * S + r.0 % 7).collect();
+                let counts: Vec<i64> = rows.iter().map(|r| r.1).collect();
+                let want = reference_bins(&grid(bin_s), &time, &counts);
+                let mut order: Vec<usize> = (0..time.len()).collect();
+                order.sort_by_key(|&i| keys[i]);
                 let t: Vec<TimeNs> = order.iter().map(|&i| time[i]).collect();
                 let c: Vec<i64> = order.iter().map(|&i| counts[i]).collect();
                 let mut acc = BinAccumulator::new(grid(bin_s));
@@ -1572,7 +1648,7 @@ mod tests {
             ) {
                 let time: Vec<TimeNs> = rows.iter().map(|r| B + r.0 * S + r.0 % 7).collect();
                 let counts: Vec<i64> = rows.iter().map(|r| r.1).collect();
-                let want = BarBins::from_log(grid(bin_s), &time, &counts).unwrap();
+                let want = reference_bins(&grid(bin_s), &time, &counts);
                 let mut two = [BinAccumulator::new(grid(bin_s)), BinAccumulator::new(grid(bin_s))];
                 for (k, (tc, cc)) in time.chunks(batch).zip(counts.chunks(batch)).enumerate() {
                     two[usize::from(deal[k])].add_all(tc, cc).unwrap();
