@@ -92,6 +92,23 @@ fn a_constant_temperature_leaves_alpha_and_beta_not_identifiable() {
     ));
 }
 
+/// The same on a series long enough to be checked on its coarse copy (28 800 samples: the
+/// 300-s means of a constant input are constant within each mount too).
+#[test]
+fn a_constant_temperature_is_found_on_a_long_series_coarse_copy() {
+    let long = bar(20, |_| 21.0, 3000.0, 1500.0);
+    assert!(
+        crate::identify::coarse_copy(&long, crate::identify::COARSE_START_MIN_SAMPLES).is_some()
+    );
+    let msg = not_identifiable(identify(&long, &base_effects()));
+    assert!(
+        msg.contains("alpha_ppm_per_k") && msg.contains("does not vary within any mount"),
+        "{msg}"
+    );
+    // A varying input on the same long series passes the check.
+    identify(&bar(20, daily, 3000.0, 1500.0), &base_effects()).expect("identify");
+}
+
 /// A linear ramp of the air: each lag is the ramp delayed by its time constant, and a delay of
 /// a ramp is an offset the mount zeros take: the time constants run together and their
 /// initial-state columns coincide (a singular value ~1e-16 of the largest).
