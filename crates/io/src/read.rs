@@ -668,7 +668,7 @@ enum BarRows {
     Dropped,
 }
 
-/// Time range and rows of one declared bar in one file.
+/// Time range and rows of one bar id in one file.
 #[derive(Debug, Clone, Copy)]
 struct FileRange {
     first_ns: i64,
@@ -676,11 +676,23 @@ struct FileRange {
     rows: u64,
 }
 
-/// Rows and time range of an undeclared bar id in one file.
-struct Unknown {
-    rows: u64,
-    first_ns: i64,
-    last_ns: i64,
+impl FileRange {
+    /// The range of the times `time_ns` (`None` when empty).
+    fn of(time_ns: &[i64]) -> Option<FileRange> {
+        Some(FileRange {
+            first_ns: *time_ns.iter().min()?,
+            last_ns: *time_ns.iter().max()?,
+            rows: time_ns.len() as u64,
+        })
+    }
+
+    /// Widens the range kept under `key` by `more` (rows added).
+    fn add_to<K: Ord>(ranges: &mut BTreeMap<K, FileRange>, key: K, more: FileRange) {
+        let range = ranges.entry(key).or_insert(FileRange { rows: 0, ..more });
+        range.first_ns = range.first_ns.min(more.first_ns);
+        range.last_ns = range.last_ns.max(more.last_ns);
+        range.rows += more.rows;
+    }
 }
 
 /// Bar ids of a batch as small indices, found on the string views: an id of 12 bytes or less
@@ -784,7 +796,7 @@ struct EncoderSink {
     /// (index into [`ENCODER_COLUMNS`], file) -> null values.
     nulls: BTreeMap<(usize, u32), u64>,
     /// (file, id) -> rows of an undeclared bar.
-    unknown: BTreeMap<(u32, String), Unknown>,
+    unknown: BTreeMap<(u32, String), FileRange>,
     /// (file, column, problem) -> rows that cannot be read (times out of range, counts that are
     /// not whole numbers or beyond ±2^48): the run is refused on them.
     bad: BTreeMap<(u32, &'static str, &'static str), BadRange>,
@@ -878,27 +890,13 @@ impl EncoderSink {
             *self.nulls.entry(key).or_insert(0) += n;
         }
         for (key, u) in other.unknown {
-            let entry = self.unknown.entry(key).or_insert(Unknown {
-                rows: 0,
-                first_ns: u.first_ns,
-                last_ns: u.last_ns,
-            });
-            entry.rows += u.rows;
-            entry.first_ns = entry.first_ns.min(u.first_ns);
-            entry.last_ns = entry.last_ns.max(u.last_ns);
+            FileRange::add_to(&mut self.unknown, key, u);
         }
         for (key, b) in other.bad {
             BadRange::merge_into(&mut self.bad, key, b);
         }
         for (key, r) in other.ranges {
-            let entry = self.ranges.entry(key).or_insert(FileRange {
-                rows: 0,
-                first_ns: r.first_ns,
-                last_ns: r.last_ns,
-            });
-            entry.rows += r.rows;
-            entry.first_ns = entry.first_ns.min(r.first_ns);
-            entry.last_ns = entry.last_ns.max(r.last_ns);
+            FileRange::add_to(&mut self.ranges, key, r);
         }
         // Declared bars have the same indices in every sink (undeclared ids, numbered as they
         // appear, are reported by name through `unknown`).
@@ -1090,22 +1088,14 @@ impl EncoderSink {
     }
 
     fn append(&mut self, index: u32, time: &[i64], counts: &[i64]) {
+        let Some(range) = FileRange::of(time) else {
+            return;
+        };
         if matches!(
             self.bars.get(index as usize),
             Some(BarRows::Kept { .. } | BarRows::Binned { .. })
-        ) && !time.is_empty()
-        {
-            let (first, last) = time
-                .iter()
-                .fold((i64::MAX, i64::MIN), |(a, b), &t| (a.min(t), b.max(t)));
-            let range = self.ranges.entry((index, self.file)).or_insert(FileRange {
-                first_ns: first,
-                last_ns: last,
-                rows: 0,
-            });
-            range.first_ns = range.first_ns.min(first);
-            range.last_ns = range.last_ns.max(last);
-            range.rows += time.len() as u64;
+        ) {
+            FileRange::add_to(&mut self.ranges, (index, self.file), range);
         }
         match self.bars.get_mut(index as usize) {
             Some(BarRows::Kept {
@@ -1130,16 +1120,7 @@ impl EncoderSink {
             None => {}
         }
         let id = self.ids.names[index as usize].clone();
-        let first = time.iter().copied().min().unwrap_or(0);
-        let last = time.iter().copied().max().unwrap_or(0);
-        let entry = self.unknown.entry((self.file, id)).or_insert(Unknown {
-            rows: 0,
-            first_ns: first,
-            last_ns: last,
-        });
-        entry.rows += time.len() as u64;
-        entry.first_ns = entry.first_ns.min(first);
-        entry.last_ns = entry.last_ns.max(last);
+        FileRange::add_to(&mut self.unknown, (self.file, id), range);
     }
 }
 

@@ -1566,6 +1566,24 @@ mod tests {
             }
         }
 
+        /// The rows shuffled by `keys`, added in one call, give the bins of the definition.
+        fn check_shuffled(
+            time: &[TimeNs],
+            counts: &[i64],
+            keys: &[u32],
+            bin_s: i64,
+        ) -> Result<(), TestCaseError> {
+            let want = reference_bins(&grid(bin_s), time, counts);
+            let mut order: Vec<usize> = (0..time.len()).collect();
+            order.sort_by_key(|&i| keys[i % keys.len()]);
+            let t: Vec<TimeNs> = order.iter().map(|&i| time[i]).collect();
+            let c: Vec<i64> = order.iter().map(|&i| counts[i]).collect();
+            let mut acc = BinAccumulator::new(grid(bin_s));
+            acc.add_all(&t, &c).unwrap();
+            prop_assert_eq!(acc.finish(), want);
+            Ok(())
+        }
+
         proptest! {
             #![proptest_config(ProptestConfig::with_cases(64))]
 
@@ -1606,14 +1624,7 @@ mod tests {
                     time.push(B + 30_000 * S + k as i64); // after the rezero: another span
                     counts.push(k as i64);
                 }
-                let want = reference_bins(&grid(bin_s), &time, &counts);
-                let mut order: Vec<usize> = (0..time.len()).collect();
-                order.sort_by_key(|&i| keys[i % keys.len()]);
-                let t: Vec<TimeNs> = order.iter().map(|&i| time[i]).collect();
-                let c: Vec<i64> = order.iter().map(|&i| counts[i]).collect();
-                let mut acc = BinAccumulator::new(grid(bin_s));
-                acc.add_all(&t, &c).unwrap();
-                prop_assert_eq!(acc.finish(), want);
+                check_shuffled(&time, &counts, &keys, bin_s)?;
             }
 
             /// Shuffled rows over both mounts, the rezero and the handling time between them (a
@@ -1627,14 +1638,7 @@ mod tests {
             ) {
                 let time: Vec<TimeNs> = rows.iter().map(|r| B + r.0 * S + r.0 % 7).collect();
                 let counts: Vec<i64> = rows.iter().map(|r| r.1).collect();
-                let want = reference_bins(&grid(bin_s), &time, &counts);
-                let mut order: Vec<usize> = (0..time.len()).collect();
-                order.sort_by_key(|&i| keys[i]);
-                let t: Vec<TimeNs> = order.iter().map(|&i| time[i]).collect();
-                let c: Vec<i64> = order.iter().map(|&i| counts[i]).collect();
-                let mut acc = BinAccumulator::new(grid(bin_s));
-                acc.add_all(&t, &c).unwrap();
-                prop_assert_eq!(acc.finish(), want);
+                check_shuffled(&time, &counts, &keys, bin_s)?;
             }
 
             /// Batches dealt between two accumulators (as ingest's two consumers take them) and
