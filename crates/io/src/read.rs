@@ -2056,6 +2056,53 @@ fn events_sorted(table: DataFrame) -> PolarsResult<Vec<Event>> {
         .collect())
 }
 
+/// What two consumers' sinks merge: the ranges of bad rows and of a bar's rows in a file.
+#[cfg(test)]
+mod merge_tests {
+    use super::*;
+
+    fn bad(first_row: u64, last_row: u64, rows: u64) -> BadRange {
+        BadRange {
+            rows,
+            first_row,
+            last_row,
+            example: format!("row {first_row}"),
+        }
+    }
+
+    #[test]
+    fn bad_rows_merge_to_one_range_whose_example_is_the_first_rows_in_either_order() {
+        let key = (3u32, "counts", "hold counts beyond ±2^48");
+        for (a, b) in [
+            (bad(10, 20, 4), bad(500, 900, 7)),
+            (bad(500, 900, 7), bad(10, 20, 4)),
+        ] {
+            let mut ranges = BTreeMap::new();
+            BadRange::merge_into(&mut ranges, key, a);
+            BadRange::merge_into(&mut ranges, key, b);
+            let r = &ranges[&key];
+            assert_eq!((r.rows, r.first_row, r.last_row), (11, 10, 900));
+            assert_eq!(r.example, "row 10");
+        }
+    }
+
+    #[test]
+    fn file_ranges_widen_and_count_rows() {
+        let mut ranges = BTreeMap::new();
+        assert!(FileRange::of(&[]).is_none());
+        FileRange::add_to(
+            &mut ranges,
+            (0u32, 1u32),
+            FileRange::of(&[50, 20, 40]).unwrap(),
+        );
+        FileRange::add_to(&mut ranges, (0, 1), FileRange::of(&[90, 30]).unwrap());
+        FileRange::add_to(&mut ranges, (0, 2), FileRange::of(&[5]).unwrap());
+        let r = ranges[&(0, 1)];
+        assert_eq!((r.first_ns, r.last_ns, r.rows), (20, 90, 5));
+        assert_eq!(ranges[&(0, 2)].rows, 1);
+    }
+}
+
 #[cfg(test)]
 mod file_cursor_tests {
     use super::*;

@@ -355,6 +355,31 @@ fn interleaved_bars_over_many_batches_are_split_and_sorted() {
     }
 }
 
+/// Bad rows in batches that the two consumers share out are still reported as one range of the
+/// file's rows, whichever consumer saw which.
+#[test]
+fn bad_rows_over_many_batches_are_one_range_of_the_files_rows() {
+    let dir = campaign_dir();
+    let d = dir.path();
+    write_t1(d);
+    let n = 400_000i64;
+    let times: Vec<i64> = (0..n).map(|i| T0 + i * S / 1000).collect();
+    let bars = vec!["B01"; n as usize];
+    let mut counts: Vec<i64> = (0..n).collect();
+    for row in [5, 150_000, 350_000] {
+        counts[row] = 1 << 50;
+    }
+    write_df(
+        &d.join("encoders/a.parquet"),
+        encoders(&times, &bars, &counts),
+    );
+    let msg = read_err(d);
+    assert!(
+        msg.contains("a.parquet") && msg.contains("3 rows") && msg.contains("rows 5 .. 350000"),
+        "{msg}"
+    );
+}
+
 // ---------------------------------------------------------------- bad input
 
 #[test]
