@@ -80,7 +80,7 @@ pub struct BarModel {
     pub dof: Vec<f64>,
     /// Index in `theta` of each parameter that is a time constant (same order as `params`).
     theta_index: Vec<Option<usize>>,
-    /// The time constants fitted on the series' coarse copy ([`coarse_start`]), where the fit
+    /// The time constants fitted on the series' coarse copy ([`coarse_fit`]), where the fit
     /// started from: the profile intervals are taken there ([`profile_on_coarse_copy`]).
     coarse_theta: Option<Vec<f64>>,
 }
@@ -158,7 +158,7 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 /// the Wald interval.
 ///
 /// A long series ([`COARSE_PROFILE_MIN_SAMPLES`]) is profiled on the 300-s bin means that
-/// [`coarse_start`] starts it on, from the coarse optimum found there: each profile point
+/// [`coarse_fit`] starts it on, from the coarse optimum found there: each profile point
 /// refits the other time constants, and at 1 Hz over 30 days that cost twice the fit. The
 /// shape of the profile in `ln tau` is the model's, which bin means of time constants of 15 min
 /// and more keep; the cut is taken from the coarse Jacobian
@@ -412,23 +412,12 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
     (coarse.fit_index.len() * 4 <= series.fit_index.len()).then_some(coarse)
 }
 
-/// The time constants fitted (Brent start + Levenberg-Marquardt) on 300-s bin means of a long
-/// series, to start the fit of the series itself with Levenberg-Marquardt alone. The Brent
-/// sweep evaluates the projected residual some 40 times; on the full series that was about
-/// half of the fit (`bench/results.md`), on the coarse copy it is a few per cent. `None`: the
-/// series is short, the copy would not be much shorter, or the coarse fit failed (the engine
-/// then starts as usual).
-#[cfg(test)]
-fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Option<Vec<f64>> {
-    if theta0.is_empty() {
-        return None;
-    }
-    let coarse = coarse_copy(series, COARSE_START_MIN_SAMPLES)?;
-    let problem = ThermalProblem::new(&coarse, effects).ok()?;
-    coarse_fit(&problem, &series.bar.id, theta0)
-}
-
-/// The coarse fit of [`coarse_start`], on the coarse copy's problem.
+/// The time constants fitted (Brent start + Levenberg-Marquardt) on the 300-s bin means of a
+/// long series (`problem`: its coarse copy's, [`coarse_copy`]), to start the fit of the series
+/// itself with Levenberg-Marquardt alone. The Brent sweep evaluates the projected residual some
+/// 40 times; on the full series that was about half of the fit (`bench/results.md`), on the
+/// coarse copy it is a few per cent. `None`: the coarse fit failed (the engine then starts as
+/// usual).
 fn coarse_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {
     let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
     let n = fit::Separable::observations(problem).len();
@@ -584,6 +573,14 @@ mod conditioning_tests;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The start [`fit_from`] takes on a long series: [`coarse_fit`] on its coarse copy; `None`
+    /// for a short one.
+    fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Option<Vec<f64>> {
+        let coarse = coarse_copy(series, COARSE_START_MIN_SAMPLES)?;
+        let problem = ThermalProblem::new(&coarse, effects).ok()?;
+        coarse_fit(&problem, &series.bar.id, theta0)
+    }
     use crate::campaign::Bar;
     use crate::fit::Separable;
     use crate::series::MountSpan;

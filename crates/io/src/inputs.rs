@@ -129,13 +129,20 @@ pub(crate) fn split_by_shared_size(
     files: &CampaignFiles,
     stamps: &[Stamp],
 ) -> (Vec<PathBuf>, Vec<PathBuf>) {
-    let size = |path: &PathBuf| stamps.iter().find(|s| &s.path == path).map(|s| s.bytes);
+    let size: std::collections::HashMap<&Path, u64> =
+        stamps.iter().map(|s| (s.path.as_path(), s.bytes)).collect();
     let (mut first, mut later) = (Vec::new(), vec![files.manifest.clone()]);
     for table in [&files.encoders, &files.temperatures, &files.events] {
-        let sizes: Vec<Option<u64>> = table.iter().map(size).collect();
-        for (path, bytes) in table.iter().zip(&sizes) {
-            let shared = sizes.iter().filter(|&s| s == bytes).count() > 1;
-            if shared || bytes.is_none() {
+        let mut files_of_size = std::collections::HashMap::<Option<u64>, usize>::new();
+        for path in table {
+            *files_of_size
+                .entry(size.get(path.as_path()).copied())
+                .or_default() += 1;
+        }
+        for path in table {
+            let bytes = size.get(path.as_path()).copied();
+            // A file without a stamp (cannot happen: every file is stamped) is hashed first.
+            if bytes.is_none() || files_of_size[&bytes] > 1 {
                 first.push(path.clone());
             } else {
                 later.push(path.clone());

@@ -546,10 +546,13 @@ const MAX_SORT_BLOCKS: u64 = 1 << 16;
 /// are sorted by bin: a batch of a day file crosses a few; more go by blocks.
 const MAX_SPLIT_SPANS: usize = 64;
 
-/// The first and last of `time_ns`; `None` when empty.
+/// The first and last of `time_ns` (one pass); `None` when empty.
 fn time_range(time_ns: &[TimeNs]) -> Option<(TimeNs, TimeNs)> {
-    let first = *time_ns.iter().min()?;
-    Some((first, *time_ns.iter().max()?))
+    let (&head, rest) = time_ns.split_first()?;
+    Some(
+        rest.iter()
+            .fold((head, head), |(a, b), &t| (a.min(t), b.max(t))),
+    )
 }
 
 /// Reused buffers of a counting sort of rows by a small key (time block, bin or span).
@@ -657,9 +660,7 @@ impl BinAccumulator {
             .filter(|&r| r <= MAX_BAR_READINGS)
             .ok_or(BinError::TooManyReadings)?;
         if n >= MIN_BLOCK_SORT_ROWS && !time_ns.is_sorted() {
-            if !self.add_by_bin(time_ns, counts) {
-                self.add_by_block(time_ns, counts);
-            }
+            self.add_by_bin(time_ns, counts);
         } else {
             self.add_in_order(time_ns, counts);
         }
@@ -689,24 +690,26 @@ impl BinAccumulator {
     /// summed in one run ([`BinMoments::add_run`], in registers) instead of one moments update
     /// in memory per row: the rows are split by span first (a counting sort over the few spans
     /// they cover: a day file crosses a mount's end), then each span's rows by bin
-    /// ([`BinAccumulator::add_span_by_bin`]; a span's rows it declines go to
-    /// [`BinAccumulator::add_by_block`]). Returns `false`, adding nothing, for rows over more
-    /// than [`MAX_SPLIT_SPANS`] spans. The sums are integers, so the path taken changes no bit.
-    fn add_by_bin(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> bool {
+    /// ([`BinAccumulator::add_span_by_bin`]). Rows a sort would not pay for (over more than
+    /// [`MAX_SPLIT_SPANS`] spans, or a span's rows it declines) go to
+    /// [`BinAccumulator::add_by_block`]. The sums are integers, so the path taken changes no bit.
+    fn add_by_bin(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
         let n = time_ns.len().min(counts.len());
         let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
         let Some((first, last)) = time_range(time_ns) else {
-            return true;
+            return;
         };
         let (s0, s1) = (self.span_index(first), self.span_index(last));
+        if s1 - s0 >= MAX_SPLIT_SPANS {
+            self.add_by_block(time_ns, counts);
+            return;
+        }
         if s0 == s1 {
+            // One span: no split needed.
             if !self.add_span_by_bin(s0, time_ns, counts, (first, last)) {
                 self.add_by_block(time_ns, counts);
             }
-            return true;
-        }
-        if s1 - s0 >= MAX_SPLIT_SPANS {
-            return false;
+            return;
         }
         let edges: Vec<TimeNs> = self.spans[s0 + 1..=s1].iter().map(|s| s.from).collect();
         let mut split = std::mem::take(&mut self.span_split);
@@ -728,7 +731,6 @@ impl BinAccumulator {
             }
         }
         self.span_split = split;
-        true
     }
 
     /// Rows of span `s` (`range`: their first and last time) sorted by bin with a counting sort
