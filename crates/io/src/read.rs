@@ -24,7 +24,8 @@ use super::{one_line, IngestError};
 use dbbcal_core::campaign::{Campaign, Manifest, SensorKind};
 use dbbcal_core::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
 use dbbcal_core::series::{
-    reading_time_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event, EventKind, Quality,
+    counts_ok, reading_time_ok, reading_times_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event,
+    EventKind, Quality,
     SensorLog, MAX_ABS_COUNTS,
 };
 
@@ -837,7 +838,7 @@ impl EncoderSink {
         let time = time.rechunk();
         let raw = time.cont_slice()?;
         let converted;
-        let time: &[i64] = if self.time.ns_per_unit == 1 && raw.iter().all(|&t| reading_time_ok(t))
+        let time: &[i64] = if self.time.ns_per_unit == 1 && reading_times_ok(raw)
         {
             raw
         } else {
@@ -864,9 +865,7 @@ impl EncoderSink {
             .map(|c| c.rechunk());
         let clean = whole.as_ref().and_then(|c| {
             let v = c.cont_slice().ok()?;
-            v.iter()
-                .all(|c| c.unsigned_abs() <= MAX_ABS_COUNTS as u64)
-                .then_some(v)
+            counts_ok(v).then_some(v)
         });
         match clean {
             Some(counts) => self.add_rows(&ids, time, counts),

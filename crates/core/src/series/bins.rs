@@ -81,8 +81,27 @@ pub enum BinError {
 
 /// Whether `t` is an accepted reading time ([`EARLIEST_READING_NS`] ..
 /// [`LATEST_READING_NS`]).
+#[inline]
 pub fn reading_time_ok(t: TimeNs) -> bool {
     (EARLIEST_READING_NS..LATEST_READING_NS).contains(&t)
+}
+
+/// Whether every time is an accepted reading time ([`reading_time_ok`]). One pass without an
+/// early exit, for the clean case of a whole batch: a loop that stops at the first bad row
+/// cannot be unrolled, and this check runs on every row ingest reads.
+#[inline]
+pub fn reading_times_ok(time_ns: &[TimeNs]) -> bool {
+    let width = (LATEST_READING_NS - EARLIEST_READING_NS) as u64;
+    !time_ns
+        .iter()
+        .fold(false, |bad, &t| bad | (t.wrapping_sub(EARLIEST_READING_NS) as u64 >= width))
+}
+
+/// Whether every |counts| is at most [`MAX_ABS_COUNTS`], in one pass without an early exit
+/// (as [`reading_times_ok`]).
+#[inline]
+pub fn counts_ok(counts: &[i64]) -> bool {
+    counts.iter().fold(0, |m: u64, c| m.max(c.unsigned_abs())) <= MAX_ABS_COUNTS as u64
 }
 
 /// The bin length chosen when none is set, s: a straight line within a minute is the thermal
@@ -146,6 +165,36 @@ pub struct BinMoments {
     pub(crate) scc: i128,
 }
 
+/// The products one reading adds to its bin's sums: `u²`, `u³`, `u·c`, `c²` (`u` µs since the
+/// bin's start, `c` counts).
+struct Products {
+    uu: i128,
+    uuu: i128,
+    uc: i128,
+    cc: i128,
+}
+
+impl Products {
+    /// Every accepted reading has `0 <= u < 2³²` (a bin is at most an hour, 3.6e9 µs) and
+    /// `|c| <= 2⁴⁸` ([`MAX_ABS_COUNTS`]), so `u² < 2⁶⁴`, `u³ < 2⁹⁶`, `|u·c| < 2⁸¹`, `c² <= 2⁹⁶`:
+    /// no product can wrap, and each is one 64×64→128 multiplication. Spelled `wrapping_mul`
+    /// because an overflow-checked `i128` multiplication (our crates build with overflow checks)
+    /// is a call into compiler-rt per product, which made these products the largest part of
+    /// ingest's own time; the bounds are checked where readings enter
+    /// ([`BinAccumulator::add_all`]) and again here in debug builds.
+    #[inline]
+    fn of(u: i64, c: i64) -> Self {
+        debug_assert!((0..1 << 32).contains(&u) && c.unsigned_abs() <= MAX_ABS_COUNTS as u64);
+        let uu = (u as u64 as u128).wrapping_mul(u as u64 as u128);
+        Products {
+            uu: uu as i128,
+            uuu: (uu as i128).wrapping_mul(u as i128),
+            uc: (u as i128).wrapping_mul(c as i128),
+            cc: (c as i128).wrapping_mul(c as i128),
+        }
+    }
+}
+
 /// One node of a compressed bin: a weighted pseudo-reading.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Node {
@@ -169,15 +218,13 @@ impl BinMoments {
             last = last.max(u);
             low = low.min(c);
             high = high.max(c);
-            // 0 <= u < 3.6e9 µs (an hour) < 2³², so u² fits u64 (not i64: bins longer than
-            // 50.6 min overflowed it); each product below is one 64x64->128.
-            let uu = u as u64 * u as u64;
+            let p = Products::of(u, c);
             run.su += u as i128;
-            run.suu += uu as i128;
-            run.suuu += uu as i128 * u as i128;
+            run.suu += p.uu;
+            run.suuu += p.uuu;
             run.sc += c as i128;
-            run.suc += u as i128 * c as i128;
-            run.scc += c as i128 * c as i128;
+            run.suc += p.uc;
+            run.scc += p.cc;
         }
         run.n = time_ns.len().min(counts.len()) as u64;
         (run.first_us, run.last_us) = (first, last);
@@ -199,14 +246,14 @@ impl BinMoments {
             self.min_counts = self.min_counts.min(c);
             self.max_counts = self.max_counts.max(c);
         }
-        let uu = u as u64 * u as u64;
+        let p = Products::of(u, c);
         self.n += 1;
         self.su += u as i128;
-        self.suu += uu as i128;
-        self.suuu += uu as i128 * u as i128;
+        self.suu += p.uu;
+        self.suuu += p.uuu;
         self.sc += c as i128;
-        self.suc += u as i128 * c as i128;
-        self.scc += c as i128 * c as i128;
+        self.suc += p.uc;
+        self.scc += p.cc;
     }
 
     /// Take back one reading added with [`BinMoments::add_one`] or [`BinMoments::add_run`]:
@@ -224,14 +271,14 @@ impl BinMoments {
             return true;
         }
         let u = (t - start_ns) / NS_PER_US;
-        let uu = u as u64 * u as u64;
+        let p = Products::of(u, c);
         self.n -= 1;
         self.su -= u as i128;
-        self.suu -= uu as i128;
-        self.suuu -= uu as i128 * u as i128;
+        self.suu -= p.uu;
+        self.suuu -= p.uuu;
         self.sc -= c as i128;
-        self.suc -= u as i128 * c as i128;
-        self.scc -= c as i128 * c as i128;
+        self.suc -= p.uc;
+        self.scc -= p.cc;
         true
     }
 
@@ -520,11 +567,7 @@ pub struct BinAccumulator {
 /// The first time or counts value of the rows that the bin sums cannot hold exactly.
 fn check_readings(time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
     // Branch-free pass first (the common, clean case); the search only on failure.
-    let clean = time_ns.iter().all(|&t| reading_time_ok(t))
-        && counts
-            .iter()
-            .all(|&c| c.unsigned_abs() <= MAX_ABS_COUNTS as u64);
-    if clean {
+    if reading_times_ok(time_ns) && counts_ok(counts) {
         return Ok(());
     }
     if let Some(&t) = time_ns.iter().find(|&&t| !reading_time_ok(t)) {
