@@ -260,6 +260,10 @@ pub struct BarSeries {
     /// line: the part of a fit's RSS at full rate that the nodes do not carry ([`bins`]); 0 for
     /// a series of logged readings.
     pub(crate) within_bin_rss_um2: f64,
+    /// Degrees of freedom of [`BarSeries::within_bin_rss_um2`]: the fitted bins' readings less
+    /// the nodes that stand for them (a bin's line takes two, one where its readings share one
+    /// time); 0 for a series of logged readings.
+    pub(crate) within_bin_dof: f64,
     /// Readings outside every mount of the bar (handling time), dropped from the fits.
     pub dropped_outside_mounts: usize,
     /// The bar's own events and the setup-wide ones, sorted by time, times in seconds.
@@ -513,6 +517,12 @@ impl BarSeries {
             .sum::<f64>()
             * um_per_count
             * um_per_count;
+        // A node stands for `weight` readings and takes one degree of freedom of them.
+        let within_bin_dof = fit_index
+            .iter()
+            .map(|&i| readings.weight[i] - 1.0)
+            .sum::<f64>()
+            .max(0.0);
         Ok(BarSeries {
             bar,
             reference_temperature_c: campaign.reference_temperature_c,
@@ -535,6 +545,7 @@ impl BarSeries {
             fit_index,
             weight: readings.weight,
             within_bin_rss_um2,
+            within_bin_dof,
             dropped_outside_mounts,
             events,
         })
@@ -577,6 +588,7 @@ impl BarSeries {
             fit_index,
             weight: vec![1.0; n],
             within_bin_rss_um2: 0.0,
+            within_bin_dof: 0.0,
             dropped_outside_mounts,
             events: Vec::new(),
         }
@@ -661,6 +673,7 @@ impl BarSeries {
             fit_index,
             weight,
             within_bin_rss_um2: self.within_bin_rss_um2,
+            within_bin_dof: self.within_bin_dof,
             dropped_outside_mounts: self.dropped_outside_mounts,
             events: self.events.clone(),
         }
