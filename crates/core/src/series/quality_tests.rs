@@ -15,6 +15,7 @@ fn segments() -> Segments {
     Segments {
         mounts: vec![(B, B + 100_000 * S, 0)],
         rezeros: vec![],
+        edges: vec![],
     }
 }
 
