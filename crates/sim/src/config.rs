@@ -385,7 +385,7 @@ pub struct EffectsConfig {
 
 /// Read-head self-heating: the bar grows by `amplitude_um * lag(power; tau_s)`; the head is
 /// switched on and off (`head_power` events: 1 on, 0 off, one per switch), readings are logged
-/// only while it is on (an unpowered head reads nothing).
+/// only while it is on (an unpowered head reads nothing), unless `logs_while_off`.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct HeadHeating {
@@ -413,6 +413,10 @@ pub struct HeadHeating {
     /// of day, for a duration drawn uniformly from this range).
     #[serde(skip_serializing_if = "is_default_daily_off")]
     pub daily_off_h: [f64; 2],
+    /// Readings are logged while the head is off too: the switch powers the head's heat source,
+    /// not its counter, so a minute's readings can lie on both sides of a switch.
+    #[serde(skip_serializing_if = "is_default")]
+    pub logs_while_off: bool,
 }
 
 fn is_default<T: Default + PartialEq>(v: &T) -> bool {
@@ -666,6 +670,7 @@ impl Default for HeadHeating {
             mean_on_h: 18.0,
             mean_off_h: 2.0,
             daily_off_h: [1.5, 4.0],
+            logs_while_off: false,
         }
     }
 }

@@ -197,7 +197,8 @@ impl HeadPower {
     }
 }
 
-/// Simulate one bar over the whole campaign (one encoder row per sample while its head is on).
+/// Simulate one bar over the whole campaign (one encoder row per sample while its head is on,
+/// or at every sample if it logs while off).
 pub(crate) fn simulate_bar(setup: &BarSetup, env: &Environment, grid: &Grid) -> BarRun {
     let mut rng = stream_rng(setup.seed, streams::BAR_NOISE + setup.index as u64);
     let noise = Normal::new(0.0, setup.noise_um)
@@ -226,7 +227,7 @@ pub(crate) fn simulate_bar(setup: &BarSetup, env: &Environment, grid: &Grid) -> 
             }
         }
         let noise_um = noise.sample(&mut rng); // drawn for every sample: streams stay aligned
-        if !power.at(i) {
+        if !power.at(i) && !setup.plan.head_logs_while_off {
             continue;
         }
         let t_ns = j as i64 * grid.sample_ns;

@@ -64,6 +64,8 @@ pub(crate) struct BarPlan {
     pub(crate) head_toggles_ns: Vec<i64>,
     /// The head is powered before its first switch (no "on" event at the start).
     pub(crate) head_powered_at_start: bool,
+    /// Readings are logged while the head is off too ([`crate::HeadHeating::logs_while_off`]).
+    pub(crate) head_logs_while_off: bool,
     /// The head's heat at the start is its steady state when powered (it has been on for long),
     /// not cold.
     pub(crate) head_warm_at_start: bool,
@@ -208,6 +210,7 @@ pub(crate) fn plan_bar(cfg: &SimConfig, grid: &Grid, index: usize, bar_id: &str)
         head_toggles_ns,
         head_powered_at_start: head_enabled && start != HeadStart::SwitchedOn,
         head_warm_at_start: head_enabled && start == HeadStart::PoweredWarm,
+        head_logs_while_off: head_enabled && cfg.effects.head_heating.logs_while_off,
         rest_tilt_deg: cfg.plate.tilt_deg,
     }
 }
