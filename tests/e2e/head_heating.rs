@@ -172,10 +172,17 @@ fn sixty_second_bins_give_the_full_rate_head_estimates() {
     for (f, b) in full.bars.iter().zip(&binned.bars) {
         let (f, b) = (&f.model, &b.model);
         assert_eq!((&f.bar, f.n_samples), (&b.bar, b.n_samples));
-        assert!(b.residuals_um.len() * 20 < f.residuals_um.len(), "compressed");
+        assert!(
+            b.residuals_um.len() * 20 < f.residuals_um.len(),
+            "compressed"
+        );
         for p in &f.params {
             let shift = (b.param(&p.name).unwrap().value - p.value).abs() / p.u;
-            let limit = if p.name == "head_initial_um" { 0.1 } else { 0.02 };
+            let limit = if p.name == "head_initial_um" {
+                0.1
+            } else {
+                0.02
+            };
             eprintln!("{} {}: {shift:.4} u from the full-rate fit", f.bar, p.name);
             if shift.is_nan() || shift >= limit {
                 moved.push(format!("{} {} {shift:.4} u", f.bar, p.name));

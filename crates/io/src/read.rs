@@ -25,8 +25,7 @@ use dbbcal_core::campaign::{Campaign, Manifest, SensorKind};
 use dbbcal_core::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
 use dbbcal_core::series::{
     counts_ok, reading_time_ok, reading_times_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event,
-    EventKind, Quality,
-    SensorLog, MAX_ABS_COUNTS,
+    EventKind, Quality, SensorLog, MAX_ABS_COUNTS,
 };
 
 /// Index of the source file of each row, added while scanning, for error messages.
@@ -838,8 +837,7 @@ impl EncoderSink {
         let time = time.rechunk();
         let raw = time.cont_slice()?;
         let converted;
-        let time: &[i64] = if self.time.ns_per_unit == 1 && reading_times_ok(raw)
-        {
+        let time: &[i64] = if self.time.ns_per_unit == 1 && reading_times_ok(raw) {
             raw
         } else {
             converted = self.times_ns(raw, offset);
