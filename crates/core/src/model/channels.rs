@@ -96,15 +96,35 @@ pub(crate) fn resolve(series: &BarSeries, name: &str) -> Result<Channel, Channel
             ))
         }
         "length_mm" => Ok(Channel::Sampled(series.i_p_mm())),
-        "tilt_deg" => Ok(Channel::Sampled(
-            series
-                .mount_of
-                .iter()
-                .map(|m| m.map_or(0.0, |m| series.mounts[m as usize].tilt_deg))
-                .collect(),
-        )),
+        "tilt_deg" => Ok(Channel::Sampled(mount_tilt_held(series))),
         _ => Err(ChannelError::Unknown(name.to_string())),
     }
+}
+
+/// The tilt of the bar's mount at each sample, degrees. Between mounts (handling) the bar's tilt
+/// is not known: the last mount's is held (the first mount's before it), so the channel changes
+/// only where the tilt does. A 0 there made a step at every mount start even on a campaign
+/// whose mounts all share one tilt, and `lag:tilt_deg` then mimicked settling: on the second
+/// simulator's settling campaigns (`bench/foreign_check.py`, seeds 2 and 3) it ranked above
+/// `settling` itself.
+fn mount_tilt_held(series: &BarSeries) -> Vec<f64> {
+    let tilt_of = |m: u32| series.mounts[m as usize].tilt_deg;
+    let mut held = series
+        .mount_of
+        .iter()
+        .flatten()
+        .next()
+        .map_or(0.0, |&m| tilt_of(m));
+    series
+        .mount_of
+        .iter()
+        .map(|m| {
+            if let Some(&m) = m.as_ref() {
+                held = tilt_of(m);
+            }
+            held
+        })
+        .collect()
 }
 
 /// Events of one kind for the bar: a held series when they carry values, impulses otherwise.

@@ -288,6 +288,51 @@ fn daily_mounts(start_s: f64, end_trim_s: f64) -> Vec<MountSpan> {
         .collect()
 }
 
+/// The `tilt_deg` channel holds the last mount's tilt between mounts (the first mount's before
+/// it): with every mount at one tilt it is constant (no step at each mount start for a lag of it
+/// to mimic settling with); a change of tilt shows where the next mount begins.
+#[test]
+fn the_tilt_channel_changes_only_where_the_tilt_does() {
+    let mut s = gradient_bar(0.0);
+    // Handling before the first mount and between the mounts.
+    let mut mounts = daily_mounts(1800.0, 1800.0);
+    let tilt = |s: &BarSeries| match channels::resolve(s, "tilt_deg").unwrap() {
+        channels::Channel::Sampled(v) => v,
+        _ => panic!("tilt_deg is sampled"),
+    };
+    s.mount_of = s
+        .t_s
+        .iter()
+        .map(|&t| {
+            mounts
+                .iter()
+                .position(|m| m.from_s <= t && t < m.to_s)
+                .map(|k| k as u32)
+        })
+        .collect();
+    assert!(
+        s.mount_of[0].is_none() && s.mount_of[1440].is_none(),
+        "handling samples"
+    );
+    s.mounts = mounts.clone();
+    let same = tilt(&s);
+    assert!(
+        same.iter().all(|&v| v == mounts[0].tilt_deg),
+        "one tilt: constant"
+    );
+    mounts[1].tilt_deg = 30.0;
+    s.mounts = mounts.clone();
+    let changed = tilt(&s);
+    let first_of_second = s.mount_of.iter().position(|m| *m == Some(1)).unwrap();
+    assert_eq!(
+        changed[first_of_second - 1],
+        mounts[0].tilt_deg,
+        "held through handling"
+    );
+    assert_eq!(changed[first_of_second], 30.0);
+    assert_eq!(changed[s.t_s.len() - 1], mounts[2].tilt_deg);
+}
+
 /// Three days at 60 s, readings from 0, fitted mounts from 1800 s on; the head powered from the
 /// first reading (cold, no event says so), off 3 h a day from `off_at_s`; the reading falls by
 /// `amplitude_um` times the head's first-order heat (`tau_s`), noise-free.
