@@ -24,6 +24,13 @@ in steady state (powered long enough). Each bar's first head_power event is ther
 
 --one-length mounts every bar on the same plate length (beta, tau_S then not identifiable).
 
+--effect adds one hidden effect of physics.md's catalogue, each written here from its one-line
+description there: second_path (a second thermal path on I_min, gamma 0.8-1.5 ppm/K, its own
+tau 5-12 min), air_gradient (the bar's air is its sensor's plus 30-60 % of the difference to the
+other sensor, on both paths), settling (each mount's reading relaxes by 0.3-0.6 um with a tau of
+20-40 min after the bar is placed), creep (a slow trend of 0.05-0.15 um/day, independent of
+temperature).
+
     python3 bench/foreign_sim.py OUT --seed 1 [--air smooth|held|linear] [--head]
         [--bars 4] [--days 4] [--sample-s 10] [--temp-s 30] [--files bar|day] [--shuffle]
 
@@ -82,7 +89,7 @@ def _recurse(y, drive, a):
     return y
 
 
-def room_air(rng, seconds, sensors):
+def room_air(rng, seconds, sensors, sun_k=0.2):
     """The room's air at each sensor on a 1-s grid, K above T0."""
     t = np.arange(seconds, dtype=float)
     base = 0.3 + 0.4 * np.sin(2 * np.pi * (t / 86400.0 - 0.35))
@@ -93,7 +100,9 @@ def room_air(rng, seconds, sensors):
     air = {}
     for k, s in enumerate(sensors):
         offset = 0.15 * k
-        air[s] = base + offset + rng.uniform(0.08, 0.15) * tri + walk * (1.0 + 0.3 * k)
+        # The second sensor's place gets the sun in the morning: a daily difference (--sun-k).
+        sun = sun_k * k * np.sin(2 * np.pi * (t / 86400.0 - 0.15))
+        air[s] = base + offset + sun + rng.uniform(0.08, 0.15) * tri + walk * (1.0 + 0.3 * k)
     return air
 
 
@@ -105,6 +114,8 @@ def main():
     ap.add_argument("--head", action="store_true")
     ap.add_argument("--head-rows", choices=["on", "off"], default="on", help="readings while the head is off")
     ap.add_argument("--one-length", action="store_true")
+    ap.add_argument("--effect", choices=["second_path", "air_gradient", "settling", "creep"])
+    ap.add_argument("--sun-k", type=float, default=0.2, help="daily air difference between the sensors, K")
     ap.add_argument("--bars", type=int, default=4)
     ap.add_argument("--days", type=float, default=4.0)
     ap.add_argument("--sample-s", type=float, default=10.0)
@@ -116,7 +127,7 @@ def main():
     rng = np.random.default_rng(args.seed)
     seconds = int(args.days * 86400)
     sensors = ["T1", "T2"]
-    air = room_air(rng, seconds + 1, sensors)
+    air = room_air(rng, seconds + 1, sensors, args.sun_k)
 
     # Sensor readings every temp_s (sensors a few seconds apart), with noise.
     temp_rows = []
@@ -150,6 +161,10 @@ def main():
         }
         fixed_mm = rng.uniform(200, 240)
         u, lag = felt(sensor)
+        if args.effect == "air_gradient":
+            p["gradient_share"] = rng.uniform(0.3, 0.6)
+            other, _ = felt(sensors[(b + 1) % 2])
+            u = u + p["gradient_share"] * (other - u)
         dT_R = lag(u, p["tau_r_s"])
         dT_S = lag(u, p["tau_s_s"])
         growth_um = np.zeros(seconds + 1)
@@ -186,6 +201,7 @@ def main():
         dist[handling] = 300.0 + 30.0 * np.sin(np.arange(handling.sum()) / 50.0)
         dD_um = (p["alpha_ppm_per_k"] * fixed_mm * dT_R + p["beta_ppm_per_k"] * (dist - fixed_mm) * dT_S) * 1e-3
         dD_um += growth_um
+        dD_um += hidden_effect_um(args.effect, rng, p, fixed_mm, u, lag, mounts, seconds)
         # Readings start mid-second and drift by a few ms against the 1-s grid.
         t_read = np.arange(0.37 * (b + 1), seconds - 1, args.sample_s) + rng.uniform(0, 0.005)
         i0 = np.floor(t_read).astype(int)
@@ -216,6 +232,26 @@ def main():
     write(args, bars, truth, enc_frames, temp_rows, events)
 
 
+def hidden_effect_um(effect, rng, p, fixed_mm, u, lag, mounts, seconds):
+    """The growth (um, on the 1-s grid) of the hidden effect `effect`; its truth goes into p."""
+    if effect == "second_path":
+        p["gamma_ppm_per_k"] = rng.uniform(0.8, 1.5)
+        p["tau_2_s"] = rng.uniform(300, 720)
+        return p["gamma_ppm_per_k"] * fixed_mm * lag(u, p["tau_2_s"]) * 1e-3
+    t = np.arange(seconds + 1, dtype=float)
+    if effect == "settling":
+        p["settling_um"] = rng.uniform(0.3, 0.6)
+        p["tau_settling_s"] = rng.uniform(1200, 2400)
+        out = np.zeros(seconds + 1)
+        for a, e, _ in mounts:
+            out[a:e] = p["settling_um"] * np.exp(-(t[a:e] - a) / p["tau_settling_s"])
+        return out
+    if effect == "creep":
+        p["creep_um_per_day"] = rng.uniform(0.05, 0.15)
+        return p["creep_um_per_day"] * t / 86400.0
+    return np.zeros(seconds + 1)
+
+
 def ts(seconds):
     """Seconds since START -> microsecond UTC timestamps."""
     return (pl.lit(START).dt.cast_time_unit("us") + pl.duration(microseconds=(seconds * 1e6).round().cast(pl.Int64))).alias("time")
@@ -230,7 +266,7 @@ def write(args, bars, truth, enc_frames, temp_rows, events):
     iso = lambda s: (START + timedelta(seconds=int(s))).strftime("%Y-%m-%dT%H:%M:%SZ")
     lines = [
         "[campaign]",
-        f'id = "foreign-{args.air}{"-head" if args.head else ""}-{args.seed}"',
+        f'id = "foreign-{args.air}{"-head" if args.head else ""}{"-" + args.effect if args.effect else ""}-{args.seed}"',
         f"reference_temperature_c = {T0_C}",
         "",
         "[plate]",
