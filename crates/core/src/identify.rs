@@ -107,6 +107,15 @@ pub enum IdentifyError {
 }
 
 impl BarModel {
+    /// Whether a time constant ran to the end of its range ([`crate::model::MAX_TAU_S`]): the
+    /// model bends to mimic something it lacks (on the second simulator's plate-expansion
+    /// campaign of 4 bars over 5 days, the base model's `tau_s_s` went to 1e9 s with beta at
+    /// -2e4 ppm/K), and its estimates are no place to start a refit from.
+    pub(crate) fn time_constant_at_range_end(&self) -> bool {
+        let end = crate::model::MAX_TAU_S.ln();
+        self.theta.iter().any(|&ln_tau| ln_tau >= end - 1e-6)
+    }
+
     /// The parameter `name`, if the model has it.
     pub fn param(&self, name: &str) -> Option<&Estimate> {
         self.params.iter().find(|p| p.name == name)
@@ -502,7 +511,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
             } else {
                 let (ln_tau, u_ln) = (fit.values[i], fit.se_hac(i));
                 let t95 = fit.t95(i);
-                let tau = ln_tau.clamp(0.0, 1e9f64.ln()).exp();
+                let tau = ln_tau.clamp(0.0, crate::model::MAX_TAU_S.ln()).exp();
                 Estimate {
                     name: tau_names[i - n_lin].clone(),
                     value: tau,

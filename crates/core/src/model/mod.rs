@@ -95,6 +95,9 @@ impl std::fmt::Display for Effect {
     }
 }
 
+/// Longest time constant a term takes, s (about 32 years): the end of the range the fits search.
+pub(crate) const MAX_TAU_S: f64 = 1e9;
+
 /// The named effects of the catalogue (`physics.md`), in display order.
 pub(crate) const CATALOGUE: &[&str] = &[
     "fixed_part",
@@ -642,14 +645,15 @@ impl<'a> ThermalProblem<'a> {
             .collect()
     }
 
-    /// Time constant of term `j` (its own or the one it shares), kept within 1 s .. 1e9 s so
-    /// that a solver wandering off to an unidentifiable extreme never produces infinities.
+    /// Time constant of term `j` (its own or the one it shares), kept within 1 s ..
+    /// [`MAX_TAU_S`] so that a solver wandering off to an unidentifiable extreme never produces
+    /// infinities.
     fn tau_of(&self, j: usize, theta: &[f64]) -> Option<f64> {
         let owner = self.tau_source[j]?;
         self.tau_terms
             .iter()
             .position(|&i| i == owner)
-            .map(|k| theta[k].clamp(0.0, 1e9f64.ln()).exp())
+            .map(|k| theta[k].clamp(0.0, MAX_TAU_S.ln()).exp())
     }
 
     /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`
