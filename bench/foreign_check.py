@@ -15,7 +15,8 @@ rows shuffled or not, 1-60 s sampling):
            within 5 % of the noise drawn, head_growth_um and tau_head_s within 3 u of the truth, and
            head_heating ranked first by the nightly diagnosis of the base model;
   onelen   every mount on one length: exit 0, beta/tau_S reported not identifiable;
-  hidden   one hidden effect (second_path, air_gradient, settling, creep; seeds 1-5): the
+  hidden   one hidden effect (second_path, air_gradient, settling, creep, plate_expansion;
+           seeds 1-5): the
            nightly diagnosis of the base model ranks it first and proposes it, and with
            --add-effect the fleet RMS is within 1 % of the noise drawn.
 
@@ -184,7 +185,7 @@ def main():
             record("onelen", seed, flags, ok, f"exit 0, not identifiable: {missing}, RMS {fleet_rms(s) * 1e3:.2f} nm")
 
     if "hidden" in cases:
-        for effect in ("second_path", "air_gradient", "settling", "creep"):
+        for effect in ("second_path", "air_gradient", "settling", "creep", "plate_expansion"):
             for seed in range(1, min(5, args.seeds) + 1):
                 camp = os.path.join(args.out, f"hidden-{effect}-{seed}")
                 flags = ["--effect", effect, "--air", ["smooth", "held", "linear"][seed % 3], *layout(seed)]

@@ -29,7 +29,8 @@ description there: second_path (a second thermal path on I_min, gamma 0.8-1.5 pp
 tau 5-12 min), air_gradient (the bar's air is its sensor's plus 30-60 % of the difference to the
 other sensor, on both paths), settling (each mount's reading relaxes by 0.3-0.6 um with a tau of
 20-40 min after the bar is placed), creep (a slow trend of 0.05-0.15 um/day, independent of
-temperature).
+temperature), plate_expansion (the plate, declared of zero expansion, expands by 0.5-1.0 ppm/K of
+its own temperature, a 3-h lag of the room's mean air, which a plate sensor P1 logs).
 
     python3 bench/foreign_sim.py OUT --seed 1 [--air smooth|held|linear] [--head]
         [--bars 4] [--days 4] [--sample-s 10] [--temp-s 30] [--files bar|day] [--shuffle]
@@ -114,7 +115,7 @@ def main():
     ap.add_argument("--head", action="store_true")
     ap.add_argument("--head-rows", choices=["on", "off"], default="on", help="readings while the head is off")
     ap.add_argument("--one-length", action="store_true")
-    ap.add_argument("--effect", choices=["second_path", "air_gradient", "settling", "creep"])
+    ap.add_argument("--effect", choices=["second_path", "air_gradient", "settling", "creep", "plate_expansion"])
     ap.add_argument("--sun-k", type=float, default=0.2, help="daily air difference between the sensors, K")
     ap.add_argument("--bars", type=int, default=4)
     ap.add_argument("--days", type=float, default=4.0)
@@ -137,6 +138,13 @@ def main():
         values = air[s][times] + rng.normal(0, SENSOR_NOISE_K, len(times))
         reading[s] = (times, values)
         temp_rows.append(pl.DataFrame({"t": times, "sensor": s, "celsius": values + T0_C}))
+    plate_cte, plate_k = 0.0, None
+    if args.effect == "plate_expansion":
+        plate_cte = rng.uniform(0.5, 1.0)
+        plate_k = lag_linear(0.5 * (air["T1"] + air["T2"]), 10800.0)
+        times = np.arange(7, seconds + 1, args.temp_s)
+        values = plate_k[times] + rng.normal(0, 0.002, len(times))
+        temp_rows.append(pl.DataFrame({"t": times, "sensor": "P1", "celsius": values + T0_C}))
 
     def felt(s):
         """The air the bars near sensor s respond to, on the 1-s grid (K above T0)."""
@@ -197,6 +205,11 @@ def main():
         dist = np.full(seconds + 1, np.nan)
         for a, e, name in mounts:
             dist[a:e] = LENGTHS_MM[name]
+        if plate_k is not None:
+            # The true distance of a plate length: mm (1 + cte (T_plate - T0)) (campaign-format.md).
+            p["plate_cte_ppm_per_k"] = plate_cte
+            for a, e, _ in mounts:
+                dist[a:e] *= 1.0 + plate_cte * 1e-6 * plate_k[a:e]
         handling = np.isnan(dist)
         dist[handling] = 300.0 + 30.0 * np.sin(np.arange(handling.sum()) / 50.0)
         dD_um = (p["alpha_ppm_per_k"] * fixed_mm * dT_R + p["beta_ppm_per_k"] * (dist - fixed_mm) * dT_S) * 1e-3
@@ -229,7 +242,7 @@ def main():
         enc_frames.append(pl.DataFrame({"t": t_read[keep], "bar": bar, "counts": counts[keep].astype(np.int32)}))
         bars.append((bar, fixed_mm, sensor, mounts))
 
-    write(args, bars, truth, enc_frames, temp_rows, events)
+    write(args, bars, truth, enc_frames, temp_rows, events, plate_k is not None)
 
 
 def hidden_effect_um(effect, rng, p, fixed_mm, u, lag, mounts, seconds):
@@ -257,7 +270,7 @@ def ts(seconds):
     return (pl.lit(START).dt.cast_time_unit("us") + pl.duration(microseconds=(seconds * 1e6).round().cast(pl.Int64))).alias("time")
 
 
-def write(args, bars, truth, enc_frames, temp_rows, events):
+def write(args, bars, truth, enc_frames, temp_rows, events, plate_sensor):
     out = args.out
     if os.path.exists(out):
         shutil.rmtree(out)
@@ -278,6 +291,8 @@ def write(args, bars, truth, enc_frames, temp_rows, events):
         lines += ["", "[[plate.length]]", f'id = "{name}"', f"mm = {mm}", "u_um = 0.15"]
     for s in ("T1", "T2"):
         lines += ["", "[[sensor]]", f'id = "{s}"', 'kind = "air"']
+    if plate_sensor:
+        lines += ["", "[[sensor]]", 'id = "P1"', 'kind = "plate"']
     for bar, fixed_mm, sensor, _ in bars:
         lines += ["", "[[bar]]", f'id = "{bar}"', f"resolution_nm = {RESOLUTION_NM}", f"fixed_length_mm = {fixed_mm:.4f}", f'sensor = "{sensor}"']
     for bar, _, _, mounts in bars:
