@@ -281,7 +281,7 @@ impl Refits {
             return hit.clone();
         }
         let fitted = Arc::new(Refit {
-            model: refit_from(series, &effects, base).map_err(|e| e.to_string()),
+            model: identify_from(series, &effects, Some(base)).map_err(|e| e.to_string()),
             noise_log_likelihood: OnceLock::new(),
         });
         self.lock().entry(key).or_insert(fitted).clone()
@@ -289,31 +289,6 @@ impl Refits {
 
     fn lock(&self) -> std::sync::MutexGuard<'_, RefitCache> {
         self.fits.lock().unwrap_or_else(|e| e.into_inner())
-    }
-}
-
-/// `effects` fitted to `series` from `base`'s estimates; from a fresh start too (the one
-/// `identify` makes), keeping the better, when a time constant of `base` ran to the end of its
-/// range ([`BarModel::time_constant_at_range_end`]). Measured on the second simulator's
-/// plate-expansion campaign (`bench/foreign_sim.py --effect plate_expansion --seed 1
-/// --sample-s 10`): from the bent base alone the refit with `plate_expansion` stopped at
-/// 20.17 nm, above `air_gradient`'s 20.13, and the diagnosis named `air_gradient`;
-/// `--add-effect plate_expansion` reaches 20.00. Bases bent less far (time constants of days)
-/// still start every refit from their own estimates: fresh starts there too cost 1.5-2.5 times
-/// the diagnosis and did not always change its answer.
-fn refit_from(
-    series: &BarSeries,
-    effects: &[Effect],
-    base: &BarModel,
-) -> Result<BarModel, crate::identify::IdentifyError> {
-    let warm = identify_from(series, effects, Some(base));
-    if !base.time_constant_at_range_end() {
-        return warm;
-    }
-    match (warm, identify_from(series, effects, None)) {
-        (Ok(w), Ok(f)) => Ok(if f.rms_um < w.rms_um { f } else { w }),
-        (Ok(w), Err(_)) => Ok(w),
-        (Err(_), fresh) => fresh,
     }
 }
 
