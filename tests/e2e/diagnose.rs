@@ -213,3 +213,92 @@ fn base_only_campaign_raises_no_false_alarm() {
         .collect();
     assert!(alarms.is_empty(), "false alarms: {alarms:?}");
 }
+
+/// A weak air gradient (T2 − T1 wandering by ±0.015 K; the bars feel 40 % of it): the base model
+/// is 0.5 % above the noise, and `lag:T2`, `air_gradient` and `lag:T2-T1` each remove about
+/// 0.11 nm of the fleet RMS. `lag:T2` does it by trading the model's own terms against its new
+/// gain (it moves them by 0.08 µm, alpha by −45 %); `air_gradient`, the truth, leaves them in
+/// place. The data do not choose between the two, so the shift is no finding and nothing is
+/// proposed; before this rule `lag:T2` was proposed as the missing effect.
+#[test]
+fn a_shift_the_data_do_not_choose_is_not_proposed() {
+    let text = std::fs::read_to_string("pipelines/sim-sample.toml").unwrap();
+    let mut table: toml::Table = toml::from_str(&text).unwrap();
+    let room = table["room"].as_table_mut().unwrap();
+    for key in [
+        "gradient_k",
+        "gradient_daily_k",
+        "gradient_ac_k",
+        "gradient_wander_k",
+    ] {
+        room.insert(key.into(), toml::Value::Float(0.015));
+    }
+    table["fleet"]
+        .as_table_mut()
+        .unwrap()
+        .insert("n_bars".into(), toml::Value::Integer(4));
+    table.insert("duration_days".into(), toml::Value::Float(5.0));
+    table.insert(
+        "effects".into(),
+        toml::from_str("sensor_gradient = { enabled = true, weight_t2 = 0.4 }").unwrap(),
+    );
+    let cfg: SimConfig = table.try_into().unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let (dir, truth) = simulate_campaign(tmp.path(), "weak-gradient", &cfg);
+    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
+        .and_then(|p| p.with_forward_steps(0))
+        .unwrap();
+    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
+    let diagnosis = results.diagnosis.as_ref().unwrap();
+    for c in &diagnosis.candidates {
+        eprintln!("{}: {:?}: {}", c.effect, c.verdict, c.reason);
+    }
+    let proposed: Vec<&str> = diagnosis
+        .candidates
+        .iter()
+        .filter(|c| c.proposed())
+        .map(|c| c.reason.as_str())
+        .collect();
+    assert!(proposed.is_empty(), "proposed: {proposed:?}");
+    // The alias: significant, shifting the model by more than the threshold, called immaterial
+    // for the rival that explains as much without the shift.
+    let min_gain = diagnosis.criteria.min_gain_um;
+    let alias = diagnosis
+        .candidates
+        .iter()
+        .find(|c| c.effect.name() == "lag:T2")
+        .unwrap();
+    assert_eq!(
+        alias.verdict,
+        dbbcal::diagnose::Verdict::Immaterial,
+        "{}",
+        alias.reason
+    );
+    assert!(alias.screened_shift_um >= min_gain, "{}", alias.reason);
+    // The rival is the gradient, as the catalogue effect or as its channel.
+    assert!(
+        ["air_gradient", "lag:T2-T1"]
+            .iter()
+            .any(|r| alias.reason.contains(&format!("but {r} removes"))),
+        "{}",
+        alias.reason
+    );
+    // Why it must not be proposed: added, it takes alpha far from the truth on every bar.
+    let mut effects = dbbcal::model::base_effects();
+    effects.push(Effect::parse("lag:T2").unwrap());
+    for o in &results.bars {
+        let with_alias = identify(&o.series, &effects).unwrap();
+        let t = truth.bars.iter().find(|b| b.id == o.model.bar).unwrap();
+        let alpha = with_alias.param("alpha_ppm_per_k").unwrap();
+        let z = (alpha.value - t.alpha_ppm_per_k) / alpha.u;
+        eprintln!(
+            "{}: alpha with lag:T2 {:.3} ± {:.3}, truth {:.3} ({z:.1} u)",
+            o.model.bar, alpha.value, alpha.u, t.alpha_ppm_per_k
+        );
+        assert!(
+            z.abs() > 5.0,
+            "{}: lag:T2 left alpha within 5 u",
+            o.model.bar
+        );
+    }
+}
