@@ -523,7 +523,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
     order.extend(n_lin..fit.n_params());
     let tau_names = problem.tau_names();
     let gain_estimate = |i: usize| {
-        let (v, u) = (fit.values[i], fit.se_hac(i));
+        let (v, u) = (fit.values[i], fit.se(i));
         let t95 = fit.t95(i);
         Estimate {
             name: gain_names[i].clone(),
@@ -540,7 +540,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
             if i < n_gains {
                 gain_estimate(i)
             } else {
-                let (ln_tau, u_ln) = (fit.values[i], fit.se_hac(i));
+                let (ln_tau, u_ln) = (fit.values[i], fit.se(i));
                 let t95 = fit.t95(i);
                 let tau = ln_tau.clamp(0.0, crate::model::MAX_TAU_S.ln()).exp();
                 Estimate {
@@ -598,7 +598,7 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         residuals_um: problem.unweighted(&fit.residuals),
         theta,
         hac_batch_len: fit.hac_batch_len,
-        dof: order.iter().map(|&i| fit.hac_dof_param[i]).collect(),
+        dof: order.iter().map(|&i| fit.dof_of(i)).collect(),
         theta_index: order
             .iter()
             .map(|&i| (i >= n_lin).then(|| i - n_lin))
@@ -774,7 +774,7 @@ mod tests {
                         f.hac_dof_param[k],
                         f.t95(k),
                         f.values[k] - truth[k],
-                        f.se_hac(k),
+                        f.se(k),
                         f.se_naive(k),
                         lin[k],
                         exact[(k, k)].sqrt()

@@ -70,18 +70,22 @@ pub(crate) const RIVAL_SHARE: f64 = 0.1;
 /// patent's ±1 µm; the hidden second thermal path of the tests removes 0.18 nm, an alias of the
 /// model's own lag 0.0004 nm).
 pub(crate) const SHIFT_TRACE_SHARE: f64 = 0.01;
-/// A shift of the model's own terms is a finding only where the data choose it: a rival that
-/// removes at least this share of the candidate's screened gain while moving the model's own
-/// terms by less than the materiality threshold explains the same residual about as well and
-/// leaves the model in place, so the shift is a choice between aliases, not a measurement.
-/// Measured on the second simulator's weak air gradient (`bench/foreign_sim.py X --seed 2
-/// --effect air_gradient --air linear --files bar --sample-s 10 --days 5 --sun-k 0`):
-/// `lag:T1` and `lag:T2` removed 0.11 and 0.21 nm and moved the model's own terms by 0.92 and
-/// 0.075 µm, `air_gradient` (the truth) removed 0.15 nm, screened, and moved them by 1.4 nm;
-/// adding `lag:T1` took alpha from 2.13 (truth 2.135) to 0.38 ppm/K, `lag:T2` one bar's to
-/// −0.32. On the hidden second path of the tests the rivals within half its gain (`lag:T2`,
-/// `lag:T1`) move the model as it does, and it stays proposed.
-pub(crate) const SHIFT_RIVAL_SHARE: f64 = 0.5;
+
+/// Whether `effect` may be proposed for how much it moves the model's own terms, beyond the RMS
+/// it removes: the catalogue's effects may, a generic channel term (`lag:CH`, `rate:CH@…`) may
+/// not.
+///
+/// Why: a channel term is the diagnosis's detector for what the catalogue lacks, and most
+/// channels follow the air the base paths already lag. Traded against those paths, such a term
+/// moves the model's own terms with hardly any change to the fit: with a weak air gradient
+/// (`tests/e2e/diagnose.rs::a_generic_channel_term_is_not_proposed_for_its_shift_alone`)
+/// `lag:T2` removed 0.11 nm of the fleet RMS, moved the model by 0.08 µm, and once added took
+/// every bar's alpha 45 % from the truth, while `air_gradient`, the truth, removed as much and
+/// left the model in place. A catalogue effect carries a mechanism; its shift is its point (a
+/// hidden second thermal path removes 0.16-0.18 nm and biases alpha by tens of per cent).
+pub(crate) fn may_be_proposed_for_its_shift(effect: &Effect) -> bool {
+    !matches!(effect, Effect::Channel { .. })
+}
 
 /// When a candidate is worth proposing.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
@@ -128,20 +132,22 @@ impl Criteria {
         Criteria::new(floor, tolerance_um)
     }
 
-    /// Whether a candidate that removes `gain_um` of the fleet RMS and moves the model's own
-    /// terms' prediction by `shift_um` (fleet RMS) matters. The shift counts only for a term
-    /// that leaves a trace in the fit ([`Criteria::shift_counts`]).
-    pub(crate) fn is_material(&self, gain_um: f64, shift_um: f64) -> bool {
-        gain_um >= self.min_gain_um || (self.shift_counts(gain_um) && shift_um >= self.min_gain_um)
+    /// Whether candidate `effect`, removing `gain_um` of the fleet RMS and moving the model's own
+    /// terms' prediction by `shift_um` (fleet RMS), matters. The shift counts only for a
+    /// catalogue effect that leaves a trace in the fit ([`Criteria::shift_counts`]).
+    pub(crate) fn is_material(&self, effect: &Effect, gain_um: f64, shift_um: f64) -> bool {
+        gain_um >= self.min_gain_um
+            || (self.shift_counts(effect, gain_um) && shift_um >= self.min_gain_um)
     }
 
-    /// Whether a term that removes `gain_um` of the fleet RMS can be said to move the model: at
-    /// least [`SHIFT_TRACE_SHARE`] of the threshold. A term nearly inside the model's span (a
-    /// second lag of the same air at almost the same time constant) can shift the model's own
-    /// terms by any amount while changing the fit by nothing: that shift is a
-    /// reparametrisation the data do not determine, not a finding.
-    pub(crate) fn shift_counts(&self, gain_um: f64) -> bool {
-        gain_um >= SHIFT_TRACE_SHARE * self.min_gain_um
+    /// Whether `effect`, removing `gain_um` of the fleet RMS, can be said to move the model: a
+    /// catalogue effect ([`may_be_proposed_for_its_shift`]) removing at least
+    /// [`SHIFT_TRACE_SHARE`] of the threshold. A term nearly inside the model's span (a second
+    /// lag of the same air at almost the same time constant) can shift the model's own terms by
+    /// any amount while changing the fit by nothing: that shift is a reparametrisation the data
+    /// do not determine, not a finding.
+    pub(crate) fn shift_counts(&self, effect: &Effect, gain_um: f64) -> bool {
+        may_be_proposed_for_its_shift(effect) && gain_um >= SHIFT_TRACE_SHARE * self.min_gain_um
     }
 }
 
@@ -457,12 +463,10 @@ pub fn evaluate_candidates(
     // ranks it) and what it could matter by (a shift of the model's own terms counts only where
     // the score test finds the term and the term leaves a trace in the fit).
     let mut screened: Vec<(usize, f64, f64)> = Vec::new();
-    let mut shifts: Vec<f64> = vec![f64::NAN; candidates.len()];
     for (c, per_bar) in screens.iter().enumerate() {
         if let Some((gain, shift, p)) = screened_change(bars, per_bar) {
             tracing::trace!(effect = %candidates[c].name(), gain, shift, p, "diagnose: screened");
-            let shift_counts = p < threshold && criteria.shift_counts(gain);
-            shifts[c] = shift;
+            let shift_counts = p < threshold && criteria.shift_counts(&candidates[c], gain);
             screened.push((c, gain, if shift_counts { gain.max(shift) } else { gain }));
         } else {
             unavailable.push(Unavailable {
@@ -497,13 +501,7 @@ pub fn evaluate_candidates(
                 Some(k) => exact[k].clone(),
                 None => screened_only(bars, &screens[c]),
             };
-            let rival = steady_rival(c, gain, &screened, &shifts, criteria).map(|(r, g)| Rival {
-                effect: candidates[r].name(),
-                gain_um: g,
-                shift_um: shifts[r],
-            });
-            let mut summary =
-                summarise_candidate(&candidates[c], per_bar, threshold, criteria, rival);
+            let mut summary = summarise_candidate(&candidates[c], per_bar, threshold, criteria);
             if summary.verdict == Verdict::ScreenedOut
                 && change >= SCREEN_SHARE * criteria.min_gain_um
             {
@@ -529,34 +527,6 @@ pub fn evaluate_candidates(
     });
     prefer_named_effects(&mut ranked);
     (ranked, unavailable)
-}
-
-/// A candidate that explains about as much of the residual as another while leaving the model's
-/// own terms in place ([`SHIFT_RIVAL_SHARE`]): what the other's shift is weighed against.
-struct Rival {
-    effect: String,
-    /// Fleet RMS it removes, screened (µm).
-    gain_um: f64,
-    /// How much it moves the model's own terms, screened (µm).
-    shift_um: f64,
-}
-
-/// The best-screened candidate other than `c` that removes at least [`SHIFT_RIVAL_SHARE`] of
-/// `c`'s screened gain and moves the model's own terms by less than the materiality threshold,
-/// with its gain; `screened`: `(candidate, screened gain, _)`, best first.
-fn steady_rival(
-    c: usize,
-    gain: f64,
-    screened: &[(usize, f64, f64)],
-    shifts: &[f64],
-    criteria: &Criteria,
-) -> Option<(usize, f64)> {
-    screened
-        .iter()
-        .find(|&&(r, g, _)| {
-            r != c && g >= SHIFT_RIVAL_SHARE * gain && shifts[r] < criteria.min_gain_um
-        })
-        .map(|&(r, g, _)| (r, g))
 }
 
 /// The fleet RMS a candidate removes, how much it moves the model's own terms (quadratic means
@@ -778,7 +748,6 @@ fn summarise_candidate(
     per_bar: Vec<CandidateOnBar>,
     threshold: f64,
     criteria: &Criteria,
-    rival: Option<Rival>,
 ) -> Candidate {
     let fitted: Vec<&CandidateOnBar> = per_bar.iter().filter(|c| c.error.is_none()).collect();
     let fleet_rms = |f: &dyn Fn(&CandidateOnBar) -> f64| {
@@ -809,7 +778,17 @@ fn summarise_candidate(
     };
     if !refitted {
         let gain = rms_before_um - screened_rms_after_um;
-        candidate.reason = if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um {
+        candidate.reason = if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um
+            && !may_be_proposed_for_its_shift(effect)
+        {
+            format!(
+                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but a channel term counts only for what it removes (traded against the base paths, its gain moves them with hardly any change to the fit)",
+                fmt_um(gain),
+                SCREEN_SHARE,
+                fmt_um(criteria.min_gain_um),
+                fmt_um(screened_shift_um)
+            )
+        } else if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um {
             format!(
                 "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but its score test does not find the term or it leaves no trace in the fit (a reparametrisation the data do not determine)",
                 fmt_um(gain),
@@ -842,11 +821,7 @@ fn summarise_candidate(
     let bars_improved = fitted.iter().filter(|c| c.significant).count();
     let significant = p_value < threshold && delta_bic < 0.0 && bars_improved > 0;
     let gain = rms_before_um - rms_after_um;
-    // Without a steady rival the shift counts as the criteria say; with one, only the gain.
-    let material = match &rival {
-        None => criteria.is_material(gain, screened_shift_um),
-        Some(_) => criteria.is_material(gain, 0.0),
-    };
+    let material = criteria.is_material(effect, gain, screened_shift_um);
     let (verdict, reason) = match (significant, material) {
         (true, true) => (
             Verdict::Proposed,
@@ -857,18 +832,17 @@ fn summarise_candidate(
                 fmt_um(criteria.min_gain_um)
             ),
         ),
-        (true, false) if screened_shift_um >= criteria.min_gain_um && rival.is_some() => {
-            let rival = rival.as_ref().expect("matched");
+        (true, false)
+            if screened_shift_um >= criteria.min_gain_um
+                && !may_be_proposed_for_its_shift(effect) =>
+        {
             (
                 Verdict::Immaterial,
                 format!(
-                    "detectable but immaterial: significant (p = {p_value:.1e}), but it removes only {} µm of the fleet RMS; it would move the model's own terms by {} µm, but {} removes about as much ({} µm, screened) and moves them by {} µm: the data do not choose between the two, so the shift is not a finding (threshold {} µm)",
+                    "detectable but immaterial: significant (p = {p_value:.1e}), but it removes only {} µm of the fleet RMS, below the materiality threshold {} µm; it would move the model's own terms by {} µm, but a channel term counts only for what it removes (traded against the base paths, its gain moves them with hardly any change to the fit)",
                     fmt_um(gain),
-                    fmt_um(screened_shift_um),
-                    rival.effect,
-                    fmt_um(rival.gain_um),
-                    fmt_um(rival.shift_um),
-                    fmt_um(criteria.min_gain_um)
+                    fmt_um(criteria.min_gain_um),
+                    fmt_um(screened_shift_um)
                 ),
             )
         }
