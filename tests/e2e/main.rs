@@ -20,3 +20,4 @@ mod page;
 mod row_order;
 mod safe_outputs;
 mod support;
+mod tclab;

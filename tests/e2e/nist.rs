@@ -7,8 +7,9 @@
 
 use std::path::PathBuf;
 
-use dbbcal::fit::{fit, FitOptions, Separable};
-use nalgebra::DMatrix;
+use dbbcal::fit::{fit, FitOptions};
+
+use crate::support::{BasisFn, ClosedForm};
 
 struct Certified {
     start1: Vec<f64>,
@@ -62,50 +63,12 @@ fn load(name: &str) -> Certified {
     c
 }
 
-type BasisFn = fn(x: f64, theta: &[f64]) -> Vec<f64>;
-
-/// A NIST model in separable form: `y = Σ_j c_j φ_j(x; θ)`.
-struct NistProblem {
-    x: Vec<f64>,
-    y: Vec<f64>,
-    n_nonlinear: usize,
-    n_linear: usize,
-    basis: BasisFn,
-}
-
-impl Separable for NistProblem {
-    fn observations(&self) -> &[f64] {
-        &self.y
-    }
-    fn nonlinear_names(&self) -> Vec<String> {
-        (0..self.n_nonlinear).map(|k| format!("t{k}")).collect()
-    }
-    fn linear_names(&self) -> Vec<String> {
-        (0..self.n_linear).map(|k| format!("c{k}")).collect()
-    }
-    fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
-        DMatrix::from_fn(self.x.len(), self.n_linear, |i, j| {
-            (self.basis)(self.x[i], theta)[j]
-        })
-    }
-    fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
-        // Central difference, relative step: accurate to ~1e-10, ample for 6 certified digits.
-        let h = 1e-6 * theta[k].abs().max(1e-8);
-        let (mut tp, mut tm) = (theta.to_vec(), theta.to_vec());
-        tp[k] += h;
-        tm[k] -= h;
-        DMatrix::from_fn(self.x.len(), self.n_linear, |i, j| {
-            ((self.basis)(self.x[i], &tp)[j] - (self.basis)(self.x[i], &tm)[j]) / (2.0 * h)
-        })
-    }
-}
-
 /// Fit `name` from both NIST starts; `linear` and `nonlinear` are the indices of the certified
 /// parameters in the engine's order (linear coefficients first, then nonlinear).
 fn check(name: &str, linear: &[usize], nonlinear: &[usize], basis: BasisFn) {
     let c = load(name);
     for (label, start) in [("start 1", &c.start1), ("start 2", &c.start2)] {
-        let problem = NistProblem {
+        let problem = ClosedForm {
             x: c.x.clone(),
             y: c.y.clone(),
             n_nonlinear: nonlinear.len(),
