@@ -87,6 +87,10 @@ pub(crate) fn may_be_proposed_for_its_shift(effect: &Effect) -> bool {
     !matches!(effect, Effect::Channel { .. })
 }
 
+/// Why a channel term's shift is not counted, in a candidate's `reason`.
+const CHANNEL_SHIFT: &str = "a channel term counts only for what it removes (traded against the \
+     base paths, its gain moves them with hardly any change to the fit)";
+
 /// When a candidate is worth proposing.
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct Criteria {
@@ -782,7 +786,7 @@ fn summarise_candidate(
             && !may_be_proposed_for_its_shift(effect)
         {
             format!(
-                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but a channel term counts only for what it removes (traded against the base paths, its gain moves them with hardly any change to the fit)",
+                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but {CHANNEL_SHIFT}",
                 fmt_um(gain),
                 SCREEN_SHARE,
                 fmt_um(criteria.min_gain_um),
@@ -839,7 +843,7 @@ fn summarise_candidate(
             (
                 Verdict::Immaterial,
                 format!(
-                    "detectable but immaterial: significant (p = {p_value:.1e}), but it removes only {} µm of the fleet RMS, below the materiality threshold {} µm; it would move the model's own terms by {} µm, but a channel term counts only for what it removes (traded against the base paths, its gain moves them with hardly any change to the fit)",
+                    "detectable but immaterial: significant (p = {p_value:.1e}), but it removes only {} µm of the fleet RMS, below the materiality threshold {} µm; it would move the model's own terms by {} µm, but {CHANNEL_SHIFT}",
                     fmt_um(gain),
                     fmt_um(criteria.min_gain_um),
                     fmt_um(screened_shift_um)
