@@ -7,7 +7,7 @@
 //! ratio measures model mismatch alone, free of the ±0.4 % (at 10 s, 3 bars, 4 days) by which a
 //! sample RMS scatters about the nominal 0.020 µm.
 
-use dbbcal::fit::{self, FitOptions};
+use dbbcal::fit::{self, FitOptions, Start};
 use dbbcal::model::{base_effects, ThermalProblem};
 use dbbcal::pipeline::Stage;
 use dbbcal::simulate::AirBetweenReadings;
@@ -61,7 +61,7 @@ fn evaluate(c: &NoisyCampaign, label: &str) -> Outcome {
         let problem = ThermalProblem::new(&o.series, &base_effects()).unwrap();
         let theta = [t.tau_r_s.ln(), t.tau_s_s.ln()];
         let options = FitOptions {
-            brent_start: false,
+            start: Start::Given,
             absorbed_params: problem.n_zeros(),
             ..FitOptions::default()
         };

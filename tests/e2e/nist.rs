@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use dbbcal::fit::{fit, FitOptions};
+use dbbcal::fit::{fit, FitOptions, Start};
 
 use crate::support::{BasisFn, ClosedForm};
 
@@ -77,7 +77,7 @@ fn check(name: &str, linear: &[usize], nonlinear: &[usize], basis: BasisFn) {
         };
         let theta0: Vec<f64> = nonlinear.iter().map(|&i| start[i]).collect();
         let options = FitOptions {
-            brent_start: false,
+            start: Start::Given,
             hac_batch_len: Some(1),
             absorbed_params: 0,
         };

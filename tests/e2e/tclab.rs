@@ -7,7 +7,7 @@
 //! coefficients, its time constants (and dead time) the nonlinear ones, started where the
 //! notebook starts.
 
-use dbbcal::fit::{fit, FitOptions};
+use dbbcal::fit::{fit, FitOptions, Start};
 
 use crate::support::{BasisFn, ClosedForm};
 
@@ -54,7 +54,7 @@ fn check(
         basis,
     };
     let options = FitOptions {
-        brent_start: false,
+        start: Start::Given,
         hac_batch_len: Some(1),
         absorbed_params: 0,
     };

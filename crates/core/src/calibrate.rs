@@ -19,7 +19,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use crate::campaign::{Campaign, Purpose};
-use crate::fit::{self, FitOptions, Separable};
+use crate::fit::{self, FitOptions, Separable, Start};
 use crate::identify::BarModel;
 use crate::series::BarSeries;
 use crate::signal::interpolate::{self, Beyond};
@@ -442,7 +442,7 @@ pub(crate) fn fit_form(
         names: names.clone(),
     };
     let options = FitOptions {
-        brent_start: false,
+        start: Start::Given,
         hac_batch_len: Some(1),
         absorbed_params: 0,
     };

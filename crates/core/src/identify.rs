@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 
-use crate::fit::{self, Fit, FitError, FitOptions};
+use crate::fit::{self, Fit, FitError, FitOptions, Start};
 use crate::model::{base_effects, Effect, ModelError, NotIdentifiable, ThermalProblem};
 use crate::series::BarSeries;
 
@@ -364,7 +364,7 @@ fn fit_from(
         .and_then(|p| coarse_fit(p, &bar, &theta0));
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
-        options.brent_start = false;
+        options.start = Start::NearOptimum;
     }
     let fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
         bar: bar.clone(),
@@ -453,10 +453,12 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 }
 
 /// The time constants fitted (Brent start + Levenberg-Marquardt) on the 300-s bin means of a
-/// long series (`problem`: its coarse copy's, [`coarse_copy`]), to start the fit of the series
-/// itself with Levenberg-Marquardt alone. The Brent sweep evaluates the projected residual some
-/// 40 times; on the full series that was about half of the fit (`bench/results.md`), on the
-/// coarse copy it is a few per cent. `None`: the coarse fit failed (the engine then starts as
+/// long series (`problem`: its coarse copy's, [`coarse_copy`]), from which the fit of the
+/// series itself is polished by Gauss-Newton ([`Start::NearOptimum`]: on the 30-day benchmark
+/// campaign 3 steps, identify 0.58 → 0.46 s with the solver's Qᵀy applied without forming Q;
+/// Levenberg-Marquardt from there took 4-7 evaluations). The Brent sweep evaluates the projected
+/// residual some 40 times; on the full series that was about half of the fit
+/// (`bench/results.md`), on the coarse copy it is a few per cent. `None`: the coarse fit failed (the engine then starts as
 /// usual).
 fn coarse_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {
     let (theta, _) = fit::minimise(problem, theta0, true).ok()?;

@@ -41,7 +41,7 @@ fn a_parameter_the_model_ignores_is_refused_by_name() {
         &problem,
         &[1.0],
         &FitOptions {
-            brent_start: false,
+            start: Start::Given,
             ..FitOptions::default()
         },
     ) {
