@@ -456,10 +456,10 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 /// long series (`problem`: its coarse copy's, [`coarse_copy`]), from which the fit of the
 /// series itself is polished by argmin's Gauss-Newton ([`Start::NearOptimum`]: on the 30-day
 /// benchmark campaign 3-4 steps where Levenberg-Marquardt took 4-7 evaluations, the identify
-/// stage 0.58-0.60 → 0.48-0.49 s with the linear solve's Qᵀy applied without forming Q). The Brent sweep evaluates the projected
-/// residual some 40 times; on the full series that was about half of the fit
-/// (`bench/results.md`), on the coarse copy it is a few per cent. `None`: the coarse fit failed (the engine then starts as
-/// usual).
+/// stage 0.58-0.60 → 0.48-0.49 s with the linear solve's Qᵀy applied without forming Q). The
+/// Brent sweep evaluates the projected residual some 40 times; on the full series that was
+/// about half of the fit (`bench/results.md`), on the coarse copy it is a few per cent. `None`:
+/// the coarse fit failed (the engine then starts as usual).
 fn coarse_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {
     let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
     let n = fit::Separable::observations(problem).len();
