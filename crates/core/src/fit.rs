@@ -6,7 +6,9 @@
 //! its derivatives ([`Separable`]); this module
 //! 1. starts `θ` by a coordinate-wise 1-D Brent search (argmin) of the variable-projection
 //!    residual (the linear part solved exactly at each trial), when the problem asks for it,
-//! 2. polishes with `varpro`'s Levenberg-Marquardt on the projected problem,
+//! 2. polishes with `varpro`'s Levenberg-Marquardt on the projected problem, or, from a nearby
+//!    problem's optimum (a long series' coarse copy), with argmin's Gauss-Newton on the same
+//!    projected residual ([`Start::NearOptimum`]),
 //! 3. returns estimates with two covariances: the textbook `s² (JᵀJ)⁻¹` and a heteroscedasticity-
 //!    and-autocorrelation-consistent sandwich (batch-means HAC), because residuals of thermal fits
 //!    are strongly autocorrelated and the textbook errors are then far too small.
@@ -252,12 +254,21 @@ pub fn fit<P: Separable>(
         Start::NearOptimum if !theta0.is_empty() && y.len() > p => polish(problem, theta0),
         _ => Err(theta0.to_vec()),
     };
-    let (theta, iterations) = match polished {
-        Ok(done) => done,
-        Err(start) => minimise(problem, &start, options.start == Start::Brent)?,
+    let (theta, iterations, solved) = match polished {
+        Ok(done) => (done.theta, done.steps, done.solved),
+        Err(start) => {
+            let (theta, iterations) = minimise(problem, &start, options.start == Start::Brent)?;
+            (theta, iterations, None)
+        }
     };
-    let phi = problem.basis(&theta);
-    let coef = solve_linear(&phi, y).ok_or_else(|| singular_term(problem, &phi))?;
+    let (phi, coef) = match solved {
+        Some(solved) => solved,
+        None => {
+            let phi = problem.basis(&theta);
+            let coef = solve_linear(&phi, y).ok_or_else(|| singular_term(problem, &phi))?;
+            (phi, coef)
+        }
+    };
     let residuals: Vec<f64> = (&phi * &coef).iter().zip(y).map(|(f, y)| y - f).collect();
     let rss: f64 = residuals.iter().map(|r| r * r).sum::<f64>() + problem.unexplained_rss();
     let n_obs = problem.represented_samples();
@@ -348,7 +359,7 @@ pub(crate) fn minimise<P: Separable>(
 /// Why: from a coarse copy's optimum Levenberg-Marquardt spent 4-7 evaluations of the basis, its
 /// derivatives and varpro's SVD before its own tolerances held; Gauss-Newton converges
 /// quadratically from there.
-fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec<f64>, usize), Vec<f64>> {
+fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<Polished, Vec<f64>> {
     let reduced = Reduced {
         problem,
         last: Default::default(),
@@ -364,9 +375,13 @@ fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec<f64>, usize)
     let run = Executor::new(reduced, solver)
         .configure(|state| state.param(start).max_iters(POLISH_MAX_STEPS))
         .run();
-    let Ok(result) = run else {
+    let Ok(mut result) = run else {
         return Err(theta0.to_vec());
     };
+    let last = result
+        .problem
+        .take_problem()
+        .and_then(|reduced| reduced.last.into_inner());
     let state = result.state();
     let (Some(theta), cost) = (state.get_best_param(), state.get_best_cost()) else {
         return Err(theta0.to_vec());
@@ -375,6 +390,10 @@ fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec<f64>, usize)
         state.get_termination_status(),
         TerminationStatus::Terminated(TerminationReason::SolverConverged)
     );
+    // The basis argmin last evaluated, if at the optimum, serves the uncertainties as it is.
+    let solved = last
+        .filter(|(at, _)| at == theta)
+        .map(|(_, solved)| std::rc::Rc::unwrap_or_clone(solved));
     let theta: Vec<f64> = theta.iter().copied().collect();
     let steps = state.get_iter() as usize;
     tracing::debug!(
@@ -385,10 +404,22 @@ fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<(Vec<f64>, usize)
     );
     let finite = cost.is_finite() && theta.iter().all(|t| t.is_finite());
     match (converged, finite && cost <= norm0) {
-        (true, true) => Ok((theta, steps)),
+        (true, true) => Ok(Polished {
+            theta,
+            steps,
+            solved,
+        }),
         (false, true) => Err(theta),
         _ => Err(theta0.to_vec()),
     }
+}
+
+/// Where [`polish`] converged: the time constants, the steps taken, and the basis with its
+/// linear coefficients there when argmin's last evaluation was at that point.
+struct Polished {
+    theta: Vec<f64>,
+    steps: usize,
+    solved: Option<(DMatrix<f64>, DVector<f64>)>,
 }
 
 /// `problem` reduced to its nonlinear parameters for argmin (variable projection): the residual
