@@ -119,11 +119,12 @@ def main():
     w("")
     w("| campaign | encoder rows | what | wall s | CPU s | peak MB | × bare scan | load before/after | exit |")
     w("|---|---:|---|---:|---:|---:|---:|---|---:|")
-    scan_s, enc_rows, ident, decode_s = {}, {}, {}, {}
+    scan_s, scan_first_s, enc_rows, ident, decode_s = {}, {}, {}, {}, {}
     for size in sizes:
         bs = load_json(os.path.join(d, f"bare-scan-{size}.json"))
         if bs:
             scan_s[size] = bs["best_s"]
+            scan_first_s[size] = bs["runs_s"][0]
             enc_rows[size] = bs["encoder_rows"]
         else:
             enc_rows[size] = encoder_rows(size)
@@ -249,10 +250,14 @@ def main():
         w("`bench/layouts.py` rewrites the 30-day campaign into 30 day files, each holding every bar: sorted by bar then "
           "time (`bybar`), by time with the bars interleaved (`bytime`, as a logger of many bars writes them), shuffled "
           "inside each file (`shuffled`). dbbcal runs with no option (it chooses 60-s bins). Targets (issue 13): ingest + "
-          "identify within 4× the bare scan of the same files and under 1.5 GB, whatever the order.")
+          "identify within 4× the bare scan of the same files and under 1.5 GB, whatever the order. The verdict is taken "
+          "against the scan's best of 3 runs in one process. dbbcal is always a fresh process, which first has to get "
+          "its memory from the kernel (zeroed pages); the scan's first run in its process (polars imported before the "
+          "clock starts) pays that too, its later runs reuse the allocator's pages. Both ratios are shown; the second "
+          "is for reading, not the verdict.")
         w("")
-        w("| order | bare scan s | decode floor s | ingest s (CPU s, MB) | identify s | identify CPU s | peak MB | × bare scan | verdict |")
-        w("|---|---:|---:|---|---:|---:|---:|---:|---|")
+        w("| order | bare scan s (first run) | decode floor s | ingest s (CPU s, MB) | identify s | identify CPU s | peak MB | × bare scan | × first run | verdict |")
+        w("|---|---:|---:|---|---:|---:|---:|---:|---:|---|")
         for layout in layouts:
             size = f"full-{layout}"
             g, i = best(f"dbbcal-ingest-{size}", size), best(f"dbbcal-identify-{size}", size)
@@ -261,8 +266,11 @@ def main():
             ratio = i["wall"] / scan_s[size]
             ok = ratio <= 4 and i["mb"] < 1500
             floor = f"{decode_s[size]:.3g}" if size in decode_s else "–"
-            w(f"| {layout} | {scan_s[size]:.3g} | {floor} | {g['wall']:.3g} ({g['cpu']:.3g}, {g['mb']:.0f}) | {i['wall']:.3g} | "
-              f"{i['cpu']:.3g} | {i['mb']:.0f} | {ratio:.1f} | {'met' if ok else 'NOT met'} |")
+            first = scan_first_s.get(size)
+            first_ratio = f"{i['wall'] / first:.1f}" if first else "–"
+            first_s = f" ({first:.3g})" if first else ""
+            w(f"| {layout} | {scan_s[size]:.3g}{first_s} | {floor} | {g['wall']:.3g} ({g['cpu']:.3g}, {g['mb']:.0f}) | {i['wall']:.3g} | "
+              f"{i['cpu']:.3g} | {i['mb']:.0f} | {ratio:.1f} | {first_ratio} | {'met' if ok else 'NOT met'} |")
         same = os.path.join(d, "layouts-same.txt")
         if os.path.exists(same):
             w("")

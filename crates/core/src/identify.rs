@@ -80,7 +80,7 @@ pub struct BarModel {
     pub dof: Vec<f64>,
     /// Index in `theta` of each parameter that is a time constant (same order as `params`).
     theta_index: Vec<Option<usize>>,
-    /// The time constants fitted on the series' coarse copy ([`coarse_fit`]), where the fit
+    /// The time constants fitted on the series' coarse copy ([`start_fit`]), where the fit
     /// started from: the profile intervals are taken there ([`profile_on_coarse_copy`]).
     coarse_theta: Option<Vec<f64>>,
 }
@@ -168,7 +168,7 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 /// the Wald interval.
 ///
 /// A long series ([`COARSE_PROFILE_MIN_SAMPLES`]) is profiled on the 300-s bin means that
-/// [`coarse_fit`] starts it on, from the coarse optimum found there: each profile point
+/// [`start_fit`] starts it on, from the coarse optimum found there: each profile point
 /// refits the other time constants, and at 1 Hz over 30 days that cost twice the fit. The
 /// shape of the profile in `ln tau` is the model's, which bin means of time constants of 15 min
 /// and more keep; the cut is taken from the coarse Jacobian
@@ -281,8 +281,8 @@ fn profile_on_series(series: &BarSeries, model: &mut BarModel) {
 /// --sample-s 10`): from the bent base alone the diagnosis's refit with `plate_expansion`
 /// stopped at 20.17 nm, above `air_gradient`'s 20.13, and the diagnosis named `air_gradient`;
 /// `--add-effect plate_expansion` reaches 20.00. Starts bent less far (time constants of days)
-/// are used alone: fresh fits there too cost 1.5-2.5 times the diagnosis and did not always
-/// change its answer.
+/// get no second full fit (that cost 1.5-2.5 times the diagnosis); their time constants are
+/// searched from the start and from the defaults, and the better kept ([`start_fit`]).
 pub fn identify_from(
     series: &BarSeries,
     effects: &[Effect],
@@ -332,7 +332,8 @@ fn fit_from(
         bar: bar.clone(),
         source,
     })?;
-    let mut theta0 = problem.theta0();
+    let fresh_theta0 = problem.theta0();
+    let mut theta0 = fresh_theta0.clone();
     if let Some(start) = start {
         warm_start(&problem, start, &mut theta0);
     }
@@ -361,10 +362,15 @@ fn fit_from(
     }
     let coarse_theta = coarse_problem
         .as_ref()
-        .and_then(|p| coarse_fit(p, &bar, &theta0));
+        .and_then(|p| start_fit(p, &bar, &theta0, start.map(|_| &fresh_theta0[..])));
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
         options.start = Start::NearOptimum;
+    } else if start.is_some() {
+        if let Some(theta) = start_fit(&problem, &bar, &theta0, Some(&fresh_theta0)) {
+            theta0 = theta;
+            options.start = Start::Given;
+        }
     }
     let fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
         bar: bar.clone(),
@@ -452,19 +458,48 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
     (coarse.fit_index.len() * 4 <= series.fit_index.len()).then_some(coarse)
 }
 
-/// The time constants fitted (Brent start + Levenberg-Marquardt) on the 300-s bin means of a
-/// long series (`problem`: its coarse copy's, [`coarse_copy`]), from which the fit of the
-/// series itself is polished by argmin's Gauss-Newton ([`Start::NearOptimum`]: on the 30-day
-/// benchmark campaign 3-4 steps where Levenberg-Marquardt took 4-7 evaluations, the identify
-/// stage 0.58-0.60 → 0.48-0.49 s with the linear solve's Qᵀy applied without forming Q). The
-/// Brent sweep evaluates the projected residual some 40 times; on the full series that was
-/// about half of the fit (`bench/results.md`), on the coarse copy it is a few per cent. `None`:
-/// the coarse fit failed (the engine then starts as usual).
-fn coarse_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {
-    let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
+/// The time constants a fit starts from: fitted (Brent start + Levenberg-Marquardt) on
+/// `problem`, which is the 300-s bin means of a long series ([`coarse_copy`]; the fit of the
+/// series itself is then polished from them by argmin's Gauss-Newton, [`Start::NearOptimum`]),
+/// or a short series itself for a refit. On the 30-day benchmark campaign the polish takes 3-4
+/// steps where Levenberg-Marquardt took 4-7 evaluations (identify stage 0.58-0.60 → 0.48-0.49 s
+/// with the linear solve's Qᵀy applied without forming Q); the Brent sweep evaluates the
+/// projected residual some 40 times, about half of the fit on the full series
+/// (`bench/results.md`), a few per cent on the coarse copy. `None`: every start failed (the
+/// engine then starts as usual).
+///
+/// `fresh`: for a fit started from another model's time constants (`theta0`: a refit of the
+/// diagnosis), the defaults to start from as well; the lower residual of the two is kept. A
+/// base model that bent its time constants to mimic a missing effect is a poor start for the
+/// model with that effect: on the second simulator's plate-expansion campaign
+/// (`bench/foreign_sim.py X --effect plate_expansion --seed 2 --air linear --files bar
+/// --sample-s 10 --days 5`) the refit with `plate_expansion` from the base alone stopped at
+/// 20.47 nm on bar F01, where a fresh fit reaches 20.03, and the diagnosis ranked
+/// `air_gradient` first (ΔBIC −12 329 against −11 973); with both starts `plate_expansion`
+/// comes first (−14 010) and reaches the noise. The second start is a search on the coarse copy
+/// (or a short series), not a second full fit with its uncertainties.
+fn start_fit(
+    problem: &ThermalProblem,
+    bar: &str,
+    theta0: &[f64],
+    fresh: Option<&[f64]>,
+) -> Option<Vec<f64>> {
+    let from = |start: &[f64]| {
+        let (theta, _) = fit::minimise(problem, start, true).ok()?;
+        theta.iter().all(|t| t.is_finite()).then(|| {
+            let rss = fit::projected_rss(problem, &theta);
+            (theta, rss)
+        })
+    };
+    let warm = from(theta0);
+    let fresh = fresh.filter(|f| *f != theta0).and_then(from);
+    let (theta, _) = match (warm, fresh) {
+        (Some(w), Some(f)) => Some(if f.1 < w.1 { f } else { w }),
+        (w, f) => w.or(f),
+    }?;
     let n = fit::Separable::observations(problem).len();
     tracing::debug!(bar, ?theta, n, "identify: coarse start");
-    theta.iter().all(|t| t.is_finite()).then_some(theta)
+    Some(theta)
 }
 
 /// Two lags on `I_min` (`fixed_part` and `second_path`) are the same model with their labels
@@ -616,12 +651,12 @@ mod conditioning_tests;
 mod tests {
     use super::*;
 
-    /// The start [`fit_from`] takes on a long series: [`coarse_fit`] on its coarse copy; `None`
+    /// The start [`fit_from`] takes on a long series: [`start_fit`] on its coarse copy; `None`
     /// for a short one.
     fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Option<Vec<f64>> {
         let coarse = coarse_copy(series, COARSE_START_MIN_SAMPLES)?;
         let problem = ThermalProblem::new(&coarse, effects).ok()?;
-        coarse_fit(&problem, &series.bar.id, theta0)
+        start_fit(&problem, &series.bar.id, theta0, None)
     }
     use crate::campaign::Bar;
     use crate::fit::Separable;
