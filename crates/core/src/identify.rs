@@ -366,16 +366,35 @@ fn fit_from(
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
         options.start = Start::NearOptimum;
-    } else if start.is_some() {
-        if let Some(theta) = start_fit(&problem, &bar, &theta0, Some(&fresh_theta0)) {
-            theta0 = theta;
-            options.start = Start::Given;
-        }
     }
-    let fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
+    let mut fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
         bar: bar.clone(),
         source,
     })?;
+    if start.is_some() && coarse_theta.is_none() {
+        // A short series has no coarse copy to search both starts on: the defaults' basin is
+        // searched on a 300-s copy if one is 4× shorter (else on the series), and fitted only
+        // when its residual there beats the fit from the start.
+        let search = coarse_copy(series, 0);
+        let fresh = match search
+            .as_ref()
+            .and_then(|c| ThermalProblem::new(c, effects).ok())
+        {
+            Some(p) => start_fit(&p, &bar, &fresh_theta0, None),
+            None => start_fit(&problem, &bar, &fresh_theta0, None),
+        };
+        if let Some(theta) = fresh.filter(|t| fit::projected_rss(&problem, t) < fit.rss) {
+            let options = FitOptions {
+                start: Start::NearOptimum,
+                ..options
+            };
+            if let Ok(other) = fit::fit(&problem, &theta, &options) {
+                if other.rss < fit.rss {
+                    fit = other;
+                }
+            }
+        }
+    }
     let mut model = to_bar_model(series, &problem, &fit);
     model.coarse_theta = coarse_theta;
     canonical_thermal_paths(&mut model);
@@ -459,14 +478,13 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 }
 
 /// The time constants a fit starts from: fitted (Brent start + Levenberg-Marquardt) on
-/// `problem`, which is the 300-s bin means of a long series ([`coarse_copy`]; the fit of the
-/// series itself is then polished from them by argmin's Gauss-Newton, [`Start::NearOptimum`]),
-/// or a short series itself for a refit. On the 30-day benchmark campaign the polish takes 3-4
-/// steps where Levenberg-Marquardt took 4-7 evaluations (identify stage 0.58-0.60 → 0.48-0.49 s
-/// with the linear solve's Qᵀy applied without forming Q); the Brent sweep evaluates the
-/// projected residual some 40 times, about half of the fit on the full series
-/// (`bench/results.md`), a few per cent on the coarse copy. `None`: every start failed (the
-/// engine then starts as usual).
+/// `problem`, the 300-s bin means of a long series ([`coarse_copy`]; the fit of the series itself
+/// is then polished from them by argmin's Gauss-Newton, [`Start::NearOptimum`]). On the 30-day
+/// benchmark campaign the polish takes 3-4 steps where Levenberg-Marquardt took 4-7 evaluations
+/// (identify stage 0.58-0.60 → 0.48-0.49 s with the linear solve's Qᵀy applied without forming
+/// Q); the Brent sweep evaluates the projected residual some 40 times, about half of the fit on
+/// the full series (`bench/results.md`), a few per cent on the coarse copy. `None`: every start
+/// failed (the engine then starts as usual).
 ///
 /// `fresh`: for a fit started from another model's time constants (`theta0`: a refit of the
 /// diagnosis), the defaults to start from as well; the lower residual of the two is kept. A
@@ -476,8 +494,10 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 /// --sample-s 10 --days 5`) the refit with `plate_expansion` from the base alone stopped at
 /// 20.47 nm on bar F01, where a fresh fit reaches 20.03, and the diagnosis ranked
 /// `air_gradient` first (ΔBIC −12 329 against −11 973); with both starts `plate_expansion`
-/// comes first (−14 010) and reaches the noise. The second start is a search on the coarse copy
-/// (or a short series), not a second full fit with its uncertainties.
+/// comes first (−14 010) and reaches the noise. The second start is a search on the coarse
+/// copy, not a second fit with its uncertainties ([`fit_from`] does the same for a short series
+/// after its fit). Measured on campaigns of that simulator, the nightly run costs 3-6 % more
+/// (a second full fit for every refit had cost 1.5-2.5 times the diagnosis).
 fn start_fit(
     problem: &ThermalProblem,
     bar: &str,
