@@ -6,8 +6,8 @@
 
 use dbbcal::identify::identify;
 use dbbcal::model::Effect;
-use dbbcal::pipeline::{analyse, RunPlan, Stage};
-use dbbcal::simulate::{FleetConfig, SimConfig};
+use dbbcal::pipeline::{analyse, RunPlan, RunResults, Stage};
+use dbbcal::simulate::{FleetConfig, SimConfig, Truth};
 
 use crate::support::simulate_campaign;
 
@@ -29,19 +29,25 @@ fn config(seed: u64, switch: impl FnOnce(&mut SimConfig)) -> SimConfig {
     cfg
 }
 
+/// Simulate `cfg` (as `name`), then ingest, identify and rank the candidates (no forward
+/// selection): the results, with the diagnosis, and the simulator's truth.
+fn ranked(name: &str, cfg: &SimConfig) -> (RunResults, Truth) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (dir, truth) = simulate_campaign(tmp.path(), name, cfg);
+    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
+        .and_then(|p| p.with_forward_steps(0))
+        .unwrap();
+    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
+    (results, truth)
+}
+
 /// Simulate, diagnose (no forward selection), and check the ranking and the fix: `expected`
 /// (the effect string the diagnosis prints) first and proposed; after adding it, per bar, the
 /// RMS within 1.2x the noise and each base parameter within 3 standard uncertainties (HAC) of
 /// the truth. Prints, per bar, the rank, RMS/noise and the base parameters' errors before and
 /// after.
 fn check(name: &str, cfg: SimConfig, expected: &str) {
-    let tmp = tempfile::tempdir().unwrap();
-    let (dir, truth) = simulate_campaign(tmp.path(), name, &cfg);
-    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
-        .and_then(|p| p.with_forward_steps(0))
-        .unwrap();
-    let logs = dbbcal::io::read_campaign(&dir).unwrap();
-    let results = analyse(&plan, logs);
+    let (results, truth) = ranked(name, &cfg);
     let diagnosis = results.diagnosis.as_ref().expect("diagnosis");
     let ranking: Vec<String> = diagnosis
         .candidates
@@ -198,12 +204,7 @@ fn an_effect_outside_the_catalogue_is_caught_by_a_channel_term() {
 
 #[test]
 fn base_only_campaign_raises_no_false_alarm() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (dir, _) = simulate_campaign(tmp.path(), "clean", &config(37, |_| {}));
-    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
-        .and_then(|p| p.with_forward_steps(0))
-        .unwrap();
-    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
+    let (results, _) = ranked("clean", &config(37, |_| {}));
     let d = results.diagnosis.unwrap();
     let alarms: Vec<String> = d
         .candidates
@@ -236,12 +237,7 @@ fn a_generic_channel_term_is_not_proposed_for_its_shift_alone() {
         },
         "sensor_gradient = { enabled = true, weight_t2 = 0.4 }",
     );
-    let tmp = tempfile::tempdir().unwrap();
-    let (dir, truth) = simulate_campaign(tmp.path(), "weak-gradient", &cfg);
-    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
-        .and_then(|p| p.with_forward_steps(0))
-        .unwrap();
-    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
+    let (results, truth) = ranked("weak-gradient", &cfg);
     let diagnosis = results.diagnosis.as_ref().unwrap();
     for c in &diagnosis.candidates {
         eprintln!("{}: {:?}: {}", c.effect, c.verdict, c.reason);
@@ -309,8 +305,8 @@ fn sample_campaign_with(edit: impl FnOnce(&mut toml::Table), effects: &str) -> S
 /// `plate_expansion` started from the base's time constants alone stopped short of the fit made
 /// afresh (seed 13 at 10 s, bar B03: 20.58 nm against 20.05; seed 1 at 30 s: fleet 20.32 nm
 /// against 20.00), and forward selection then added a spurious `second_path`. The diagnosis's
-/// refits also search from the defaults (`identify::start_fit`: on the coarse copy of the 10-s
-/// series, after the fit of the 30-s one), so each bar's refit is as good as the fit made afresh.
+/// refits also search the defaults' basin (`identify::defaults_basin`, on the series' 300-s
+/// copy), so each bar's refit is as good as the fit made afresh.
 #[test]
 fn a_refit_from_a_bent_base_is_as_good_as_the_fit_made_afresh() {
     for (seed, sample_s) in [(13, 10.0), (1, 30.0)] {
@@ -321,12 +317,7 @@ fn a_refit_from_a_bent_base_is_as_good_as_the_fit_made_afresh() {
             },
             "plate_expansion = { enabled = true }",
         );
-        let tmp = tempfile::tempdir().unwrap();
-        let (dir, _) = simulate_campaign(tmp.path(), "bent-base", &cfg);
-        let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
-            .and_then(|p| p.with_forward_steps(0))
-            .unwrap();
-        let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
+        let (results, _) = ranked("bent-base", &cfg);
         let diagnosis = results.diagnosis.as_ref().unwrap();
         let first = &diagnosis.candidates[0];
         assert_eq!(first.effect.name(), "plate_expansion", "{}", first.reason);

@@ -281,8 +281,8 @@ fn profile_on_series(series: &BarSeries, model: &mut BarModel) {
 /// --sample-s 10`): from the bent base alone the diagnosis's refit with `plate_expansion`
 /// stopped at 20.17 nm, above `air_gradient`'s 20.13, and the diagnosis named `air_gradient`;
 /// `--add-effect plate_expansion` reaches 20.00. Starts bent less far (time constants of days)
-/// get no second full fit (that cost 1.5-2.5 times the diagnosis); their time constants are
-/// searched from the start and from the defaults, and the better kept ([`start_fit`]).
+/// get no second full fit (that cost 1.5-2.5 times the diagnosis); the defaults' basin is
+/// searched and fitted only where it is lower ([`defaults_basin`]).
 pub fn identify_from(
     series: &BarSeries,
     effects: &[Effect],
@@ -360,9 +360,9 @@ fn fit_from(
     if let Some(source) = vanished {
         return Err(IdentifyError::Fit { bar, source });
     }
-    let coarse_theta = coarse_problem
+    let mut coarse_theta = coarse_problem
         .as_ref()
-        .and_then(|p| start_fit(p, &bar, &theta0, start.map(|_| &fresh_theta0[..])));
+        .and_then(|p| start_fit(p, &bar, &theta0));
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
         options.start = Start::NearOptimum;
@@ -371,28 +371,13 @@ fn fit_from(
         bar: bar.clone(),
         source,
     })?;
-    if start.is_some() && coarse_theta.is_none() {
-        // A short series has no coarse copy to search both starts on: the defaults' basin is
-        // searched on a 300-s copy if one is 4× shorter (else on the series), and fitted only
-        // when its residual there beats the fit from the start.
-        let search = coarse_copy(series, 0);
-        let fresh = match search
-            .as_ref()
-            .and_then(|c| ThermalProblem::new(c, effects).ok())
+    if start.is_some() {
+        let coarse = coarse_problem.as_ref();
+        if let Some((theta, lower)) =
+            defaults_basin(series, &problem, coarse, &fresh_theta0, &fit, &options)
         {
-            Some(p) => start_fit(&p, &bar, &fresh_theta0, None),
-            None => start_fit(&problem, &bar, &fresh_theta0, None),
-        };
-        if let Some(theta) = fresh.filter(|t| fit::projected_rss(&problem, t) < fit.rss) {
-            let options = FitOptions {
-                start: Start::NearOptimum,
-                ..options
-            };
-            if let Ok(other) = fit::fit(&problem, &theta, &options) {
-                if other.rss < fit.rss {
-                    fit = other;
-                }
-            }
+            coarse_theta = coarse.map(|_| theta);
+            fit = lower;
         }
     }
     let mut model = to_bar_model(series, &problem, &fit);
@@ -483,43 +468,63 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 /// benchmark campaign the polish takes 3-4 steps where Levenberg-Marquardt took 4-7 evaluations
 /// (identify stage 0.58-0.60 → 0.48-0.49 s with the linear solve's Qᵀy applied without forming
 /// Q); the Brent sweep evaluates the projected residual some 40 times, about half of the fit on
-/// the full series (`bench/results.md`), a few per cent on the coarse copy. `None`: every start
+/// the full series (`bench/results.md`), a few per cent on the coarse copy. `None`: the start
 /// failed (the engine then starts as usual).
+fn start_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {
+    let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
+    let n = fit::Separable::observations(problem).len();
+    tracing::debug!(bar, ?theta, n, "identify: coarse start");
+    theta.iter().all(|t| t.is_finite()).then_some(theta)
+}
+
+/// For a refit (`fit`, started from another model's time constants): the basin of the default
+/// time constants, where it is lower. Its start is searched ([`start_fit`]) on `coarse`, else on
+/// a short series' 300-s copy if that is 4× shorter, else on the series; the series is fitted
+/// from there ([`Start::NearOptimum`]) only when the start's residual is already below `fit`'s,
+/// and that fit is returned, with its start, when it ends lower.
 ///
-/// `fresh`: for a fit started from another model's time constants (`theta0`: a refit of the
-/// diagnosis), the defaults to start from as well; the lower residual of the two is kept. A
-/// base model that bent its time constants to mimic a missing effect is a poor start for the
-/// model with that effect: on the second simulator's plate-expansion campaign
+/// Why: a base model that bent its time constants to mimic a missing effect is a poor start
+/// for the model with that effect. On the second simulator's plate-expansion campaign
 /// (`bench/foreign_sim.py X --effect plate_expansion --seed 2 --air linear --files bar
 /// --sample-s 10 --days 5`) the refit with `plate_expansion` from the base alone stopped at
 /// 20.47 nm on bar F01, where a fresh fit reaches 20.03, and the diagnosis ranked
-/// `air_gradient` first (ΔBIC −12 329 against −11 973); with both starts `plate_expansion`
-/// comes first (−14 010) and reaches the noise. The second start is a search on the coarse
-/// copy, not a second fit with its uncertainties ([`fit_from`] does the same for a short series
-/// after its fit). Measured on campaigns of that simulator, the nightly run costs 3-6 % more
-/// (a second full fit for every refit had cost 1.5-2.5 times the diagnosis).
-fn start_fit(
+/// `air_gradient` first (ΔBIC −12 329 against −11 973); with the defaults' basin too,
+/// `plate_expansion` comes first (−14 010) and reaches the noise. In the usual case (one basin)
+/// this costs a search on the coarse copy and one residual of the series: the nightly run 3-6 %
+/// more on that simulator's hidden-effect campaigns, where a second full fit for every refit
+/// had cost 1.5-2.5 times the diagnosis.
+fn defaults_basin(
+    series: &BarSeries,
     problem: &ThermalProblem,
-    bar: &str,
-    theta0: &[f64],
-    fresh: Option<&[f64]>,
-) -> Option<Vec<f64>> {
-    let from = |start: &[f64]| {
-        let (theta, _) = fit::minimise(problem, start, true).ok()?;
-        theta.iter().all(|t| t.is_finite()).then(|| {
-            let rss = fit::projected_rss(problem, &theta);
-            (theta, rss)
-        })
+    coarse: Option<&ThermalProblem>,
+    defaults: &[f64],
+    fit: &Fit,
+    options: &FitOptions,
+) -> Option<(Vec<f64>, Fit)> {
+    let short_copy;
+    let short_problem;
+    let search = match coarse {
+        Some(p) => p,
+        None => {
+            short_copy = coarse_copy(series, 0);
+            short_problem = short_copy
+                .as_ref()
+                .and_then(|c| ThermalProblem::new(c, &problem.effects()).ok());
+            short_problem.as_ref().unwrap_or(problem)
+        }
     };
-    let warm = from(theta0);
-    let fresh = fresh.filter(|f| *f != theta0).and_then(from);
-    let (theta, _) = match (warm, fresh) {
-        (Some(w), Some(f)) => Some(if f.1 < w.1 { f } else { w }),
-        (w, f) => w.or(f),
-    }?;
-    let n = fit::Separable::observations(problem).len();
-    tracing::debug!(bar, ?theta, n, "identify: coarse start");
-    Some(theta)
+    let theta = start_fit(search, &series.bar.id, defaults)?;
+    if fit::projected_rss(problem, &theta) >= fit.rss {
+        return None;
+    }
+    let options = FitOptions {
+        start: Start::NearOptimum,
+        ..*options
+    };
+    let lower = fit::fit(problem, &theta, &options)
+        .ok()
+        .filter(|f| f.rss < fit.rss)?;
+    Some((theta, lower))
 }
 
 /// Two lags on `I_min` (`fixed_part` and `second_path`) are the same model with their labels
@@ -676,7 +681,7 @@ mod tests {
     fn coarse_start(series: &BarSeries, effects: &[Effect], theta0: &[f64]) -> Option<Vec<f64>> {
         let coarse = coarse_copy(series, COARSE_START_MIN_SAMPLES)?;
         let problem = ThermalProblem::new(&coarse, effects).ok()?;
-        start_fit(&problem, &series.bar.id, theta0, None)
+        start_fit(&problem, &series.bar.id, theta0)
     }
     use crate::campaign::Bar;
     use crate::fit::Separable;
