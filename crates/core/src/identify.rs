@@ -463,8 +463,9 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 }
 
 /// The time constants a fit starts from: fitted (Brent start + Levenberg-Marquardt) on
-/// `problem`, the 300-s bin means of a long series ([`coarse_copy`]; the fit of the series itself
-/// is then polished from them by argmin's Gauss-Newton, [`Start::NearOptimum`]). On the 30-day
+/// `problem`, the 300-s bin means of a series ([`coarse_copy`]; the fit of the series itself is
+/// then polished from them by argmin's Gauss-Newton, [`Start::NearOptimum`]), or for
+/// [`defaults_basin`] a short series itself. On the 30-day
 /// benchmark campaign the polish takes 3-4 steps where Levenberg-Marquardt took 4-7 evaluations
 /// (identify stage 0.58-0.60 → 0.48-0.49 s with the linear solve's Qᵀy applied without forming
 /// Q); the Brent sweep evaluates the projected residual some 40 times, about half of the fit on
@@ -490,9 +491,9 @@ fn start_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<
 /// 20.47 nm on bar F01, where a fresh fit reaches 20.03, and the diagnosis ranked
 /// `air_gradient` first (ΔBIC −12 329 against −11 973); with the defaults' basin too,
 /// `plate_expansion` comes first (−14 010) and reaches the noise. In the usual case (one basin)
-/// this costs a search on the coarse copy and one residual of the series: the nightly run 3-6 %
-/// more on that simulator's hidden-effect campaigns, where a second full fit for every refit
-/// had cost 1.5-2.5 times the diagnosis.
+/// this costs a search on the coarse copy and one residual of the series: the nightly runs of
+/// that simulator's 25 hidden-effect campaigns took 5 % longer in all, where a second full fit
+/// for every refit had cost 1.5-2.5 times the diagnosis.
 fn defaults_basin(
     series: &BarSeries,
     problem: &ThermalProblem,
