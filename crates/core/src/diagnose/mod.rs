@@ -302,6 +302,7 @@ impl Refits {
         if let Some(hit) = self.lock().get(&key) {
             return hit.clone();
         }
+        tracing::debug!(bar = %key.0, effects = ?key.1, "diagnose: exact refit");
         let fitted = Arc::new(Refit {
             model: identify_from(series, &effects, Some(base)).map_err(|e| e.to_string()),
             noise_log_likelihood: OnceLock::new(),
