@@ -41,6 +41,16 @@ fn ranked(name: &str, cfg: &SimConfig) -> (RunResults, Truth) {
     (results, truth)
 }
 
+/// Why each proposed candidate was proposed (empty: the model is adequate).
+fn proposed_reasons(diagnosis: &dbbcal::pipeline::Diagnosis) -> Vec<&str> {
+    diagnosis
+        .candidates
+        .iter()
+        .filter(|c| c.proposed())
+        .map(|c| c.reason.as_str())
+        .collect()
+}
+
 /// Simulate, diagnose (no forward selection), and check the ranking and the fix: `expected`
 /// (the effect string the diagnosis prints) first and proposed; after adding it, per bar, the
 /// RMS within 1.2x the noise and each base parameter within 3 standard uncertainties (HAC) of
@@ -205,13 +215,7 @@ fn an_effect_outside_the_catalogue_is_caught_by_a_channel_term() {
 #[test]
 fn base_only_campaign_raises_no_false_alarm() {
     let (results, _) = ranked("clean", &config(37, |_| {}));
-    let d = results.diagnosis.unwrap();
-    let alarms: Vec<String> = d
-        .candidates
-        .iter()
-        .filter(|c| c.proposed())
-        .map(|c| c.reason.clone())
-        .collect();
+    let alarms = proposed_reasons(results.diagnosis.as_ref().unwrap());
     assert!(alarms.is_empty(), "false alarms: {alarms:?}");
 }
 
@@ -242,12 +246,7 @@ fn a_generic_channel_term_is_not_proposed_for_its_shift_alone() {
     for c in &diagnosis.candidates {
         eprintln!("{}: {:?}: {}", c.effect, c.verdict, c.reason);
     }
-    let proposed: Vec<&str> = diagnosis
-        .candidates
-        .iter()
-        .filter(|c| c.proposed())
-        .map(|c| c.reason.as_str())
-        .collect();
+    let proposed = proposed_reasons(diagnosis);
     assert!(proposed.is_empty(), "proposed: {proposed:?}");
     // The alias: shifting the model by more than the threshold, its gain below it, so screened
     // out (or, refitted, immaterial) as a channel term.

@@ -19,7 +19,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use crate::campaign::{Campaign, Purpose};
-use crate::fit::{self, FitOptions, Separable, Start};
+use crate::fit::{self, FitOptions, Start};
 use crate::identify::BarModel;
 use crate::series::BarSeries;
 use crate::signal::interpolate::{self, Beyond};
@@ -383,31 +383,6 @@ fn basis_row(form: Form, u: f64, tilt_deg: f64) -> Vec<f64> {
     row
 }
 
-/// A linear least-squares problem for the fitting engine (no nonlinear parameters).
-struct LinearProblem {
-    y: Vec<f64>,
-    phi: DMatrix<f64>,
-    names: Vec<String>,
-}
-
-impl Separable for LinearProblem {
-    fn observations(&self) -> &[f64] {
-        &self.y
-    }
-    fn nonlinear_names(&self) -> Vec<String> {
-        Vec::new()
-    }
-    fn linear_names(&self) -> Vec<String> {
-        self.names.clone()
-    }
-    fn basis(&self, _theta: &[f64]) -> DMatrix<f64> {
-        self.phi.clone()
-    }
-    fn basis_derivative(&self, _theta: &[f64], _k: usize) -> DMatrix<f64> {
-        DMatrix::zeros(self.phi.nrows(), self.phi.ncols())
-    }
-}
-
 /// Fit one form to `points` (all assumed in one counter epoch).
 pub(crate) fn fit_form(
     form: Form,
@@ -436,7 +411,7 @@ pub(crate) fn fit_form(
         .map(|p| basis_row(form, (p.reading_mm - centre) / half, p.tilt_deg))
         .collect();
     let phi = DMatrix::from_fn(points.len(), names.len(), |i, j| rows[i][j]);
-    let problem = LinearProblem {
+    let problem = fit::FixedColumns {
         y,
         phi,
         names: names.clone(),

@@ -64,6 +64,33 @@ pub trait Separable: Sync {
     }
 }
 
+/// A linear least-squares problem `y ≈ Φ c` with fixed columns (no nonlinear parameters): the
+/// engine's covariances and degrees of freedom for a plain linear fit (the calibration's
+/// centre-distance functions, tests of the uncertainty rules).
+pub(crate) struct FixedColumns {
+    pub(crate) y: Vec<f64>,
+    pub(crate) phi: DMatrix<f64>,
+    pub(crate) names: Vec<String>,
+}
+
+impl Separable for FixedColumns {
+    fn observations(&self) -> &[f64] {
+        &self.y
+    }
+    fn nonlinear_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+    fn linear_names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+    fn basis(&self, _theta: &[f64]) -> DMatrix<f64> {
+        self.phi.clone()
+    }
+    fn basis_derivative(&self, _theta: &[f64], _k: usize) -> DMatrix<f64> {
+        DMatrix::zeros(self.phi.nrows(), self.phi.ncols())
+    }
+}
+
 /// Why a fit could not be done.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum FitError {
@@ -1528,30 +1555,6 @@ mod tests {
         }
     }
 
-    /// A level and a gain on decays after three switches (`tau` 30 samples, 2000 samples), fixed
-    /// columns: the gain's information sits in a few batches.
-    struct Switches {
-        columns: DMatrix<f64>,
-        y: Vec<f64>,
-    }
-    impl Separable for Switches {
-        fn observations(&self) -> &[f64] {
-            &self.y
-        }
-        fn nonlinear_names(&self) -> Vec<String> {
-            Vec::new()
-        }
-        fn linear_names(&self) -> Vec<String> {
-            vec!["level".into(), "gain".into()]
-        }
-        fn basis(&self, _t: &[f64]) -> DMatrix<f64> {
-            self.columns.clone()
-        }
-        fn basis_derivative(&self, _t: &[f64], _k: usize) -> DMatrix<f64> {
-            DMatrix::zeros(self.y.len(), 2)
-        }
-    }
-
     /// With white noise the gain's HAC variance has few degrees of freedom and comes out low
     /// half the time; the reported `u` (never below the white-noise one, [`Fit::se`]) keeps the
     /// errors beyond 3 u near the normal 0.27 %, where the HAC u alone lets several times more
@@ -1579,9 +1582,12 @@ mod tests {
             let y = (0..n)
                 .map(|i| 2.0 * decay(i) + normal.sample(&mut rng))
                 .collect();
-            let p = Switches {
-                columns: columns.clone(),
+            // A level and a gain on decays after three switches (`tau` 30 samples): the gain's
+            // information sits in a few batches.
+            let p = FixedColumns {
                 y,
+                phi: columns.clone(),
+                names: vec!["level".into(), "gain".into()],
             };
             let f = fit(&p, &[], &FitOptions::default()).unwrap();
             let err = f.values[1] - 2.0;

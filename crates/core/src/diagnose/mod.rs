@@ -783,19 +783,14 @@ fn summarise_candidate(
     };
     if !refitted {
         let gain = rms_before_um - screened_rms_after_um;
-        candidate.reason = if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um
-            && !may_be_proposed_for_its_shift(effect)
-        {
+        candidate.reason = if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um {
+            let why_not = if may_be_proposed_for_its_shift(effect) {
+                "its score test does not find the term or it leaves no trace in the fit (a reparametrisation the data do not determine)"
+            } else {
+                CHANNEL_SHIFT
+            };
             format!(
-                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but {CHANNEL_SHIFT}",
-                fmt_um(gain),
-                SCREEN_SHARE,
-                fmt_um(criteria.min_gain_um),
-                fmt_um(screened_shift_um)
-            )
-        } else if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um {
-            format!(
-                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but its score test does not find the term or it leaves no trace in the fit (a reparametrisation the data do not determine)",
+                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but {why_not}",
                 fmt_um(gain),
                 SCREEN_SHARE,
                 fmt_um(criteria.min_gain_um),
