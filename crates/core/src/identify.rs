@@ -474,8 +474,9 @@ fn start_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<
 /// `air_gradient` first (ΔBIC −12 329 against −11 973); with the defaults' basin too,
 /// `plate_expansion` comes first (−14 010) and reaches the noise. In the usual case (one basin)
 /// this costs a search on the coarse copy and one residual of the series: the nightly runs of
-/// that simulator's 25 hidden-effect campaigns took 5 % longer in all, where a second full fit
-/// for every refit had cost 1.5-2.5 times the diagnosis.
+/// that simulator's 25 hidden-effect campaigns took 5 % longer in all (and 4 % less once the
+/// bent starts' second full fit it made redundant was dropped), where a second full fit for
+/// every refit had cost 1.5-2.5 times the diagnosis.
 fn defaults_basin(
     series: &BarSeries,
     problem: &ThermalProblem,
