@@ -241,7 +241,34 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
     {
         figure(h, f);
     }
+    if let Some(text) = ledger_text(d) {
+        let _ = writeln!(h, "<p class=\"ledger\">{}</p>", escape(&text));
+    }
     h.push_str("</section>\n");
+}
+
+/// The fleet ledger in words, and why its first step is not the top-ranked candidate when it
+/// is not (forward selection keeps the path whose steps together lower the BIC most).
+fn ledger_text(d: &crate::pipeline::Diagnosis) -> Option<String> {
+    if d.ledger.len() < 2 {
+        return None;
+    }
+    let steps: Vec<String> = d
+        .ledger
+        .iter()
+        .map(|s| format!("{} {:.4} µm", s.added.label(), s.fleet_rms_um))
+        .collect();
+    let mut text = format!("Forward selection: {}.", steps.join(" → "));
+    let first_step = &d.ledger[1].added;
+    if let Some(top) = d.candidates.iter().find(|c| c.proposed()) {
+        if first_step.name() != top.effect.name() {
+            text.push_str(&format!(
+                " Its first step is {first_step}, not the top-ranked {}: the selection keeps the                  path whose steps together lower the fleet's BIC most, and a term that fits best                  alone can leave more for the next steps than one that fits a little less well.",
+                top.effect
+            ));
+        }
+    }
+    Some(text)
 }
 
 /// 4. Per bar: measured against model, diagnosis, its own ledger; the fleet's figures.

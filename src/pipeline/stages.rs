@@ -321,7 +321,7 @@ pub(super) fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
     diagnose::explain_candidates(&mut candidates, &sensors);
     let series: Vec<&BarSeries> = bars.iter().map(|o| &o.series).collect();
     let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
-    let (ledger, _) = timed("diagnose: fleet forward selection", || {
+    let (ledger, fleet_models) = timed("diagnose: fleet forward selection", || {
         diagnose::forward_selection(
             &series,
             models,
@@ -336,7 +336,11 @@ pub(super) fn run_diagnose(plan: &RunPlan, bars: &[BarOutcome]) -> Diagnosis {
         bars.par_iter()
             .zip(&bases)
             .zip(&diagnoses)
-            .map(|((o, b), d)| {
+            .zip(&fleet_models)
+            .map(|(((o, b), d), fleet_model)| {
+                if !diagnose::needs_own_selection(fleet_model, b.as_ref(), &criteria) {
+                    return diagnose::bar_ledger_from_fleet(&o.model.bar, &ledger);
+                }
                 diagnose::forward_selection_of_bar(
                     &o.series,
                     o.model.clone(),

@@ -212,6 +212,57 @@ fn an_effect_outside_the_catalogue_is_caught_by_a_channel_term() {
     );
 }
 
+/// A heat source no catalogue names (an electronics cabinet beside the plate, logged by a sensor
+/// of kind `other`, running on working days): its excess over the air warms every bar through
+/// a lag of its own and through both lengths, so a generic `lag:` term (one gain a bar) cannot
+/// follow it from mount to mount; `heat:` can.
+#[test]
+fn a_heat_source_outside_the_catalogue_is_caught_by_a_heat_term() {
+    check(
+        "heat-source",
+        config(38, |c| c.effects.heat_source.enabled = true),
+        "heat:T1-C1",
+    );
+}
+
+/// Three hidden effects at once (head heating, an air gradient, settling): the fleet's forward
+/// selection names each of them and reaches the noise within three steps. Before the refits
+/// searched the defaults' basin and the path was chosen by its total ΔBIC, such a campaign
+/// stalled several times above the noise.
+#[test]
+fn three_hidden_effects_at_once_are_all_named_and_removed() {
+    let cfg = config(39, |c| {
+        c.effects.head_heating.enabled = true;
+        c.effects.sensor_gradient.enabled = true;
+        c.effects.settling.enabled = true;
+    });
+    let tmp = tempfile::tempdir().unwrap();
+    let (dir, _) = simulate_campaign(tmp.path(), "three", &cfg);
+    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
+        .and_then(|p| p.with_forward_steps(3))
+        .unwrap();
+    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
+    let ledger = &results.diagnosis.as_ref().unwrap().ledger;
+    let steps: Vec<String> = ledger
+        .iter()
+        .map(|s| format!("{} {:.4}", s.added, s.fleet_rms_um))
+        .collect();
+    eprintln!("three effects: {}", steps.join(" -> "));
+    let added: Vec<String> = ledger.iter().skip(1).map(|s| s.added.name()).collect();
+    for effect in ["head_heating", "air_gradient", "settling"] {
+        assert!(
+            added.iter().any(|a| a == effect),
+            "{effect} not named: {steps:?}"
+        );
+    }
+    let end = ledger.last().unwrap().fleet_rms_um;
+    assert!(
+        end <= 1.2 * cfg.noise_um,
+        "stalled at {end:.4} µm ({:.2}x the noise): {steps:?}",
+        end / cfg.noise_um
+    );
+}
+
 #[test]
 fn base_only_campaign_raises_no_false_alarm() {
     let (results, _) = ranked("clean", &config(37, |_| {}));

@@ -381,6 +381,10 @@ pub struct EffectsConfig {
     pub creep: Creep,
     /// A channel outside the catalogue.
     pub hidden_channel: HiddenChannel,
+    /// A heat source no catalogue names, acting through the bars' lengths (off and not
+    /// written into `truth.json` unless switched on).
+    #[serde(skip_serializing_if = "is_default")]
+    pub heat_source: HeatSource,
 }
 
 /// Read-head self-heating: the bar grows by `amplitude_um * lag(power; tau_s)`; the head is
@@ -521,6 +525,33 @@ pub struct HiddenChannel {
     pub(crate) noise_k: f64,
     /// Growth of the bar per kelvin of the channel, µm/K, and its time constant.
     pub(crate) gain_um_per_k: f64,
+    pub(crate) tau_s: f64,
+    pub(crate) spread: f64,
+}
+
+/// A heat source no catalogue names: an electronics cabinet beside the plate, logged by a
+/// sensor of kind `other`, that runs on working days (Monday to Friday, `on_hour` to
+/// `off_hour` UTC). Running, its temperature rises `excess_k` above the air at bar height (T1)
+/// through its own lag (`signal_tau_s`); that excess warms each bar's parts through a lag of its
+/// own and acts through both lengths, as the air does: the bar grows by
+/// `(fixed_ppm_per_k I_min + scale_ppm_per_k I_p) lag(C - T1; tau_s)` (µm: ppm/K · mm · K ·
+/// 1e-3). Gains and tau spread across bars (relative log-normal).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct HeatSource {
+    /// Switched on.
+    pub enabled: bool,
+    pub(crate) sensor_id: String,
+    pub(crate) excess_k: f64,
+    pub(crate) on_hour: f64,
+    pub(crate) off_hour: f64,
+    /// Time constant of the cabinet's own temperature, s.
+    pub(crate) signal_tau_s: f64,
+    pub(crate) noise_k: f64,
+    /// Expansion per kelvin of excess through the fixed part and through the scale, ppm/K.
+    pub(crate) fixed_ppm_per_k: f64,
+    pub(crate) scale_ppm_per_k: f64,
+    /// Time constant of the heat reaching the bar, s.
     pub(crate) tau_s: f64,
     pub(crate) spread: f64,
 }
@@ -737,6 +768,24 @@ impl Default for HiddenChannel {
             noise_k: 0.05,
             gain_um_per_k: 0.05,
             tau_s: 1800.0,
+            spread: 0.2,
+        }
+    }
+}
+
+impl Default for HeatSource {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            sensor_id: "C1".into(),
+            excess_k: 4.0,
+            on_hour: 8.0,
+            off_hour: 18.0,
+            signal_tau_s: 2400.0,
+            noise_k: 0.01,
+            fixed_ppm_per_k: 0.25,
+            scale_ppm_per_k: 0.15,
+            tau_s: 3600.0,
             spread: 0.2,
         }
     }
@@ -1142,7 +1191,40 @@ impl SimConfig {
         )?;
         finite("effects.creep.rate_um_per_day", e.creep.rate_um_per_day)?;
         non_negative("effects.creep.spread", e.creep.spread)?;
-        self.validate_hidden()
+        self.validate_hidden()?;
+        self.validate_heat_source()
+    }
+
+    fn validate_heat_source(&self) -> Result<(), SimError> {
+        let h = &self.effects.heat_source;
+        let taken = [
+            "T1",
+            "T2",
+            "P1",
+            self.effects.hidden_channel.sensor_id.as_str(),
+        ];
+        if h.enabled && (h.sensor_id.is_empty() || taken.contains(&h.sensor_id.as_str())) {
+            return Err(SimError::Invalid {
+                key: "effects.heat_source.sensor_id".into(),
+                reason: format!("{:?} is empty or names another sensor", h.sensor_id),
+            });
+        }
+        finite("effects.heat_source.excess_k", h.excess_k)?;
+        let hours_ok = (0.0..=24.0).contains(&h.on_hour)
+            && (0.0..=24.0).contains(&h.off_hour)
+            && h.on_hour < h.off_hour;
+        if !hours_ok {
+            return Err(invalid(
+                "effects.heat_source.on_hour",
+                "on_hour and off_hour must be hours of the day, on before off",
+            ));
+        }
+        positive("effects.heat_source.signal_tau_s", h.signal_tau_s)?;
+        non_negative("effects.heat_source.noise_k", h.noise_k)?;
+        finite("effects.heat_source.fixed_ppm_per_k", h.fixed_ppm_per_k)?;
+        finite("effects.heat_source.scale_ppm_per_k", h.scale_ppm_per_k)?;
+        positive("effects.heat_source.tau_s", h.tau_s)?;
+        non_negative("effects.heat_source.spread", h.spread)
     }
 
     fn validate_hidden(&self) -> Result<(), SimError> {

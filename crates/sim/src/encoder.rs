@@ -52,6 +52,9 @@ struct ThermalState {
     second: Option<(FirstOrderLag, f64)>,
     head: Option<(FirstOrderLag, f64)>,
     hidden: Option<(FirstOrderLag, f64, f64)>,
+    /// The heat source: the lag of the cabinet's excess, and its expansions through the fixed
+    /// part and the scale (ppm/K).
+    heat: Option<(FirstOrderLag, f64, f64)>,
 }
 
 impl ThermalState {
@@ -96,6 +99,19 @@ impl ThermalState {
             )),
             _ => None,
         };
+        let excess = if with_pre {
+            &env.pre_cabinet_excess_k
+        } else {
+            &env.cabinet_excess_k
+        };
+        let heat = match (&bar.heat_source, excess) {
+            (Some(h), Some(e)) => Some((
+                FirstOrderLag::new(h.tau_s, step_s, e[0]),
+                h.fixed_ppm_per_k,
+                h.scale_ppm_per_k,
+            )),
+            _ => None,
+        };
         let mut state = Self {
             w_low,
             w_high,
@@ -106,12 +122,14 @@ impl ThermalState {
             second,
             head,
             hidden,
+            heat,
         };
         if with_pre {
             for i in 0..env.pre_t1_c.len() - 1 {
                 let seen = |k: usize| w_low * t1[k] + w_high * t2[k] - t0_c;
                 let hidden = env.pre_hidden_c.as_ref().map(|h| (h[i], h[i + 1]));
                 state.step_air(seen(i), seen(i + 1), hidden);
+                state.step_heat(env.pre_cabinet_excess_k.as_deref(), i);
             }
         }
         state
@@ -126,6 +144,7 @@ impl ThermalState {
         let (u0, u1) = (self.seen(env, i), self.seen(env, i + 1));
         let hidden = env.hidden_c.as_ref().map(|h| (h[i], h[i + 1]));
         self.step_air(u0, u1, hidden);
+        self.step_heat(env.cabinet_excess_k.as_deref(), i);
         if let Some((lag, _)) = &mut self.head {
             lag.step_held(head_power);
         }
@@ -145,6 +164,17 @@ impl ThermalState {
         }
     }
 
+    /// Advance the heat source's lag from grid point `i` to `i + 1` of `excess` (K).
+    fn step_heat(&mut self, excess: Option<&[f64]>, i: usize) {
+        if let (Some((lag, ..)), Some(e)) = (&mut self.heat, excess) {
+            if self.air_held {
+                lag.step_held(e[i]);
+            } else {
+                lag.step_linear(e[i], e[i + 1]);
+            }
+        }
+    }
+
     /// Growth `dD` of the bar, µm, at scale travel `travel_mm` (`I_p`).
     fn growth_um(&self, bar: &BarTruth, travel_mm: f64) -> f64 {
         let i_min = bar.fixed_length_mm;
@@ -152,6 +182,9 @@ impl ThermalState {
             + bar.beta_ppm_per_k * travel_mm * self.scale.state;
         if let Some((lag, gain)) = &self.second {
             ppm_mm += gain * i_min * lag.state;
+        }
+        if let Some((lag, fixed, scale)) = &self.heat {
+            ppm_mm += (fixed * i_min + scale * travel_mm) * lag.state;
         }
         let mut um = ppm_mm * 1e-3;
         if let Some((lag, amplitude)) = &self.head {

@@ -42,6 +42,10 @@ pub(crate) struct Environment {
     pub(crate) pre_t1_c: Vec<f64>,
     pub(crate) pre_t2_c: Vec<f64>,
     pub(crate) pre_hidden_c: Option<Vec<f64>>,
+    /// The heat source's excess over T1, K, when the effect is on (the cabinet's sensor reads
+    /// T1 plus it), and its pre-history.
+    pub(crate) cabinet_excess_k: Option<Vec<f64>>,
+    pub(crate) pre_cabinet_excess_k: Option<Vec<f64>>,
     /// The air is constant over each grid step (`generation.air_between_readings = "held"`):
     /// the bars integrate it held, not linearly.
     pub(crate) air_held: bool,
@@ -131,6 +135,11 @@ impl Environment {
             }
         }
         let plate_c = lagged(&t1_c, cfg.plate.thermal_tau_s, grid.step_s, air_held);
+        let cabinet_excess_k = cfg
+            .effects
+            .heat_source
+            .enabled
+            .then(|| cabinet_excess(cfg, grid, pre));
         let hidden_c = cfg
             .effects
             .hidden_channel
@@ -150,6 +159,10 @@ impl Environment {
             Some((p, h)) => (Some(p), Some(h)),
             None => (None, None),
         };
+        let (pre_cabinet_excess_k, cabinet_excess_k) = match cabinet_excess_k.map(split) {
+            Some((p, h)) => (Some(p), Some(h)),
+            None => (None, None),
+        };
         Self {
             t1_c,
             t2_c,
@@ -159,6 +172,8 @@ impl Environment {
             pre_t1_c,
             pre_t2_c,
             pre_hidden_c,
+            cabinet_excess_k,
+            pre_cabinet_excess_k,
             air_held,
         }
     }
@@ -187,6 +202,11 @@ impl Environment {
         if let Some(h) = &self.hidden_c {
             let hc = &cfg.effects.hidden_channel;
             add(&hc.sensor_id, h, hc.noise_k, streams::SENSOR + 3);
+        }
+        if let Some(excess) = &self.cabinet_excess_k {
+            let hs = &cfg.effects.heat_source;
+            let cabinet: Vec<f64> = self.t1_c.iter().zip(excess).map(|(a, e)| a + e).collect();
+            add(&hs.sensor_id, &cabinet, hs.noise_k, streams::SENSOR + 4);
         }
         logs
     }
@@ -347,6 +367,35 @@ fn hidden_signal(seed: u64, h: &HiddenChannel, grid: &Grid, pre: usize) -> Vec<f
                 on = !on;
             }
             lag.step_held(if on { 1.0 } else { 0.0 });
+            value
+        })
+        .collect()
+}
+
+/// The heat source's excess over T1 (K) on the grid, pre-history first
+/// ([`crate::HeatSource`]): `excess_k` times the lag of its running state, on from `on_hour`
+/// to `off_hour` (UTC) on working days (Monday to Friday), off and cold before the grid starts.
+fn cabinet_excess(cfg: &SimConfig, grid: &Grid, pre: usize) -> Vec<f64> {
+    let h = &cfg.effects.heat_source;
+    let start_s =
+        cfg.start.timestamp() as f64 + f64::from(cfg.start.timestamp_subsec_nanos()) * 1e-9;
+    let running = |t: f64| {
+        let abs = start_s + t;
+        let day = (abs / DAY_S).floor();
+        // 1970-01-01 was a Thursday: Monday is 0.
+        let weekday = (day as i64 + 3).rem_euclid(7);
+        let hour = (abs - day * DAY_S) / 3600.0;
+        weekday < 5 && hour >= h.on_hour && hour < h.off_hour
+    };
+    let mut lag = FirstOrderLag::new(h.signal_tau_s, grid.step_s, 0.0);
+    (0..grid.n_points() + pre)
+        .map(|i| {
+            let value = h.excess_k * lag.state;
+            lag.step_held(if running(grid_time(i, pre, grid.step_s)) {
+                1.0
+            } else {
+                0.0
+            });
             value
         })
         .collect()

@@ -10,7 +10,7 @@ use rand_distr::StandardNormal;
 use super::config::{FleetConfig, SimConfig};
 use super::environment::{AIR_HIGH, AIR_LOW};
 use super::geometry::BarGeometry;
-use super::truth::{BarTruth, ChannelTruth, HeadTruth, SecondPathTruth};
+use super::truth::{BarTruth, ChannelTruth, HeadTruth, HeatTruth, SecondPathTruth};
 use super::{stream_rng, streams};
 
 /// Every bar's truth, in configuration order.
@@ -51,6 +51,7 @@ fn plain_bar(
         creep_um_per_day: None,
         hidden_channel: None,
         settling_tau_s: None,
+        heat_source: None,
         geometry: BarGeometry::default(),
         mismatch: None,
     }
@@ -144,6 +145,18 @@ fn with_effects(cfg: &SimConfig, index: usize, mut bar: BarTruth) -> BarTruth {
     }
     if e.settling.enabled {
         bar.settling_tau_s = Some(e.settling.tau_s);
+    }
+    let h = &e.heat_source;
+    if h.enabled {
+        // A stream of its own: the other effects' draws stay what they were.
+        let mut rng = stream_rng(cfg.seed, streams::HEAT_SOURCE + index as u64);
+        let z: [f64; 3] = std::array::from_fn(|_| rng.sample(StandardNormal));
+        bar.heat_source = Some(HeatTruth {
+            sensor: h.sensor_id.clone(),
+            fixed_ppm_per_k: h.fixed_ppm_per_k * (h.spread * z[0]).exp(),
+            scale_ppm_per_k: h.scale_ppm_per_k * (h.spread * z[1]).exp(),
+            tau_s: h.tau_s * (h.spread * z[2]).exp(),
+        });
     }
     bar
 }

@@ -42,12 +42,14 @@ use dbbcal_core::series::{CampaignTables, Event, EventKind};
 pub use config::{
     AirBetweenReadings, BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig,
     FleetConfig, GenerationConfig, GeometryConfig, HeadHeating, HeadSchedule, HeadStart,
-    HiddenChannel, Mismatch, PlateConfig, PlateExpansion, ReferenceMount, RoomConfig, SagConfig,
-    SagForm, ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig, WorkingLayout,
+    HeatSource, HiddenChannel, Mismatch, PlateConfig, PlateExpansion, ReferenceMount, RoomConfig,
+    SagConfig, SagForm, ScheduleConfig, SecondPath, SensorGradient, Settling, SimConfig,
+    WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
 pub use truth::{
-    BarGeometry, BarTruth, ChannelTruth, HeadTruth, MountTruth, PlateTruth, SecondPathTruth, Truth,
+    BarGeometry, BarTruth, ChannelTruth, HeadTruth, HeatTruth, MountTruth, PlateTruth,
+    SecondPathTruth, Truth,
 };
 
 use encoder::{BarRun, BarSetup};
@@ -117,6 +119,7 @@ pub(crate) mod streams {
     pub(crate) const BAR_EFFECTS: u64 = 3_000;
     pub(crate) const BAR_NOISE: u64 = 4_000;
     pub(crate) const GEOMETRY: u64 = 5_000;
+    pub(crate) const HEAT_SOURCE: u64 = 6_000;
 }
 
 /// The random stream `stream` of seed `seed`.
@@ -388,6 +391,9 @@ fn sensor_decls(cfg: &SimConfig) -> Vec<SensorDecl> {
             SensorKind::Other,
         ));
     }
+    if cfg.effects.heat_source.enabled {
+        sensors.push(decl(&cfg.effects.heat_source.sensor_id, SensorKind::Other));
+    }
     sensors
 }
 
@@ -495,6 +501,7 @@ pub(crate) fn effects_on(e: &EffectsConfig) -> Vec<String> {
         ("plate_expansion", e.plate_expansion.enabled),
         ("creep", e.creep.enabled),
         ("hidden_channel", e.hidden_channel.enabled),
+        ("heat_source", e.heat_source.enabled),
     ]
     .into_iter()
     .filter(|(_, on)| *on)

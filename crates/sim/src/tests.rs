@@ -460,6 +460,66 @@ fn hidden_channel_drives_the_bars_and_is_logged_as_other() {
 }
 
 #[test]
+fn a_heat_source_runs_on_working_days_and_heats_the_bars_through_both_lengths() {
+    // 2026-11-01 is a Sunday: the cabinet is off the first day, on from 08:00 to 18:00 Monday.
+    let base = lively();
+    let mut with = base.clone();
+    with.effects.heat_source.enabled = true;
+    let sim = generate(&with).unwrap();
+    let h = &with.effects.heat_source;
+    let decl = sim
+        .manifest
+        .sensor
+        .iter()
+        .find(|s| s.id == h.sensor_id)
+        .unwrap();
+    assert_eq!(decl.kind, dbbcal_core::campaign::SensorKind::Other);
+    let off = generate(&base).unwrap();
+    assert_eq!(
+        off.tables.temperatures[AIR_LOW], sim.tables.temperatures[AIR_LOW],
+        "other channels untouched"
+    );
+    assert!(off.truth.bars.iter().all(|b| b.heat_source.is_none()));
+    // The cabinet reads T1 plus its excess: nothing on Sunday, up to `excess_k` on Monday.
+    let cabinet = &sim.tables.temperatures[h.sensor_id.as_str()];
+    let t1 = &sim.tables.temperatures[AIR_LOW];
+    let start_ns = sim.tables.encoders.values().next().unwrap().time_ns[0];
+    let mut sunday_max: f64 = 0.0;
+    let mut monday_max: f64 = 0.0;
+    for (k, (t, c)) in cabinet.time_ns.iter().zip(&cabinet.celsius).enumerate() {
+        let excess = c - t1.celsius[k];
+        let hours = (t - start_ns) as f64 / 3.6e12;
+        if hours < 24.0 {
+            sunday_max = sunday_max.max(excess.abs());
+        } else if hours < 48.0 {
+            monday_max = monday_max.max(excess);
+        }
+    }
+    assert!(sunday_max < 0.1, "Sunday {sunday_max}");
+    assert!(
+        monday_max > 0.8 * h.excess_k && monday_max < h.excess_k + 0.1,
+        "Monday {monday_max}"
+    );
+    let longest_mm = with.plate.length.iter().map(|l| l.mm).fold(0.0, f64::max);
+    for (id, deltas) in effect_delta(&base, &with) {
+        let bar = sim.truth.bars.iter().find(|b| b.id == id).unwrap();
+        let heat = bar.heat_source.clone().unwrap();
+        let largest_ppm_mm = heat.fixed_ppm_per_k * bar.fixed_length_mm
+            + heat.scale_ppm_per_k * (longest_mm - bar.fixed_length_mm);
+        let deepest = deltas.iter().map(|(_, d)| *d).fold(0.0, f64::min);
+        assert!(
+            deltas.iter().all(|(_, d)| *d <= 1e-12),
+            "the bar grows: the reading falls"
+        );
+        assert!(
+            -deepest <= largest_ppm_mm * h.excess_k * 1e-3
+                && -deepest > 0.2 * heat.fixed_ppm_per_k * bar.fixed_length_mm * h.excess_k * 1e-3,
+            "{id}: {deepest}"
+        );
+    }
+}
+
+#[test]
 fn doors_are_events_and_bump_the_air() {
     let sim = generate(&lively()).unwrap();
     let doors: Vec<&Event> = sim

@@ -82,6 +82,9 @@ pub struct BarTruth {
     pub(crate) hidden_channel: Option<ChannelTruth>,
     /// Settling time constant after each mount (amplitudes are per mount).
     pub(crate) settling_tau_s: Option<f64>,
+    /// Growth `(fixed I_min + scale I_p) lag(C - T1; tau_s)` from the heat source.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) heat_source: Option<HeatTruth>,
     /// Geometric terms of the counts -> distance mapping (all zero: ideal bar).
     #[serde(default)]
     pub(crate) geometry: BarGeometry,
@@ -127,6 +130,19 @@ pub struct HeadTruth {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct SecondPathTruth {
     pub(crate) gain_ppm_per_k: f64,
+    pub(crate) tau_s: f64,
+}
+
+/// The heat source's effect on a bar as simulated (`[effects.heat_source]`).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct HeatTruth {
+    /// The cabinet's sensor.
+    pub(crate) sensor: String,
+    /// Expansion through the fixed part per kelvin of the cabinet's excess over T1, ppm/K.
+    pub(crate) fixed_ppm_per_k: f64,
+    /// The same through the scale (on `I_p`), ppm/K.
+    pub(crate) scale_ppm_per_k: f64,
+    /// Time constant of the heat reaching the bar, s.
     pub(crate) tau_s: f64,
 }
 

@@ -51,6 +51,9 @@ fn channel_explanation(transform: Transform, what: &str) -> String {
         Transform::Lag => "a first-order response (gain and time constant) to",
         Transform::Rate => "the rate of change of",
         Transform::Level => "the level of",
+        Transform::Heat => {
+            return format!("Heat from {what} reaches the bar through a first-order lag of its own and expands both its lengths (I_min and I_p, like the air does); no catalogue effect explains it as well. Check what this source is (a cabinet, a lamp, a machine) and shield the bars from it or log it beside them.");
+        }
     };
     format!("The reading follows {how} {what}; no catalogue effect explains it as well. Check what this channel measures and how it reaches the bar.")
 }

@@ -49,6 +49,10 @@ use screen::{Screen, ScreenBase};
 pub(crate) const ALPHA: f64 = 0.05;
 /// How many of the best-explaining channels get a generic `lag:` candidate.
 pub(crate) const CHANNEL_CANDIDATES: usize = 10;
+/// How many of the best-explaining sensor channels (a sensor or a difference of two) also get a
+/// `heat:` candidate: heat acting through both of the bar's lengths, whose effect changes from
+/// mount to mount with `I_p` where a `lag:` term has one gain per bar.
+pub(crate) const HEAT_CANDIDATES: usize = 3;
 /// A candidate is material when the fleet RMS it removes is at least this share of the
 /// reading-noise floor ...
 pub(crate) const MATERIAL_SHARE_OF_NOISE: f64 = 0.05;
@@ -65,6 +69,19 @@ pub(crate) const SCREEN_SHARE: f64 = 0.5;
 /// once the best is in the model). Exact refits are the cost of the loop; this keeps them to the
 /// few candidates that compete.
 pub(crate) const RIVAL_SHARE: f64 = 0.1;
+/// A candidate that passed the screen is refitted exactly on the bars' own series only when
+/// its exact refit on their coarse copies ([`ScreenBase::coarse_refit`]) removes at least this
+/// share of what the best candidate's removes there (or when it may be material by its shift
+/// alone, which no refit's RMS shows): the others cannot lead the step.
+pub(crate) const COARSE_RIVAL_SHARE: f64 = 0.5;
+/// At most this many candidates of one step are refitted exactly on the bars' own series (the
+/// best on the coarse copies; a catalogue effect before a generic channel term that removes
+/// within [`NAMED_TIE_SHARE`] as much): aliases of one effect (`air_gradient`, `lag:T2-T1`,
+/// `heat:T2-T1`, `heat:T2` on a campaign with an air gradient) all come close to the best, and
+/// each exact refit costs seconds. Three is the default beam.
+pub(crate) const MAX_EXACT_RIVALS: usize = 3;
+/// Two candidates whose coarse refits remove within this share of each other are a tie.
+pub(crate) const NAMED_TIE_SHARE: f64 = 0.02;
 /// The shift of the model's own terms counts toward materiality only for a term that removes at
 /// least this share of the materiality threshold from the fleet RMS (1 %: 0.05 nm at the
 /// patent's ±1 µm; the hidden second thermal path of the tests removes 0.18 nm, an alias of the
@@ -296,17 +313,31 @@ impl Refit {
 impl Refits {
     /// `base` (fitted to `series`) with `effect` added and refitted.
     pub(crate) fn refit(&self, series: &BarSeries, base: &BarModel, effect: &Effect) -> Arc<Refit> {
+        self.refit_from(series, base, effect, None)
+    }
+
+    /// [`Refits::refit`], the time constants started from `start` (a refit of the same effects
+    /// on the bar's coarse copy) when given, else from `base`.
+    pub(crate) fn refit_from(
+        &self,
+        series: &BarSeries,
+        base: &BarModel,
+        effect: &Effect,
+        start: Option<&BarModel>,
+    ) -> Arc<Refit> {
         let mut effects = base.effects.clone();
         effects.push(effect.clone());
         let key = (base.bar.clone(), effects.iter().map(Effect::name).collect());
         if let Some(hit) = self.lock().get(&key) {
             return hit.clone();
         }
-        tracing::debug!(bar = %key.0, effects = ?key.1, "diagnose: exact refit");
+        let started = std::time::Instant::now();
         let fitted = Arc::new(Refit {
-            model: identify_from(series, &effects, Some(base)).map_err(|e| e.to_string()),
+            model: identify_from(series, &effects, Some(start.unwrap_or(base)))
+                .map_err(|e| e.to_string()),
             noise_log_likelihood: OnceLock::new(),
         });
+        tracing::debug!(bar = %key.0, effects = ?key.1, ms = started.elapsed().as_millis(), "diagnose: exact refit");
         self.lock().entry(key).or_insert(fitted).clone()
     }
 
@@ -393,7 +424,8 @@ fn term_identity(e: &Effect) -> String {
 }
 
 /// The candidate effects for a fleet whose model is `effects`: catalogue effects not yet in the
-/// model, and `lag:CH` for the channels that explain most of the residuals fleet-wide; none
+/// model, `lag:CH` for the channels that explain most of the residuals fleet-wide and `heat:CH`
+/// for the best of them that are sensors or sensor differences; none
 /// whose term is already in the model or offered under its catalogue name.
 pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<Effect> {
     let mut taken: std::collections::BTreeSet<String> = effects.iter().map(term_identity).collect();
@@ -410,12 +442,21 @@ pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<
     }
     let mut ranked: Vec<(&str, f64)> = totals.into_iter().collect();
     ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then_with(|| a.0.cmp(b.0)));
-    for (ch, _) in ranked.into_iter().take(CHANNEL_CANDIDATES) {
-        let e = Effect::Channel {
-            transform: Transform::Lag,
-            channel: ch.to_string(),
-            tau0_s: None,
-        };
+    let generic = |transform, ch: &str| Effect::Channel {
+        transform,
+        channel: ch.to_string(),
+        tau0_s: None,
+    };
+    let lags = ranked
+        .iter()
+        .take(CHANNEL_CANDIDATES)
+        .map(|(ch, _)| generic(Transform::Lag, ch));
+    let heats = ranked
+        .iter()
+        .filter(|(ch, _)| channels::is_sensor_channel(ch))
+        .take(HEAT_CANDIDATES)
+        .map(|(ch, _)| generic(Transform::Heat, ch));
+    for e in lags.chain(heats) {
         if taken.insert(term_identity(&e)) {
             out.push(e);
         }
@@ -493,12 +534,20 @@ pub fn evaluate_candidates(
         .map(|(c, _, _)| *c)
         .collect();
     let best_effect = screened.first().map(|(c, _, _)| candidates[*c].name());
+    let shift_only = |c: usize| {
+        screened
+            .iter()
+            .any(|&(k, gain, change)| k == c && change > gain)
+    };
+    let (refit, starts, coarse_reasons) = coarse_tier(bars, bases, refit, candidates, shift_only);
     tracing::debug!(
         bars = bars.len(),
         refit = ?refit.iter().map(|&c| candidates[c].name()).collect::<Vec<_>>(),
         "diagnose: candidates refitted exactly"
     );
-    let exact = exact_refits(bars, bases, &refit, candidates, &screens, threshold, refits);
+    let exact = exact_refits(
+        bars, bases, &refit, &starts, candidates, &screens, threshold, refits,
+    );
     let mut ranked: Vec<Candidate> = screened
         .iter()
         .map(|&(c, gain, change)| {
@@ -507,7 +556,9 @@ pub fn evaluate_candidates(
                 None => screened_only(bars, &screens[c]),
             };
             let mut summary = summarise_candidate(&candidates[c], per_bar, threshold, criteria);
-            if summary.verdict == Verdict::ScreenedOut
+            if let Some(reason) = coarse_reasons.get(&c) {
+                summary.reason = reason.clone();
+            } else if summary.verdict == Verdict::ScreenedOut
                 && change >= SCREEN_SHARE * criteria.min_gain_um
             {
                 summary.reason = format!(
@@ -558,12 +609,116 @@ fn screened_change(
     (n > 0).then(|| ((mean(before) - mean(after)).max(0.0), mean(shift), p))
 }
 
+/// Coarse refits of the candidates `refit` (indices into `candidates`, best screened first)
+/// on every bar screened on a coarse copy ([`ScreenBase::coarse_refit`]): the candidates to
+/// refit exactly (those removing at least [`COARSE_RIVAL_SHARE`] of the best's fleet RSS there,
+/// and those `shift_only` may make material), the coarse refits they start from (per kept
+/// candidate, per bar), and why each other one was left out. Where no bar has a coarse copy,
+/// every candidate is kept and starts from the bar's model.
+#[allow(clippy::type_complexity)]
+fn coarse_tier(
+    bars: &[(&BarSeries, &BarModel)],
+    bases: &[Option<ScreenBase>],
+    refit: Vec<usize>,
+    candidates: &[Effect],
+    shift_only: impl Fn(usize) -> bool,
+) -> (
+    Vec<usize>,
+    Vec<Vec<Option<BarModel>>>,
+    HashMap<usize, String>,
+) {
+    let none = |refit: Vec<usize>| {
+        let starts = vec![vec![None; bars.len()]; refit.len()];
+        (refit, starts, HashMap::new())
+    };
+    if refit.len() < 2 || !bases.iter().flatten().any(|b| b.coarse_refit_possible()) {
+        return none(refit);
+    }
+    let jobs: Vec<(usize, usize)> = refit
+        .iter()
+        .flat_map(|&c| (0..bars.len()).map(move |b| (c, b)))
+        .collect();
+    let fitted: Vec<Option<(f64, BarModel)>> = jobs
+        .par_iter()
+        .map(|&(c, b)| {
+            let base = bases[b].as_ref()?;
+            base.coarse_refit(bars[b].1, &candidates[c])?.ok()
+        })
+        .collect();
+    let per_candidate: Vec<&[Option<(f64, BarModel)>]> = fitted.chunks(bars.len().max(1)).collect();
+    // The fleet RSS each removes on the coarse copies (µm², each bar on its own samples' scale).
+    let removed: Vec<f64> = per_candidate
+        .iter()
+        .map(|per_bar| per_bar.iter().flatten().map(|(d, _)| d).sum())
+        .collect();
+    let best = removed.iter().copied().fold(0.0, f64::max);
+    let fleet_rms = |rss: f64| {
+        let n: usize = bars.iter().map(|(_, m)| m.n_samples).sum();
+        (rss / n.max(1) as f64).sqrt()
+    };
+    // The order in which rivals get an exact refit: by what they remove, a named effect first
+    // among ties.
+    let generic = |k: usize| matches!(candidates[refit[k]], Effect::Channel { .. });
+    let mut order: Vec<usize> = (0..refit.len()).collect();
+    order.sort_by(|&a, &b| {
+        let tie = (removed[a] - removed[b]).abs() <= NAMED_TIE_SHARE * removed[a].max(removed[b]);
+        if tie && generic(a) != generic(b) {
+            generic(a).cmp(&generic(b))
+        } else {
+            removed[b].total_cmp(&removed[a]).then(a.cmp(&b))
+        }
+    });
+    let rank_of = |k: usize| order.iter().position(|&o| o == k).unwrap_or(usize::MAX);
+    let best_at = order[0];
+    let mut kept = Vec::new();
+    let mut starts = Vec::new();
+    let mut reasons = HashMap::new();
+    for (k, &c) in refit.iter().enumerate() {
+        let rival = removed[k] >= COARSE_RIVAL_SHARE * best && rank_of(k) < MAX_EXACT_RIVALS;
+        if rival || shift_only(c) {
+            kept.push(c);
+            starts.push(
+                per_candidate[k]
+                    .iter()
+                    .map(|f| f.as_ref().map(|(_, m)| m.clone()))
+                    .collect(),
+            );
+        } else if removed[k] >= COARSE_RIVAL_SHARE * best {
+            reasons.insert(
+                c,
+                format!(
+                    "screened out: refitted on the bars' 300-s copies it removes {} µm² of the fleet RSS (an RMS of {} µm), close to the best candidate's ({}, {} µm²), but {MAX_EXACT_RIVALS} candidates that remove more (or as much, with a name) are refitted exactly first; if it is an alias of the one proposed, it is gone once that one is in the model",
+                    fmt_um(removed[k]),
+                    fmt_um(fleet_rms(removed[k])),
+                    candidates[refit[best_at]].name(),
+                    fmt_um(best)
+                ),
+            );
+        } else {
+            reasons.insert(
+                c,
+                format!(
+                    "screened out: refitted on the bars' 300-s copies it removes {} µm² of the fleet RSS (an RMS of {} µm), less than {COARSE_RIVAL_SHARE} of the best candidate's ({}, {} µm²); if real it is found once that one is in the model",
+                    fmt_um(removed[k]),
+                    fmt_um(fleet_rms(removed[k])),
+                    candidates[refit[best_at]].name(),
+                    fmt_um(best)
+                ),
+            );
+        }
+    }
+    (kept, starts, reasons)
+}
+
 /// Exact refits of the candidates `refit` (indices into `candidates`) on every bar where they
-/// could be screened, with their likelihood-ratio tests.
+/// could be screened, with their likelihood-ratio tests; each starts from its coarse refit in
+/// `starts` where there is one, else from the bar's model.
+#[allow(clippy::too_many_arguments)]
 fn exact_refits(
     bars: &[(&BarSeries, &BarModel)],
     bases: &[Option<ScreenBase>],
     refit: &[usize],
+    starts: &[Vec<Option<BarModel>>],
     candidates: &[Effect],
     screens: &[Vec<Result<Screen, String>>],
     threshold: f64,
@@ -578,18 +733,18 @@ fn exact_refits(
         .par_iter()
         .map(|b| b.as_ref().map_or(f64::NAN, |b| b.noise().log_likelihood))
         .collect();
-    let jobs: Vec<(usize, usize)> = refit
+    let jobs: Vec<(usize, usize, usize)> = refit
         .iter()
-        .flat_map(|&c| (0..bars.len()).map(move |b| (c, b)))
+        .enumerate()
+        .flat_map(|(k, &c)| (0..bars.len()).map(move |b| (k, c, b)))
         .collect();
     let done: Vec<CandidateOnBar> = jobs
         .par_iter()
-        .map(|&(c, b)| {
+        .map(|&(k, c, b)| {
             let (s, m) = bars[b];
             match &screens[c][b] {
                 Ok(screen) => candidate_on_bar(
-                    s,
-                    m,
+                    (s, m, starts[k][b].as_ref()),
                     base_log_likelihood[b],
                     &candidates[c],
                     screen,
@@ -641,16 +796,17 @@ fn unfit_on_bar(base: &BarModel, error: String) -> CandidateOnBar {
     }
 }
 
+/// One candidate on one bar: `(series, base, start)`, the bar, its model and where the refit
+/// starts (its coarse refit, or the model itself when `None`).
 fn candidate_on_bar(
-    series: &BarSeries,
-    base: &BarModel,
+    (series, base, start): (&BarSeries, &BarModel, Option<&BarModel>),
     base_log_likelihood: f64,
     effect: &Effect,
     screen: &Screen,
     threshold: f64,
     refits: &Refits,
 ) -> CandidateOnBar {
-    let refit = refits.refit(series, base, effect);
+    let refit = refits.refit_from(series, base, effect, start);
     let extended = match &refit.model {
         Ok(m) => m,
         Err(e) => return unfit_on_bar(base, e.clone()),
@@ -966,6 +1122,156 @@ pub fn forward_selection(
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    if max_steps > 0 {
+        if let Some(coarse) = CoarseFleet::new(series, &start) {
+            let path = coarse.select(max_steps, beam, criteria);
+            return confirm_path(series, start, first_candidates, &path, criteria, refits);
+        }
+    }
+    beam_search(
+        series,
+        start,
+        first_candidates,
+        max_steps,
+        beam,
+        criteria,
+        refits,
+    )
+}
+
+/// Every bar's coarse copy (`identify::coarse_copy`) and its model refitted there: where the
+/// forward selection searches its paths when every bar is long enough to have one.
+struct CoarseFleet {
+    series: Vec<BarSeries>,
+    models: Vec<BarModel>,
+}
+
+impl CoarseFleet {
+    fn new(series: &[&BarSeries], models: &[BarModel]) -> Option<CoarseFleet> {
+        let copies: Vec<BarSeries> = series
+            .iter()
+            .map(|s| crate::identify::coarse_copy(s, crate::identify::COARSE_START_MIN_SAMPLES))
+            .collect::<Option<_>>()?;
+        let fitted: Vec<BarModel> = copies
+            .par_iter()
+            .zip(models.par_iter())
+            .map(|(c, m)| identify_from(c, &m.effects, Some(m)).ok())
+            .collect::<Option<_>>()?;
+        Some(CoarseFleet {
+            series: copies,
+            models: fitted,
+        })
+    }
+
+    /// The effects the beam search adds on the coarse copies, in order.
+    fn select(&self, max_steps: usize, beam: usize, criteria: &Criteria) -> Vec<Effect> {
+        let refits = Refits::default();
+        let series: Vec<&BarSeries> = self.series.iter().collect();
+        let first = rank_candidates_for(&series, &self.models, criteria, &refits);
+        let (ledger, _) = beam_search(
+            &series,
+            self.models.clone(),
+            &first,
+            max_steps,
+            beam,
+            criteria,
+            &refits,
+        );
+        ledger
+            .iter()
+            .filter_map(|step| match &step.added {
+                Added::Effect(e) => Some(e.clone()),
+                Added::Base => None,
+            })
+            .collect()
+    }
+}
+
+/// The ledger of `path` (found on the coarse copies) on the bars' own series: each step's
+/// effect refitted exactly on every bar and tested as a candidate is ([`evaluate_candidates`]:
+/// significant and material); the ledger stops at the first step that is not proposed there.
+/// The first step's exact refits and tests are those of the ranking (`first_candidates`).
+fn confirm_path(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    path: &[Effect],
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let mut current = SelectionPath {
+        ledger: vec![ledger_step(Added::Base, &start, None, None)],
+        models: start,
+        delta_bic: 0.0,
+        finished: false,
+    };
+    for (k, effect) in path.iter().enumerate() {
+        let ranked = first_candidates
+            .iter()
+            .find(|c| k == 0 && c.effect == *effect && c.rms_after_um.is_some())
+            .cloned();
+        let candidate = match ranked {
+            Some(c) => c,
+            None => exact_candidate(series, &current.models, effect, criteria, refits),
+        };
+        if !candidate.proposed() {
+            tracing::debug!(effect = %effect.name(), reason = %candidate.reason, "diagnose: the coarse path stops here on the readings");
+            break;
+        }
+        current = extend_path(series, &current, &candidate, refits);
+    }
+    (current.ledger, current.models)
+}
+
+/// `effect` added to every bar's model in `models`, refitted exactly and tested: the candidate
+/// as [`evaluate_candidates`] would report it after an exact refit.
+fn exact_candidate(
+    series: &[&BarSeries],
+    models: &[BarModel],
+    effect: &Effect,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> Candidate {
+    let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
+    let bases = screen_bases(&pairs);
+    let candidates = [effect.clone()];
+    // Tested as one of a step's candidates (Bonferroni over as many as a step offers): the
+    // effect was chosen on the coarse copies of these same readings.
+    let threshold =
+        criteria.alpha / (CATALOGUE.len() + CHANNEL_CANDIDATES + HEAT_CANDIDATES) as f64;
+    let screens: Vec<Vec<Result<Screen, String>>> = vec![bases
+        .iter()
+        .map(|b| match b {
+            Some(b) => b.screen(effect),
+            None => Err("the model could not be linearised on this bar".into()),
+        })
+        .collect()];
+    let starts = vec![vec![None; pairs.len()]];
+    let per_bar = exact_refits(
+        &pairs,
+        &bases,
+        &[0],
+        &starts,
+        &candidates,
+        &screens,
+        threshold,
+        refits,
+    )
+    .pop()
+    .unwrap_or_default();
+    summarise_candidate(effect, per_bar, threshold, criteria)
+}
+
+/// The beam search of [`forward_selection`] on the series it is given.
+fn beam_search(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    max_steps: usize,
+    beam: usize,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let beam = beam.max(1);
     let mut paths = vec![SelectionPath {
         ledger: vec![ledger_step(Added::Base, &start, None, None)],
@@ -1101,6 +1407,51 @@ pub struct BarLedger {
     pub bar: String,
     /// The steps, the starting model first.
     pub steps: Vec<LedgerStep>,
+    /// The bar was not searched on its own: the fleet's selection already brings it within the
+    /// materiality threshold of its reading-noise floor ([`needs_own_selection`]), and its
+    /// steps are the fleet's, on this bar.
+    pub from_fleet: bool,
+}
+
+/// Whether a bar needs a forward selection of its own: the fleet's selected model for it
+/// (`fleet_model`) leaves its RMS at least the materiality threshold above the white reading
+/// noise under its residual (`base`, [`ScreenBase::white_noise_variance`]).
+///
+/// Why: a bar's own search serves bars that are different physical objects and need different
+/// terms (the axes of a machine tool). Where the fleet's terms already bring a bar to its noise,
+/// nothing left on it can be material, and its own search (a beam of exact refits from the base
+/// model, seconds each) would only find the fleet's terms again.
+pub fn needs_own_selection(
+    fleet_model: &BarModel,
+    base: Option<&ScreenBase>,
+    criteria: &Criteria,
+) -> bool {
+    let noise_um = base.map_or(f64::NAN, |b| b.white_noise_variance().sqrt());
+    !noise_um.is_finite() || fleet_model.rms_um - noise_um >= criteria.min_gain_um
+}
+
+/// The fleet's `ledger` seen on one bar: its RMS at each step (for a bar that needs no search of
+/// its own, [`needs_own_selection`]).
+pub fn bar_ledger_from_fleet(bar: &str, ledger: &[LedgerStep]) -> BarLedger {
+    let steps = ledger
+        .iter()
+        .filter_map(|step| {
+            let rms = step.rms_um.iter().find(|(b, _)| b == bar)?.1;
+            Some(LedgerStep {
+                added: step.added.clone(),
+                effects: step.effects.clone(),
+                rms_um: vec![(bar.to_string(), rms)],
+                fleet_rms_um: rms,
+                delta_bic: None,
+                p_value: None,
+            })
+        })
+        .collect();
+    BarLedger {
+        bar: bar.to_string(),
+        steps,
+        from_fleet: true,
+    }
 }
 
 /// How far forward selection searches: at most `max_steps` effects added, the `beam` best
@@ -1136,6 +1487,7 @@ pub fn forward_selection_of_bar(
                 None,
                 None,
             )],
+            from_fleet: false,
         };
     }
     let candidates = candidate_effects(&model.effects, std::slice::from_ref(diagnosis));
@@ -1155,7 +1507,11 @@ pub fn forward_selection_of_bar(
         criteria,
         refits,
     );
-    BarLedger { bar, steps }
+    BarLedger {
+        bar,
+        steps,
+        from_fleet: false,
+    }
 }
 
 fn ledger_step(

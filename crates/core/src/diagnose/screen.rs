@@ -30,6 +30,8 @@ use crate::series::BarSeries;
 pub struct ScreenBase {
     /// The series screened on: the bar's own, or its coarse copy when it is long.
     series: BarSeries,
+    /// `series` is the bar's coarse copy.
+    coarse: bool,
     effects: Vec<Effect>,
     theta: Vec<f64>,
     n_gains: usize,
@@ -79,8 +81,9 @@ pub(crate) struct Screen {
 impl ScreenBase {
     /// Linearise `model` (fitted to `series`); `None` when the model cannot be rebuilt there.
     pub(crate) fn new(series: &BarSeries, model: &BarModel) -> Option<ScreenBase> {
-        let screened =
-            coarse_copy(series, COARSE_START_MIN_SAMPLES).unwrap_or_else(|| series.clone());
+        let coarse = coarse_copy(series, COARSE_START_MIN_SAMPLES);
+        let is_coarse = coarse.is_some();
+        let screened = coarse.unwrap_or_else(|| series.clone());
         let problem = ThermalProblem::new(&screened, &model.effects).ok()?;
         let n_gains = problem.n_gains();
         let residuals_len = problem.observations().len();
@@ -91,6 +94,7 @@ impl ScreenBase {
         drop(problem);
         Some(ScreenBase {
             series: screened,
+            coarse: is_coarse,
             effects: model.effects.clone(),
             theta: model.theta.clone(),
             n_gains,
@@ -187,6 +191,45 @@ impl ScreenBase {
     /// The model's RSS on the bar's own samples (µm²).
     pub(crate) fn rss_um2(&self) -> f64 {
         self.rss_um2
+    }
+
+    /// Whether the bar is screened on its coarse copy ([`ScreenBase::coarse_refit`]).
+    pub(crate) fn coarse_refit_possible(&self) -> bool {
+        self.coarse
+    }
+
+    /// `effect` added to `model` and refitted exactly on the bar's coarse copy (the series
+    /// screened on), if the bar is screened on one: the RSS the refit removes there (µm², on the
+    /// scale of the bar's own samples, as [`Screen::delta_rss_um2`]: the copy's bins weigh what
+    /// they hold) and the refit, from whose time constants the exact refit of the bar's own
+    /// series starts. `None` for a bar screened on its own series (its refit is the exact one).
+    ///
+    /// Why: a linearised screen cannot tell rivals apart whose exact refits differ (a term
+    /// that also bends the model's own time constants); an exact refit of every rival on the
+    /// bar's own series is the cost of the loop (1-5 s each on a 15-day, 10-s bar). On the
+    /// coarse copy it costs a thirtieth, and only the rivals that come close to the best there
+    /// are refitted on the series ([`super::COARSE_RIVAL_SHARE`]).
+    pub(crate) fn coarse_refit(
+        &self,
+        model: &BarModel,
+        effect: &Effect,
+    ) -> Option<Result<(f64, BarModel), String>> {
+        if !self.coarse {
+            return None;
+        }
+        let mut effects = self.effects.clone();
+        effects.push(effect.clone());
+        let refit = crate::identify::identify_from(&self.series, &effects, Some(model));
+        Some(refit.map_err(|e| e.to_string()).map(|m| {
+            let after: f64 = self
+                .series
+                .weighted_residuals(&m.residuals_um)
+                .iter()
+                .map(|r| r * r)
+                .sum();
+            let before: f64 = self.residuals.iter().map(|r| r * r).sum();
+            ((before - after).clamp(0.0, self.rss_um2), m)
+        }))
     }
 }
 

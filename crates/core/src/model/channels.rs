@@ -35,6 +35,8 @@ pub enum ChannelError {
     NoGradient,
     #[error("needs a sensor of kind \"plate\"")]
     NoPlateSensor,
+    #[error("heat acts through a logged quantity: {0:?} is an event channel; use a sensor or a difference of two (heat:C1, heat:C1-T1)")]
+    HeatNeedsSampled(String),
 }
 
 impl Channel {
@@ -340,14 +342,20 @@ pub(crate) fn available(series: &BarSeries) -> Vec<String> {
     kinds.sort();
     kinds.dedup();
     names.extend(kinds.into_iter().map(|k| format!("event:{k}")));
-    names.extend(
-        [
-            "time_since_mount_h",
-            "time_of_day_h",
-            "length_mm",
-            "tilt_deg",
-        ]
-        .map(String::from),
-    );
+    names.extend(BUILT_IN.map(String::from));
     names
+}
+
+/// The channels every bar has, computed from its timeline and mounts ([`resolve`]).
+const BUILT_IN: [&str; 4] = [
+    "time_since_mount_h",
+    "time_of_day_h",
+    "length_mm",
+    "tilt_deg",
+];
+
+/// Whether a channel name is a logged sensor or a difference of two (a temperature a heat
+/// term can act through), not an event series or a built-in channel.
+pub(crate) fn is_sensor_channel(name: &str) -> bool {
+    !name.starts_with("event:") && !BUILT_IN.contains(&name)
 }

@@ -32,6 +32,12 @@ pub enum Transform {
     Rate,
     /// The channel as it is (gain only).
     Level,
+    /// Heat entering the bar: a first-order response of the channel with one time constant of
+    /// its own, acting through both of the bar's lengths as the air does (`physics.md`, the
+    /// first-order model): `-(g_R I_min + g_S I_p) lag(u; tau)`, two gains (ppm per unit of the
+    /// channel). A generic `lag:CH` has one gain per bar, so it cannot follow a source whose
+    /// effect changes from mount to mount with `I_p`.
+    Heat,
 }
 
 impl Transform {
@@ -40,6 +46,7 @@ impl Transform {
             Transform::Lag => "lag",
             Transform::Rate => "rate",
             Transform::Level => "level",
+            Transform::Heat => "heat",
         }
     }
 }
@@ -123,11 +130,11 @@ pub fn base_effects() -> Vec<Effect> {
 
 /// An effect string that is not understood.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
-#[error("unknown effect {0:?}: use one of {known} or lag:CHANNEL, rate:CHANNEL, level:CHANNEL (optionally @TAU_S)", known = CATALOGUE.join(", "))]
+#[error("unknown effect {0:?}: use one of {known} or lag:CHANNEL, rate:CHANNEL, level:CHANNEL, heat:CHANNEL (optionally @TAU_S)", known = CATALOGUE.join(", "))]
 pub struct UnknownEffect(pub String);
 
 impl Effect {
-    /// Parse an effect name: a catalogue name, or `lag:CH`, `rate:CH`, `level:CH`, with an
+    /// Parse an effect name: a catalogue name, or `lag:CH`, `rate:CH`, `level:CH`, `heat:CH`, with an
     /// optional initial time constant `@SECONDS`.
     pub fn parse(s: &str) -> Result<Effect, UnknownEffect> {
         let s = s.trim();
@@ -152,6 +159,7 @@ impl Effect {
             "lag" => Transform::Lag,
             "rate" => Transform::Rate,
             "level" => Transform::Level,
+            "heat" => Transform::Heat,
             _ => return Err(UnknownEffect(s.to_string())),
         };
         let (channel, tau0_s) = match channel.rsplit_once('@') {
@@ -209,6 +217,11 @@ impl Effect {
             Effect::Settling => "settling_um".into(),
             Effect::Creep => "creep_um_per_day".into(),
             Effect::Channel {
+                transform: Transform::Heat,
+                channel,
+                ..
+            } => format!("heat_{channel}_fixed_ppm_per_unit"),
+            Effect::Channel {
                 transform, channel, ..
             } => format!("{}_{channel}_gain_um_per_unit", transform.as_str()),
         }
@@ -221,6 +234,14 @@ impl Effect {
             Effect::AirGradient => vec![
                 "gradient_fixed_ppm_per_k".into(),
                 "gradient_scale_ppm_per_k".into(),
+            ],
+            Effect::Channel {
+                transform: Transform::Heat,
+                channel,
+                ..
+            } => vec![
+                format!("heat_{channel}_fixed_ppm_per_unit"),
+                format!("heat_{channel}_scale_ppm_per_unit"),
             ],
             _ => vec![self.gain_name()],
         }
@@ -344,6 +365,10 @@ pub struct ThermalProblem<'a> {
     sqrt_weight: Vec<f64>,
     /// Sum of the fitted samples' weights in each zero column.
     zero_weight: Vec<f64>,
+    /// The fitted rows of each zero column lie within this range (first row, one past the
+    /// last): a column masked to one zero column (`settling`'s amplitude per mount) is written
+    /// there alone, not over the whole series.
+    zero_rows: Vec<std::ops::Range<usize>>,
     /// The last column (and `ln tau` derivative) computed for each term with a time constant,
     /// keyed by the bits of its tau: a solver asks for the basis and then its derivatives at the
     /// same `theta`, and a 1-D search moves one time constant while the others stay put, so
@@ -453,9 +478,11 @@ impl<'a> ThermalProblem<'a> {
                 .map(|&i| series.weight[i].sqrt())
                 .collect(),
             zero_weight: Vec::new(),
+            zero_rows: Vec::new(),
             memo: Mutex::new(Vec::new()),
         };
         problem.zero_weight = problem.segment_weights();
+        problem.zero_rows = problem.segment_rows();
         problem.y = problem.demean(&y_raw);
         Ok(problem)
     }
@@ -504,6 +531,20 @@ impl<'a> ThermalProblem<'a> {
         sum.iter()
             .zip(&self.zero_weight)
             .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
+            .collect()
+    }
+
+    /// The range of fitted rows holding each zero column's samples.
+    fn segment_rows(&self) -> Vec<std::ops::Range<usize>> {
+        let mut rows: Vec<Option<(usize, usize)>> = vec![None; self.n_zero_columns];
+        for (r, zero) in self.row_zero.iter().enumerate() {
+            if let Some(k) = zero {
+                let (first, _) = rows[*k].unwrap_or((r, r));
+                rows[*k] = Some((first, r + 1));
+            }
+        }
+        rows.into_iter()
+            .map(|r| r.map_or(0..0, |(first, end)| first..end))
             .collect()
     }
 
@@ -737,6 +778,10 @@ impl<'a> ThermalProblem<'a> {
     /// transient, [`initial_state`]) is written only up to the end of the last zero segment it
     /// reaches; the rows after it stay zero (their segments' means are zero too).
     fn write_row_column(&self, full: &[f64], seg: Option<usize>, out: &mut [f64]) {
+        if let Some(k) = seg {
+            self.write_masked_row_column(full, k, out);
+            return;
+        }
         let support = full.iter().rposition(|v| *v != 0.0).map_or(0, |i| i + 1);
         let mut n_rows = self.series.fit_index.partition_point(|&i| i < support);
         if let Some(Some(k)) = n_rows.checked_sub(1).map(|r| self.row_zero[r]) {
@@ -751,11 +796,7 @@ impl<'a> ThermalProblem<'a> {
             .zip(&self.series.fit_index)
             .zip(&self.row_zero);
         for (((o, &i), zero), w) in rows.zip(&self.sqrt_weight) {
-            let x = if seg.is_none() || *zero == seg {
-                full[i]
-            } else {
-                0.0
-            };
+            let x = full[i];
             *o = x;
             if let Some(k) = zero {
                 sums[*k] += w * w * x;
@@ -769,6 +810,28 @@ impl<'a> ThermalProblem<'a> {
         for ((o, zero), w) in out.iter_mut().zip(&self.row_zero).zip(&self.sqrt_weight) {
             let centred = zero.map_or(*o, |k| *o - means[k]);
             *o = centred * w;
+        }
+    }
+
+    /// [`ThermalProblem::write_row_column`] of a column kept only within zero column `k`: the
+    /// other rows stay zero (so do their segments' means), and only the rows of `k` are visited
+    /// (`settling` has one such column per mount: over the whole series each, they cost as
+    /// much as the rest of the basis times the number of mounts).
+    fn write_masked_row_column(&self, full: &[f64], k: usize, out: &mut [f64]) {
+        let rows = self.zero_rows[k].clone();
+        let (mut sum, weight) = (0.0, self.zero_weight[k]);
+        for r in rows.clone() {
+            if self.row_zero[r] == Some(k) {
+                let x = full[self.series.fit_index[r]];
+                out[r] = x;
+                sum += self.sqrt_weight[r] * self.sqrt_weight[r] * x;
+            }
+        }
+        let mean = if weight > 0.0 { sum / weight } else { 0.0 };
+        for r in rows {
+            if self.row_zero[r] == Some(k) {
+                out[r] = (out[r] - mean) * self.sqrt_weight[r];
+            }
         }
     }
 }
@@ -906,8 +969,17 @@ pub(crate) fn identifiable_effects(
         Effect::Scale.gain_name(),
         Effect::Scale.tau_name().unwrap_or_default(),
     ];
-    if effects.contains(&Effect::AirGradient) {
-        params.push(Effect::AirGradient.gain_names()[1].clone());
+    for e in effects {
+        if matches!(
+            e,
+            Effect::AirGradient
+                | Effect::Channel {
+                    transform: Transform::Heat,
+                    ..
+                }
+        ) {
+            params.push(e.gain_names()[1].clone());
+        }
     }
     let reason = format!(
         "every fitted mount of the bar is at one length (I_p = {lo:.3} mm): the scale's \
@@ -1015,10 +1087,37 @@ fn bind(
             TermKind::Level,
         ),
         Effect::Channel {
+            transform: Transform::Heat,
+            channel,
+            ..
+        } => {
+            // Heat from the channel reaches both of the bar's lengths through one lag of its
+            // own: the fixed part's share on `I_min`, the scale's on `I_p` (left out when the
+            // model has no scale: one length cannot tell the two apart, as for `air_gradient`).
+            if channel.starts_with("event:") {
+                return Err(ChannelError::HeatNeedsSampled(channel.clone()));
+            }
+            let input = channels::resolve(series, channel)?;
+            let names = effect.gain_names();
+            let mut terms = vec![BoundTerm {
+                gain_name: names[0].clone(),
+                ..term(input.clone(), minus_i_min(), TermKind::Lag)
+            }];
+            if model.contains(&Effect::Scale) {
+                terms.push(BoundTerm {
+                    gain_name: names[1].clone(),
+                    shares_tau_of: Some(effect.clone()),
+                    ..term(input, minus_i_p(), TermKind::Lag)
+                });
+            }
+            return Ok(terms);
+        }
+        Effect::Channel {
             transform, channel, ..
         } => {
             let kind = match transform {
-                Transform::Lag => TermKind::Lag,
+                // (`heat:` is bound above, as lags.)
+                Transform::Lag | Transform::Heat => TermKind::Lag,
                 Transform::Rate => TermKind::Rate,
                 Transform::Level => TermKind::Level,
             };

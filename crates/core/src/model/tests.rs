@@ -120,6 +120,90 @@ fn air_gradient_recovers_the_weight_through_both_paths() {
     }
 }
 
+/// [`gradient_bar`] with a heat source too: a cabinet `C1` whose excess over T1 (on for ten
+/// hours a day, its own 40-min rise) reaches the bar through a lag of `tau_h` and acts through
+/// both lengths, `-(a_h I_min + b_h I_p) lag(C1 - T1; tau_h)`.
+fn heated_bar(a_h: f64, b_h: f64, tau_h: f64) -> BarSeries {
+    let mut s = gradient_bar(0.0);
+    let on: Vec<f64> = s
+        .t_s
+        .iter()
+        .map(|t| {
+            if (t / 3600.0).rem_euclid(24.0) < 10.0 {
+                4.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let (excess, _) = lag::lag(&s.t_s, &on, 2400.0, false);
+    let (heat, _) = lag::lag(&s.t_s, &excess, tau_h, false);
+    let i_p = s.i_p_mm();
+    for (i, y) in s.y_um.iter_mut().enumerate() {
+        *y -= (a_h * I_MIN + b_h * i_p[i]) * heat[i] * 1e-3;
+    }
+    let c1: Vec<f64> = s.celsius["T1"]
+        .iter()
+        .zip(&excess)
+        .map(|(a, e)| a + e)
+        .collect();
+    s.celsius.insert("C1".into(), c1);
+    s
+}
+
+#[test]
+fn heat_acts_through_both_lengths_with_one_time_constant() {
+    let s = heated_bar(0.3, 0.2, 3600.0);
+    let heat = Effect::parse("heat:C1-T1").unwrap();
+    let mut model = base_effects();
+    model.push(heat.clone());
+    let p = ThermalProblem::new(&s, &model).unwrap();
+    assert_eq!(
+        &p.gain_names()[4..],
+        [
+            "heat_C1-T1_fixed_ppm_per_unit",
+            "heat_C1-T1_scale_ppm_per_unit"
+        ]
+    );
+    assert_eq!(
+        p.nonlinear_names(),
+        ["ln_tau_r_s", "ln_tau_s_s", "ln_heat_C1-T1_tau_s"]
+    );
+    check_derivatives(&p, &[2500f64.ln(), 1800f64.ln(), 3000f64.ln()]);
+
+    let m = crate::identify::identify(&s, &model).unwrap();
+    let v = |n: &str| m.value(n).unwrap();
+    assert!(m.rms_um < 1e-5, "rms {}", m.rms_um);
+    for (name, truth) in [
+        ("alpha_ppm_per_k", 2.0),
+        ("beta_ppm_per_k", 0.6),
+        ("heat_C1-T1_fixed_ppm_per_unit", 0.3),
+        ("heat_C1-T1_scale_ppm_per_unit", 0.2),
+        ("heat_C1-T1_tau_s", 3600.0),
+    ] {
+        assert!((v(name) - truth).abs() < 1e-3 * truth, "{name} {}", v(name));
+    }
+    // A generic lag of the same channel has one gain per bar: it cannot follow a source whose
+    // effect changes with I_p from mount to mount.
+    let mut lagged = base_effects();
+    lagged.push(Effect::parse("lag:C1-T1").unwrap());
+    let l = crate::identify::identify(&s, &lagged).unwrap();
+    assert!(
+        l.rms_um > 100.0 * m.rms_um.max(1e-7),
+        "lag rms {}",
+        l.rms_um
+    );
+    // Events carry no temperature: refused with a reason.
+    let err = ThermalProblem::new(&s, &effects(&["fixed_part", "heat:event:head_power"]));
+    assert!(matches!(
+        err,
+        Err(ModelError::Channel {
+            source: ChannelError::HeatNeedsSampled(_),
+            ..
+        })
+    ));
+}
+
 #[test]
 fn air_gradient_follows_the_base_paths_present() {
     let s = gradient_bar(0.5);
@@ -575,7 +659,7 @@ fn one_length_leaves_the_scale_out_and_says_why() {
 #[test]
 fn every_effect_name_round_trips_through_parse_name_display_and_json() {
     let mut names: Vec<String> = CATALOGUE.iter().map(|n| n.to_string()).collect();
-    for transform in ["lag", "rate", "level"] {
+    for transform in ["lag", "rate", "level", "heat"] {
         for channel in ["T1", "event:head_power", "t4-t1", "length_mm", "a:b"] {
             names.push(format!("{transform}:{channel}"));
             names.push(format!("{transform}:{channel}@1800"));
