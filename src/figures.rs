@@ -283,21 +283,43 @@ fn acceptance_rms(acc: &[crate::acceptance::BarAcceptance]) -> report::BeforeAft
     }
 }
 
-/// A file-name part for an id: the id itself when it is made of `[A-Za-z0-9._-]` only and does
-/// not start with a dot; else its safe characters (`_` for the others) and 8 hex digits of its
-/// SHA-256, so two ids never share a file (`B.1` and `B_1` stay apart; `B/1` → `B_1-…`). The
-/// result never holds `@`, which joins two ids in one name.
-fn file_safe(id: &str) -> String {
+/// A file-name part for an id: the id itself when it is made of `[A-Za-z0-9._-]` only, does
+/// not start with a dot, is at most [`MAX_NAME_PART`] bytes and does not end like an encoded id
+/// (`-` and 8 hex digits); else its safe characters (`_` for the others, cut to
+/// [`MAX_NAME_PART`] bytes) and 8 hex digits of its SHA-256, so two ids never share a file
+/// (`B.1` and `B_1` stay apart; `B/1` → `B_1-…`, and `B_1-fb95c374` is encoded too) and every
+/// name fits the file system's 255 bytes. The result never holds `@`, which joins two ids in one
+/// name.
+pub(crate) fn file_safe(id: &str) -> String {
     let safe = |c: char| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.');
-    if !id.is_empty() && !id.starts_with('.') && id.chars().all(safe) {
+    let looks_encoded = id.len() > 9
+        && id.as_bytes()[id.len() - 9] == b'-'
+        && id.as_bytes()[id.len() - 8..]
+            .iter()
+            .all(|&b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b));
+    if !id.is_empty()
+        && !id.starts_with('.')
+        && id.len() <= MAX_NAME_PART
+        && id.chars().all(safe)
+        && !looks_encoded
+    {
         return id.to_string();
     }
     use sha2::{Digest, Sha256};
     let digest = Sha256::digest(id.as_bytes());
-    let cleaned: String = id.chars().map(|c| if safe(c) { c } else { '_' }).collect();
+    let cleaned: String = id
+        .chars()
+        .map(|c| if safe(c) { c } else { '_' })
+        .skip_while(|&c| c == '.')
+        .take(MAX_NAME_PART)
+        .collect();
     let hex: String = digest[..4].iter().map(|b| format!("{b:02x}")).collect();
-    format!("{}-{hex}", cleaned.trim_start_matches('.'))
+    format!("{cleaned}-{hex}")
 }
+
+/// The longest id used as a file-name part as it is (bytes); `acceptance-<bar>@<length>.png`
+/// then stays far below 255 bytes.
+const MAX_NAME_PART: usize = 64;
 
 fn params_line(o: &BarOutcome) -> String {
     let p: Vec<String> = o
