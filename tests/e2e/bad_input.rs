@@ -894,3 +894,188 @@ fn a_page_that_aborts_the_parquet_decoder_is_named_in_one_line() {
     .unwrap();
     check_refused(&d, &["identify", "--bin-s", "60"], 3, &needles);
 }
+
+// ---------------------------------------------------------------- issue 27: round 2
+
+/// W1: an entry named `*.parquet` that is not a regular file (a link to an unmounted share, a
+/// FIFO, a folder) is refused by name; it was skipped, and a quarter of the rows never read.
+#[test]
+fn a_parquet_entry_that_is_not_a_regular_file_is_refused_by_name() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let d = small_campaign(root, "dangling-link");
+    std::os::unix::fs::symlink(
+        "/mnt/unmounted-share/day2.parquet",
+        d.join("encoders/day2.parquet"),
+    )
+    .unwrap();
+    check(
+        &d,
+        &["day2.parquet", "symbolic link", "/mnt/unmounted-share"],
+    );
+    let d = small_campaign(root, "fifo");
+    let status = std::process::Command::new("mkfifo")
+        .arg(d.join("temperatures/day3.parquet"))
+        .status()
+        .unwrap();
+    assert!(status.success());
+    check(&d, &["day3.parquet", "not a regular file"]);
+    let d = small_campaign(root, "folder");
+    std::fs::create_dir(d.join("encoders/day4.parquet")).unwrap();
+    check(&d, &["day4.parquet", "a folder"]);
+}
+
+/// W2: temperatures no room has (below absolute zero, a logger's −999, 1e300) and a spike no air
+/// makes are dropped, counted and flagged `implausible_temperature`, and the fits are those of
+/// the campaign without them (a −300 °C reading moved every bar's alpha and beta).
+#[test]
+fn impossible_temperatures_are_dropped_counted_and_flagged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let clean = edited_campaign(root, "clean-air", |_| {});
+    for (name, values) in [
+        ("minus-300", vec![(10, -300.0)]),
+        ("error-code", vec![(10, -999.0), (400, -999.0)]),
+        ("huge", vec![(20, 1e300)]),
+        ("spike", vec![(30, 60.0)]),
+    ] {
+        let edits = values.clone();
+        let d = edited_campaign(root, name, move |t| {
+            let t1 = t.temperatures.get_mut("T1").unwrap();
+            for &(i, v) in &edits {
+                t1.celsius[i] = v;
+            }
+        });
+        // The same readings left out: what the fits must equal.
+        let edits = values.clone();
+        let without = edited_campaign(root, &format!("{name}-without"), move |t| {
+            let t1 = t.temperatures.get_mut("T1").unwrap();
+            let mut idx: Vec<usize> = edits.iter().map(|e| e.0).collect();
+            idx.sort_unstable();
+            for &i in idx.iter().rev() {
+                t1.time_ns.remove(i);
+                t1.celsius.remove(i);
+            }
+        });
+        for bin_s in ["0", "60"] {
+            let s = identify(&d, bin_s);
+            let q = &s["quality"]["sensors"]["T1"];
+            let f = flags(q, "implausible_temperature");
+            assert_eq!(f.len(), 1, "{name}: {q}");
+            assert_eq!(f[0]["rows"], values.len() as u64, "{name}: {q}");
+            assert_eq!(q["dropped_rows"], values.len() as u64, "{name}: {q}");
+            assert_eq!(
+                fit_results(&s),
+                fit_results(&identify(&without, bin_s)),
+                "{name}, bins {bin_s}: the fits differ from the campaign without the readings"
+            );
+            assert!(s["failed_bars"].as_array().unwrap().is_empty(), "{name}");
+        }
+    }
+    // The clean campaign flags nothing.
+    let s = identify(&clean, "0");
+    assert!(flags(&s["quality"]["sensors"]["T1"], "implausible_temperature").is_empty());
+}
+
+/// W3: a byte-identical copy of a day file is read once, so it changes nothing: not the
+/// automatic bins (it switched them from every reading to 60 s), not the fits.
+#[test]
+fn a_byte_identical_copy_of_a_file_changes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let clean = tmp.path().join("sample");
+    crate::corpus::copy_dir(Path::new("data/sample"), &clean);
+    let copied = tmp.path().join("sample-copied");
+    crate::corpus::copy_dir(Path::new("data/sample"), &copied);
+    std::fs::copy(
+        copied.join("encoders/encoders.parquet"),
+        copied.join("encoders/encoders-copy.parquet"),
+    )
+    .unwrap();
+    let summary = |d: &Path| {
+        let out = d.with_extension("out");
+        let (code, _, stderr) = run_cli(&[
+            "identify",
+            "--campaign",
+            d.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{stderr}");
+        let text = std::fs::read_to_string(out.join("summary.json")).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()
+    };
+    let (a, b) = (summary(&clean), summary(&copied));
+    assert_eq!(a["model"]["bin_s"], b["model"]["bin_s"]);
+    assert_eq!(fit_results(&a), fit_results(&b));
+}
+
+/// Peak resident memory (bytes) of `dbbcal args` and the process it supervises (`wait4`'s
+/// usage of the child covers the grandchildren it waited for).
+fn peak_rss_bytes(args: &[&str]) -> u64 {
+    // Waited for by `wait4` below, which also gives its usage.
+    #[allow(clippy::zombie_processes)]
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+        .args(args)
+        .current_dir(crate::support::root())
+        .env("CI", "1")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut status = 0;
+    // SAFETY: zeroed plain data, filled by the kernel.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: waiting for our own child, with valid pointers.
+    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
+    assert_eq!(pid, child.id() as i32);
+    assert!(
+        libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0,
+        "{args:?}: status {status}"
+    );
+    usage.ru_maxrss as u64 * 1024
+}
+
+/// H2: memory follows the rows, not the time span: the sample with one air reading in 2199 and
+/// one in 1981 (both inside the accepted bounds) runs the nightly within 1.2x the sample's own
+/// peak (it took 4.46 GB against 0.18 GB: a 60-s air history over 220 years).
+#[test]
+fn air_readings_decades_apart_cost_no_memory_by_time_span() {
+    let tmp = tempfile::tempdir().unwrap();
+    let clean = tmp.path().join("sample");
+    crate::corpus::copy_dir(Path::new("data/sample"), &clean);
+    let far = tmp.path().join("far");
+    crate::corpus::copy_dir(Path::new("data/sample"), &far);
+    let ns = |rfc: &str| {
+        chrono::DateTime::parse_from_rfc3339(rfc)
+            .unwrap()
+            .timestamp_nanos_opt()
+            .unwrap()
+    };
+    write_table(
+        &far.join("temperatures/far.parquet"),
+        &Table::new()
+            .with(
+                "time",
+                Column::TimeNs(vec![ns("1981-01-01T00:00:00Z"), ns("2199-12-31T00:00:00Z")]),
+            )
+            .with("sensor", Column::Str(vec!["T1".into(), "T1".into()]))
+            .with("celsius", Column::F64(vec![20.0, 20.0])),
+    )
+    .unwrap();
+    let peak = |d: &Path| {
+        let out = d.with_extension("out");
+        peak_rss_bytes(&[
+            "run",
+            "pipelines/nightly.toml",
+            "--campaign",
+            d.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let (base, with_far) = (peak(&clean), peak(&far));
+    assert!(
+        (with_far as f64) <= 1.2 * base as f64,
+        "peak {with_far} bytes against the sample's {base}"
+    );
+}

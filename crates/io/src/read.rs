@@ -225,9 +225,14 @@ pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
             dir: dir.to_path_buf(),
         });
     }
-    let text = std::fs::read_to_string(&path).map_err(|e| IngestError::Io {
-        path: path.clone(),
-        message: e.to_string(),
+    let text = crate::read_small_text(&path, crate::MAX_MANIFEST_BYTES).map_err(|message| {
+        IngestError::Io {
+            path: path.clone(),
+            message: message
+                .strip_prefix("cannot read: ")
+                .unwrap_or(&message)
+                .to_string(),
+        }
     })?;
     let file = path.display().to_string();
     let manifest = Manifest::from_toml_str(&text, &file)?;
@@ -1995,6 +2000,7 @@ fn sensor_log(readings: &DataFrame, q: &mut ChannelQuality) -> PolarsResult<Sens
     // compare equal, is gone).
     let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
     quality::record_duplicates(q, dups, range, "temperature readings");
+    quality::drop_implausible_temperatures(&mut log.time_ns, &mut log.celsius, q);
     Ok(log)
 }
 
