@@ -47,6 +47,52 @@ fn check(dir: &Path, needles: &[&str]) {
     check_refused(dir, &["identify", "--bin-s", "60"], 3, needles);
 }
 
+/// Rows that cannot be used are dropped, counted and flagged, and the night goes on (issue 27):
+/// the nightly pipeline, `identify` with bins and at full rate exit 0; `summary.json` →
+/// `quality.files` holds an `unusable_rows` flag whose note has every `needles` (file, column,
+/// rows), and the terminal block and the page say it too.
+fn check_dropped(dir: &Path, needles: &[&str]) {
+    let runs: [&[&str]; 3] = [
+        &["run", "pipelines/nightly.toml"],
+        &["identify", "--bin-s", "60"],
+        &["identify", "--bin-s", "0"],
+    ];
+    for (k, command) in runs.into_iter().enumerate() {
+        let out = dir.with_extension(format!("dropped-{k}"));
+        let _ = std::fs::remove_dir_all(&out);
+        let mut args = command.to_vec();
+        args.extend([
+            "--campaign",
+            dir.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let (code, _, stderr) = run_cli(&args);
+        let what = format!("{command:?} on {}", dir.display());
+        assert_eq!(code, 0, "{what}: {stderr}");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let notes: Vec<&str> = summary["quality"]["files"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|f| f["kind"] == "unusable_rows")
+            .map(|f| f["note"].as_str().unwrap())
+            .collect();
+        assert!(
+            notes.iter().any(|n| needles.iter().all(|x| n.contains(x))),
+            "{what}: {needles:?} not in {notes:?}"
+        );
+        let said = stderr
+            .lines()
+            .any(|l| l.contains("rows dropped") && l.contains(needles[0]));
+        assert!(said, "{what}: the terminal block does not say it: {stderr}");
+        let page = std::fs::read_to_string(out.join("index.html")).unwrap();
+        assert!(page.contains("rows dropped"), "{what}: not on the page");
+    }
+}
+
 #[test]
 fn bad_inputs_give_one_clear_line_and_no_output() {
     let tmp = tempfile::tempdir().unwrap();
@@ -76,7 +122,7 @@ fn bad_inputs_give_one_clear_line_and_no_output() {
         &encoder_table("B99", Column::I64(vec![1, 2])),
     )
     .unwrap();
-    check(&d, &["ghost.parquet", "B99"]);
+    check_dropped(&d, &["ghost.parquet", "B99", "does not declare"]);
 
     let d = small_campaign(root, "corrupt");
     std::fs::write(
@@ -223,7 +269,7 @@ fn encoder_rows(time: Column, counts: Column) -> Table {
 }
 
 #[test]
-fn unreadable_rows_and_files_are_refused_with_file_and_rows() {
+fn unusable_rows_are_dropped_and_named_and_unreadable_files_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
     let ns = |t: Vec<Option<i64>>| time_column(t, TimeUnit::Ns, None);
@@ -308,7 +354,7 @@ fn unreadable_rows_and_files_are_refused_with_file_and_rows() {
     for (name, table, needles) in cases {
         let d = small_campaign(root, name);
         write_table(&d.join(format!("encoders/{name}.parquet")), &table).unwrap();
-        check(&d, &needles);
+        check_dropped(&d, &needles);
     }
 
     // A temperature time out of range is named the same way.
@@ -321,7 +367,38 @@ fn unreadable_rows_and_files_are_refused_with_file_and_rows() {
             .with("celsius", Column::F64(vec![20.0, 20.1])),
     )
     .unwrap();
-    check(&d, &["nat.parquet", "`time`", "rows 1 .. 1"]);
+    check_dropped(&d, &["nat.parquet", "`time`", "rows 1 .. 1"]);
+
+    // Null times, undeclared sensors and event bars: dropped and named.
+    let d = small_campaign(root, "null-times");
+    write_table(
+        &d.join("encoders/nulltime.parquet"),
+        &encoder_rows(ns(vec![Some(T0_NS), None]), Column::I64(vec![1, 2])),
+    )
+    .unwrap();
+    check_dropped(&d, &["nulltime.parquet", "`time`", "rows 1 .. 1", "null"]);
+    let d = small_campaign(root, "unknown-sensor");
+    write_table(
+        &d.join("temperatures/t9.parquet"),
+        &Table::new()
+            .with("time", ns(vec![Some(T0_NS)]))
+            .with("sensor", Column::Str(vec!["T9".into()]))
+            .with("celsius", Column::F64(vec![20.0])),
+    )
+    .unwrap();
+    check_dropped(&d, &["t9.parquet", "sensor \"T9\"", "1 rows"]);
+    let d = small_campaign(root, "unknown-event-bar");
+    std::fs::create_dir_all(d.join("events")).unwrap();
+    write_table(
+        &d.join("events/ghost.parquet"),
+        &Table::new()
+            .with("time", ns(vec![Some(T0_NS)]))
+            .with("bar", Column::Str(vec!["B42".into()]))
+            .with("kind", Column::Str(vec!["door".into()]))
+            .with("value", Column::OptF64(vec![None])),
+    )
+    .unwrap();
+    check_dropped(&d, &["ghost.parquet", "bar \"B42\""]);
 
     // Zero bytes, a truncated file, corrupt data pages: one line naming the file.
     let d = small_campaign(root, "zero-bytes");

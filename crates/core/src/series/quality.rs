@@ -156,6 +156,10 @@ pub enum FlagKind {
     /// [`PLAUSIBLE_MAX_C`]: a disconnected thermocouple, a logger's error code) or steps no air
     /// makes between two readings ([`plausible_step_k`]): dropped.
     ImplausibleTemperature,
+    /// Rows that cannot be used (a time outside the accepted bounds or null, a null id, an id
+    /// `campaign.toml` does not declare, counts that are not whole numbers or beyond ±2^48):
+    /// dropped, named by file, column and rows (`quality.files`).
+    UnusableRows,
 }
 
 /// The lowest temperature a sensor of a measuring room may read, °C (absolute zero is
@@ -269,6 +273,11 @@ impl Flag {
             size_um: None,
             note,
         }
+    }
+
+    /// What was found, in words (file, column and rows for `unusable_rows`).
+    pub fn note(&self) -> &str {
+        &self.note
     }
 
     /// A flag on files, with no time range.
