@@ -92,6 +92,25 @@ fn bad_pipeline_numbers_and_names_are_refused_before_any_data_is_read() {
             ],
         ),
         (
+            "effect-unknown",
+            "effects = [\"fixed_part\", \"scale\"]",
+            "effects = [\"fixed_part\", \"scale\", \"air_gradent\"]",
+            &[
+                "effect-unknown.toml: model.effects[2]",
+                "unknown effect \"air_gradent\"",
+            ],
+        ),
+        (
+            "effect-tau-zero",
+            "effects = [\"fixed_part\", \"scale\"]",
+            "effects = [\"fixed_part\", \"scale\", \"lag:T1@0\"]",
+            &[
+                "model.effects[2]",
+                "@TAU_S = 0 is out of range",
+                "from 1 to 1000000000 s",
+            ],
+        ),
+        (
             "tau-suffix-inf",
             "effects = [\"fixed_part\", \"scale\"]",
             "effects = [\"fixed_part\", \"scale\", \"rate:T1@inf\"]",

@@ -873,3 +873,115 @@ fn a_refused_run_leaves_no_parent_folder_it_created() {
     assert_eq!(code, Some(3), "{stderr}");
     assert!(!tmp.path().join("a").exists(), "a/ was left");
 }
+
+/// A bind mount made by the test, undone when dropped (also when the test fails).
+struct BindMount(PathBuf);
+
+impl BindMount {
+    /// `mount --bind from to`; `None` where the test may not mount (not root).
+    fn new(from: &Path, to: &Path) -> Option<BindMount> {
+        std::fs::create_dir_all(to).unwrap();
+        let ok = Command::new("mount")
+            .args(["--bind", s(from), s(to)])
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|st| st.success());
+        ok.then(|| BindMount(to.to_path_buf()))
+    }
+}
+
+impl Drop for BindMount {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+/// D3 through a bind mount (paths alone do not see it): the campaign mounted inside `OUT.prev`
+/// is refused by (device, inode) and left whole; `OUT` a mount point is refused before any work
+/// (it exited 1 after the analysis). Skipped where the test may not mount.
+#[test]
+fn a_campaign_reached_through_a_mount_and_a_mount_point_out_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let c = small_campaign(root, "camp");
+    let out = root.join("out");
+    assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+    assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+    let prev = root.join("out.prev");
+    let Some(mount) = BindMount::new(&c, &prev.join("c")) else {
+        eprintln!("bind mounts not permitted here: skipped");
+        return;
+    };
+    check_out_refused(
+        &["identify"],
+        &c,
+        &out,
+        &[],
+        3,
+        &["out.prev", "campaign"],
+        &[&c, &out],
+    );
+    drop(mount);
+    std::fs::remove_dir(prev.join("c")).unwrap();
+    let elsewhere = root.join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    let mounted_out = root.join("mounted");
+    let _mount = BindMount::new(&elsewhere, &mounted_out).unwrap();
+    check_out_refused(
+        &["identify"],
+        &c,
+        &mounted_out,
+        &[],
+        3,
+        &["mount point"],
+        &[&elsewhere],
+    );
+    // A read-only parent (root may write anywhere else): refused before the analysis.
+    let ro = root.join("ro");
+    let _ro = BindMount::new(&elsewhere, &ro).unwrap();
+    let remounted = Command::new("mount")
+        .args(["-o", "remount,bind,ro", s(&ro)])
+        .status()
+        .unwrap();
+    assert!(remounted.success());
+    check_out_refused(
+        &["identify"],
+        &c,
+        &ro.join("out"),
+        &[],
+        3,
+        &["cannot write in", "Read-only"],
+        &[&elsewhere],
+    );
+}
+
+/// Raw newlines and escape codes in `--out` and in ids read from parquet are escaped in what
+/// dbbcal prints: a refusal stays one line, and no escape code reaches the terminal.
+#[test]
+fn control_characters_in_paths_and_ids_are_escaped() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    // `--out` a file whose name holds a newline and an escape code: the refusal names it.
+    let out = tmp.path().join("out\n\u{1b}[31mred");
+    std::fs::write(&out, "mine").unwrap();
+    let (code, stderr) = run_on(&["identify"], &c, &out);
+    assert_eq!(code, Some(3), "{stderr}");
+    assert!(!stderr.contains('\u{1b}'), "{stderr:?}");
+    assert_one_line(
+        &stderr,
+        &["out\\n\\u{1b}[31mred", "is a file"],
+        "escaped --out",
+    );
+    // An undeclared bar id with an escape code: dropped, and its note printed escaped.
+    let t0 = 1_793_491_200_000_000_000i64 + 3_600_000_000_000;
+    let id = "B\u{1b}[2J\nX".to_string();
+    let table = Table::new()
+        .with("time", Column::TimeNs(vec![t0]))
+        .with("bar", Column::Str(vec![id]))
+        .with("counts", Column::I64(vec![1]));
+    write_table(&c.join("encoders/ghost.parquet"), &table).unwrap();
+    let (code, stderr) = run_on(&["identify"], &c, &tmp.path().join("out2"));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains('\u{1b}'), "{stderr:?}");
+    assert!(stderr.contains("ghost.parquet"), "{stderr}");
+}
