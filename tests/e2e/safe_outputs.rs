@@ -258,9 +258,19 @@ fn killed_at_any_write_step_the_output_is_entirely_old_or_entirely_new() {
         let args = ["report", "--campaign", s(&c), "--out", s(&out)];
         let r = dbbcal(&args, &[("DBBCAL_FAULT", &fault)]);
         let now = snapshot(&out);
+        let now_prev = snapshot(&tmp.path().join("out.prev"));
         assert!(
             now == old || now == new,
             "{fault}: OUT is neither old nor new"
+        );
+        // The old output is never lost: in OUT, or kept in OUT.prev.
+        assert!(
+            now == old || now_prev == old,
+            "{fault}: the old output is in neither OUT nor OUT.prev"
+        );
+        assert!(
+            now_prev.is_empty() || now_prev == old || now_prev == new,
+            "{fault}: OUT.prev is neither absent, old nor new"
         );
         saw_new |= now == new;
         if r.status.code().is_some() {
@@ -292,42 +302,66 @@ fn a_full_disk_at_any_write_step_leaves_the_previous_output_intact() {
     let c = small_campaign(tmp.path(), "camp");
     let new = reference_output(&c, &tmp.path().join("fresh"));
     let old = snapshot(earlier_output());
+    // The generation before, when there is one: a third, distinct output.
+    let before_old = tmp.path().join("before-old");
+    let r = dbbcal(
+        &["ingest", "--campaign", s(&c), "--out", s(&before_old)],
+        &[],
+    );
+    assert_eq!(r.status.code(), Some(0));
     let out = tmp.path().join("out");
-    let mut failed = 0;
-    for k in 1..200 {
-        let _ = std::fs::remove_dir_all(&out);
-        copy_dir(earlier_output(), &out);
-        let fault = format!("enospc@{k}");
-        let args = ["report", "--campaign", s(&c), "--out", s(&out)];
-        let r = dbbcal(&args, &[("DBBCAL_FAULT", &fault)]);
-        let stderr = String::from_utf8_lossy(&r.stderr);
-        if r.status.code() == Some(0) {
-            // Past the last point, or at a step after the exchange, where only kills are
-            // injected: the new output is in place.
-            assert!(snapshot(&out) == new, "{fault}: {stderr}");
-            if stderr.contains("kills only") {
-                continue;
+    let prev = tmp.path().join("out.prev");
+    for with_prev in [false, true] {
+        let older = if with_prev {
+            snapshot(&before_old)
+        } else {
+            Default::default()
+        };
+        let mut failed = 0;
+        for k in 1..200 {
+            let _ = std::fs::remove_dir_all(&out);
+            let _ = std::fs::remove_dir_all(&prev);
+            copy_dir(earlier_output(), &out);
+            if with_prev {
+                copy_dir(&before_old, &prev);
             }
+            let fault = format!("enospc@{k} (OUT.prev: {with_prev})");
+            let args = ["report", "--campaign", s(&c), "--out", s(&out)];
+            let r = dbbcal(&args, &[("DBBCAL_FAULT", &format!("enospc@{k}"))]);
+            let stderr = String::from_utf8_lossy(&r.stderr);
+            if r.status.code() == Some(0) {
+                // Past the last point, or at a step after the exchange, where only kills are
+                // injected: the new output is in place, the old one kept.
+                assert!(snapshot(&out) == new, "{fault}: {stderr}");
+                assert!(
+                    snapshot(&prev) == old,
+                    "{fault}: OUT.prev is not the old output"
+                );
+                if stderr.contains("kills only") {
+                    continue;
+                }
+                assert!(
+                    !stderr.contains("fault point"),
+                    "{fault}: exit 0 after an injected error"
+                );
+                break;
+            }
+            failed += 1;
+            assert_eq!(r.status.code(), Some(1), "{fault}: {stderr}");
+            let last = stderr.lines().last().unwrap_or("");
             assert!(
-                !stderr.contains("fault point"),
-                "{fault}: exit 0 after an injected error"
+                last.contains("No space left on device"),
+                "{fault}: {stderr}"
             );
-            break;
+            assert!(
+                snapshot(&out) == old,
+                "{fault}: the previous output changed"
+            );
+            assert!(snapshot(&prev) == older, "{fault}: OUT.prev changed");
+            assert_no_leftovers(tmp.path(), &fault);
         }
-        failed += 1;
-        assert_eq!(r.status.code(), Some(1), "{fault}: {stderr}");
-        let last = stderr.lines().last().unwrap_or("");
-        assert!(
-            last.contains("No space left on device"),
-            "{fault}: {stderr}"
-        );
-        assert!(
-            snapshot(&out) == old,
-            "{fault}: the previous output changed"
-        );
-        assert_no_leftovers(tmp.path(), &fault);
+        assert!(failed >= 10, "only {failed} write steps");
     }
-    assert!(failed >= 10, "only {failed} write steps");
 }
 
 #[test]
@@ -452,6 +486,8 @@ fn an_interrupt_at_any_moment_leaves_no_lock_and_no_partial_folder() {
                 if stderr.contains("after the new output was in place") {
                     assert!(out.join(dbbcal::output::MARKER).is_file(), "{what}");
                     assert!(snapshot(&out) != old, "{what}: said new, is old");
+                    let prev = snapshot(&tmp.path().join("out.prev"));
+                    assert!(prev == old, "{what}: the old output is not in OUT.prev");
                 } else {
                     assert!(
                         snapshot(&out) == old,
