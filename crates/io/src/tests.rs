@@ -888,3 +888,46 @@ fn large_campaign_write_and_read_timing() {
         assert_eq!(logs.bars["B02"].counts, tables.encoders["B02"].counts);
     }
 }
+
+/// Issue 27: a row with a null kind (events) or a null id (temperatures) is dropped and named
+/// by file, column and rows; the other rows are read.
+#[test]
+fn null_kinds_and_ids_are_dropped_and_named_by_rows() {
+    let dir = campaign_dir();
+    let d = dir.path();
+    write_t1(d);
+    write_df(
+        &d.join("encoders/e.parquet"),
+        encoders(&[T0], &["B01"], &[0]),
+    );
+    write_df(
+        &d.join("events/ev.parquet"),
+        df(vec![
+            time_col(&[T0, T0 + S, T0 + 2 * S], pl::TimeUnit::Nanoseconds, None),
+            pl::Column::new("bar".into(), [Some("B01"), None, None]),
+            pl::Column::new("kind".into(), [Some("door"), None, Some("door")]),
+            pl::Column::new("value".into(), [None::<f64>, None, None]),
+        ]),
+    );
+    write_df(
+        &d.join("temperatures/nullid.parquet"),
+        df(vec![
+            time_col(&[T0, T0 + S], pl::TimeUnit::Nanoseconds, None),
+            pl::Column::new("sensor".into(), [None, Some("T1")]),
+            pl::Column::new("celsius".into(), [20.0f64, 20.1]),
+        ]),
+    );
+    let msg = read_dropped(d);
+    assert!(
+        msg.contains("ev.parquet: column `kind`: 1 rows (rows 1 .. 1, counting from 0) are null"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains(
+            "nullid.parquet: column `sensor`: 1 rows (rows 0 .. 0, counting from 0) are null"
+        ),
+        "{msg}"
+    );
+    let logs = read_campaign(d).expect("read");
+    assert_eq!(logs.events.len(), 2);
+}
