@@ -635,3 +635,24 @@ fn before_after(ba: &crate::pipeline::BeforeAfter) -> report::BeforeAfterFigure 
         after_label: "with added effects".into(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::file_safe;
+
+    #[test]
+    fn id_file_names_are_distinct_and_short() {
+        assert_eq!(file_safe("B01"), "B01");
+        assert_eq!(file_safe("B.1"), "B.1");
+        let slash = file_safe("B/1");
+        assert!(slash.starts_with("B_1-") && slash.len() == 12, "{slash}");
+        // An id that looks like an encoded one is encoded too: no collision.
+        assert_ne!(file_safe(&slash), slash);
+        assert!(file_safe(&slash).starts_with(&format!("{slash}-")));
+        let long = file_safe(&"B".repeat(252));
+        assert_eq!(long.len(), 64 + 9);
+        assert_ne!(long, file_safe(&"B".repeat(253)));
+        assert_eq!(file_safe(".x"), format!("x-{}", &file_safe(".x")[2..]));
+        assert!(!file_safe("ü/@").contains('@'));
+    }
+}

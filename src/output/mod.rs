@@ -1190,6 +1190,72 @@ mod tests {
     }
 
     #[test]
+    fn an_output_is_dbbcal_s_only_while_it_holds_nothing_its_marker_does_not_list() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path().join("out");
+        std::fs::create_dir_all(d.join("figures")).unwrap();
+        let marker = |files: Option<Vec<String>>| {
+            let m = Marker {
+                files,
+                ..Marker::new(
+                    "c",
+                    Default::default(),
+                    Default::default(),
+                    Default::default(),
+                )
+            };
+            std::fs::write(d.join(MARKER), serde_json::to_string(&m).unwrap()).unwrap();
+        };
+        std::fs::write(d.join("summary.json"), "{}").unwrap();
+        std::fs::write(d.join("figures/bar-B01.png"), "png").unwrap();
+        // A marker of a version before the list: judged by the names dbbcal writes.
+        marker(None);
+        assert!(dbbcal_output(&d).is_ok());
+        assert!(check_replaceable(&d, "").is_ok());
+        std::fs::write(d.join("figures/signed.pdf"), "pdf").unwrap();
+        assert!(dbbcal_output(&d)
+            .unwrap_err()
+            .contains("figures/signed.pdf"));
+        std::fs::remove_file(d.join("figures/signed.pdf")).unwrap();
+        // With the list: exactly what it lists.
+        let listed = vec![
+            "figures/".into(),
+            "figures/bar-B01.png".into(),
+            "summary.json".into(),
+        ];
+        marker(Some(listed));
+        assert!(dbbcal_output(&d).is_ok());
+        std::fs::write(d.join("NOTES.txt"), "notes").unwrap();
+        let why = check_replaceable(&d, "").unwrap_err().to_string();
+        assert!(
+            why.contains("NOTES.txt") && why.contains("did not write"),
+            "{why}"
+        );
+        std::fs::remove_file(d.join("NOTES.txt")).unwrap();
+        std::fs::create_dir(d.join("summary.json.d")).unwrap();
+        assert!(dbbcal_output(&d).is_err(), "a folder it did not list");
+    }
+
+    #[test]
+    fn a_name_and_its_previous_outputs_share_one_lock() {
+        let p = Path::new("/r");
+        for name in ["out", "out.prev", "out.prev.prev"] {
+            assert_eq!(lock_file(p, name), Path::new("/r/.out.lock"), "{name}");
+        }
+        assert_eq!(lock_file(p, ".prev"), Path::new("/r/..prev.lock"));
+        assert_eq!(
+            lock_file(p, "night.prevx"),
+            Path::new("/r/.night.prevx.lock")
+        );
+    }
+
+    #[test]
+    fn control_characters_are_escaped() {
+        assert_eq!(escape("a\nb\u{1b}[31m"), "a\\nb\\u{1b}[31m");
+        assert_eq!(escape("µm ok"), "µm ok");
+    }
+
+    #[test]
     fn names_that_are_not_folders_are_refused() {
         for p in [".", "..", "/", "a/..", ""] {
             assert!(final_name(Path::new(p)).is_none(), "{p}");

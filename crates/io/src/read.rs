@@ -1271,11 +1271,14 @@ fn read_encoders(
     // a null or an undeclared id found there is attributed by a second pass, file by file,
     // that keeps no rows (only on that error path).
     let clean = |s: &EncoderSink| s.unknown.is_empty() && s.bad.is_empty();
-    let sink = match stream_encoders(files, footer_rows, bar_ids, &keep, true, zones) {
+    let shared = stream_encoders(files, footer_rows, bar_ids, &keep, true, zones);
+    let sink = match shared {
         Ok(sink) if clean(&sink) => sink,
         // Rows that cannot be used (or a failing file) in a shared scan: read again file by
-        // file, which names each file's rows exactly (the rows kept are the same).
-        Ok(_) | Err(_) => {
+        // file, which names each file's rows exactly (the rows kept are the same); the first
+        // pass's rows are let go first.
+        other => {
+            drop(other);
             stream_encoders(files, footer_rows, bar_ids, &keep, false, &mut Vec::new())?
         }
     };
