@@ -283,21 +283,43 @@ fn acceptance_rms(acc: &[crate::acceptance::BarAcceptance]) -> report::BeforeAft
     }
 }
 
-/// A file-name part for an id: the id itself when it is made of `[A-Za-z0-9._-]` only and does
-/// not start with a dot; else its safe characters (`_` for the others) and 8 hex digits of its
-/// SHA-256, so two ids never share a file (`B.1` and `B_1` stay apart; `B/1` → `B_1-…`). The
-/// result never holds `@`, which joins two ids in one name.
-fn file_safe(id: &str) -> String {
+/// A file-name part for an id: the id itself when it is made of `[A-Za-z0-9._-]` only, does
+/// not start with a dot, is at most [`MAX_NAME_PART`] bytes and does not end like an encoded id
+/// (`-` and 8 hex digits); else its safe characters (`_` for the others, cut to
+/// [`MAX_NAME_PART`] bytes) and 8 hex digits of its SHA-256, so two ids never share a file
+/// (`B.1` and `B_1` stay apart; `B/1` → `B_1-…`, and `B_1-fb95c374` is encoded too) and every
+/// name fits the file system's 255 bytes. The result never holds `@`, which joins two ids in one
+/// name.
+pub(crate) fn file_safe(id: &str) -> String {
     let safe = |c: char| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.');
-    if !id.is_empty() && !id.starts_with('.') && id.chars().all(safe) {
+    let looks_encoded = id.len() > 9
+        && id.as_bytes()[id.len() - 9] == b'-'
+        && id.as_bytes()[id.len() - 8..]
+            .iter()
+            .all(|&b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b));
+    if !id.is_empty()
+        && !id.starts_with('.')
+        && id.len() <= MAX_NAME_PART
+        && id.chars().all(safe)
+        && !looks_encoded
+    {
         return id.to_string();
     }
     use sha2::{Digest, Sha256};
     let digest = Sha256::digest(id.as_bytes());
-    let cleaned: String = id.chars().map(|c| if safe(c) { c } else { '_' }).collect();
+    let cleaned: String = id
+        .chars()
+        .map(|c| if safe(c) { c } else { '_' })
+        .skip_while(|&c| c == '.')
+        .take(MAX_NAME_PART)
+        .collect();
     let hex: String = digest[..4].iter().map(|b| format!("{b:02x}")).collect();
-    format!("{}-{hex}", cleaned.trim_start_matches('.'))
+    format!("{cleaned}-{hex}")
 }
+
+/// The longest id used as a file-name part as it is (bytes); `acceptance-<bar>@<length>.png`
+/// then stays far below 255 bytes.
+const MAX_NAME_PART: usize = 64;
 
 fn params_line(o: &BarOutcome) -> String {
     let p: Vec<String> = o
@@ -611,5 +633,26 @@ fn before_after(ba: &crate::pipeline::BeforeAfter) -> report::BeforeAfterFigure 
         fleet_after_um: Some(ba.fleet_rms_after_um),
         before_label: "base model".into(),
         after_label: "with added effects".into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::file_safe;
+
+    #[test]
+    fn id_file_names_are_distinct_and_short() {
+        assert_eq!(file_safe("B01"), "B01");
+        assert_eq!(file_safe("B.1"), "B.1");
+        let slash = file_safe("B/1");
+        assert!(slash.starts_with("B_1-") && slash.len() == 12, "{slash}");
+        // An id that looks like an encoded one is encoded too: no collision.
+        assert_ne!(file_safe(&slash), slash);
+        assert!(file_safe(&slash).starts_with(&format!("{slash}-")));
+        let long = file_safe(&"B".repeat(252));
+        assert_eq!(long.len(), 64 + 9);
+        assert_ne!(long, file_safe(&"B".repeat(253)));
+        assert_eq!(file_safe(".x"), format!("x-{}", &file_safe(".x")[2..]));
+        assert!(!file_safe("ü/@").contains('@'));
     }
 }

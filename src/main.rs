@@ -309,10 +309,12 @@ struct Say {
 
 impl Say {
     fn line(&self, label: &str, text: &str, style: &str) {
+        // Paths and ids from the user's files: raw newlines and escape codes are escaped.
+        let text = dbbcal::output::escape(text);
         if self.color {
-            eprintln!("\x1b[{style}m{label:>12}\x1b[0m {text}");
+            let _ = writeln!(std::io::stderr(), "\x1b[{style}m{label:>12}\x1b[0m {text}");
         } else {
-            eprintln!("{label:>12} {text}");
+            let _ = writeln!(std::io::stderr(), "{label:>12} {text}");
         }
     }
 
@@ -354,10 +356,11 @@ impl Say {
 
     /// One line that always prints (errors and failures), `dbbcal: ` first.
     fn error(&self, text: &str) {
+        let text = dbbcal::output::escape(text);
         if self.color {
-            eprintln!("\x1b[1;31mdbbcal:\x1b[0m {text}");
+            let _ = writeln!(std::io::stderr(), "\x1b[1;31mdbbcal:\x1b[0m {text}");
         } else {
-            eprintln!("dbbcal: {text}");
+            let _ = writeln!(std::io::stderr(), "dbbcal: {text}");
         }
     }
 }

@@ -185,6 +185,23 @@ fn acceptance_counts(plan: &RunPlan, results: &RunResults) -> Option<(usize, usi
 /// Stages that ran with nothing to show, and bars they left out, with the reason.
 fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
     let mut notes = Vec::new();
+    // Rows that could not be used, dropped (README, Inputs): the first few by file, column and
+    // rows; all of them in summary.json.
+    let unusable: Vec<&crate::series::quality::Flag> = results
+        .quality
+        .files
+        .iter()
+        .filter(|f| f.kind == crate::series::quality::FlagKind::UnusableRows)
+        .collect();
+    for f in unusable.iter().take(3) {
+        notes.push(format!("rows dropped: {}", f.note()));
+    }
+    if unusable.len() > 3 {
+        notes.push(format!(
+            "rows dropped in {} more places (summary.json → quality.files)",
+            unusable.len() - 3
+        ));
+    }
     if let Some(c) = &results.calibration {
         for f in &c.failed {
             notes.push(format!(

@@ -43,7 +43,10 @@ fn next(what: &str, path: &Path) -> Option<Fault> {
         Fault::Kill(at) | Fault::NoSpace(at) | Fault::Stall(at) => at == k,
     };
     hit.then(|| {
-        eprintln!("dbbcal: fault point {k} ({what} {})", path.display());
+        super::say(&format!(
+            "dbbcal: fault point {k} ({what} {})",
+            path.display()
+        ));
         fault
     })
 }
@@ -65,7 +68,7 @@ pub(crate) fn point(what: &str, path: &Path) -> std::io::Result<()> {
 pub(crate) fn kill_point(what: &str, path: &Path) {
     match next(what, path) {
         Some(Fault::Kill(_)) => kill(),
-        Some(_) => eprintln!("dbbcal: fault point takes kills only: nothing injected"),
+        Some(_) => super::say("dbbcal: fault point takes kills only: nothing injected"),
         None => {}
     }
 }

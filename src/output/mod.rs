@@ -87,6 +87,11 @@ pub(crate) struct Marker {
     pub(crate) effects: serde_json::Value,
     /// Every input file (relative path, bytes, sha256), as in `inputs.json`.
     pub(crate) inputs: serde_json::Value,
+    /// Every file and folder (a trailing `/`) dbbcal wrote into the folder, relative paths,
+    /// sorted; the marker itself is not listed. Written when the output is complete (absent in a
+    /// partial folder being built, and in outputs of versions before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) files: Option<Vec<String>>,
 }
 
 impl Marker {
@@ -103,16 +108,151 @@ impl Marker {
             stages,
             effects,
             inputs,
+            files: None,
         }
     }
 }
 
-/// Whether `dir` holds a marker file that dbbcal wrote.
-fn holds_marker(dir: &Path) -> bool {
-    let Ok(text) = std::fs::read_to_string(dir.join(MARKER)) else {
+/// The marker dbbcal wrote in `dir`, if any (read from a regular file of at most 16 MB).
+fn read_marker(dir: &Path) -> Option<Marker> {
+    let path = dir.join(MARKER);
+    let meta = std::fs::symlink_metadata(&path).ok()?;
+    if !meta.is_file() || meta.len() > 16 << 20 {
+        return None;
+    }
+    let text = std::fs::read_to_string(path).ok()?;
+    serde_json::from_str::<Marker>(&text)
+        .ok()
+        .filter(|m| m.tool == "dbbcal")
+}
+
+/// Names an output of a version without a file list in its marker may hold (top level; and
+/// `figures/*.png`).
+const LEGACY_OUTPUT_FILES: [&str; 16] = [
+    "summary.json",
+    "inputs.json",
+    "models.parquet",
+    "models.csv",
+    "diagnosis.json",
+    "before_after.json",
+    "match_study.json",
+    "calibration.json",
+    "compensation.json",
+    "compensated.parquet",
+    "compensated.csv",
+    "acceptance.json",
+    "report.md",
+    "index.html",
+    "figures/",
+    MARKER,
+];
+
+/// Every entry under `dir` (not following symbolic links): relative `/`-separated paths,
+/// folders with a trailing `/`, sorted. At most `limit` entries (`None` beyond).
+fn tree_entries(dir: &Path, limit: usize) -> std::io::Result<Option<Vec<String>>> {
+    fn walk(root: &Path, dir: &Path, out: &mut Vec<String>, limit: usize) -> std::io::Result<bool> {
+        for e in std::fs::read_dir(dir)? {
+            let e = e?;
+            let path = e.path();
+            let rel = path
+                .strip_prefix(root)
+                .unwrap_or(&path)
+                .to_string_lossy()
+                .replace('\\', "/");
+            if out.len() >= limit {
+                return Ok(false);
+            }
+            if e.file_type()?.is_dir() {
+                out.push(format!("{rel}/"));
+                if !walk(root, &path, out, limit)? {
+                    return Ok(false);
+                }
+            } else {
+                out.push(rel);
+            }
+        }
+        Ok(true)
+    }
+    let mut out = Vec::new();
+    if !walk(dir, dir, &mut out, limit)? {
+        return Ok(None);
+    }
+    out.sort();
+    Ok(Some(out))
+}
+
+/// Whether `dir` is wholly dbbcal's: it holds the marker, and nothing but what the marker lists
+/// (or, for a marker without a list, the names an output may hold). `Err` says why not.
+fn dbbcal_output(dir: &Path) -> Result<(), String> {
+    let Some(marker) = read_marker(dir) else {
+        return Err(format!("holds files dbbcal did not write (no {MARKER})"));
+    };
+    let entries = match tree_entries(dir, 100_000) {
+        Ok(Some(e)) => e,
+        Ok(None) => return Err("holds more files than any dbbcal output".into()),
+        Err(e) => return Err(format!("cannot list it: {e}")),
+    };
+    let listed = |rel: &str| match &marker.files {
+        Some(files) => rel == MARKER || files.binary_search_by(|f| f.as_str().cmp(rel)).is_ok(),
+        None => {
+            LEGACY_OUTPUT_FILES.contains(&rel)
+                || rel
+                    .strip_prefix("figures/")
+                    .is_some_and(|f| f.ends_with(".png") && !f.contains('/'))
+        }
+    };
+    match entries.iter().find(|rel| !listed(rel)) {
+        None => Ok(()),
+        Some(rel) => Err(format!(
+            "holds {}, which dbbcal did not write (it replaces only the files it wrote: move that elsewhere, or choose another folder)",
+            escape(rel.trim_end_matches('/'))
+        )),
+    }
+}
+
+/// Whether a partial folder is dbbcal's: empty, or holding the marker (and, once complete,
+/// nothing but what it lists).
+fn dbbcal_partial(dir: &Path) -> bool {
+    let Ok(meta) = std::fs::symlink_metadata(dir) else {
         return false;
     };
-    serde_json::from_str::<Marker>(&text).is_ok_and(|m| m.tool == "dbbcal")
+    if !meta.is_dir() {
+        return false;
+    }
+    let empty = std::fs::read_dir(dir).is_ok_and(|mut d| d.next().is_none());
+    empty
+        || match read_marker(dir) {
+            Some(m) if m.files.is_some() => dbbcal_output(dir).is_ok(),
+            Some(_) => true,
+            None => false,
+        }
+}
+
+/// `text` with control characters escaped (`\n`, `\u{1b}`), for one-line messages.
+pub fn escape(text: &str) -> String {
+    if !text.chars().any(char::is_control) {
+        return text.to_string();
+    }
+    text.chars()
+        .flat_map(|c| {
+            if c.is_control() {
+                c.escape_default().collect::<Vec<_>>()
+            } else {
+                vec![c]
+            }
+        })
+        .collect()
+}
+
+/// One line on stderr; a stderr that is gone (a closed pipe) is no error.
+pub(crate) fn say(line: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{line}");
+}
+
+/// A path for a one-line message: control characters escaped.
+pub fn shown(path: &Path) -> String {
+    escape(&path.display().to_string())
 }
 
 /// An output location that passed every check and is locked for this run.
@@ -123,6 +263,26 @@ pub(crate) struct OutputTarget {
     name: String,
     lock_path: PathBuf,
     lock: File,
+    /// The folders the claim created above `OUT` (deepest first): removed again, when empty,
+    /// if the run writes nothing.
+    created: Vec<PathBuf>,
+    written: bool,
+}
+
+/// The lock file of the output `name` in `parent`: one for a name and its `.prev` generations
+/// (`out`, `out.prev`, `out.prev.prev` share `.out.lock`), so a run on `out.prev` and one on
+/// `out`, which would replace it, never run together.
+fn lock_file(parent: &Path, name: &str) -> PathBuf {
+    let mut base = name;
+    while let Some(b) = base.strip_suffix(".prev").filter(|b| !b.is_empty()) {
+        base = b;
+    }
+    parent.join(format!(".{base}.lock"))
+}
+
+/// The partial folder this run builds its output in.
+fn own_partial(parent: &Path, name: &str) -> PathBuf {
+    parent.join(format!(".{name}.partial-{}", crate::supervise::run_pid()))
 }
 
 impl OutputTarget {
@@ -136,36 +296,65 @@ impl OutputTarget {
         let name = final_name(out).ok_or_else(|| {
             refused("name a folder (not the current, parent or root folder)".into())
         })?;
+        if name.len() > 200 {
+            return Err(refused(format!(
+                "the folder name is {} bytes long; at most 200 (its partial folder's name must fit the file system's 255)",
+                name.len()
+            )));
+        }
         let resolved =
             resolve(out).map_err(|e| refused(format!("cannot resolve the path: {e}")))?;
         if home_dir().is_some_and(|home| resolved == home) {
             return Err(refused("that is the home folder".into()));
         }
-        check_overlap(&resolved, campaign).map_err(refused)?;
+        let parent = parent_of(out);
+        check_overlap(&resolved, &parent, &name, campaign).map_err(refused)?;
         check_replaceable(out, "")?;
         let prev = sibling(out, &format!("{name}.prev"));
         check_replaceable(&prev, " (the previous output, kept as OUT.prev)").map_err(
             |e| match e {
-                OutputError::Refused { why, .. } => refused(format!("{}: {why}", prev.display())),
+                OutputError::Refused { why, .. } => refused(format!("{}: {why}", shown(&prev))),
                 other => other,
             },
         )?;
-        let parent = parent_of(out);
-        std::fs::create_dir_all(&parent).map_err(OutputError::io(&parent))?;
-        let lock_path = parent.join(format!(".{name}.lock"));
+        check_mount_point(&resolved).map_err(refused)?;
+        let partial = own_partial(&parent, &name);
+        if std::fs::symlink_metadata(&partial).is_ok() && !dbbcal_partial(&partial) {
+            return Err(refused(format!(
+                "{} exists and is not a partial folder of dbbcal (it would be replaced); move it elsewhere",
+                shown(&partial)
+            )));
+        }
+        let created = create_parents(&parent).map_err(|e| match e.kind() {
+            std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => {
+                refused(format!("cannot create {}: {e}", shown(&parent)))
+            }
+            _ => OutputError::io(&parent)(e),
+        })?;
+        let undo_parents = |e: OutputError| {
+            remove_created(&created);
+            e
+        };
+        check_writable(&parent)
+            .map_err(refused)
+            .map_err(undo_parents)?;
+        let lock_path = lock_file(&parent, &name);
         crate::supervise::note(crate::supervise::Note::Output(out));
         // A signal waits until the lock is taken and known to the handler, which removes it.
         let _signals_wait = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
-        let lock = take_lock(&lock_path).map_err(|e| match e {
-            LockError::Busy => OutputError::Busy {
-                path: out.to_path_buf(),
-                lock: lock_path.clone(),
-            },
-            LockError::Io(source) => OutputError::Io {
-                path: lock_path.clone(),
-                source,
-            },
-        })?;
+        let lock = take_lock(&lock_path)
+            .map_err(|e| match e {
+                LockError::Busy => OutputError::Busy {
+                    path: out.to_path_buf(),
+                    lock: lock_path.clone(),
+                },
+                LockError::NotOurs(why) => refused(format!("{}: {why}", shown(&lock_path))),
+                LockError::Io(source) => OutputError::Io {
+                    path: lock_path.clone(),
+                    source,
+                },
+            })
+            .map_err(undo_parents)?;
         *HELD_LOCK.lock().unwrap_or_else(|e| e.into_inner()) = Some(lock_path.clone());
         Ok(OutputTarget {
             out: out.to_path_buf(),
@@ -173,6 +362,8 @@ impl OutputTarget {
             name,
             lock_path,
             lock,
+            created,
+            written: false,
         })
     }
 
@@ -182,19 +373,24 @@ impl OutputTarget {
 
     /// Build the new output with `build` (given the partial folder, which already holds the
     /// marker) and swap it into place. On any error the partial folder is removed and `OUT`
-    /// is as it was.
+    /// and `OUT.prev` are as they were.
     pub(crate) fn write<E>(
-        self,
+        mut self,
         marker: &Marker,
         build: impl FnOnce(&Path) -> Result<(), E>,
     ) -> Result<(), WriteFailure<E>> {
+        self.written = true;
         self.remove_dead_partials();
-        let partial = self.parent.join(format!(
-            ".{}.partial-{}",
-            self.name,
-            crate::supervise::run_pid()
-        ));
-        let _ = std::fs::remove_dir_all(&partial);
+        let partial = own_partial(&self.parent, &self.name);
+        if std::fs::symlink_metadata(&partial).is_ok() {
+            if !dbbcal_partial(&partial) {
+                return Err(WriteFailure::Output(OutputError::Refused {
+                    path: self.out.clone(),
+                    why: format!("{} appeared and is not dbbcal's", shown(&partial)),
+                }));
+            }
+            let _ = std::fs::remove_dir_all(&partial);
+        }
         in_progress(Some(Cleanup {
             partial: partial.clone(),
             lock: self.lock_path.clone(),
@@ -203,7 +399,7 @@ impl OutputTarget {
             sync_tree(&partial).map_err(WriteFailure::Output)?;
             self.swap(&partial).map_err(WriteFailure::Output)
         });
-        if result.is_err() {
+        if result.is_err() && dbbcal_partial(&partial) {
             let _ = std::fs::remove_dir_all(&partial);
         }
         in_progress(None);
@@ -222,10 +418,36 @@ impl OutputTarget {
                 .map_err(OutputError::io(partial))
                 .map_err(WriteFailure::Output)?;
         }
-        let mut text = serde_json::to_string_pretty(marker).expect("the marker serialises");
-        text.push('\n');
-        write_file(&partial.join(MARKER), text.as_bytes()).map_err(WriteFailure::Output)?;
-        build(partial).map_err(WriteFailure::Build)
+        let marker_text = |m: &Marker| {
+            let mut text = serde_json::to_string_pretty(m).expect("the marker serialises");
+            text.push('\n');
+            text
+        };
+        write_file(&partial.join(MARKER), marker_text(marker).as_bytes())
+            .map_err(WriteFailure::Output)?;
+        build(partial).map_err(WriteFailure::Build)?;
+        // The marker again, now listing every file written: what a later run may replace.
+        let files = tree_entries(partial, usize::MAX)
+            .map_err(OutputError::io(partial))
+            .map_err(WriteFailure::Output)?
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|f| f != MARKER)
+            .collect();
+        let complete = Marker {
+            files: Some(files),
+            ..marker.clone()
+        };
+        let next = partial.join(format!(".{MARKER}.new"));
+        write_file(&next, marker_text(&complete).as_bytes()).map_err(WriteFailure::Output)?;
+        let target = partial.join(MARKER);
+        fault::point("rename", &target)
+            .map_err(OutputError::io(&target))
+            .map_err(WriteFailure::Output)?;
+        let _step = writing();
+        std::fs::rename(&next, &target)
+            .map_err(OutputError::io(&target))
+            .map_err(WriteFailure::Output)
     }
 
     fn remove_dead_partials(&self) {
@@ -246,60 +468,182 @@ impl OutputTarget {
         result
     }
 
+    /// The previous output is never under a name a later run removes: first the new output
+    /// takes `OUT.prev`'s place (the one before it goes to the partial folder's name), then it
+    /// is exchanged with `OUT`. Killed in between, `OUT` is the old output and `OUT.prev` the new
+    /// one; after, `OUT` is new and `OUT.prev` old; the generation before is removed last.
     fn swap_in(&self, partial: &Path) -> Result<(), OutputError> {
         let prev = self.parent.join(format!("{}.prev", self.name));
         let out = &self.out;
+        let sync_parent = || sync_dir(&self.parent).map_err(OutputError::io(&self.parent));
         if std::fs::symlink_metadata(out).is_err() {
             fault::point("rename", out).map_err(OutputError::io(out))?;
             std::fs::rename(partial, out).map_err(OutputError::io(out))?;
-            return sync_dir(&self.parent).map_err(OutputError::io(&self.parent));
+            return sync_parent();
         }
-        if std::fs::symlink_metadata(&prev).is_ok() {
-            if !holds_marker(&prev) {
+        let had_prev = std::fs::symlink_metadata(&prev).is_ok();
+        if had_prev {
+            if let Err(why) = dbbcal_output(&prev) {
                 return Err(OutputError::Refused {
                     path: out.clone(),
-                    why: format!("{} appeared and is not a dbbcal output", prev.display()),
+                    why: format!("{} changed meanwhile: it {why}", shown(&prev)),
                 });
             }
-            fault::point("remove OUT.prev", &prev).map_err(OutputError::io(&prev))?;
-            std::fs::remove_dir_all(&prev).map_err(OutputError::io(&prev))?;
-        }
-        fault::point("exchange", out).map_err(OutputError::io(out))?;
-        match exchange(partial, out) {
-            Ok(()) => {
-                // `partial` now holds the previous output.
-                sync_dir(&self.parent).map_err(OutputError::io(&self.parent))?;
-                fault::kill_point("keep OUT.prev", &prev);
-                if let Err(e) = std::fs::rename(partial, &prev) {
-                    tracing::warn!("the previous output stays in {}: {e}", partial.display());
-                }
+            fault::point("exchange", &prev).map_err(OutputError::io(&prev))?;
+            if exchange(partial, &prev).is_err() {
+                return self.swap_by_renames(partial, &prev);
             }
-            Err(_) => {
-                // No atomic exchange here: two renames. A crash between them leaves the old
-                // output in OUT.prev and no OUT; nothing is lost.
-                std::fs::rename(out, &prev).map_err(OutputError::io(out))?;
-                fault::kill_point("rename into place", out);
-                std::fs::rename(partial, out).map_err(OutputError::io(out))?;
+        } else {
+            fault::point("rename", &prev).map_err(OutputError::io(&prev))?;
+            std::fs::rename(partial, &prev).map_err(OutputError::io(&prev))?;
+        }
+        // The new output is in OUT.prev's place; the generation before in `partial`.
+        let undo = |e: OutputError| {
+            let _ = if had_prev {
+                exchange(partial, &prev)
+            } else {
+                std::fs::rename(&prev, partial)
+            };
+            e
+        };
+        sync_parent().map_err(undo)?;
+        fault::point("exchange", out)
+            .map_err(OutputError::io(out))
+            .map_err(undo)?;
+        exchange(&prev, out)
+            .map_err(OutputError::io(out))
+            .map_err(undo)?;
+        sync_parent()?;
+        if had_prev {
+            fault::kill_point("remove the output before OUT.prev", partial);
+            if let Err(e) = std::fs::remove_dir_all(partial) {
+                tracing::warn!(
+                    "the output before the previous one stays in {}: {e}",
+                    partial.display()
+                );
             }
         }
+        sync_parent()
+    }
+
+    /// No atomic exchange here: two renames. A crash between them leaves the old output in
+    /// OUT.prev and no OUT; nothing is lost.
+    fn swap_by_renames(&self, partial: &Path, prev: &Path) -> Result<(), OutputError> {
+        let out = &self.out;
+        fault::point("remove OUT.prev", prev).map_err(OutputError::io(prev))?;
+        std::fs::remove_dir_all(prev).map_err(OutputError::io(prev))?;
+        std::fs::rename(out, prev).map_err(OutputError::io(out))?;
+        fault::kill_point("rename into place", out);
+        std::fs::rename(partial, out).map_err(OutputError::io(out))?;
         sync_dir(&self.parent).map_err(OutputError::io(&self.parent))
     }
 }
 
 impl Drop for OutputTarget {
     /// The lock file goes while the lock is still held (a run waiting on the old file then sees
-    /// it replaced and locks the new one; see [`take_lock`]).
+    /// it replaced and locks the new one; see [`take_lock`]); then the parent folders the claim
+    /// made, when nothing was written.
     fn drop(&mut self) {
         let _signals_wait = CRITICAL.lock().unwrap_or_else(|e| e.into_inner());
         *HELD_LOCK.lock().unwrap_or_else(|e| e.into_inner()) = None;
         let _ = std::fs::remove_file(&self.lock_path);
         let _ = self.lock.unlock();
+        if !self.written {
+            remove_created(&self.created);
+        }
     }
+}
+
+/// `dir` and its missing ancestors created; returns those created, deepest first.
+fn create_parents(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut missing = Vec::new();
+    let mut d = dir;
+    while std::fs::symlink_metadata(d).is_err() {
+        missing.push(d.to_path_buf());
+        match d.parent().filter(|p| !p.as_os_str().is_empty()) {
+            Some(p) => d = p,
+            None => break,
+        }
+    }
+    std::fs::create_dir_all(dir)?;
+    Ok(missing)
+}
+
+/// Remove the folders [`create_parents`] made, while empty.
+fn remove_created(created: &[PathBuf]) {
+    for d in created {
+        if std::fs::remove_dir(d).is_err() {
+            break;
+        }
+    }
+}
+
+/// The folder that will hold `OUT` must take new entries (a read-only folder or file system is
+/// refused before any work, not found at the end).
+fn check_writable(parent: &Path) -> Result<(), String> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(parent.as_os_str().as_bytes()).map_err(|e| e.to_string())?;
+    // SAFETY: a valid NUL-terminated path.
+    let rc = unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(format!(
+            "cannot write in {}: {}",
+            shown(parent),
+            std::io::Error::last_os_error()
+        ))
+    }
+}
+
+/// `OUT` a mount point (its own file system or a bind mount): it cannot be renamed, so it is
+/// refused before any work.
+fn check_mount_point(resolved: &Path) -> Result<(), String> {
+    let Ok(meta) = std::fs::symlink_metadata(resolved) else {
+        return Ok(());
+    };
+    use std::os::unix::fs::MetadataExt;
+    let parent_dev = resolved
+        .parent()
+        .and_then(|p| std::fs::metadata(p).ok())
+        .map(|m| m.dev());
+    let own_fs = parent_dev.is_some_and(|d| d != meta.dev());
+    let listed = std::fs::read_to_string("/proc/self/mountinfo").is_ok_and(|info| {
+        info.lines().any(|l| {
+            l.split(' ')
+                .nth(4)
+                .is_some_and(|m| Path::new(&unescape_mountinfo(m)) == resolved)
+        })
+    });
+    if own_fs || listed {
+        Err("it is a mount point (dbbcal replaces an output by renaming it, which a mount point does not allow); give a folder inside it".into())
+    } else {
+        Ok(())
+    }
+}
+
+/// A path field of `/proc/self/mountinfo` (space, tab, newline and `\` are octal escapes).
+fn unescape_mountinfo(field: &str) -> String {
+    let b = field.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'\\' && i + 3 < b.len() {
+            if let Ok(v) = u8::from_str_radix(&field[i + 1..i + 4], 8) {
+                out.push(v);
+                i += 4;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 /// Partial folders of runs that died, beside the output `name` in `parent` (the caller holds the
 /// lock, so no live run owns one): only `.OUT.partial-<digits>` folders that are empty or hold
-/// the marker.
+/// the marker (and nothing it does not list, once complete).
 fn remove_dead_partials(parent: &Path, name: &str) {
     let prefix = format!(".{name}.partial-");
     let Ok(entries) = std::fs::read_dir(parent) else {
@@ -311,9 +655,7 @@ fn remove_dead_partials(parent: &Path, name: &str) {
             continue;
         };
         let path = e.path();
-        let is_dir = e.file_type().is_ok_and(|t| t.is_dir());
-        let empty = std::fs::read_dir(&path).is_ok_and(|mut d| d.next().is_none());
-        if is_dir && pid.bytes().all(|b| b.is_ascii_digit()) && (empty || holds_marker(&path)) {
+        if !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()) && dbbcal_partial(&path) {
             tracing::info!("removing {} (left by a run that died)", path.display());
             let _ = std::fs::remove_dir_all(&path);
         }
@@ -329,10 +671,10 @@ pub fn clean_up_after_dead_run(out: &Path) -> Result<bool, OutputError> {
         return Ok(false);
     };
     let parent = parent_of(out);
-    let lock_path = parent.join(format!(".{name}.lock"));
+    let lock_path = lock_file(&parent, &name);
     let lock = match take_lock(&lock_path) {
         Ok(lock) => lock,
-        Err(LockError::Busy) => return Ok(false),
+        Err(LockError::Busy | LockError::NotOurs(_)) => return Ok(false),
         Err(LockError::Io(e)) if e.kind() == std::io::ErrorKind::NotFound => return Ok(false),
         Err(LockError::Io(source)) => {
             return Err(OutputError::Io {
@@ -472,7 +814,8 @@ fn home_dir() -> Option<PathBuf> {
         .and_then(|h| PathBuf::from(h).canonicalize().ok())
 }
 
-/// `path` may be replaced: absent, an empty folder, or a folder with the marker.
+/// `path` may be replaced: absent, an empty folder, or a folder holding the marker and nothing
+/// it does not list.
 fn check_replaceable(path: &Path, what: &str) -> Result<(), OutputError> {
     let refused = |why: &str| OutputError::Refused {
         path: path.to_path_buf(),
@@ -495,65 +838,206 @@ fn check_replaceable(path: &Path, what: &str) -> Result<(), OutputError> {
         .map_err(OutputError::io(path))?
         .next()
         .is_none();
-    if empty || holds_marker(path) {
-        Ok(())
-    } else {
-        Err(refused(&format!(
-            "the folder exists and holds files dbbcal did not write (no {MARKER}); choose a new or empty folder"
-        )))
+    if empty {
+        return Ok(());
     }
+    dbbcal_output(path).map_err(|why| {
+        if why.starts_with("holds files") {
+            refused(&format!(
+                "the folder exists and {why}; choose a new or empty folder"
+            ))
+        } else {
+            refused(&format!("the folder {why}"))
+        }
+    })
 }
 
-/// OUT inside the campaign, the campaign inside OUT, or the same folder: the reason.
-fn check_overlap(out: &Path, campaign: &Path) -> Result<(), String> {
+/// (device, inode) of a file or folder, following links.
+fn identity(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
+/// The campaign must not be, hold, or lie inside anything a run on `out` may remove or replace:
+/// `OUT`, `OUT.prev` and the partial folders beside them, compared by path (links and `..`
+/// resolved) and by (device, inode), which also sees a bind mount or a link to a campaign file.
+fn check_overlap(out: &Path, parent: &Path, name: &str, campaign: &Path) -> Result<(), String> {
     let Ok(campaign) = resolve(campaign) else {
         return Ok(()); // ingest names a missing campaign itself
     };
+    let c = shown(&campaign);
     if out == campaign {
-        Err(format!("it is the campaign folder {}", campaign.display()))
+        return Err(format!("it is the campaign folder {c}"));
     } else if out.starts_with(&campaign) {
-        Err(format!(
-            "it is inside the campaign folder {}",
-            campaign.display()
-        ))
+        return Err(format!("it is inside the campaign folder {c}"));
     } else if campaign.starts_with(out) {
-        Err(format!(
-            "it holds the campaign folder {}",
-            campaign.display()
-        ))
-    } else {
-        Ok(())
+        return Err(format!("it holds the campaign folder {c}"));
     }
+    let Some(campaign_id) = identity(&campaign) else {
+        return Ok(());
+    };
+    // OUT inside the campaign through another path (a bind mount of it).
+    let mut ancestor = out.parent();
+    while let Some(a) = ancestor {
+        if identity(a) == Some(campaign_id) {
+            return Err(format!(
+                "it is inside the campaign folder {c} (the same folder as {}, e.g. through a mount)",
+                shown(a)
+            ));
+        }
+        ancestor = a.parent();
+    }
+    // What a run may remove: OUT.prev and partial folders beside OUT (OUT itself was checked).
+    let mut removable = vec![
+        out.to_path_buf(),
+        out.with_file_name(format!("{name}.prev")),
+    ];
+    let prefix = format!(".{name}.partial-");
+    if let Ok(entries) = std::fs::read_dir(parent) {
+        for e in entries.flatten() {
+            if e.file_name()
+                .to_str()
+                .is_some_and(|n| n.starts_with(&prefix))
+            {
+                removable.push(out.with_file_name(e.file_name()));
+            }
+        }
+    }
+    for r in &removable[1..] {
+        if campaign == *r || campaign.starts_with(r) {
+            return Err(format!(
+                "{} (which the run would replace or remove) holds the campaign folder {c}",
+                shown(r)
+            ));
+        }
+    }
+    // The campaign folder and its files (links followed), by identity.
+    let mut campaign_ids = std::collections::HashMap::new();
+    campaign_ids.insert(campaign_id, campaign.clone());
+    if let Ok(Some(entries)) = tree_entries(&campaign, 100_000) {
+        for rel in entries {
+            let p = campaign.join(rel.trim_end_matches('/'));
+            if let Some(id) = identity(&p) {
+                campaign_ids.entry(id).or_insert(p);
+            }
+        }
+    }
+    for r in &removable {
+        let Ok(meta) = std::fs::symlink_metadata(r) else {
+            continue;
+        };
+        if !meta.is_dir() {
+            continue;
+        }
+        let mut found = None;
+        if let Ok(Some(entries)) = tree_entries(r, 100_000) {
+            use std::os::unix::fs::MetadataExt;
+            for rel in entries {
+                let p = r.join(rel.trim_end_matches('/'));
+                let Ok(m) = std::fs::symlink_metadata(&p) else {
+                    continue;
+                };
+                if let Some(c) = campaign_ids.get(&(m.dev(), m.ino())) {
+                    found = Some((p, c.clone()));
+                    break;
+                }
+            }
+        }
+        if let Some((p, what)) = found {
+            return Err(format!(
+                "{} (which the run would replace or remove) holds {} of the campaign (the same file or folder)",
+                shown(&p),
+                shown(&what)
+            ));
+        }
+    }
+    Ok(())
 }
 
 enum LockError {
     Busy,
+    /// The lock's path holds something dbbcal did not make: why.
+    NotOurs(String),
     Io(std::io::Error),
 }
 
+/// What a lock file dbbcal made holds.
+const LOCK_TEXT: &str = "dbbcal lock: a dbbcal run is writing the output beside this file\n";
+
 /// Lock `path` (created if absent) without waiting. A lock taken on a file that another run
-/// has meanwhile removed (it removes its lock file when done) is retried on the new file.
+/// has meanwhile removed (it removes its lock file when done) is retried on the new file. The
+/// file is opened without blocking and without following a link: anything but a regular file
+/// (a FIFO, a folder, a link), or a file holding something else than [`LOCK_TEXT`], is not
+/// dbbcal's and is refused.
 fn take_lock(path: &Path) -> Result<File, LockError> {
-    use std::os::unix::fs::MetadataExt;
+    use std::io::{Read, Seek, Write};
+    use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
     for _ in 0..8 {
-        let file = std::fs::OpenOptions::new()
+        if let Ok(meta) = std::fs::symlink_metadata(path) {
+            if !meta.is_file() {
+                let what = if meta.file_type().is_symlink() {
+                    "a symbolic link"
+                } else if meta.is_dir() {
+                    "a folder"
+                } else {
+                    "not a regular file (a FIFO, socket or device)"
+                };
+                return Err(LockError::NotOurs(format!(
+                    "it is {what}, not a lock file of dbbcal; move it elsewhere"
+                )));
+            }
+        }
+        let mut file = match std::fs::OpenOptions::new()
             .create(true)
             .truncate(false)
+            .read(true)
             .write(true)
+            .custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW | libc::O_CLOEXEC)
             .open(path)
-            .map_err(LockError::Io)?;
+        {
+            Ok(f) => f,
+            Err(e) if e.raw_os_error() == Some(libc::ELOOP) => {
+                return Err(LockError::NotOurs(
+                    "it is a symbolic link, not a lock file of dbbcal; move it elsewhere".into(),
+                ))
+            }
+            Err(e) => return Err(LockError::Io(e)),
+        };
+        let meta = file.metadata().map_err(LockError::Io)?;
+        if !meta.is_file() {
+            return Err(LockError::NotOurs(
+                "it is not a regular file (a FIFO, socket or device), not a lock file of dbbcal; move it elsewhere".into(),
+            ));
+        }
         match file.try_lock() {
             Ok(()) => {}
             Err(std::fs::TryLockError::WouldBlock) => return Err(LockError::Busy),
             Err(std::fs::TryLockError::Error(e)) => return Err(LockError::Io(e)),
         }
-        let same = match (file.metadata(), std::fs::metadata(path)) {
-            (Ok(a), Ok(b)) => a.ino() == b.ino() && a.dev() == b.dev(),
+        let same = match std::fs::metadata(path) {
+            Ok(b) => meta.ino() == b.ino() && meta.dev() == b.dev(),
             _ => false,
         };
-        if same {
-            return Ok(file);
+        if !same {
+            continue;
         }
+        // Ours: empty (just made, or a run died before writing it) or dbbcal's text.
+        let mut text = Vec::new();
+        (&file)
+            .take(LOCK_TEXT.len() as u64 + 1)
+            .read_to_end(&mut text)
+            .map_err(LockError::Io)?;
+        if text.is_empty() {
+            file.rewind()
+                .and_then(|()| file.write_all(LOCK_TEXT.as_bytes()))
+                .map_err(LockError::Io)?;
+        } else if text != LOCK_TEXT.as_bytes() {
+            let _ = file.unlock();
+            return Err(LockError::NotOurs(
+                "it holds something dbbcal did not write (not a lock file of dbbcal); move it elsewhere".into(),
+            ));
+        }
+        return Ok(file);
     }
     Err(LockError::Busy)
 }
@@ -599,13 +1083,13 @@ pub fn install_signal_handlers() {
                 let _ = std::fs::remove_file(lock);
             }
             if REPLACED.load(std::sync::atomic::Ordering::SeqCst) {
-                eprintln!(
+                say(&format!(
                     "dbbcal: interrupted (signal {signal}) after the new output was in place"
-                );
+                ));
             } else {
-                eprintln!(
+                say(&format!(
                     "dbbcal: interrupted (signal {signal}); the previous output is unchanged"
-                );
+                ));
             }
             std::process::exit(128 + signal);
         }
@@ -631,10 +1115,36 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let c = tmp.path().canonicalize().unwrap().join("camp");
         std::fs::create_dir(&c).unwrap();
-        assert!(check_overlap(&c, &c).is_err());
-        assert!(check_overlap(&c.join("out"), &c).is_err());
-        assert!(check_overlap(c.parent().unwrap(), &c).is_err());
-        assert!(check_overlap(&c.with_file_name("camp-out"), &c).is_ok());
+        let check = |out: &Path| {
+            let name = out.file_name().unwrap().to_str().unwrap();
+            check_overlap(out, out.parent().unwrap(), name, &c)
+        };
+        assert!(check(&c).is_err());
+        assert!(check(&c.join("out")).is_err());
+        assert!(check(c.parent().unwrap()).is_err());
+        assert!(check(&c.with_file_name("camp-out")).is_ok());
+        // Inside what a run may remove or replace: OUT.prev, a partial folder; by identity.
+        assert!(check(&c.with_file_name("cam")).is_ok());
+        let prev = c.with_file_name("x.prev");
+        std::fs::create_dir(&prev).unwrap();
+        std::os::unix::fs::symlink(&c, prev.join("link")).unwrap();
+        assert!(
+            check(&c.with_file_name("x")).is_ok(),
+            "a link is not removed with its folder"
+        );
+        std::fs::write(c.join("a.parquet"), "x").unwrap();
+        std::fs::hard_link(c.join("a.parquet"), prev.join("a.parquet")).unwrap();
+        assert!(check(&c.with_file_name("x"))
+            .unwrap_err()
+            .contains("a.parquet"));
+        let camp2 = prev.join("c2");
+        std::fs::create_dir(&camp2).unwrap();
+        let name = "x";
+        assert!(
+            check_overlap(&c.with_file_name(name), c.parent().unwrap(), name, &camp2)
+                .unwrap_err()
+                .contains("x.prev")
+        );
     }
 
     #[test]
@@ -677,6 +1187,72 @@ mod tests {
         assert_eq!(names(), [".out.partial-mine"]);
         assert!(!clean_up_after_dead_run(&d.join("gone/out")).unwrap());
         assert!(!d.join("gone").exists());
+    }
+
+    #[test]
+    fn an_output_is_dbbcal_s_only_while_it_holds_nothing_its_marker_does_not_list() {
+        let tmp = tempfile::tempdir().unwrap();
+        let d = tmp.path().join("out");
+        std::fs::create_dir_all(d.join("figures")).unwrap();
+        let marker = |files: Option<Vec<String>>| {
+            let m = Marker {
+                files,
+                ..Marker::new(
+                    "c",
+                    Default::default(),
+                    Default::default(),
+                    Default::default(),
+                )
+            };
+            std::fs::write(d.join(MARKER), serde_json::to_string(&m).unwrap()).unwrap();
+        };
+        std::fs::write(d.join("summary.json"), "{}").unwrap();
+        std::fs::write(d.join("figures/bar-B01.png"), "png").unwrap();
+        // A marker of a version before the list: judged by the names dbbcal writes.
+        marker(None);
+        assert!(dbbcal_output(&d).is_ok());
+        assert!(check_replaceable(&d, "").is_ok());
+        std::fs::write(d.join("figures/signed.pdf"), "pdf").unwrap();
+        assert!(dbbcal_output(&d)
+            .unwrap_err()
+            .contains("figures/signed.pdf"));
+        std::fs::remove_file(d.join("figures/signed.pdf")).unwrap();
+        // With the list: exactly what it lists.
+        let listed = vec![
+            "figures/".into(),
+            "figures/bar-B01.png".into(),
+            "summary.json".into(),
+        ];
+        marker(Some(listed));
+        assert!(dbbcal_output(&d).is_ok());
+        std::fs::write(d.join("NOTES.txt"), "notes").unwrap();
+        let why = check_replaceable(&d, "").unwrap_err().to_string();
+        assert!(
+            why.contains("NOTES.txt") && why.contains("did not write"),
+            "{why}"
+        );
+        std::fs::remove_file(d.join("NOTES.txt")).unwrap();
+        std::fs::create_dir(d.join("summary.json.d")).unwrap();
+        assert!(dbbcal_output(&d).is_err(), "a folder it did not list");
+    }
+
+    #[test]
+    fn a_name_and_its_previous_outputs_share_one_lock() {
+        let p = Path::new("/r");
+        for name in ["out", "out.prev", "out.prev.prev"] {
+            assert_eq!(lock_file(p, name), Path::new("/r/.out.lock"), "{name}");
+        }
+        assert_eq!(lock_file(p, ".prev"), Path::new("/r/..prev.lock"));
+        assert_eq!(
+            lock_file(p, "night.prevx"),
+            Path::new("/r/.night.prevx.lock")
+        );
+    }
+
+    #[test]
+    fn control_characters_are_escaped() {
+        assert_eq!(escape("a\nb\u{1b}[31m"), "a\\nb\\u{1b}[31m");
+        assert_eq!(escape("µm ok"), "µm ok");
     }
 
     #[test]

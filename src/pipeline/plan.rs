@@ -342,6 +342,7 @@ impl PipelineFile {
         let d = &self.diagnose;
         check_count("diagnose.forward_steps", d.forward_steps, FORWARD_STEPS)?;
         check_count("diagnose.beam", d.beam, BEAM)?;
+        check_selection(d.forward_steps, d.beam)?;
         if let Some(t) = d.tolerance_um {
             check_range("diagnose.tolerance_um", t, TOLERANCE_UM, " µm")?;
         }
@@ -376,8 +377,35 @@ impl PipelineFile {
 pub const DEFAULT_CAMPAIGN_DIR: &str = "data/sample";
 
 /// A bin length (`[model] bin_s`, `--bin-s`): 0 (every reading) to [`crate::series::MAX_BIN_S`].
+/// A bin shorter than [`MIN_BIN_S`] (but 0) is refused: it compresses no logger's readings and
+/// its cost grows with the campaign's time span divided by the bin.
 pub(crate) fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
-    check_range(key, bin_s, (0.0, crate::series::MAX_BIN_S), " s")
+    check_range(key, bin_s, (0.0, crate::series::MAX_BIN_S), " s")?;
+    if bin_s > 0.0 && bin_s < MIN_BIN_S {
+        return Err(format!(
+            "{key} = {} is out of range: it must be 0 (every reading) or from {MIN_BIN_S} to {} s (a shorter bin compresses nothing and costs memory by the time span)",
+            crate::campaign::display_number(bin_s),
+            crate::series::MAX_BIN_S
+        ));
+    }
+    Ok(())
+}
+
+/// The shortest bin (s) other than 0.
+pub(crate) const MIN_BIN_S: f64 = 1.0;
+
+/// `[diagnose] forward_steps × beam`: the refit rounds of forward selection, bounded so that the
+/// diagnosis' cost is (README, Configuration).
+pub(crate) const MAX_SELECTION_ROUNDS: usize = 12;
+
+fn check_selection(forward_steps: usize, beam: usize) -> Result<(), String> {
+    if forward_steps.saturating_mul(beam) > MAX_SELECTION_ROUNDS {
+        Err(format!(
+            "diagnose.forward_steps × diagnose.beam = {forward_steps} × {beam} is out of range: the product must be at most {MAX_SELECTION_ROUNDS} (each step refits every path of the beam)"
+        ))
+    } else {
+        Ok(())
+    }
 }
 
 /// An effect's starting time constant (`@TAU_S`) in [`limits::TAU_S`].
@@ -482,10 +510,13 @@ fn shown(path: &Path) -> String {
 fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
     let path = dir.join("campaign.toml");
     let file = shown(&path);
-    let text = std::fs::read_to_string(&path).map_err(|e| PlanError::Pipeline {
-        path: file.clone(),
-        message: format!("cannot read: {e}"),
-    })?;
+    let text =
+        crate::io::read_small_text(&path, crate::io::MAX_MANIFEST_BYTES).map_err(|message| {
+            PlanError::Pipeline {
+                path: file.clone(),
+                message,
+            }
+        })?;
     let boxed = |e| PlanError::Campaign(Box::new(e));
     let manifest = crate::campaign::Manifest::from_toml_str(&text, &file).map_err(boxed)?;
     let campaign = Campaign::from_manifest_at(manifest, &file).map_err(boxed)?;
@@ -528,7 +559,7 @@ impl RunPlan {
             path: shown(path),
             message,
         };
-        let text = std::fs::read_to_string(path).map_err(|e| perr(format!("cannot read: {e}")))?;
+        let text = crate::io::read_small_text(path, crate::io::MAX_PIPELINE_BYTES).map_err(perr)?;
         let file: PipelineFile =
             toml::from_str(&text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
         if file.pipeline.stages.is_empty() {
@@ -647,12 +678,12 @@ impl RunPlan {
 
     /// The plan with `[diagnose] forward_steps = steps`, range-checked like the pipeline file's.
     pub fn with_forward_steps(mut self, steps: usize) -> Result<RunPlan, PlanError> {
-        check_count("diagnose.forward_steps", steps, limits::FORWARD_STEPS).map_err(|message| {
-            PlanError::Pipeline {
+        check_count("diagnose.forward_steps", steps, limits::FORWARD_STEPS)
+            .and_then(|()| check_selection(steps, self.diagnose.beam))
+            .map_err(|message| PlanError::Pipeline {
                 path: "the plan".into(),
                 message,
-            }
-        })?;
+            })?;
         self.diagnose.forward_steps = steps;
         Ok(self)
     }
@@ -718,7 +749,10 @@ fn validated_effects(
 ) -> Result<Vec<Effect>, PlanError> {
     let mut keyed: Vec<(Effect, String)> = Vec::new();
     for (n, key) in effect_names {
-        let e = Effect::parse(n)?;
+        let e = Effect::parse(n).map_err(|err| PlanError::Pipeline {
+            path: key.clone(),
+            message: effect_parse_message(n, &err),
+        })?;
         check_effect(&e).map_err(|message| PlanError::Pipeline {
             path: key.clone(),
             message,
@@ -735,6 +769,23 @@ fn validated_effects(
     check_against_campaign(&campaign, &manifest_path, &keyed, matching, &pipeline_path)
         .map_err(PlanError::NotInCampaign)?;
     Ok(keyed.into_iter().map(|(e, _)| e).collect())
+}
+
+/// Why `name` is no effect: for a `@TAU_S` that is a number out of range (`lag:T1@0`,
+/// `@nan`), the allowed range; else the parser's message (the known effects).
+fn effect_parse_message(name: &str, err: &crate::model::UnknownEffect) -> String {
+    name.rsplit_once('@')
+        .and_then(|(_, tau)| tau.trim().parse::<f64>().ok())
+        .and_then(|tau| {
+            check_range(
+                &format!("{name:?}: the starting time constant @TAU_S"),
+                tau,
+                limits::TAU_S,
+                " s",
+            )
+            .err()
+        })
+        .unwrap_or_else(|| err.to_string())
 }
 
 /// `bin_s = 60` or `bin_s = "auto"` (= absent).

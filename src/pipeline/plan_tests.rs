@@ -102,7 +102,9 @@ fn every_number_is_range_checked_with_its_key() {
         ("bin_s = 60.0", "bin_s = 7200", &["model.bin_s = 7200"]),
         ("rate:T1@600", "rate:T1@inf", &["model.effects[2]: \"rate:T1@inf\": the starting time constant @TAU_S = inf is out of range"]),
         ("rate:T1@600", "rate:T1@1e-3", &["model.effects[2]", "@TAU_S = 0.001"]),
-        ("rate:T1@600", "rate:T1@nan", &["unknown effect \"rate:T1@nan\""]),
+        ("rate:T1@600", "rate:T1@nan", &["model.effects[2]: \"rate:T1@nan\": the starting time constant @TAU_S = NaN is out of range", "from 1 to 1000000000 s"]),
+        ("rate:T1@600", "rate:T1@0", &["model.effects[2]: \"rate:T1@0\": the starting time constant @TAU_S = 0 is out of range"]),
+        ("rate:T1@600", "rate_of:T1", &["model.effects[2]: unknown effect \"rate_of:T1\""]),
     ];
     for (from, to, needles) in cases {
         assert!(FULL.contains(from), "{from}");

@@ -134,9 +134,8 @@ pub(super) fn air_history(
             delta_c: vec![],
         };
     }
-    let n = ((end - start) / step_s).floor() as usize + 1;
-    let t_s: Vec<f64> = (0..n).map(|i| start + i as f64 * step_s).collect();
-    let mut sum = vec![0.0; n];
+    let t_s = history_times(&logs, to_s, start, end, step_s);
+    let mut sum = vec![0.0; t_s.len()];
     for l in &logs {
         let ts: Vec<f64> = l.time_ns.iter().map(|&t| to_s(t)).collect();
         let at_history = interpolate::linear_ascending(&ts, &l.celsius, &t_s);
@@ -152,6 +151,59 @@ pub(super) fn air_history(
             .map(|s| s / k - campaign.reference_temperature_c)
             .collect(),
     }
+}
+
+/// The longest stretch without an air reading that the history fills with its regular grid, s;
+/// a longer one (a logger down for days, a reading dated decades away) gets only its two ends:
+/// the air is a straight line between them, which the lag follows exactly, so no grid point there
+/// carries anything, and the grid's size follows the readings, not the time span.
+pub(super) const HISTORY_MAX_FILLED_GAP_S: f64 = 6.0 * 3600.0;
+
+/// The history's times: `start + i step_s` up to `end`, but inside a stretch of more than
+/// [`HISTORY_MAX_FILLED_GAP_S`] without a reading only the readings on either side. At most
+/// `HISTORY_MAX_FILLED_GAP_S / step_s + 2` points a reading.
+fn history_times(
+    logs: &[&crate::series::SensorLog],
+    to_s: impl Fn(i64) -> f64,
+    start: f64,
+    end: f64,
+    step_s: f64,
+) -> Vec<f64> {
+    let mut knots: Vec<f64> = logs
+        .iter()
+        .flat_map(|l| l.time_ns.iter().map(|&t| to_s(t)))
+        .collect();
+    knots.sort_by(f64::total_cmp);
+    knots.dedup();
+    let n = ((end - start) / step_s).floor() as usize + 1;
+    let grid = |i: usize| start + i as f64 * step_s;
+    let mut t_s: Vec<f64> = Vec::new();
+    let mut i = 0usize;
+    let push = |t_s: &mut Vec<f64>, t: f64| {
+        if t_s.last().is_none_or(|&last| t > last) {
+            t_s.push(t);
+        }
+    };
+    for w in knots.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if b - a <= HISTORY_MAX_FILLED_GAP_S {
+            continue;
+        }
+        while i < n && grid(i) <= a {
+            push(&mut t_s, grid(i));
+            i += 1;
+        }
+        push(&mut t_s, a);
+        push(&mut t_s, b);
+        // The grid resumes at its first point after `b`.
+        let resume = ((b - start) / step_s).floor() as usize + 1;
+        i = i.max(resume);
+    }
+    while i < n {
+        push(&mut t_s, grid(i));
+        i += 1;
+    }
+    t_s
 }
 
 /// What matching needs of an identified bar: `None` when its model lacks `alpha` or `tau_R`;

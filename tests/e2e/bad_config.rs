@@ -74,6 +74,43 @@ fn bad_pipeline_numbers_and_names_are_refused_before_any_data_is_read() {
             &["model.bin_s = NaN", "from 0 to 3600 s"],
         ),
         (
+            "bin-tiny",
+            "# bin_s = 60",
+            "bin_s = 0.001",
+            &[
+                "model.bin_s = 0.001",
+                "0 (every reading) or from 1 to 3600 s",
+            ],
+        ),
+        (
+            "selection-rounds",
+            "forward_steps = 3",
+            "forward_steps = 5",
+            &[
+                "diagnose.forward_steps × diagnose.beam = 5 × 3",
+                "at most 12",
+            ],
+        ),
+        (
+            "effect-unknown",
+            "effects = [\"fixed_part\", \"scale\"]",
+            "effects = [\"fixed_part\", \"scale\", \"air_gradent\"]",
+            &[
+                "effect-unknown.toml: model.effects[2]",
+                "unknown effect \"air_gradent\"",
+            ],
+        ),
+        (
+            "effect-tau-zero",
+            "effects = [\"fixed_part\", \"scale\"]",
+            "effects = [\"fixed_part\", \"scale\", \"lag:T1@0\"]",
+            &[
+                "model.effects[2]",
+                "@TAU_S = 0 is out of range",
+                "from 1 to 1000000000 s",
+            ],
+        ),
+        (
             "tau-suffix-inf",
             "effects = [\"fixed_part\", \"scale\"]",
             "effects = [\"fixed_part\", \"scale\", \"rate:T1@inf\"]",
@@ -164,9 +201,27 @@ fn bad_pipeline_numbers_and_names_are_refused_before_any_data_is_read() {
         3,
         &["--effects/--add-effect", "no channel \"nope\""],
     );
-    for bin in ["NaN", "inf", "7200"] {
+    for bin in ["NaN", "inf", "7200", "0.001"] {
         check_refused(&campaign, &["identify", "--bin-s", bin], 3, &["--bin-s"]);
     }
+    // A pipeline file that is a link to /dev/urandom is refused, not read until killed; so is
+    // one larger than any pipeline file.
+    let endless = root.join("endless.toml");
+    std::os::unix::fs::symlink("/dev/urandom", &endless).unwrap();
+    check_refused(
+        &campaign,
+        &["run", endless.to_str().unwrap()],
+        3,
+        &["endless.toml", "not a regular file"],
+    );
+    let huge = root.join("huge.toml");
+    std::fs::write(&huge, format!("{NIGHTLY}\n{}", "#".repeat(2 << 20))).unwrap();
+    check_refused(
+        &campaign,
+        &["run", huge.to_str().unwrap()],
+        3,
+        &["huge.toml", "larger than"],
+    );
 }
 
 #[test]

@@ -16,10 +16,14 @@ pub(crate) fn snapshot(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
         };
         for e in entries.flatten() {
             let path = e.path();
-            if path.is_dir() {
+            let rel = path.strip_prefix(root).unwrap().to_path_buf();
+            let special = std::fs::metadata(&path).is_ok_and(|m| !m.is_file() && !m.is_dir());
+            if special {
+                // A FIFO or device is never read (a FIFO would block): its kind stands for it.
+                files.insert(rel, b"<not a regular file>".to_vec());
+            } else if path.is_dir() {
                 walk(root, &path, files);
             } else {
-                let rel = path.strip_prefix(root).unwrap().to_path_buf();
                 files.insert(rel, std::fs::read(&path).unwrap_or_default());
             }
         }

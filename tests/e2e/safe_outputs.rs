@@ -258,9 +258,19 @@ fn killed_at_any_write_step_the_output_is_entirely_old_or_entirely_new() {
         let args = ["report", "--campaign", s(&c), "--out", s(&out)];
         let r = dbbcal(&args, &[("DBBCAL_FAULT", &fault)]);
         let now = snapshot(&out);
+        let now_prev = snapshot(&tmp.path().join("out.prev"));
         assert!(
             now == old || now == new,
             "{fault}: OUT is neither old nor new"
+        );
+        // The old output is never lost: in OUT, or kept in OUT.prev.
+        assert!(
+            now == old || now_prev == old,
+            "{fault}: the old output is in neither OUT nor OUT.prev"
+        );
+        assert!(
+            now_prev.is_empty() || now_prev == old || now_prev == new,
+            "{fault}: OUT.prev is neither absent, old nor new"
         );
         saw_new |= now == new;
         if r.status.code().is_some() {
@@ -292,42 +302,66 @@ fn a_full_disk_at_any_write_step_leaves_the_previous_output_intact() {
     let c = small_campaign(tmp.path(), "camp");
     let new = reference_output(&c, &tmp.path().join("fresh"));
     let old = snapshot(earlier_output());
+    // The generation before, when there is one: a third, distinct output.
+    let before_old = tmp.path().join("before-old");
+    let r = dbbcal(
+        &["ingest", "--campaign", s(&c), "--out", s(&before_old)],
+        &[],
+    );
+    assert_eq!(r.status.code(), Some(0));
     let out = tmp.path().join("out");
-    let mut failed = 0;
-    for k in 1..200 {
-        let _ = std::fs::remove_dir_all(&out);
-        copy_dir(earlier_output(), &out);
-        let fault = format!("enospc@{k}");
-        let args = ["report", "--campaign", s(&c), "--out", s(&out)];
-        let r = dbbcal(&args, &[("DBBCAL_FAULT", &fault)]);
-        let stderr = String::from_utf8_lossy(&r.stderr);
-        if r.status.code() == Some(0) {
-            // Past the last point, or at a step after the exchange, where only kills are
-            // injected: the new output is in place.
-            assert!(snapshot(&out) == new, "{fault}: {stderr}");
-            if stderr.contains("kills only") {
-                continue;
+    let prev = tmp.path().join("out.prev");
+    for with_prev in [false, true] {
+        let older = if with_prev {
+            snapshot(&before_old)
+        } else {
+            Default::default()
+        };
+        let mut failed = 0;
+        for k in 1..200 {
+            let _ = std::fs::remove_dir_all(&out);
+            let _ = std::fs::remove_dir_all(&prev);
+            copy_dir(earlier_output(), &out);
+            if with_prev {
+                copy_dir(&before_old, &prev);
             }
+            let fault = format!("enospc@{k} (OUT.prev: {with_prev})");
+            let args = ["report", "--campaign", s(&c), "--out", s(&out)];
+            let r = dbbcal(&args, &[("DBBCAL_FAULT", &format!("enospc@{k}"))]);
+            let stderr = String::from_utf8_lossy(&r.stderr);
+            if r.status.code() == Some(0) {
+                // Past the last point, or at a step after the exchange, where only kills are
+                // injected: the new output is in place, the old one kept.
+                assert!(snapshot(&out) == new, "{fault}: {stderr}");
+                assert!(
+                    snapshot(&prev) == old,
+                    "{fault}: OUT.prev is not the old output"
+                );
+                if stderr.contains("kills only") {
+                    continue;
+                }
+                assert!(
+                    !stderr.contains("fault point"),
+                    "{fault}: exit 0 after an injected error"
+                );
+                break;
+            }
+            failed += 1;
+            assert_eq!(r.status.code(), Some(1), "{fault}: {stderr}");
+            let last = stderr.lines().last().unwrap_or("");
             assert!(
-                !stderr.contains("fault point"),
-                "{fault}: exit 0 after an injected error"
+                last.contains("No space left on device"),
+                "{fault}: {stderr}"
             );
-            break;
+            assert!(
+                snapshot(&out) == old,
+                "{fault}: the previous output changed"
+            );
+            assert!(snapshot(&prev) == older, "{fault}: OUT.prev changed");
+            assert_no_leftovers(tmp.path(), &fault);
         }
-        failed += 1;
-        assert_eq!(r.status.code(), Some(1), "{fault}: {stderr}");
-        let last = stderr.lines().last().unwrap_or("");
-        assert!(
-            last.contains("No space left on device"),
-            "{fault}: {stderr}"
-        );
-        assert!(
-            snapshot(&out) == old,
-            "{fault}: the previous output changed"
-        );
-        assert_no_leftovers(tmp.path(), &fault);
+        assert!(failed >= 10, "only {failed} write steps");
     }
-    assert!(failed >= 10, "only {failed} write steps");
 }
 
 #[test]
@@ -365,36 +399,53 @@ fn an_interrupted_run_removes_its_partial_folder_and_keeps_the_old_output() {
     }
 }
 
-#[test]
-fn figure_names_from_bar_ids_never_collide() {
-    let tmp = tempfile::tempdir().unwrap();
+/// The bars B01 and B02 of the small campaign renamed `a` and `b`, run through `report`: exit 0
+/// and two `bar-*.png` figures (W4: hostile ids that collided; H5: an id too long for a file
+/// name, which failed every report at its write step).
+fn two_bar_figures(root: &Path, case: &str, a: &str, b: &str) {
     let mut sim = dbbcal::simulate::generate(&small_config("names")).unwrap();
-    // The bars B01 and B02 become "B.1" and "B_1" (one PNG name before).
     let rename = |id: &str| match id {
-        "B01" => "B.1".to_string(),
-        "B02" => "B_1".to_string(),
+        "B01" => a.to_string(),
+        "B02" => b.to_string(),
         other => other.to_string(),
     };
     let text = toml::to_string(&sim.manifest).unwrap();
     let text = text
-        .replace("\"B01\"", "\"B.1\"")
-        .replace("\"B02\"", "\"B_1\"");
+        .replace("\"B01\"", &format!("\"{a}\""))
+        .replace("\"B02\"", &format!("\"{b}\""));
     sim.manifest = toml::from_str(&text).unwrap();
     let encoders = std::mem::take(&mut sim.tables.encoders);
     sim.tables.encoders = encoders.into_iter().map(|(k, v)| (rename(&k), v)).collect();
     for e in &mut sim.tables.events {
         e.bar = e.bar.as_deref().map(rename);
     }
-    let c = tmp.path().join("names");
+    let c = root.join(case);
     dbbcal::simulate::write(&sim, &c, &dbbcal::io::WriteOptions::default()).unwrap();
-    let out = tmp.path().join("out");
+    let out = root.join(format!("{case}-out"));
     let r = dbbcal(&["report", "--campaign", s(&c), "--out", s(&out)], &[]);
     assert_eq!(
         r.status.code(),
         Some(0),
-        "{}",
+        "{case}: {}",
         String::from_utf8_lossy(&r.stderr)
     );
+    let bars: Vec<String> = std::fs::read_dir(out.join("figures"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("bar-"))
+        .collect();
+    assert_eq!(bars.len(), 2, "{case}: {bars:?}");
+    assert!(bars.iter().all(|n| n.len() < 100), "{case}: {bars:?}");
+}
+
+#[test]
+fn figure_names_from_bar_ids_never_collide() {
+    let tmp = tempfile::tempdir().unwrap();
+    two_bar_figures(tmp.path(), "dot-underscore", "B.1", "B_1");
+    // `B/1` is written `B_1-` and 8 hex digits of its hash: an id of that form is encoded too.
+    two_bar_figures(tmp.path(), "encoded-look-alike", "B/1", "B_1-fb95c374");
+    two_bar_figures(tmp.path(), "long", &"B".repeat(252), "B02");
+    let out = tmp.path().join("dot-underscore-out");
     assert!(out.join("figures/bar-B.1.png").is_file());
     assert!(out.join("figures/bar-B_1.png").is_file());
 }
@@ -435,6 +486,8 @@ fn an_interrupt_at_any_moment_leaves_no_lock_and_no_partial_folder() {
                 if stderr.contains("after the new output was in place") {
                     assert!(out.join(dbbcal::output::MARKER).is_file(), "{what}");
                     assert!(snapshot(&out) != old, "{what}: said new, is old");
+                    let prev = snapshot(&tmp.path().join("out.prev"));
+                    assert!(prev == old, "{what}: the old output is not in OUT.prev");
                 } else {
                     assert!(
                         snapshot(&out) == old,
@@ -554,4 +607,417 @@ fn a_terminal_interrupt_reaching_both_processes_ends_cleanly() {
         assert!(snapshot(&out) == old, "{what}");
         assert_no_leftovers(tmp.path(), &what);
     }
+}
+
+// ---------------------------------------------------------------- issue 27: round 2
+
+/// `command` on `c` into `out`: (exit code, stderr).
+fn run_on(command: &[&str], c: &Path, out: &Path) -> (Option<i32>, String) {
+    let mut args = command.to_vec();
+    args.extend(["--campaign", s(c), "--out", s(out)]);
+    let r = dbbcal(&args, &[]);
+    (
+        r.status.code(),
+        String::from_utf8_lossy(&r.stderr).into_owned(),
+    )
+}
+
+/// D1: a file of the user's in `OUT` or `OUT.prev` (notes, a signed PDF, a folder) is never
+/// moved or removed: every run refuses with one line naming it, however many times it runs.
+#[test]
+fn a_users_file_in_an_output_folder_survives_any_number_of_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let c = small_campaign(root, "camp");
+    let out = root.join("out");
+    let prev = root.join("out.prev");
+    let cases: [(&Path, &str); 4] = [
+        (&out, "NOTES.txt"),
+        (&out, "figures/signed.pdf"),
+        (&out, "mine/notes.txt"),
+        (&prev, "NOTES.txt"),
+    ];
+    for (folder, user_file) in cases {
+        let _ = std::fs::remove_dir_all(&out);
+        let _ = std::fs::remove_dir_all(&prev);
+        assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+        assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+        assert!(prev.join(dbbcal::output::MARKER).is_file());
+        let path = folder.join(user_file);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, "signed").unwrap();
+        let what = format!("{}", path.display());
+        let (out_before, prev_before) = (snapshot(&out), snapshot(&prev));
+        for _ in 0..3 {
+            check_out_refused(
+                &["ingest"],
+                &c,
+                &out,
+                &[],
+                3,
+                &[user_file.split('/').next().unwrap(), "did not write"],
+                &[&out, &prev],
+            );
+            assert_eq!(std::fs::read(&path).unwrap(), b"signed", "{what}");
+        }
+        assert!(snapshot(&out) == out_before && snapshot(&prev) == prev_before);
+        assert_no_leftovers(root, &what);
+    }
+}
+
+/// D2: the crash test with an `OUT.prev` present: at every kill point `OUT` is old or new, the
+/// old output is in `OUT` or `OUT.prev` (never under a name the next run removes), and after the
+/// rerun `OUT` is the clean result.
+#[test]
+fn killed_at_any_write_step_with_a_kept_previous_output_nothing_is_lost() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let new = reference_output(&c, &tmp.path().join("fresh"));
+    let old = snapshot(earlier_output());
+    // A third output, distinct from both, as the generation before.
+    let before_old = tmp.path().join("before-old");
+    assert_eq!(run_on(&["ingest"], &c, &before_old).0, Some(0));
+    let older = snapshot(&before_old);
+    assert!(older != old && older != new);
+    let out = tmp.path().join("out");
+    let prev = tmp.path().join("out.prev");
+    let (mut killed, mut saw_new) = (0, false);
+    for k in 1..200 {
+        let _ = std::fs::remove_dir_all(&out);
+        let _ = std::fs::remove_dir_all(&prev);
+        copy_dir(earlier_output(), &out);
+        copy_dir(&before_old, &prev);
+        let fault = format!("kill@{k}");
+        let args = ["report", "--campaign", s(&c), "--out", s(&out)];
+        let r = dbbcal(&args, &[("DBBCAL_FAULT", &fault)]);
+        let (now, now_prev) = (snapshot(&out), snapshot(&prev));
+        assert!(
+            now == old || now == new,
+            "{fault}: OUT is neither old nor new"
+        );
+        assert!(
+            now == old || now_prev == old,
+            "{fault}: the previous output is in neither OUT nor OUT.prev"
+        );
+        assert!(
+            now_prev == older || now_prev == old || now_prev == new,
+            "{fault}: OUT.prev is none of the outputs"
+        );
+        saw_new |= now == new;
+        if r.status.code().is_some() {
+            assert_eq!(r.status.code(), Some(0), "{fault}");
+            assert!(now == new && now_prev == old, "{fault}: finished");
+            break;
+        }
+        killed += 1;
+        // The next run cleans up and must not lose the previous output either.
+        let r = dbbcal(&args, &[]);
+        assert_eq!(r.status.code(), Some(0), "rerun after {fault}");
+        assert!(snapshot(&out) == new, "rerun after {fault}");
+        assert_no_leftovers(tmp.path(), &fault);
+    }
+    assert!(killed >= 10, "only {killed} kill points");
+    assert!(saw_new);
+}
+
+/// D3: the campaign inside anything a run may remove (`OUT.prev`, a partial folder), or
+/// reached through a link to one of its files, is refused before any work and left whole.
+#[test]
+fn a_campaign_inside_what_a_run_may_remove_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let c = small_campaign(root, "camp");
+    let out = root.join("out");
+    assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+    assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+    let prev = root.join("out.prev");
+    let inside_prev = prev.join("c");
+    copy_dir(&c, &inside_prev);
+    check_out_refused(
+        &["identify"],
+        &inside_prev,
+        &out,
+        &[],
+        3,
+        &["out.prev", "campaign"],
+        &[&inside_prev, &out],
+    );
+    std::fs::remove_dir_all(&inside_prev).unwrap();
+    // In a dead run's partial folder.
+    let dead = root.join(".out.partial-4000000");
+    copy_dir(&c, &dead.join("c"));
+    check_out_refused(
+        &["identify"],
+        &dead.join("c"),
+        &out,
+        &[],
+        3,
+        &[".out.partial-4000000", "campaign"],
+        &[&dead, &out],
+    );
+    std::fs::remove_dir_all(&dead).unwrap();
+    // A campaign whose encoder file is a link into OUT.prev.
+    let linked = root.join("linked");
+    copy_dir(&c, &linked);
+    let enc = std::fs::read_dir(linked.join("encoders"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let kept = prev.join("kept.parquet");
+    std::fs::rename(&enc, &kept).unwrap();
+    std::os::unix::fs::symlink(&kept, &enc).unwrap();
+    check_out_refused(
+        &["identify"],
+        &linked,
+        &out,
+        &[],
+        3,
+        &["kept.parquet", "campaign"],
+        &[&prev, &linked],
+    );
+    assert_no_leftovers(root, "campaign in OUT.prev");
+}
+
+/// D4: a run on `out.prev` while a run on `out` (which would replace `out.prev`) holds its lock
+/// is refused at once, and the other way round: one lock for a name and its `.prev`.
+#[test]
+fn runs_on_an_output_and_on_its_previous_output_never_run_together() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let out = tmp.path().join("out");
+    let prev = tmp.path().join("out.prev");
+    copy_dir(earlier_output(), &out);
+    copy_dir(earlier_output(), &prev);
+    let lock = std::fs::File::create(tmp.path().join(".out.lock")).unwrap();
+    lock.try_lock().unwrap();
+    for target in [&out, &prev] {
+        check_out_refused(
+            &["identify"],
+            &c,
+            target,
+            &[],
+            6,
+            &["another dbbcal run", ".out.lock"],
+            &[&out, &prev],
+        );
+    }
+    drop(lock);
+}
+
+/// D5, H1: what sits where the lock or this run's partial folder go and is not dbbcal's (a
+/// user's file `.OUT.lock`, a FIFO, a folder `.OUT.partial-<pid>` of the user's) is refused with
+/// one line, at once, and left as it was.
+#[test]
+fn a_lock_or_partial_name_holding_something_else_is_refused_and_kept() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let c = small_campaign(root, "camp");
+    let out = root.join("out");
+    copy_dir(earlier_output(), &out);
+    let lock = root.join(".out.lock");
+    std::fs::write(&lock, "my notes").unwrap();
+    check_out_refused(
+        &["identify"],
+        &c,
+        &out,
+        &[],
+        3,
+        &[".out.lock"],
+        &[&out, &lock],
+    );
+    std::fs::remove_file(&lock).unwrap();
+    // A FIFO: opened without blocking, so the run ends at once (it hung forever).
+    let status = Command::new("mkfifo").arg(&lock).status().unwrap();
+    assert!(status.success());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+        .args(["identify", "--campaign", s(&c), "--out", s(&out)])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed().as_secs() > 60 {
+            child.kill().unwrap();
+            panic!("a FIFO named .out.lock hangs the run");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let r = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(3), "{stderr}");
+    assert_one_line(&stderr, &[".out.lock", "not a regular file"], "FIFO");
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::symlink_metadata(&lock)
+        .unwrap()
+        .file_type()
+        .is_fifo());
+    std::fs::remove_file(&lock).unwrap();
+    // User folders named like partial folders of the next pids (the run's pid among them).
+    let last: u32 = std::fs::read_to_string("/proc/sys/kernel/ns_last_pid")
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    let mine: Vec<PathBuf> = (last + 1..last + 400)
+        .map(|pid| root.join(format!(".out.partial-{pid}")))
+        .collect();
+    for m in &mine {
+        std::fs::create_dir(m).unwrap();
+        std::fs::write(m.join("thesis.tex"), "weeks of work").unwrap();
+    }
+    let (code, stderr) = run_on(&["identify"], &c, &out);
+    assert!(code == Some(0) || code == Some(3), "{stderr}");
+    for m in &mine {
+        assert_eq!(
+            std::fs::read(m.join("thesis.tex")).unwrap(),
+            b"weeks of work",
+            "{} lost",
+            m.display()
+        );
+    }
+}
+
+/// H4: stderr a closed pipe (`2>&1 | logger` when the logger died) is no panic: the run ends
+/// with its own exit code and the output in place.
+#[test]
+fn a_closed_stderr_is_no_panic() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    let out = tmp.path().join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+        .args(["report", "--campaign", s(&c), "--out", s(&out)])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stderr.take());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0));
+    assert!(out.join("summary.json").is_file());
+}
+
+/// A refused run leaves no folder it created for `--out`'s parents.
+#[test]
+fn a_refused_run_leaves_no_parent_folder_it_created() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    // Found by ingest, after the output was claimed.
+    std::fs::write(c.join("encoders/broken.parquet"), b"PAR1 not parquet").unwrap();
+    let out = tmp.path().join("a/b/c/out");
+    let (code, stderr) = run_on(&["identify"], &c, &out);
+    assert_eq!(code, Some(3), "{stderr}");
+    assert!(!tmp.path().join("a").exists(), "a/ was left");
+}
+
+/// A bind mount made by the test, undone when dropped (also when the test fails).
+struct BindMount(PathBuf);
+
+impl BindMount {
+    /// `mount --bind from to`; `None` where the test may not mount (not root).
+    fn new(from: &Path, to: &Path) -> Option<BindMount> {
+        std::fs::create_dir_all(to).unwrap();
+        let ok = Command::new("mount")
+            .args(["--bind", s(from), s(to)])
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|st| st.success());
+        ok.then(|| BindMount(to.to_path_buf()))
+    }
+}
+
+impl Drop for BindMount {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(&self.0).status();
+    }
+}
+
+/// D3 through a bind mount (paths alone do not see it): the campaign mounted inside `OUT.prev`
+/// is refused by (device, inode) and left whole; `OUT` a mount point is refused before any work
+/// (it exited 1 after the analysis). Skipped where the test may not mount.
+#[test]
+fn a_campaign_reached_through_a_mount_and_a_mount_point_out_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let c = small_campaign(root, "camp");
+    let out = root.join("out");
+    assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+    assert_eq!(run_on(&["ingest"], &c, &out).0, Some(0));
+    let prev = root.join("out.prev");
+    let Some(mount) = BindMount::new(&c, &prev.join("c")) else {
+        eprintln!("bind mounts not permitted here: skipped");
+        return;
+    };
+    check_out_refused(
+        &["identify"],
+        &c,
+        &out,
+        &[],
+        3,
+        &["out.prev", "campaign"],
+        &[&c, &out],
+    );
+    drop(mount);
+    std::fs::remove_dir(prev.join("c")).unwrap();
+    let elsewhere = root.join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    let mounted_out = root.join("mounted");
+    let _mount = BindMount::new(&elsewhere, &mounted_out).unwrap();
+    check_out_refused(
+        &["identify"],
+        &c,
+        &mounted_out,
+        &[],
+        3,
+        &["mount point"],
+        &[&elsewhere],
+    );
+    // A read-only parent (root may write anywhere else): refused before the analysis.
+    let ro = root.join("ro");
+    let _ro = BindMount::new(&elsewhere, &ro).unwrap();
+    let remounted = Command::new("mount")
+        .args(["-o", "remount,bind,ro", s(&ro)])
+        .status()
+        .unwrap();
+    assert!(remounted.success());
+    check_out_refused(
+        &["identify"],
+        &c,
+        &ro.join("out"),
+        &[],
+        3,
+        &["cannot write in", "Read-only"],
+        &[&elsewhere],
+    );
+}
+
+/// Raw newlines and escape codes in `--out` and in ids read from parquet are escaped in what
+/// dbbcal prints: a refusal stays one line, and no escape code reaches the terminal.
+#[test]
+fn control_characters_in_paths_and_ids_are_escaped() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = small_campaign(tmp.path(), "camp");
+    // `--out` a file whose name holds a newline and an escape code: the refusal names it.
+    let out = tmp.path().join("out\n\u{1b}[31mred");
+    std::fs::write(&out, "mine").unwrap();
+    let (code, stderr) = run_on(&["identify"], &c, &out);
+    assert_eq!(code, Some(3), "{stderr}");
+    assert!(!stderr.contains('\u{1b}'), "{stderr:?}");
+    assert_one_line(
+        &stderr,
+        &["out\\n\\u{1b}[31mred", "is a file"],
+        "escaped --out",
+    );
+    // An undeclared bar id with an escape code: dropped, and its note printed escaped.
+    let t0 = 1_793_491_200_000_000_000i64 + 3_600_000_000_000;
+    let id = "B\u{1b}[2J\nX".to_string();
+    let table = Table::new()
+        .with("time", Column::TimeNs(vec![t0]))
+        .with("bar", Column::Str(vec![id]))
+        .with("counts", Column::I64(vec![1]));
+    write_table(&c.join("encoders/ghost.parquet"), &table).unwrap();
+    let (code, stderr) = run_on(&["identify"], &c, &tmp.path().join("out2"));
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains('\u{1b}'), "{stderr:?}");
+    assert!(stderr.contains("ghost.parquet"), "{stderr}");
 }

@@ -65,8 +65,30 @@ pub(crate) fn parquet_files(folder: &Path) -> Result<Vec<PathBuf>, IngestError> 
     for entry in std::fs::read_dir(folder).map_err(io_err)? {
         let path = entry.map_err(io_err)?.path();
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if path.is_file() && name.ends_with(".parquet") && !name.starts_with('.') {
-            files.push(path);
+        if !name.ends_with(".parquet") || name.starts_with('.') {
+            continue;
+        }
+        // A `*.parquet` that is not a regular file (a link to an unmounted share, a FIFO, a
+        // folder) is refused by name: skipping it would analyse part of the campaign silently.
+        match std::fs::metadata(&path) {
+            Ok(m) if m.is_file() => files.push(path),
+            other => {
+                let what = match other {
+                    Ok(m) if m.is_dir() => "a folder".to_string(),
+                    Ok(_) => "not a regular file (a FIFO, socket or device)".to_string(),
+                    Err(e) => match std::fs::read_link(&path) {
+                        Ok(target) => format!(
+                            "a symbolic link to {}, which cannot be read ({e})",
+                            target.display()
+                        ),
+                        Err(_) => format!("cannot be read ({e})"),
+                    },
+                };
+                return Err(IngestError::Io {
+                    path,
+                    message: format!("{what}; every *.parquet file of a table is read, so the campaign is refused (move it out of the folder, or make it readable)"),
+                });
+            }
         }
     }
     files.sort();

@@ -242,10 +242,53 @@ pub fn read_manifest(dir: &Path) -> Result<dbbcal_core::campaign::Campaign, Inge
 /// parquet footers, before any row is read, so ingest can bin while it streams.
 pub fn automatic_bin_s(dir: &Path) -> Result<f64, IngestError> {
     let campaign = read::read_manifest(dir)?;
-    let files = inputs::CampaignFiles::list(dir)?;
+    let mut files = inputs::CampaignFiles::list(dir)?;
+    // A byte-identical copy of a file is read once, so its rows do not count twice here either
+    // (only files sharing their size with another can be one: those are hashed).
+    let stamps = inputs::stamps(&files.all())?;
+    let (hash_first, _) = inputs::split_by_shared_size(&files, &stamps);
+    let mut hashed = inputs::hash_inputs(dir, &hash_first)?;
+    inputs::skip_duplicate_files(
+        dir,
+        &mut files,
+        &mut hashed,
+        &mut dbbcal_core::series::Quality::default(),
+    );
     let rows = read::footer_rows(&files.encoders)?;
     Ok(dbbcal_core::series::automatic_bin_s(&campaign, rows))
 }
+
+/// The text of a small configuration file (`campaign.toml`, a pipeline file): a regular file
+/// (links followed) of at most `max_bytes`, read with that bound whatever it claims to be (a link
+/// to `/dev/urandom` or a FIFO is refused, never read until killed). `Err` is the reason, for a
+/// message that names the file.
+pub fn read_small_text(path: &Path, max_bytes: u64) -> Result<String, String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    if !meta.is_file() {
+        return Err(if meta.is_dir() {
+            "cannot read: it is a folder".into()
+        } else {
+            "cannot read: it is not a regular file (a FIFO or device)".into()
+        });
+    }
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    let mut bytes = Vec::new();
+    file.take(max_bytes + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(format!(
+            "cannot read: larger than {max_bytes} bytes, more than any such file holds"
+        ));
+    }
+    String::from_utf8(bytes).map_err(|e| format!("cannot read: not UTF-8 text ({e})"))
+}
+
+/// The largest `campaign.toml` read (bytes).
+pub const MAX_MANIFEST_BYTES: u64 = 16 << 20;
+/// The largest pipeline file read (bytes).
+pub const MAX_PIPELINE_BYTES: u64 = 1 << 20;
 
 /// Flattens a (possibly multi-line) message to one line.
 pub(crate) fn one_line(s: impl std::fmt::Display) -> String {

@@ -158,6 +158,8 @@ impl TimeColumn {
     }
 }
 
+const NULL_PROBLEM: &str = "are null";
+
 const TIME_PROBLEM: &str =
     "hold times outside 1980-01-01 .. 2200-01-01 (NaT, a clock reset, a far future, or a unit whose ns value overflows)";
 
@@ -204,16 +206,17 @@ impl BadRange {
         mine.last_row = mine.last_row.max(other.last_row);
     }
 
-    fn error(self, path: PathBuf, column: &'static str, problem: &str) -> IngestError {
-        IngestError::BadRows {
-            path,
-            column,
-            rows: self.rows,
-            first_row: self.first_row,
-            last_row: self.last_row,
-            problem: problem.to_string(),
-            example: self.example,
-        }
+    /// The rows dropped, as an `unusable_rows` flag of the files (`quality.files`).
+    fn flag(self, path: &Path, column: &str, problem: &str) -> Flag {
+        let note = format!(
+            "{}: column `{column}`: {} rows (rows {} .. {}, counting from 0) {problem} (first: {}): dropped",
+            path.display(),
+            self.rows,
+            self.first_row,
+            self.last_row,
+            self.example
+        );
+        Flag::file(FlagKind::UnusableRows, self.rows, note)
     }
 }
 
@@ -225,9 +228,14 @@ pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
             dir: dir.to_path_buf(),
         });
     }
-    let text = std::fs::read_to_string(&path).map_err(|e| IngestError::Io {
-        path: path.clone(),
-        message: e.to_string(),
+    let text = crate::read_small_text(&path, crate::MAX_MANIFEST_BYTES).map_err(|message| {
+        IngestError::Io {
+            path: path.clone(),
+            message: message
+                .strip_prefix("cannot read: ")
+                .unwrap_or(&message)
+                .to_string(),
+        }
     })?;
     let file = path.display().to_string();
     let manifest = Manifest::from_toml_str(&text, &file)?;
@@ -301,8 +309,10 @@ pub(crate) fn read_tables(
         });
         (temperatures, rest)
     });
-    let (sensors, sensor_quality, mut zones) = temperatures?;
+    let (sensors, sensor_quality, mut zones, temperatures_dropped) = temperatures?;
     let (events, event_quality, encoders, other_zones) = rest?;
+    quality.files.extend(temperatures_dropped);
+    quality.files.extend(encoders.dropped);
     tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
     quality.sensors.extend(sensor_quality);
     quality.events = event_quality;
@@ -335,6 +345,7 @@ type TemperatureTables = (
     BTreeMap<String, SensorLog>,
     BTreeMap<String, ChannelQuality>,
     Vec<(PathBuf, bool)>,
+    Vec<Flag>,
 );
 
 /// Every temperature file, checked (nulls, undeclared sensors), as one log per declared sensor.
@@ -344,17 +355,23 @@ fn read_temperatures(
 ) -> Result<TemperatureTables, IngestError> {
     let clock = std::time::Instant::now();
     let mut zones = Vec::new();
-    let temperatures = read_table(&files.temperatures, &TEMPERATURE_COLUMNS, &mut zones)?;
+    let mut dropped = Vec::new();
+    let temperatures = read_table(
+        &files.temperatures,
+        &TEMPERATURE_COLUMNS,
+        &mut zones,
+        &mut dropped,
+    )?;
     let readings =
         sensor_readings(&temperatures, sensor_ids).map_err(polars_error("temperatures"))?;
     let matched = readings.values().map(DataFrame::height).sum();
-    check_all_rows_known(
+    dropped.extend(unknown_rows(
         &temperatures,
         matched,
         &files.temperatures,
         "sensor",
         sensor_ids,
-    )?;
+    )?);
     drop(temperatures);
     let mut sensors = BTreeMap::new();
     let mut quality = BTreeMap::new();
@@ -364,7 +381,7 @@ fn read_temperatures(
         sensors.insert(id.clone(), log);
     }
     tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
-    Ok((sensors, quality, zones))
+    Ok((sensors, quality, zones, dropped))
 }
 
 /// The events and their quality record, the encoder table, and each of their files' path and
@@ -380,7 +397,14 @@ fn read_events_and_encoders(
 ) -> Result<EventAndEncoderTables, IngestError> {
     let mut zones = Vec::new();
     let mut event_quality = ChannelQuality::default();
-    let events = read_events(&files.events, bar_ids, &mut zones, &mut event_quality)?;
+    let mut dropped = Vec::new();
+    let events = read_events(
+        &files.events,
+        bar_ids,
+        &mut zones,
+        &mut event_quality,
+        &mut dropped,
+    )?;
     // The footers' rows: at full rate each bar's log is reserved once from them (no doubling
     // overshoot); with bins they set the slot width of each bar's repeat sketch.
     let footers = footer_rows_each(&files.encoders)?;
@@ -403,7 +427,7 @@ fn read_events_and_encoders(
     } else {
         0
     };
-    let encoders = read_encoders(
+    let mut encoders = read_encoders(
         &files.encoders,
         &footers,
         bar_ids,
@@ -411,6 +435,8 @@ fn read_events_and_encoders(
         rows_hint,
         &mut zones,
     )?;
+    dropped.append(&mut encoders.dropped);
+    encoders.dropped = dropped;
     Ok((events, event_quality, encoders, zones))
 }
 
@@ -473,27 +499,56 @@ fn flag_mixed_zones(zones: &[(PathBuf, bool)], quality: &mut Quality) {
         .push(Flag::file(FlagKind::MixedTimeZones, 0, note));
 }
 
-/// The rows of known ids were extracted (`matched` of them); if that is not every row, some id
-/// is unknown and [`check_ids`] finds and names it. This keeps the costly per-file summary off
-/// the path of a good campaign.
-fn check_all_rows_known(
+/// The rows of known ids were extracted (`matched` of them); if that is not every row, some ids
+/// are undeclared: their rows (dropped) as `unusable_rows` flags, by file and id. This keeps
+/// the costly per-file summary off the path of a good campaign.
+fn unknown_rows(
     df: &DataFrame,
     matched: usize,
     files: &[PathBuf],
     id_column: &'static str,
     known: &BTreeSet<&str>,
-) -> Result<(), IngestError> {
+) -> Result<Vec<Flag>, IngestError> {
     if matched == df.height() {
-        return Ok(());
+        return Ok(Vec::new());
     }
-    check_ids(df, files, id_column, known)?;
-    Err(IngestError::Polars {
-        context: id_column.to_string(),
-        message: format!(
-            "{matched} of {} rows have a declared id, but no undeclared id was found",
-            df.height()
-        ),
-    })
+    let flags = unknown_id_flags(df, files, id_column, known)?;
+    if flags.is_empty() {
+        return Err(IngestError::Polars {
+            context: id_column.to_string(),
+            message: format!(
+                "{matched} of {} rows have a declared id, but no undeclared id was found",
+                df.height()
+            ),
+        });
+    }
+    Ok(flags)
+}
+
+/// Rows of ids the manifest does not declare, per file and id (null ids are skipped).
+fn unknown_id_flags(
+    df: &DataFrame,
+    files: &[PathBuf],
+    id_column: &'static str,
+    known: &BTreeSet<&str>,
+) -> Result<Vec<Flag>, IngestError> {
+    let summary = id_summary(df, id_column).map_err(polars_error(id_column))?;
+    let known_list = known.iter().copied().collect::<Vec<_>>().join(", ");
+    Ok(summary
+        .into_iter()
+        .filter(|row| !known.contains(row.id.as_str()))
+        .map(|row| {
+            unknown_id_flag(
+                &file_path(files, row.file),
+                id_column,
+                &row.id,
+                row.rows,
+                row.first_ns,
+                row.last_ns,
+                &known_list,
+            )
+        })
+        .collect())
 }
 
 fn polars_error(context: &str) -> impl Fn(PolarsError) -> IngestError + '_ {
@@ -505,16 +560,19 @@ fn polars_error(context: &str) -> impl Fn(PolarsError) -> IngestError + '_ {
 
 // ---------------------------------------------------------------- scanning
 
-/// Scans, normalises and stacks every file of one table; adds [`FILE_COL`] and checks nulls.
+/// Scans, normalises and stacks every file of one table; adds [`FILE_COL`]. Rows that cannot
+/// be used (a null in a column that must hold a value, a time out of range) are dropped and
+/// flagged in `dropped`.
 /// `zones`: each file's path and whether its times are zoned.
 fn read_table(
     files: &[PathBuf],
     columns: &[ColumnSpec],
     zones: &mut Vec<(PathBuf, bool)>,
+    dropped: &mut Vec<Flag>,
 ) -> Result<DataFrame, IngestError> {
     let mut stacked: Option<DataFrame> = None;
     for (index, path) in files.iter().enumerate() {
-        let (df, time) = guarded(path, || read_file(path, columns, index))?;
+        let (df, time) = guarded(path, || read_file(path, columns, index, dropped))?;
         zones.push((path.clone(), time.zoned));
         match stacked.as_mut() {
             None => stacked = Some(df),
@@ -535,12 +593,14 @@ fn not_parquet(path: &Path, e: PolarsError) -> IngestError {
     }
 }
 
-/// One file, projected to the spec's columns in canonical types, times in ns (checked: a time
-/// out of range is refused with its rows).
+/// One file, projected to the spec's columns in canonical types, times in ns; rows with a null
+/// where the spec wants a value, or a time out of range, are dropped and flagged in `dropped`
+/// with their rows.
 fn read_file(
     path: &Path,
     columns: &[ColumnSpec],
     index: usize,
+    dropped: &mut Vec<Flag>,
 ) -> Result<(DataFrame, TimeColumn), IngestError> {
     let index = u32::try_from(index).unwrap_or(u32::MAX);
     let (lazy, schema, exprs) = checked_scan(path, columns)?;
@@ -550,6 +610,25 @@ fn read_file(
         .with_column(lit(index).cast(DataType::UInt32).alias(FILE_COL))
         .collect()
         .map_err(|e| not_parquet(path, e))?;
+    let mut keep: Option<Vec<bool>> = None;
+    for spec in columns.iter().filter(|c| !c.nullable) {
+        let column = df.column(spec.name).map_err(|e| not_parquet(path, e))?;
+        if column.null_count() == 0 {
+            continue;
+        }
+        let is_null = column.is_null();
+        let mut bad = None;
+        let keep = keep.get_or_insert_with(|| vec![true; df.height()]);
+        for (row, null) in is_null.iter().enumerate() {
+            if null == Some(true) {
+                BadRange::add(&mut bad, row as u64, || "null".into());
+                keep[row] = false;
+            }
+        }
+        if let Some(b) = bad {
+            dropped.push(b.flag(path, spec.name, NULL_PROBLEM));
+        }
+    }
     let raw = df
         .column("time")
         .and_then(|c| c.i64().cloned())
@@ -559,19 +638,26 @@ fn read_file(
         .iter()
         .enumerate()
         .map(|(row, t)| {
-            let t = t?;
+            let Some(t) = t else {
+                return Some(0); // dropped above
+            };
             let ns = unit.to_ns(t);
             if ns.is_none() {
                 BadRange::add(&mut bad, row as u64, || format!("{t} {}", unit.unit()));
+                keep.get_or_insert_with(|| vec![true; raw.len()])[row] = false;
             }
             ns.or(Some(0))
         })
         .collect();
     if let Some(b) = bad {
-        return Err(b.error(path.to_path_buf(), "time", TIME_PROBLEM));
+        dropped.push(b.flag(path, "time", TIME_PROBLEM));
     }
     df.with_column(ns.into_series().with_name("time".into()).into_column())
         .map_err(|e| not_parquet(path, e))?;
+    if let Some(keep) = keep {
+        let mask: BooleanChunked = keep.into_iter().map(Some).collect();
+        df = df.filter(&mask).map_err(|e| not_parquet(path, e))?;
+    }
     Ok((df, unit))
 }
 
@@ -664,8 +750,6 @@ enum BarRows {
         bins: Box<BinAccumulator>,
         repeats: Option<RepeatSketch>,
     },
-    /// Not kept (a pass that only looks for nulls and undeclared ids).
-    Dropped,
 }
 
 /// Time range and rows of one bar id in one file.
@@ -793,8 +877,6 @@ struct EncoderSink {
     ids: IdIndex,
     /// Rows of the declared bars, by index in `ids`.
     bars: Vec<BarRows>,
-    /// (index into [`ENCODER_COLUMNS`], file) -> null values.
-    nulls: BTreeMap<(usize, u32), u64>,
     /// (file, id) -> rows of an undeclared bar.
     unknown: BTreeMap<(u32, String), FileRange>,
     /// (file, column, problem) -> rows that cannot be read (times out of range, counts that are
@@ -825,26 +907,73 @@ impl EncoderSink {
         self.row_offset += batch.height() as u64;
         let time = batch.column("time")?.i64()?;
         let bar = batch.column("bar")?.str()?;
-        let nulls = [time.null_count(), bar.null_count()];
-        if nulls.iter().any(|&n| n > 0) {
-            // The run fails on these nulls (reported after every file is read, as for the
-            // other tables); the rows themselves are not needed.
-            for (column, n) in nulls.into_iter().enumerate().filter(|&(_, n)| n > 0) {
-                *self.nulls.entry((column, self.file)).or_insert(0) += n as u64;
+        if time.null_count() > 0 || bar.null_count() > 0 {
+            // Rows without a time or a bar cannot be used: dropped, named by file and rows; the
+            // others go on.
+            let (mut null_time, mut null_bar) = (None, None);
+            let keep: BooleanChunked = time
+                .iter()
+                .zip(bar.iter())
+                .enumerate()
+                .map(|(i, (t, b))| {
+                    let row = offset + i as u64;
+                    if t.is_none() {
+                        BadRange::add(&mut null_time, row, || "null".into());
+                    }
+                    if b.is_none() {
+                        BadRange::add(&mut null_bar, row, || "null".into());
+                    }
+                    Some(t.is_some() && b.is_some())
+                })
+                .collect();
+            if let Some(b) = null_time {
+                self.merge_bad("time", NULL_PROBLEM, b);
             }
-            return Ok(());
+            if let Some(b) = null_bar {
+                self.merge_bad("bar", NULL_PROBLEM, b);
+            }
+            let rows: Vec<u64> = keep
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| k.unwrap_or(false))
+                .map(|(i, _)| offset + i as u64)
+                .collect();
+            let kept = batch.filter(&keep)?;
+            return self.push_rows(&kept, &|i| rows.get(i).copied().unwrap_or(offset));
         }
+        self.push_rows(batch, &|i| offset + i as u64)
+    }
+
+    /// [`Self::push`] of rows without nulls in `time` or `bar`; `row_of(i)`: the file's row of
+    /// the batch's row `i` (rows with a problem are named by it).
+    fn push_rows(&mut self, batch: &DataFrame, row_of: &dyn Fn(usize) -> u64) -> PolarsResult<()> {
+        let time = batch.column("time")?.i64()?;
+        let bar = batch.column("bar")?.str()?;
         let time = time.rechunk();
         let raw = time.cont_slice()?;
         let converted;
         let time: &[i64] = if self.time.ns_per_unit == 1 && reading_times_ok(raw) {
             raw
         } else {
-            converted = self.times_ns(raw, offset);
-            match &converted {
-                Some(ns) => ns,
-                None => return Ok(()), // refused: the rows are not needed
+            let (ns, bad_rows) = self.times_ns(raw, row_of);
+            if bad_rows {
+                // Rows with a time out of range are dropped (named by file and rows).
+                let keep: BooleanChunked = raw
+                    .iter()
+                    .map(|&t| Some(self.time.to_ns(t).is_some()))
+                    .collect();
+                let rows: Vec<u64> = (0..raw.len())
+                    .filter(|&i| self.time.to_ns(raw[i]).is_some())
+                    .map(row_of)
+                    .collect();
+                let kept = batch.filter(&keep)?;
+                if kept.height() == 0 {
+                    return Ok(());
+                }
+                return self.push_rows(&kept, &|i| rows.get(i).copied().unwrap_or(0));
             }
+            converted = ns;
+            &converted
         };
         let mut ids = std::mem::take(&mut self.row_ids);
         self.ids.indices(bar, &mut ids);
@@ -868,11 +997,9 @@ impl EncoderSink {
         match clean {
             Some(counts) => self.add_rows(&ids, time, counts),
             None => {
-                if let Some((ids_kept, time_kept, counts_kept)) =
-                    self.checked_counts(&ids, time, counts, offset)?
-                {
-                    self.add_rows(&ids_kept, &time_kept, &counts_kept);
-                }
+                let (ids_kept, time_kept, counts_kept) =
+                    self.checked_counts(&ids, time, counts, row_of)?;
+                self.add_rows(&ids_kept, &time_kept, &counts_kept);
             }
         }
         self.row_ids = ids;
@@ -883,9 +1010,6 @@ impl EncoderSink {
     /// count, a range or a set, so the merged sink is the one a single consumer would have
     /// filled (full-rate rows differ only in order, and are sorted afterwards).
     fn merge(&mut self, other: EncoderSink) {
-        for (key, n) in other.nulls {
-            *self.nulls.entry(key).or_insert(0) += n;
-        }
         for (key, u) in other.unknown {
             FileRange::add_to(&mut self.unknown, key, u);
         }
@@ -941,8 +1065,9 @@ impl EncoderSink {
         }
     }
 
-    /// Times of the batch in ns, or `None` (rows recorded in `bad`) when one is out of range.
-    fn times_ns(&mut self, raw: &[i64], offset: u64) -> Option<Vec<i64>> {
+    /// Times of the batch in ns, and whether some are out of range (those rows recorded in
+    /// `bad`, their times 0 here).
+    fn times_ns(&mut self, raw: &[i64], row_of: &dyn Fn(usize) -> u64) -> (Vec<i64>, bool) {
         let unit = self.time;
         let mut bad = None;
         let ns: Vec<i64> = raw
@@ -950,18 +1075,16 @@ impl EncoderSink {
             .enumerate()
             .map(|(i, &t)| {
                 unit.to_ns(t).unwrap_or_else(|| {
-                    BadRange::add(&mut bad, offset + i as u64, || {
-                        format!("{t} {}", unit.unit())
-                    });
+                    BadRange::add(&mut bad, row_of(i), || format!("{t} {}", unit.unit()));
                     0
                 })
             })
             .collect();
         match bad {
-            None => Some(ns),
+            None => (ns, false),
             Some(b) => {
                 self.merge_bad("time", TIME_PROBLEM, b);
-                None
+                (ns, true)
             }
         }
     }
@@ -971,15 +1094,15 @@ impl EncoderSink {
     }
 
     /// Counts that are not a clean int64 column (nulls, floats, values beyond ±2^48): missing
-    /// ones (null, NaN, ±inf) dropped and counted per bar; whole floats converted exactly; the
-    /// batch refused (`None`, rows in `bad`) on a fraction or a value out of range.
+    /// ones (null, NaN, ±inf) dropped and counted per bar; whole floats converted exactly; a
+    /// fraction or a value out of range dropped and named by file and rows (in `bad`).
     fn checked_counts(
         &mut self,
         ids: &[u32],
         time: &[i64],
         counts: &Column,
-        offset: u64,
-    ) -> PolarsResult<Option<KeptRows>> {
+        row_of: &dyn Fn(usize) -> u64,
+    ) -> PolarsResult<KeptRows> {
         const FRACTION: &str = "hold counts that are not whole numbers";
         const RANGE: &str = "hold counts beyond ±2^48";
         let values: Vec<Option<f64>> = match counts.dtype() {
@@ -993,7 +1116,7 @@ impl EncoderSink {
         let (mut fraction, mut range) = (None, None);
         let mut kept = (Vec::new(), Vec::new(), Vec::new());
         for (i, (&v, &int)) in values.iter().zip(&ints).enumerate() {
-            let row = offset + i as u64;
+            let row = row_of(i);
             let c = match (int, v) {
                 (Some(c), _) => c,
                 (None, Some(v)) if v.is_finite() => {
@@ -1020,14 +1143,13 @@ impl EncoderSink {
             kept.1.push(time[i]);
             kept.2.push(c);
         }
-        let refused = fraction.is_some() || range.is_some();
         if let Some(b) = fraction {
             self.merge_bad("counts", FRACTION, b);
         }
         if let Some(b) = range {
             self.merge_bad("counts", RANGE, b);
         }
-        Ok((!refused).then_some(kept))
+        Ok(kept)
     }
 
     /// Adds the batch's rows (id index, time ns, counts) to the bars' logs or bins.
@@ -1113,7 +1235,6 @@ impl EncoderSink {
                 }
                 return;
             }
-            Some(BarRows::Dropped) => return,
             None => {}
         }
         let id = self.ids.names[index as usize].clone();
@@ -1149,39 +1270,43 @@ fn read_encoders(
     // faster than a query per day file); its batches do not say which file they came from, so
     // a null or an undeclared id found there is attributed by a second pass, file by file,
     // that keeps no rows (only on that error path).
-    let clean = |s: &EncoderSink| s.nulls.is_empty() && s.unknown.is_empty() && s.bad.is_empty();
-    let sink = match stream_encoders(files, footer_rows, bar_ids, &keep, true, zones) {
+    let clean = |s: &EncoderSink| s.unknown.is_empty() && s.bad.is_empty();
+    let shared = stream_encoders(files, footer_rows, bar_ids, &keep, true, zones);
+    let sink = match shared {
         Ok(sink) if clean(&sink) => sink,
-        Ok(_) => match stream_encoders(
-            files,
-            footer_rows,
-            bar_ids,
-            &|_| BarRows::Dropped,
-            false,
-            &mut Vec::new(),
-        )? {
-            check if !clean(&check) => check,
-            _ => stream_encoders(files, footer_rows, bar_ids, &keep, false, &mut Vec::new())?,
-        },
-        // The failing file named by a scan of its own.
-        Err(_) => stream_encoders(files, footer_rows, bar_ids, &keep, false, &mut Vec::new())?,
+        // Rows that cannot be used (or a failing file) in a shared scan: read again file by
+        // file, which names each file's rows exactly (the rows kept are the same); the first
+        // pass's rows are let go first.
+        other => {
+            drop(other);
+            stream_encoders(files, footer_rows, bar_ids, &keep, false, &mut Vec::new())?
+        }
     };
-    if let Some((&(column, file), &count)) = sink.nulls.iter().next() {
-        return Err(IngestError::Nulls {
-            path: file_path(files, file),
-            column: ENCODER_COLUMNS[column].name,
-            count,
-        });
-    }
-    if let Some(((file, column, problem), b)) = sink.bad.into_iter().next() {
-        return Err(b.error(file_path(files, file), column, problem));
-    }
     if let Some(message) = sink.bin_error {
         return Err(IngestError::Polars {
             context: "encoders".into(),
             message,
         });
     }
+    // Rows that cannot be used are dropped, counted and flagged by file, column and rows; the
+    // night goes on (README, Inputs).
+    let mut dropped: Vec<Flag> = sink
+        .bad
+        .into_iter()
+        .map(|((file, column, problem), b)| b.flag(&file_path(files, file), column, problem))
+        .collect();
+    let known = bar_ids.iter().copied().collect::<Vec<_>>().join(", ");
+    dropped.extend(sink.unknown.into_iter().map(|((file, id), u)| {
+        unknown_id_flag(
+            &file_path(files, file),
+            "bar",
+            &id,
+            u.rows,
+            u.first_ns,
+            u.last_ns,
+            &known,
+        )
+    }));
     let rows: BTreeMap<String, (u64, Missing)> = bar_ids
         .iter()
         .zip(
@@ -1191,17 +1316,6 @@ fn read_encoders(
         )
         .map(|(id, r)| (id.to_string(), *r))
         .collect();
-    if let Some(((file, id), u)) = sink.unknown.into_iter().next() {
-        return Err(IngestError::UnknownId {
-            path: file_path(files, file),
-            column: "bar",
-            id,
-            rows: u.rows,
-            first_ns: u.first_ns,
-            last_ns: u.last_ns,
-            known: bar_ids.iter().copied().collect::<Vec<_>>().join(", "),
-        });
-    }
     let mut bars = sink.bars;
     let clock = std::time::Instant::now();
     let overlaps = resolve_repeats(files, bar_ids, &sink.ranges, &mut bars)?;
@@ -1226,7 +1340,6 @@ fn read_encoders(
             BarRows::Binned { bins, .. } => {
                 (id.to_string(), BarLog::default(), Some(bins.finish()))
             }
-            BarRows::Dropped => (id.to_string(), BarLog::default(), None),
         })
         .collect();
     let mut logs = BTreeMap::new();
@@ -1242,6 +1355,7 @@ fn read_encoders(
         bins,
         rows,
         overlaps,
+        dropped,
     })
 }
 
@@ -1533,6 +1647,9 @@ struct Encoders {
     rows: BTreeMap<String, (u64, Missing)>,
     /// Per bar: rows several files hold ([`resolve_overlaps`]).
     overlaps: BTreeMap<String, Overlap>,
+    /// Rows that could not be used, dropped: one `unusable_rows` flag per file, column and
+    /// problem.
+    dropped: Vec<Flag>,
 }
 
 /// One decoded batch of rows of one encoder file, as the consumers get it.
@@ -1573,7 +1690,6 @@ fn stream_encoders(
         ranges: BTreeMap::new(),
         ids: IdIndex::new(bar_ids.iter().copied()),
         bars: bar_ids.iter().map(|id| rows(id)).collect(),
-        nulls: BTreeMap::new(),
         unknown: BTreeMap::new(),
         row_ids: Vec::new(),
         grouped_time: Vec::new(),
@@ -1853,34 +1969,28 @@ fn null_rows_per_file(df: &DataFrame, column: &str) -> PolarsResult<BTreeMap<u32
     Ok(per_file)
 }
 
-fn file_path(files: &[PathBuf], index: u32) -> PathBuf {
-    files.get(index as usize).cloned().unwrap_or_default()
+/// Rows of an id `campaign.toml` does not declare, dropped: an `unusable_rows` flag.
+fn unknown_id_flag(
+    path: &Path,
+    column: &str,
+    id: &str,
+    rows: u64,
+    first_ns: i64,
+    last_ns: i64,
+    known: &str,
+) -> Flag {
+    let note = format!(
+        "{}: {rows} rows ({} .. {}) have {column} {:?}, which campaign.toml does not declare (known: {known}): dropped",
+        path.display(),
+        crate::format_ns(first_ns),
+        crate::format_ns(last_ns),
+        id
+    );
+    Flag::file(FlagKind::UnusableRows, rows, note)
 }
 
-/// Rejects ids (bar or sensor) the manifest does not declare, naming file, id, row count and
-/// time range. Null ids are skipped (they are either checked by [`check_nulls`] or allowed).
-fn check_ids(
-    df: &DataFrame,
-    files: &[PathBuf],
-    id_column: &'static str,
-    known: &BTreeSet<&str>,
-) -> Result<(), IngestError> {
-    let summary = id_summary(df, id_column).map_err(polars_error(id_column))?;
-    for row in summary {
-        if known.contains(row.id.as_str()) {
-            continue;
-        }
-        return Err(IngestError::UnknownId {
-            path: file_path(files, row.file),
-            column: id_column,
-            id: row.id,
-            rows: row.rows,
-            first_ns: row.first_ns,
-            last_ns: row.last_ns,
-            known: known.iter().copied().collect::<Vec<_>>().join(", "),
-        });
-    }
-    Ok(())
+fn file_path(files: &[PathBuf], index: u32) -> PathBuf {
+    files.get(index as usize).cloned().unwrap_or_default()
 }
 
 struct IdSummary {
@@ -1995,6 +2105,7 @@ fn sensor_log(readings: &DataFrame, q: &mut ChannelQuality) -> PolarsResult<Sens
     // compare equal, is gone).
     let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
     quality::record_duplicates(q, dups, range, "temperature readings");
+    quality::drop_implausible_temperatures(&mut log.time_ns, &mut log.celsius, q);
     Ok(log)
 }
 
@@ -2005,12 +2116,22 @@ fn read_events(
     bar_ids: &BTreeSet<&str>,
     zones: &mut Vec<(PathBuf, bool)>,
     q: &mut ChannelQuality,
+    dropped: &mut Vec<Flag>,
 ) -> Result<Vec<Event>, IngestError> {
     if files.is_empty() {
         return Ok(Vec::new());
     }
-    let table = read_table(files, &EVENT_COLUMNS, zones)?;
-    check_ids(&table, files, "bar", bar_ids)?;
+    let table = read_table(files, &EVENT_COLUMNS, zones, dropped)?;
+    dropped.extend(unknown_id_flags(&table, files, "bar", bar_ids)?);
+    // Events of undeclared bars are dropped (a null bar: a setup-wide event).
+    let declared: BooleanChunked = table
+        .column("bar")
+        .and_then(|c| c.str().cloned())
+        .map_err(polars_error("events"))?
+        .iter()
+        .map(|b| Some(b.is_none_or(|b| bar_ids.contains(b))))
+        .collect();
+    let table = table.filter(&declared).map_err(polars_error("events"))?;
     q.rows = table.height() as u64;
     let events = events_sorted(table).map_err(polars_error("events"))?;
     // A NaN or infinite value is a missing reading, not a level (a null value is a valueless

@@ -127,6 +127,24 @@ fn encoders(times: &[i64], bars: &[&str], counts: &[i64]) -> pl::DataFrame {
     ])
 }
 
+/// The campaign is read (rows that cannot be used are dropped, issue 27): the notes of its
+/// `unusable_rows` flags, one line each.
+fn read_dropped(dir: &Path) -> String {
+    let logs = read_campaign(dir).unwrap_or_else(|e| panic!("refused: {e}"));
+    let notes: Vec<&str> = logs
+        .quality
+        .files
+        .iter()
+        .filter(|f| f.kind == dbbcal_core::series::quality::FlagKind::UnusableRows)
+        .map(|f| f.note())
+        .collect();
+    assert!(!notes.is_empty(), "nothing dropped");
+    for n in &notes {
+        assert!(!n.contains('\n'), "note is not one line: {n}");
+    }
+    notes.join("\n")
+}
+
 fn read_err(dir: &Path) -> String {
     match read_campaign(dir) {
         Ok(_) => panic!("expected an error"),
@@ -373,7 +391,7 @@ fn bad_rows_over_many_batches_are_one_range_of_the_files_rows() {
         &d.join("encoders/a.parquet"),
         encoders(&times, &bars, &counts),
     );
-    let msg = read_err(d);
+    let msg = read_dropped(d);
     assert!(
         msg.contains("a.parquet") && msg.contains("3 rows") && msg.contains("rows 5 .. 350000"),
         "{msg}"
@@ -470,7 +488,7 @@ fn wrong_column_types_are_named() {
         ]),
     );
     // Float counts are accepted when whole; a fraction is refused with file, column and row.
-    let msg = read_err(dir.path());
+    let msg = read_dropped(dir.path());
     assert!(
         msg.contains("float.parquet: column `counts`: 1 rows (rows 0 .. 0, counting from 0) hold counts that are not whole numbers (first: 1.5)"),
         "{msg}"
@@ -520,7 +538,7 @@ fn unknown_bar_is_named_with_file_rows_and_times() {
             &[1, 2, 3],
         ),
     );
-    let msg = read_err(dir.path());
+    let msg = read_dropped(dir.path());
     assert!(
         msg.contains(
             "b.parquet: 2 rows (2026-11-01T00:00:01Z .. 2026-11-01T00:00:02Z) have bar \"B99\""
@@ -545,7 +563,7 @@ fn unknown_sensor_is_named() {
             pl::Column::new("celsius".into(), [20.0f64]),
         ]),
     );
-    let msg = read_err(dir.path());
+    let msg = read_dropped(dir.path());
     assert!(
         msg.contains("t.parquet: 1 rows") && msg.contains("have sensor \"T9\""),
         "{msg}"
@@ -573,9 +591,11 @@ fn null_times_and_counts_are_named() {
             pl::Column::new("counts".into(), [1i64, 2]),
         ]),
     );
-    let msg = read_err(dir.path());
+    let msg = read_dropped(dir.path());
     assert!(
-        msg.contains("nulltime.parquet: column `time` has 1 null values"),
+        msg.contains(
+            "nulltime.parquet: column `time`: 1 rows (rows 1 .. 1, counting from 0) are null"
+        ),
         "{msg}"
     );
 
@@ -867,4 +887,47 @@ fn large_campaign_write_and_read_timing() {
         assert_eq!(logs.bars["B01"].time_ns.len() as i64, rows_per_bar);
         assert_eq!(logs.bars["B02"].counts, tables.encoders["B02"].counts);
     }
+}
+
+/// Issue 27: a row with a null kind (events) or a null id (temperatures) is dropped and named
+/// by file, column and rows; the other rows are read.
+#[test]
+fn null_kinds_and_ids_are_dropped_and_named_by_rows() {
+    let dir = campaign_dir();
+    let d = dir.path();
+    write_t1(d);
+    write_df(
+        &d.join("encoders/e.parquet"),
+        encoders(&[T0], &["B01"], &[0]),
+    );
+    write_df(
+        &d.join("events/ev.parquet"),
+        df(vec![
+            time_col(&[T0, T0 + S, T0 + 2 * S], pl::TimeUnit::Nanoseconds, None),
+            pl::Column::new("bar".into(), [Some("B01"), None, None]),
+            pl::Column::new("kind".into(), [Some("door"), None, Some("door")]),
+            pl::Column::new("value".into(), [None::<f64>, None, None]),
+        ]),
+    );
+    write_df(
+        &d.join("temperatures/nullid.parquet"),
+        df(vec![
+            time_col(&[T0, T0 + S], pl::TimeUnit::Nanoseconds, None),
+            pl::Column::new("sensor".into(), [None, Some("T1")]),
+            pl::Column::new("celsius".into(), [20.0f64, 20.1]),
+        ]),
+    );
+    let msg = read_dropped(d);
+    assert!(
+        msg.contains("ev.parquet: column `kind`: 1 rows (rows 1 .. 1, counting from 0) are null"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains(
+            "nullid.parquet: column `sensor`: 1 rows (rows 0 .. 0, counting from 0) are null"
+        ),
+        "{msg}"
+    );
+    let logs = read_campaign(d).expect("read");
+    assert_eq!(logs.events.len(), 2);
 }

@@ -152,6 +152,108 @@ pub enum FlagKind {
     /// No reading for longer than [`gap_threshold_ns`] inside a mount (a logger down, or its
     /// clock jumped forward).
     Gap,
+    /// Temperatures no sensor of a room reads (below [`PLAUSIBLE_MIN_C`] or above
+    /// [`PLAUSIBLE_MAX_C`]: a disconnected thermocouple, a logger's error code) or steps no air
+    /// makes between two readings ([`plausible_step_k`]): dropped.
+    ImplausibleTemperature,
+    /// Rows that cannot be used (a time outside the accepted bounds or null, a null id, an id
+    /// `campaign.toml` does not declare, counts that are not whole numbers or beyond ±2^48):
+    /// dropped, named by file, column and rows (`quality.files`).
+    UnusableRows,
+}
+
+/// The lowest temperature a sensor of a measuring room may read, °C (absolute zero is
+/// −273.15; a logger's error codes sit far below, e.g. −999).
+pub const PLAUSIBLE_MIN_C: f64 = -60.0;
+/// The highest, °C (a heated head stays far below).
+pub const PLAUSIBLE_MAX_C: f64 = 150.0;
+/// The largest step between two readings `dt_s` apart that air (or a sensor in it) makes:
+/// 5 K at once, plus 0.05 K a second.
+pub fn plausible_step_k(dt_s: f64) -> f64 {
+    5.0 + 0.05 * dt_s.max(0.0)
+}
+
+/// Drops temperature readings (sorted by time) outside the plausible range, then those whose
+/// step from the last kept reading exceeds [`plausible_step_k`], walking forward and backward
+/// from the reading nearest the median (so a bad first reading is not the yardstick); counts them
+/// in `fault_rows` and flags them (`implausible_temperature`).
+pub fn drop_implausible_temperatures(
+    time_ns: &mut Vec<TimeNs>,
+    celsius: &mut Vec<f64>,
+    q: &mut ChannelQuality,
+) {
+    let n = time_ns.len().min(celsius.len());
+    let mut keep: Vec<bool> = celsius[..n]
+        .iter()
+        .map(|c| c.is_finite() && (PLAUSIBLE_MIN_C..=PLAUSIBLE_MAX_C).contains(c))
+        .collect();
+    let out_of_range = keep.iter().filter(|k| !**k).count() as u64;
+    let mut values: Vec<f64> = (0..n).filter(|&i| keep[i]).map(|i| celsius[i]).collect();
+    if !values.is_empty() {
+        let mid = values.len() / 2;
+        let (_, median, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+        let median = *median;
+        let anchor = (0..n)
+            .filter(|&i| keep[i])
+            .min_by(|&a, &b| {
+                (celsius[a] - median)
+                    .abs()
+                    .total_cmp(&(celsius[b] - median).abs())
+            })
+            .unwrap_or(0);
+        let step_ok = |i: usize, last: usize| {
+            let dt_s = (time_ns[i] as f64 - time_ns[last] as f64).abs() * 1e-9;
+            (celsius[i] - celsius[last]).abs() <= plausible_step_k(dt_s)
+        };
+        let mut walk = |order: &mut dyn Iterator<Item = usize>| {
+            let mut last = anchor;
+            for i in order {
+                if keep[i] {
+                    if step_ok(i, last) {
+                        last = i;
+                    } else {
+                        keep[i] = false;
+                    }
+                }
+            }
+        };
+        walk(&mut (anchor + 1..n));
+        walk(&mut (0..anchor).rev());
+    }
+    let dropped = keep.iter().filter(|k| !**k).count() as u64;
+    if dropped == 0 {
+        return;
+    }
+    let first = (0..n).find(|&i| !keep[i]).unwrap_or(0);
+    let last = (0..n).rev().find(|&i| !keep[i]).unwrap_or(0);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in (0..n).filter(|&i| !keep[i]) {
+        lo = lo.min(celsius[i]);
+        hi = hi.max(celsius[i]);
+    }
+    let note = format!(
+        "{dropped} temperature readings dropped ({out_of_range} outside {PLAUSIBLE_MIN_C} .. {PLAUSIBLE_MAX_C} °C, {} a step no air makes: more than 5 K + 0.05 K/s); values {lo} .. {hi} °C",
+        dropped - out_of_range
+    );
+    q.flags.push(Flag::at(
+        FlagKind::ImplausibleTemperature,
+        time_ns[first],
+        time_ns[last],
+        dropped,
+        note,
+    ));
+    q.fault_rows += dropped;
+    q.dropped_rows += dropped;
+    let mut k = 0;
+    for i in 0..n {
+        if keep[i] {
+            time_ns[k] = time_ns[i];
+            celsius[k] = celsius[i];
+            k += 1;
+        }
+    }
+    time_ns.truncate(k);
+    celsius.truncate(k);
 }
 
 /// RFC 3339 rendering of ns since the epoch.
@@ -171,6 +273,11 @@ impl Flag {
             size_um: None,
             note,
         }
+    }
+
+    /// What was found, in words (file, column and rows for `unusable_rows`).
+    pub fn note(&self) -> &str {
+        &self.note
     }
 
     /// A flag on files, with no time range.

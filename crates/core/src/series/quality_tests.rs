@@ -103,3 +103,36 @@ fn exact_duplicates_are_counted_once() {
     assert_eq!((n, range), (2, Some((1, 2))));
     assert_eq!((t, c), (vec![1, 2, 2, 3], vec![5, 6, 7, 8]));
 }
+
+/// Issue 27 (W2): out-of-range temperatures and steps no air makes are dropped and counted; a
+/// bad first reading is no yardstick; a real step is followed again once the allowance covers it.
+#[test]
+fn implausible_temperatures_are_dropped_and_a_real_step_is_followed_again() {
+    let mut t: Vec<TimeNs> = (0..100).map(|i| B + i * 60 * S).collect();
+    let mut c = vec![20.0; 100];
+    c[0] = 80.0; // a bad first reading
+    c[10] = -300.0; // below absolute zero
+    c[20] = 1e300;
+    for v in &mut c[60..] {
+        *v = 30.0; // the sensor really moves on: 10 K, more than 5 + 0.05 x 60 = 8 K at once
+    }
+    let mut q = ChannelQuality::default();
+    drop_implausible_temperatures(&mut t, &mut c, &mut q);
+    assert_eq!(q.dropped_rows, 4);
+    assert_eq!(q.fault_rows, 4);
+    assert_eq!(t.len(), 96);
+    assert!(!t.contains(&B) && !t.contains(&(B + 10 * 60 * S)) && !t.contains(&(B + 60 * 60 * S)));
+    assert!(
+        t.contains(&(B + 61 * 60 * S)),
+        "the new level is followed again"
+    );
+    assert_eq!(q.flags.len(), 1);
+    assert_eq!(q.flags[0].kind, FlagKind::ImplausibleTemperature);
+    assert_eq!(q.flags[0].rows, 4);
+    // Plausible readings are left alone.
+    let mut t2: Vec<TimeNs> = (0..10).map(|i| B + i * S).collect();
+    let mut c2: Vec<f64> = (0..10).map(|i| 20.0 + 0.01 * i as f64).collect();
+    let mut q2 = ChannelQuality::default();
+    drop_implausible_temperatures(&mut t2, &mut c2, &mut q2);
+    assert_eq!((t2.len(), q2.dropped_rows, q2.flags.len()), (10, 0, 0));
+}
