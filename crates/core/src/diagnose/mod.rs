@@ -581,7 +581,7 @@ pub fn evaluate_candidates(
             })
             .then_with(|| a.effect.name().cmp(&b.effect.name()))
     });
-    prefer_named_effects(&mut ranked);
+    prefer_named_effects(&mut ranked, criteria);
     (ranked, unavailable)
 }
 
@@ -837,14 +837,19 @@ fn candidate_on_bar(
     }
 }
 
-/// When a generic channel term and a catalogue effect fit equally well (ΔBIC within 2, "not
-/// worth more than a bare mention" on Kass & Raftery's scale) and share a verdict, the named
-/// physical effect goes first: `lag:event:head_power` and `head_heating` are the same model,
-/// and the user should be told the physics.
-fn prefer_named_effects(ranked: &mut [Candidate]) {
+/// When a generic channel term and a catalogue effect fit equally well and share a verdict, the
+/// named physical effect goes first: `lag:event:head_power` and `head_heating` are the same
+/// model, and the user should be told the physics. Equally well: ΔBIC within 2 ("not worth more
+/// than a bare mention" on Kass & Raftery's scale), or fleet RMS after within the materiality
+/// threshold ([`equally_good`]: on a long campaign a generic term with more freedom wins the
+/// ΔBIC by hundreds for an immaterial fraction of a nanometre; `heat:P1` against
+/// `plate_expansion` on a 10-bar, 15-day campaign).
+fn prefer_named_effects(ranked: &mut [Candidate], criteria: &Criteria) {
     let generic = |c: &Candidate| matches!(c.effect, Effect::Channel { .. });
     let close = |a: &Candidate, b: &Candidate| match (a.delta_bic, b.delta_bic) {
-        (Some(x), Some(y)) => a.verdict == b.verdict && (x - y).abs() < 2.0,
+        (Some(x), Some(y)) => {
+            a.verdict == b.verdict && ((x - y).abs() < 2.0 || equally_good(a, b, criteria))
+        }
         _ => false,
     };
     for i in 1..ranked.len() {
@@ -858,6 +863,34 @@ fn prefer_named_effects(ranked: &mut [Candidate]) {
             j -= 1;
         }
     }
+}
+
+/// Whether two refitted candidates leave fleet RMS values within the materiality threshold of
+/// each other: what one removes beyond the other does not matter.
+fn equally_good(a: &Candidate, b: &Candidate, criteria: &Criteria) -> bool {
+    match (a.rms_after_um, b.rms_after_um) {
+        (Some(x), Some(y)) => (x - y).abs() < criteria.min_gain_um,
+        _ => false,
+    }
+}
+
+/// Per candidate of one path's `proposed` list (in ranking order, a named effect before the
+/// generic terms it fits equally well, [`prefer_named_effects`]): the ΔBIC it competes with in
+/// the beam, the best of its own and that of any later candidate it fits equally well. So a
+/// named effect is not pushed out of the beam by a generic alias that wins the ΔBIC by an
+/// immaterial difference.
+fn competing_delta_bic(proposed: &[Candidate], criteria: &Criteria) -> Vec<f64> {
+    proposed
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            proposed[i..]
+                .iter()
+                .filter(|later| later.effect == c.effect || equally_good(c, later, criteria))
+                .filter_map(|later| later.delta_bic)
+                .fold(c.delta_bic.unwrap_or(0.0), f64::min)
+        })
+        .collect()
 }
 
 /// Correlation beyond which two estimates are taken as one combination the data cannot split
@@ -1122,7 +1155,8 @@ pub fn forward_selection(
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
-    if max_steps > 0 {
+    // Nothing proposed at the first step: nothing to search (the beam would stop there too).
+    if max_steps > 0 && first_candidates.iter().any(Candidate::proposed) {
         if let Some(coarse) = CoarseFleet::new(series, &start) {
             let path = coarse.select(max_steps, beam, criteria);
             return confirm_path(series, start, first_candidates, &path, criteria, refits);
@@ -1218,7 +1252,8 @@ fn confirm_path(
             tracing::debug!(effect = %effect.name(), reason = %candidate.reason, "diagnose: the coarse path stops here on the readings");
             break;
         }
-        current = extend_path(series, &current, &candidate, refits);
+        let score = candidate.delta_bic.unwrap_or(0.0);
+        current = extend_path(series, &current, &candidate, score, refits);
     }
     (current.ledger, current.models)
 }
@@ -1281,7 +1316,7 @@ fn beam_search(
     }];
     for step in 0..max_steps {
         let mut next: Vec<SelectionPath> = paths.iter().filter(|p| p.finished).cloned().collect();
-        let mut extensions: Vec<(usize, Candidate)> = Vec::new();
+        let mut extensions: Vec<(usize, Candidate, f64)> = Vec::new();
         for (i, path) in paths.iter().enumerate().filter(|(_, p)| !p.finished) {
             let candidates = if step == 0 {
                 first_candidates.to_vec()
@@ -1298,18 +1333,21 @@ fn beam_search(
                 done.finished = true;
                 next.push(done);
             }
-            extensions.extend(proposed.into_iter().map(|c| (i, c)));
+            let competing = competing_delta_bic(&proposed, criteria);
+            extensions.extend(proposed.into_iter().zip(competing).map(|(c, d)| (i, c, d)));
         }
         if extensions.is_empty() {
             paths = next;
             break;
         }
-        let total = |i: usize, c: &Candidate| paths[i].delta_bic + c.delta_bic.unwrap_or(0.0);
-        extensions.sort_by(|(i, a), (j, b)| total(*i, a).total_cmp(&total(*j, b)));
+        // A stable sort: between equal totals the ranking's order (a named effect first) stays.
+        extensions.sort_by(|(i, _, a), (j, _, b)| {
+            (paths[*i].delta_bic + a).total_cmp(&(paths[*j].delta_bic + b))
+        });
         let mut seen: std::collections::BTreeSet<Vec<String>> = Default::default();
-        let chosen: Vec<(usize, Candidate)> = extensions
+        let chosen: Vec<(usize, Candidate, f64)> = extensions
             .into_iter()
-            .filter(|(i, c)| {
+            .filter(|(i, c, _)| {
                 let mut set: Vec<String> = effects_of(&paths[*i].models)
                     .iter()
                     .chain([&c.effect])
@@ -1322,7 +1360,7 @@ fn beam_search(
             .collect();
         let extended: Vec<SelectionPath> = chosen
             .into_par_iter()
-            .map(|(i, c)| extend_path(series, &paths[i], &c, refits))
+            .map(|(i, c, score)| extend_path(series, &paths[i], &c, score, refits))
             .collect();
         next.extend(extended);
         next.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
@@ -1364,11 +1402,13 @@ fn rank_candidates_for(
     evaluate_candidates(&pairs, &bases, &candidates, criteria, refits).0
 }
 
-/// `path` with `candidate` added and every bar refitted.
+/// `path` with `candidate` added and every bar refitted; `score` is what the step adds to the
+/// path's total (its ΔBIC, or the one it competes with: [`competing_delta_bic`]).
 fn extend_path(
     series: &[&BarSeries],
     path: &SelectionPath,
     candidate: &Candidate,
+    score: f64,
     refits: &Refits,
 ) -> SelectionPath {
     let effect = &candidate.effect;
@@ -1395,7 +1435,7 @@ fn extend_path(
     SelectionPath {
         ledger,
         models,
-        delta_bic: path.delta_bic + candidate.delta_bic.unwrap_or(0.0),
+        delta_bic: path.delta_bic + score,
         finished: false,
     }
 }
