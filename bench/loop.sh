@@ -38,6 +38,8 @@
 #   PY_CASES="ours-clean ours-head_heating foreign-clean foreign-heat_source machine-tool"
 #                 (names as in the table; "all10x15" for every 10 x 15 campaign)
 #   PY_STARTS=both  (warm: the peer's cheaper, sometimes wrong, variant)
+#   PY_TIMEOUT=900  seconds a peer run may take; one that is stopped is reported as "> PY_TIMEOUT"
+#                 (its ratio a lower bound)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/dbbcal-target}"
@@ -53,6 +55,7 @@ LAYOUTS="${LAYOUTS-bybar bytime shuffled}"
 PY="${PY:-1}"
 PY_CASES="${PY_CASES:-ours-clean ours-head_heating foreign-clean foreign-heat_source machine-tool}"
 PY_STARTS="${PY_STARTS:-both}"
+PY_TIMEOUT="${PY_TIMEOUT:-900}"
 OUT=bench/out/loop
 CAMP=bench/out/loop-campaigns
 BIGDIR=bench/out
@@ -226,9 +229,11 @@ if [ "$PY" = 1 ]; then
             *) { [ "$kind" = 10x15 ] && [[ " $PY_CASES " == *" all10x15 "* ]]; } || continue ;;
         esac
         say "python_loop.py --starts $PY_STARTS: $name"
-        line=$(/usr/bin/time -f "TIME %e %M" python3 bench/python_loop.py "$dir" --starts "$PY_STARTS" --quiet \
-            --json "$OUT/py-$name.json" 2>&1 >"$OUT/py-$name.log" | grep '^TIME' | tail -1) || true
-        read -r _ w m <<<"$line"
+        rm -f "$OUT/py-$name.json"
+        line=$(/usr/bin/time -f "TIME %e %M %x" timeout "$PY_TIMEOUT" python3 bench/python_loop.py "$dir" --starts "$PY_STARTS" \
+            --quiet --json "$OUT/py-$name.json" 2>&1 >"$OUT/py-$name.log" | grep '^TIME' | tail -1) || true
+        read -r _ w m x <<<"$line"
+        [ "$x" != 124 ] || w=">$w"
         pyledger=$(python3 - "$OUT/py-$name.json" <<'PY'
 import json, sys
 try:
@@ -275,10 +280,11 @@ for name, kind, samples, wall, cpu, rss, id_wall, id_rss, load1, ledger in rows:
         target += f"; identify ≤ {li} s"
     pycell = ratio = ""
     if name in py and py[name][0]:
-        pw = float(py[name][0])
-        pycell = f"{pw:.1f}"
+        cut = py[name][0].startswith(">")  # stopped at PY_TIMEOUT: a lower bound
+        pw = float(py[name][0].lstrip(">"))
+        pycell = f"{'> ' if cut else ''}{pw:.1f}"
         r = pw / wall_f
-        ratio = f"{r:.0f}×" if r >= 20 else f"**{r:.1f}×**"
+        ratio = ("> " if cut else "") + (f"{r:.0f}×" if r >= 20 else f"**{r:.1f}×**")
         ok = ok and r >= 20
     met_all.append(ok)
     print(f"| {name} | {samples} | {wall_f:.2f} | {cpu} | {rss_mb:.0f} | {idcell} | {target}{', ≥ 20×' if pycell else ''} | "
