@@ -31,6 +31,11 @@ and without it), --heat always / never / draw (uniform from the seven).
     python3 bench/loop_check.py [--ks 1,2,3] [--seeds 3] [--bars 10 --days 15 --sample-s 10]
         [--combos "heat_source+settling,head+creep"] [--dbbcal PATH] [--out DIR]
         [--markdown bench/results-loop.md] [--verbose]
+    python3 bench/loop_check.py --from-loop-sh [bench/out/loop] --markdown ...
+
+--from-loop-sh evaluates, without running anything, the second simulator's campaigns that
+bench/loop.sh timed (bench/out/loop-campaigns/foreign-*, outputs bench/out/loop/run-foreign-*,
+wall and RSS from its measurements.tsv): seed 1, air smooth, one file a bar.
 
 The binary: --dbbcal, else $DBBCAL, else $CARGO_TARGET_DIR/release/dbbcal (default target dir
 ~/.cache/dbbcal-target). --verbose runs dbbcal with -v and keeps the stage timings it prints.
@@ -181,11 +186,16 @@ def main():
     ap.add_argument("--verbose", action="store_true", help="run dbbcal with -v and keep its stage lines")
     ap.add_argument("--markdown", help="write the table there (e.g. bench/results-loop.md)")
     ap.add_argument("--json", help="write every case's record there")
+    ap.add_argument("--append", action="store_true", help="append to --markdown instead of replacing it")
+    ap.add_argument("--from-loop-sh", nargs="?", const=os.path.join(HERE, "out", "loop"),
+                    help="evaluate bench/loop.sh's foreign-* runs (its OUT dir) instead of running")
     args = ap.parse_args()
     if not os.path.exists(args.dbbcal):
         sys.exit(f"no dbbcal binary at {args.dbbcal} (set DBBCAL or --dbbcal)")
     seeds = list(range(1, int(args.seeds) + 1)) if args.seeds.isdigit() else [int(s) for s in args.seeds.split(",")]
     cases = []
+    if args.from_loop_sh:
+        return from_loop_sh(args)
     if args.combos:
         for i, combo in enumerate(args.combos.split(",")):
             effects = [e for e in POOL if e in combo.split("+")]
@@ -258,6 +268,36 @@ def main():
                     fh.write(f"<details><summary>k{r['k']} s{r['seed']} {'+'.join(r['effects'])}</summary>\n\n```\n")
                     fh.write("\n".join(r["stages"][-40:]) + "\n```\n</details>\n\n")
     return 0 if resolved == len(records) else 1
+
+
+def from_loop_sh(args):
+    """Evaluate bench/loop.sh's runs of the second simulator's campaigns."""
+    out_dir = args.from_loop_sh
+    camp_dir = os.path.join(os.path.dirname(out_dir.rstrip("/")), "loop-campaigns")
+    records = []
+    for row in open(os.path.join(out_dir, "measurements.tsv")):
+        f = row.rstrip("\n").split("\t")
+        name = f[0]
+        if not name.startswith("foreign-") or name == "foreign-clean":
+            continue
+        effects = [e for e in POOL if e in name[len("foreign-"):].split("+")]
+        case = {"k": len(effects), "seed": 1, "effects": effects}
+        truth = json.load(open(os.path.join(camp_dir, name, "truth.json")))
+        diagnosis = json.load(open(os.path.join(out_dir, f"run-{name}", "diagnosis.json")))
+        rec = {**case, "flags": name, "exit": 0, "wall_s": float(f[3]), "peak_rss_mb": int(f[5]) / 1024}
+        rec.update(evaluate(case, diagnosis, truth))
+        records.append(rec)
+        print(line(rec), flush=True)
+    resolved = sum(r["resolved"] for r in records)
+    print(f"\n{resolved} of {len(records)} cases resolved")
+    if args.markdown:
+        with open(args.markdown, "a" if os.path.exists(args.markdown) and args.append else "w") as fh:
+            fh.write(f"\n## bench/loop.sh's campaigns of the second simulator (seed 1, air smooth, 10 bars, 15 days, 10 s)\n\n"
+                     f"Evaluated by `python3 bench/loop_check.py --from-loop-sh`: the same checks on the runs `bench/loop.sh` timed "
+                     f"(`{out_dir}/measurements.tsv`; wall times under that run's load).\n\n")
+            fh.write(table(records))
+            fh.write(f"\n{resolved} of {len(records)} cases resolved.\n")
+    return 0
 
 
 def fmt_steps(steps):
