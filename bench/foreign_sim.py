@@ -415,10 +415,11 @@ def write(args, bars, truth, enc_frames, temp_rows, events, plate_sensor, cabine
 
 
 def effect_tag(effect):
-    """The campaign id's effect part: "-settling", "-settling+creep", or nothing."""
+    """The campaign id's effect part: "-settling", "-settling-creep", or nothing (an id allows
+    only letters, digits, '.', '_' and '-')."""
     if not effect:
         return ""
-    return "-" + (effect if isinstance(effect, str) else "+".join(effect))
+    return "-" + (effect if isinstance(effect, str) else "-".join(effect))
 
 
 if __name__ == "__main__":

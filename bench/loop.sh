@@ -38,7 +38,9 @@
 #   PY_CASES="ours-clean ours-head_heating foreign-clean foreign-heat_source machine-tool"
 #                 (names as in the table; "all10x15" for every 10 x 15 campaign)
 #   PY_STARTS=both  (warm: the peer's cheaper, sometimes wrong, variant)
-#   PY_TIMEOUT=900  seconds a peer run may take; one that is stopped is reported as "> PY_TIMEOUT"
+#   RESUME=0      1: keep the rows of bench/out/loop/measurements.tsv (and python.tsv) that hold a
+#                 ledger and time only the campaigns missing there; the table covers them all
+#   PY_TIMEOUT=600  seconds a peer run may take; one that is stopped is reported as "> PY_TIMEOUT"
 #                 (its ratio a lower bound)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -55,7 +57,8 @@ LAYOUTS="${LAYOUTS-bybar bytime shuffled}"
 PY="${PY:-1}"
 PY_CASES="${PY_CASES:-ours-clean ours-head_heating foreign-clean foreign-heat_source machine-tool}"
 PY_STARTS="${PY_STARTS:-both}"
-PY_TIMEOUT="${PY_TIMEOUT:-900}"
+PY_TIMEOUT="${PY_TIMEOUT:-600}"
+RESUME="${RESUME:-0}"
 OUT=bench/out/loop
 CAMP=bench/out/loop-campaigns
 BIGDIR=bench/out
@@ -110,7 +113,8 @@ for sim in $SIMS; do
             dir=$CAMP/$name
             if [ ! -f "$dir/campaign.toml" ]; then
                 rm -rf "$dir"
-                sed "s/campaign_id = \"truth-10x15\"/campaign_id = \"loop-$name\"/" pipelines/sim-identification.toml >"$CAMP/$name.toml"
+                # A campaign id allows letters, digits, '.', '_' and '-' only.
+                sed "s/campaign_id = \"truth-10x15\"/campaign_id = \"loop-${name//+/.}\"/" pipelines/sim-identification.toml >"$CAMP/$name.toml"
                 if [ "$combo" != clean ]; then
                     for e in ${combo//+/ }; do
                         printf '\n[effects.%s]\nenabled = true\n' "$(ours_name "$e")" >>"$CAMP/$name.toml"
@@ -172,7 +176,8 @@ best_of() {
     shift
     for _ in $(seq "$REPEAT"); do
         rm -rf "$OUT/run-$label"
-        line=$(/usr/bin/time -f "TIME %e %U %S %M" "$@" --out "$OUT/run-$label" 2>&1 >/dev/null | grep '^TIME' | tail -1)
+        /usr/bin/time -f "TIME %e %U %S %M" "$@" --out "$OUT/run-$label" -v >/dev/null 2>"$OUT/run-$label.stderr" || true
+        line=$(grep '^TIME' "$OUT/run-$label.stderr" | tail -1)
         read -r _ w u s m <<<"$line"
         [ "$m" -gt "$rss" ] && rss=$m
         if [ -z "$best" ] || awk -v a="$w" -v b="${best%% *}" 'BEGIN{exit !(a<b)}'; then
@@ -198,12 +203,21 @@ meets() {  # value limit -> yes/**no**
     awk -v v="$1" -v l="$2" 'BEGIN{print (v <= l) ? "yes" : "**no**"}'
 }
 
-: >"$TSV"
+if [ "$RESUME" = 1 ] && [ -f "$TSV" ]; then
+    # keep the rows with a ledger (a finished run), drop the others
+    awk -F'\t' '$10 !~ /^\(no ledger/' "$TSV" >"$TSV.keep" && mv "$TSV.keep" "$TSV"
+else
+    : >"$TSV"
+fi
 BEFORE_LOAD=$(cut -d' ' -f1-3 /proc/loadavg)
 START_UTC=$(date -u +%Y-%m-%dT%H:%MZ)
 ROWS=()
 for spec in "${CASES[@]}"; do
     IFS=: read -r name dir kind <<<"$spec"
+    if cut -f1 "$TSV" | grep -qxF "$name"; then
+        say "nightly: $name (kept from the last run)"
+        continue
+    fi
     say "nightly: $name"
     load=$(cut -d' ' -f1 /proc/loadavg)
     read -r wall cpu rss <<<"$(best_of "$name" "$BIN" run pipelines/nightly.toml --campaign "$dir")"
@@ -219,7 +233,7 @@ done
 
 # The Python peer, where it is feasible (minutes a campaign; hours on the 1 Hz layouts: not run).
 PYTSV=$OUT/python.tsv
-: >"$PYTSV"
+[ "$RESUME" = 1 ] && [ -f "$PYTSV" ] || : >"$PYTSV"
 if [ "$PY" = 1 ]; then
     python3 -c "import polars, scipy, numpy" || { echo "python3 lacks polars/scipy/numpy" >&2; exit 2; }
     for spec in "${CASES[@]}"; do
@@ -228,6 +242,7 @@ if [ "$PY" = 1 ]; then
             *" $name "*) ;;
             *) { [ "$kind" = 10x15 ] && [[ " $PY_CASES " == *" all10x15 "* ]]; } || continue ;;
         esac
+        if cut -f1 "$PYTSV" | grep -qxF "$name"; then continue; fi
         say "python_loop.py --starts $PY_STARTS: $name"
         rm -f "$OUT/py-$name.json"
         line=$(/usr/bin/time -f "TIME %e %M %x" timeout "$PY_TIMEOUT" python3 bench/python_loop.py "$dir" --starts "$PY_STARTS" \
@@ -249,9 +264,9 @@ PY
 fi
 
 # ------------------------------------------------------------------ the table
-python3 - "$TSV" "$PYTSV" "$BIN" "$REPEAT" "$BEFORE_LOAD" "$START_UTC" "$SRC_BIN" >"$RESULTS" <<'PY'
+python3 - "$TSV" "$PYTSV" "$BIN" "$REPEAT" "$BEFORE_LOAD" "$START_UTC" "$SRC_BIN" "$RESUME" >"$RESULTS" <<'PY'
 import hashlib, subprocess, sys, os, datetime
-tsv, pytsv, binary, repeat, load, start, src = sys.argv[1:8]
+tsv, pytsv, binary, repeat, load, start, src, resume = sys.argv[1:9]
 rows = [l.rstrip("\n").split("\t") for l in open(tsv) if l.strip()]
 py = {l.split("\t")[0]: l.rstrip("\n").split("\t")[1:] for l in open(pytsv) if l.strip()}
 version = subprocess.run([binary, "--version"], capture_output=True, text=True).stdout.strip()
@@ -262,10 +277,12 @@ print(f"# The nightly loop at its limits: speed (issue 26)\n")
 print(f"`bench/loop.sh`, {start} to {end}; {version} (`{src}`, sha256 {digest}); {os.cpu_count()} cores, {mem:.0f} GB; "
       f"load before {load}. `dbbcal run pipelines/nightly.toml` at its defaults, best of {repeat} (CPU = user + system of that run; "
       "peak RSS the largest). Samples: fitted samples in `summary.json` (nodes when binned). Ledger: `diagnosis.json` → "
-      "`ledger`, fleet RMS in nm after each step. Targets: 10 × 15 campaigns ≤ 15 s and ≤ 1 GB; machine-tool log ≤ 10 s; "
+      "`ledger`, fleet RMS in nm after each step. "
+      + ("RESUME=1: rows kept from earlier runs of the same binary were measured then (load1 column). " if resume == "1" else "")
+      + "Targets: 10 × 15 campaigns ≤ 15 s and ≤ 1 GB; machine-tool log ≤ 10 s; "
       "12 × 30-day 1 Hz layouts ≤ 20 s and ≤ 1.5 GB, `dbbcal identify` ≤ 3 s; ≥ 20× the Python loop peer.\n")
-print("| campaign | samples | wall s | CPU s | peak MB | identify s (MB) | target | met | Python peer s | × | ledger |")
-print("|---|---:|---:|---:|---:|---|---|---|---:|---:|---|")
+print("| campaign | samples | wall s | CPU s | peak MB | identify s (MB) | target | met | Python peer s | × | load1 | ledger |")
+print("|---|---:|---:|---:|---:|---|---|---|---:|---:|---:|---|")
 limits = {"10x15": (15, 1024, None), "machine": (10, None, None), "big": (20, 1536, 3)}
 met_all = []
 for name, kind, samples, wall, cpu, rss, id_wall, id_rss, load1, ledger in rows:
@@ -288,7 +305,7 @@ for name, kind, samples, wall, cpu, rss, id_wall, id_rss, load1, ledger in rows:
         ok = ok and r >= 20
     met_all.append(ok)
     print(f"| {name} | {samples} | {wall_f:.2f} | {cpu} | {rss_mb:.0f} | {idcell} | {target}{', ≥ 20×' if pycell else ''} | "
-          f"{'yes' if ok else '**no**'} | {pycell} | {ratio} | {ledger} |")
+          f"{'yes' if ok else '**no**'} | {pycell} | {ratio} | {load1} | {ledger} |")
 print(f"\n{sum(met_all)} of {len(met_all)} rows meet their targets.")
 if py:
     print("\nThe Python peer's ledgers (bench/python_loop.py --starts as set; wall s, peak MB):\n")
