@@ -97,13 +97,14 @@ def channel_of(name):
     return transform, rest.split("@", 1)[0]
 
 
-def names(hidden, added):
-    """Whether the ledger term `added` names the hidden effect `hidden`."""
+def names(hidden, added, heat_channel="C1"):
+    """Whether the ledger term `added` names the hidden effect `hidden` (the heat source's sensor:
+    C1 in bench/foreign_sim.py, H1 for crates/sim's hidden_channel)."""
     if hidden == "head":
         return added == "head_heating"
     if hidden == "heat_source":
         transform, channel = channel_of(added)
-        return transform in ("heat", "lag", "rate", "level") and "C1" in re.split(r"[-+]", channel)
+        return transform in ("heat", "lag", "rate", "level") and heat_channel in re.split(r"[-+]", channel)
     return added == hidden
 
 
@@ -124,17 +125,17 @@ def drawn_noise(truth):
     return (ss / sum(b["readings_fitted"] for b in bars)) ** 0.5
 
 
-def evaluate(case, diagnosis, truth):
+def evaluate(case, diagnosis, truth, heat_channel="C1"):
     ledger = diagnosis.get("ledger", [])
     steps = [(s["added"] if isinstance(s["added"], str) else str(s["added"]), s["fleet_rms_um"]) for s in ledger]
     added = [a for a, _ in steps[1:]]
     k = len(case["effects"])
     within = added[:k]
-    named = {h: next((i + 1 for i, a in enumerate(added) if names(h, a)), None) for h in case["effects"]}
-    spurious = [a for a in added if not any(names(h, a) for h in case["effects"])]
+    named = {h: next((i + 1 for i, a in enumerate(added) if names(h, a, heat_channel)), None) for h in case["effects"]}
+    spurious = [a for a in added if not any(names(h, a, heat_channel) for h in case["effects"])]
     rms_k = steps[min(k, len(steps) - 1)][1] if steps else float("nan")
     rms_final = steps[-1][1] if steps else float("nan")
-    noise = drawn_noise(truth)
+    noise = drawn_noise(truth) if truth else NOISE_UM
     all_named_k = all(named[h] is not None and named[h] <= k for h in case["effects"])
     return {
         "steps": steps,
@@ -270,31 +271,45 @@ def main():
     return 0 if resolved == len(records) else 1
 
 
+OURS = {"head_heating": "head", "sensor_gradient": "air_gradient", "hidden_channel": "heat_source"}
+
+
 def from_loop_sh(args):
-    """Evaluate bench/loop.sh's runs of the second simulator's campaigns."""
+    """Evaluate bench/loop.sh's runs of both simulators' campaigns (ours: crates/sim's effect names
+    mapped to the pool's, its hidden_channel's sensor H1 for the heat source; no drawn noise in its
+    truth.json, so the nominal 20 nm there)."""
     out_dir = args.from_loop_sh
     camp_dir = os.path.join(os.path.dirname(out_dir.rstrip("/")), "loop-campaigns")
     records = []
     for row in open(os.path.join(out_dir, "measurements.tsv")):
         f = row.rstrip("\n").split("\t")
         name = f[0]
-        if not name.startswith("foreign-") or name == "foreign-clean":
+        sim, _, combo = name.partition("-")
+        if sim not in ("foreign", "ours") or combo == "clean" or f[9].startswith("(no ledger"):
             continue
-        effects = [e for e in POOL if e in name[len("foreign-"):].split("+")]
-        case = {"k": len(effects), "seed": 1, "effects": effects}
-        truth = json.load(open(os.path.join(camp_dir, name, "truth.json")))
+        given = [OURS.get(e, e) for e in combo.split("+")]
+        effects = [e for e in POOL if e in given]
+        case = {"k": len(effects), "seed": 1 if sim == "foreign" else 2026, "effects": effects, "sim": sim}
+        truth = json.load(open(os.path.join(camp_dir, name, "truth.json"))) if sim == "foreign" else None
         diagnosis = json.load(open(os.path.join(out_dir, f"run-{name}", "diagnosis.json")))
         rec = {**case, "flags": name, "exit": 0, "wall_s": float(f[3]), "peak_rss_mb": int(f[5]) / 1024}
-        rec.update(evaluate(case, diagnosis, truth))
+        rec.update(evaluate(case, diagnosis, truth, "C1" if sim == "foreign" else "H1"))
         records.append(rec)
         print(line(rec), flush=True)
     resolved = sum(r["resolved"] for r in records)
     print(f"\n{resolved} of {len(records)} cases resolved")
     if args.markdown:
         with open(args.markdown, "a" if os.path.exists(args.markdown) and args.append else "w") as fh:
-            fh.write(f"\n## bench/loop.sh's campaigns of the second simulator (seed 1, air smooth, 10 bars, 15 days, 10 s)\n\n"
+            if not args.append:
+                cmdline = "python3 bench/loop_check.py " + " ".join(sys.argv[1:])
+                fh.write(header(args, cmdline))
+            fh.write(f"\n## bench/loop.sh's campaigns (10 bars, 15 days, 10 s)\n\n"
                      f"Evaluated by `python3 bench/loop_check.py --from-loop-sh`: the same checks on the runs `bench/loop.sh` timed "
-                     f"(`{out_dir}/measurements.tsv`; wall times under that run's load).\n\n")
+                     f"(`bench/out/loop/measurements.tsv`; wall times under that run's load, 1-minute load 4-7 from other sessions). "
+                     "sim *foreign*: `bench/foreign_sim.py --seed 1` (air smooth, one file a bar); *ours*: "
+                     "`pipelines/sim-identification.toml` (seed 2026) with `[effects.X] enabled = true`, its names mapped "
+                     "(head_heating = head, sensor_gradient = air_gradient, hidden_channel = heat_source, named by a term of "
+                     "its sensor H1); ours records no drawn noise, so its 'after k / noise drawn' is over the nominal 20 nm.\n\n")
             fh.write(table(records))
             fh.write(f"\n{resolved} of {len(records)} cases resolved.\n")
     return 0
@@ -316,19 +331,19 @@ def line(r):
 
 
 def table(records):
-    out = ["| k | seed | hidden | ledger (fleet RMS nm after each step) | named (step) | RMS after k / 20 nm | "
+    out = ["| sim | k | seed | hidden | ledger (fleet RMS nm after each step) | named (step) | RMS after k / 20 nm | "
            "final / 20 nm | after k / noise drawn | steps / k | resolved | wall s | peak MB |",
-           "|---:|---:|---|---|---|---:|---:|---:|---|---|---:|---:|"]
+           "|---|---:|---:|---|---|---|---:|---:|---:|---|---|---:|---:|"]
     for r in records:
         hidden = ", ".join(r["effects"])
         if "steps" not in r:
-            out.append(f"| {r['k']} | {r['seed']} | {hidden} | exit {r['exit']}: {r.get('error', '')[:120]} | | | | | | **no** | "
+            out.append(f"| {r.get('sim', 'foreign')} | {r['k']} | {r['seed']} | {hidden} | exit {r['exit']}: {r.get('error', '')[:120]} | | | | | | **no** | "
                        f"{r['wall_s']:.1f} | {r['peak_rss_mb']:.0f} |")
             continue
         named = ", ".join(f"{h} {s if s else '**no**'}" for h, s in r["named"].items())
         extra = f"; extra: {', '.join(r['spurious'])}" if r["spurious"] else ""
         out.append(
-            f"| {r['k']} | {r['seed']} | {hidden} | {fmt_steps(r['steps'])} | {named}{extra} | {r['ratio_k']:.3f} | "
+            f"| {r.get('sim', 'foreign')} | {r['k']} | {r['seed']} | {hidden} | {fmt_steps(r['steps'])} | {named}{extra} | {r['ratio_k']:.3f} | "
             f"{r['ratio_final']:.3f} | {r['ratio_k_drawn']:.3f} | {r['steps_used']} / {r['k']} | "
             f"{'yes' if r['resolved'] else '**no**'} | {'**' if r['wall_s'] > 15 else ''}{r['wall_s']:.1f}{'**' if r['wall_s'] > 15 else ''} | "
             f"{r['peak_rss_mb']:.0f} |")
