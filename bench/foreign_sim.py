@@ -24,19 +24,34 @@ in steady state (powered long enough). Each bar's first head_power event is ther
 
 --one-length mounts every bar on the same plate length (beta, tau_S then not identifiable).
 
---effect adds one hidden effect of physics.md's catalogue, each written here from its one-line
-description there: second_path (a second thermal path on I_min, gamma 0.8-1.5 ppm/K, its own
+--effect adds a hidden effect (repeat it for several at once: --effect settling --effect creep),
+each of physics.md's catalogue written here from its one-line description there: second_path (a second thermal path on I_min, gamma 0.8-1.5 ppm/K, its own
 tau 5-12 min), air_gradient (the bar's air is its sensor's plus 30-60 % of the difference to the
 other sensor, on both paths), settling (each mount's reading relaxes by 0.3-0.6 um with a tau of
 20-40 min after the bar is placed), creep (a slow trend of 0.05-0.15 um/day, independent of
 temperature), plate_expansion (the plate, declared of zero expansion, expands by 0.5-1.0 ppm/K of
-its own temperature, a 3-h lag of the room's mean air, which a plate sensor P1 logs).
+its own temperature, a 3-h lag of the room's mean air, which a plate sensor P1 logs), and one
+outside the catalogue:
+
+  heat_source  an electronics cabinet next to the plate, logged by a sensor C1 of kind "other"
+          (with the air sensors, every --temp-s). It runs on working days (Mon-Fri, on at about
+          08:00 and off at about 18:00 UTC, the times drawn per seed and jittered per day, a
+          working day skipped now and then); its temperature is the air at T1 plus an excess
+          A lag(on; tau_cab) (A 2-5 K, tau_cab 30-60 min). The excess over the air, C1 - T1,
+          warms each bar's parts through a lag of its own:
+              dD += a_h I_min lag(C1 - T1; tau_h) + b_h I_p lag(C1 - T1; tau_h)
+          a_h, b_h 0.05-0.3 x the bar's alpha, beta; tau_h 20-90 min, shared by the fleet or
+          per bar (per seed). Drawn from a random stream of its own, so that adding it changes
+          no other draw. Truth: truth.json -> heat_source (cabinet) and bars[].heat_* .
 
     python3 bench/foreign_sim.py OUT --seed 1 [--air smooth|held|linear] [--head]
-        [--bars 4] [--days 4] [--sample-s 10] [--temp-s 30] [--files bar|day] [--shuffle]
+        [--effect NAME ...] [--bars 4] [--days 4] [--sample-s 10] [--temp-s 30]
+        [--files bar|day] [--shuffle]
 
 Writes OUT/campaign.toml, encoders/, temperatures/, events/ and OUT/truth.json (per bar:
-alpha_ppm_per_k, beta_ppm_per_k, tau_r_s, tau_s_s, and head_growth_um, tau_head_s).
+alpha_ppm_per_k, beta_ppm_per_k, tau_r_s, tau_s_s, and head_growth_um, tau_head_s, and each
+hidden effect's parameters). With none or one --effect every byte is what the one-effect
+version wrote (same draws, same files, truth.json's args.effect a string or null).
 """
 
 import argparse
@@ -54,6 +69,8 @@ LENGTHS_MM = {"min": 250.0006, "mid": 325.0011, "max": 400.0019}
 RESOLUTION_NM = 5.0
 NOISE_UM = 0.020
 SENSOR_NOISE_K = 0.005
+# The hidden effects --effect knows, in the order their random draws are made.
+EFFECTS = ["second_path", "air_gradient", "settling", "creep", "plate_expansion", "heat_source"]
 
 
 def lag_held(u, tau_s, h=1.0):
@@ -115,7 +132,8 @@ def main():
     ap.add_argument("--head", action="store_true")
     ap.add_argument("--head-rows", choices=["on", "off"], default="on", help="readings while the head is off")
     ap.add_argument("--one-length", action="store_true")
-    ap.add_argument("--effect", choices=["second_path", "air_gradient", "settling", "creep", "plate_expansion"])
+    ap.add_argument("--effect", choices=EFFECTS, action="append",
+                    help="a hidden effect; repeat for several at once")
     ap.add_argument("--sun-k", type=float, default=0.2, help="daily air difference between the sensors, K")
     ap.add_argument("--bars", type=int, default=4)
     ap.add_argument("--days", type=float, default=4.0)
@@ -124,6 +142,10 @@ def main():
     ap.add_argument("--files", choices=["bar", "day"], default="bar")
     ap.add_argument("--shuffle", action="store_true")
     args = ap.parse_args()
+    # Several effects: one canonical order (the draws do not depend on the order given), and
+    # args.effect as before for none or one (truth.json and the campaign id keep their bytes).
+    effects = [e for e in EFFECTS if e in (args.effect or [])]
+    args.effect = effects if len(effects) > 1 else (effects[0] if effects else None)
 
     rng = np.random.default_rng(args.seed)
     seconds = int(args.days * 86400)
@@ -139,12 +161,22 @@ def main():
         reading[s] = (times, values)
         temp_rows.append(pl.DataFrame({"t": times, "sensor": s, "celsius": values + T0_C}))
     plate_cte, plate_k = 0.0, None
-    if args.effect == "plate_expansion":
+    if "plate_expansion" in effects:
         plate_cte = rng.uniform(0.5, 1.0)
         plate_k = lag_linear(0.5 * (air["T1"] + air["T2"]), 10800.0)
         times = np.arange(7, seconds + 1, args.temp_s)
         values = plate_k[times] + rng.normal(0, 0.002, len(times))
         temp_rows.append(pl.DataFrame({"t": times, "sensor": "P1", "celsius": values + T0_C}))
+    cabinet = None
+    if "heat_source" in effects:
+        # A stream of its own: adding the cabinet changes none of the other draws.
+        rng_h = np.random.default_rng([args.seed, 26])
+        cabinet = heat_source_cabinet(rng_h, seconds)
+        air["C1"] = air["T1"] + cabinet.pop("excess_k")
+        times = np.arange(11, seconds + 1, args.temp_s)
+        values = air["C1"][times] + rng_h.normal(0, SENSOR_NOISE_K, len(times))
+        reading["C1"] = (times, values)
+        temp_rows.append(pl.DataFrame({"t": times, "sensor": "C1", "celsius": values + T0_C}))
 
     def felt(s):
         """The air the bars near sensor s respond to, on the 1-s grid (K above T0)."""
@@ -169,7 +201,7 @@ def main():
         }
         fixed_mm = rng.uniform(200, 240)
         u, lag = felt(sensor)
-        if args.effect == "air_gradient":
+        if "air_gradient" in effects:
             p["gradient_share"] = rng.uniform(0.3, 0.6)
             other, _ = felt(sensors[(b + 1) % 2])
             u = u + p["gradient_share"] * (other - u)
@@ -214,7 +246,26 @@ def main():
         dist[handling] = 300.0 + 30.0 * np.sin(np.arange(handling.sum()) / 50.0)
         dD_um = (p["alpha_ppm_per_k"] * fixed_mm * dT_R + p["beta_ppm_per_k"] * (dist - fixed_mm) * dT_S) * 1e-3
         dD_um += growth_um
-        dD_um += hidden_effect_um(args.effect, rng, p, fixed_mm, u, lag, mounts, seconds)
+        for effect in effects:
+            if effect in ("second_path", "settling", "creep"):
+                dD_um += hidden_effect_um(effect, rng, p, fixed_mm, u, lag, mounts, seconds)
+        if not effects:
+            dD_um += hidden_effect_um(None, rng, p, fixed_mm, u, lag, mounts, seconds)
+        if cabinet is not None:
+            # The cabinet's excess over the air as the bar feels it (true, held or interpolated
+            # readings, as --air says), through the bar's own lag, on both lengths.
+            excess = felt("C1")[0] - felt("T1")[0]
+            if cabinet["tau_shared_s"] is None:
+                p["heat_tau_s"] = rng_h.uniform(1200, 5400)
+            else:
+                p["heat_tau_s"] = cabinet["tau_shared_s"]
+            p["heat_fixed_ppm_per_k"] = rng_h.uniform(0.05, 0.3) * p["alpha_ppm_per_k"]
+            p["heat_scale_ppm_per_k"] = rng_h.uniform(0.05, 0.3) * p["beta_ppm_per_k"]
+            warm = lag(excess, p["heat_tau_s"])
+            heat_um = (p["heat_fixed_ppm_per_k"] * fixed_mm + p["heat_scale_ppm_per_k"] * (dist - fixed_mm)) * warm * 1e-3
+            mounted_s = ~handling
+            p["heat_peak_um"] = float(np.abs(heat_um[mounted_s]).max()) if mounted_s.any() else 0.0
+            dD_um += heat_um
         # Readings start mid-second and drift by a few ms against the 1-s grid.
         t_read = np.arange(0.37 * (b + 1), seconds - 1, args.sample_s) + rng.uniform(0, 0.005)
         i0 = np.floor(t_read).astype(int)
@@ -242,7 +293,41 @@ def main():
         enc_frames.append(pl.DataFrame({"t": t_read[keep], "bar": bar, "counts": counts[keep].astype(np.int32)}))
         bars.append((bar, fixed_mm, sensor, mounts))
 
-    write(args, bars, truth, enc_frames, temp_rows, events, plate_k is not None)
+    write(args, bars, truth, enc_frames, temp_rows, events, plate_k is not None, cabinet)
+
+
+def heat_source_cabinet(rng, seconds):
+    """The cabinet of --effect heat_source: its schedule and its excess over the air (K, 1-s grid).
+
+    On working days (START is a Monday; Saturday and Sunday off) it is switched on at about
+    on_h and off at about off_h (UTC hours drawn per seed, each day jittered by up to 20 min),
+    and now and then a working day stays off (skip_p per seed). Its temperature rises above
+    the air through its own lag: excess = amplitude lag(on; tau_cab), off and cold at the start.
+    """
+    c = {
+        "sensor": "C1",
+        "kind": "other",
+        "amplitude_k": rng.uniform(2.0, 5.0),
+        "tau_cabinet_s": rng.uniform(1800, 3600),
+        "on_h": rng.uniform(7.0, 9.0),
+        "off_h": rng.uniform(17.0, 19.0),
+        "skip_p": rng.choice([0.0, 0.1, 0.2]),
+        "tau_shared_s": rng.uniform(1200, 5400) if rng.random() < 0.5 else None,
+    }
+    on = np.zeros(seconds + 1)
+    switches = []
+    for day in range(int(np.ceil(seconds / 86400.0))):
+        if (START.weekday() + day) % 7 >= 5 or rng.random() < c["skip_p"]:
+            continue
+        a = int(day * 86400 + (c["on_h"] + rng.uniform(-1, 1) / 3) * 3600)
+        e = int(day * 86400 + (c["off_h"] + rng.uniform(-1, 1) / 3) * 3600)
+        if a > seconds:
+            continue
+        on[a : min(e, seconds + 1)] = 1.0
+        switches.append([a, min(e, seconds)])
+    c["on_s"] = switches
+    c["excess_k"] = c["amplitude_k"] * lag_held(on, c["tau_cabinet_s"])
+    return c
 
 
 def hidden_effect_um(effect, rng, p, fixed_mm, u, lag, mounts, seconds):
@@ -270,7 +355,7 @@ def ts(seconds):
     return (pl.lit(START).dt.cast_time_unit("us") + pl.duration(microseconds=(seconds * 1e6).round().cast(pl.Int64))).alias("time")
 
 
-def write(args, bars, truth, enc_frames, temp_rows, events, plate_sensor):
+def write(args, bars, truth, enc_frames, temp_rows, events, plate_sensor, cabinet=None):
     out = args.out
     if os.path.exists(out):
         shutil.rmtree(out)
@@ -279,7 +364,7 @@ def write(args, bars, truth, enc_frames, temp_rows, events, plate_sensor):
     iso = lambda s: (START + timedelta(seconds=int(s))).strftime("%Y-%m-%dT%H:%M:%SZ")
     lines = [
         "[campaign]",
-        f'id = "foreign-{args.air}{"-head" if args.head else ""}{"-" + args.effect if args.effect else ""}-{args.seed}"',
+        f'id = "foreign-{args.air}{"-head" if args.head else ""}{effect_tag(args.effect)}-{args.seed}"',
         f"reference_temperature_c = {T0_C}",
         "",
         "[plate]",
@@ -293,6 +378,8 @@ def write(args, bars, truth, enc_frames, temp_rows, events, plate_sensor):
         lines += ["", "[[sensor]]", f'id = "{s}"', 'kind = "air"']
     if plate_sensor:
         lines += ["", "[[sensor]]", 'id = "P1"', 'kind = "plate"']
+    if cabinet is not None:
+        lines += ["", "[[sensor]]", f'id = "{cabinet["sensor"]}"', 'kind = "other"']
     for bar, fixed_mm, sensor, _ in bars:
         lines += ["", "[[bar]]", f'id = "{bar}"', f"resolution_nm = {RESOLUTION_NM}", f"fixed_length_mm = {fixed_mm:.4f}", f'sensor = "{sensor}"']
     for bar, _, _, mounts in bars:
@@ -321,7 +408,18 @@ def write(args, bars, truth, enc_frames, temp_rows, events, plate_sensor):
         ev = ev.with_columns(ts(pl.col("t").cast(pl.Float64))).select("time", "bar", "kind", "value")
         ev.write_parquet(os.path.join(out, "events", "power.parquet"))
     with open(os.path.join(out, "truth.json"), "w") as fh:
-        json.dump({"simulator": "bench/foreign_sim.py", "args": vars(args), "noise_um": NOISE_UM, "bars": truth}, fh, indent=1)
+        doc = {"simulator": "bench/foreign_sim.py", "args": vars(args), "noise_um": NOISE_UM, "bars": truth}
+        if cabinet is not None:
+            doc["heat_source"] = {k: (float(v) if isinstance(v, np.floating) else v) for k, v in cabinet.items()}
+        json.dump(doc, fh, indent=1)
+
+
+def effect_tag(effect):
+    """The campaign id's effect part: "-settling", "-settling-creep", or nothing (an id allows
+    only letters, digits, '.', '_' and '-')."""
+    if not effect:
+        return ""
+    return "-" + (effect if isinstance(effect, str) else "-".join(effect))
 
 
 if __name__ == "__main__":
