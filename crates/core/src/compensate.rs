@@ -1,4 +1,4 @@
-//! Compensation of working bars (`physics.md`, "The calibration unit and the reference bar").
+//! Compensation of working bars (`docs/spec/physics.md`, "The calibration unit and the reference bar").
 //!
 //! A working bar (a plate length used as a check, purpose `check`, or a target device) gets the
 //! centre distance `D(n, A)` of its calibration after its thermal error is removed. The thermal

@@ -428,7 +428,7 @@ const COARSE_PROFILE_MIN_SAMPLES: usize = 50_000;
 /// How far (in `ln tau`) the fine fit may end from the coarse optimum it started at for that
 /// optimum to be taken as the coarse fit of the same basin (0.2: 22 %).
 const COARSE_BASIN_LN_TAU: f64 = 0.2;
-/// Bin of the coarse copy: a fifth or less of the shortest time constants of `physics.md`
+/// Bin of the coarse copy: a fifth or less of the shortest time constants of `docs/spec/physics.md`
 /// (15 min to 2 h), so the start lands in the fine fit's basin.
 const COARSE_START_BIN_S: f64 = 300.0;
 

@@ -1,13 +1,13 @@
 //! Thermal models as lists of composable terms.
 //!
-//! A model is a list of [`Effect`]s (the base model is `fixed_part` + `scale`, `physics.md`'s
+//! A model is a list of [`Effect`]s (the base model is `fixed_part` + `scale`, `docs/spec/physics.md`'s
 //! first-order model) plus one zero per zero segment. Each effect contributes basis columns
 //! (linear gains) and at most one time constant of its own; a column may also share another
 //! effect's time constant (`air_gradient` acts through the base paths with `tau_R` and `tau_S`).
 //! [`ThermalProblem`] assembles them for the one fitting engine ([`crate::fit`]). Effects are named by strings — exactly the strings the
 //! diagnosis prints and `--add-effect` accepts (see [`Effect::parse`]).
 //!
-//! Sign convention (`physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
+//! Sign convention (`docs/spec/physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
 //! error is `-dD`; gains are reported with the physical sign (positive = expands when warmed).
 
 pub(crate) mod channels;
@@ -33,7 +33,7 @@ pub enum Transform {
     /// The channel as it is (gain only).
     Level,
     /// Heat entering the bar: a first-order response of the channel with one time constant of
-    /// its own, acting through both of the bar's lengths as the air does (`physics.md`, the
+    /// its own, acting through both of the bar's lengths as the air does (`docs/spec/physics.md`, the
     /// first-order model): `-(g_R I_min + g_S I_p) lag(u; tau)`, two gains (ppm per unit of the
     /// channel). A generic `lag:CH` has one gain per bar, so it cannot follow a source whose
     /// effect changes from mount to mount with `I_p`.
@@ -63,13 +63,13 @@ pub enum Effect {
     /// A second thermal path on `I_min` with its own time constant (ppm/K, tau).
     SecondPath,
     /// The bar's effective air temperature is its own sensor plus a share of the difference to
-    /// the other air sensors, `T_own + w dT_grad` (`physics.md`, "sensor placement"). Being
+    /// the other air sensors, `T_own + w dT_grad` (`docs/spec/physics.md`, "sensor placement"). Being
     /// linear, the lag splits: `-(alpha I_min lag(T_own; tau_R) + beta I_p lag(T_own; tau_S))`
     /// gains `-(g_R I_min lag(dT_grad; tau_R) + g_S I_p lag(dT_grad; tau_S))` with
     /// `g_R = alpha w_R`, `g_S = beta w_S` (ppm/K per K of sensor difference; `w_R = w_S` when the
     /// whole bar sits in the same air). Two linear gains, the base paths' time constants.
     AirGradient,
-    /// Plate expansion (`physics.md`, "plate expansion"; `campaign-format.md`: true distance
+    /// Plate expansion (`docs/spec/physics.md`, "plate expansion"; `docs/spec/campaign-format.md`: true distance
     /// `mm (1 + cte (T_plate - T0))`): `+cte L (T_plate - T0)` on plate mounts (ppm/K), with
     /// `T_plate` the plate sensor smoothed without delay ([`plate_temperature`]).
     PlateExpansion,
@@ -105,7 +105,7 @@ impl std::fmt::Display for Effect {
 /// Longest time constant a term takes, s (about 32 years): the end of the range the fits search.
 pub(crate) const MAX_TAU_S: f64 = 1e9;
 
-/// The named effects of the catalogue (`physics.md`), in display order.
+/// The named effects of the catalogue (`docs/spec/physics.md`), in display order.
 pub(crate) const CATALOGUE: &[&str] = &[
     "fixed_part",
     "scale",
@@ -123,7 +123,7 @@ pub(crate) const CATALOGUE: &[&str] = &[
 pub(crate) const INITIAL_FIXED: &str = "initial_fixed_ppm";
 pub(crate) const INITIAL_SCALE: &str = "initial_scale_ppm";
 
-/// The base model of `physics.md`.
+/// The base model of `docs/spec/physics.md`.
 pub fn base_effects() -> Vec<Effect> {
     vec![Effect::FixedPart, Effect::Scale]
 }
@@ -1038,7 +1038,7 @@ fn bind(
             return Ok(terms);
         }
         Effect::AirGradient => {
-            // `physics.md` model with `T = T_own + w dT_grad`: the gradient's share through each
+            // `docs/spec/physics.md` model with `T = T_own + w dT_grad`: the gradient's share through each
             // base path, on that path's length and with that path's time constant.
             let gradient = channels::air_gradient(series)?;
             let names = effect.gain_names();
@@ -1057,7 +1057,7 @@ fn bind(
                 .collect());
         }
         Effect::PlateExpansion => {
-            // `campaign-format.md`: the true distance is `mm (1 + cte (T_plate - T0))`, so an
+            // `docs/spec/campaign-format.md`: the true distance is `mm (1 + cte (T_plate - T0))`, so an
             // undeclared expansion raises the reading by `cte L (T_plate - T0)` (µm: mm · ppm/K ·
             // K · 1e-3).
             let plate = plate_temperature(&series.t_s, &channels::plate_temperature(series)?);

@@ -1,7 +1,7 @@
 //! Exact compression of a bar's encoder log into bins of two weighted nodes.
 //!
 //! A 1 Hz log over 30 days is 2.6 M readings per bar, while the thermal model varies on time
-//! constants of 15 min to 2 h (`physics.md`): within a bin of a minute every regressor is a
+//! constants of 15 min to 2 h (`docs/spec/physics.md`): within a bin of a minute every regressor is a
 //! straight line to `O((bin/tau)²)`. For a model that is a straight line within each bin, the
 //! least-squares fit to the readings depends on them only through each bin's moments
 //! `Σ 1, Σ u, Σ u², Σ u³` (`u`: time in the bin) and `Σ c, Σ u c, Σ c²` (`c`: counts), and these
@@ -29,7 +29,7 @@ use crate::campaign::{Campaign, TimeNs};
 use crate::series::Event;
 
 /// Longest bin accepted: a bin of more than an hour is not a straight line for the time
-/// constants of `physics.md` (15 min and more), and it bounds the integer sums.
+/// constants of `docs/spec/physics.md` (15 min and more), and it bounds the integer sums.
 pub const MAX_BIN_S: f64 = 3600.0;
 
 const NS_PER_US: i64 = 1_000;
@@ -105,7 +105,7 @@ pub fn counts_ok(counts: &[i64]) -> bool {
 }
 
 /// The bin length chosen when none is set, s: a straight line within a minute is the thermal
-/// model to `O((60 s / tau)²)`, tau being 15 min or more for the bars (`physics.md`); measured
+/// model to `O((60 s / tau)²)`, tau being 15 min or more for the bars (`docs/spec/physics.md`); measured
 /// on a 1 Hz campaign, 2-60 s bins give the full-rate estimates to 0.002 u
 /// (`tests/e2e/identify.rs`).
 pub const AUTOMATIC_BIN_S: f64 = 60.0;

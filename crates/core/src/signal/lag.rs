@@ -1,6 +1,6 @@
 //! First-order lag (low-pass) of irregularly sampled inputs, with its derivative in `ln tau`.
 //!
-//! `physics.md`: the step response `1 - exp(-t/tau)` generalises to `dx/dt = (u - x) / tau`.
+//! `docs/spec/physics.md`: the step response `1 - exp(-t/tau)` generalises to `dx/dt = (u - x) / tau`.
 //! Between two samples the input is taken as linear (first-order hold), which makes the
 //! discretisation exact for piecewise-linear inputs at any sample spacing:
 //!
