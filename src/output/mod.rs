@@ -1,13 +1,13 @@
 //! The output folder: dbbcal replaces only what it can prove it wrote, and a run leaves `OUT`
 //! entirely old or entirely new.
 //!
-//! The life of a run's output (README, "What dbbcal promises about your data"):
-//! 1. [`OutputTarget::claim`], before any work: `OUT` is refused unless it is absent, an empty
+//! The life of a run's output (`docs/guarantees.md`):
+//! 1. `OutputTarget::claim`, before any work: `OUT` is refused unless it is absent, an empty
 //!    folder, or a folder holding [`MARKER`]; refused too when it is a symbolic link, a file, the
 //!    working or home folder, or overlaps the campaign (after resolving symlinks and `..`). The
 //!    claim takes a lock (`.OUT.lock`, an advisory `flock`, released by the kernel if the process
 //!    dies) so that a second run on the same `OUT` refuses at once.
-//! 2. [`OutputTarget::write`]: removes the partial folders of dead runs, builds the new output in
+//! 2. `OutputTarget::write`: removes the partial folders of dead runs, builds the new output in
 //!    `.OUT.partial-<pid>` (the marker first), fsyncs every file and folder, then swaps it into
 //!    place: the previous `OUT` becomes `OUT.prev` (one generation kept; the one before is
 //!    removed only now, and only if it holds the marker). On Linux the swap is one
@@ -18,10 +18,10 @@
 //!    supervisor removes the partial folder and the lock ([`clean_up_after_dead_run`],
 //!    `crate::supervise`), else the next run does.
 //!
-//! [`fault`] lets the crash tests kill the process or fail a write at every step.
+//! `fault` lets the crash tests kill the process or fail a write at every step.
 //!
 //! The JSON formats live here too, each converting typed results to text in one place:
-//! [`summary`] (`summary.json`), [`diagnosis`] (`diagnosis.json`), [`stage_records`]
+//! `summary` (`summary.json`), `diagnosis` (`diagnosis.json`), `stage_records`
 //! (`calibration.json`, `compensation.json`, `acceptance.json`).
 
 pub(crate) mod diagnosis;

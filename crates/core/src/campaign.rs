@@ -423,7 +423,7 @@ pub(crate) fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, 
 }
 
 /// Converts nanoseconds since the epoch to a UTC TOML datetime (`...Z`), the inverse of
-/// [`toml_datetime_to_ns`].
+/// `toml_datetime_to_ns`.
 pub fn ns_to_toml_datetime(ns: TimeNs) -> toml::value::Datetime {
     let t = chrono::DateTime::from_timestamp_nanos(ns);
     use chrono::{Datelike, Timelike};

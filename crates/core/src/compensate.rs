@@ -80,8 +80,8 @@ impl Mode {
     }
 }
 
-/// How one working mount was compensated: its [`Mode`], and whether the models' difference
-/// between the working and the reference bars was added (never with [`Mode::Model`]). Written
+/// How one working mount was compensated: its `Mode`, and whether the models' difference
+/// between the working and the reference bars was added (never with `Mode::Model`). Written
 /// as its name: `two_references`, `one_reference`, `model`, with `+model_difference`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct CompensationMode {

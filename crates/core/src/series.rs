@@ -1,7 +1,7 @@
 //! Plain, typed time series: what ingest hands to every later stage (no polars past this point).
 //!
 //! [`CampaignLogs`] is the whole campaign as read from disk, per bar and per sensor, sorted by
-//! time. [`BarSeries`] (built by [`BarSeries::build`]) is what the fits use: one bar's readings
+//! time. [`BarSeries`] (built by `BarSeries::build`) is what the fits use: one bar's readings
 //! inside its plate mounts, as thermal error in micrometres up to each mount's zero, with the
 //! temperatures seen at the same instants.
 
@@ -395,9 +395,9 @@ impl BarSeries {
         Self::from_readings(campaign, events, bar_id, readings, celsius, t0_ns)
     }
 
-    /// Bar `bar_id`'s series from its log compressed into bins of `bin_s` seconds ([`bins`]:
+    /// Bar `bar_id`'s series from its log compressed into bins of `bin_s` seconds (`bins`:
     /// two weighted nodes a bin, exact for a model that is a straight line within each bin);
-    /// `bin_s <= 0`: every reading, as [`BarSeries::build`]. Temperatures are interpolated from
+    /// `bin_s <= 0`: every reading, as `BarSeries::build`. Temperatures are interpolated from
     /// `sensors` at the samples' times here (`knots`: [`sensor_knots`] of `sensors`, used with
     /// bins). The full-rate log lives only inside this call.
     pub fn build_binned(

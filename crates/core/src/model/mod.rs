@@ -9,6 +9,55 @@
 //!
 //! Sign convention (`docs/spec/physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
 //! error is `-dD`; gains are reported with the physical sign (positive = expands when warmed).
+//!
+//! # How it works
+//!
+//! - Thermal error (`docs/spec/physics.md`): `e = -(alpha I_min lag(T - T0; tau_R) + beta I_p lag(T - T0; tau_S)) + zero[segment]`,
+//!   µm with lengths in mm and alpha/beta in ppm/K (`mm · ppm/K · K · 1e-3 = µm`). `model/mod.rs`.
+//! - `lag` is the exact first-order-hold discretisation for irregular samples (`signal/lag.rs`);
+//!   its `ln tau` derivative is the Jacobian column. It starts in steady state at the bar's first
+//!   sample; the departure from it is fitted: each base path binds a second term
+//!   (`TermKind::InitialState`, sharing the path's time constant) with the column
+//!   `exp(-(t - t_ref)/tau)` on the path's length, `t_ref` the first fitted sample (unit there, so it
+//!   never vanishes whatever tau; exactly 0 once below 1e-13, and `write_row_column` stops there). Its
+//!   gains (`initial_fixed_ppm`, `initial_scale_ppm`) are nuisance parameters: `BarModel::initial_state`,
+//!   not `params`; `BarModel::gains` holds every gain in column order for `full_columns`.
+//! - What a bar's data cannot determine is left out inside `ThermalProblem::new`
+//!   (`model::identifiable_effects`), so every problem built from (series, effects) — identify, the
+//!   diagnosis' trial fits, compensation — agrees: one length (`I_p` constant over the fitted
+//!   samples) drops the scale and `air_gradient`'s scale path. `BarModel::effects` stays the effects
+//!   asked for (fleet-wide lists stay equal); `BarModel::not_identifiable` says what was left out and
+//!   why (`summary.json`, the bar figure's notes). Matching (`pipeline::matched_inputs`) takes the bars
+//!   with all four base parameters, or, when none has them, every bar on alpha and tau_R (NaN beta and
+//!   tau_S in `MatchInput`).
+//! - `I_p = plate length − fixed_length_mm` per mount (`series.rs`).
+//! - Time constants are fitted as `ln tau` (positive by construction); intervals from the profile of
+//!   `ln tau` mapped to seconds (diagnosis trial fits: `exp(ln tau ± t·u)`).
+//! - Events with values (`head_power`, `tilt`) are held inputs integrated at their own switch times
+//!   (`lag::held_lag`), so a head switched off while nothing is logged is still seen; valueless events
+//!   are impulses. The value before a kind's first event and what the data leave to fit
+//!   (`channels::held_start`; `docs/spec/campaign-format.md`, events): the other state
+//!   (a head that logs is powered), the lag in steady state there; a powered head's heat at the
+//!   first fitted reading is a decay column on its time constant (`TermKind::Decay`,
+//!   `head_initial_um`), an unknown level before the first event the lagged indicator of "before"
+//!   (`model::start_terms`; both share the effect's tau).
+//! - `settling` has one amplitude per zero segment sharing one time constant; `air_gradient` has two
+//!   gains (`gradient_fixed_ppm_per_k` on `I_min lag(dT_grad; tau_R)`, `gradient_scale_ppm_per_k` on
+//!   `I_p lag(dT_grad; tau_S)`: the bar's air is its sensor plus a share of the sensor difference,
+//!   through both base paths) and no time constant of its own; every other effect has one gain.
+//! - `plate_expansion` uses the plate sensor smoothed forward and backward (`model::plate_temperature`,
+//!   `lag::zero_phase_lag`, 300 s), as does the declared-CTE correction in `series.rs`: a raw noisy
+//!   level is an error in a regressor and biases alpha and beta.
+//! - Weights: every fit is weighted by `BarSeries::weight` (1 for a reading, the node weight for a
+//!   compressed bin); `ThermalProblem` demeans the zeros with weights and multiplies each row by
+//!   `√w`, so the engine sees ordinary least squares. Samples of weight 0 are never fitted, nor
+//!   taken as readings by calibration or compensation. Likelihood-ratio noise models get
+//!   `√w`-weighted residuals (`BarSeries::weighted_residuals`). `BarSeries::binned_copy` (weighted
+//!   bin means) is only a coarse copy for starts and profile shapes.
+//! - `ThermalProblem` memoises each term's lag column and derivative by tau (shared `Arc`s, not
+//!   copies): a solver's basis and derivative calls at one `theta`, and a 1-D search along one tau,
+//!   reuse the other columns. Basis columns are gathered, masked, demeaned and weighted straight
+//!   into the matrix (`ThermalProblem::write_row_column`).
 
 pub(crate) mod channels;
 
@@ -71,13 +120,13 @@ pub enum Effect {
     AirGradient,
     /// Plate expansion (`docs/spec/physics.md`, "plate expansion"; `docs/spec/campaign-format.md`: true distance
     /// `mm (1 + cte (T_plate - T0))`): `+cte L (T_plate - T0)` on plate mounts (ppm/K), with
-    /// `T_plate` the plate sensor smoothed without delay ([`plate_temperature`]).
+    /// `T_plate` the plate sensor smoothed without delay (`plate_temperature`).
     PlateExpansion,
     /// Exponential settling after each mount (µm, tau).
     Settling,
     /// Slow linear trend independent of temperature (µm/day).
     Creep,
-    /// Generic term: `transform` of a named channel (see [`channels`]).
+    /// Generic term: `transform` of a named channel (see `channels`).
     Channel {
         /// How the channel enters.
         transform: Transform,
@@ -407,7 +456,7 @@ pub enum ModelError {
 
 impl<'a> ThermalProblem<'a> {
     /// `effects` bound to `series`. Terms the series cannot determine are left out and listed
-    /// ([`ThermalProblem::not_identifiable`]): the scale's (`beta`, `tau_S`) when every fitted
+    /// (`ThermalProblem::not_identifiable`): the scale's (`beta`, `tau_S`) when every fitted
     /// mount has the same travel `I_p`.
     pub fn new(series: &'a BarSeries, effects: &[Effect]) -> Result<Self, ModelError> {
         let (bound_effects, not_identifiable) = identifiable_effects(series, effects);
