@@ -21,7 +21,7 @@
 //!   the residuals' variance-time curve shows a slow part under white noise, a batch-level
 //!   B/(B−p) correction, a batch-edge bias correction and Student's t on each parameter's
 //!   Satterthwaite (Bell-McCaffrey) degrees of freedom, far fewer than B − p when a few batches carry
-//!   the information (`fit.rs`). The reported u is never below the white-noise one (`Fit::se`; then
+//!   the information. The reported u is never below the white-noise one (`Fit::se`; then
 //!   with the residual degrees of freedom, `Fit::dof_of`). Time constants from `identify`: adjusted profile-likelihood
 //!   intervals of `ln tau` (profile RSS cut at `t² u_hac² / [(JᵀJ)⁻¹]_kk`, the Wald interval when
 //!   linear; `identify::profile_tau_intervals`, ~1.3 fits' cost for two taus; series of ≥ 50 000
