@@ -13,7 +13,7 @@
 //! # How it works
 //!
 //! - Thermal error (`docs/spec/physics.md`): `e = -(alpha I_min lag(T - T0; tau_R) + beta I_p lag(T - T0; tau_S)) + zero[segment]`,
-//!   µm with lengths in mm and alpha/beta in ppm/K (`mm · ppm/K · K · 1e-3 = µm`). `model/mod.rs`.
+//!   µm with lengths in mm and alpha/beta in ppm/K (`mm · ppm/K · K · 1e-3 = µm`).
 //! - `lag` is the exact first-order-hold discretisation for irregular samples (`signal/lag.rs`);
 //!   its `ln tau` derivative is the Jacobian column. It starts in steady state at the bar's first
 //!   sample; the departure from it is fitted: each base path binds a second term
