@@ -2,7 +2,7 @@
 //! entirely old or entirely new.
 //!
 //! The life of a run's output (`docs/guarantees.md`):
-//! 1. [`OutputTarget::claim`], before any work: `OUT` and `OUT.prev` are refused unless each is
+//! 1. `OutputTarget::claim`, before any work: `OUT` and `OUT.prev` are refused unless each is
 //!    absent, an empty folder, or a folder holding [`MARKER`] and nothing the marker does not
 //!    list (its `files`; a marker without a list, from an older version, is judged by the names
 //!    dbbcal writes); refused too when `OUT` is a symbolic link, a file, the working or home
@@ -11,7 +11,7 @@
 //!    lock (an advisory `flock`, released by the kernel if the process dies) so that a second run
 //!    refuses at once; `OUT` and its `.prev` generations share one lock (`out`, `out.prev`,
 //!    `out.prev.prev` all lock `.out.lock`), because a run on `out` replaces `out.prev`.
-//! 2. [`OutputTarget::write`]: removes the partial folders of dead runs, builds the new output in
+//! 2. `OutputTarget::write`: removes the partial folders of dead runs, builds the new output in
 //!    `.OUT.partial-<pid>` (the marker first, rewritten last with the list of every file and
 //!    folder written), fsyncs every file and folder, then swaps it into place: the new output
 //!    first takes `OUT.prev`'s place, then is exchanged with `OUT`, so the previous output never
