@@ -194,7 +194,7 @@ pub(crate) enum Warning {
     /// Parameters the bar's data cannot determine (left out of its fit).
     NotIdentifiable { params: Vec<String>, reason: String },
     /// A fitted time constant shorter than [`BINS_PER_TAU`] compressed bins: the compression is
-    /// exact to O((bin / tau)²), more than 1 % here (README, "exact compression").
+    /// exact to O((bin / tau)²), more than 1 % here (`crates/core/src/series/bins.rs`).
     CoarseBins {
         param: String,
         tau_s: f64,

@@ -185,7 +185,7 @@ fn acceptance_counts(plan: &RunPlan, results: &RunResults) -> Option<(usize, usi
 /// Stages that ran with nothing to show, and bars they left out, with the reason.
 fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
     let mut notes = Vec::new();
-    // Rows that could not be used, dropped (README, Inputs): the first few by file, column and
+    // Rows that could not be used, dropped (`docs/guarantees.md`, "Inputs"): the first few by file, column and
     // rows; all of them in summary.json.
     let unusable: Vec<&crate::series::quality::Flag> = results
         .quality

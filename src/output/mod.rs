@@ -1,27 +1,32 @@
 //! The output folder: dbbcal replaces only what it can prove it wrote, and a run leaves `OUT`
 //! entirely old or entirely new.
 //!
-//! The life of a run's output (README, "What dbbcal promises about your data"):
-//! 1. [`OutputTarget::claim`], before any work: `OUT` is refused unless it is absent, an empty
-//!    folder, or a folder holding [`MARKER`]; refused too when it is a symbolic link, a file, the
-//!    working or home folder, or overlaps the campaign (after resolving symlinks and `..`). The
-//!    claim takes a lock (`.OUT.lock`, an advisory `flock`, released by the kernel if the process
-//!    dies) so that a second run on the same `OUT` refuses at once.
-//! 2. [`OutputTarget::write`]: removes the partial folders of dead runs, builds the new output in
-//!    `.OUT.partial-<pid>` (the marker first), fsyncs every file and folder, then swaps it into
-//!    place: the previous `OUT` becomes `OUT.prev` (one generation kept; the one before is
-//!    removed only now, and only if it holds the marker). On Linux the swap is one
-//!    `renameat2(RENAME_EXCHANGE)`, so `OUT` never vanishes, even for a moment.
-//! 3. Ctrl-C / SIGTERM during the run: the partial folder and the lock are removed and the old
-//!    output is untouched ([`install_signal_handlers`]).
+//! The life of a run's output (`docs/guarantees.md`):
+//! 1. `OutputTarget::claim`, before any work: `OUT` and `OUT.prev` are refused unless each is
+//!    absent, an empty folder, or a folder holding [`MARKER`] and nothing the marker does not
+//!    list (its `files`; a marker without a list, from an older version, is judged by the names
+//!    dbbcal writes); refused too when `OUT` is a symbolic link, a file, the working or home
+//!    folder, a mount point, or overlaps the campaign (after resolving symlinks and `..`, by path
+//!    and by device and inode, with everything a run may replace or remove). The claim takes a
+//!    lock (an advisory `flock`, released by the kernel if the process dies) so that a second run
+//!    refuses at once; `OUT` and its `.prev` generations share one lock (`out`, `out.prev`,
+//!    `out.prev.prev` all lock `.out.lock`), because a run on `out` replaces `out.prev`.
+//! 2. `OutputTarget::write`: removes the partial folders of dead runs, builds the new output in
+//!    `.OUT.partial-<pid>` (the marker first, rewritten last with the list of every file and
+//!    folder written), fsyncs every file and folder, then swaps it into place: the new output
+//!    first takes `OUT.prev`'s place, then is exchanged with `OUT`, so the previous output never
+//!    sits under a name a run removes; the generation before is removed last. On Linux each
+//!    exchange is one `renameat2(RENAME_EXCHANGE)`, so `OUT` never vanishes, even for a moment.
+//! 3. Ctrl-C / SIGTERM / SIGHUP during the run: the partial folder and the lock are removed and
+//!    the old output is untouched ([`install_signal_handlers`]).
 //! 4. A run that died without cleaning up (a crash in a dependency, the OOM killer): its
 //!    supervisor removes the partial folder and the lock ([`clean_up_after_dead_run`],
 //!    `crate::supervise`), else the next run does.
 //!
-//! [`fault`] lets the crash tests kill the process or fail a write at every step.
+//! `fault` lets the crash tests kill the process or fail a write at every step.
 //!
 //! The JSON formats live here too, each converting typed results to text in one place:
-//! [`summary`] (`summary.json`), [`diagnosis`] (`diagnosis.json`), [`stage_records`]
+//! `summary` (`summary.json`), `diagnosis` (`diagnosis.json`), `stage_records`
 //! (`calibration.json`, `compensation.json`, `acceptance.json`).
 
 pub(crate) mod diagnosis;

@@ -1,4 +1,4 @@
-//! `summary.json`: the stable contract for cron jobs and dashboards (README, "summary.json").
+//! `summary.json`: the stable contract for cron jobs and dashboards (README, "What the output folder holds").
 
 use std::collections::BTreeMap;
 

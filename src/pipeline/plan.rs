@@ -28,7 +28,8 @@ pub enum Stage {
     Calibrate,
     /// Working bars compensated by the reference bars.
     Compensate,
-    /// Working bars accepted or not against the tolerance (decision rule in the README).
+    /// Working bars accepted or not against the tolerance (the ISO 14253-1 decision rule,
+    /// `dbbcal_core::acceptance`).
     Acceptance,
     /// The PNG figures, `report.md` and `index.html`.
     Report,
@@ -395,7 +396,7 @@ pub(crate) fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
 pub(crate) const MIN_BIN_S: f64 = 1.0;
 
 /// `[diagnose] forward_steps × beam`: the refit rounds of forward selection, bounded so that the
-/// diagnosis' cost is (README, Configuration).
+/// diagnosis' cost is (`docs/guarantees.md`, "Configuration and fits").
 pub(crate) const MAX_SELECTION_ROUNDS: usize = 12;
 
 fn check_selection(forward_steps: usize, beam: usize) -> Result<(), String> {

@@ -1,6 +1,13 @@
 //! One thin adapter per stage: it takes the results so far, calls the stage's own module
 //! (`calibrate`, `compensate`, `acceptance`, `matching`, `diagnose`) and returns its part of
 //! [`RunResults`].
+//!
+//! # How it works
+//!
+//! - Nothing is allocated by time span: matching's air history (`pipeline::stages::air_history`) is
+//!   a 60-s grid only where the air sensors log; across a stretch of more than 6 h without a reading
+//!   it holds the two readings around it (the lag follows a straight line exactly), so a reading
+//!   dated decades away costs two points; bins are at least 1 s (`pipeline::plan::MIN_BIN_S`).
 
 use std::collections::BTreeMap;
 
@@ -208,7 +215,7 @@ fn history_times(
 
 /// What matching needs of an identified bar: `None` when its model lacks `alpha` or `tau_R`;
 /// `beta` and `tau_S` are NaN when its data cannot determine them (one length,
-/// [`crate::model::identifiable_effects`]). See [`matched_inputs`] for who is matched.
+/// `crate::model::identifiable_effects`). See [`matched_inputs`] for who is matched.
 pub fn match_input(o: &BarOutcome) -> Option<MatchInput> {
     let p = |name: &str| o.model.value(name);
     let q = |name: &str| p(name).unwrap_or(f64::NAN);

@@ -89,7 +89,7 @@ fn evaluate(c: &NoisyCampaign, label: &str) -> Outcome {
 /// between readings × encoder/temperature periods, each bar out of steady state when the
 /// logging starts (the room ran a day before): the base RMS within 0.5 % of the noise on every
 /// campaign and every bar. Before the initial-state transients were fitted such campaigns gave
-/// up to 1.027 (`base_noise_study`, README). And alpha and beta stay unbiased: the mean of
+/// up to 1.027 (`base_noise_study`, `docs/model.md`). And alpha and beta stay unbiased: the mean of
 /// (estimate − truth) / u over the campaigns' bars within 3 standard errors of 0. (Single bars
 /// are not held to 3 u: on these short campaigns u is about 15-25 % small, so |z| reaches 3.2-3.6
 /// over 80 bars even with the truth the model assumes; `base_noise_study` prints it.)
@@ -134,7 +134,7 @@ fn base_model_fits_held_and_interpolated_air_to_the_noise() {
     assert!(failures.is_empty(), "{failures:?}\n{report}");
 }
 
-/// The measurement behind the README's table (not part of the suite: minutes): every truth
+/// The measurement behind the table in `docs/model.md` (not part of the suite: minutes): every truth
 /// variant over seeds and samplings. `DBBCAL_STUDY_SEEDS=1-20`, `DBBCAL_STUDY_SAMPLING=10/30,60/60`
 /// (encoder/temperature periods, s), `DBBCAL_STUDY_BARS=4`, `DBBCAL_STUDY_DAYS=5`,
 /// `DBBCAL_STUDY_TRUTHS=continuous,held,interpolated,prehistory`.

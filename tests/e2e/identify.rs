@@ -10,7 +10,7 @@ use crate::support::{
 };
 
 /// The identification campaign (`pipelines/sim-identification.toml`: 10 bars, 15 days,
-/// 10 s, noise 0.02 µm, base effects; the room at the top of physics.md's typical range plus the
+/// 10 s, noise 0.02 µm, base effects; the room at the top of docs/spec/physics.md's typical range plus the
 /// patent's set-point steps) meets every limit on every bar: alpha and beta within 0.5 %, taus
 /// within 3 %, RMS within 5 % of the noise.
 #[test]

@@ -1,6 +1,6 @@
 //! Calibration: from plate mounts to a per-bar centre-distance function `D(n, A)`.
 //!
-//! `physics.md`, "The calibration unit": every mount of a bar on a plate length of known centre
+//! `docs/spec/physics.md`, "The calibration unit": every mount of a bar on a plate length of known centre
 //! distance `D_i`, at a tilt `A`, gives a calibration point `P_i = (D_i, k n_i, A)`. The counts are
 //! first brought to the reference temperature with the bar's identified thermal model (the reading
 //! minus the modelled thermal error, averaged over the mount). The patent fits
@@ -10,7 +10,7 @@
 //! error is reported so the user sees why.
 //!
 //! Counts are comparable only within one counter epoch (between `rezero` events,
-//! `campaign-format.md`): the calibration uses the epoch holding the most points and names the
+//! `docs/spec/campaign-format.md`): the calibration uses the epoch holding the most points and names the
 //! points of other epochs as excluded; readings of other epochs cannot be converted.
 //!
 //! Pure computation: no IO. Fits go through the one engine, [`crate::fit::fit`].
@@ -48,7 +48,7 @@ pub struct CalibrationPoint {
     pub(crate) n_samples: usize,
 }
 
-/// The tilt function of a gravity-sag term (`physics.md`: largest horizontal, zero vertical).
+/// The tilt function of a gravity-sag term (`docs/spec/physics.md`: largest horizontal, zero vertical).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SagTilt {
     /// `f(A) = cos A`.

@@ -1,4 +1,4 @@
-//! The campaign manifest (`campaign.toml`, see `shared/spec/campaign-format.md`) and its
+//! The campaign manifest (`campaign.toml`, see `docs/spec/campaign-format.md`) and its
 //! validated form.
 //!
 //! [`Manifest`] mirrors the TOML one to one (and is what `simulate` writes); [`Campaign`] is the
@@ -13,7 +13,7 @@ pub(crate) type TimeNs = i64;
 
 // ---------------------------------------------------------------- manifest, as written in TOML
 
-/// `campaign.toml` as written (`shared/spec/campaign-format.md`), not yet validated.
+/// `campaign.toml` as written (`docs/spec/campaign-format.md`), not yet validated.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Manifest {
@@ -105,7 +105,7 @@ pub struct BarDecl {
     pub id: String,
     /// Encoder resolution, nm a count.
     pub resolution_nm: f64,
-    /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel, mm.
+    /// `I_min` of `docs/spec/physics.md`: the part of the centre distance that is not scale travel, mm.
     pub fixed_length_mm: f64,
     /// The air sensor nearest the bar; absent: the mean of all air sensors.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -196,7 +196,7 @@ pub struct Bar {
     pub id: String,
     /// One encoder count, nm.
     pub resolution_nm: f64,
-    /// `I_min` of `physics.md`: the part of the centre distance that is not scale travel.
+    /// `I_min` of `docs/spec/physics.md`: the part of the centre distance that is not scale travel.
     pub fixed_length_mm: f64,
     /// The air sensor nearest the bar; `None` = mean of all air sensors.
     pub sensor: Option<String>,
@@ -423,7 +423,7 @@ pub(crate) fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, 
 }
 
 /// Converts nanoseconds since the epoch to a UTC TOML datetime (`...Z`), the inverse of
-/// [`toml_datetime_to_ns`].
+/// `toml_datetime_to_ns`.
 pub fn ns_to_toml_datetime(ns: TimeNs) -> toml::value::Datetime {
     let t = chrono::DateTime::from_timestamp_nanos(ns);
     use chrono::{Datelike, Timelike};

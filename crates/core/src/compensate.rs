@@ -1,4 +1,4 @@
-//! Compensation of working bars (`physics.md`, "The calibration unit and the reference bar").
+//! Compensation of working bars (`docs/spec/physics.md`, "The calibration unit and the reference bar").
 //!
 //! A working bar (a plate length used as a check, purpose `check`, or a target device) gets the
 //! centre distance `D(n, A)` of its calibration after its thermal error is removed. The thermal
@@ -80,8 +80,8 @@ impl Mode {
     }
 }
 
-/// How one working mount was compensated: its [`Mode`], and whether the models' difference
-/// between the working and the reference bars was added (never with [`Mode::Model`]). Written
+/// How one working mount was compensated: its `Mode`, and whether the models' difference
+/// between the working and the reference bars was added (never with `Mode::Model`). Written
 /// as its name: `two_references`, `one_reference`, `model`, with `+model_difference`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct CompensationMode {

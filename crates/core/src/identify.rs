@@ -1,6 +1,26 @@
 //! Identify each bar's thermal model: bind the effects to the bar's series, run the fitting
 //! engine, and express the estimates in physical units (taus in seconds with asymmetric
 //! intervals from `ln tau`).
+//!
+//! # How it works
+//!
+//! - Adding an effect never raises a bar's RMS: `identify_from` without a start also fits the model
+//!   in stages (without its last effect first) and keeps the better of the direct and staged fits.
+//!   With a start (the diagnosis's refits start from the bar's current model) it fits from that
+//!   start, then searches the basin of the default time constants on the 300-s coarse copy and
+//!   refits from there only where that is lower (`identify::defaults_basin`: a base bent to mimic
+//!   a missing effect is a poor start for the model with it).
+//! - `identify` starts series of at least `COARSE_START_MIN_SAMPLES` fitted samples on
+//!   `COARSE_START_BIN_S` bin means (Brent + LM there), then polishes that optimum on the series by
+//!   argmin's Gauss-Newton on the variable-projection residual (`fit::Start::NearOptimum`,
+//!   `fit::polish`: 3-4 steps on the benchmark; LM from where it stopped if it does not converge);
+//!   shorter
+//!   series keep the engine's Brent start. Series of at least `COARSE_PROFILE_MIN_SAMPLES` are also
+//!   profiled there (between the two, the exact profile costs less than the fit). The coarse
+//!   optimum is kept (`BarModel::coarse_theta`; the check that the inputs vary within a mount,
+//!   `identify::vanished_gains`, runs on the same coarse copy) and the profile intervals start there, unless the
+//!   fine fit ended more than `COARSE_BASIN_LN_TAU` in `ln tau` away (then the coarse copy is
+//!   refitted from the fine optimum); the constants are in `identify.rs`.
 
 use serde::Serialize;
 
@@ -42,14 +62,14 @@ pub struct BarModel {
     pub params: Vec<Estimate>,
     /// The base paths' initial-state gains (`initial_fixed_ppm`, `initial_scale_ppm`: each lag's
     /// departure from steady state at the first fitted sample times its expansion), nuisance
-    /// parameters like the zeros ([`crate::model::INITIAL_FIXED`]).
+    /// parameters like the zeros (`crate::model::INITIAL_FIXED`).
     pub initial_state: Vec<Estimate>,
     /// Every linear gain of the fit in the model's column order (params' gains and the
     /// initial-state gains interleaved as [`ThermalProblem::gain_names`] lists them): what
     /// multiplies [`ThermalProblem::full_columns`].
     pub(crate) gains: Vec<f64>,
     /// Parameters of the effects asked for that this bar's data cannot determine, left out of
-    /// the fit, with the reason ([`crate::model::identifiable_effects`]).
+    /// the fit, with the reason (`crate::model::identifiable_effects`).
     pub not_identifiable: Vec<NotIdentifiable>,
     /// Zero of each zero segment, µm.
     pub zeros_um: Vec<f64>,
@@ -76,7 +96,7 @@ pub struct BarModel {
     /// Samples per batch of the batch-means HAC variance.
     pub hac_batch_len: usize,
     /// Effective degrees of freedom of each parameter's HAC variance (same order as `params`,
-    /// [`fit::Fit::hac_dof_param`]).
+    /// `fit::Fit::hac_dof_param`).
     pub dof: Vec<f64>,
     /// Index in `theta` of each parameter that is a time constant (same order as `params`).
     theta_index: Vec<Option<usize>>,
@@ -124,7 +144,7 @@ impl BarModel {
 /// Fit `effects` to one bar.
 ///
 /// The time constants get adjusted profile-likelihood intervals
-/// ([`profile_tau_intervals`]); [`identify_from`] (the diagnosis' many trial fits) keeps the
+/// (`profile_tau_intervals`); [`identify_from`] (the diagnosis' many trial fits) keeps the
 /// cheaper Wald intervals.
 pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, IdentifyError> {
     let mut model = identify_from(series, effects, None)?;
@@ -265,12 +285,12 @@ fn profile_on_series(series: &BarSeries, model: &mut BarModel) {
 /// never raises the RMS, and `--add-effect X` finds at least what the diagnosis reported.
 ///
 /// With a `start` (the diagnosis's refits) the fit starts from its time constants, and the
-/// basin of the defaults is searched too and refitted where it is lower ([`defaults_basin`]):
-/// a base model bends its time constants to mimic what it lacks. This replaced a second full
-/// fit made only where a start's time constant had run to the end of its range (1e9 s, on the
-/// second simulator's plate-expansion seed 1): the same answers there, for less (that campaign's
-/// nightly run 27.9 → 22.5 s); a second full fit for every refit had cost 1.5-2.5 times the
-/// diagnosis.
+/// basin of the defaults is searched too and refitted where it is lower (`defaults_basin`):
+/// a base model bends its time constants to mimic what it lacks, and a refit started there alone
+/// can stop short of the fit made afresh. The search runs on the coarse copy, so it costs a few
+/// per cent of a nightly run; a full fresh fit for every refit would cost 1.5-2.5 times the
+/// diagnosis (both measured on the second simulator's hidden-effect campaigns, `docs/model.md`,
+/// "A second simulator").
 pub fn identify_from(
     series: &BarSeries,
     effects: &[Effect],
@@ -428,7 +448,7 @@ const COARSE_PROFILE_MIN_SAMPLES: usize = 50_000;
 /// How far (in `ln tau`) the fine fit may end from the coarse optimum it started at for that
 /// optimum to be taken as the coarse fit of the same basin (0.2: 22 %).
 const COARSE_BASIN_LN_TAU: f64 = 0.2;
-/// Bin of the coarse copy: a fifth or less of the shortest time constants of `physics.md`
+/// Bin of the coarse copy: a fifth or less of the shortest time constants of `docs/spec/physics.md`
 /// (15 min to 2 h), so the start lands in the fine fit's basin.
 const COARSE_START_BIN_S: f64 = 300.0;
 
@@ -448,9 +468,8 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 /// `problem`, the 300-s bin means of a series ([`coarse_copy`]; the fit of the series itself is
 /// then polished from them by argmin's Gauss-Newton, [`Start::NearOptimum`]), or for
 /// [`defaults_basin`] a short series itself. On the 30-day
-/// benchmark campaign the polish takes 3-4 steps where Levenberg-Marquardt took 4-7 evaluations
-/// (identify stage 0.58-0.60 → 0.48-0.49 s with the linear solve's Qᵀy applied without forming
-/// Q); the Brent sweep evaluates the projected residual some 40 times, about half of the fit on
+/// benchmark campaign the polish takes 3-4 steps where Levenberg-Marquardt takes 4-7
+/// evaluations (the linear solve applies Qᵀy without forming Q); the Brent sweep evaluates the projected residual some 40 times, about half of the fit on
 /// the full series (`bench/results.md`), a few per cent on the coarse copy. `None`: the start
 /// failed (the engine then starts as usual).
 fn start_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {

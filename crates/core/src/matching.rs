@@ -1,4 +1,4 @@
-//! Reference-bar matching (`physics.md`, "Matching"; the patent's rule).
+//! Reference-bar matching (`docs/spec/physics.md`, "Matching"; the patent's rule).
 //!
 //! 1. [`choose_reference`]: the bar whose parameters (alpha, beta, tau_R, tau_S, each scaled by
 //!    the fleet's spread) are nearest the fleet mean becomes the reference.
@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use crate::signal::lag::lag;
 
-/// The four base parameters used for matching, in the order of `physics.md`.
+/// The four base parameters used for matching, in the order of `docs/spec/physics.md`.
 pub const MATCH_PARAMS: [&str; 4] = ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
 
 /// What matching needs of one identified bar.
@@ -95,7 +95,7 @@ pub struct TemperatureHistory {
 }
 
 /// Base-model thermal error (µm) of a bar at centre distance `distance_mm` over `history`
-/// (`physics.md`: `-(alpha I_min lag(T; tau_R) + beta I_p lag(T; tau_S))`). A bar without
+/// (`docs/spec/physics.md`: `-(alpha I_min lag(T; tau_R) + beta I_p lag(T; tau_S))`). A bar without
 /// `beta` (identified on one length) has only its fixed part: its error at its own length,
 /// whatever `distance_mm` is.
 pub(crate) fn predicted_error_um(

@@ -1,7 +1,7 @@
 //! Plain, typed time series: what ingest hands to every later stage (no polars past this point).
 //!
 //! [`CampaignLogs`] is the whole campaign as read from disk, per bar and per sensor, sorted by
-//! time. [`BarSeries`] (built by [`BarSeries::build`]) is what the fits use: one bar's readings
+//! time. [`BarSeries`] (built by `BarSeries::build`) is what the fits use: one bar's readings
 //! inside its plate mounts, as thermal error in micrometres up to each mount's zero, with the
 //! temperatures seen at the same instants.
 
@@ -48,7 +48,7 @@ pub struct Event {
     pub value: Option<f64>,
 }
 
-/// What an event marks (`campaign-format.md`, events table, `kind`): the spec's four kinds, or
+/// What an event marks (`docs/spec/campaign-format.md`, events table, `kind`): the spec's four kinds, or
 /// any other word, kept and offered to the diagnosis as a channel (`lag:event:WORD`). Ordered
 /// by its word, as the events table is sorted.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -158,7 +158,7 @@ pub struct EncoderLog {
 }
 
 /// The three tables of a campaign as plain columns: what `simulate` produces and
-/// `io::write_campaign` writes (see `campaign-format.md`).
+/// `io::write_campaign` writes (see `docs/spec/campaign-format.md`).
 #[derive(Debug, Clone, Default)]
 pub struct CampaignTables {
     /// Bar id -> readings.
@@ -177,7 +177,7 @@ pub struct MountSpan {
     /// Plate length id and its calibrated centre distance; `None` on a device.
     pub(crate) length_id: Option<String>,
     pub(crate) length_mm: Option<f64>,
-    /// `I_p = D_p - I_min` (physics.md): scale travel at this mount, mm (0 on a device).
+    /// `I_p = D_p - I_min` (`docs/spec/physics.md`): scale travel at this mount, mm (0 on a device).
     pub(crate) i_p_mm: f64,
     pub(crate) tilt_deg: f64,
     pub(crate) purpose: crate::campaign::Purpose,
@@ -231,7 +231,7 @@ pub struct BarSeries {
     /// the thermal state through the gaps between mounts.
     pub t_s: Vec<f64>,
     /// Indicated reading `k * counts` in micrometres, minus the plate's known expansion
-    /// (`campaign-format.md`: true distance grows by `cte * (T_plate - T0)`), minus the median
+    /// (`docs/spec/campaign-format.md`: true distance grows by `cte * (T_plate - T0)`), minus the median
     /// of its zero segment: the thermal error up to each segment's unknown zero.
     pub y_um: Vec<f64>,
     /// Mount of each sample, `None` for handling time.
@@ -328,7 +328,7 @@ pub struct FleetContext<'a> {
 }
 
 impl BarSeries {
-    /// Tilt of the bar at sample `i` (`campaign-format.md`): the mount's own `tilt_deg`, else
+    /// Tilt of the bar at sample `i` (`docs/spec/campaign-format.md`): the mount's own `tilt_deg`, else
     /// the latest `tilt` event at or before the sample, else the plate's.
     pub(crate) fn tilt_at_deg(&self, campaign: &Campaign, i: usize) -> f64 {
         let explicit = self.mount_of[i]
@@ -395,9 +395,9 @@ impl BarSeries {
         Self::from_readings(campaign, events, bar_id, readings, celsius, t0_ns)
     }
 
-    /// Bar `bar_id`'s series from its log compressed into bins of `bin_s` seconds ([`bins`]:
+    /// Bar `bar_id`'s series from its log compressed into bins of `bin_s` seconds (`bins`:
     /// two weighted nodes a bin, exact for a model that is a straight line within each bin);
-    /// `bin_s <= 0`: every reading, as [`BarSeries::build`]. Temperatures are interpolated from
+    /// `bin_s <= 0`: every reading, as `BarSeries::build`. Temperatures are interpolated from
     /// `sensors` at the samples' times here (`knots`: [`sensor_knots`] of `sensors`, used with
     /// bins). The full-rate log lives only inside this call.
     pub fn build_binned(
@@ -740,7 +740,7 @@ pub fn interpolate_temperatures(log: &mut BarLog, sensors: &BTreeMap<String, Sen
 ///
 /// Why: lags are computed along the series' own times, the input held linear between them
 /// (`signal::lag`). Where a bar logs nothing for a while (a read head switched off for hours: no
-/// encoder rows, `campaign-format.md`) the air went on changing and the sensors went on logging;
+/// encoder rows, `docs/spec/campaign-format.md`) the air went on changing and the sensors went on logging;
 /// bridged by a straight line, the lags enter every later reading with the wrong state (measured:
 /// 2.4-4 nm RMS noise-free and tau_S off by up to 50 % on a 5-day campaign with a head off 1.5-4 h
 /// a day). Where the sensors log on the encoder's grid nothing is added (compressed bins already

@@ -176,7 +176,7 @@ pub enum IngestError {
     },
 }
 
-/// Reads a campaign directory (see `shared/spec/campaign-format.md`): the manifest, every
+/// Reads a campaign directory (see `docs/spec/campaign-format.md`): the manifest, every
 /// `encoders/*.parquet` and `temperatures/*.parquet`, and `events/*.parquet` if present.
 ///
 /// Files may be split in any way and rows may be in any order; the result is sorted by time

@@ -10,6 +10,70 @@
 //! `counts` buffers as it arrives, so ingest holds the per-bar logs and one batch, not the
 //! table beside them. Temperatures are not joined onto the encoder times here: `series`
 //! interpolates each sensor's log per bar (`interpolate_temperatures`), one bar at a time.
+//!
+//! # How it works
+//!
+//! - Ingest streams each encoder file (polars streaming engine, `sink_batches`) into per-bar
+//!   `time`/`counts` vectors or bins: the encoder table is never stacked, and temperatures are not
+//!   joined onto every encoder time (each bar interpolates the sensor logs when it is processed).
+//! - Encoder files of one schema are decoded by one scan (`io::read::stream_files`): polars reads
+//!   ahead across files (what it saves: `bench/README.md`); rows that cannot be used (a null, an undeclared id, a time out of range) found in a
+//!   shared scan make ingest stream the files again one by one, which names each file's rows (only
+//!   then; the first pass's rows are let go first).
+//! - Cost and memory do not depend on the row order (the format allows any; a logger of many bars
+//!   interleaves them). Each batch's bar ids become small indices on their string views (an id of
+//!   ≤ 12 bytes is inline in its view: an open-addressed table of views, `io::read::IdIndex`); a
+//!   batch of few runs of one bar goes run by run, any other is grouped by bar with a stable
+//!   counting sort, so every bar gets its rows as one slice whatever the interleaving. A full-rate
+//!   log is reserved from the parquet footers' row counts and, when not sorted, sorted per bar in
+//!   parallel at the end.
+//! - With bins, ingest decodes (polars) while two consumer threads (`io::read::BATCH_CONSUMERS`)
+//!   each take whole batches, split them per bar and accumulate them into sinks of their own
+//!   (bins, repeat sketches, per-file ranges), merged at the end: every part is an order-free
+//!   integer sum, count or set (`BinAccumulator::merge`, `RepeatSketch::merge`, tested against one
+//!   accumulator given every row). The temperature files are read on a third thread meanwhile
+//!   (`io::read::read_temperatures`). The union of the sensors' reading times (the interpolation knots every binned series
+//!   keeps as weight-0 samples) is sorted once per campaign (`series::sensor_knots`) and walked
+//!   along each bar's nodes.
+//! - Times are read as the stored integers and scaled to ns in Rust with `checked_mul`
+//!   (`io::read::TimeColumn::to_ns`); a row with a time outside 1980 .. 2200
+//!   (`series::reading_time_ok`) or null, a null id, an undeclared id, or counts that are not whole
+//!   or beyond ±2⁴⁸ is dropped and recorded by file, column and row range (`io::read::BadRange`,
+//!   `EncoderSink::bad`/`unknown`; for temperatures and events in `io::read::read_file` and
+//!   `unknown_id_flags`) as an `unusable_rows` flag in `quality.files`; the narrative's notes quote
+//!   the first three. A shared encoder scan that finds any re-streams file by file, so the rows
+//!   named are each file's. The bin accumulator
+//!   checks again (`BinAccumulator::add_all` → `BinError`: times in range, |counts| ≤ 2⁴⁸, ≤ 2³¹
+//!   readings a bar), so its integer sums cannot wrap whoever calls it (property tests in
+//!   `series/bins.rs`).
+//! - Missing values are counted where rows are read: encoder counts per bar in
+//!   `EncoderSink::checked_counts` (nulls, floats; whole floats converted), temperatures per sensor
+//!   in `io::read::sensor_log`, event values in `read_events` (`series::quality::Missing`).
+//! - `io::read_campaign_binned` hashes the files that share their size with another file of
+//!   their table first (`io::inputs::split_by_shared_size`: only they can be byte-identical),
+//!   reads a byte-identical file once, hashes the others on a thread beside the read, and after
+//!   the read checks each file's size and mtime against those taken before hashing. Every read of a file runs under `io::guard::guarded` (catch_unwind, a quiet panic
+//!   hook while a guard is active; `guarded_scan` for a scan of several files, which all count as
+//!   being decoded). Shared scans that fail are retried file by file to name the file; a shared
+//!   scan that crashes the process is probed file by file by the supervisor (`supervise::probe`,
+//!   `io::decode_whole_file` in a child each).
+//! - Rows that several encoder files hold: `io::read::EncoderSink` records each (file, bar) time
+//!   range and row count while streaming (a shared scan's batches are cut at the files' footer row counts,
+//!   `FileCursor`, so every batch knows its file); `io::read::resolve_repeats` re-reads,
+//!   per bar, only the rows inside the overlapping ranges of the files involved (scan filtered by
+//!   bar and time), keeps one copy of each reading (`compare_copies`) and subtracts the others
+//!   from the bins (`BinAccumulator::remove_all`, exact on integer sums; a duplicate's twin stays,
+//!   so first/last times and min/max counts are unchanged); flags `overlapping_files` and, on the
+//!   binned path, `conflicting_readings`. At full rate the exact-duplicate rule removes the copies
+//!   and `check_log` finds conflicts on the sorted rows. `gap` flags come from the pieces (readings
+//!   or bins: their first/last reading times) within each mount (`quality::gap_flags`). Cost: none
+//!   where no two files' ranges overlap for a bar (day files, files by bar); otherwise one filtered
+//!   scan per (bar, overlap, file), so files that all span the whole campaign for the same bars
+//!   without holding the same rows (rows dealt out to files at random) are re-read once per bar.
+//!   Memory: one bar's rows in one merged overlap window (all files holding them); cost measured in
+//!   `bench/README.md`. One scan per file for all its windows would
+//!   cut the scans (a re-export is decoded once per bar) at the price of holding every bar's
+//!   overlap at once.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -887,7 +951,7 @@ struct EncoderSink {
     /// A bin accumulator's refusal (cannot happen after `push`'s checks; reported if it does).
     bin_error: Option<String>,
     /// (declared bar index, file) -> time range and rows: where two files overlap for one bar
-    /// ([`resolve_overlaps`]).
+    /// ([`resolve_repeats`]).
     ranges: BTreeMap<(u32, u32), FileRange>,
     /// Scratch: each row's id index, and the batch's rows grouped by bar.
     row_ids: Vec<u32>,
@@ -1289,7 +1353,7 @@ fn read_encoders(
         });
     }
     // Rows that cannot be used are dropped, counted and flagged by file, column and rows; the
-    // night goes on (README, Inputs).
+    // night goes on (`docs/guarantees.md`, "Inputs").
     let mut dropped: Vec<Flag> = sink
         .bad
         .into_iter()
@@ -1645,7 +1709,7 @@ struct Encoders {
     logs: BTreeMap<String, BarLog>,
     bins: BTreeMap<String, BarBins>,
     rows: BTreeMap<String, (u64, Missing)>,
-    /// Per bar: rows several files hold ([`resolve_overlaps`]).
+    /// Per bar: rows several files hold ([`resolve_repeats`]).
     overlaps: BTreeMap<String, Overlap>,
     /// Rows that could not be used, dropped: one `unusable_rows` flag per file, column and
     /// problem.

@@ -6,11 +6,11 @@
 //! panics only). So the commands that read campaign parquet run in a supervised child:
 //!
 //! * the **supervisor** (the process the user started) re-executes its own binary with
-//!   [`ENV`] set, forwards SIGINT, SIGTERM and SIGHUP to it, waits, and ends with the child's
+//!   `ENV` set, forwards SIGINT, SIGTERM and SIGHUP to it, waits, and ends with the child's
 //!   exit code ([`run_self_supervised`], [`Ending`]). It reads nothing itself.
 //! * the **child** ([`child_init`]) writes *breadcrumbs* into a pipe the supervisor passes it:
 //!   before a parquet file is decoded, which file(s) (the read of every file goes through
-//!   `io::guard`, which calls [`reading`]; a shared scan names all its files); when the decode
+//!   `io::guard`, which calls `reading`; a shared scan names all its files); when the decode
 //!   is over; the output folder it claimed and where its swap stands ([`note`]). Several files
 //!   may be decoded at once (polars' threads): the trail is the *set* in progress.
 //! * when the child dies from a signal that is not an interrupt (SIGABRT, SIGSEGV, SIGBUS,
@@ -26,6 +26,13 @@
 //! allocation larger than the machine's memory that fails ends the process with SIGABRT at
 //! once, without Rust's own "memory allocation of N bytes failed" line, so the user reads one
 //! line (the supervisor's), and the trail says how many bytes were asked for.
+//!
+//! # How it works
+//!
+//! - The binary allocates with mimalloc (`src/main.rs`; why in `Cargo.toml`), through
+//!   `supervise::SupervisedAlloc`, which only looks at a null result.
+//! - Supervision costs one fork/exec of the binary and, per file decoded, two small writes into a
+//!   pipe (measured in `bench/README.md`).
 
 use std::alloc::{GlobalAlloc, Layout};
 use std::collections::BTreeMap;
@@ -69,7 +76,7 @@ const ALLOCATION: u8 = b'A';
 /// tag (1) + id (4) + payload length (4).
 const HEADER: usize = 9;
 
-/// Called first in `main`: when [`ENV`] names this process' parent and an open pipe, this is a
+/// Called first in `main`: when `ENV` names this process' parent and an open pipe, this is a
 /// supervised child and breadcrumbs go there. Otherwise (the variable absent, or inherited from
 /// some other process) nothing changes and `false` is returned.
 pub fn child_init() -> bool {
@@ -565,7 +572,7 @@ impl Supervised {
     }
 }
 
-/// Re-run this very program (same arguments, same environment plus [`ENV`]) as a supervised
+/// Re-run this very program (same arguments, same environment plus `ENV`) as a supervised
 /// child, forwarding SIGINT, SIGTERM and SIGHUP to it, and wait for it. A Ctrl-C on a terminal
 /// reaches both processes: this one then only forwards (the child sees the signal twice, which
 /// its handler takes as one) and outlives the child. An error: the child could not be started

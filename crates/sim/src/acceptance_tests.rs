@@ -423,7 +423,7 @@ fn neutral_defaults_leave_the_base_campaign_unchanged() {
 }
 
 /// Worst |thermal error of a check bar − two-reference interpolation| over the measurement
-/// phase, mean removed (`physics.md`, two reference bars), noise-free.
+/// phase, mean removed (`docs/spec/physics.md`, two reference bars), noise-free.
 fn worst_compensated_um(sim: &Simulation, check: &str) -> f64 {
     let at = |id: &str| -> std::collections::BTreeMap<i64, (f64, f64)> {
         let m = sim.truth.mounts.iter().rfind(|m| m.bar == id).unwrap();

@@ -114,7 +114,7 @@ pub struct PlateConfig {
 #[serde(deny_unknown_fields)]
 pub struct BarConfig {
     pub(crate) id: String,
-    /// `I_min` of `physics.md`.
+    /// `I_min` of `docs/spec/physics.md`.
     pub(crate) fixed_length_mm: f64,
     pub(crate) alpha_ppm_per_k: f64,
     pub(crate) beta_ppm_per_k: f64,
@@ -219,7 +219,7 @@ pub struct ScheduleConfig {
     pub(crate) working: Option<WorkingLayout>,
 }
 
-/// The calibration phase (`physics.md`, calibration unit, point 1): the plate is tilted to each
+/// The calibration phase (`docs/spec/physics.md`, calibration unit, point 1): the plate is tilted to each
 /// of `tilts_deg` in turn (a `tilt` event each); at each tilt every bar visits every plate length
 /// once (`mount_hours` each, purpose `calibration`, handling gaps between). All bars move
 /// together, so the plate can be re-tilted while every bar is off it. Afterwards the plate goes
@@ -233,7 +233,7 @@ pub struct CalibrationPhase {
 }
 
 /// Where the non-reference (working) bars sit for the rest of the campaign after the
-/// calibration phase (`physics.md`, calibration unit, point 2).
+/// calibration phase (`docs/spec/physics.md`, calibration unit, point 2).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct WorkingLayout {
@@ -265,7 +265,7 @@ pub struct DeviceLayout {
     pub(crate) tilt_deg: f64,
 }
 
-/// Geometric, time-invariant errors (`physics.md`, "The instrument"): fleet mean and spread of
+/// Geometric, time-invariant errors (`docs/spec/physics.md`, "The instrument"): fleet mean and spread of
 /// each term. With `x = k n` the indicated travel from the counter zero (mm), the true centre
 /// distance at tilt `A` is
 ///
@@ -293,7 +293,7 @@ pub struct GeometryConfig {
     pub(crate) sag: SagConfig,
 }
 
-/// Gravity sag (`physics.md`): the chord between the ball centres shortens as the bar bends, so
+/// Gravity sag (`docs/spec/physics.md`): the chord between the ball centres shortens as the bar bends, so
 /// the reading is *long* by `sag_um(A, L) = amplitude_um f(A) (L / ref_mm)^exponent`, with
 /// `f = cos A` or `cos^2 A` (`form`): largest horizontal (`A = 0`), zero vertical (`A = 90°`).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]

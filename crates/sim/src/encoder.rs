@@ -1,5 +1,5 @@
 //! One bar's encoder log: the thermal states integrated on the fine grid, the true distance,
-//! the thermal error and the quantized, noisy counts (`physics.md`, first-order model).
+//! the thermal error and the quantized, noisy counts (`docs/spec/physics.md`, first-order model).
 //!
 //! `counts = round(((D_true - D_zero) + e + noise) / k)` for an ideal bar, with the thermal error
 //! `e = -dD + settling + creep`; with geometric terms (`geometry.rs`) the counts are those the
@@ -39,7 +39,7 @@ pub(crate) struct BarSetup<'a> {
     pub(crate) record_true_error: bool,
 }
 
-/// The bar's lagged states: `x' = (u - x) / tau` for each path (`physics.md`).
+/// The bar's lagged states: `x' = (u - x) / tau` for each path (`docs/spec/physics.md`).
 struct ThermalState {
     /// Weights of T1 and T2 in the temperature the bar sees.
     w_low: f64,

@@ -1,5 +1,5 @@
 //! The true, time-invariant mapping counts -> centre distance of a bar at a tilt
-//! (`physics.md`, "The instrument": Abbe offset, cosine error, scale nonlinearity, gravity sag),
+//! (`docs/spec/physics.md`, "The instrument": Abbe offset, cosine error, scale nonlinearity, gravity sag),
 //! and its inverse, which the simulator uses to turn a distance into counts.
 //!
 //! With `x = k n` (mm, indicated travel from the counter zero):

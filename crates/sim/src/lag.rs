@@ -1,4 +1,4 @@
-//! The first-order lag of `physics.md` (`x' = (u - x) / tau`), integrated exactly over a fixed
+//! The first-order lag of `docs/spec/physics.md` (`x' = (u - x) / tau`), integrated exactly over a fixed
 //! step for an input that is linear (first-order hold) or constant over the step.
 //!
 //! Written independently of any fitting code: the simulator is the "truth".

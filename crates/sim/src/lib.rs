@@ -1,4 +1,4 @@
-//! Campaign simulator with known truth (`shared/spec/physics.md`, `campaign-format.md`).
+//! Campaign simulator with known truth (`docs/spec/physics.md`, `docs/spec/campaign-format.md`).
 //!
 //! [`generate`] turns a [`SimConfig`] into a [`Simulation`]: the manifest, the three tables and
 //! the [`Truth`] (true parameters of every bar and of every effect switched on). It is
@@ -12,7 +12,7 @@
 //! over the plate lengths with handling gaps (`schedule.rs`); readings in the gaps are logged
 //! at off-socket positions, for the pipeline to drop.
 //!
-//! For calibration and compensation (`physics.md`, the calibration unit): an optional
+//! For calibration and compensation (`docs/spec/physics.md`, the calibration unit): an optional
 //! calibration phase visits every (plate length, tilt) with `tilt` events; reference bars then
 //! stay on their lengths while working bars sit on a check length or a device; each bar's
 //! counts follow its true geometric map `D(n, A)` (scale error, nonlinearity, cosine error,

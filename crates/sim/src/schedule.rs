@@ -89,7 +89,7 @@ pub(crate) enum Place {
     Handling { position_mm: f64, tilt_deg: f64 },
 }
 
-/// What a bar does after the calibration phase (`physics.md`, calibration unit).
+/// What a bar does after the calibration phase (`docs/spec/physics.md`, calibration unit).
 enum Role {
     /// Stays on one plate length with purpose `reference`.
     Reference(usize),

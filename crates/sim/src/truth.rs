@@ -49,7 +49,7 @@ pub struct PlateTruth {
     pub(crate) sensor: Option<String>,
 }
 
-/// A bar's true parameters (`physics.md` notation) and its extra terms, when on.
+/// A bar's true parameters (`docs/spec/physics.md` notation) and its extra terms, when on.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct BarTruth {
     /// Bar id.
@@ -96,7 +96,7 @@ pub struct BarTruth {
 
 impl BarTruth {
     /// True centre distance (mm) for `counts` at tilt `tilt_deg` with no thermal error
-    /// (`physics.md`: the centre distance function `D(n, A)`).
+    /// (`docs/spec/physics.md`: the centre distance function `D(n, A)`).
     pub fn true_distance_mm(&self, counts: f64, tilt_deg: f64) -> f64 {
         let travel_mm = counts * self.resolution_nm * 1e-6;
         self.d_zero_mm

@@ -8,7 +8,7 @@ use proptest::test_runner::Config as ProptestConfig;
 /// Cases per property: `PROPTEST_CASES` when set, else `default` (kept short for CI). The
 /// random stream is seeded with [`CI_SEED`] unless `PROPTEST_RNG_SEED` gives another, so every
 /// `cargo test` runs the same cases (a failure in CI is reproducible, and CI is not flaky);
-/// longer runs with other seeds are in the README.
+/// longer runs with other seeds are in `docs/guarantees.md` ("Property tests").
 pub fn cases(default: u32) -> ProptestConfig {
     let n = std::env::var("PROPTEST_CASES")
         .ok()
@@ -29,7 +29,7 @@ pub fn cases(default: u32) -> ProptestConfig {
 pub const CI_SEED: u64 = 1;
 
 /// A one-bar campaign: B01 (5 nm, 230 mm fixed length) on the plate's `min` (250 mm) and `max`
-/// (400 mm) lengths and a hexapod, mounted from 2026-11-01 00:00 to 04:00 UTC; air sensors T1
+/// (400 mm) lengths and a hexapod, mounted on 2026-11-01 from 00:00 to 04:00 (UTC); air sensors T1
 /// and T2.
 pub const ONE_BAR_MANIFEST: &str = r#"
 [campaign]

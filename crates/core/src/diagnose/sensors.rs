@@ -1,6 +1,6 @@
 //! What each temperature sensor plausibly measures, judged from its own signal.
 //!
-//! A campaign declares sensors as `air`, `plate` or `other` (`campaign-format.md`); an `other`
+//! A campaign declares sensors as `air`, `plate` or `other` (`docs/spec/campaign-format.md`); an `other`
 //! sensor may sit on a motor, in a structure or in a draught, and the diagnosis must say what a
 //! channel it ranks plausibly is. Each sensor is explained by a first-order response to the
 //! bar's air (the share of its variance the best time constant explains, on a grid of time

@@ -236,7 +236,7 @@ impl HeldStart {
 }
 
 /// The value of a held event series before its first event (at `first_s`, values `values`), and
-/// what the data cannot tell about that start (`campaign-format.md`, events):
+/// what the data cannot tell about that start (`docs/spec/campaign-format.md`, events):
 ///
 /// - An event marks a change: before the first one the state is the other one. `head_power`
 ///   (1 powered, 0 off): off before a first "on", powered before a first "off". A kind whose

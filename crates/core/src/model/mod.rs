@@ -1,14 +1,63 @@
 //! Thermal models as lists of composable terms.
 //!
-//! A model is a list of [`Effect`]s (the base model is `fixed_part` + `scale`, `physics.md`'s
+//! A model is a list of [`Effect`]s (the base model is `fixed_part` + `scale`, `docs/spec/physics.md`'s
 //! first-order model) plus one zero per zero segment. Each effect contributes basis columns
 //! (linear gains) and at most one time constant of its own; a column may also share another
 //! effect's time constant (`air_gradient` acts through the base paths with `tau_R` and `tau_S`).
 //! [`ThermalProblem`] assembles them for the one fitting engine ([`crate::fit`]). Effects are named by strings — exactly the strings the
 //! diagnosis prints and `--add-effect` accepts (see [`Effect::parse`]).
 //!
-//! Sign convention (`physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
+//! Sign convention (`docs/spec/physics.md`, "Sign"): parts that grow make the reading fall, so the thermal
 //! error is `-dD`; gains are reported with the physical sign (positive = expands when warmed).
+//!
+//! # How it works
+//!
+//! - Thermal error (`docs/spec/physics.md`): `e = -(alpha I_min lag(T - T0; tau_R) + beta I_p lag(T - T0; tau_S)) + zero[segment]`,
+//!   µm with lengths in mm and alpha/beta in ppm/K (`mm · ppm/K · K · 1e-3 = µm`).
+//! - `lag` is the exact first-order-hold discretisation for irregular samples (`signal/lag.rs`);
+//!   its `ln tau` derivative is the Jacobian column. It starts in steady state at the bar's first
+//!   sample; the departure from it is fitted: each base path binds a second term
+//!   (`TermKind::InitialState`, sharing the path's time constant) with the column
+//!   `exp(-(t - t_ref)/tau)` on the path's length, `t_ref` the first fitted sample (unit there, so it
+//!   never vanishes whatever tau; exactly 0 once below 1e-13, and `write_row_column` stops there). Its
+//!   gains (`initial_fixed_ppm`, `initial_scale_ppm`) are nuisance parameters: `BarModel::initial_state`,
+//!   not `params`; `BarModel::gains` holds every gain in column order for `full_columns`.
+//! - What a bar's data cannot determine is left out inside `ThermalProblem::new`
+//!   (`model::identifiable_effects`), so every problem built from (series, effects) — identify, the
+//!   diagnosis' trial fits, compensation — agrees: one length (`I_p` constant over the fitted
+//!   samples) drops the scale and `air_gradient`'s scale path. `BarModel::effects` stays the effects
+//!   asked for (fleet-wide lists stay equal); `BarModel::not_identifiable` says what was left out and
+//!   why (`summary.json`, the bar figure's notes). Matching (`pipeline::matched_inputs`) takes the bars
+//!   with all four base parameters, or, when none has them, every bar on alpha and tau_R (NaN beta and
+//!   tau_S in `MatchInput`).
+//! - `I_p = plate length − fixed_length_mm` per mount (`series.rs`).
+//! - Time constants are fitted as `ln tau` (positive by construction); intervals from the profile of
+//!   `ln tau` mapped to seconds (diagnosis trial fits: `exp(ln tau ± t·u)`).
+//! - Events with values (`head_power`, `tilt`) are held inputs integrated at their own switch times
+//!   (`lag::held_lag`), so a head switched off while nothing is logged is still seen; valueless events
+//!   are impulses. The value before a kind's first event and what the data leave to fit
+//!   (`channels::held_start`; `docs/spec/campaign-format.md`, events): the other state
+//!   (a head that logs is powered), the lag in steady state there; a powered head's heat at the
+//!   first fitted reading is a decay column on its time constant (`TermKind::Decay`,
+//!   `head_initial_um`), an unknown level before the first event the lagged indicator of "before"
+//!   (`model::start_terms`; both share the effect's tau).
+//! - `settling` has one amplitude per zero segment sharing one time constant; `air_gradient` has two
+//!   gains (`gradient_fixed_ppm_per_k` on `I_min lag(dT_grad; tau_R)`, `gradient_scale_ppm_per_k` on
+//!   `I_p lag(dT_grad; tau_S)`: the bar's air is its sensor plus a share of the sensor difference,
+//!   through both base paths) and no time constant of its own; every other effect has one gain.
+//! - `plate_expansion` uses the plate sensor smoothed forward and backward (`model::plate_temperature`,
+//!   `lag::zero_phase_lag`, 300 s), as does the declared-CTE correction in `series.rs`: a raw noisy
+//!   level is an error in a regressor and biases alpha and beta.
+//! - Weights: every fit is weighted by `BarSeries::weight` (1 for a reading, the node weight for a
+//!   compressed bin); `ThermalProblem` demeans the zeros with weights and multiplies each row by
+//!   `√w`, so the engine sees ordinary least squares. Samples of weight 0 are never fitted, nor
+//!   taken as readings by calibration or compensation. Likelihood-ratio noise models get
+//!   `√w`-weighted residuals (`BarSeries::weighted_residuals`). `BarSeries::binned_copy` (weighted
+//!   bin means) is only a coarse copy for starts and profile shapes.
+//! - `ThermalProblem` memoises each term's lag column and derivative by tau (shared `Arc`s, not
+//!   copies): a solver's basis and derivative calls at one `theta`, and a 1-D search along one tau,
+//!   reuse the other columns. Basis columns are gathered, masked, demeaned and weighted straight
+//!   into the matrix (`ThermalProblem::write_row_column`).
 
 pub(crate) mod channels;
 
@@ -33,7 +82,7 @@ pub enum Transform {
     /// The channel as it is (gain only).
     Level,
     /// Heat entering the bar: a first-order response of the channel with one time constant of
-    /// its own, acting through both of the bar's lengths as the air does (`physics.md`, the
+    /// its own, acting through both of the bar's lengths as the air does (`docs/spec/physics.md`, the
     /// first-order model): `-(g_R I_min + g_S I_p) lag(u; tau)`, two gains (ppm per unit of the
     /// channel). A generic `lag:CH` has one gain per bar, so it cannot follow a source whose
     /// effect changes from mount to mount with `I_p`.
@@ -63,21 +112,21 @@ pub enum Effect {
     /// A second thermal path on `I_min` with its own time constant (ppm/K, tau).
     SecondPath,
     /// The bar's effective air temperature is its own sensor plus a share of the difference to
-    /// the other air sensors, `T_own + w dT_grad` (`physics.md`, "sensor placement"). Being
+    /// the other air sensors, `T_own + w dT_grad` (`docs/spec/physics.md`, "sensor placement"). Being
     /// linear, the lag splits: `-(alpha I_min lag(T_own; tau_R) + beta I_p lag(T_own; tau_S))`
     /// gains `-(g_R I_min lag(dT_grad; tau_R) + g_S I_p lag(dT_grad; tau_S))` with
     /// `g_R = alpha w_R`, `g_S = beta w_S` (ppm/K per K of sensor difference; `w_R = w_S` when the
     /// whole bar sits in the same air). Two linear gains, the base paths' time constants.
     AirGradient,
-    /// Plate expansion (`physics.md`, "plate expansion"; `campaign-format.md`: true distance
+    /// Plate expansion (`docs/spec/physics.md`, "plate expansion"; `docs/spec/campaign-format.md`: true distance
     /// `mm (1 + cte (T_plate - T0))`): `+cte L (T_plate - T0)` on plate mounts (ppm/K), with
-    /// `T_plate` the plate sensor smoothed without delay ([`plate_temperature`]).
+    /// `T_plate` the plate sensor smoothed without delay (`plate_temperature`).
     PlateExpansion,
     /// Exponential settling after each mount (µm, tau).
     Settling,
     /// Slow linear trend independent of temperature (µm/day).
     Creep,
-    /// Generic term: `transform` of a named channel (see [`channels`]).
+    /// Generic term: `transform` of a named channel (see `channels`).
     Channel {
         /// How the channel enters.
         transform: Transform,
@@ -105,7 +154,7 @@ impl std::fmt::Display for Effect {
 /// Longest time constant a term takes, s (about 32 years): the end of the range the fits search.
 pub(crate) const MAX_TAU_S: f64 = 1e9;
 
-/// The named effects of the catalogue (`physics.md`), in display order.
+/// The named effects of the catalogue (`docs/spec/physics.md`), in display order.
 pub(crate) const CATALOGUE: &[&str] = &[
     "fixed_part",
     "scale",
@@ -123,7 +172,7 @@ pub(crate) const CATALOGUE: &[&str] = &[
 pub(crate) const INITIAL_FIXED: &str = "initial_fixed_ppm";
 pub(crate) const INITIAL_SCALE: &str = "initial_scale_ppm";
 
-/// The base model of `physics.md`.
+/// The base model of `docs/spec/physics.md`.
 pub fn base_effects() -> Vec<Effect> {
     vec![Effect::FixedPart, Effect::Scale]
 }
@@ -407,7 +456,7 @@ pub enum ModelError {
 
 impl<'a> ThermalProblem<'a> {
     /// `effects` bound to `series`. Terms the series cannot determine are left out and listed
-    /// ([`ThermalProblem::not_identifiable`]): the scale's (`beta`, `tau_S`) when every fitted
+    /// (`ThermalProblem::not_identifiable`): the scale's (`beta`, `tau_S`) when every fitted
     /// mount has the same travel `I_p`.
     pub fn new(series: &'a BarSeries, effects: &[Effect]) -> Result<Self, ModelError> {
         let (bound_effects, not_identifiable) = identifiable_effects(series, effects);
@@ -1038,7 +1087,7 @@ fn bind(
             return Ok(terms);
         }
         Effect::AirGradient => {
-            // `physics.md` model with `T = T_own + w dT_grad`: the gradient's share through each
+            // `docs/spec/physics.md` model with `T = T_own + w dT_grad`: the gradient's share through each
             // base path, on that path's length and with that path's time constant.
             let gradient = channels::air_gradient(series)?;
             let names = effect.gain_names();
@@ -1057,7 +1106,7 @@ fn bind(
                 .collect());
         }
         Effect::PlateExpansion => {
-            // `campaign-format.md`: the true distance is `mm (1 + cte (T_plate - T0))`, so an
+            // `docs/spec/campaign-format.md`: the true distance is `mm (1 + cte (T_plate - T0))`, so an
             // undeclared expansion raises the reading by `cte L (T_plate - T0)` (µm: mm · ppm/K ·
             // K · 1e-3).
             let plate = plate_temperature(&series.t_s, &channels::plate_temperature(series)?);

@@ -13,7 +13,7 @@ const I_MIN: f64 = 230.0;
 
 /// Three days at 60 s on three one-day plate mounts (I_p 20, 170, 95 mm); T1 (the bar's own
 /// sensor) and T2 (above it, a gradient with its own rhythm). `y_um`: the bar seeing
-/// `T1 + w (T2 - T1)` through both paths (`physics.md`), noise-free.
+/// `T1 + w (T2 - T1)` through both paths (`docs/spec/physics.md`), noise-free.
 fn gradient_bar(w: f64) -> BarSeries {
     let n = 3 * 1440;
     let t_s: Vec<f64> = (0..n).map(|i| i as f64 * 60.0).collect();
@@ -267,7 +267,7 @@ fn event(t_s: f64, kind: &str, value: f64) -> (f64, crate::series::Event) {
     )
 }
 
-/// Held event inputs start where `campaign-format.md` says: an event marks a change (before the
+/// Held event inputs start where `docs/spec/campaign-format.md` says: an event marks a change (before the
 /// first the state is the other one), a head that logs readings is powered, the plate stands at
 /// the mount's tilt; a kind whose values cannot tell "the other state" gets a free level where
 /// fitted readings precede its first event.

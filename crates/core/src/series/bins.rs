@@ -1,7 +1,7 @@
 //! Exact compression of a bar's encoder log into bins of two weighted nodes.
 //!
 //! A 1 Hz log over 30 days is 2.6 M readings per bar, while the thermal model varies on time
-//! constants of 15 min to 2 h (`physics.md`): within a bin of a minute every regressor is a
+//! constants of 15 min to 2 h (`docs/spec/physics.md`): within a bin of a minute every regressor is a
 //! straight line to `O((bin/tau)²)`. For a model that is a straight line within each bin, the
 //! least-squares fit to the readings depends on them only through each bin's moments
 //! `Σ 1, Σ u, Σ u², Σ u³` (`u`: time in the bin) and `Σ c, Σ u c, Σ c²` (`c`: counts), and these
@@ -24,19 +24,63 @@
 //!
 //! Bins are cut on a grid anchored at each region's start, never crossing a region: a zero
 //! segment (a mount, split again at `rezero` events), or the handling time between mounts.
+//!
+//! # How it works
+//!
+//! - `[model] bin_s` / `--bin-s` compresses each bar's readings into bins (`series::bins`): per bin
+//!   the integer sums `Σ1, Σu, Σu², Σu³, Σc, Σuc, Σc²` (u: µs in the bin, c: counts) become two
+//!   nodes, the Gauss quadrature of the bin's sample times, each carrying the bin's least-squares
+//!   line. For a model that is a straight line within each bin, the weighted fit to the nodes plus
+//!   the scatter about the lines (`BarSeries::within_bin_rss_um2`, `Separable::unexplained_rss`)
+//!   *is* the fit to the readings: same estimates, RSS, likelihood, BIC, sample count. Lags are
+//!   computed on the nodes plus weight-0 samples at the sensors' reading times, the first reading
+//!   and the edges of gaps, so they equal the full-rate lags (`BarBins::readings`). At full rate and
+//!   with bins, every sensor reading between two samples of a bar is a weight-0 sample too
+//!   (`series::with_knots_between`): a gap in the log (a head off for hours) is bridged by the air
+//!   the sensors logged, not by a straight line. Measured on a
+//!   1 Hz campaign: estimates equal the full-rate fit's to 0.002 u for 2-60 s bins
+//!   (`tests/e2e/identify.rs`). Bins never cross a zero segment or the handling time between
+//!   mounts; their grid is anchored at each region's start. Nor do they straddle an event (the
+//!   bar's own or a setup-wide one: a `head_power` switch, a door, a tilt change): inside a zero
+//!   segment the bins restart at each event time (`series::bins::bin_edges`, at most 1 024 a bar),
+//!   because an event-driven term has a kink there that no straight line within a bin holds
+//!   (a 1 Hz head-heating log whose readings go on while the head is off: 0.04-0.09 u from the
+//!   full-rate fit with straddling bins, within 0.009 u without;
+//!   `tests/e2e/head_heating.rs::sixty_second_bins_give_the_full_rate_head_estimates`).
+//! - Ingest accumulates the bins while the encoder files stream (`io::read_campaign_binned`): the
+//!   sums are integers, so row order and batch boundaries change no bit, and the full-rate log never
+//!   exists. Without streaming (`BarSeries::build_binned` on a log in memory) the same accumulator
+//!   gives the same bits.
+//! - Bins have fixed places (`series::BinAccumulator`): the bar's time line is cut into spans no bin
+//!   crosses (zero segments, handling time, the stretches between events), each span's bins
+//!   numbered from its anchor and kept in
+//!   pages of 64 (a dense page table, a map past 65 536 pages), so a reading adds to its bin's
+//!   integer moments wherever it comes from, and memory grows with the bins, not the rows. Rows in
+//!   time order go run by run (a tight loop per bin, `BinMoments::add_run`, the sums in
+//!   registers); rows out of order (`BinAccumulator::add_by_bin`) are split by span (a day file
+//!   crosses a mount's end), then sorted by bin (counting sorts, `BlockScratch::sort_by_block`) and
+//!   summed run by run as well; rows a sort would not pay for (fewer than two a bin, over more than
+//!   64 spans, or before the first mount) are grouped by 64-bin time blocks (so a page is hot
+//!   while they are added) and added one at a time, the bin found by arithmetic in the previous
+//!   row's span (division by multiplication).
+//! - No bin length set (`[model] bin_s`, `--bin-s` absent): `io::automatic_bin_s` decides before
+//!   the encoder files stream, from `campaign.toml` and the files' parquet footers (row counts):
+//!   `AUTOMATIC_BIN_S` (60 s) bins when the bars' mean interval between readings (each bar's first
+//!   mount start to last mount end, shared by the rows) is `AUTOMATIC_MAX_INTERVAL_S` (6 s) or
+//!   less, else every reading (`series::bins`, `series::automatic_bin_s`; the measurements behind the numbers: `bench/README.md`). The same for any row order or file split.
 
 use crate::campaign::{Campaign, TimeNs};
 use crate::series::Event;
 
 /// Longest bin accepted: a bin of more than an hour is not a straight line for the time
-/// constants of `physics.md` (15 min and more), and it bounds the integer sums.
+/// constants of `docs/spec/physics.md` (15 min and more), and it bounds the integer sums.
 pub const MAX_BIN_S: f64 = 3600.0;
 
 const NS_PER_US: i64 = 1_000;
 
 /// Earliest reading time accepted anywhere (1980-01-01T00:00:00Z, ns): no logger of this kind
 /// predates it, and a time before it is a clock reset (1970) or a NaT (`i64::MIN`), refused at
-/// ingest (README, "What dbbcal promises about your data").
+/// ingest (`docs/guarantees.md`).
 pub const EARLIEST_READING_NS: TimeNs = 315_532_800_000_000_000;
 /// First reading time no longer accepted (2200-01-01T00:00:00Z, ns): a time past it is a broken
 /// clock or a unit mix-up. The bounds keep every sum of times and bin numbers far from `i64`'s
@@ -105,7 +149,7 @@ pub fn counts_ok(counts: &[i64]) -> bool {
 }
 
 /// The bin length chosen when none is set, s: a straight line within a minute is the thermal
-/// model to `O((60 s / tau)²)`, tau being 15 min or more for the bars (`physics.md`); measured
+/// model to `O((60 s / tau)²)`, tau being 15 min or more for the bars (`docs/spec/physics.md`); measured
 /// on a 1 Hz campaign, 2-60 s bins give the full-rate estimates to 0.002 u
 /// (`tests/e2e/identify.rs`).
 pub const AUTOMATIC_BIN_S: f64 = 60.0;
@@ -439,7 +483,7 @@ impl Segments {
     }
 }
 
-/// Where one bar's bins lie: its mounts and `rezero` events ([`Segments`]), and the bin length.
+/// Where one bar's bins lie: its mounts and `rezero` events (`Segments`), and the bin length.
 #[derive(Debug, Clone)]
 pub struct BinGrid {
     bin_ns: TimeNs,
@@ -598,7 +642,7 @@ struct Current {
 }
 
 /// Accumulates one bar's readings, in any order, into bins: every bin's moments have a fixed
-/// place (pages of [`PAGE_BINS`] bins, looked up by the bin's number in its span), so a reading
+/// place (pages of `PAGE_BINS` bins, looked up by the bin's number in its span), so a reading
 /// costs the same whether the rows come sorted, interleaved with other bars or shuffled, and
 /// memory grows with the bins, not with the rows.
 #[derive(Debug, Clone)]
@@ -744,7 +788,7 @@ impl BinAccumulator {
 
     /// Add readings given as two columns, in any order (ingest streams tens of millions of rows
     /// through here). Rows in time order go run by run, each run of one bin in a tight loop;
-    /// rows out of order are first grouped by time block ([`BinAccumulator::add_by_block`]).
+    /// rows out of order are first grouped by time block (`BinAccumulator::add_by_block`).
     ///
     /// Every row is checked first (times within [`EARLIEST_READING_NS`] ..
     /// [`LATEST_READING_NS`], |counts| ≤ [`MAX_ABS_COUNTS`], at most [`MAX_BAR_READINGS`] in
@@ -1186,7 +1230,7 @@ pub struct BarBins {
     pub(crate) bins: Vec<(BinKey, BinMoments)>,
 }
 
-/// Weighted pseudo-readings: what a series is built from ([`BarBins::readings`]; a full-rate
+/// Weighted pseudo-readings: what a series is built from (`BarBins::readings`; a full-rate
 /// log is the case of unit weights and no scatter).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Readings {

@@ -5,14 +5,26 @@
 //! clock that jumped: readings of one time with different counts (`conflicting_readings`) and
 //! gaps inside a mount (`gap`). Nothing is dropped without a count, and nothing suspicious
 //! reaches a fit without a flag. (Rows that two files both hold are found by ingest,
-//! `io::read::resolve_overlaps`.)
+//! `io::read::resolve_repeats`.)
 //!
 //! The encoder checks run on a bar's *pieces* in time order within each zero segment (a mount,
 //! split at `rezero` events; handling time is never fitted and the bar moves then): a piece is
 //! one reading of a full-rate log, or one bin of a log compressed while it streamed
 //! (`BinMoments` keeps each bin's smallest and largest counts), so both reading paths apply one
-//! rule, binned flags with a bin's time resolution. Rules and thresholds: README, "What dbbcal
-//! promises about your data".
+//! rule, binned flags with a bin's time resolution. Rules and thresholds, as promised:
+//! `docs/guarantees.md`, "Inputs".
+//!
+//! # How it works
+//!
+//! - Temperatures outside −60 .. 150 °C, and steps beyond 5 K + 0.05 K/s from the last kept reading
+//!   (walked both ways from the reading nearest the median), are dropped in `io::read::sensor_log`
+//!   by `series::quality::drop_implausible_temperatures` (`implausible_temperature`).
+//! - After ingest, each bar's log or bins go through `series::quality::check_log` /
+//!   `check_bins` (one rule on "pieces": a reading or a bin with its min/max counts, which
+//!   `BinMoments` keeps): exact duplicates, jumps, counter wraps (mount left out), frozen runs
+//!   (readings left out), readings far outside the mounts. A bar with nothing left is marked
+//!   `unusable`; `pipeline::analyse` fails it alone with that reason.
+//! - `summary.json` → `quality` is `series::Quality`, carried by `CampaignLogs` and `RunResults`.
 
 use std::collections::BTreeMap;
 
@@ -149,7 +161,7 @@ pub enum FlagKind {
     OverlappingFiles,
     /// One bar, one time, different counts (a logger clock set back, or two loggers): kept.
     ConflictingReadings,
-    /// No reading for longer than [`gap_threshold_ns`] inside a mount (a logger down, or its
+    /// No reading for longer than `gap_threshold_ns` inside a mount (a logger down, or its
     /// clock jumped forward).
     Gap,
     /// Temperatures no sensor of a room reads (below [`PLAUSIBLE_MIN_C`] or above

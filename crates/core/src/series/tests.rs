@@ -7,7 +7,7 @@ const S: i64 = 1_000_000_000;
 /// 2026-11-01T00:00:00Z in ns.
 const T0: i64 = 1_793_491_200 * S;
 
-/// One bar, B01, mounted from 2026-11-01 00:00 to 04:00 UTC (min, max, a hexapod)
+/// One bar, B01, mounted on 2026-11-01 from 00:00 to 04:00, UTC (min, max, a hexapod)
 /// ([`dbbcal_testkit::ONE_BAR_MANIFEST`]). Shared with other modules' tests.
 pub(crate) fn campaign() -> Campaign {
     let text = dbbcal_testkit::ONE_BAR_MANIFEST;

@@ -1,6 +1,6 @@
 //! First-order lag (low-pass) of irregularly sampled inputs, with its derivative in `ln tau`.
 //!
-//! `physics.md`: the step response `1 - exp(-t/tau)` generalises to `dx/dt = (u - x) / tau`.
+//! `docs/spec/physics.md`: the step response `1 - exp(-t/tau)` generalises to `dx/dt = (u - x) / tau`.
 //! Between two samples the input is taken as linear (first-order hold), which makes the
 //! discretisation exact for piecewise-linear inputs at any sample spacing:
 //!
@@ -12,6 +12,12 @@
 //! Differentiating the recursion gives the Jacobian column for `theta = ln tau` at the same cost
 //! (`b = a dt / tau`): `D1 = a D0 + b (x0 - u0) + m tau (b - (1 - a))`.
 //! The state starts in equilibrium with the first input (`x0 = u0`).
+//!
+//! # How it works
+//!
+//! - `lag::lag` caches its step factors (`exp(-dt/tau)` and the hold factor) by the step's bits in
+//!   a small open-addressed table per call: a binned bar's timeline repeats a few step lengths,
+//!   and a hit returns the bits a fresh computation would (`lag::tests::cached_step_factors_give_the_same_bits`).
 
 /// The lag `x` of `u` sampled at `t_s`, and optionally `dx/d ln tau`.
 pub(crate) fn lag(

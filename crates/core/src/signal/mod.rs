@@ -10,7 +10,7 @@ pub(crate) mod lag;
 pub(crate) const PLATE_SMOOTHING_S: f64 = 300.0;
 
 /// The plate temperature the expansion follows: its sensor smoothed forward and backward with
-/// [`PLATE_SMOOTHING_S`] ([`lag::zero_phase_lag`]; `physics.md`, "plate expansion").
+/// [`PLATE_SMOOTHING_S`] ([`lag::zero_phase_lag`]; `docs/spec/physics.md`, "plate expansion").
 ///
 /// The plate is a massive, slow body (hours), its sensor noisy. Taken raw, the sensor's white
 /// noise is an error in the regressor: it biases the expansion gain towards zero, and with it
