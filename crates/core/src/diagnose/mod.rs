@@ -730,26 +730,18 @@ fn coarse_tier(
                     .map(|f| f.as_ref().map(|(_, m)| m.clone()))
                     .collect(),
             );
-        } else if removed[k] >= COARSE_RIVAL_SHARE * best {
-            reasons.insert(
-                c,
-                format!(
-                    "screened out: refitted on the bars' 300-s copies it removes {} µm² of the fleet RSS (an RMS of {} µm), close to the best candidate's ({}, {} µm²), but {MAX_EXACT_RIVALS} candidates that remove more (or as much, with a name) are refitted exactly first; if it is an alias of the one proposed, it is gone once that one is in the model",
-                    fmt_um(removed[k]),
-                    fmt_um(fleet_rms(removed[k])),
-                    candidates[refit[best_at]].name(),
-                    fmt_um(best)
-                ),
-            );
         } else {
+            let why = if removed[k] >= COARSE_RIVAL_SHARE * best {
+                format!("close to the best candidate's ({}, {} µm²), but {MAX_EXACT_RIVALS} candidates that remove more (or as much, with a name) are refitted exactly first; if it is an alias of the one proposed, it is gone once that one is in the model", candidates[refit[best_at]].name(), fmt_um(best))
+            } else {
+                format!("less than {COARSE_RIVAL_SHARE} of the best candidate's ({}, {} µm²); if real it is found once that one is in the model", candidates[refit[best_at]].name(), fmt_um(best))
+            };
             reasons.insert(
                 c,
                 format!(
-                    "screened out: refitted on the bars' 300-s copies it removes {} µm² of the fleet RSS (an RMS of {} µm), less than {COARSE_RIVAL_SHARE} of the best candidate's ({}, {} µm²); if real it is found once that one is in the model",
+                    "screened out: refitted on the bars' 300-s copies it removes {} µm² of the fleet RSS (an RMS of {} µm), {why}",
                     fmt_um(removed[k]),
                     fmt_um(fleet_rms(removed[k])),
-                    candidates[refit[best_at]].name(),
-                    fmt_um(best)
                 ),
             );
         }
