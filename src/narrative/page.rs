@@ -263,7 +263,7 @@ fn ledger_text(d: &crate::pipeline::Diagnosis) -> Option<String> {
     if let Some(top) = d.candidates.iter().find(|c| c.proposed()) {
         if first_step.name() != top.effect.name() {
             text.push_str(&format!(
-                " Its first step is {first_step}, not the top-ranked {}: the selection keeps the                  path whose steps together lower the fleet's BIC most, and a term that fits best                  alone can leave more for the next steps than one that fits a little less well.",
+                " Its first step is {first_step}, not the top-ranked {}: the selection keeps the path whose steps together lower the fleet's BIC most, and a term that fits best alone can leave more for the next steps than one that fits a little less well.",
                 top.effect
             ));
         }
