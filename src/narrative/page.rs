@@ -218,7 +218,7 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
     if !screened.is_empty() {
         let _ = writeln!(
             h,
-            "<details><summary>{} more candidates screened out (too small to refit)</summary>\
+            "<details><summary>{} more candidates screened out (not refitted on the readings: each says why)</summary>\
              <table class=\"screened\"><thead><tr><th>effect</th><th>screened fleet RMS µm</th>\
              <th>why</th></tr></thead><tbody>",
             screened.len()
