@@ -75,6 +75,16 @@ fn only_the_io_crate_and_what_builds_on_it_link_polars() {
     check("dbbcal-testkit", &["polars", "plotters", "dbbcal-core"]);
     check("dbbcal-io", &["plotters", "dbbcal-report", "dbbcal-sim"]);
     check("dbbcal-sim", &["plotters", "dbbcal-report"]);
+    check(
+        "dbbcal-supervise",
+        &[
+            "polars",
+            "plotters",
+            "dbbcal-core",
+            "dbbcal-io",
+            "dbbcal-report",
+        ],
+    );
     let graph = lock_graph();
     assert!(
         closure(&graph, "dbbcal-io").contains("polars"),

@@ -13,8 +13,6 @@ mod repeats;
 mod table;
 mod write;
 
-pub mod supervise;
-
 #[cfg(test)]
 mod fuzz_tests;
 #[cfg(test)]
