@@ -1,0 +1,1 @@
+//! dbbcal-machine: the pure math of the machine kinds (issue 29).
