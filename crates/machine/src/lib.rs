@@ -10,4 +10,5 @@
 //! formulas come from `docs/spec/machine-physics.md`, `docs/spec/machine-formats.md` and
 //! `docs/spec/device-format.md`; each module says which section.
 pub mod edlen;
+pub mod iso230_2;
 pub mod linear;
