@@ -9,6 +9,8 @@
 //! IO, no polars, no plotters, no serialisation formats; the application owns those. The
 //! formulas come from `docs/spec/machine-physics.md`, `docs/spec/machine-formats.md` and
 //! `docs/spec/device-format.md`; each module says which section.
+pub mod axis;
+pub mod components;
 pub mod edlen;
 pub mod iso230_2;
 pub mod linear;
