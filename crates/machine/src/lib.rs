@@ -12,5 +12,9 @@
 pub mod axis;
 pub mod components;
 pub mod edlen;
+pub mod hexapod;
 pub mod iso230_2;
 pub mod linear;
+pub mod pose;
+pub mod pose_errors;
+pub mod straightness;
