@@ -165,15 +165,19 @@ pub fn solve_target(
     if readings.is_empty() {
         return Err(AxisError::NoReadings);
     }
-    if !(fixture.u_um.is_finite() && fixture.u_um >= 0.0)
-        || !fixture.report_point_mm.iter().all(|v| v.is_finite())
-    {
+    let fixture_ok = fixture.u_um.is_finite()
+        && fixture.u_um >= 0.0
+        && fixture.report_point_mm.iter().all(|v| v.is_finite());
+    if !fixture_ok {
         return Err(AxisError::BadInput(format!(
             "fixture u {} µm or report point {:?} mm is not valid",
             fixture.u_um, fixture.report_point_mm
         )));
     }
-    if let Some(r) = readings.iter().find(|r| !r.reflector_mm.iter().all(|v| v.is_finite())) {
+    if let Some(r) = readings
+        .iter()
+        .find(|r| !r.reflector_mm.iter().all(|v| v.is_finite()))
+    {
         return Err(AxisError::BadInput(format!(
             "line {}: reflector {:?} mm is not finite",
             r.line, r.reflector_mm
@@ -191,8 +195,13 @@ pub fn solve_target(
     };
     let solution = linear::solve(&problem)?;
     let determined: [bool; 6] = std::array::from_fn(|k| solution.determined[k]);
-    let est: [f64; 6] =
-        std::array::from_fn(|k| if determined[k] { solution.estimate[k] } else { f64::NAN });
+    let est: [f64; 6] = std::array::from_fn(|k| {
+        if determined[k] {
+            solution.estimate[k]
+        } else {
+            f64::NAN
+        }
+    });
 
     // First-order propagation: cov = K (Σ_y + G Σ_p Gᵀ) Kᵀ, K = (AᵀWA)⁺ AᵀW.
     let n = readings.len();
@@ -298,7 +307,11 @@ pub fn choose_points(lines: &[LineCandidates]) -> Result<PointChoice, AxisError>
         let rows: Vec<[f64; 6]> = lines
             .iter()
             .zip(&choice)
-            .flat_map(|(l, &c)| l.channels.iter().map(move |&ch| design_row(ch, l.candidates_mm[c])))
+            .flat_map(|(l, &c)| {
+                l.channels
+                    .iter()
+                    .map(move |&ch| design_row(ch, l.candidates_mm[c]))
+            })
             .collect();
         let e = DMatrix::<f64>::from_fn(rows.len().max(6), 6, |i, j| {
             rows.get(i).map_or(0.0, |r| r[j])

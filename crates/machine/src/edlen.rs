@@ -137,7 +137,8 @@ pub fn refractive_index(air: &Air, wavelength_nm: f64) -> Result<f64, EdlenError
     }
     let p = pressure_hpa * 100.0;
     let n_s = (8342.54 + 2_406_147.0 / (130.0 - s2) + 15998.0 / (38.9 - s2)) * 1e-8;
-    let n_tp = p * n_s * (1.0 + 1e-8 * (0.601 - 0.00972 * t) * p) / (96095.43 * (1.0 + 0.003661 * t));
+    let n_tp =
+        p * n_s * (1.0 + 1e-8 * (0.601 - 0.00972 * t) * p) / (96095.43 * (1.0 + 0.003661 * t));
     let f = humidity_pct / 100.0 * saturation_vapour_pressure_pa(t);
     Ok(1.0 + n_tp - f * (3.7345 - 0.0401 * s2) * 1e-10)
 }
@@ -189,8 +190,11 @@ fn factors(setup: &LaserSetup, at: &ReadingConditions) -> Result<Factors, EdlenE
     };
     let dead_term_mm = match setup.dead_path_mm {
         Some(l) if l != 0.0 => {
-            at.air.ok_or_else(|| need("air at the reading (dead path)"))?;
-            let datum = at.datum_air.ok_or_else(|| need("air at the datum (dead path)"))?;
+            at.air
+                .ok_or_else(|| need("air at the reading (dead path)"))?;
+            let datum = at
+                .datum_air
+                .ok_or_else(|| need("air at the datum (dead path)"))?;
             l * (n - refractive_index(&datum, setup.wavelength_nm)?)
         }
         _ => 0.0,
@@ -326,7 +330,10 @@ mod tests {
                 for l in [-400.0, 0.0, 0.001, 250.0, 1000.0] {
                     let r = simulate_reading_mm(l, &setup, &at).unwrap();
                     let back = normalise_reading_mm(r, &setup, &at).unwrap();
-                    assert!((back - l).abs() < 1e-12, "{mode} {dead_path_mm:?} {l}: {back}");
+                    assert!(
+                        (back - l).abs() < 1e-12,
+                        "{mode} {dead_path_mm:?} {l}: {back}"
+                    );
                 }
             }
         }

@@ -14,7 +14,7 @@
 //! example) *(ours: the centroid, so that a frame origin elsewhere does not move the ring)*.
 //!
 //! Forward kinematics *(standard)*: Newton's method from `nominal_pose` on the six lengths,
-//! t ← t + dδ, R ← exp([dε]×) R, until every length agrees to [`ForwardOptions::tolerance_mm`]
+//! t ← t + dδ, R ← exp(\[dε\]×) R, until every length agrees to [`ForwardOptions::tolerance_mm`]
 //! (default 1e-12 mm). A pose whose Jacobian is near-singular is refused: its condition number
 //! (rotation columns divided by the RMS distance ρ of the platform joints from the tool point,
 //! so that it has no unit, *ours*) is reported with the threshold
@@ -288,7 +288,8 @@ impl Hexapod {
             residual = res.amax();
             if residual <= options.tolerance_mm {
                 let condition = self.condition_number(&pose);
-                if !(condition <= options.max_condition) {
+                // NaN (a singular Jacobian) is refused too.
+                if condition.is_nan() || condition > options.max_condition {
                     return Err(HexapodError::NearSingular {
                         pose,
                         condition,

@@ -179,8 +179,7 @@ pub fn evaluate(targets: &[TargetDeviations]) -> Result<Iso230_2, Iso230Error> {
         return Err(Iso230Error::NoDirection);
     }
     for (j, t) in targets.iter().enumerate() {
-        if !(t.position_mm.is_finite() && t.up_um.iter().chain(&t.down_um).all(|v| v.is_finite()))
-        {
+        if !(t.position_mm.is_finite() && t.up_um.iter().chain(&t.down_um).all(|v| v.is_finite())) {
             return Err(Iso230Error::NonFinite { target: j });
         }
         for (measured, values, direction) in [(has_up, &t.up_um, "↑"), (has_down, &t.down_um, "↓")]
@@ -253,8 +252,11 @@ pub fn evaluate(targets: &[TargetDeviations]) -> Result<Iso230_2, Iso230Error> {
                 .fold(0.0, |a, b| a.max(b.abs())),
         );
         result.mean_range_m_um = Some(range(t.iter().filter_map(|t| t.mean_um)));
-        result.repeatability_r_um =
-            Some(t.iter().filter_map(|t| t.repeatability_um).fold(0.0, f64::max));
+        result.repeatability_r_um = Some(
+            t.iter()
+                .filter_map(|t| t.repeatability_um)
+                .fold(0.0, f64::max),
+        );
         let both = ups.iter().chain(&downs);
         result.systematic_e_um = Some(range(both.clone().map(|s| s.mean_um)));
         let hi = both
@@ -266,13 +268,21 @@ pub fn evaluate(targets: &[TargetDeviations]) -> Result<Iso230_2, Iso230Error> {
             .fold(f64::INFINITY, f64::min);
         result.accuracy_a_um = Some(hi - lo);
     } else {
-        let (only, missing) = if has_up { ("↑", "↓") } else { ("↓", "↑") };
+        let (only, missing) = if has_up {
+            ("↑", "↓")
+        } else {
+            ("↓", "↑")
+        };
         for q in ["A", "B", "R", "E", "M", "B_j", "x̄_j", "R_j"] {
             result.undefined.push(format!(
                 "{q}: bidirectional, only {only} measured (no {missing} runs)"
             ));
         }
-        let missing_uni = if has_up { "A↓, R↓, E↓" } else { "A↑, R↑, E↑" };
+        let missing_uni = if has_up {
+            "A↓, R↓, E↓"
+        } else {
+            "A↑, R↑, E↑"
+        };
         result
             .undefined
             .push(format!("{missing_uni}: no {missing} runs"));
@@ -367,7 +377,11 @@ mod tests {
         t[0].up_um.truncate(1);
         assert!(matches!(
             evaluate(&t),
-            Err(Iso230Error::TooFewRuns { target: 0, runs: 1, .. })
+            Err(Iso230Error::TooFewRuns {
+                target: 0,
+                runs: 1,
+                ..
+            })
         ));
         let mut t = example();
         t[0].up_um[0] = f64::NAN;

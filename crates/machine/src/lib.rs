@@ -1,9 +1,14 @@
 //! dbbcal-machine: the pure math of the machine kinds (issue 29).
 //!
-//! Plain data in, plain data out: the linear least-squares engine with named identifiability
-//! ([`linear`]), air refraction and laser normalisation ([`edlen`]), the ISO 230-2 evaluation
-//! ([`iso230_2`]), the six errors of a linear axis from interferometer lines ([`axis`]), and the
-//! hexapod device ([`pose`], [`hexapod`]).
+//! Plain data in, plain data out:
+//! - [`linear`]: the linear least-squares engine, with the rank and what is lost named;
+//! - [`edlen`]: air refraction (modified Edlén) and laser-reading normalisation;
+//! - [`iso230_2`]: the ISO 230-2 evaluation (A, B, R, E, M);
+//! - [`components`]: the six component errors of a linear axis and their ISO 230-1 names;
+//! - [`axis`]: kind `axis`, the six errors at a target from interferometer channels;
+//! - [`pose`], [`hexapod`], [`pose_errors`]: the hexapod device, its kinematics, and the
+//!   errors of the machine under test from its poses, with their uncertainty;
+//! - [`straightness`]: straightness raw and without its least-squares line.
 //!
 //! INVARIANT (enforced by this crate's dependencies and `tests/e2e/architecture.rs`): no file
 //! IO, no polars, no plotters, no serialisation formats; the application owns those. The

@@ -328,7 +328,10 @@ pub fn solve_with(
     let dof = n - rank;
     let covariance_given = problem.sigma.as_ref().map(|_| cov.clone());
     let (covariance, covariance_source) = if dof > 0 {
-        (Some(&cov * (rss_w / dof as f64)), CovarianceSource::Residuals)
+        (
+            Some(&cov * (rss_w / dof as f64)),
+            CovarianceSource::Residuals,
+        )
     } else if problem.sigma.is_some() {
         (Some(cov.clone()), CovarianceSource::GivenSigma)
     } else {

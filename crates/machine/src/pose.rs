@@ -4,8 +4,8 @@
 //! P expressed in B; a point q in P is t + R q in B, t in mm, R = Rz(rz) · Ry(ry) · Rx(rx),
 //! right-hand rotations about B's fixed axes (first rx about x, then ry about y, then rz about
 //! z), angles in degrees. `base_orientation_deg` uses the same convention (R_MB).
-//! **Small angles**: an error rotation ε (rad) is R(ε) = I + [ε]× to first order; here the
-//! exact rotation exp([ε]×) and the exact rotation vector (its inverse) are used, which agree
+//! **Small angles**: an error rotation ε (rad) is R(ε) = I + \[ε\]× to first order; here the
+//! exact rotation exp(\[ε\]×) and the exact rotation vector (its inverse) are used, which agree
 //! with the spec's to second order.
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -43,7 +43,12 @@ impl Pose {
     /// As [x, y, z, rx, ry, rz] (mm, deg).
     pub fn to_array(self) -> [f64; 6] {
         [
-            self.x_mm, self.y_mm, self.z_mm, self.rx_deg, self.ry_deg, self.rz_deg,
+            self.x_mm,
+            self.y_mm,
+            self.z_mm,
+            self.rx_deg,
+            self.ry_deg,
+            self.rz_deg,
         ]
     }
 
@@ -84,17 +89,17 @@ pub fn angles_deg(r: &Matrix3<f64>) -> [f64; 3] {
     [rx.to_degrees(), ry.to_degrees(), rz.to_degrees()]
 }
 
-/// The skew matrix [v]×, [v]× q = v × q.
+/// The skew matrix \[v\]×, \[v\]× q = v × q.
 pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     v.cross_matrix()
 }
 
-/// The rotation exp([ε]×) of rotation vector ε (rad).
+/// The rotation exp(\[ε\]×) of rotation vector ε (rad).
 pub fn rotation_from_vector(eps_rad: &Vector3<f64>) -> Matrix3<f64> {
     Rotation3::new(*eps_rad).into_inner()
 }
 
-/// The rotation vector (rad) of a rotation matrix: the ε with exp([ε]×) = R, |ε| ≤ π.
+/// The rotation vector (rad) of a rotation matrix: the ε with exp(\[ε\]×) = R, |ε| ≤ π.
 ///
 /// θ = atan2(|w|, (tr R − 1)/2), ε = w θ / |w| with w = vee(R − Rᵀ)/2: exact to rounding for
 /// the small rotations of error evaluation (an arccos of the trace would lose half the

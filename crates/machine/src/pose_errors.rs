@@ -5,9 +5,9 @@
 //! Sources: `docs/spec/device-format.md`, "Conventions": **Commanded pose** (R_cmd = R₀,
 //! t_cmd = t₀ + R_MBᵀ (c − c₀)); **Errors** (δ = 1000 · R_MB [(t + R r) − (t_cmd + R_cmd r)] µm,
 //! ε = 10⁶ · R_MB ε_B µrad, ε_B the rotation vector of R · R_cmdᵀ); **Names**. The forward
-//! model is `docs/spec/machine-physics.md`, "Hexapod": R = (I + [10⁻⁶ ε]×) R_cmd,
+//! model is `docs/spec/machine-physics.md`, "Hexapod": R = (I + \[10⁻⁶ ε\]×) R_cmd,
 //! t = t_cmd + R_cmd r + 10⁻³ δ − R r with (δ, ε) in B's axes; here with the exact rotation
-//! exp([10⁻⁶ ε]×), so that [`Hexapod::pose_errors`] inverts [`Hexapod::apply_errors`] exactly
+//! exp(\[10⁻⁶ ε\]×), so that [`Hexapod::pose_errors`] inverts [`Hexapod::apply_errors`] exactly
 //! (the two differ by second-order terms, < 2 nm at 300 mm for |ε| ≤ 1e-4 rad).
 //!
 //! Uncertainty *(ours, first order)*, in µm and µrad: a leg error dl moves the pose by J⁻¹ dl
@@ -173,7 +173,10 @@ impl Hexapod {
         station: &Pose,
         leg_expanded_um: &[f64; 6],
     ) -> Result<SixErrors, HexapodError> {
-        let (j0, js) = (self.inverse_jacobian(datum)?, self.inverse_jacobian(station)?);
+        let (j0, js) = (
+            self.inverse_jacobian(datum)?,
+            self.inverse_jacobian(station)?,
+        );
         let legs = Matrix6::from_diagonal(&nalgebra::Vector6::from_fn(|i, _| {
             (0.5 * leg_expanded_um[i]).powi(2)
         }));
@@ -198,7 +201,10 @@ mod tests {
     fn the_axis_moved_names_the_errors() {
         let c0 = [400.0, 300.0, -200.0];
         assert_eq!(moved_axis(c0, [420.0, 300.0, -200.0], 1e-3), Some(Axis::X));
-        assert_eq!(moved_axis(c0, [400.0, 300.0005, -150.0], 1e-3), Some(Axis::Z));
+        assert_eq!(
+            moved_axis(c0, [400.0, 300.0005, -150.0], 1e-3),
+            Some(Axis::Z)
+        );
         assert_eq!(moved_axis(c0, c0, 1e-3), None);
         assert_eq!(moved_axis(c0, [401.0, 301.0, -200.0], 1e-3), None);
         let test = [c0, [410.0, 300.0, -200.0], [420.0, 300.0, -200.0]];

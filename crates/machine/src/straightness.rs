@@ -23,15 +23,26 @@ pub struct Straightness {
 impl Straightness {
     /// Range (max − min) of the detrended values, µm.
     pub fn detrended_range_um(&self) -> f64 {
-        let max = self.detrended_um.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let min = self.detrended_um.iter().copied().fold(f64::INFINITY, f64::min);
+        let max = self
+            .detrended_um
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        let min = self
+            .detrended_um
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
         max - min
     }
 }
 
 /// Fit and remove the least-squares line through (position, value). Needs at least two
 /// distinct positions; the engine's error otherwise (e.g. rank 1 names what is lost).
-pub fn remove_line(positions_mm: &[f64], values_um: &[f64]) -> Result<Straightness, StraightnessError> {
+pub fn remove_line(
+    positions_mm: &[f64],
+    values_um: &[f64],
+) -> Result<Straightness, StraightnessError> {
     let problem = LinearProblem {
         names: vec!["intercept".into(), "slope".into()],
         rows: positions_mm.iter().map(|&x| vec![1.0, x]).collect(),
@@ -41,7 +52,11 @@ pub fn remove_line(positions_mm: &[f64], values_um: &[f64]) -> Result<Straightne
     let s = linear::solve(&problem)?;
     if !s.full_rank() {
         return Err(StraightnessError::NoLine(
-            s.lost.iter().map(|c| c.to_string()).collect::<Vec<_>>().join(", "),
+            s.lost
+                .iter()
+                .map(|c| c.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
         ));
     }
     Ok(Straightness {
@@ -70,9 +85,16 @@ mod tests {
     #[test]
     fn a_misalignment_is_a_line() {
         let x: Vec<f64> = (0..11).map(|k| -50.0 + 10.0 * k as f64).collect();
-        let bow: Vec<f64> = x.iter().map(|x| 2.0 * (1.0 - (x / 50.0f64).powi(2))).collect();
+        let bow: Vec<f64> = x
+            .iter()
+            .map(|x| 2.0 * (1.0 - (x / 50.0f64).powi(2)))
+            .collect();
         // 20 µrad of misalignment: 0.02 µm/mm.
-        let raw: Vec<f64> = x.iter().zip(&bow).map(|(x, b)| b + 0.02 * x + 0.5).collect();
+        let raw: Vec<f64> = x
+            .iter()
+            .zip(&bow)
+            .map(|(x, b)| b + 0.02 * x + 0.5)
+            .collect();
         let s = remove_line(&x, &raw).unwrap();
         let again = remove_line(&x, &bow).unwrap();
         for (a, b) in s.detrended_um.iter().zip(&again.detrended_um) {

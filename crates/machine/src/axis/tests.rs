@@ -84,8 +84,13 @@ fn the_spec_check_monte_carlo() {
     let fixture = Fixture::default();
     let t0 = truth().to_array();
     for _ in 0..n {
-        let r = readings(Axis::X, SPEC_POINTS, truth(), 0.1, &mut || normal.sample(&mut rng));
-        let e = solve_target(Axis::X, &r, &fixture).unwrap().errors.to_array();
+        let r = readings(Axis::X, SPEC_POINTS, truth(), 0.1, &mut || {
+            normal.sample(&mut rng)
+        });
+        let e = solve_target(Axis::X, &r, &fixture)
+            .unwrap()
+            .errors
+            .to_array();
         for k in 0..6 {
             let d = e[k] - t0[k];
             sum[k] += d;
@@ -109,7 +114,13 @@ fn known_errors_are_recovered_on_every_axis() {
         let t = solve_target(axis, &r, &Fixture::default()).unwrap();
         assert_eq!(t.rank, 6, "{axis}");
         assert!(t.lost.is_empty());
-        for (k, (a, b)) in t.errors.to_array().iter().zip(truth().to_array()).enumerate() {
+        for (k, (a, b)) in t
+            .errors
+            .to_array()
+            .iter()
+            .zip(truth().to_array())
+            .enumerate()
+        {
             assert!((a - b).abs() < 1e-9, "{axis} {}: {a} vs {b}", t.names[k]);
         }
         assert_eq!(t.names[0], format!("EX{axis}"));
@@ -258,7 +269,10 @@ fn the_fixture_propagation_matches_monte_carlo() {
     };
     let sigma = 0.1;
     let nominal = readings(Axis::X, SPEC_POINTS, big, sigma, &mut || 0.0);
-    let analytic = solve_target(Axis::X, &nominal, &fixture).unwrap().u.to_array();
+    let analytic = solve_target(Axis::X, &nominal, &fixture)
+        .unwrap()
+        .u
+        .to_array();
     let n = 20_000;
     let mut rng = ChaCha8Rng::seed_from_u64(29_003);
     let read = Normal::new(0.0, sigma).unwrap();
@@ -279,8 +293,7 @@ fn the_fixture_propagation_matches_monte_carlo() {
                     x.reflector_mm[2] + d[2],
                 ];
                 AxisReading {
-                    deviation_um: big.displacement_um(q)[x.channel.index()]
-                        + read.sample(&mut rng),
+                    deviation_um: big.displacement_um(q)[x.channel.index()] + read.sample(&mut rng),
                     ..*x
                 }
             })
@@ -296,7 +309,12 @@ fn the_fixture_propagation_matches_monte_carlo() {
     let sd: Vec<f64> = sum2.iter().map(|s| (s / n as f64).sqrt()).collect();
     println!("fixture: analytic {analytic:.4?}, MC (n = {n}) {sd:.4?}");
     for k in 0..6 {
-        assert!((sd[k] / analytic[k] - 1.0).abs() < 0.03, "{k}: {} vs {}", sd[k], analytic[k]);
+        assert!(
+            (sd[k] / analytic[k] - 1.0).abs() < 0.03,
+            "{k}: {} vs {}",
+            sd[k],
+            analytic[k]
+        );
     }
     // And it is larger than the readings' σ alone.
     assert!(analytic[0] > 0.11);
@@ -331,7 +349,11 @@ fn the_triplet_with_least_noise_amplification_is_chosen() {
     let best = c.best.unwrap();
     assert_eq!(best.choice, vec![0, 2, 1]);
     // At the spec's points with unit σ: 3 · 1 + 3 · 200 (µrad/µm)² = 603.
-    assert!((best.trace.unwrap() - 603.0).abs() < 1e-6, "{:?}", best.trace);
+    assert!(
+        (best.trace.unwrap() - 603.0).abs() < 1e-6,
+        "{:?}",
+        best.trace
+    );
 }
 
 #[test]

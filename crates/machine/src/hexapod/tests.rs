@@ -118,8 +118,16 @@ fn one_micrometre_per_leg_monte_carlo() {
         .pose_covariance(&d.nominal_pose, &[1.0; 6], false)
         .unwrap();
     for k in 0..6 {
-        assert!((sd[k] / SPEC_ONE_UM[k] - 1.0).abs() < 0.05, "{k}: {}", sd[k]);
-        assert!((sd[k] / c[(k, k)].sqrt() - 1.0).abs() < 0.03, "{k}: {}", sd[k]);
+        assert!(
+            (sd[k] / SPEC_ONE_UM[k] - 1.0).abs() < 0.05,
+            "{k}: {}",
+            sd[k]
+        );
+        assert!(
+            (sd[k] / c[(k, k)].sqrt() - 1.0).abs() < 0.03,
+            "{k}: {}",
+            sd[k]
+        );
     }
 }
 
@@ -213,7 +221,10 @@ fn commanded_poses_and_errors() {
     // The tool moves by R_MBᵀ (c − c₀) in B, and 30 mm along M's X.
     let moved = d.base_orientation() * (cmd.translation_mm() - datum.translation_mm());
     assert!((moved - Vector3::new(30.0, 0.0, 0.0)).norm() < 1e-12);
-    assert_eq!(d.pose_errors(&datum, &d.commanded_pose(&datum, c0, c0)), SixErrors::default());
+    assert_eq!(
+        d.pose_errors(&datum, &d.commanded_pose(&datum, c0, c0)),
+        SixErrors::default()
+    );
     let e = SixErrors::from_array([12.0, -7.5, 3.0, 25.0, -40.0, 15.0]);
     let back = d.pose_errors(&d.apply_errors(&cmd, &e), &cmd).to_array();
     for (a, b) in back.iter().zip(e.to_array()) {
@@ -226,12 +237,12 @@ fn truth_x(x: f64, x0: f64) -> SixErrors {
     let f = |x: f64| {
         let u = x / 50.0;
         [
-            15.0 * u + 4.0 * (1.5 * u).sin(),     // EXX: positioning, 15 µm / 50 mm
-            8.0 * u * u - 3.0 * u,                // EYX: straightness with a slope
+            15.0 * u + 4.0 * (1.5 * u).sin(), // EXX: positioning, 15 µm / 50 mm
+            8.0 * u * u - 3.0 * u,            // EYX: straightness with a slope
             -6.0 * u * u + 2.0 * (2.0 * u).cos(), // EZX
-            12.0 * u,                             // EAX: roll
-            -20.0 * u + 5.0 * u * u,              // EBX: pitch
-            10.0 * (1.2 * u).sin(),               // ECX: yaw
+            12.0 * u,                         // EAX: roll
+            -20.0 * u + 5.0 * u * u,          // EBX: pitch
+            10.0 * (1.2 * u).sin(),           // ECX: yaw
         ]
     };
     let (a, b) = (f(x), f(x0));
@@ -259,14 +270,20 @@ fn a_simulated_axis_is_recovered_within_u() {
     let positions: Vec<[f64; 3]> = (-5..=5)
         .map(|k| [c0[0] + 10.0 * k as f64, c0[1], c0[2]])
         .collect();
-    assert_eq!(axis_of_test(&positions, 1e-3), Some(crate::components::Axis::X));
+    assert_eq!(
+        axis_of_test(&positions, 1e-3),
+        Some(crate::components::Axis::X)
+    );
     // The true datum pose, and every station's true pose.
     let datum_true = Pose::from_array([0.4, -0.3, 259.0, 0.05, -0.03, 0.1]);
     let noisy = |truth: &Pose, rng: &mut ChaCha8Rng| -> [f64; 6] {
         let l = real.leg_lengths_mm(truth);
         std::array::from_fn(|i| l[i] + leg_noise.sample(rng))
     };
-    let datum = manifest.forward(&noisy(&datum_true, &mut rng)).unwrap().pose;
+    let datum = manifest
+        .forward(&noisy(&datum_true, &mut rng))
+        .unwrap()
+        .pose;
     let (mut inside, mut total, mut worst) = (0, 0, 0.0f64);
     let mut ey = Vec::new();
     for c in &positions {
