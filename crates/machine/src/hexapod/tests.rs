@@ -343,3 +343,61 @@ fn without_noise_the_simulated_axis_is_exact() {
         }
     }
 }
+
+#[test]
+fn the_error_uncertainty_matches_monte_carlo() {
+    // A station 50 mm along X from the datum; legs U = 1 µm (k = 2) independent at both
+    // dwells, joints u = 2 µm per coordinate shared by both.
+    let d = Hexapod {
+        base_orientation_deg: [0.2, -0.1, 0.5],
+        tool_point_mm: [0.0, 0.0, 40.0],
+        ..example()
+    };
+    let c0 = [400.0, 300.0, -200.0];
+    let c = [450.0, 300.0, -200.0];
+    let datum = Pose::from_array([0.4, -0.3, 259.0, 0.05, -0.03, 0.1]);
+    let station = d.commanded_pose(&datum, c0, c);
+    let u = d.error_uncertainty(&datum, &station, &[1.0; 6]).unwrap();
+    let legs_only = Hexapod {
+        u_base_um: [0.0; 6],
+        u_platform_um: [0.0; 6],
+        ..d.clone()
+    }
+    .error_uncertainty(&datum, &station, &[1.0; 6])
+    .unwrap();
+    let n = 10_000;
+    let mut rng = ChaCha8Rng::seed_from_u64(29_008);
+    let leg = Normal::new(0.0, 0.5e-3).unwrap();
+    let joint = Normal::new(0.0, 2e-3).unwrap();
+    let mut sum2 = [0.0; 6];
+    for _ in 0..n {
+        let mut real = d.clone();
+        for j in real.base_mm.iter_mut().chain(real.platform_mm.iter_mut()) {
+            for v in j.iter_mut() {
+                *v += joint.sample(&mut rng);
+            }
+        }
+        let mut measure = |pose: &Pose| {
+            let l = real.leg_lengths_mm(pose);
+            d.forward(&std::array::from_fn(|i| l[i] + leg.sample(&mut rng)))
+                .unwrap()
+                .pose
+        };
+        let m0 = measure(&datum);
+        let ms = measure(&station);
+        let e = d.pose_errors(&ms, &d.commanded_pose(&m0, c0, c)).to_array();
+        for k in 0..6 {
+            sum2[k] += e[k] * e[k];
+        }
+    }
+    let mc: Vec<f64> = sum2.iter().map(|s| 2.0 * (s / n as f64).sqrt()).collect();
+    println!("error U (k = 2) at 50 mm: analytic {:.4?}", u.to_array());
+    println!(
+        "                     legs only {:.4?}",
+        legs_only.to_array()
+    );
+    println!("                  MC (n = {n}) {mc:.4?}");
+    for (k, (a, b)) in u.to_array().iter().zip(&mc).enumerate() {
+        assert!((b / a - 1.0).abs() < 0.05, "{k}: MC {b} vs {a}");
+    }
+}
