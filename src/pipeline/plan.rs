@@ -9,6 +9,7 @@ use sha2::{Digest, Sha256};
 
 use crate::campaign::Campaign;
 use crate::model::Effect;
+use dbbcal_core::limits::{CountLimit, Limit};
 
 /// The stages a pipeline may run, in execution order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -293,44 +294,70 @@ pub enum PlanError {
 /// before any IO on the campaign: `(key, low, high, unit)`, both ends included. NaN and
 /// infinities (TOML's `nan`, `inf`) are outside every range.
 pub(crate) mod limits {
-    /// `[match] limit_um`, `[diagnose] tolerance_um`, `[acceptance] tolerance_um`: µm (a ballbar's
+    use dbbcal_core::limits::{CountLimit, Limit};
+    /// `[match] limit_um`, `[diagnose] tolerance_um`, `[acceptance] tolerance_um` (a ballbar's
     /// tolerances are microns; 1 mm is far beyond any).
-    pub(crate) const TOLERANCE_UM: (f64, f64) = (1e-6, 1e3);
-    /// `[match] study_step_s`: the measured-drift grid step, s (one second to a day).
-    pub(crate) const STUDY_STEP_S: (f64, f64) = (1.0, 86_400.0);
-    /// `[acceptance] u_temperature_k`: standard uncertainty of the air temperature, K.
-    pub(crate) const U_TEMPERATURE_K: (f64, f64) = (0.0, 10.0);
+    pub(crate) const TOLERANCE_UM: Limit = Limit::closed(1e-6, 1e3, "µm");
+    /// `[match] study_step_s`: the measured-drift grid step (one second to a day).
+    pub(crate) const STUDY_STEP_S: Limit = Limit::closed(1.0, 86_400.0, "s");
+    /// `[acceptance] u_temperature_k`: standard uncertainty of the air temperature.
+    pub(crate) const U_TEMPERATURE_K: Limit = Limit::closed(0.0, 10.0, "K");
     /// `[acceptance] max_gap_s`: one second to 30 days.
-    pub(crate) const MAX_GAP_S: (f64, f64) = (1.0, 30.0 * 86_400.0);
-    /// A starting time constant (`[[model.term]] tau_s`, the `@TAU_S` of an effect name), s: the
+    pub(crate) const MAX_GAP_S: Limit = Limit::closed(1.0, 30.0 * 86_400.0, "s");
+    /// A starting time constant (`[[model.term]] tau_s`, the `@TAU_S` of an effect name): the
     /// range the model evaluates time constants in (`ln tau` clamped to [0, ln 1e9]).
-    pub(crate) const TAU_S: (f64, f64) = (1.0, 1e9);
+    pub(crate) const TAU_S: Limit = Limit::closed(1.0, 1e9, "s");
+    /// `[model] bin_s`, `--bin-s`: 0 (every reading) or [`super::MIN_BIN_S`] to
+    /// [`crate::series::MAX_BIN_S`] (the gap is checked by `check_bin_s`).
+    pub(crate) const BIN_S: Limit = Limit::closed(0.0, crate::series::MAX_BIN_S, "s");
     /// `[diagnose] forward_steps` (0: rank the candidates only).
-    pub(crate) const FORWARD_STEPS: (usize, usize) = (0, 10);
+    pub(crate) const FORWARD_STEPS: CountLimit = CountLimit::new(0, 10);
     /// `[diagnose] beam` (1: plain greedy selection).
-    pub(crate) const BEAM: (usize, usize) = (1, 10);
+    pub(crate) const BEAM: CountLimit = CountLimit::new(1, 10);
 }
 
-/// `value` within `[lo, hi]` (finite), or the one-line message that names `key` and the range.
-fn check_range(key: &str, value: f64, (lo, hi): (f64, f64), unit: &str) -> Result<(), String> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(format!(
-            "{key} = {} is out of range: it must be a finite number from {lo} to {hi}{unit}",
-            crate::campaign::display_number(value)
-        ))
+/// The table of `docs/guarantees.md` ("Configuration and fits"), made from the [`limits`] the
+/// checks use: `| key | allowed |`, one row a limit (tests/e2e/docs.rs holds the doc to it).
+pub fn limits_table() -> String {
+    use limits::*;
+    let bins = format!(
+        "0 (every reading) or {}",
+        Limit::closed(MIN_BIN_S, crate::series::MAX_BIN_S, "s").describe()
+    );
+    let rows: [(&str, String); 9] = [
+        (
+            "`[match] limit_um`, `[diagnose] tolerance_um`, `[acceptance] tolerance_um`",
+            TOLERANCE_UM.describe(),
+        ),
+        ("`[match] study_step_s`", STUDY_STEP_S.describe()),
+        ("`[model] bin_s`, `--bin-s`", bins),
+        (
+            "`[[model.term]] tau_s`, `lag:CH@TAU_S` (also `rate:`, `level:`)",
+            TAU_S.describe(),
+        ),
+        ("`[diagnose] forward_steps`", FORWARD_STEPS.describe()),
+        ("`[diagnose] beam`", BEAM.describe()),
+        (
+            "`[diagnose] forward_steps` × `beam`",
+            format!("at most {MAX_SELECTION_ROUNDS}"),
+        ),
+        ("`[acceptance] u_temperature_k`", U_TEMPERATURE_K.describe()),
+        ("`[acceptance] max_gap_s`", MAX_GAP_S.describe()),
+    ];
+    let mut table = String::from("| key | allowed |\n|---|---|\n");
+    for (key, allowed) in rows {
+        table.push_str(&format!("| {key} | {allowed} |\n"));
     }
+    table
 }
 
-fn check_count(key: &str, value: usize, (lo, hi): (usize, usize)) -> Result<(), String> {
-    if (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(format!(
-            "{key} = {value} is out of range: it must be a whole number from {lo} to {hi}"
-        ))
-    }
+/// `value` within `limit`, or the one-line message that names `key` and the range.
+fn check_range(key: &str, value: f64, limit: Limit) -> Result<(), String> {
+    limit.check(key, value).map_err(|e| e.to_string())
+}
+
+fn check_count(key: &str, value: usize, limit: CountLimit) -> Result<(), String> {
+    limit.check(key, value).map_err(|e| e.to_string())
 }
 
 impl PipelineFile {
@@ -338,35 +365,29 @@ impl PipelineFile {
     pub(crate) fn check_numbers(&self) -> Result<(), String> {
         use limits::*;
         let m = &self.matching;
-        check_range("match.limit_um", m.limit_um, TOLERANCE_UM, " µm")?;
-        check_range("match.study_step_s", m.study_step_s, STUDY_STEP_S, " s")?;
+        check_range("match.limit_um", m.limit_um, TOLERANCE_UM)?;
+        check_range("match.study_step_s", m.study_step_s, STUDY_STEP_S)?;
         let d = &self.diagnose;
         check_count("diagnose.forward_steps", d.forward_steps, FORWARD_STEPS)?;
         check_count("diagnose.beam", d.beam, BEAM)?;
         check_selection(d.forward_steps, d.beam)?;
         if let Some(t) = d.tolerance_um {
-            check_range("diagnose.tolerance_um", t, TOLERANCE_UM, " µm")?;
+            check_range("diagnose.tolerance_um", t, TOLERANCE_UM)?;
         }
         let a = &self.acceptance;
-        check_range(
-            "acceptance.tolerance_um",
-            a.tolerance_um,
-            TOLERANCE_UM,
-            " µm",
-        )?;
+        check_range("acceptance.tolerance_um", a.tolerance_um, TOLERANCE_UM)?;
         check_range(
             "acceptance.u_temperature_k",
             a.u_temperature_k,
             U_TEMPERATURE_K,
-            " K",
         )?;
-        check_range("acceptance.max_gap_s", a.max_gap_s, MAX_GAP_S, " s")?;
+        check_range("acceptance.max_gap_s", a.max_gap_s, MAX_GAP_S)?;
         if let Some(bin_s) = self.model.bin_s {
             check_bin_s("model.bin_s", bin_s)?;
         }
         for (i, t) in self.model.term.iter().enumerate() {
             if let Some(tau) = t.tau_s {
-                check_range(&format!("model.term[{i}].tau_s"), tau, TAU_S, " s")?;
+                check_range(&format!("model.term[{i}].tau_s"), tau, TAU_S)?;
             }
         }
         Ok(())
@@ -381,7 +402,7 @@ pub const DEFAULT_CAMPAIGN_DIR: &str = "data/sample";
 /// A bin shorter than [`MIN_BIN_S`] (but 0) is refused: it compresses no logger's readings and
 /// its cost grows with the campaign's time span divided by the bin.
 pub(crate) fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
-    check_range(key, bin_s, (0.0, crate::series::MAX_BIN_S), " s")?;
+    check_range(key, bin_s, limits::BIN_S)?;
     if bin_s > 0.0 && bin_s < MIN_BIN_S {
         return Err(format!(
             "{key} = {} is out of range: it must be 0 (every reading) or from {MIN_BIN_S} to {} s (a shorter bin compresses nothing and costs memory by the time span)",
@@ -418,7 +439,6 @@ fn check_effect(e: &Effect) -> Result<(), String> {
             &format!("{:?}: the starting time constant @TAU_S", e.name()),
             *tau,
             limits::TAU_S,
-            " s",
         ),
         _ => Ok(()),
     }
@@ -782,7 +802,6 @@ fn effect_parse_message(name: &str, err: &crate::model::UnknownEffect) -> String
                 &format!("{name:?}: the starting time constant @TAU_S"),
                 tau,
                 limits::TAU_S,
-                " s",
             )
             .err()
         })

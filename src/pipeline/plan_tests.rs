@@ -201,7 +201,7 @@ fn a_bad_manifest_is_refused_at_plan_time() {
 
 /// What an accepted plan promises.
 fn check_plan(p: &RunPlan) {
-    let within = |v: f64, (lo, hi): (f64, f64)| v.is_finite() && lo <= v && v <= hi;
+    let within = |v: f64, limit: dbbcal_core::limits::Limit| limit.contains(v);
     assert!(within(p.matching.limit_um, limits::TOLERANCE_UM));
     assert!(within(p.matching.study_step_s, limits::STUDY_STEP_S));
     assert!(within(p.acceptance.tolerance_um, limits::TOLERANCE_UM));
@@ -215,7 +215,7 @@ fn check_plan(p: &RunPlan) {
         .tolerance_um
         .is_none_or(|t| within(t, limits::TOLERANCE_UM)));
     assert!((1..=10).contains(&p.diagnose.beam) && p.diagnose.forward_steps <= 10);
-    assert!(within(p.bin_s, (0.0, crate::series::MAX_BIN_S)));
+    assert!(within(p.bin_s, limits::BIN_S));
     for e in &p.effects {
         if let Effect::Channel {
             tau0_s: Some(t), ..

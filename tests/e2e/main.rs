@@ -10,6 +10,7 @@ mod cli;
 mod corpus;
 mod determinism;
 mod diagnose;
+mod docs;
 mod false_alarms;
 mod head_heating;
 mod identify;

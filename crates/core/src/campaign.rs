@@ -318,32 +318,48 @@ pub(crate) mod limits {
     /// `campaign.id`: at most this many characters of `[A-Za-z0-9._-]`, no leading dot (it names
     /// the default output folder `reports/<id>`).
     pub(crate) const ID_MAX_CHARS: usize = 100;
-    /// `campaign.reference_temperature_c`, °C.
-    pub(crate) const REFERENCE_TEMPERATURE_C: (f64, f64) = (-100.0, 200.0);
-    /// `plate.cte_ppm_per_k`, ppm/K (Zerodur ~0, steel ~12, aluminium ~23).
-    pub(crate) const CTE_PPM_PER_K: (f64, f64) = (-100.0, 100.0);
-    /// `plate.tilt_deg`, `mount[].tilt_deg`: from horizontal, degrees.
-    pub(crate) const TILT_DEG: (f64, f64) = (-90.0, 90.0);
+    use crate::limits::Limit;
+    /// `campaign.reference_temperature_c`.
+    pub(crate) const REFERENCE_TEMPERATURE_C: Limit = Limit::closed(-100.0, 200.0, "°C");
+    /// `plate.cte_ppm_per_k` (Zerodur ~0, steel ~12, aluminium ~23).
+    pub(crate) const CTE_PPM_PER_K: Limit = Limit::closed(-100.0, 100.0, "ppm/K");
+    /// `plate.tilt_deg`, `mount[].tilt_deg`: from horizontal.
+    pub(crate) const TILT_DEG: Limit = Limit::closed(-90.0, 90.0, "degrees");
     /// `plate.length[].mm`, `bar[].fixed_length_mm`: above 0, at most 10 m.
-    pub(crate) const LENGTH_MM: (f64, f64) = (0.0, 10_000.0);
+    pub(crate) const LENGTH_MM: Limit = Limit::above(0.0, 10_000.0, "mm");
     /// `plate.length[].u_um`: 0 to 1 mm.
-    pub(crate) const U_UM: (f64, f64) = (0.0, 1_000.0);
+    pub(crate) const U_UM: Limit = Limit::closed(0.0, 1_000.0, "µm");
     /// `bar[].resolution_nm`: above 0, at most 1 mm a count.
-    pub(crate) const RESOLUTION_NM: (f64, f64) = (0.0, 1e6);
+    pub(crate) const RESOLUTION_NM: Limit = Limit::above(0.0, 1e6, "nm");
     /// `mount[].from`, `mount[].to`: from 1970-01-01T00:00:00Z (included) to
     /// 2200-01-01T00:00:00Z (excluded), ns since the epoch.
     pub(crate) const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
 }
 
-/// A number for a one-line message: plain decimals, an exponent for very large or small ones
-/// (`1e300`, not three hundred digits).
-pub fn display_number(v: f64) -> String {
-    if v.is_finite() && v != 0.0 && !(1e-6..1e15).contains(&v.abs()) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
+pub use crate::limits::display_number;
+
+/// The manifest's number limits as a table (`| key | allowed |`), made from the constants the
+/// validation uses; `docs/guarantees.md` ("Configuration and fits") holds it word for word.
+pub fn limits_table() -> String {
+    use limits::*;
+    let rows = [
+        (
+            "`campaign.reference_temperature_c`",
+            REFERENCE_TEMPERATURE_C,
+        ),
+        ("`plate.cte_ppm_per_k`", CTE_PPM_PER_K),
+        ("`plate.tilt_deg`, `mount[].tilt_deg`", TILT_DEG),
+        ("`plate.length[].mm`, `bar[].fixed_length_mm`", LENGTH_MM),
+        ("`plate.length[].u_um`", U_UM),
+        ("`bar[].resolution_nm`", RESOLUTION_NM),
+    ];
+    let mut table = String::from("| key | allowed |\n|---|---|\n");
+    for (key, limit) in rows {
+        table.push_str(&format!("| {key} | {} |\n", limit.describe()));
     }
+    table
 }
+use crate::limits::Limit;
 
 /// The file name used in messages when the caller does not give one.
 const MANIFEST_FILE: &str = "campaign.toml";
@@ -561,37 +577,17 @@ impl Validator<'_> {
         }
     }
 
-    fn positive(&self, key: &str, name: &str, value: f64) -> Result<(), CampaignError> {
-        if value.is_finite() && value > 0.0 {
-            Ok(())
-        } else {
-            Err(self.invalid(key, format!("{name} = {value} must be a finite number > 0")))
-        }
-    }
-
-    /// `value` finite and within `range`; `open_low`: the low end itself is refused (`> lo`).
+    /// `value` within `limit` ([`crate::limits`]), or the message naming `key` and `name`.
     fn in_range(
         &self,
         key: &str,
         name: &str,
         value: f64,
-        (lo, hi): (f64, f64),
-        open_low: bool,
-        unit: &str,
+        limit: Limit,
     ) -> Result<(), CampaignError> {
-        let low_ok = if open_low { value > lo } else { value >= lo };
-        if value.is_finite() && low_ok && value <= hi {
-            Ok(())
-        } else {
-            let low = if open_low { ">" } else { ">=" };
-            Err(self.invalid(
-                key,
-                format!(
-                    "{name} = {} is out of range: it must be a finite number {low} {lo} and <= {hi}{unit}",
-                    display_number(value)
-                ),
-            ))
-        }
+        limit
+            .check(name, value)
+            .map_err(|e| self.invalid(key, e.to_string()))
     }
 
     fn unique_ids<'i>(
@@ -634,8 +630,6 @@ impl Validator<'_> {
             "reference_temperature_c",
             c.reference_temperature_c,
             limits::REFERENCE_TEMPERATURE_C,
-            false,
-            " °C",
         )
     }
 
@@ -645,29 +639,13 @@ impl Validator<'_> {
             "cte_ppm_per_k",
             p.cte_ppm_per_k,
             limits::CTE_PPM_PER_K,
-            false,
-            " ppm/K",
         )?;
-        self.in_range(
-            "plate",
-            "tilt_deg",
-            p.tilt_deg,
-            limits::TILT_DEG,
-            false,
-            " degrees",
-        )?;
+        self.in_range("plate", "tilt_deg", p.tilt_deg, limits::TILT_DEG)?;
         self.unique_ids("plate.length", p.length.iter().map(|l| l.id.as_str()))?;
         for (i, l) in p.length.iter().enumerate() {
             let key = format!("plate.length[{i}] ({:?})", l.id);
-            self.positive(&key, "mm", l.mm)?;
-            self.in_range(&key, "mm", l.mm, limits::LENGTH_MM, true, " mm")?;
-            if !(l.u_um.is_finite() && l.u_um >= 0.0) {
-                return Err(self.invalid(
-                    key,
-                    format!("u_um = {} must be a finite number >= 0", l.u_um),
-                ));
-            }
-            self.in_range(&key, "u_um", l.u_um, limits::U_UM, false, " µm")?;
+            self.in_range(&key, "mm", l.mm, limits::LENGTH_MM)?;
+            self.in_range(&key, "u_um", l.u_um, limits::U_UM)?;
         }
         Ok(())
     }
@@ -681,23 +659,17 @@ impl Validator<'_> {
         let sensor_ids: Vec<&str> = sensors.iter().map(|s| s.id.as_str()).collect();
         for (i, b) in bars.iter().enumerate() {
             let key = format!("bar[{i}] ({:?})", b.id);
-            self.positive(&key, "resolution_nm", b.resolution_nm)?;
             self.in_range(
                 &key,
                 "resolution_nm",
                 b.resolution_nm,
                 limits::RESOLUTION_NM,
-                true,
-                " nm",
             )?;
-            self.positive(&key, "fixed_length_mm", b.fixed_length_mm)?;
             self.in_range(
                 &key,
                 "fixed_length_mm",
                 b.fixed_length_mm,
                 limits::LENGTH_MM,
-                true,
-                " mm",
             )?;
             if let Some(s) = &b.sensor {
                 if !sensor_ids.contains(&s.as_str()) {
@@ -746,14 +718,7 @@ impl Validator<'_> {
         };
         let place = self.place(&key, d, bar, &m.plate)?;
         let tilt_deg = d.tilt_deg.unwrap_or(m.plate.tilt_deg);
-        self.in_range(
-            &key,
-            "tilt_deg",
-            tilt_deg,
-            limits::TILT_DEG,
-            false,
-            " degrees",
-        )?;
+        self.in_range(&key, "tilt_deg", tilt_deg, limits::TILT_DEG)?;
         let time = |name: &str, dt: &toml::value::Datetime| {
             let ns = toml_datetime_to_ns(dt)
                 .map_err(|e| self.invalid(key.clone(), format!("{name}: {e}")))?;

@@ -14,6 +14,7 @@ pub mod compensate;
 pub mod diagnose;
 pub mod fit;
 pub mod identify;
+pub mod limits;
 pub mod matching;
 pub mod model;
 pub mod series;

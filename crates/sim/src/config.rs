@@ -4,6 +4,7 @@
 //! effects are off by default. [`SimConfig::validate`] rejects bad input with the key's name.
 
 use chrono::{DateTime, Utc};
+use dbbcal_core::limits::Limit;
 use serde::{Deserialize, Serialize};
 
 use super::SimError;
@@ -1254,37 +1255,29 @@ fn invalid(key: &str, reason: &str) -> SimError {
     }
 }
 
+/// `v` within `limit`, or the key named with the range in `dbbcal_core::limits`' words.
+fn within(key: &str, v: f64, limit: Limit) -> Result<(), SimError> {
+    limit.check(key, v).map_err(|e| SimError::Invalid {
+        key: key.into(),
+        reason: format!("= {} is out of range: it must be {}", e.value, e.allowed),
+    })
+}
+
 fn finite(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(invalid(key, "not a finite number"))
-    }
+    within(key, v, Limit::FINITE)
 }
 
 fn positive(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(key, "must be positive"))
-    }
+    within(key, v, Limit::POSITIVE)
 }
 
 fn non_negative(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(key, "must be >= 0"))
-    }
+    within(key, v, Limit::NON_NEGATIVE)
 }
 
 /// A tilt from horizontal in [0, 90] degrees.
 fn tilt(key: &str, v: f64) -> Result<(), SimError> {
-    if v.is_finite() && (0.0..=90.0).contains(&v) {
-        Ok(())
-    } else {
-        Err(invalid(key, "must be in [0, 90] degrees"))
-    }
+    within(key, v, Limit::closed(0.0, 90.0, "degrees"))
 }
 
 /// A fleet mean and spread with `|mean| + 5 sd <= limit`.

@@ -63,7 +63,7 @@ const MAX_ENCODER_ROWS: usize = 500_000_000;
 /// Why a simulation could not be configured, run or written.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
-    /// A configuration value out of range.
+    /// A configuration value out of range (the words of `dbbcal_core::limits`) or not usable.
     #[error("simulation config: `{key}` {reason}")]
     Invalid {
         /// The key.

@@ -519,7 +519,7 @@ impl Supervised {
     }
 
     /// Wait for the child to end, then read the rest of its trail.
-    pub(crate) fn wait(mut self) -> std::io::Result<Ending> {
+    pub fn wait(mut self) -> std::io::Result<Ending> {
         // Wait without reaping: until `alive` is false the pid stays the child's, so a signal
         // forwarded meanwhile cannot reach another process.
         loop {

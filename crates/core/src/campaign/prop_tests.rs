@@ -14,7 +14,7 @@ const OTHER: &str = super::tests::GOOD;
 /// What a validated campaign promises.
 fn check_valid(c: &Campaign) {
     assert!(check_campaign_id(&c.id).is_ok(), "{:?}", c.id);
-    let within = |v: f64, (lo, hi): (f64, f64)| v.is_finite() && lo <= v && v <= hi;
+    let within = |v: f64, limit: crate::limits::Limit| limit.contains(v);
     assert!(within(
         c.reference_temperature_c,
         limits::REFERENCE_TEMPERATURE_C
