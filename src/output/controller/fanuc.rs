@@ -108,15 +108,15 @@ pub fn fanuc_3d(grid: &GridErrors, options: &Fanuc3dOptions) -> Result<String, T
             why: "I, J and K are at least 1",
         });
     }
-    let lines = ni
-        .checked_mul(nj)
-        .and_then(|n| n.checked_mul(nk))
-        .ok_or(TableError::TooManyPoints {
-            format: FORMAT,
-            count: usize::MAX,
-            limit: MAX_SEQUENCE_NUMBER as usize,
-            why: "I·J·K overflows",
-        })?;
+    let lines =
+        ni.checked_mul(nj)
+            .and_then(|n| n.checked_mul(nk))
+            .ok_or(TableError::TooManyPoints {
+                format: FORMAT,
+                count: usize::MAX,
+                limit: MAX_SEQUENCE_NUMBER as usize,
+                why: "I·J·K overflows",
+            })?;
     if grid.errors_um.len() != lines {
         return Err(TableError::LengthMismatch {
             component: "error vectors".to_string(),
@@ -275,7 +275,10 @@ mod tests {
         let text = fanuc_3d(&grid, &fine).unwrap();
         assert_eq!(text.lines().next(), Some("N100001A1P13A2P-13A3P0"));
         assert_eq!(text.lines().nth(12), Some("N100013A1P0A2P50A3P0"));
-        assert!(options(TableSign::Correction).meta().statement.contains("correction = -error"));
+        assert!(options(TableSign::Correction)
+            .meta()
+            .statement
+            .contains("correction = -error"));
     }
 
     #[test]
@@ -285,24 +288,52 @@ mod tests {
             counts: SEED_COUNTS,
             errors_um: vec![[0.0; 3]; 35],
         };
-        assert!(matches!(fanuc_3d(&short, &o), Err(TableError::LengthMismatch { values: 35, positions: 36, .. })));
+        assert!(matches!(
+            fanuc_3d(&short, &o),
+            Err(TableError::LengthMismatch {
+                values: 35,
+                positions: 36,
+                ..
+            })
+        ));
         let empty = GridErrors {
             counts: [3, 0, 3],
             errors_um: vec![],
         };
-        assert!(matches!(fanuc_3d(&empty, &o), Err(TableError::BadOption { option: "counts", .. })));
+        assert!(matches!(
+            fanuc_3d(&empty, &o),
+            Err(TableError::BadOption {
+                option: "counts",
+                ..
+            })
+        ));
         let mut nan = marked_grid();
         nan.errors_um[33][2] = f64::NAN;
         let refused = fanuc_3d(&nan, &o).unwrap_err();
-        assert!(refused.to_string().contains("line 34, node (1, 4, 3), A3"), "{refused}");
+        assert!(
+            refused.to_string().contains("line 34, node (1, 4, 3), A3"),
+            "{refused}"
+        );
         let mut big = marked_grid();
         big.errors_um[0][0] = 40_000.0;
-        assert!(matches!(fanuc_3d(&big, &o), Err(TableError::ValueOutOfRange { .. })));
+        assert!(matches!(
+            fanuc_3d(&big, &o),
+            Err(TableError::ValueOutOfRange { .. })
+        ));
         let mut zero_unit = o.clone();
         zero_unit.unit_um = 0.0;
-        assert!(matches!(fanuc_3d(&marked_grid(), &zero_unit), Err(TableError::BadOption { option: "unit_um", .. })));
+        assert!(matches!(
+            fanuc_3d(&marked_grid(), &zero_unit),
+            Err(TableError::BadOption {
+                option: "unit_um",
+                ..
+            })
+        ));
         let mut high = o;
         high.n_base = 99_999_990;
-        assert!(matches!(fanuc_3d(&marked_grid(), &high), Err(TableError::TooManyPoints { .. })));
+        assert!(matches!(
+            fanuc_3d(&marked_grid(), &high),
+            Err(TableError::TooManyPoints { .. })
+        ));
     }
 }

@@ -75,7 +75,10 @@ fn column_name_ok(name: &str, max: usize) -> bool {
 /// Refused: more rows than [`HeidenhainComOptions::max_points`], a bad table or column name, a
 /// value too large to write exactly, an input without components, any input
 /// [`AxisErrors::validate`] refuses.
-pub fn heidenhain_com(errors: &AxisErrors, options: &HeidenhainComOptions) -> Result<String, TableError> {
+pub fn heidenhain_com(
+    errors: &AxisErrors,
+    options: &HeidenhainComOptions,
+) -> Result<String, TableError> {
     const FORMAT: &str = "heidenhain-com";
     errors.validate()?;
     check_decimals("linear_decimals", options.linear_decimals)?;
@@ -110,9 +113,15 @@ pub fn heidenhain_com(errors: &AxisErrors, options: &HeidenhainComOptions) -> Re
 
     let mut out = Lines::new(options.line_ending);
     out.push(format!("BEGIN {:<8} {:<6} MM", options.table_name, ".COM"));
-    let mut header = format!("{:<NR_WIDTH$}{:<VALUE_WIDTH$}", "NR", options.position_column);
+    let mut header = format!(
+        "{:<NR_WIDTH$}{:<VALUE_WIDTH$}",
+        "NR", options.position_column
+    );
     for series in &present {
-        header.push_str(&format!("{:<VALUE_WIDTH$}", format!("C{}", series.component.index() + 1)));
+        header.push_str(&format!(
+            "{:<VALUE_WIDTH$}",
+            format!("C{}", series.component.index() + 1)
+        ));
     }
     out.push(header.trim_end());
     for (row, &position) in errors.positions_mm.iter().enumerate() {
@@ -120,12 +129,21 @@ pub fn heidenhain_com(errors: &AxisErrors, options: &HeidenhainComOptions) -> Re
         let mut line = format!(
             "{:<NR_WIDTH$}{:<VALUE_WIDTH$}",
             row,
-            decimal(position, options.linear_decimals, NumberStyle::Fixed, true, what)?
+            decimal(
+                position,
+                options.linear_decimals,
+                NumberStyle::Fixed,
+                true,
+                what
+            )?
         );
         for series in &present {
             let error = series.values[row];
             let (value, places) = if series.component.is_angular() {
-                (urad_to_deg(options.sign.apply(error)), options.angular_decimals)
+                (
+                    urad_to_deg(options.sign.apply(error)),
+                    options.angular_decimals,
+                )
             } else {
                 (options.sign.apply(error) / 1000.0, options.linear_decimals)
             };
@@ -184,7 +202,10 @@ NR      AXISPOS         C1              C2              C3              C4      
 [END]\r\n";
         assert_eq!(text, expected);
         // Field for field: split the header and each row on whitespace.
-        let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split_whitespace().collect()).collect();
+        let rows: Vec<Vec<&str>> = text
+            .lines()
+            .map(|l| l.split_whitespace().collect())
+            .collect();
         let header = &rows[1];
         let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
         let value = |row: usize, name: &str| rows[2 + row][column(name)].parse::<f64>().unwrap();
@@ -200,42 +221,108 @@ NR      AXISPOS         C1              C2              C3              C4      
 
     #[test]
     fn only_present_components_get_columns() {
-        let input = axis(LinearAxis::Z, vec![0.0, 5.0], vec![(Component::Eb, vec![0.0, 1.0]), (Component::Ez, vec![0.0, 2.0])]);
+        let input = axis(
+            LinearAxis::Z,
+            vec![0.0, 5.0],
+            vec![
+                (Component::Eb, vec![0.0, 1.0]),
+                (Component::Ez, vec![0.0, 2.0]),
+            ],
+        );
         let text = heidenhain_com(&input, &options(TableSign::Error)).unwrap();
         let header = text.lines().nth(1).unwrap();
-        assert_eq!(header.split_whitespace().collect::<Vec<_>>(), ["NR", "AXISPOS", "C3", "C5"]);
+        assert_eq!(
+            header.split_whitespace().collect::<Vec<_>>(),
+            ["NR", "AXISPOS", "C3", "C5"]
+        );
     }
 
     #[test]
     fn sign_five_micrometres() {
-        let input = axis(LinearAxis::Y, vec![0.0, 10.0, 20.0], vec![(Component::Ey, vec![0.0, 5.0, 0.0])]);
+        let input = axis(
+            LinearAxis::Y,
+            vec![0.0, 10.0, 20.0],
+            vec![(Component::Ey, vec![0.0, 5.0, 0.0])],
+        );
         let correction = heidenhain_com(&input, &options(TableSign::Correction)).unwrap();
         let row = correction.lines().nth(3).unwrap();
-        assert_eq!(row.split_whitespace().collect::<Vec<_>>(), ["1", "+10.0000", "-0.0050"]);
+        assert_eq!(
+            row.split_whitespace().collect::<Vec<_>>(),
+            ["1", "+10.0000", "-0.0050"]
+        );
         let error = heidenhain_com(&input, &options(TableSign::Error)).unwrap();
         let row = error.lines().nth(3).unwrap();
-        assert_eq!(row.split_whitespace().collect::<Vec<_>>(), ["1", "+10.0000", "+0.0050"]);
-        assert_eq!(error.lines().nth(1).unwrap().split_whitespace().nth(2), Some("C2"));
-        assert!(options(TableSign::Correction).meta().statement.contains("correction = -error"));
+        assert_eq!(
+            row.split_whitespace().collect::<Vec<_>>(),
+            ["1", "+10.0000", "+0.0050"]
+        );
+        assert_eq!(
+            error.lines().nth(1).unwrap().split_whitespace().nth(2),
+            Some("C2")
+        );
+        assert!(options(TableSign::Correction)
+            .meta()
+            .statement
+            .contains("correction = -error"));
     }
 
     #[test]
     fn bad_inputs_are_refused() {
         let o = options(TableSign::Error);
         let none = axis(LinearAxis::X, vec![0.0, 1.0], vec![]);
-        assert!(matches!(heidenhain_com(&none, &o), Err(TableError::NothingToWrite { .. })));
-        let many = axis(LinearAxis::X, (0..257).map(f64::from).collect(), vec![(Component::Ex, vec![0.0; 257])]);
-        assert!(matches!(heidenhain_com(&many, &o), Err(TableError::TooManyPoints { count: 257, .. })));
-        let ok = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ex, vec![0.0; 2])]);
+        assert!(matches!(
+            heidenhain_com(&none, &o),
+            Err(TableError::NothingToWrite { .. })
+        ));
+        let many = axis(
+            LinearAxis::X,
+            (0..257).map(f64::from).collect(),
+            vec![(Component::Ex, vec![0.0; 257])],
+        );
+        assert!(matches!(
+            heidenhain_com(&many, &o),
+            Err(TableError::TooManyPoints { count: 257, .. })
+        ));
+        let ok = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ex, vec![0.0; 2])],
+        );
         let mut long = o.clone();
         long.table_name = "NINECHARS".into();
-        assert!(matches!(heidenhain_com(&ok, &long), Err(TableError::BadOption { option: "table_name", .. })));
+        assert!(matches!(
+            heidenhain_com(&ok, &long),
+            Err(TableError::BadOption {
+                option: "table_name",
+                ..
+            })
+        ));
         let mut spaced = o.clone();
         spaced.position_column = "AXIS POS".into();
-        assert!(matches!(heidenhain_com(&ok, &spaced), Err(TableError::BadOption { option: "position_column", .. })));
-        let back = axis(LinearAxis::X, vec![1.0, 0.0], vec![(Component::Ex, vec![0.0; 2])]);
-        assert!(matches!(heidenhain_com(&back, &o), Err(TableError::NotIncreasing { .. })));
-        let huge = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ex, vec![0.0, 1e16])]);
-        assert!(matches!(heidenhain_com(&huge, &o), Err(TableError::ValueOutOfRange { .. })));
+        assert!(matches!(
+            heidenhain_com(&ok, &spaced),
+            Err(TableError::BadOption {
+                option: "position_column",
+                ..
+            })
+        ));
+        let back = axis(
+            LinearAxis::X,
+            vec![1.0, 0.0],
+            vec![(Component::Ex, vec![0.0; 2])],
+        );
+        assert!(matches!(
+            heidenhain_com(&back, &o),
+            Err(TableError::NotIncreasing { .. })
+        ));
+        let huge = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ex, vec![0.0, 1e16])],
+        );
+        assert!(matches!(
+            heidenhain_com(&huge, &o),
+            Err(TableError::ValueOutOfRange { .. })
+        ));
     }
 }

@@ -70,7 +70,9 @@ pub fn isg_csv(errors: &AxisErrors, options: &IsgCsvOptions) -> Result<String, T
     let axis = errors.axis.letter();
     let mut out = Lines::new(options.line_ending);
     out.push(format!("// {}", options.meta().statement));
-    out.push(format!("// component errors of the {axis} axis against {axis} (ISO 230-1 names)"));
+    out.push(format!(
+        "// component errors of the {axis} axis against {axis} (ISO 230-1 names)"
+    ));
     let mut header = axis.to_string();
     for series in &present {
         header.push(' ');
@@ -79,7 +81,13 @@ pub fn isg_csv(errors: &AxisErrors, options: &IsgCsvOptions) -> Result<String, T
     out.push(header);
     for (row, &position) in errors.positions_mm.iter().enumerate() {
         let what = || format!("{axis} row {row}");
-        let mut line = decimal(position, options.linear_decimals, options.style, false, what)?;
+        let mut line = decimal(
+            position,
+            options.linear_decimals,
+            options.style,
+            false,
+            what,
+        )?;
         for series in &present {
             let signed = options.sign.apply(series.values[row]);
             let (value, places) = if series.component.is_angular() {
@@ -152,7 +160,10 @@ mod tests {
         let input = axis(
             LinearAxis::Z,
             vec![0.0, 100.0, 200.0],
-            vec![(Component::Ex, vec![0.0; 3]), (Component::Ez, vec![0.0, 5.0, 0.0])],
+            vec![
+                (Component::Ex, vec![0.0; 3]),
+                (Component::Ez, vec![0.0, 5.0, 0.0]),
+            ],
         );
         let mut o = options(TableSign::Correction);
         o.style = NumberStyle::Fixed;
@@ -170,16 +181,47 @@ mod tests {
     fn bad_inputs_are_refused() {
         let o = options(TableSign::Error);
         let none = axis(LinearAxis::X, vec![0.0, 1.0], vec![]);
-        assert!(matches!(isg_csv(&none, &o), Err(TableError::NothingToWrite { .. })));
-        let back = axis(LinearAxis::X, vec![0.0, 0.0], vec![(Component::Ex, vec![0.0; 2])]);
-        assert!(matches!(isg_csv(&back, &o), Err(TableError::NotIncreasing { .. })));
-        let nan = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Eb, vec![0.0, f64::NAN])]);
-        assert!(matches!(isg_csv(&nan, &o), Err(TableError::NonFiniteValue { .. })));
-        let huge = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ea, vec![0.0, 1e16])]);
-        assert!(matches!(isg_csv(&huge, &o), Err(TableError::ValueOutOfRange { .. })));
+        assert!(matches!(
+            isg_csv(&none, &o),
+            Err(TableError::NothingToWrite { .. })
+        ));
+        let back = axis(
+            LinearAxis::X,
+            vec![0.0, 0.0],
+            vec![(Component::Ex, vec![0.0; 2])],
+        );
+        assert!(matches!(
+            isg_csv(&back, &o),
+            Err(TableError::NotIncreasing { .. })
+        ));
+        let nan = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Eb, vec![0.0, f64::NAN])],
+        );
+        assert!(matches!(
+            isg_csv(&nan, &o),
+            Err(TableError::NonFiniteValue { .. })
+        ));
+        let huge = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ea, vec![0.0, 1e16])],
+        );
+        assert!(matches!(
+            isg_csv(&huge, &o),
+            Err(TableError::ValueOutOfRange { .. })
+        ));
         let mut many = o;
         many.angular_decimals = 13;
-        let ok = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ex, vec![0.0; 2])]);
-        assert!(matches!(isg_csv(&ok, &many), Err(TableError::BadOption { .. })));
+        let ok = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ex, vec![0.0; 2])],
+        );
+        assert!(matches!(
+            isg_csv(&ok, &many),
+            Err(TableError::BadOption { .. })
+        ));
     }
 }

@@ -490,7 +490,11 @@ pub(crate) fn decimal(
 }
 
 /// Checks that a position written with `places` decimals is the position itself (within 1 pm).
-pub(crate) fn representable(what: &'static str, value_mm: f64, places: u8) -> Result<(), TableError> {
+pub(crate) fn representable(
+    what: &'static str,
+    value_mm: f64,
+    places: u8,
+) -> Result<(), TableError> {
     let scale = 10f64.powi(i32::from(places));
     let written = (value_mm * scale).round() / scale;
     if (written - value_mm).abs() > 1e-9 {
@@ -570,13 +574,34 @@ mod tests {
     #[test]
     fn numbers_are_fixed_or_trimmed() {
         let w = || String::new();
-        assert_eq!(decimal(0.01, 4, NumberStyle::Fixed, false, w).unwrap(), "0.0100");
-        assert_eq!(decimal(0.01, 4, NumberStyle::Trimmed, false, w).unwrap(), "0.01");
-        assert_eq!(decimal(1.0, 3, NumberStyle::Trimmed, false, w).unwrap(), "1.0");
-        assert_eq!(decimal(-200.0, 3, NumberStyle::Trimmed, false, w).unwrap(), "-200.0");
-        assert_eq!(decimal(-0.00002, 3, NumberStyle::Trimmed, false, w).unwrap(), "-0.0");
-        assert_eq!(decimal(0.005, 4, NumberStyle::Fixed, true, w).unwrap(), "+0.0050");
-        assert_eq!(decimal(7.0, 0, NumberStyle::Trimmed, false, w).unwrap(), "7.0");
+        assert_eq!(
+            decimal(0.01, 4, NumberStyle::Fixed, false, w).unwrap(),
+            "0.0100"
+        );
+        assert_eq!(
+            decimal(0.01, 4, NumberStyle::Trimmed, false, w).unwrap(),
+            "0.01"
+        );
+        assert_eq!(
+            decimal(1.0, 3, NumberStyle::Trimmed, false, w).unwrap(),
+            "1.0"
+        );
+        assert_eq!(
+            decimal(-200.0, 3, NumberStyle::Trimmed, false, w).unwrap(),
+            "-200.0"
+        );
+        assert_eq!(
+            decimal(-0.00002, 3, NumberStyle::Trimmed, false, w).unwrap(),
+            "-0.0"
+        );
+        assert_eq!(
+            decimal(0.005, 4, NumberStyle::Fixed, true, w).unwrap(),
+            "+0.0050"
+        );
+        assert_eq!(
+            decimal(7.0, 0, NumberStyle::Trimmed, false, w).unwrap(),
+            "7.0"
+        );
         assert!(matches!(
             decimal(1e12, 6, NumberStyle::Fixed, false, w),
             Err(TableError::ValueOutOfRange { .. })
@@ -585,20 +610,41 @@ mod tests {
 
     #[test]
     fn bad_axes_are_refused() {
-        let ok = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ex, vec![1.0, 2.0])]);
+        let ok = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ex, vec![1.0, 2.0])],
+        );
         assert_eq!(ok.validate(), Ok(()));
         let one = axis(LinearAxis::X, vec![0.0], vec![(Component::Ex, vec![1.0])]);
-        assert!(matches!(one.validate(), Err(TableError::TooFewPositions { count: 1 })));
+        assert!(matches!(
+            one.validate(),
+            Err(TableError::TooFewPositions { count: 1 })
+        ));
         let down = axis(LinearAxis::X, vec![0.0, 1.0, 1.0], vec![]);
-        assert!(matches!(down.validate(), Err(TableError::NotIncreasing { index: 2, .. })));
+        assert!(matches!(
+            down.validate(),
+            Err(TableError::NotIncreasing { index: 2, .. })
+        ));
         let nan = axis(LinearAxis::X, vec![0.0, f64::NAN], vec![]);
-        assert!(matches!(nan.validate(), Err(TableError::NonFinitePosition { index: 1, .. })));
-        let short = axis(LinearAxis::Y, vec![0.0, 1.0], vec![(Component::Ez, vec![1.0])]);
+        assert!(matches!(
+            nan.validate(),
+            Err(TableError::NonFinitePosition { index: 1, .. })
+        ));
+        let short = axis(
+            LinearAxis::Y,
+            vec![0.0, 1.0],
+            vec![(Component::Ez, vec![1.0])],
+        );
         assert!(matches!(
             short.validate(),
             Err(TableError::LengthMismatch { ref component, .. }) if component == "EZY"
         ));
-        let inf = axis(LinearAxis::Z, vec![0.0, 1.0], vec![(Component::Ea, vec![1.0, f64::INFINITY])]);
+        let inf = axis(
+            LinearAxis::Z,
+            vec![0.0, 1.0],
+            vec![(Component::Ea, vec![1.0, f64::INFINITY])],
+        );
         assert!(matches!(
             inf.validate(),
             Err(TableError::NonFiniteValue { ref component, index: 1, .. }) if component == "EAZ"
@@ -606,9 +652,15 @@ mod tests {
         let twice = axis(
             LinearAxis::X,
             vec![0.0, 1.0],
-            vec![(Component::Ex, vec![1.0, 2.0]), (Component::Ex, vec![1.0, 2.0])],
+            vec![
+                (Component::Ex, vec![1.0, 2.0]),
+                (Component::Ex, vec![1.0, 2.0]),
+            ],
         );
-        assert!(matches!(twice.validate(), Err(TableError::DuplicateComponent { .. })));
+        assert!(matches!(
+            twice.validate(),
+            Err(TableError::DuplicateComponent { .. })
+        ));
     }
 
     #[test]

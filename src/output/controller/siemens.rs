@@ -77,8 +77,13 @@ pub fn siemens_lec(errors: &AxisErrors, options: &SiemensLecOptions) -> Result<S
         });
     }
     let axis_name = &options.machine_axis;
-    let name_ok = axis_name.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
-        && axis_name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    let name_ok = axis_name
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic())
+        && axis_name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_');
     if !name_ok {
         return Err(TableError::BadOption {
             option: "machine_axis",
@@ -131,14 +136,26 @@ pub fn siemens_lec(errors: &AxisErrors, options: &SiemensLecOptions) -> Result<S
     for (index, &error_um) in values.iter().enumerate() {
         let value = options.sign.apply(error_um) / 1000.0;
         let what = || format!("{axis_name} point {index}");
-        out.push(format!("$AA_ENC_COMP[{e},{index},{axis_name}]={}", mm(value, &what)?));
+        out.push(format!(
+            "$AA_ENC_COMP[{e},{index},{axis_name}]={}",
+            mm(value, &what)?
+        ));
     }
     let what = || "STEP".to_string();
-    out.push(format!("$AA_ENC_COMP_STEP[{e},{axis_name}]={}", mm(step, &what)?));
+    out.push(format!(
+        "$AA_ENC_COMP_STEP[{e},{axis_name}]={}",
+        mm(step, &what)?
+    ));
     let what = || "MIN".to_string();
-    out.push(format!("$AA_ENC_COMP_MIN[{e},{axis_name}]={}", mm(min, &what)?));
+    out.push(format!(
+        "$AA_ENC_COMP_MIN[{e},{axis_name}]={}",
+        mm(min, &what)?
+    ));
     let what = || "MAX".to_string();
-    out.push(format!("$AA_ENC_COMP_MAX[{e},{axis_name}]={}", mm(max, &what)?));
+    out.push(format!(
+        "$AA_ENC_COMP_MAX[{e},{axis_name}]={}",
+        mm(max, &what)?
+    ));
     out.push(format!("$AA_ENC_COMP_IS_MODULO[{e},{axis_name}]=0"));
     out.push("M17");
     Ok(out.finish())
@@ -204,17 +221,27 @@ mod tests {
         assert_eq!(&statements[statements.len() - 6..], &published_tail);
         assert_eq!(statements.len(), 2 + 801 + 5);
         for (index, line) in statements[2..2 + 801].iter().enumerate() {
-            assert!(line.starts_with(&format!("$AA_ENC_COMP[0,{index},X1]=")), "{line}");
+            assert!(
+                line.starts_with(&format!("$AA_ENC_COMP[0,{index},X1]=")),
+                "{line}"
+            );
         }
         // The header comments come right after CHANDATA(1) and state sign and unit.
-        assert_eq!(lines[2], "; dbbcal: $AA_ENC_COMP values are error = measured - commanded in mm, 3 decimals");
+        assert_eq!(
+            lines[2],
+            "; dbbcal: $AA_ENC_COMP values are error = measured - commanded in mm, 3 decimals"
+        );
     }
 
     #[test]
     fn sign_five_micrometres() {
         let mut exx = vec![0.0; 5];
         exx[2] = 5.0;
-        let input = axis(LinearAxis::X, vec![0.0, 10.0, 20.0, 30.0, 40.0], vec![(Component::Ex, exx)]);
+        let input = axis(
+            LinearAxis::X,
+            vec![0.0, 10.0, 20.0, 30.0, 40.0],
+            vec![(Component::Ex, exx)],
+        );
         let mut o = options(TableSign::Correction);
         o.style = NumberStyle::Fixed;
         let text = siemens_lec(&input, &o).unwrap();
@@ -231,22 +258,42 @@ mod tests {
         let input = axis(
             LinearAxis::Y,
             vec![0.0, 50.0],
-            vec![(Component::Ez, vec![9.0, 9.0]), (Component::Ey, vec![1.0, -2.0])],
+            vec![
+                (Component::Ez, vec![9.0, 9.0]),
+                (Component::Ey, vec![1.0, -2.0]),
+            ],
         );
         let mut o = options(TableSign::Error);
         o.machine_axis = "Y1".into();
         let text = siemens_lec(&input, &o).unwrap();
-        assert!(text.contains("$AA_ENC_COMP[0,0,Y1]=0.001\n$AA_ENC_COMP[0,1,Y1]=-0.002\n"), "{text}");
+        assert!(
+            text.contains("$AA_ENC_COMP[0,0,Y1]=0.001\n$AA_ENC_COMP[0,1,Y1]=-0.002\n"),
+            "{text}"
+        );
         assert!(text.contains("$AA_ENC_COMP_STEP[0,Y1]=50.0\n"));
     }
 
     #[test]
     fn bad_inputs_are_refused() {
         let o = options(TableSign::Error);
-        let uneven = axis(LinearAxis::X, vec![0.0, 1.0, 2.5], vec![(Component::Ex, vec![0.0; 3])]);
-        assert!(matches!(siemens_lec(&uneven, &o), Err(TableError::NotEquallySpaced { index: 1, .. })));
-        let no_exx = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ey, vec![0.0; 2])]);
-        assert!(matches!(siemens_lec(&no_exx, &o), Err(TableError::MissingComponent { .. })));
+        let uneven = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0, 2.5],
+            vec![(Component::Ex, vec![0.0; 3])],
+        );
+        assert!(matches!(
+            siemens_lec(&uneven, &o),
+            Err(TableError::NotEquallySpaced { index: 1, .. })
+        ));
+        let no_exx = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ey, vec![0.0; 2])],
+        );
+        assert!(matches!(
+            siemens_lec(&no_exx, &o),
+            Err(TableError::MissingComponent { .. })
+        ));
         let many = axis(
             LinearAxis::X,
             (0..802).map(f64::from).collect(),
@@ -254,23 +301,70 @@ mod tests {
         );
         assert!(matches!(
             siemens_lec(&many, &o),
-            Err(TableError::TooManyPoints { count: 802, limit: 801, .. })
+            Err(TableError::TooManyPoints {
+                count: 802,
+                limit: 801,
+                ..
+            })
         ));
         let mut big = o.clone();
         big.max_points = 200_000;
-        assert!(matches!(siemens_lec(&many, &big), Err(TableError::BadOption { option: "max_points", .. })));
-        let fine = axis(LinearAxis::X, vec![0.0, 0.0005], vec![(Component::Ex, vec![0.0; 2])]);
-        assert!(matches!(siemens_lec(&fine, &o), Err(TableError::NotRepresentable { what: "STEP", .. })));
-        let huge = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ex, vec![0.0, 1e16])]);
-        assert!(matches!(siemens_lec(&huge, &o), Err(TableError::ValueOutOfRange { .. })));
-        let nan = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ex, vec![0.0, f64::NAN])]);
-        assert!(matches!(siemens_lec(&nan, &o), Err(TableError::NonFiniteValue { .. })));
+        assert!(matches!(
+            siemens_lec(&many, &big),
+            Err(TableError::BadOption {
+                option: "max_points",
+                ..
+            })
+        ));
+        let fine = axis(
+            LinearAxis::X,
+            vec![0.0, 0.0005],
+            vec![(Component::Ex, vec![0.0; 2])],
+        );
+        assert!(matches!(
+            siemens_lec(&fine, &o),
+            Err(TableError::NotRepresentable { what: "STEP", .. })
+        ));
+        let huge = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ex, vec![0.0, 1e16])],
+        );
+        assert!(matches!(
+            siemens_lec(&huge, &o),
+            Err(TableError::ValueOutOfRange { .. })
+        ));
+        let nan = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ex, vec![0.0, f64::NAN])],
+        );
+        assert!(matches!(
+            siemens_lec(&nan, &o),
+            Err(TableError::NonFiniteValue { .. })
+        ));
         let mut bad_name = o.clone();
         bad_name.machine_axis = "X1]=0".into();
-        let ok = axis(LinearAxis::X, vec![0.0, 1.0], vec![(Component::Ex, vec![0.0; 2])]);
-        assert!(matches!(siemens_lec(&ok, &bad_name), Err(TableError::BadOption { option: "machine_axis", .. })));
+        let ok = axis(
+            LinearAxis::X,
+            vec![0.0, 1.0],
+            vec![(Component::Ex, vec![0.0; 2])],
+        );
+        assert!(matches!(
+            siemens_lec(&ok, &bad_name),
+            Err(TableError::BadOption {
+                option: "machine_axis",
+                ..
+            })
+        ));
         let mut bad_encoder = o;
         bad_encoder.encoder = 2;
-        assert!(matches!(siemens_lec(&ok, &bad_encoder), Err(TableError::BadOption { option: "encoder", .. })));
+        assert!(matches!(
+            siemens_lec(&ok, &bad_encoder),
+            Err(TableError::BadOption {
+                option: "encoder",
+                ..
+            })
+        ));
     }
 }
