@@ -20,9 +20,8 @@ pub mod logs;
 mod tests;
 
 pub use logs::{
-    derive_order, environment_at, reflector_at, AxisCampaignLogs, AxisCampaignTables,
-    AxisReading, Channel, EnvironmentRow, ExtraColumn, FixtureRow, OrderProblem, ReadingKey,
-    ReadingOrder,
+    derive_order, environment_at, reflector_at, AxisCampaignLogs, AxisCampaignTables, AxisReading,
+    Channel, EnvironmentRow, ExtraColumn, FixtureRow, OrderProblem, ReadingKey, ReadingOrder,
 };
 
 // ---------------------------------------------------------------- kinds
@@ -400,7 +399,10 @@ impl AxisCampaign {
         if m.campaign.kind != CampaignKind::Axis {
             return Err(invalid(
                 "campaign.kind",
-                format!("is {:?}, this manifest is read as \"axis\"", m.campaign.kind.as_str()),
+                format!(
+                    "is {:?}, this manifest is read as \"axis\"",
+                    m.campaign.kind.as_str()
+                ),
             ));
         }
         check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;

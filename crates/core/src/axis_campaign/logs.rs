@@ -206,7 +206,12 @@ pub struct AxisCampaignTables {
 /// The reflector point of a reading on `line` at `time_ns`: the latest row of the line in
 /// `fixture` at or before the time, else the line's first row, else `default` (the manifest's
 /// `reflector_mm`). `fixture` must be sorted by (line, time).
-pub fn reflector_at(fixture: &[FixtureRow], line: i64, time_ns: TimeNs, default: [f64; 3]) -> [f64; 3] {
+pub fn reflector_at(
+    fixture: &[FixtureRow],
+    line: i64,
+    time_ns: TimeNs,
+    default: [f64; 3],
+) -> [f64; 3] {
     let start = fixture.partition_point(|r| r.line < line);
     let end = fixture.partition_point(|r| r.line <= line);
     let rows = &fixture[start..end];
@@ -319,7 +324,11 @@ fn order_run(keys: &[ReadingKey], rows: &mut [usize]) -> Result<(), OrderProblem
     let mut start = 0;
     while start < rows.len() {
         let t = keys[rows[start]].time_ns;
-        let end = start + rows[start..].iter().take_while(|&&i| keys[i].time_ns == t).count();
+        let end = start
+            + rows[start..]
+                .iter()
+                .take_while(|&&i| keys[i].time_ns == t)
+                .count();
         let block = &mut rows[start..end];
         let first_target = keys[block[0]].target_mm;
         let one_target = block.iter().all(|&i| keys[i].target_mm == first_target);
@@ -377,7 +386,11 @@ fn order_run(keys: &[ReadingKey], rows: &mut [usize]) -> Result<(), OrderProblem
 }
 
 /// Fills in the directions of the rows of one run (in their final order) that have none.
-fn derive_run(keys: &[ReadingKey], rows: &[usize], direction: &mut [i8]) -> Result<(), OrderProblem> {
+fn derive_run(
+    keys: &[ReadingKey],
+    rows: &[usize],
+    direction: &mut [i8],
+) -> Result<(), OrderProblem> {
     if rows.iter().all(|&i| keys[i].direction.is_some()) {
         return Ok(());
     }
@@ -389,7 +402,9 @@ fn derive_run(keys: &[ReadingKey], rows: &[usize], direction: &mut [i8]) -> Resu
         let end = start
             + rows[start..]
                 .iter()
-                .take_while(|&&i| keys[i].time_ns == k0.time_ns && keys[i].target_mm == k0.target_mm)
+                .take_while(|&&i| {
+                    keys[i].time_ns == k0.time_ns && keys[i].target_mm == k0.target_mm
+                })
                 .count();
         let change = match visits.last() {
             None => 0,

@@ -63,8 +63,13 @@ fn the_kind_is_read_from_any_manifest_and_absent_means_ballbar() {
         .to_string();
     assert!(e.contains("campaign.toml") && e.contains("kind") && e.contains("\"laser\""));
     assert!(e.contains("ballbar, axis, volumetric, probe, roll"), "{e}");
-    let e = campaign_kind("[campaign]\nkind = 3\n", "c").unwrap_err().to_string();
-    assert!(e.contains("campaign.kind") && e.contains("must be a string"), "{e}");
+    let e = campaign_kind("[campaign]\nkind = 3\n", "c")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("campaign.kind") && e.contains("must be a string"),
+        "{e}"
+    );
     let e = campaign_kind("[campaign\n", "c").unwrap_err().to_string();
     assert!(e.starts_with("c:1:"), "{e}");
     for k in CampaignKind::ALL {
@@ -82,10 +87,26 @@ fn every_bad_value_names_its_key() {
             "reference_temperature_c = nan",
             "campaign.reference_temperature_c",
         ),
-        ("cte_ppm_per_k = 11.5", "cte_ppm_per_k = 1e9", "machine.cte_ppm_per_k"),
-        ("wavelength_nm = 632.990577", "wavelength_nm = 0.63", "laser.wavelength_nm"),
-        ("dead_path_mm = 150.0", "dead_path_mm = -1.0", "laser.dead_path_mm"),
-        ("[0.0, 0.0, 100.0]", "[0.0, 0.0, inf]", "line[1].reflector_mm"),
+        (
+            "cte_ppm_per_k = 11.5",
+            "cte_ppm_per_k = 1e9",
+            "machine.cte_ppm_per_k",
+        ),
+        (
+            "wavelength_nm = 632.990577",
+            "wavelength_nm = 0.63",
+            "laser.wavelength_nm",
+        ),
+        (
+            "dead_path_mm = 150.0",
+            "dead_path_mm = -1.0",
+            "laser.dead_path_mm",
+        ),
+        (
+            "[0.0, 0.0, 100.0]",
+            "[0.0, 0.0, inf]",
+            "line[1].reflector_mm",
+        ),
         ("u_um = 5.0", "u_um = -5.0", "fixture.u_um"),
         (
             "report_point_mm = [0.0, 0.0, 0.0]",
@@ -97,7 +118,10 @@ fn every_bad_value_names_its_key() {
         let text = GOOD.replacen(from, to, 1);
         assert_ne!(text, GOOD, "{from}");
         let e = error(&text);
-        assert!(e.starts_with("campaign.toml: ") && e.contains(key), "{key}: {e}");
+        assert!(
+            e.starts_with("campaign.toml: ") && e.contains(key),
+            "{key}: {e}"
+        );
     }
     let e = error(&GOOD.replacen("id = 2,", "id = 1,", 1));
     assert!(e.contains("line[1]") && e.contains("line[0]"), "{e}");
@@ -141,7 +165,13 @@ fn the_environment_is_required_unless_the_readings_include_air_and_material() {
 
 // ---------------------------------------------------------------- rules
 
-fn key(time_s: i64, run: i64, target_mm: f64, channel: Channel, direction: Option<i8>) -> ReadingKey {
+fn key(
+    time_s: i64,
+    run: i64,
+    target_mm: f64,
+    channel: Channel,
+    direction: Option<i8>,
+) -> ReadingKey {
     ReadingKey {
         time_ns: time_s * 1_000_000_000,
         line: 1,
@@ -212,17 +242,26 @@ fn repeated_times_are_ordered_by_target_in_the_run_s_direction() {
     assert!(e.to_string().contains("line 1, run 1") && e.problem.contains("`direction`"));
     let mut mixed = up;
     mixed[0].direction = Some(-1);
-    assert!(derive_order(&mixed).unwrap_err().problem.contains("both directions"));
+    assert!(derive_order(&mixed)
+        .unwrap_err()
+        .problem
+        .contains("both directions"));
 }
 
 #[test]
 fn a_run_at_one_target_or_a_bad_direction_is_refused() {
-    let keys = [key(0, 3, 10.0, Channel::Dx, None), key(1, 3, 10.0, Channel::Dx, None)];
+    let keys = [
+        key(0, 3, 10.0, Channel::Dx, None),
+        key(1, 3, 10.0, Channel::Dx, None),
+    ];
     let e = derive_order(&keys).unwrap_err();
     assert_eq!((e.run, e.rows.clone()), (3, vec![0, 1]));
     assert!(e.problem.contains("cannot be derived"), "{e}");
     let keys = [key(0, 3, 10.0, Channel::Dx, Some(2))];
-    assert!(derive_order(&keys).unwrap_err().problem.contains("+1 nor -1"));
+    assert!(derive_order(&keys)
+        .unwrap_err()
+        .problem
+        .contains("+1 nor -1"));
     // Given: fine.
     assert!(derive_order(&[key(0, 3, 10.0, Channel::Dx, Some(1))]).is_ok());
 }
