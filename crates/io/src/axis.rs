@@ -137,7 +137,7 @@ pub fn read_axis_manifest(dir: &Path) -> Result<AxisCampaign, IngestError> {
 // ---------------------------------------------------------------- one file's columns
 
 /// One decoded file.
-struct File<'a> {
+struct Decoded<'a> {
     path: &'a Path,
     df: DataFrame,
 }
@@ -149,8 +149,8 @@ fn polars_failed(path: &Path) -> impl Fn(PolarsError) -> IngestError + '_ {
     }
 }
 
-impl<'a> File<'a> {
-    fn read(path: &'a Path) -> Result<File<'a>, IngestError> {
+impl<'a> Decoded<'a> {
+    fn read(path: &'a Path) -> Result<Decoded<'a>, IngestError> {
         let df = guarded(path, || {
             let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
                 path: path.to_path_buf(),
@@ -160,7 +160,7 @@ impl<'a> File<'a> {
                 .finish()
                 .map_err(polars_failed(path))
         })?;
-        Ok(File { path, df })
+        Ok(Decoded { path, df })
     }
 
     fn rows(&self) -> usize {
@@ -471,7 +471,7 @@ fn read_readings(
         BTreeMap::new();
     let mut offsets = Vec::new();
     for (f, path) in files.iter().enumerate() {
-        let file = File::read(path)?;
+        let file = Decoded::read(path)?;
         for name in [
             "time",
             "line",
@@ -485,7 +485,7 @@ fn read_readings(
         let time = required(path, "time", file.time("time")?)?;
         let line = required(path, "line", file.int("line")?)?;
         let run = required(path, "run", file.int("run")?)?;
-        let direction = file.optional("direction", File::int)?;
+        let direction = file.optional("direction", Decoded::int)?;
         let target = required(path, "target_mm", file.real("target_mm")?)?;
         let channel = required(path, "channel", file.text("channel")?)?;
         let deviation = required(path, "deviation_um", file.real("deviation_um")?)?;
@@ -648,7 +648,7 @@ fn read_fixture(
 ) -> Result<Vec<FixtureRow>, IngestError> {
     let mut rows = Vec::new();
     for path in files {
-        let file = File::read(path)?;
+        let file = Decoded::read(path)?;
         for name in ["time", "line", "x_mm", "y_mm", "z_mm"] {
             file.column(name)?;
         }
@@ -683,7 +683,7 @@ fn read_fixture(
 fn read_environment(files: &[PathBuf]) -> Result<Vec<EnvironmentRow>, IngestError> {
     let mut rows = Vec::new();
     for path in files {
-        let file = File::read(path)?;
+        let file = Decoded::read(path)?;
         for name in [
             "time",
             "air_c",
@@ -711,7 +711,7 @@ fn read_environment(files: &[PathBuf]) -> Result<Vec<EnvironmentRow>, IngestErro
                 MATERIAL_C.0, MATERIAL_C.1
             ),
         )?;
-        let factor = file.optional("env_factor_ppm", File::real)?;
+        let factor = file.optional("env_factor_ppm", Decoded::real)?;
         check_rows(
             path,
             "env_factor_ppm",
@@ -748,7 +748,7 @@ fn read_temperatures(
         .map(|s| (s.id.clone(), Vec::new()))
         .collect();
     for path in files {
-        let file = File::read(path)?;
+        let file = Decoded::read(path)?;
         for name in ["time", "sensor", "celsius"] {
             file.column(name)?;
         }
@@ -803,14 +803,14 @@ fn read_temperatures(
 fn read_events(files: &[PathBuf]) -> Result<Vec<Event>, IngestError> {
     let mut events = Vec::new();
     for path in files {
-        let file = File::read(path)?;
+        let file = Decoded::read(path)?;
         for name in ["time", "kind"] {
             file.column(name)?;
         }
         let time = required(path, "time", file.time("time")?)?;
         let kind = required(path, "kind", file.text("kind")?)?;
-        let bar = file.optional("bar", File::text)?;
-        let value = file.optional("value", File::real)?;
+        let bar = file.optional("bar", Decoded::text)?;
+        let value = file.optional("value", Decoded::real)?;
         events.extend((0..file.rows()).map(|i| Event {
             time_ns: time[i],
             bar: bar[i].clone(),

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use polars::prelude as pl;
-use polars::prelude::{DataType, IntoColumn, NewChunkedArray};
+use polars::prelude::{DataType, IntoColumn};
 
 use super::{read_axis_campaign, write_axis_campaign, AxisWriteOptions, TimeUnit};
 use dbbcal_core::axis_campaign::{
@@ -230,7 +230,7 @@ fn narrow_integers_zoned_times_and_extra_columns_are_read() {
         .into_column();
     let mut columns = replace(readings_df(n), zoned);
     columns = replace(columns, pl::Column::new("line".into(), vec![1i8; n]));
-    columns = replace(columns, pl::Column::new("run".into(), vec![1u16; n]));
+    columns = replace(columns, pl::Column::new("run".into(), vec![1u32; n]));
     columns.push(pl::Column::new("laser_temp_c".into(), vec![21.5f32; n]));
     columns.push(pl::Column::new("operator".into(), vec!["ann"; n]));
     write_df(

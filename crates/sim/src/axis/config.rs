@@ -390,7 +390,7 @@ impl AxisSimConfig {
         finite("cte_ppm_per_k", self.cte_ppm_per_k)?;
         finite("first_target_mm", self.first_target_mm)?;
         finite("last_target_mm", self.last_target_mm)?;
-        if !(self.last_target_mm > self.first_target_mm) {
+        if self.last_target_mm <= self.first_target_mm {
             return Err(invalid("last_target_mm", "must be above first_target_mm"));
         }
         if !(2..=1000).contains(&self.targets) {
