@@ -286,7 +286,8 @@ fn a_cosine_error_is_minus_half_theta_squared_times_x_per_line() {
             (slope / expected - 1.0).abs() < 1e-3,
             "line {line}: {slope} vs {expected}"
         );
-        assert!(intercept.abs() < 1e-6);
+        // Zero at the datum; the true errors' own share, (cos θ − 1) · EXX, is nanometres.
+        assert!(intercept.abs() < 1e-4, "line {line}: {intercept}");
     }
 }
 
