@@ -218,7 +218,12 @@ fn a_dead_path_is_constant_along_x_and_follows_the_air_since_the_datum() {
             .find(|l| l.id == r.line)
             .unwrap()
             .datum_time_ns;
-        let e = sim.tables.environment.iter().find(|e| e.time_ns == r.time_ns).unwrap();
+        let e = sim
+            .tables
+            .environment
+            .iter()
+            .find(|e| e.time_ns == r.time_ns)
+            .unwrap();
         let material = 1.0 + 11.5e-6 * (e.material_c.unwrap() - 20.0);
         let expected = 1e3 * 200.0 * (n_at(r.time_ns) - n_at(datum)) / n_at(r.time_ns) / material;
         assert!((d - expected).abs() < 1e-6, "{d} vs {expected}");
