@@ -10,7 +10,8 @@
 //! line the manifest does not declare, a time out of 1980 … 2200) refuses the campaign with one
 //! line naming the file, the column and the rows (counting from 0 in that file). The order and
 //! the directions follow `dbbcal_core::axis_campaign::derive_order`, so files split in any way
-//! and rows in any order give the same logs. Extra columns of `readings/` are kept by name
+//! and rows in any order give the same logs; a reading several files hold (equal in every
+//! spec column) is kept once and counted (`AxisCampaignLogs::duplicate_readings`). Extra columns of `readings/` are kept by name
 //! (numbers and booleans as f64, anything else as text); extra columns of the other tables are
 //! ignored. Every input file is hashed (sha256) before the read and checked unchanged after it,
 //! as `read_campaign` does. Temperatures with a non-finite `celsius` are missing readings and
@@ -87,7 +88,11 @@ pub fn read_axis_campaign(dir: &Path) -> Result<AxisCampaignLogs, IngestError> {
     let before = stamps(&all)?;
     let inputs = hash_inputs(dir, &all)?;
 
-    let (readings, extra) = read_readings(&readings_files, &campaign)?;
+    let Readings {
+        readings,
+        extra,
+        duplicates,
+    } = read_readings(&readings_files, &campaign)?;
     let fixture = read_fixture(&fixture_files, &campaign)?;
     let environment = read_environment(&environment_files)?;
     campaign.check_environment(!environment.is_empty(), &manifest.display().to_string())?;
@@ -99,6 +104,7 @@ pub fn read_axis_campaign(dir: &Path) -> Result<AxisCampaignLogs, IngestError> {
         inputs,
         readings,
         extra,
+        duplicate_readings: duplicates,
         fixture,
         environment,
         temperatures,
@@ -460,10 +466,7 @@ fn check_lines(
 // ---------------------------------------------------------------- readings
 
 /// The readings of every file, checked, ordered and with directions; their extra columns.
-fn read_readings(
-    files: &[PathBuf],
-    campaign: &AxisCampaign,
-) -> Result<(Vec<AxisReading>, BTreeMap<String, ExtraColumn>), IngestError> {
+fn read_readings(files: &[PathBuf], campaign: &AxisCampaign) -> Result<Readings, IngestError> {
     let mut keys: Vec<ReadingKey> = Vec::new();
     let mut source: Vec<(usize, u64)> = Vec::new();
     // Extra columns, per name: one piece per file (`None`: the file lacks it).
@@ -575,31 +578,47 @@ fn read_readings(
             ),
         }
     })?;
-    let readings = order
-        .order
-        .iter()
-        .map(|&i| {
-            let k = &keys[i];
-            AxisReading {
-                time_ns: k.time_ns,
-                line: k.line,
-                run: k.run,
-                direction: order.direction[i],
-                target_mm: k.target_mm,
-                channel: k.channel,
-                deviation_um: k.deviation_um,
-            }
-        })
-        .collect();
+    // A reading held by two files (an overlapping export, a copied file) is kept once: rows
+    // equal in every spec column are adjacent in the order.
+    let mut readings: Vec<AxisReading> = Vec::with_capacity(keys.len());
+    let mut kept: Vec<usize> = Vec::with_capacity(keys.len());
+    for &i in &order.order {
+        let k = &keys[i];
+        let reading = AxisReading {
+            time_ns: k.time_ns,
+            line: k.line,
+            run: k.run,
+            direction: order.direction[i],
+            target_mm: k.target_mm,
+            channel: k.channel,
+            deviation_um: k.deviation_um,
+        };
+        if readings.last() != Some(&reading) {
+            readings.push(reading);
+            kept.push(i);
+        }
+    }
+    let duplicates = (keys.len() - kept.len()) as u64;
     let total = keys.len();
     let extra = extra_pieces
         .into_iter()
         .filter_map(|(name, pieces)| {
             let whole = join_pieces(&pieces, &offsets, total)?;
-            Some((name, whole.reordered(&order.order)))
+            Some((name, whole.reordered(&kept)))
         })
         .collect();
-    Ok((readings, extra))
+    Ok(Readings {
+        readings,
+        extra,
+        duplicates,
+    })
+}
+
+/// The readings, ordered, with directions; their extra columns; the copies left out.
+struct Readings {
+    readings: Vec<AxisReading>,
+    extra: BTreeMap<String, ExtraColumn>,
+    duplicates: u64,
 }
 
 /// One extra column over every file (rows of files without it are null): numbers where every

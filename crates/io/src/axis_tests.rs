@@ -417,3 +417,20 @@ fn dictionary_channels_and_categorical_casts_stay_strings() {
     let channels: Vec<Channel> = logs.readings.iter().map(|r| r.channel).collect();
     assert_eq!(channels, [Channel::Dx, Channel::Dy, Channel::Dz]);
 }
+
+#[test]
+fn a_reading_two_files_hold_is_kept_once() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), &AxisWriteOptions::default());
+    let once = read_axis_campaign(dir.path()).unwrap();
+    assert_eq!(once.duplicate_readings, 0);
+    std::fs::copy(
+        dir.path().join("readings/readings.parquet"),
+        dir.path().join("readings/copy.parquet"),
+    )
+    .unwrap();
+    let twice = read_axis_campaign(dir.path()).unwrap();
+    assert_eq!(twice.readings, once.readings);
+    assert_eq!(twice.duplicate_readings, once.readings.len() as u64);
+    assert_eq!(twice.inputs.len(), once.inputs.len() + 1);
+}

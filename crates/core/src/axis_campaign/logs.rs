@@ -164,6 +164,8 @@ pub struct AxisCampaignLogs {
     pub readings: Vec<AxisReading>,
     /// The readings' extra columns by name, each in the readings' order.
     pub extra: BTreeMap<String, ExtraColumn>,
+    /// Rows equal in every spec column to another (a reading two files hold), left out.
+    pub duplicate_readings: u64,
     /// The fixture rows, sorted by line and time (empty without `fixture/`).
     pub fixture: Vec<FixtureRow>,
     /// The environment rows, sorted by time (empty without `environment/`).
