@@ -434,3 +434,59 @@ fn a_reading_two_files_hold_is_kept_once() {
     assert_eq!(twice.duplicate_readings, once.readings.len() as u64);
     assert_eq!(twice.inputs.len(), once.inputs.len() + 1);
 }
+
+#[test]
+fn extra_columns_follow_their_rows_through_any_order() {
+    let dir = tempfile::tempdir().unwrap();
+    write(dir.path(), &AxisWriteOptions::default());
+    std::fs::remove_file(dir.path().join("readings/readings.parquet")).unwrap();
+    // Rows in reverse, split over two files, the second without the extra column.
+    let rows: Vec<AxisReading> = readings().into_iter().rev().collect();
+    let (a, b) = rows.split_at(rows.len() / 2);
+    for (name, part, with_extra) in [("a", a, true), ("b", b, false)] {
+        let times: Vec<i64> = part.iter().map(|r| r.time_ns).collect();
+        let mut columns = vec![
+            time_col(&times),
+            pl::Column::new(
+                "line".into(),
+                part.iter().map(|r| r.line).collect::<Vec<_>>(),
+            ),
+            pl::Column::new("run".into(), part.iter().map(|r| r.run).collect::<Vec<_>>()),
+            pl::Column::new(
+                "target_mm".into(),
+                part.iter().map(|r| r.target_mm).collect::<Vec<_>>(),
+            ),
+            pl::Column::new(
+                "channel".into(),
+                part.iter().map(|r| r.channel.as_str()).collect::<Vec<_>>(),
+            ),
+            pl::Column::new(
+                "deviation_um".into(),
+                part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
+            ),
+        ];
+        if with_extra {
+            columns.push(pl::Column::new(
+                "copy".into(),
+                part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
+            ));
+        }
+        write_df(
+            &dir.path().join(format!("readings/{name}.parquet")),
+            pl::DataFrame::new_infer_height(columns).unwrap(),
+        );
+    }
+    let logs = read_axis_campaign(dir.path()).unwrap();
+    assert_eq!(logs.readings, readings());
+    let ExtraColumn::Real(copy) = &logs.extra["copy"] else {
+        panic!("not numbers")
+    };
+    let in_a: Vec<(i64, f64)> = a.iter().map(|r| (r.time_ns, r.deviation_um)).collect();
+    for (r, c) in logs.readings.iter().zip(copy) {
+        let expected = in_a
+            .iter()
+            .any(|&(t, d)| t == r.time_ns && d == r.deviation_um)
+            .then_some(r.deviation_um);
+        assert_eq!(*c, expected);
+    }
+}
