@@ -10,10 +10,11 @@ pub use dbbcal_core::{
     model, series,
 };
 pub use dbbcal_io as io;
-pub use dbbcal_io::supervise;
 pub use dbbcal_report as report;
 pub use dbbcal_sim as simulate;
+pub use dbbcal_supervise as supervise;
 
+pub mod exit;
 pub mod figures;
 pub mod narrative;
 pub mod output;

@@ -17,12 +17,7 @@ use dbbcal::pipeline::{RunPlan, Stage};
 use dbbcal::runner::{self, RunStatus};
 use dbbcal::supervise::{Crash, Ending, SupervisedAlloc};
 
-/// Exit codes (also in `--help` and the README). 2 is clap's for a command-line usage error.
-const EXIT_OTHER: u8 = 1;
-const EXIT_UNUSABLE_INPUT: u8 = 3;
-const EXIT_SOME_BARS_FAILED: u8 = 4;
-const EXIT_NO_BAR_SUCCEEDED: u8 = 5;
-const EXIT_OUTPUT_BUSY: u8 = 6;
+use dbbcal::exit::Exit;
 
 /// How long a probe of one file after a crash may take (`supervise::probe`).
 const PROBE_LIMIT: std::time::Duration = std::time::Duration::from_secs(120);
@@ -35,22 +30,11 @@ const AFTER_HELP: &str = "Examples:
   dbbcal calibrate --campaign DIR --out /tmp/cal          # centre-distance functions D(n, A)
   dbbcal identify --campaign data/sample --out /tmp/id --add-effect head_heating
   dbbcal simulate --config pipelines/sim-sample.toml --out /tmp/campaign
-
-Exit codes:
-  0    every bar processed; the output is in place
-  1    another error (e.g. the output could not be written, or the analysis was killed); the
-       previous output is unchanged
-  2    command-line usage error (nothing read or written)
-  3    unusable input or configuration, or an output location dbbcal may not write (refused
-       before any work; the previous output is unchanged)
-  4    some bars failed (see failed_bars in summary.json); the others are in the output
-  5    no bar succeeded; nothing written, the previous output is unchanged
-  6    another dbbcal run is writing the same output; nothing done
-  130  interrupted (Ctrl-C; 143 for SIGTERM): the partial output removed, the previous unchanged";
+";
 
 #[derive(Parser)]
 #[command(name = "dbbcal", version, about = "Batch analysis of double-ballbar thermal campaigns", long_about = None,
-    after_help = AFTER_HELP)]
+    after_help = format!("{AFTER_HELP}\n{}", dbbcal::exit::help_text()))]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -194,7 +178,7 @@ fn main() -> ExitCode {
     if let Some(file) = std::env::var_os(dbbcal::supervise::PROBE_ENV).filter(|_| supervised) {
         // A probe (`supervise::probe`): the answer is whether this process survives.
         let _ = dbbcal::io::decode_whole_file(std::path::Path::new(&file));
-        return ExitCode::SUCCESS;
+        return Exit::Success.into();
     }
     let cli = Cli::parse();
     let color = cli.color.enabled(std::io::stderr().is_terminal());
@@ -212,29 +196,29 @@ fn main() -> ExitCode {
     dbbcal::output::install_signal_handlers();
     let started = std::time::Instant::now();
     match execute(cli.command, say, cli.color) {
-        Ok(None) => ExitCode::SUCCESS,
+        Ok(None) => Exit::Success.into(),
         Ok(Some(outcome)) => {
             say.outcome(&outcome, started.elapsed());
             match outcome.status {
-                RunStatus::AllBars => ExitCode::SUCCESS,
+                RunStatus::AllBars => Exit::Success.into(),
                 RunStatus::SomeBarsFailed(n) => {
                     say.error(&format!("{n} bar(s) failed; the others were processed (see failed_bars in summary.json)"));
-                    ExitCode::from(EXIT_SOME_BARS_FAILED)
+                    Exit::SomeBarsFailed.into()
                 }
                 RunStatus::NoBarSucceeded(failed) => {
                     say.error(&no_bar_succeeded(&failed));
-                    ExitCode::from(EXIT_NO_BAR_SUCCEEDED)
+                    Exit::NoBarSucceeded.into()
                 }
             }
         }
         Err(e) => {
             say.error(&format!("error: {}", one_line(&e)));
             ExitCode::from(if e.chain().any(runner::is_busy_error) {
-                EXIT_OUTPUT_BUSY
+                Exit::OutputBusy
             } else if e.chain().any(runner::is_input_error) {
-                EXIT_UNUSABLE_INPUT
+                Exit::UnusableInput
             } else {
-                EXIT_OTHER
+                Exit::Other
             })
         }
     }
@@ -245,7 +229,9 @@ fn main() -> ExitCode {
 /// (exit 3 when files were being decoded, they are named; else 1).
 fn supervisor_exit(ending: Ending, say: Say) -> ExitCode {
     let (mut death, interrupted) = match ending {
-        Ending::Exited(code) => return ExitCode::from(u8::try_from(code).unwrap_or(EXIT_OTHER)),
+        Ending::Exited(code) => {
+            return ExitCode::from(u8::try_from(code).unwrap_or(Exit::Other.code()))
+        }
         Ending::Interrupted(d) => (d, true),
         Ending::Crashed(d) => (d, false),
     };
@@ -279,9 +265,9 @@ fn supervisor_exit(ending: Ending, say: Say) -> ExitCode {
     let crash = Crash(death);
     say.error(&format!("error: {crash}{cleanup}"));
     ExitCode::from(if crash.blames_input() {
-        EXIT_UNUSABLE_INPUT
+        Exit::UnusableInput
     } else {
-        EXIT_OTHER
+        Exit::Other
     })
 }
 

@@ -70,11 +70,37 @@ fn the_analysis_crate_links_neither_polars_nor_plotters_nor_another_dbbcal_crate
 }
 
 #[test]
+fn the_machine_kinds_crate_links_neither_polars_nor_plotters_nor_another_dbbcal_crate() {
+    check(
+        "dbbcal-machine",
+        &[
+            "polars",
+            "plotters",
+            "dbbcal-core",
+            "dbbcal-io",
+            "dbbcal-report",
+            "dbbcal-sim",
+            "dbbcal",
+        ],
+    );
+}
+
+#[test]
 fn only_the_io_crate_and_what_builds_on_it_link_polars() {
     check("dbbcal-report", &["polars", "dbbcal-core", "dbbcal-io"]);
     check("dbbcal-testkit", &["polars", "plotters", "dbbcal-core"]);
     check("dbbcal-io", &["plotters", "dbbcal-report", "dbbcal-sim"]);
     check("dbbcal-sim", &["plotters", "dbbcal-report"]);
+    check(
+        "dbbcal-supervise",
+        &[
+            "polars",
+            "plotters",
+            "dbbcal-core",
+            "dbbcal-io",
+            "dbbcal-report",
+        ],
+    );
     let graph = lock_graph();
     assert!(
         closure(&graph, "dbbcal-io").contains("polars"),

@@ -232,3 +232,24 @@ fn the_readme_names_every_field_of_summary_json() {
         "not in the README's summary.json row: {missing:?}"
     );
 }
+
+/// The exit codes have one definition (`dbbcal::exit`): the README's table is it word for word,
+/// and `dbbcal --help` prints it.
+#[test]
+fn the_readme_and_help_list_the_exit_codes_main_uses() {
+    let readme = std::fs::read_to_string(crate::support::root().join("README.md")).unwrap();
+    let table = dbbcal::exit::markdown_table();
+    assert!(
+        readme.contains(&table),
+        "the README's exit-code table is not dbbcal::exit::markdown_table():\n{table}"
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dbbcal"))
+        .arg("--help")
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        help.contains(dbbcal::exit::help_text().trim_end()),
+        "{help}"
+    );
+}

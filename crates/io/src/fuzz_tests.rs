@@ -13,7 +13,7 @@
 //! Some corrupt pages make polars *abort* the process (an allocation of ~2.3e18 bytes, e.g.
 //! `PROPTEST_RNG_SEED=14`), which nothing in-process can catch. So each case is read in a child
 //! process (this test binary, running [`one_case_in_a_supervised_child`]) started by the very
-//! code that supervises `dbbcal` ([`crate::supervise::spawn`]): a case passes when the child
+//! code that supervises `dbbcal` ([`dbbcal_supervise::spawn`]): a case passes when the child
 //! reads it cleanly (an error of one line, or data), or when it dies from a crash signal and the
 //! supervisor's trail names exactly the fuzzed file, the line `dbbcal` would print. A crash
 //! whose trail names no file, or another, fails; so does a hang (the child is killed).
@@ -27,7 +27,7 @@ use std::time::Duration;
 use proptest::prelude::*;
 
 use super::{read_campaign, read_campaign_binned, write_table, Column, Table};
-use crate::supervise::{self, Crash, Ending};
+use dbbcal_supervise::{self as supervise, Crash, Ending};
 use dbbcal_testkit::cases;
 
 /// A case that has not returned after this long is a hang.

@@ -4,7 +4,7 @@
 //! hook stays silent (the message becomes the error's); outside it the default hook prints.
 //!
 //! An abort (an allocation failure) cannot be caught here: each guard also tells a supervising
-//! process which files are being decoded ([`crate::supervise::reading`]), so that the
+//! process which files are being decoded ([`dbbcal_supervise::reading`]), so that the
 //! supervisor can name them when the process dies.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -44,7 +44,7 @@ pub(crate) fn guarded_scan<T>(
     all: &[&Path],
     f: impl FnOnce() -> Result<T, IngestError>,
 ) -> Result<T, IngestError> {
-    let _reading = crate::supervise::reading(all.iter().copied());
+    let _reading = dbbcal_supervise::reading(all.iter().copied());
     install_quiet_hook();
     ACTIVE.fetch_add(1, Ordering::SeqCst);
     let result = catch_unwind(AssertUnwindSafe(f));
@@ -63,7 +63,7 @@ pub(crate) fn guarded_scan<T>(
 }
 
 /// Decodes every column of every row of `path`, dropping the rows as they stream: the
-/// supervisor's probe of one file after a scan of several crashed (`crate::supervise::probe`).
+/// supervisor's probe of one file after a scan of several crashed (`dbbcal_supervise::probe`).
 /// Whether the process survives is the answer; the error is only for the caller's log.
 pub fn decode_whole_file(path: &Path) -> Result<(), IngestError> {
     use polars::lazy::dsl::Engine;

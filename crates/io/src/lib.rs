@@ -16,8 +16,6 @@ mod repeats;
 mod table;
 mod write;
 
-pub mod supervise;
-
 #[cfg(test)]
 mod axis_tests;
 #[cfg(test)]

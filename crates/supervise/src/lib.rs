@@ -2,7 +2,7 @@
 //!
 //! polars' parquet decoder can be made to abort the process by a corrupt page: it asks for an
 //! allocation of ~2.3e18 bytes, and Rust's allocation-failure handler aborts (SIGABRT). Nothing
-//! inside the process can turn that into a line naming the file ([`crate`]'s guard catches
+//! inside the process can turn that into a line naming the file (`dbbcal-io`'s guard catches
 //! panics only). So the commands that read campaign parquet run in a supervised child:
 //!
 //! * the **supervisor** (the process the user started) re-executes its own binary with
@@ -47,7 +47,7 @@ use std::process::Command;
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Set in the child's environment: `<supervisor pid>:<breadcrumb fd>`.
-pub(crate) const ENV: &str = "DBBCAL_SUPERVISOR";
+pub const ENV: &str = "DBBCAL_SUPERVISOR";
 
 /// Set in a probe child's environment (see [`probe`]): the one file it decodes.
 pub const PROBE_ENV: &str = "DBBCAL_PROBE";
@@ -177,7 +177,7 @@ fn send(tag: u8, id: u32, payload: &[u8]) {
 
 /// The decode of some files, in progress until dropped (see [`reading`]).
 #[must_use]
-pub(crate) struct Reading(Option<u32>);
+pub struct Reading(Option<u32>);
 
 impl Drop for Reading {
     fn drop(&mut self) {
@@ -189,7 +189,7 @@ impl Drop for Reading {
 
 /// Tell the supervisor that `paths` are being decoded until the returned value is dropped
 /// (also when unwinding). Unsupervised: nothing, at the cost of one atomic load.
-pub(crate) fn reading<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Reading {
+pub fn reading<'a>(paths: impl IntoIterator<Item = &'a Path>) -> Reading {
     if CHANNEL.get().is_none() {
         return Reading(None);
     }
@@ -306,10 +306,13 @@ fn failed(size: usize) {
 
 /// Where the child's output swap stood when it died.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub(crate) enum Swap {
+pub enum Swap {
+    /// The swap had not begun: `OUT` is the previous output.
     #[default]
     NotBegun,
+    /// The swap had begun but not ended: `OUT` and `OUT.prev` may be mid-exchange.
     Begun,
+    /// The swap was over: `OUT` is the new output.
     Done,
 }
 
@@ -363,7 +366,7 @@ impl Trail {
 }
 
 /// A child process to signal only while it has not been reaped (its pid cannot be reused).
-pub(crate) struct ChildHandle {
+pub struct ChildHandle {
     pid: u32,
     alive: Mutex<bool>,
 }
@@ -378,7 +381,7 @@ impl ChildHandle {
 }
 
 /// A running supervised child (see [`spawn`]).
-pub(crate) struct Supervised {
+pub struct Supervised {
     child: std::process::Child,
     handle: Arc<ChildHandle>,
     trail: std::thread::JoinHandle<Trail>,
@@ -386,7 +389,7 @@ pub(crate) struct Supervised {
 
 /// Start `cmd` as a supervised child: a breadcrumb pipe is passed to it ([`ENV`]) and read on
 /// a thread. The child must call [`child_init`].
-pub(crate) fn spawn(cmd: &mut Command) -> std::io::Result<Supervised> {
+pub fn spawn(cmd: &mut Command) -> std::io::Result<Supervised> {
     let mut fds = [0 as RawFd; 2];
     // SAFETY: pipe2/pipe write two fds into the array; fcntl on those fds.
     #[cfg(target_os = "linux")]
@@ -488,10 +491,7 @@ impl Supervised {
 
     /// [`Supervised::wait`], killing the child (SIGKILL) if it has not ended within `limit`;
     /// whether it was killed so.
-    pub(crate) fn wait_at_most(
-        self,
-        limit: std::time::Duration,
-    ) -> std::io::Result<(Ending, bool)> {
+    pub fn wait_at_most(self, limit: std::time::Duration) -> std::io::Result<(Ending, bool)> {
         use std::sync::atomic::{AtomicBool, Ordering};
         let (handle, done, late) = (
             self.handle(),

@@ -1,0 +1,680 @@
+//! Reading a campaign's tables with polars and handing them over as plain series.
+//!
+//! Each file is scanned lazily on its own (so every error can name its file), projected to the
+//! columns the spec defines and normalised: timestamps in any unit and zone become `i64` ns UTC,
+//! dictionary/categorical ids become strings, integer counts become `i64`. The per-file frames
+//! are stacked, validated (nulls, unknown ids), then split per bar / sensor and sorted by time.
+//!
+//! The encoder table (tens of millions of rows) is never stacked: each file is streamed
+//! (`sink_batches` on the streaming engine) and every batch is split into per-bar `time` /
+//! `counts` buffers as it arrives, so ingest holds the per-bar logs and one batch, not the
+//! table beside them. Temperatures are not joined onto the encoder times here: `series`
+//! interpolates each sensor's log per bar (`interpolate_temperatures`), one bar at a time.
+//!
+//! # How it works
+//!
+//! - Ingest streams each encoder file (polars streaming engine, `sink_batches`) into per-bar
+//!   `time`/`counts` vectors or bins: the encoder table is never stacked, and temperatures are not
+//!   joined onto every encoder time (each bar interpolates the sensor logs when it is processed).
+//! - Encoder files of one schema are decoded by one scan (`io::read::stream_files`): polars reads
+//!   ahead across files (what it saves: `bench/README.md`); rows that cannot be used (a null, an undeclared id, a time out of range) found in a
+//!   shared scan make ingest stream the files again one by one, which names each file's rows (only
+//!   then; the first pass's rows are let go first).
+//! - Cost and memory do not depend on the row order (the format allows any; a logger of many bars
+//!   interleaves them). Each batch's bar ids become small indices on their string views (an id of
+//!   ≤ 12 bytes is inline in its view: an open-addressed table of views, `io::read::IdIndex`); a
+//!   batch of few runs of one bar goes run by run, any other is grouped by bar with a stable
+//!   counting sort, so every bar gets its rows as one slice whatever the interleaving. A full-rate
+//!   log is reserved from the parquet footers' row counts and, when not sorted, sorted per bar in
+//!   parallel at the end.
+//! - With bins, ingest decodes (polars) while two consumer threads (`io::read::BATCH_CONSUMERS`)
+//!   each take whole batches, split them per bar and accumulate them into sinks of their own
+//!   (bins, repeat sketches, per-file ranges), merged at the end: every part is an order-free
+//!   integer sum, count or set (`BinAccumulator::merge`, `RepeatSketch::merge`, tested against one
+//!   accumulator given every row). The temperature files are read on a third thread meanwhile
+//!   (`io::read::read_temperatures`). The union of the sensors' reading times (the interpolation knots every binned series
+//!   keeps as weight-0 samples) is sorted once per campaign (`series::sensor_knots`) and walked
+//!   along each bar's nodes.
+//! - Times are read as the stored integers and scaled to ns in Rust with `checked_mul`
+//!   (`io::read::TimeColumn::to_ns`); a row with a time outside 1980 .. 2200
+//!   (`series::reading_time_ok`) or null, a null id, an undeclared id, or counts that are not whole
+//!   or beyond ±2⁴⁸ is dropped and recorded by file, column and row range (`io::read::BadRange`,
+//!   `EncoderSink::bad`/`unknown`; for temperatures and events in `io::read::read_file` and
+//!   `unknown_id_flags`) as an `unusable_rows` flag in `quality.files`; the narrative's notes quote
+//!   the first three. A shared encoder scan that finds any re-streams file by file, so the rows
+//!   named are each file's. The bin accumulator
+//!   checks again (`BinAccumulator::add_all` → `BinError`: times in range, |counts| ≤ 2⁴⁸, ≤ 2³¹
+//!   readings a bar), so its integer sums cannot wrap whoever calls it (property tests in
+//!   `series/bins.rs`).
+//! - Missing values are counted where rows are read: encoder counts per bar in
+//!   `EncoderSink::checked_counts` (nulls, floats; whole floats converted), temperatures per sensor
+//!   in `io::read::sensor_log`, event values in `read_events` (`series::quality::Missing`).
+//! - `io::read_campaign_binned` hashes the files that share their size with another file of
+//!   their table first (`io::inputs::split_by_shared_size`: only they can be byte-identical),
+//!   reads a byte-identical file once, hashes the others on a thread beside the read, and after
+//!   the read checks each file's size and mtime against those taken before hashing. Every read of a file runs under `io::guard::guarded` (catch_unwind, a quiet panic
+//!   hook while a guard is active; `guarded_scan` for a scan of several files, which all count as
+//!   being decoded). Shared scans that fail are retried file by file to name the file; a shared
+//!   scan that crashes the process is probed file by file by the supervisor (`supervise::probe`,
+//!   `io::decode_whole_file` in a child each).
+//! - Rows that several encoder files hold: `io::read::EncoderSink` records each (file, bar) time
+//!   range and row count while streaming (a shared scan's batches are cut at the files' footer row counts,
+//!   `FileCursor`, so every batch knows its file); `io::read::resolve_repeats` re-reads,
+//!   per bar, only the rows inside the overlapping ranges of the files involved (scan filtered by
+//!   bar and time), keeps one copy of each reading (`compare_copies`) and subtracts the others
+//!   from the bins (`BinAccumulator::remove_all`, exact on integer sums; a duplicate's twin stays,
+//!   so first/last times and min/max counts are unchanged); flags `overlapping_files` and, on the
+//!   binned path, `conflicting_readings`. At full rate the exact-duplicate rule removes the copies
+//!   and `check_log` finds conflicts on the sorted rows. `gap` flags come from the pieces (readings
+//!   or bins: their first/last reading times) within each mount (`quality::gap_flags`). Cost: none
+//!   where no two files' ranges overlap for a bar (day files, files by bar); otherwise one filtered
+//!   scan per (bar, overlap, file), so files that all span the whole campaign for the same bars
+//!   without holding the same rows (rows dealt out to files at random) are re-read once per bar.
+//!   Memory: one bar's rows in one merged overlap window (all files holding them); cost measured in
+//!   `bench/README.md`. One scan per file for all its windows would
+//!   cut the scans (a re-export is decoded once per bar) at the price of holding every bar's
+//!   overlap at once.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use polars::lazy::dsl::Engine;
+use polars::prelude::*;
+
+use super::guard::{guarded, guarded_scan};
+use super::inputs::{CampaignFiles, MANIFEST};
+use super::repeats::{RepeatSketch, RepeatWindows};
+use super::{one_line, IngestError};
+use dbbcal_core::campaign::{Campaign, Manifest, SensorKind};
+use dbbcal_core::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
+use dbbcal_core::series::{
+    counts_ok, reading_time_ok, reading_times_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event,
+    EventKind, Quality, SensorLog, MAX_ABS_COUNTS,
+};
+
+mod columns;
+use columns::*;
+mod scan;
+pub(crate) use scan::footer_rows;
+use scan::*;
+mod encoders;
+use encoders::*;
+mod overlaps;
+use overlaps::*;
+mod stream;
+use stream::*;
+
+/// Reads and validates `campaign.toml`.
+pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
+    let path = dir.join(MANIFEST);
+    if !path.is_file() {
+        return Err(IngestError::MissingManifest {
+            dir: dir.to_path_buf(),
+        });
+    }
+    let text = crate::read_small_text(&path, crate::MAX_MANIFEST_BYTES).map_err(|message| {
+        IngestError::Io {
+            path: path.clone(),
+            message: message
+                .strip_prefix("cannot read: ")
+                .unwrap_or(&message)
+                .to_string(),
+        }
+    })?;
+    let file = path.display().to_string();
+    let manifest = Manifest::from_toml_str(&text, &file)?;
+    let campaign = Campaign::from_manifest_at(manifest, &file)?;
+    check_usable(&campaign, &path)?;
+    Ok(campaign)
+}
+
+/// A campaign that can give no result is refused before any table is read: no bar, no mount,
+/// or a bar that names no sensor in a campaign without an air sensor (its air would be the
+/// mean of none).
+fn check_usable(campaign: &Campaign, path: &Path) -> Result<(), IngestError> {
+    let refuse = |problem: String| IngestError::UnusableCampaign {
+        path: path.to_path_buf(),
+        problem,
+    };
+    if campaign.bars.is_empty() {
+        return Err(refuse(
+            "declares no bar ([[bar]]): nothing to analyse".into(),
+        ));
+    }
+    if campaign.mounts.is_empty() {
+        return Err(refuse(
+            "declares no mount ([[mount]]): no reading can be placed on a length".into(),
+        ));
+    }
+    let has_air = campaign.sensors.iter().any(|s| s.kind == SensorKind::Air);
+    if let Some(bar) = campaign
+        .bars
+        .iter()
+        .find(|b| b.sensor.is_none() && !has_air)
+    {
+        return Err(refuse(format!(
+            "declares no air sensor (kind = \"air\") and bar {} names no `sensor`: its air temperature is unknown",
+            bar.id
+        )));
+    }
+    Ok(())
+}
+
+/// The three tables, split per bar / sensor and sorted.
+pub(crate) struct Tables {
+    pub(crate) bars: BTreeMap<String, BarLog>,
+    pub(crate) bins: BTreeMap<String, BarBins>,
+    pub(crate) sensors: BTreeMap<String, SensorLog>,
+    pub(crate) events: Vec<Event>,
+}
+
+/// `bin_s > 0`: every bar's encoder rows go straight into compressed bins of `bin_s` seconds
+/// (`Tables::bins`), never held at full rate.
+pub(crate) fn read_tables(
+    files: &CampaignFiles,
+    campaign: &Campaign,
+    bin_s: f64,
+    quality: &mut Quality,
+) -> Result<Tables, IngestError> {
+    let bar_ids: BTreeSet<&str> = campaign.bars.iter().map(|b| b.id.as_str()).collect();
+    let sensor_ids: BTreeSet<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
+    let clock = std::time::Instant::now();
+    // The temperatures are read on a thread of their own while the encoder files stream: the
+    // bins do not need them, and the stream does not keep both cores busy all the time. Errors
+    // keep their order: a temperature error is reported before any other.
+    let (temperatures, rest) = std::thread::scope(|scope| {
+        let temperatures = scope.spawn(|| read_temperatures(files, &sensor_ids));
+        let rest = read_events_and_encoders(files, campaign, &bar_ids, bin_s);
+        let temperatures = temperatures.join().unwrap_or_else(|_| {
+            Err(IngestError::Polars {
+                context: "temperatures".into(),
+                message: "the temperature reader panicked".into(),
+            })
+        });
+        (temperatures, rest)
+    });
+    let (sensors, sensor_quality, mut zones, temperatures_dropped) = temperatures?;
+    let (events, event_quality, encoders, other_zones) = rest?;
+    quality.files.extend(temperatures_dropped);
+    quality.files.extend(encoders.dropped);
+    tracing::debug!(elapsed = ?clock.elapsed(), "bar logs built");
+    quality.sensors.extend(sensor_quality);
+    quality.events = event_quality;
+    zones.extend(other_zones);
+    let (mut bars, mut bins) = (encoders.logs, encoders.bins);
+    check_bars(campaign, &events, &sensors, &mut bars, &mut bins, quality);
+    for (id, (rows, missing)) in encoders.rows {
+        let q = quality.bars.entry(id).or_default();
+        q.rows = rows;
+        missing.record(q, "encoder rows");
+    }
+    for (id, overlap) in encoders.overlaps {
+        let q = quality.bars.entry(id).or_default();
+        q.duplicate_rows += overlap.removed;
+        q.dropped_rows += overlap.removed;
+        q.flags.extend(overlap.flags);
+    }
+    flag_mixed_zones(&zones, quality);
+    Ok(Tables {
+        bars,
+        bins,
+        sensors,
+        events,
+    })
+}
+
+/// Per sensor: its log and its quality record; and each temperature file's path and whether
+/// its times are zoned.
+type TemperatureTables = (
+    BTreeMap<String, SensorLog>,
+    BTreeMap<String, ChannelQuality>,
+    Vec<(PathBuf, bool)>,
+    Vec<Flag>,
+);
+
+/// Every temperature file, checked (nulls, undeclared sensors), as one log per declared sensor.
+fn read_temperatures(
+    files: &CampaignFiles,
+    sensor_ids: &BTreeSet<&str>,
+) -> Result<TemperatureTables, IngestError> {
+    let clock = std::time::Instant::now();
+    let mut zones = Vec::new();
+    let mut dropped = Vec::new();
+    let temperatures = read_table(
+        &files.temperatures,
+        &TEMPERATURE_COLUMNS,
+        &mut zones,
+        &mut dropped,
+    )?;
+    let readings =
+        sensor_readings(&temperatures, sensor_ids).map_err(polars_error("temperatures"))?;
+    let matched = readings.values().map(DataFrame::height).sum();
+    dropped.extend(unknown_rows(
+        &temperatures,
+        matched,
+        &files.temperatures,
+        "sensor",
+        sensor_ids,
+    )?);
+    drop(temperatures);
+    let mut sensors = BTreeMap::new();
+    let mut quality = BTreeMap::new();
+    for (id, df) in &readings {
+        let q: &mut ChannelQuality = quality.entry(id.clone()).or_default();
+        let log = sensor_log(df, q).map_err(polars_error("temperatures"))?;
+        sensors.insert(id.clone(), log);
+    }
+    tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
+    Ok((sensors, quality, zones, dropped))
+}
+
+/// The events and their quality record, the encoder table, and each of their files' path and
+/// whether its times are zoned.
+type EventAndEncoderTables = (Vec<Event>, ChannelQuality, Encoders, Vec<(PathBuf, bool)>);
+
+/// The events first (the bins of a bar never cross its rezero events), then the encoders.
+fn read_events_and_encoders(
+    files: &CampaignFiles,
+    campaign: &Campaign,
+    bar_ids: &BTreeSet<&str>,
+    bin_s: f64,
+) -> Result<EventAndEncoderTables, IngestError> {
+    let mut zones = Vec::new();
+    let mut event_quality = ChannelQuality::default();
+    let mut dropped = Vec::new();
+    let events = read_events(
+        &files.events,
+        bar_ids,
+        &mut zones,
+        &mut event_quality,
+        &mut dropped,
+    )?;
+    // The footers' rows: at full rate each bar's log is reserved once from them (no doubling
+    // overshoot); with bins they set the slot width of each bar's repeat sketch.
+    let footers = footer_rows_each(&files.encoders)?;
+    let footer_total = footers.iter().fold(0u64, |a, &n| a.saturating_add(n));
+    let rows_per_bar = footer_total / bar_ids.len().max(1) as u64;
+    let grids: BTreeMap<String, (BinGrid, Option<RepeatSketch>)> = if bin_s > 0.0 {
+        bar_ids
+            .iter()
+            .map(|id| {
+                let grid = BinGrid::new(campaign, &events, id, bin_s);
+                let repeats = RepeatSketch::new(campaign, id, rows_per_bar);
+                (id.to_string(), (grid, repeats))
+            })
+            .collect()
+    } else {
+        BTreeMap::new()
+    };
+    let rows_hint = if grids.is_empty() {
+        footer_total as usize
+    } else {
+        0
+    };
+    let mut encoders = read_encoders(
+        &files.encoders,
+        &footers,
+        bar_ids,
+        &grids,
+        rows_hint,
+        &mut zones,
+    )?;
+    dropped.append(&mut encoders.dropped);
+    encoders.dropped = dropped;
+    Ok((events, event_quality, encoders, zones))
+}
+
+/// Every bar's encoder checks (`series::quality`), bars in parallel.
+fn check_bars(
+    campaign: &Campaign,
+    events: &[Event],
+    sensors: &BTreeMap<String, SensorLog>,
+    bars: &mut BTreeMap<String, BarLog>,
+    bins: &mut BTreeMap<String, BarBins>,
+    quality: &mut Quality,
+) {
+    use rayon::prelude::*;
+    for id in bars.keys() {
+        quality.bars.entry(id.clone()).or_default();
+    }
+    let mut work: Vec<(&String, &mut BarLog, Option<&mut BarBins>, ChannelQuality)> = bars
+        .iter_mut()
+        .map(|(id, log)| (id, log, None, ChannelQuality::default()))
+        .collect();
+    for (id, b) in bins.iter_mut() {
+        if let Some(w) = work.iter_mut().find(|w| w.0 == id) {
+            w.2 = Some(b);
+        }
+    }
+    work.par_iter_mut()
+        .for_each(|(id, log, binned, q)| match binned {
+            Some(b) => quality::check_bins(campaign, events, sensors, id, b, q),
+            None => quality::check_log(campaign, events, sensors, id, log, q),
+        });
+    for (id, _, _, q) in work {
+        let entry = quality.bars.entry(id.clone()).or_default();
+        entry.duplicate_rows += q.duplicate_rows;
+        entry.fault_rows += q.fault_rows;
+        entry.dropped_rows += q.dropped_rows;
+        entry.flags.extend(q.flags);
+        entry.unusable = q.unusable;
+    }
+}
+
+/// Naive (UTC by the spec) and zoned time columns in one campaign: legal, but a naive file
+/// written in local time would be off by the zone's offset, so it is flagged.
+fn flag_mixed_zones(zones: &[(PathBuf, bool)], quality: &mut Quality) {
+    let naive: Vec<&PathBuf> = zones.iter().filter(|z| !z.1).map(|z| &z.0).collect();
+    let zoned = zones.len() - naive.len();
+    if naive.is_empty() || zoned == 0 {
+        return;
+    }
+    let name = |p: &PathBuf| {
+        p.file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned())
+    };
+    let note = format!(
+        "{} files have naive times (taken as UTC, e.g. {}) and {zoned} zoned ones: check the naive ones are not local time",
+        naive.len(),
+        name(naive[0])
+    );
+    quality
+        .files
+        .push(Flag::file(FlagKind::MixedTimeZones, 0, note));
+}
+
+/// The rows of known ids were extracted (`matched` of them); if that is not every row, some ids
+/// are undeclared: their rows (dropped) as `unusable_rows` flags, by file and id. This keeps
+/// the costly per-file summary off the path of a good campaign.
+fn unknown_rows(
+    df: &DataFrame,
+    matched: usize,
+    files: &[PathBuf],
+    id_column: &'static str,
+    known: &BTreeSet<&str>,
+) -> Result<Vec<Flag>, IngestError> {
+    if matched == df.height() {
+        return Ok(Vec::new());
+    }
+    let flags = unknown_id_flags(df, files, id_column, known)?;
+    if flags.is_empty() {
+        return Err(IngestError::Polars {
+            context: id_column.to_string(),
+            message: format!(
+                "{matched} of {} rows have a declared id, but no undeclared id was found",
+                df.height()
+            ),
+        });
+    }
+    Ok(flags)
+}
+
+/// Rows of ids the manifest does not declare, per file and id (null ids are skipped).
+fn unknown_id_flags(
+    df: &DataFrame,
+    files: &[PathBuf],
+    id_column: &'static str,
+    known: &BTreeSet<&str>,
+) -> Result<Vec<Flag>, IngestError> {
+    let summary = id_summary(df, id_column).map_err(polars_error(id_column))?;
+    let known_list = known.iter().copied().collect::<Vec<_>>().join(", ");
+    Ok(summary
+        .into_iter()
+        .filter(|row| !known.contains(row.id.as_str()))
+        .map(|row| {
+            unknown_id_flag(
+                &file_path(files, row.file),
+                id_column,
+                &row.id,
+                row.rows,
+                row.first_ns,
+                row.last_ns,
+                &known_list,
+            )
+        })
+        .collect())
+}
+
+fn polars_error(context: &str) -> impl Fn(PolarsError) -> IngestError + '_ {
+    move |e| IngestError::Polars {
+        context: context.to_string(),
+        message: one_line(e),
+    }
+}
+
+// ---------------------------------------------------------------- per bar / sensor
+
+/// Rows of `df` whose `key` is `id`, columns `columns`, sorted by time (`columns[0]`), ties
+/// broken by the value so that the order never depends on how the rows were split into files.
+fn rows_of(df: &DataFrame, key: &str, id: &str, columns: [&str; 2]) -> PolarsResult<DataFrame> {
+    let by_time = df
+        .clone()
+        .lazy()
+        .filter(col(key).eq(lit(id)))
+        .select([col(columns[0]), col(columns[1])])
+        .sort(
+            [columns[0]],
+            SortMultipleOptions::default().with_maintain_order(true),
+        )
+        .collect()?;
+    // A two-key sort is several times slower than a one-key sort: only pay for it on ties.
+    if has_ties(by_time.column(columns[0])?.i64()?) {
+        by_time.sort(columns, SortMultipleOptions::default())
+    } else {
+        Ok(by_time)
+    }
+}
+
+/// Whether a sorted column holds two equal neighbours.
+fn has_ties(sorted: &Int64Chunked) -> bool {
+    let mut previous = None;
+    sorted.iter().any(|t| {
+        let tie = t.is_some() && t == previous;
+        previous = t;
+        tie
+    })
+}
+
+/// Sensor id -> its (time, celsius) frame sorted by time; every declared sensor is present.
+fn sensor_readings(
+    temperatures: &DataFrame,
+    sensor_ids: &BTreeSet<&str>,
+) -> PolarsResult<BTreeMap<String, DataFrame>> {
+    sensor_ids
+        .iter()
+        .map(|id| {
+            Ok((
+                id.to_string(),
+                rows_of(temperatures, "sensor", id, ["time", "celsius"])?,
+            ))
+        })
+        .collect()
+}
+
+/// A sensor's log from its rows sorted by (time, value): null, NaN and ±inf readings dropped
+/// (a missing reading, not a temperature: one NaN would otherwise spread through every bar
+/// that interpolates the sensor) and exact duplicates counted once, both recorded in `q`.
+fn sensor_log(readings: &DataFrame, q: &mut ChannelQuality) -> PolarsResult<SensorLog> {
+    let time = readings.column("time")?.i64()?;
+    let celsius = readings.column("celsius")?.f64()?;
+    let mut log = SensorLog::default();
+    let mut missing = Missing::default();
+    for (t, c) in time.into_no_null_iter().zip(celsius.iter()) {
+        match c {
+            Some(c) if c.is_finite() => {
+                log.time_ns.push(t);
+                log.celsius.push(c);
+            }
+            other => missing.add(t, other),
+        }
+    }
+    q.rows = readings.height() as u64;
+    missing.record(q, "temperature readings");
+    // Sorted by time, ties by value: exact duplicates are neighbours (NaN, which would not
+    // compare equal, is gone).
+    let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
+    quality::record_duplicates(q, dups, range, "temperature readings");
+    quality::drop_implausible_temperatures(&mut log.time_ns, &mut log.celsius, q);
+    Ok(log)
+}
+
+// ---------------------------------------------------------------- events
+
+fn read_events(
+    files: &[PathBuf],
+    bar_ids: &BTreeSet<&str>,
+    zones: &mut Vec<(PathBuf, bool)>,
+    q: &mut ChannelQuality,
+    dropped: &mut Vec<Flag>,
+) -> Result<Vec<Event>, IngestError> {
+    if files.is_empty() {
+        return Ok(Vec::new());
+    }
+    let table = read_table(files, &EVENT_COLUMNS, zones, dropped)?;
+    dropped.extend(unknown_id_flags(&table, files, "bar", bar_ids)?);
+    // Events of undeclared bars are dropped (a null bar: a setup-wide event).
+    let declared: BooleanChunked = table
+        .column("bar")
+        .and_then(|c| c.str().cloned())
+        .map_err(polars_error("events"))?
+        .iter()
+        .map(|b| Some(b.is_none_or(|b| bar_ids.contains(b))))
+        .collect();
+    let table = table.filter(&declared).map_err(polars_error("events"))?;
+    q.rows = table.height() as u64;
+    let events = events_sorted(table).map_err(polars_error("events"))?;
+    // A NaN or infinite value is a missing reading, not a level (a null value is a valueless
+    // event, as the spec allows): the event is dropped and counted.
+    let mut missing = Missing::default();
+    let kept = events
+        .into_iter()
+        .filter(|e| match e.value {
+            Some(v) if !v.is_finite() => {
+                missing.add(e.time_ns, Some(v));
+                false
+            }
+            _ => true,
+        })
+        .collect();
+    missing.record(q, "event rows");
+    Ok(kept)
+}
+
+fn events_sorted(table: DataFrame) -> PolarsResult<Vec<Event>> {
+    let sorted = table
+        .lazy()
+        .select([col("time"), col("bar"), col("kind"), col("value")])
+        .sort(
+            ["time", "bar", "kind", "value"],
+            SortMultipleOptions::default(),
+        )
+        .collect()?;
+    let time = sorted.column("time")?.i64()?;
+    let bar = sorted.column("bar")?.str()?;
+    let kind = sorted.column("kind")?.str()?;
+    let value = sorted.column("value")?.f64()?;
+    Ok((0..sorted.height())
+        .map(|i| Event {
+            time_ns: time.get(i).unwrap_or(0),
+            bar: bar.get(i).map(str::to_string),
+            kind: EventKind::parse(kind.get(i).unwrap_or_default()),
+            value: value.get(i),
+        })
+        .collect())
+}
+
+/// What two consumers' sinks merge: the ranges of bad rows and of a bar's rows in a file.
+#[cfg(test)]
+mod merge_tests {
+    use super::*;
+
+    fn bad(first_row: u64, last_row: u64, rows: u64) -> BadRange {
+        BadRange {
+            rows,
+            first_row,
+            last_row,
+            example: format!("row {first_row}"),
+        }
+    }
+
+    #[test]
+    fn bad_rows_merge_to_one_range_whose_example_is_the_first_rows_in_either_order() {
+        let key = (3u32, "counts", "hold counts beyond ±2^48");
+        for (a, b) in [
+            (bad(10, 20, 4), bad(500, 900, 7)),
+            (bad(500, 900, 7), bad(10, 20, 4)),
+        ] {
+            let mut ranges = BTreeMap::new();
+            BadRange::merge_into(&mut ranges, key, a);
+            BadRange::merge_into(&mut ranges, key, b);
+            let r = &ranges[&key];
+            assert_eq!((r.rows, r.first_row, r.last_row), (11, 10, 900));
+            assert_eq!(r.example, "row 10");
+        }
+    }
+
+    #[test]
+    fn file_ranges_widen_and_count_rows() {
+        let mut ranges = BTreeMap::new();
+        assert!(FileRange::of(&[]).is_none());
+        FileRange::add_to(
+            &mut ranges,
+            (0u32, 1u32),
+            FileRange::of(&[50, 20, 40]).unwrap(),
+        );
+        FileRange::add_to(&mut ranges, (0, 1), FileRange::of(&[90, 30]).unwrap());
+        FileRange::add_to(&mut ranges, (0, 2), FileRange::of(&[5]).unwrap());
+        let r = ranges[&(0, 1)];
+        assert_eq!((r.first_ns, r.last_ns, r.rows), (20, 90, 5));
+        assert_eq!(ranges[&(0, 2)].rows, 1);
+    }
+}
+
+#[cfg(test)]
+mod file_cursor_tests {
+    use super::*;
+
+    fn batch(n: usize) -> DataFrame {
+        let values: Vec<i64> = (0..n as i64).collect();
+        DataFrame::new(n, vec![Column::new("time".into(), values)]).unwrap()
+    }
+
+    /// (file, rows, first time) of each part; the parts' offsets in their files.
+    fn firsts(parts: &[(u32, u64, DataFrame)]) -> Vec<(u32, usize, i64)> {
+        parts
+            .iter()
+            .map(|(f, _, df)| {
+                let first = df.column("time").unwrap().i64().unwrap().get(0).unwrap();
+                (*f, df.height(), first)
+            })
+            .collect()
+    }
+
+    fn offsets(parts: &[(u32, u64, DataFrame)]) -> Vec<u64> {
+        parts.iter().map(|p| p.1).collect()
+    }
+
+    #[test]
+    fn batches_are_cut_at_the_footers_row_counts_and_empty_files_skipped() {
+        // Files 3 (4 rows), 5 (empty), 7 (3 rows), 9 (2 rows).
+        let mut cursor = FileCursor::new(vec![(3, 4), (5, 0), (7, 3), (9, 2)]);
+        let parts = cursor.split(batch(6)).unwrap();
+        assert_eq!(firsts(&parts), vec![(3, 4, 0), (7, 2, 4)]);
+        assert_eq!(offsets(&parts), vec![0, 0]);
+        assert_eq!(cursor.unread(), Some((7, 1)));
+        let parts = cursor.split(batch(3)).unwrap();
+        assert_eq!(firsts(&parts), vec![(7, 1, 0), (9, 2, 1)]);
+        assert_eq!(offsets(&parts), vec![2, 0]);
+        assert_eq!(cursor.unread(), None);
+        assert!(cursor.split(batch(1)).is_err(), "rows beyond the footers");
+    }
+
+    #[test]
+    fn a_batch_within_one_file_is_passed_whole() {
+        let mut cursor = FileCursor::new(vec![(0, 10)]);
+        let parts = cursor.split(batch(10)).unwrap();
+        assert_eq!(firsts(&parts), vec![(0, 10, 0)]);
+        assert_eq!(cursor.unread(), None);
+        assert_eq!(FileCursor::new(vec![(2, 5)]).unread(), Some((2, 5)));
+    }
+}

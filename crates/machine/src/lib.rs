@@ -1,0 +1,25 @@
+//! dbbcal-machine: the pure math of the machine kinds (issue 29).
+//!
+//! Plain data in, plain data out:
+//! - [`linear`]: the linear least-squares engine, with the rank and what is lost named;
+//! - [`edlen`]: air refraction (modified Edlén) and laser-reading normalisation;
+//! - [`iso230_2`]: the ISO 230-2 evaluation (A, B, R, E, M);
+//! - [`components`]: the six component errors of a linear axis and their ISO 230-1 names;
+//! - [`axis`]: kind `axis`, the six errors at a target from interferometer channels;
+//! - [`pose`], [`hexapod`], [`pose_errors`]: the hexapod device, its kinematics, and the
+//!   errors of the machine under test from its poses, with their uncertainty;
+//! - [`straightness`]: straightness raw and without its least-squares line.
+//!
+//! INVARIANT (enforced by this crate's dependencies and `tests/e2e/architecture.rs`): no file
+//! IO, no polars, no plotters, no serialisation formats; the application owns those. The
+//! formulas come from `docs/spec/machine-physics.md`, `docs/spec/machine-formats.md` and
+//! `docs/spec/device-format.md`; each module says which section.
+pub mod axis;
+pub mod components;
+pub mod edlen;
+pub mod hexapod;
+pub mod iso230_2;
+pub mod linear;
+pub mod pose;
+pub mod pose_errors;
+pub mod straightness;
