@@ -427,3 +427,69 @@ fn the_shipped_config_is_an_axis_config_and_bad_keys_are_named() {
             .unwrap_err();
     assert!(e.to_string().contains("foo"));
 }
+
+/// The two independent implementations (this simulator's and `dbbcal-machine`'s, the analysis'):
+/// the same n at every environment row, and the analysis' normalisation of the simulated
+/// readings gives the forward model back in every mode, with a declared dead path.
+#[test]
+fn the_analysis_edlen_and_normalisation_give_the_simulated_machine_back() {
+    use dbbcal_machine::edlen::{self as other, Compensation, LaserSetup, ReadingConditions};
+    // The analysis takes the dead-path term to first order, L_dead (n(t) − n(t_datum)); the
+    // simulator counts the optical path, which after air compensation carries it divided by
+    // n(t): they differ by L_dead Δn (n − 1), 300 mm × ~0.2 ppm × 2.7e-4 ≈ 1.5e-5 µm here
+    // (measured: 1.4e-5 µm in every mode).
+    let cases = [(None, 1e-8), (Some(300.0), 1e-4)];
+    for ((dead_mm, bound), mode) in cases
+        .into_iter()
+        .flat_map(|c| ["none", "air", "air+material"].map(move |m| (c, m)))
+    {
+        let mut cfg = quiet(AxisEffects {
+            dead_path: dead_mm.map(|mm| DeadPath { mm, declared: true }),
+            ..AxisEffects::default()
+        });
+        cfg.laser.compensation = match mode {
+            "none" => LaserCompensation::None,
+            "air" => LaserCompensation::Air,
+            _ => LaserCompensation::AirMaterial,
+        };
+        let sim = generate_axis(&cfg).unwrap();
+        let logs = read_back(&sim, &cfg.output);
+        let c = &logs.campaign;
+        let setup = LaserSetup {
+            wavelength_nm: c.wavelength_nm,
+            compensation: mode.parse::<Compensation>().unwrap(),
+            dead_path_mm: c.dead_path_mm,
+            cte_ppm_per_k: c.cte_ppm_per_k,
+            reference_temperature_c: c.reference_temperature_c,
+        };
+        let air = |t: i64| {
+            let e = logs.environment_at(t).unwrap();
+            other::Air {
+                temperature_c: e.air_c,
+                pressure_hpa: e.pressure_hpa,
+                humidity_pct: e.humidity_pct,
+            }
+        };
+        for e in &logs.environment {
+            let mine =
+                edlen::refractive_index(c.wavelength_nm, e.air_c, e.pressure_hpa, e.humidity_pct);
+            let theirs = other::refractive_index(&air(e.time_ns), c.wavelength_nm).unwrap();
+            assert!((mine - theirs).abs() < 1e-15, "{mine} vs {theirs}");
+        }
+        let mut worst = 0.0f64;
+        for r in logs.readings.iter().filter(|r| is_along(r)) {
+            let line = sim.truth.lines.iter().find(|l| l.id == r.line).unwrap();
+            let at = ReadingConditions {
+                air: Some(air(r.time_ns)),
+                datum_air: Some(air(line.datum_time_ns)),
+                material_c: logs.environment_at(r.time_ns).unwrap().material_c,
+            };
+            let commanded = r.target_mm - line.datum_target_mm;
+            let reading = commanded + 1e-3 * r.deviation_um;
+            let machine = other::normalise_reading_mm(reading, &setup, &at).unwrap();
+            let deviation = 1e3 * (machine - commanded);
+            worst = worst.max((deviation - forward_um(&sim.truth, &logs, r)).abs());
+        }
+        assert!(worst < bound, "{mode}, dead path {dead_mm:?}: {worst} µm");
+    }
+}
