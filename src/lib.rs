@@ -6,7 +6,8 @@
 //! are the workspace's other crates, re-exported here under the module names the code and the
 //! tests use (`dbbcal::fit` is `dbbcal_core::fit`, `dbbcal::io` is `dbbcal_io`, ...).
 pub use dbbcal_core::{
-    acceptance, calibrate, campaign, compensate, diagnose, fit, identify, matching, model, series,
+    acceptance, axis_campaign, calibrate, campaign, compensate, diagnose, fit, identify, matching,
+    model, series,
 };
 pub use dbbcal_io as io;
 pub use dbbcal_report as report;

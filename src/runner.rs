@@ -151,11 +151,19 @@ fn shortest_fitted_tau_s(results: &RunResults) -> Option<f64> {
 }
 
 /// Write a simulated campaign into `out` (which must not exist).
+/// A simulation TOML with `kind = "axis"` makes an `axis` campaign instead
+/// (`crate::simulate::generate_axis`).
 pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<()> {
     let mut cfg = match config {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read {}", p.display()))?;
+            let axis = crate::simulate::is_axis_config(&text).map_err(|e| {
+                anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
+            })?;
+            if axis {
+                return simulate_axis(p, &text, out, seed);
+            }
             toml::from_str::<crate::simulate::SimConfig>(&text).map_err(|e| {
                 anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
             })?
@@ -171,6 +179,22 @@ pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<
     let sim = crate::simulate::generate(&cfg)?;
     create_new_folder(out, |tmp| {
         crate::simulate::write(&sim, tmp, &io::WriteOptions::default()).map_err(anyhow::Error::from)
+    })
+}
+
+/// [`simulate`] for an `axis` campaign: the configuration `text` (of file `path`).
+fn simulate_axis(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
+    let mut cfg = toml::from_str::<crate::simulate::AxisSimConfig>(text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    if std::fs::symlink_metadata(out).is_ok() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = crate::simulate::generate_axis(&cfg)?;
+    create_new_folder(out, |tmp| {
+        crate::simulate::write_axis(&sim, tmp, &cfg.output, cfg.seed).map_err(anyhow::Error::from)
     })
 }
 

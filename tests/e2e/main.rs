@@ -3,6 +3,7 @@
 
 mod acceptance;
 mod architecture;
+mod axis_campaign;
 mod bad_config;
 mod bad_input;
 mod base_noise;

@@ -3,11 +3,13 @@
 //! The campaign's description ([`campaign`]), the bars' series ([`series`]), the thermal model
 //! and its terms ([`model`]), the one fitting engine ([`fit`]), and the stages built on them:
 //! [`identify`], [`matching`], [`diagnose`], [`calibrate`], [`compensate`], [`acceptance`].
+//! The `axis` machine kind's format types and reader rules are in [`axis_campaign`].
 //!
 //! INVARIANT (enforced by this crate's dependencies): no polars, no plotters, no file IO but
 //! the text of a `campaign.toml` handed in by the caller. Ingest (`dbbcal-io`) gives this crate
 //! [`series::CampaignLogs`]; the application writes what it returns. See ARCHITECTURE.md.
 pub mod acceptance;
+pub mod axis_campaign;
 pub mod calibrate;
 pub mod campaign;
 pub mod compensate;

@@ -1,11 +1,14 @@
 //! Everything that touches files and polars: reading a campaign directory into plain typed
 //! series ([`read_campaign`]), writing one ([`write_campaign`], used by `simulate` and the tests),
-//! and writing the pipeline's output tables ([`write_table`]).
+//! and writing the pipeline's output tables ([`write_table`]). The `axis` machine kind has its
+//! own reader and writer ([`read_axis_campaign`], [`write_axis_campaign`]).
 //!
 //! INVARIANT: this module is the only code in the crate that uses polars. Its public API speaks
 //! only in the crate's own types (`campaign`, `series`, [`Table`]), so a polars upgrade touches
 //! `crates/io/src/` alone.
 
+mod axis;
+mod axis_write;
 mod guard;
 mod inputs;
 mod read;
@@ -13,6 +16,8 @@ mod repeats;
 mod table;
 mod write;
 
+#[cfg(test)]
+mod axis_tests;
 #[cfg(test)]
 mod fuzz_tests;
 #[cfg(test)]
@@ -23,6 +28,8 @@ use std::path::{Path, PathBuf};
 use dbbcal_core::campaign::CampaignError;
 use dbbcal_core::series::CampaignLogs;
 
+pub use axis::{read_axis_campaign, read_axis_manifest};
+pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;
 pub use table::{write_table, write_table_csv, Column, Table};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};

@@ -1301,7 +1301,7 @@ fn unique<'a>(key: &str, ids: impl Iterator<Item = &'a str>) -> Result<(), SimEr
 }
 
 /// `start` as an RFC 3339 string on output; a TOML datetime or a string on input.
-mod start_time {
+pub(crate) mod start_time {
     use chrono::{DateTime, Utc};
     use serde::{de::Error, Deserialize, Deserializer, Serializer};
 

@@ -17,7 +17,12 @@
 //! stay on their lengths while working bars sit on a check length or a device; each bar's
 //! counts follow its true geometric map `D(n, A)` (scale error, nonlinearity, cosine error,
 //! zero offset, gravity sag, `geometry.rs`), and `[[mismatch]]` makes chosen bars different.
+//!
+//! The `axis` machine kind (`docs/spec/machine-formats.md`) has its own generator:
+//! [`generate_axis`] from an [`AxisSimConfig`] (a simulation TOML with `kind = "axis"`,
+//! [`is_axis_config`]), written by [`write_axis`].
 
+mod axis;
 pub(crate) mod config;
 mod encoder;
 mod environment;
@@ -39,6 +44,11 @@ use dbbcal_core::campaign::{
 };
 use dbbcal_core::series::{CampaignTables, Event, EventKind};
 
+pub use axis::{
+    generate_axis, is_axis_config, write_axis, AxisEffects, AxisEnvironment, AxisErrorConfig,
+    AxisOutput, AxisSimConfig, AxisSimLaser, AxisSimLine, AxisSimulation, AxisTruth, Cosine,
+    DeadPath, ErrorCurve, ErrorShape, LineTruth, MachineDrift, OpticsSlope, SensorError, Sine,
+};
 pub use config::{
     AirBetweenReadings, BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig,
     FleetConfig, GenerationConfig, GeometryConfig, HeadHeating, HeadSchedule, HeadStart,

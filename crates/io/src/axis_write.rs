@@ -1,0 +1,226 @@
+//! Writing an `axis` campaign directory (what the simulator produces), with options that
+//! exercise the reader's tolerance: readings split by line, coarser time units, shuffled rows,
+//! dictionary channels, no `direction` column.
+
+use std::path::Path;
+
+use polars::prelude::*;
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+
+use super::inputs::parquet_files;
+use super::one_line;
+use super::write::{write_parquet, TimeUnit, WriteError};
+use dbbcal_core::axis_campaign::{AxisCampaignTables, AxisManifest, AxisReading};
+
+/// How [`write_axis_campaign`] lays out the tables. The default: one file per table, ns, rows
+/// in the given order, plain strings, `direction` written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AxisWriteOptions {
+    /// One readings file per line (`readings/line-<id>.parquet`) instead of one.
+    pub split_by_line: bool,
+    /// Unit of the timestamp columns.
+    pub time_unit: TimeUnit,
+    /// Shuffle the rows inside each file (seeded by `seed`).
+    pub shuffle_rows: bool,
+    /// Write `channel` as a dictionary (categorical) column.
+    pub dictionary_strings: bool,
+    /// Write the optional `direction` column (else the reader derives it).
+    pub write_direction: bool,
+    /// Seed of the row shuffle.
+    pub seed: u64,
+}
+
+impl Default for AxisWriteOptions {
+    fn default() -> Self {
+        Self {
+            split_by_line: false,
+            time_unit: TimeUnit::Ns,
+            shuffle_rows: false,
+            dictionary_strings: false,
+            write_direction: true,
+            seed: 0,
+        }
+    }
+}
+
+/// Writes `campaign.toml`, `readings/`, and `fixture/` and `environment/` when they have rows,
+/// under `dir` (created if needed). Existing `*.parquet` files in those folders are removed
+/// first, so a rewrite never leaves stale files for the reader.
+pub fn write_axis_campaign(
+    dir: &Path,
+    manifest: &AxisManifest,
+    tables: &AxisCampaignTables,
+    opts: &AxisWriteOptions,
+) -> Result<(), WriteError> {
+    create_dir(dir)?;
+    let path = dir.join("campaign.toml");
+    let text = manifest
+        .to_toml_string()
+        .map_err(|e| WriteError::Manifest {
+            path: path.clone(),
+            message: one_line(e),
+        })?;
+    std::fs::write(&path, text).map_err(|e| WriteError::Io {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
+    let mut rng =
+        rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(31).wrapping_add(7));
+
+    let folder = dir.join("readings");
+    prepare(&folder)?;
+    let mut files: Vec<(String, Vec<&AxisReading>)> = Vec::new();
+    if opts.split_by_line {
+        let mut lines: Vec<i64> = tables.readings.iter().map(|r| r.line).collect();
+        lines.sort_unstable();
+        lines.dedup();
+        for line in lines {
+            let rows = tables.readings.iter().filter(|r| r.line == line).collect();
+            files.push((format!("line-{line}"), rows));
+        }
+    } else {
+        files.push(("readings".into(), tables.readings.iter().collect()));
+    }
+    for (name, mut rows) in files {
+        if opts.shuffle_rows {
+            rows.shuffle(&mut rng);
+        }
+        let path = folder.join(format!("{name}.parquet"));
+        let mut df = readings_frame(&rows, opts).map_err(polars_err(&path))?;
+        write_parquet(&path, &mut df)?;
+    }
+
+    let folder = dir.join("fixture");
+    prepare(&folder)?;
+    if !tables.fixture.is_empty() {
+        let mut rows: Vec<_> = tables.fixture.iter().collect();
+        if opts.shuffle_rows {
+            rows.shuffle(&mut rng);
+        }
+        let path = folder.join("fixture.parquet");
+        let columns = vec![
+            time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
+            Series::new(
+                "line".into(),
+                rows.iter().map(|r| r.line).collect::<Vec<_>>(),
+            )
+            .into_column(),
+            f64_column("x_mm", rows.iter().map(|r| r.reflector_mm[0])),
+            f64_column("y_mm", rows.iter().map(|r| r.reflector_mm[1])),
+            f64_column("z_mm", rows.iter().map(|r| r.reflector_mm[2])),
+        ];
+        let mut df = DataFrame::new(rows.len(), columns).map_err(polars_err(&path))?;
+        write_parquet(&path, &mut df)?;
+    }
+
+    let folder = dir.join("environment");
+    prepare(&folder)?;
+    if !tables.environment.is_empty() {
+        let mut rows: Vec<_> = tables.environment.iter().collect();
+        if opts.shuffle_rows {
+            rows.shuffle(&mut rng);
+        }
+        let path = folder.join("environment.parquet");
+        let columns = vec![
+            time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
+            f64_column("air_c", rows.iter().map(|r| r.air_c)),
+            f64_column("pressure_hpa", rows.iter().map(|r| r.pressure_hpa)),
+            f64_column("humidity_pct", rows.iter().map(|r| r.humidity_pct)),
+            Series::new(
+                "material_c".into(),
+                rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),
+            )
+            .into_column(),
+            Series::new(
+                "env_factor_ppm".into(),
+                rows.iter().map(|r| r.env_factor_ppm).collect::<Vec<_>>(),
+            )
+            .into_column(),
+        ];
+        let mut df = DataFrame::new(rows.len(), columns).map_err(polars_err(&path))?;
+        write_parquet(&path, &mut df)?;
+    }
+    Ok(())
+}
+
+fn readings_frame(rows: &[&AxisReading], opts: &AxisWriteOptions) -> PolarsResult<DataFrame> {
+    let mut columns = vec![
+        time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
+        Series::new(
+            "line".into(),
+            rows.iter().map(|r| r.line).collect::<Vec<_>>(),
+        )
+        .into_column(),
+        Series::new("run".into(), rows.iter().map(|r| r.run).collect::<Vec<_>>()).into_column(),
+    ];
+    if opts.write_direction {
+        columns.push(
+            Series::new(
+                "direction".into(),
+                rows.iter().map(|r| r.direction).collect::<Vec<i8>>(),
+            )
+            .into_column(),
+        );
+    }
+    columns.push(f64_column("target_mm", rows.iter().map(|r| r.target_mm)));
+    let channel = Column::new(
+        "channel".into(),
+        rows.iter().map(|r| r.channel.as_str()).collect::<Vec<_>>(),
+    );
+    columns.push(if opts.dictionary_strings {
+        channel.cast(&DataType::from_categories(Categories::global()))?
+    } else {
+        channel
+    });
+    columns.push(f64_column(
+        "deviation_um",
+        rows.iter().map(|r| r.deviation_um),
+    ));
+    DataFrame::new(rows.len(), columns)
+}
+
+fn time_column(ns: impl Iterator<Item = i64>, unit: TimeUnit) -> Column {
+    let (per, polars_unit) = match unit {
+        TimeUnit::Ns => (1, polars::prelude::TimeUnit::Nanoseconds),
+        TimeUnit::Us => (1_000, polars::prelude::TimeUnit::Microseconds),
+        TimeUnit::Ms => (1_000_000, polars::prelude::TimeUnit::Milliseconds),
+    };
+    Int64Chunked::from_vec("time".into(), ns.map(|t: i64| t.div_euclid(per)).collect())
+        .into_datetime(polars_unit, None)
+        .into_column()
+}
+
+fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> Column {
+    Float64Chunked::from_vec(name.into(), values.collect()).into_column()
+}
+
+fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
+    move |e| WriteError::Polars {
+        path: path.to_path_buf(),
+        message: one_line(e),
+    }
+}
+
+fn create_dir(dir: &Path) -> Result<(), WriteError> {
+    std::fs::create_dir_all(dir).map_err(|e| WriteError::Io {
+        path: dir.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Creates `folder` and removes its `*.parquet` files.
+fn prepare(folder: &Path) -> Result<(), WriteError> {
+    create_dir(folder)?;
+    let stale = parquet_files(folder).map_err(|e| WriteError::Io {
+        path: folder.to_path_buf(),
+        message: one_line(e),
+    })?;
+    for file in stale {
+        std::fs::remove_file(&file).map_err(|e| WriteError::Io {
+            path: file.clone(),
+            message: e.to_string(),
+        })?;
+    }
+    Ok(())
+}
