@@ -368,7 +368,11 @@ pub struct AxisCampaign {
 /// Ranges of the `axis` manifest's numbers beyond those of the ballbar manifest.
 pub(crate) mod axis_limits {
     /// `laser.wavelength_nm`: vacuum wavelengths of length-measuring lasers (UV to far IR).
-    pub(crate) const WAVELENGTH_NM: (f64, f64) = (200.0, 2_000.0);
+    pub(crate) const WAVELENGTH_NM: crate::limits::Limit =
+        crate::limits::Limit::closed(200.0, 2_000.0, "nm");
+    /// `laser.dead_path_mm`.
+    pub(crate) const DEAD_PATH_MM: crate::limits::Limit =
+        crate::limits::Limit::closed(0.0, LENGTH_MM, "mm");
     /// `laser.dead_path_mm`, `line[].reflector_mm`, `fixture.report_point_mm`, mm.
     pub(crate) const LENGTH_MM: f64 = 10_000.0;
 }
@@ -410,31 +414,23 @@ impl AxisCampaign {
             "campaign.reference_temperature_c",
             m.campaign.reference_temperature_c,
             limits::REFERENCE_TEMPERATURE_C,
-            " °C",
         )
         .map_err(|p| invalid("campaign.reference_temperature_c", p))?;
         in_range(
             "machine.cte_ppm_per_k",
             m.machine.cte_ppm_per_k,
             limits::CTE_PPM_PER_K,
-            " ppm/K",
         )
         .map_err(|p| invalid("machine.cte_ppm_per_k", p))?;
         in_range(
             "laser.wavelength_nm",
             m.laser.wavelength_nm,
             axis_limits::WAVELENGTH_NM,
-            " nm",
         )
         .map_err(|p| invalid("laser.wavelength_nm", p))?;
         if let Some(d) = m.laser.dead_path_mm {
-            in_range(
-                "laser.dead_path_mm",
-                d,
-                (0.0, axis_limits::LENGTH_MM),
-                " mm",
-            )
-            .map_err(|p| invalid("laser.dead_path_mm", p))?;
+            in_range("laser.dead_path_mm", d, axis_limits::DEAD_PATH_MM)
+                .map_err(|p| invalid("laser.dead_path_mm", p))?;
         }
         if m.line.is_empty() {
             return Err(invalid(
@@ -458,7 +454,7 @@ impl AxisCampaign {
         let (fixture_u_um, report_point_mm) = match &m.fixture {
             None => (0.0, [0.0; 3]),
             Some(f) => {
-                in_range("fixture.u_um", f.u_um, limits::U_UM, " µm")
+                in_range("fixture.u_um", f.u_um, limits::U_UM)
                     .map_err(|p| invalid("fixture.u_um", p))?;
                 let report = f.report_point_mm.unwrap_or([0.0; 3]);
                 point(&report).map_err(|p| invalid("fixture.report_point_mm", p))?;
@@ -524,15 +520,9 @@ impl AxisCampaign {
 }
 
 /// `value` finite and in `[lo, hi]`; the problem as words otherwise.
-fn in_range(name: &str, value: f64, (lo, hi): (f64, f64), unit: &str) -> Result<(), String> {
-    if value.is_finite() && value >= lo && value <= hi {
-        return Ok(());
-    }
+fn in_range(name: &str, value: f64, limit: crate::limits::Limit) -> Result<(), String> {
     let name = name.rsplit('.').next().unwrap_or(name);
-    Err(format!(
-        "{name} = {} is out of range: it must be a finite number >= {lo} and <= {hi}{unit}",
-        display_number(value)
-    ))
+    limit.check(name, value).map_err(|e| e.to_string())
 }
 
 /// A point in mm: every coordinate finite and within ±10 m.

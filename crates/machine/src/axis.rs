@@ -48,7 +48,7 @@ pub enum AxisError {
 }
 
 /// A channel of the laser system: the component of the displacement read, in M.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Channel {
     /// Δx.
     Dx,

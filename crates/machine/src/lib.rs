@@ -6,6 +6,8 @@
 //! - [`iso230_2`]: the ISO 230-2 evaluation (A, B, R, E, M);
 //! - [`components`]: the six component errors of a linear axis and their ISO 230-1 names;
 //! - [`axis`]: kind `axis`, the six errors at a target from interferometer channels;
+//! - [`axis_study`]: an `axis` campaign analysed: all runs at once, ISO 230-2, straightness,
+//!   and the loop (candidates, ledger, what the readings cannot see);
 //! - [`pose`], [`hexapod`], [`pose_errors`]: the hexapod device, its kinematics, and the
 //!   errors of the machine under test from its poses, with their uncertainty;
 //! - [`straightness`]: straightness raw and without its least-squares line.
@@ -15,6 +17,7 @@
 //! formulas come from `docs/spec/machine-physics.md`, `docs/spec/machine-formats.md` and
 //! `docs/spec/device-format.md`; each module says which section.
 pub mod axis;
+pub mod axis_study;
 pub mod components;
 pub mod edlen;
 pub mod hexapod;

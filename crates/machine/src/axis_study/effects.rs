@@ -1,0 +1,173 @@
+//! The effects an `axis` model may miss (`docs/spec/machine-physics.md`, "Kind axis", the table
+//! of effects), as columns the global model can add, and those it cannot tell apart from the
+//! six errors (said, not fitted).
+
+use crate::axis::Channel;
+
+/// How many regressors a reading carries ([`super::model::PlacedReading::regressors`]).
+pub(crate) const REGRESSORS: usize = 5;
+/// Hours since the line's datum reading.
+const HOURS: usize = 0;
+/// Along the axis: (n(t) − n(t_datum)) · 10³ µm per mm of uncorrected dead path.
+const DEAD_PATH: usize = 1;
+/// Along the axis: L · hours since the first reading · 10⁻³ (µm per ppm/h).
+const SCALE_DRIFT: usize = 2;
+/// Along the axis: L · (T_m − T0) · 10⁻³ (µm per ppm/K).
+const MATERIAL: usize = 3;
+/// Along the axis: L · (n(t) − 1) · 10³ (µm per unit of missed refraction).
+const REFRACTION: usize = 4;
+
+/// An effect the model can add: its columns are regressors the readings carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum AxisEffect {
+    /// Machine thermal drift during the runs: the functional point moves linearly in time, one
+    /// rate a channel (µm/h).
+    MachineDrift,
+    /// A dead path the readings were not corrected for: L_dead (n(t) − n(t_datum)) (mm).
+    DeadPath,
+    /// The laser's air or material sensor drifting: a scale error growing in time (ppm/h).
+    ScaleDrift,
+    /// Material expansion not normalised (a wrong or missing expansion coefficient): L α (T_m − T0)
+    /// (ppm/K).
+    MaterialTemperature,
+    /// Readings not compensated for the air although declared so: L (n − 1) (a fraction).
+    AirRefraction,
+}
+
+impl AxisEffect {
+    /// Every effect, in the order candidates are listed.
+    pub const ALL: [AxisEffect; 5] = [
+        AxisEffect::MachineDrift,
+        AxisEffect::DeadPath,
+        AxisEffect::ScaleDrift,
+        AxisEffect::MaterialTemperature,
+        AxisEffect::AirRefraction,
+    ];
+
+    /// The name a pipeline's `[axis] effects` and `--add-effect` take.
+    pub fn name(self) -> &'static str {
+        match self {
+            AxisEffect::MachineDrift => "machine_drift",
+            AxisEffect::DeadPath => "dead_path",
+            AxisEffect::ScaleDrift => "scale_drift",
+            AxisEffect::MaterialTemperature => "material_temperature",
+            AxisEffect::AirRefraction => "air_refraction",
+        }
+    }
+
+    /// The effect called `name`.
+    pub fn parse(name: &str) -> Option<AxisEffect> {
+        AxisEffect::ALL.into_iter().find(|e| e.name() == name)
+    }
+
+    /// The physical effect in the spec's words.
+    pub fn physics(self) -> &'static str {
+        match self {
+            AxisEffect::MachineDrift => "machine thermal drift during the runs",
+            AxisEffect::DeadPath => "dead path not corrected (the air between optics and datum)",
+            AxisEffect::ScaleDrift => {
+                "the laser's air or material sensor drifting (Edlén / material temperature)"
+            }
+            AxisEffect::MaterialTemperature => {
+                "material temperature not normalised (expansion coefficient)"
+            }
+            AxisEffect::AirRefraction => "air refraction not compensated (Edlén)",
+        }
+    }
+
+    /// (regressor index, channel it acts on; `None`: the regressor is already zero elsewhere).
+    pub(crate) fn columns(self) -> &'static [(usize, Option<Channel>)] {
+        match self {
+            AxisEffect::MachineDrift => &[
+                (HOURS, Some(Channel::Dx)),
+                (HOURS, Some(Channel::Dy)),
+                (HOURS, Some(Channel::Dz)),
+            ],
+            AxisEffect::DeadPath => &[(DEAD_PATH, None)],
+            AxisEffect::ScaleDrift => &[(SCALE_DRIFT, None)],
+            AxisEffect::MaterialTemperature => &[(MATERIAL, None)],
+            AxisEffect::AirRefraction => &[(REFRACTION, None)],
+        }
+    }
+
+    /// Its parameters' names, one a column, with units.
+    pub fn parameter_names(self) -> &'static [&'static str] {
+        match self {
+            AxisEffect::MachineDrift => {
+                &["drift_x_um_per_h", "drift_y_um_per_h", "drift_z_um_per_h"]
+            }
+            AxisEffect::DeadPath => &["dead_path_mm"],
+            AxisEffect::ScaleDrift => &["scale_drift_ppm_per_h"],
+            AxisEffect::MaterialTemperature => &["cte_error_ppm_per_k"],
+            AxisEffect::AirRefraction => &["missed_refraction"],
+        }
+    }
+}
+
+/// What a reading needs for the regressors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct RegressorInputs {
+    /// Whether the channel is along the axis.
+    pub(crate) along: bool,
+    /// Commanded displacement since the line's datum, mm.
+    pub(crate) displacement_mm: f64,
+    /// Hours since the line's datum reading.
+    pub(crate) hours_since_datum: f64,
+    /// Hours since the campaign's first reading.
+    pub(crate) hours_since_start: f64,
+    /// n(t) and n(t_datum), when the air is logged.
+    pub(crate) n: Option<(f64, f64)>,
+    /// T_m − T0, K, when the material temperature is logged.
+    pub(crate) material_minus_t0_k: Option<f64>,
+}
+
+/// The regressors of one reading (0 where an input is missing or the channel is lateral).
+pub(crate) fn regressors(x: &RegressorInputs) -> [f64; REGRESSORS] {
+    let mut r = [0.0; REGRESSORS];
+    r[HOURS] = x.hours_since_datum;
+    if x.along {
+        let l = x.displacement_mm;
+        if let Some((n, n_datum)) = x.n {
+            r[DEAD_PATH] = 1e3 * (n - n_datum);
+            r[REFRACTION] = 1e3 * l * (n - 1.0);
+        }
+        r[SCALE_DRIFT] = 1e-3 * l * x.hours_since_start;
+        if let Some(dt) = x.material_minus_t0_k {
+            r[MATERIAL] = 1e-3 * l * dt;
+        }
+    }
+    r
+}
+
+/// An effect of the spec's table that these readings cannot see apart from the six errors: its
+/// signature is a function of the target alone on each line, which the errors free at every
+/// target absorb. Said on every run, with what it becomes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Unseen {
+    /// The effect in the spec's words.
+    pub effect: &'static str,
+    /// What it turns into and how to find it instead.
+    pub becomes: &'static str,
+}
+
+/// The catalogue's effects the per-target model cannot identify (`machine-physics.md`).
+pub fn unseen() -> Vec<Unseen> {
+    vec![
+        Unseen {
+            effect: "cosine error (beam at an angle to the motion, per line)",
+            becomes: "a slope in the line's along-axis reading: read as pitch and yaw slopes (EBX, ECX for X) and positioning; align the beam (−θ²/2: 1 mrad = −0.5 µm/m)",
+        },
+        Unseen {
+            effect: "straightness-optics slope",
+            becomes: "a line in the lateral readings: read as straightness slope (removed with the least-squares line) and, if the optics moved between lines 1 and 2, a roll slope",
+        },
+        Unseen {
+            effect: "a constant air or material sensor error, a wrong wavelength",
+            becomes: "a scale error: read as a positioning slope (1 K of air = 0.95 µm/m, 1 K of steel = 11.5 µm/m); only a sensor check finds it",
+        },
+        Unseen {
+            effect: "fixture scale error",
+            becomes: "enters as ε × δp only (≤ 0.01 µm): below the noise",
+        },
+    ]
+}
