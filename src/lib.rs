@@ -16,6 +16,7 @@ pub use dbbcal_supervise as supervise;
 
 pub mod exit;
 pub mod figures;
+pub mod kinds;
 pub mod narrative;
 pub mod output;
 pub mod pipeline;

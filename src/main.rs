@@ -18,6 +18,7 @@ use dbbcal::runner::{self, RunStatus};
 use dbbcal::supervise::{Crash, Ending, SupervisedAlloc};
 
 use dbbcal::exit::Exit;
+use dbbcal::kinds::KindPlan;
 
 /// How long a probe of one file after a crash may take (`supervise::probe`).
 const PROBE_LIMIT: std::time::Duration = std::time::Duration::from_secs(120);
@@ -310,6 +311,13 @@ impl Say {
             return;
         }
         let Some(h) = &outcome.headline else {
+            for (label, text) in &outcome.lines {
+                let style = if *label == "Next" { "1;36" } else { "1;32" };
+                self.line(label, text, style);
+            }
+            if let Some(out) = &outcome.out {
+                self.line("Output", &out.display().to_string(), "1;32");
+            }
             return;
         };
         let finished = format!(
@@ -373,10 +381,17 @@ fn execute(
             pipeline,
             io,
             model,
-        } => {
-            let plan = RunPlan::from_pipeline_file(&pipeline, io.campaign, io.out, &[])?;
-            with_model_overrides(plan, &model)?
-        }
+        } => match dbbcal::kinds::plan_run(&pipeline, io.campaign, io.out, &model.add_effect)? {
+            KindPlan::Ballbar(plan) => with_model_overrides(*plan, &model)?,
+            other => {
+                if !model.effects.is_empty() || model.bin_s.is_some() {
+                    anyhow::bail!(dbbcal::pipeline::PlanError::NotInCampaign(
+                            "--effects and --bin-s are for ballbar campaigns; this campaign's kind takes --add-effect".into()
+                        ));
+                }
+                return dbbcal::kinds::run(&other).map(Some);
+            }
+        },
         Command::Ingest(a) => stage_plan(Stage::Ingest, a)?,
         Command::Identify(a) => stage_plan(Stage::Identify, a)?,
         Command::Match(a) => stage_plan(Stage::Match, a)?,

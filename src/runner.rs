@@ -34,6 +34,9 @@ pub struct Outcome {
     pub out: Option<PathBuf>,
     /// The night in a few lines (absent when no bar succeeded).
     pub headline: Option<Headline>,
+    /// The lines a run of another kind leaves for the terminal (label, text), when it has no
+    /// ballbar headline.
+    pub lines: Vec<(&'static str, String)>,
 }
 
 /// Whether an error (anywhere in a chain) means the input or configuration is unusable.
@@ -74,6 +77,7 @@ pub fn run(plan: &RunPlan) -> Result<Outcome> {
             status: RunStatus::NoBarSucceeded(results.failed),
             out: None,
             headline: None,
+            lines: Vec::new(),
         });
     }
     let headline = Headline::from_results(plan, &results);
@@ -101,6 +105,7 @@ pub fn run(plan: &RunPlan) -> Result<Outcome> {
         status,
         out: Some(out),
         headline: Some(headline),
+        lines: Vec::new(),
     })
 }
 

@@ -29,6 +29,7 @@
 //! `summary` (`summary.json`), `diagnosis` (`diagnosis.json`), `stage_records`
 //! (`calibration.json`, `compensation.json`, `acceptance.json`).
 
+pub(crate) mod axis;
 pub mod controller;
 pub(crate) mod diagnosis;
 pub(crate) mod fault;

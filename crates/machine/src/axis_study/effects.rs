@@ -1,6 +1,11 @@
 //! The effects an `axis` model may miss (`docs/spec/machine-physics.md`, "Kind axis", the table
 //! of effects), as columns the global model can add, and those it cannot tell apart from the
 //! six errors (said, not fitted).
+//!
+//! A scale error that is constant over the test is a positioning slope: the errors free at every
+//! target absorb it. So every scale-like regressor is taken relative to the campaign's first
+//! reading (*ours*): an effect explains how the scale *changes* during the test, and its value at
+//! the start stays in the positioning error, where no reading can separate it.
 
 use crate::axis::Channel;
 
@@ -12,9 +17,9 @@ const HOURS: usize = 0;
 const DEAD_PATH: usize = 1;
 /// Along the axis: L · hours since the first reading · 10⁻³ (µm per ppm/h).
 const SCALE_DRIFT: usize = 2;
-/// Along the axis: L · (T_m − T0) · 10⁻³ (µm per ppm/K).
+/// Along the axis: L · (T_m(t) − T_m(t₀)) · 10⁻³ (µm per ppm/K), t₀ the first reading.
 const MATERIAL: usize = 3;
-/// Along the axis: L · (n(t) − 1) · 10³ (µm per unit of missed refraction).
+/// Along the axis: L · (n(t) − n(t₀)) · 10³ (µm per unit of missed refraction).
 const REFRACTION: usize = 4;
 
 /// An effect the model can add: its columns are regressors the readings carry.
@@ -27,10 +32,11 @@ pub enum AxisEffect {
     DeadPath,
     /// The laser's air or material sensor drifting: a scale error growing in time (ppm/h).
     ScaleDrift,
-    /// Material expansion not normalised (a wrong or missing expansion coefficient): L α (T_m − T0)
-    /// (ppm/K).
+    /// Material expansion not normalised as the material's temperature changes (a wrong or
+    /// missing expansion coefficient, a material sensor drifting): L α (T_m(t) − T_m(t₀)) (ppm/K).
     MaterialTemperature,
-    /// Readings not compensated for the air although declared so: L (n − 1) (a fraction).
+    /// Readings not compensated for the air's changes although declared so: L (n(t) − n(t₀))
+    /// (a fraction).
     AirRefraction,
 }
 
@@ -115,10 +121,10 @@ pub(crate) struct RegressorInputs {
     pub(crate) hours_since_datum: f64,
     /// Hours since the campaign's first reading.
     pub(crate) hours_since_start: f64,
-    /// n(t) and n(t_datum), when the air is logged.
-    pub(crate) n: Option<(f64, f64)>,
-    /// T_m − T0, K, when the material temperature is logged.
-    pub(crate) material_minus_t0_k: Option<f64>,
+    /// n(t), n(t_datum) and n(t₀) (the campaign's first reading), when the air is logged.
+    pub(crate) n: Option<(f64, f64, f64)>,
+    /// T_m(t) − T_m(t₀), K, when the material temperature is logged.
+    pub(crate) material_change_k: Option<f64>,
 }
 
 /// The regressors of one reading (0 where an input is missing or the channel is lateral).
@@ -127,12 +133,12 @@ pub(crate) fn regressors(x: &RegressorInputs) -> [f64; REGRESSORS] {
     r[HOURS] = x.hours_since_datum;
     if x.along {
         let l = x.displacement_mm;
-        if let Some((n, n_datum)) = x.n {
+        if let Some((n, n_datum, n_first)) = x.n {
             r[DEAD_PATH] = 1e3 * (n - n_datum);
-            r[REFRACTION] = 1e3 * l * (n - 1.0);
+            r[REFRACTION] = 1e3 * l * (n - n_first);
         }
         r[SCALE_DRIFT] = 1e-3 * l * x.hours_since_start;
-        if let Some(dt) = x.material_minus_t0_k {
+        if let Some(dt) = x.material_change_k {
             r[MATERIAL] = 1e-3 * l * dt;
         }
     }

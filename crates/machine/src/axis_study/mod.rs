@@ -329,6 +329,8 @@ fn place(logs: &AxisCampaignLogs) -> Result<Placed, AxisStudyError> {
     };
     let datums = line_datums(logs);
     let first_time = logs.readings.iter().map(|r| r.time_ns).min().unwrap_or(0);
+    let (first_air, first_material) = air_at(logs, first_time);
+    let n_first = first_air.and_then(|a| edlen::refractive_index(&a, c.wavelength_nm).ok());
     let mut block_keys: Vec<(i8, i64)> = logs
         .readings
         .iter()
@@ -382,10 +384,11 @@ fn place(logs: &AxisCampaignLogs) -> Result<Placed, AxisStudyError> {
         } else {
             r.deviation_um
         };
-        let n = match (air, datum_air) {
-            (Some(a), Some(d)) => Some((
+        let n = match (air, datum_air, n_first) {
+            (Some(a), Some(d), Some(n0)) => Some((
                 edlen::refractive_index(&a, c.wavelength_nm).map_err(|e| bad(e.to_string()))?,
                 edlen::refractive_index(&d, c.wavelength_nm).map_err(|e| bad(e.to_string()))?,
+                n0,
             )),
             _ => None,
         };
@@ -396,7 +399,7 @@ fn place(logs: &AxisCampaignLogs) -> Result<Placed, AxisStudyError> {
             hours_since_datum: hours(r.time_ns),
             hours_since_start: (r.time_ns - first_time) as f64 / 3.6e12,
             n,
-            material_minus_t0_k: material_c.map(|m| m - c.reference_temperature_c),
+            material_change_k: material_c.zip(first_material).map(|(m, m0)| m - m0),
         };
         let reflector = logs.reflector_mm(r);
         readings.push(PlacedReading {

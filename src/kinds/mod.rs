@@ -1,0 +1,93 @@
+//! Campaign kinds: where `dbbcal run` chooses what a campaign is (`[campaign] kind` of its
+//! `campaign.toml`, `docs/spec/machine-formats.md`) and hands it to that kind's plan and run.
+//! A new kind registers here, in [`plan_run`]'s `match` and [`KindPlan`]; the compiler then
+//! points at [`run`]. Everything else of a kind lives in its own rooms (ARCHITECTURE.md, "A room
+//! for a new kind").
+
+pub mod axis;
+
+use std::path::{Path, PathBuf};
+
+use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind};
+
+use crate::pipeline::{PlanError, RunPlan, DEFAULT_CAMPAIGN_DIR};
+use crate::runner::Outcome;
+
+/// A validated plan of any kind.
+#[derive(Debug, Clone)]
+pub enum KindPlan {
+    /// A ballbar campaign (`campaign-format.md`): the stages of [`crate::pipeline`].
+    Ballbar(Box<RunPlan>),
+    /// An `axis` campaign (seed 002).
+    Axis(axis::AxisPlan),
+}
+
+/// The campaign directory a run reads: `--campaign`, else the pipeline's `[pipeline] campaign`,
+/// else the shipped sample.
+fn campaign_dir(pipeline_text: &str, campaign: Option<PathBuf>) -> PathBuf {
+    campaign
+        .or_else(|| {
+            let value: toml::Value = toml::from_str(pipeline_text).ok()?;
+            value
+                .get("pipeline")?
+                .get("campaign")?
+                .as_str()
+                .map(PathBuf::from)
+        })
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_CAMPAIGN_DIR))
+}
+
+/// Validate `dbbcal run PIPELINE`: read the campaign's kind (its manifest alone, no parquet),
+/// then that kind's plan.
+pub fn plan_run(
+    pipeline: &Path,
+    campaign: Option<PathBuf>,
+    out: Option<PathBuf>,
+    add_effects: &[String],
+) -> Result<KindPlan, PlanError> {
+    let shown = pipeline.display().to_string();
+    let text =
+        crate::io::read_small_text(pipeline, crate::io::MAX_PIPELINE_BYTES).map_err(|message| {
+            PlanError::Pipeline {
+                path: shown.clone(),
+                message,
+            }
+        })?;
+    let dir = campaign_dir(&text, campaign);
+    let manifest = dir.join("campaign.toml");
+    let kind = match crate::io::read_small_text(&manifest, crate::io::MAX_MANIFEST_BYTES) {
+        Ok(m) => campaign_kind(&m, &manifest.display().to_string())
+            .map_err(|e| PlanError::Campaign(Box::new(e)))?,
+        // The ballbar plan says what is wrong with a missing or unreadable manifest.
+        Err(_) => CampaignKind::Ballbar,
+    };
+    match kind {
+        // The ballbar plan takes `--add-effect` with the other model flags (`with_effects`).
+        CampaignKind::Ballbar => Ok(KindPlan::Ballbar(Box::new(RunPlan::from_pipeline_file(
+            pipeline,
+            Some(dir),
+            out,
+            &[],
+        )?))),
+        CampaignKind::Axis => Ok(KindPlan::Axis(axis::AxisPlan::from_pipeline_text(
+            pipeline,
+            &text,
+            dir,
+            out,
+            add_effects,
+        )?)),
+        other => Err(PlanError::NotInCampaign(format!(
+            "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\" and \"axis\" campaigns",
+            manifest.display(),
+            other.as_str()
+        ))),
+    }
+}
+
+/// Run a plan of a kind other than ballbar (ballbar plans run through [`crate::runner::run`]).
+pub fn run(plan: &KindPlan) -> anyhow::Result<Outcome> {
+    match plan {
+        KindPlan::Ballbar(p) => crate::runner::run(p),
+        KindPlan::Axis(p) => axis::run(p),
+    }
+}
