@@ -324,10 +324,41 @@ fn better(
     }
 }
 
+/// Fit `effects` to one bar from `coarse`, the same effects already fitted on the bar's coarse
+/// copy ([`coarse_copy`] with [`COARSE_START_MIN_SAMPLES`]: a refit of the diagnosis's coarse
+/// tier or of its coarse forward selection): the series is polished from the coarse optimum
+/// ([`Start::NearOptimum`]) without searching its start again.
+///
+/// Why: [`identify_from`] with a start searches the coarse copy twice (from the start and from
+/// the defaults' basin, [`defaults_basin`]), which is what the coarse refit already did on the
+/// same copy; done again it only finds the same optimum. Falls back to [`identify_from`] when
+/// `coarse` is not a fit of these effects or the series has no coarse copy.
+pub fn identify_from_coarse_optimum(
+    series: &BarSeries,
+    effects: &[Effect],
+    coarse: &BarModel,
+) -> Result<BarModel, IdentifyError> {
+    if coarse.effects != effects || series.fit_index.len() < COARSE_START_MIN_SAMPLES {
+        return identify_from(series, effects, Some(coarse));
+    }
+    fit_from_start(series, effects, Some(coarse), true)
+}
+
 fn fit_from(
     series: &BarSeries,
     effects: &[Effect],
     start: Option<&BarModel>,
+) -> Result<BarModel, IdentifyError> {
+    fit_from_start(series, effects, start, false)
+}
+
+/// [`fit_from`]; `at_coarse_optimum`: `start` is the optimum of these effects on the series'
+/// coarse copy ([`identify_from_coarse_optimum`]).
+fn fit_from_start(
+    series: &BarSeries,
+    effects: &[Effect],
+    start: Option<&BarModel>,
+    at_coarse_optimum: bool,
 ) -> Result<BarModel, IdentifyError> {
     let bar = series.bar.id.clone();
     let problem = ThermalProblem::new(series, effects).map_err(|source| IdentifyError::Model {
@@ -362,9 +393,15 @@ fn fit_from(
     if let Some(source) = vanished {
         return Err(IdentifyError::Fit { bar, source });
     }
-    let mut coarse_theta = coarse_problem
-        .as_ref()
-        .and_then(|p| start_fit(p, &bar, &theta0));
+    // Without a coarse problem the start is searched as usual.
+    let at_coarse_optimum = at_coarse_optimum && coarse_problem.is_some();
+    let mut coarse_theta = if at_coarse_optimum {
+        Some(theta0.clone())
+    } else {
+        coarse_problem
+            .as_ref()
+            .and_then(|p| start_fit(p, &bar, &theta0))
+    };
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
         options.start = Start::NearOptimum;
@@ -373,7 +410,7 @@ fn fit_from(
         bar: bar.clone(),
         source,
     })?;
-    if start.is_some() {
+    if start.is_some() && !at_coarse_optimum {
         let coarse = coarse_problem.as_ref();
         if let Some((theta, lower)) =
             defaults_basin(series, &problem, coarse, &fresh_theta0, &fit, &options)
