@@ -66,7 +66,11 @@
 //!   selection adds proposed candidates only. Exact refits go through one cache
 //!   (`diagnose::Refits`, keyed by bar and effect list, with the refit's noise likelihood), shared
 //!   by the ranking, the fleet-wide and every per-bar forward selection: a bar is never fitted
-//!   twice with the same effects. Terms that are the same model under two names
+//!   twice with the same effects. The coarse tier's refits are kept too, and the coarse forward
+//!   selection's cache starts with them (its first step refitted the same rivals on the same
+//!   copies); an exact refit that starts from a coarse refit (the coarse tier's, or the chosen
+//!   path's in `confirm_path`) is polished from that optimum on the readings without searching
+//!   its start again (`identify::identify_from_coarse_optimum`). Terms that are the same model under two names
 //!   (`head_heating` = `lag:event:head_power`) are offered once (`diagnose::term_identity`). On a clean 10-bar, 15-day, 10-s campaign no
 //!   candidate reaches an exact refit.
 
@@ -338,7 +342,7 @@ impl Candidate {
 pub struct Refits {
     fits: Mutex<RefitCache>,
     /// Refits on the bars' coarse copies (`coarse_tier`), by the same keys: the coarse forward
-    /// selection ([`CoarseFleet`]) starts its cache with them instead of fitting them again.
+    /// selection (`CoarseFleet`) starts its cache with them instead of fitting them again.
     coarse: Mutex<RefitCache>,
 }
 
@@ -366,8 +370,8 @@ impl Refits {
         self.refit_from(series, base, effect, None)
     }
 
-    /// [`Refits::refit`], the time constants started from `start` (a refit of the same effects
-    /// on the bar's coarse copy) when given, else from `base`.
+    /// [`Refits::refit`], polished from `start` (a refit of the same effects on the bar's coarse
+    /// copy: `identify::identify_from_coarse_optimum`) when given, else started from `base`.
     pub(crate) fn refit_from(
         &self,
         series: &BarSeries,
@@ -423,7 +427,11 @@ impl Refits {
 
     /// A cache for fits on the bars' coarse copies, started with the coarse refits kept here.
     fn for_coarse_copies(&self) -> Refits {
-        let coarse = self.coarse.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        let coarse = self
+            .coarse
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
         Refits {
             fits: Mutex::new(coarse),
             coarse: Mutex::default(),
