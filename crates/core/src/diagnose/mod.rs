@@ -66,7 +66,11 @@
 //!   selection adds proposed candidates only. Exact refits go through one cache
 //!   (`diagnose::Refits`, keyed by bar and effect list, with the refit's noise likelihood), shared
 //!   by the ranking, the fleet-wide and every per-bar forward selection: a bar is never fitted
-//!   twice with the same effects. Terms that are the same model under two names
+//!   twice with the same effects. The coarse tier's refits are kept too, and the coarse forward
+//!   selection's cache starts with them (its first step refitted the same rivals on the same
+//!   copies); an exact refit that starts from a coarse refit (the coarse tier's, or the chosen
+//!   path's in `confirm_path`) is polished from that optimum on the readings without searching
+//!   its start again (`identify::identify_from_coarse_optimum`). Terms that are the same model under two names
 //!   (`head_heating` = `lag:event:head_power`) are offered once (`diagnose::term_identity`). On a clean 10-bar, 15-day, 10-s campaign no
 //!   candidate reaches an exact refit.
 
@@ -83,7 +87,7 @@ use statrs::distribution::{ChiSquared, ContinuousCDF};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
-use crate::identify::{identify_from, BarModel};
+use crate::identify::{identify_from, identify_from_coarse_optimum, BarModel};
 use crate::model::{channels, Effect, Transform, CATALOGUE};
 use crate::series::BarSeries;
 use residual::{residual_stats, ResidualStats};
@@ -337,6 +341,9 @@ impl Candidate {
 #[derive(Default)]
 pub struct Refits {
     fits: Mutex<RefitCache>,
+    /// Refits on the bars' coarse copies (`coarse_tier`), by the same keys: the coarse forward
+    /// selection (`CoarseFleet`) starts its cache with them instead of fitting them again.
+    coarse: Mutex<RefitCache>,
 }
 
 /// Refits by (bar, effect names in the order added).
@@ -363,8 +370,8 @@ impl Refits {
         self.refit_from(series, base, effect, None)
     }
 
-    /// [`Refits::refit`], the time constants started from `start` (a refit of the same effects
-    /// on the bar's coarse copy) when given, else from `base`.
+    /// [`Refits::refit`], polished from `start` (a refit of the same effects on the bar's coarse
+    /// copy: `identify::identify_from_coarse_optimum`) when given, else started from `base`.
     pub(crate) fn refit_from(
         &self,
         series: &BarSeries,
@@ -379,9 +386,12 @@ impl Refits {
             return hit.clone();
         }
         let started = std::time::Instant::now();
+        let model = match start {
+            Some(coarse) => identify_from_coarse_optimum(series, &effects, coarse),
+            None => identify_from(series, &effects, Some(base)),
+        };
         let fitted = Arc::new(Refit {
-            model: identify_from(series, &effects, Some(start.unwrap_or(base)))
-                .map_err(|e| e.to_string()),
+            model: model.map_err(|e| e.to_string()),
             noise_log_likelihood: OnceLock::new(),
         });
         tracing::debug!(bar = %key.0, effects = ?key.1, ms = started.elapsed().as_millis(), "diagnose: exact refit");
@@ -390,6 +400,42 @@ impl Refits {
 
     fn lock(&self) -> std::sync::MutexGuard<'_, RefitCache> {
         self.fits.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The refit of `bar` with `effects`, if it was made.
+    fn get(&self, bar: &str, effects: &[Effect]) -> Option<Arc<Refit>> {
+        let key = (bar.to_string(), effects.iter().map(Effect::name).collect());
+        self.lock().get(&key).cloned()
+    }
+
+    /// Keep `model`, a refit of `bar` on its coarse copy, for the coarse forward selection.
+    fn remember_coarse(&self, bar: &str, model: &BarModel) {
+        let key = (
+            bar.to_string(),
+            model.effects.iter().map(Effect::name).collect(),
+        );
+        let refit = Arc::new(Refit {
+            model: Ok(model.clone()),
+            noise_log_likelihood: OnceLock::new(),
+        });
+        self.coarse
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry(key)
+            .or_insert(refit);
+    }
+
+    /// A cache for fits on the bars' coarse copies, started with the coarse refits kept here.
+    fn for_coarse_copies(&self) -> Refits {
+        let coarse = self
+            .coarse
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        Refits {
+            fits: Mutex::new(coarse),
+            coarse: Mutex::default(),
+        }
     }
 }
 
@@ -586,7 +632,8 @@ pub fn evaluate_candidates(
             .iter()
             .any(|&(k, gain, change)| k == c && change > gain)
     };
-    let (refit, starts, coarse_reasons) = coarse_tier(bars, bases, refit, candidates, shift_only);
+    let (refit, starts, coarse_reasons) =
+        coarse_tier(bars, bases, refit, candidates, shift_only, refits);
     tracing::debug!(
         bars = bars.len(),
         refit = ?refit.iter().map(|&c| candidates[c].name()).collect::<Vec<_>>(),
@@ -669,6 +716,7 @@ fn coarse_tier(
     refit: Vec<usize>,
     candidates: &[Effect],
     shift_only: impl Fn(usize) -> bool,
+    refits: &Refits,
 ) -> (
     Vec<usize>,
     Vec<Vec<Option<BarModel>>>,
@@ -692,6 +740,11 @@ fn coarse_tier(
             base.coarse_refit(bars[b].1, &candidates[c])?.ok()
         })
         .collect();
+    for (&(_, b), f) in jobs.iter().zip(&fitted) {
+        if let Some((_, m)) = f {
+            refits.remember_coarse(&bars[b].1.bar, m);
+        }
+    }
     let per_candidate: Vec<&[Option<(f64, BarModel)>]> = fitted.chunks(bars.len().max(1)).collect();
     // The fleet RSS each removes on the coarse copies (µm², each bar on its own samples' scale).
     let removed: Vec<f64> = per_candidate
@@ -1196,9 +1249,16 @@ pub fn forward_selection(
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
     // Nothing proposed at the first step: nothing to search (the beam would stop there too).
     if max_steps > 0 && first_candidates.iter().any(Candidate::proposed) {
-        if let Some(coarse) = CoarseFleet::new(series, &start) {
+        if let Some(coarse) = CoarseFleet::new(series, &start, refits) {
             let path = coarse.select(max_steps, beam, criteria);
-            return confirm_path(series, start, first_candidates, &path, criteria, refits);
+            return confirm_path(
+                series,
+                start,
+                first_candidates,
+                (&path, &coarse),
+                criteria,
+                refits,
+            );
         }
     }
     beam_search(
@@ -1217,10 +1277,13 @@ pub fn forward_selection(
 struct CoarseFleet {
     series: Vec<BarSeries>,
     models: Vec<BarModel>,
+    /// The refits on the coarse copies, started with the ranking's coarse tier
+    /// ([`Refits::for_coarse_copies`]); the exact refits of the chosen path start from them.
+    refits: Refits,
 }
 
 impl CoarseFleet {
-    fn new(series: &[&BarSeries], models: &[BarModel]) -> Option<CoarseFleet> {
+    fn new(series: &[&BarSeries], models: &[BarModel], refits: &Refits) -> Option<CoarseFleet> {
         let copies: Vec<BarSeries> = series
             .iter()
             .map(|s| crate::identify::coarse_copy(s, crate::identify::COARSE_START_MIN_SAMPLES))
@@ -1233,14 +1296,23 @@ impl CoarseFleet {
         Some(CoarseFleet {
             series: copies,
             models: fitted,
+            refits: refits.for_coarse_copies(),
         })
+    }
+
+    /// The coarse refit of `bar` with `effects` and `effect` added, where the search made one:
+    /// the start of that step's exact refit.
+    fn start_for(&self, bar: &str, effects: &[Effect], effect: &Effect) -> Option<BarModel> {
+        let mut all = effects.to_vec();
+        all.push(effect.clone());
+        self.refits.get(bar, &all)?.model.clone().ok()
     }
 
     /// The effects the beam search adds on the coarse copies, in order.
     fn select(&self, max_steps: usize, beam: usize, criteria: &Criteria) -> Vec<Effect> {
-        let refits = Refits::default();
+        let refits = &self.refits;
         let series: Vec<&BarSeries> = self.series.iter().collect();
-        let first = rank_candidates_for(&series, &self.models, criteria, &refits);
+        let first = rank_candidates_for(&series, &self.models, criteria, refits);
         let (ledger, _) = beam_search(
             &series,
             self.models.clone(),
@@ -1248,7 +1320,7 @@ impl CoarseFleet {
             max_steps,
             beam,
             criteria,
-            &refits,
+            refits,
         );
         ledger
             .iter()
@@ -1268,7 +1340,7 @@ fn confirm_path(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
-    path: &[Effect],
+    (path, coarse): (&[Effect], &CoarseFleet),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
@@ -1285,7 +1357,14 @@ fn confirm_path(
             .cloned();
         let candidate = match ranked {
             Some(c) => c,
-            None => exact_candidate(series, &current.models, effect, criteria, refits),
+            None => {
+                let starts: Vec<Option<BarModel>> = current
+                    .models
+                    .iter()
+                    .map(|m| coarse.start_for(&m.bar, &m.effects, effect))
+                    .collect();
+                exact_candidate(series, &current.models, effect, &starts, criteria, refits)
+            }
         };
         if !candidate.proposed() {
             tracing::debug!(effect = %effect.name(), reason = %candidate.reason, "diagnose: the coarse path stops here on the readings");
@@ -1303,6 +1382,7 @@ fn exact_candidate(
     series: &[&BarSeries],
     models: &[BarModel],
     effect: &Effect,
+    starts: &[Option<BarModel>],
     criteria: &Criteria,
     refits: &Refits,
 ) -> Candidate {
@@ -1320,7 +1400,7 @@ fn exact_candidate(
             None => Err("the model could not be linearised on this bar".into()),
         })
         .collect()];
-    let starts = vec![vec![None; pairs.len()]];
+    let starts = vec![starts.to_vec()];
     let per_bar = exact_refits(
         &pairs,
         &bases,

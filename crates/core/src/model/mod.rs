@@ -423,6 +423,18 @@ pub struct ThermalProblem<'a> {
     /// same `theta`, and a 1-D search moves one time constant while the others stay put, so
     /// most lag recursions (the cost of a fit) are repeats. Results are the same bits.
     memo: Mutex<Vec<Option<TermMemo>>>,
+    /// The last engine column written for each unmasked gain column of the basis
+    /// ([`ThermalProblem::write_row_column`]), keyed by the bits of its term's tau (`None`: a
+    /// term without one): a 1-D search or a screen moves one time constant while the other
+    /// columns stay put, and gathering, demeaning and weighing every column again at each
+    /// evaluation was the largest single cost of the diagnosis's fits. Same bits.
+    row_memo: Mutex<Vec<Option<RowMemo>>>,
+}
+
+/// One engine column of [`ThermalProblem::row_memo`].
+struct RowMemo {
+    tau_bits: Option<u64>,
+    column: Arc<Vec<f64>>,
 }
 
 struct TermMemo {
@@ -529,6 +541,7 @@ impl<'a> ThermalProblem<'a> {
             zero_weight: Vec::new(),
             zero_rows: Vec::new(),
             memo: Mutex::new(Vec::new()),
+            row_memo: Mutex::new(Vec::new()),
         };
         problem.zero_weight = problem.segment_weights();
         problem.zero_rows = problem.segment_rows();
@@ -1237,12 +1250,37 @@ impl Separable for ThermalProblem<'_> {
 
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
         let gains = self.gain_columns();
-        let per_term: Vec<Arc<Vec<f64>>> = (0..self.terms.len())
-            .map(|j| self.term_column(j, theta, false).0)
-            .collect();
+        let mut per_term: Vec<Option<Arc<Vec<f64>>>> = vec![None; self.terms.len()];
         let mut phi = DMatrix::zeros(self.y.len(), gains.len());
         for (c, (j, seg)) in gains.into_iter().enumerate() {
-            self.write_row_column(&per_term[j], seg, phi.column_mut(c).as_mut_slice());
+            let mut out = phi.column_mut(c);
+            let out = out.as_mut_slice();
+            // Masked columns (settling's, one per mount) are written over their mount alone:
+            // cheap, and memoised they would hold a whole column each.
+            let key = seg
+                .is_none()
+                .then(|| self.tau_of(j, theta).map(f64::to_bits));
+            if let Some(key) = key {
+                let memo = self.row_memo.lock().unwrap_or_else(|p| p.into_inner());
+                if let Some(m) = memo.get(c).and_then(Option::as_ref) {
+                    if m.tau_bits == key && m.column.len() == out.len() {
+                        out.copy_from_slice(&m.column);
+                        continue;
+                    }
+                }
+            }
+            let full = per_term[j].get_or_insert_with(|| self.term_column(j, theta, false).0);
+            self.write_row_column(full, seg, out);
+            if let Some(key) = key {
+                let mut memo = self.row_memo.lock().unwrap_or_else(|p| p.into_inner());
+                if memo.len() <= c {
+                    memo.resize_with(c + 1, || None);
+                }
+                memo[c] = Some(RowMemo {
+                    tau_bits: key,
+                    column: Arc::new(out.to_vec()),
+                });
+            }
         }
         phi
     }
