@@ -62,11 +62,12 @@ pub(crate) fn headline(
     let d = &s.diagnosis;
     let verdict = match d.proposal {
         Some(e) => format!(
-            "missing {} ({}): RMS along {} → {} µm",
+            "missing {} ({}): RMS along {} → {} µm{}",
             e.name(),
             e.physics(),
             num(s.rms_um[0], 3),
-            num(d.ledger.get(1).map_or(f64::NAN, |l| l.rms_um[0]), 3)
+            num(d.ledger.get(1).map_or(f64::NAN, |l| l.rms_um[0]), 3),
+            rival_note(s)
         ),
         None => format!(
             "model adequate: no effect of the catalogue improves it (RMS along {} µm, across {} µm)",
@@ -79,6 +80,31 @@ pub(crate) fn headline(
         lines.push(("Next", plan.next_command(e)));
     }
     lines
+}
+
+/// BIC differences below this tell two explanations apart only weakly (Kass & Raftery: < 2 is
+/// "not worth more than a bare mention").
+const WEAK_BIC: f64 = 2.0;
+
+/// The candidates that explain the readings about as well as the proposal, in words.
+fn rival_note(s: &AxisStudy) -> String {
+    let c = &s.diagnosis.candidates;
+    let Some(best) = c.first() else {
+        return String::new();
+    };
+    let rivals: Vec<&str> = c[1..]
+        .iter()
+        .filter(|r| r.delta_bic - best.delta_bic < WEAK_BIC)
+        .map(|r| r.effect.name())
+        .collect();
+    if rivals.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; {} explains these readings about as well (ΔBIC within {WEAK_BIC}): the same signature, told apart only by a sensor check",
+            rivals.join(", ")
+        )
+    }
 }
 
 /// `report.md`.

@@ -70,13 +70,13 @@ fn the_analysis_crate_links_neither_polars_nor_plotters_nor_another_dbbcal_crate
 }
 
 #[test]
-fn the_machine_kinds_crate_links_neither_polars_nor_plotters_nor_another_dbbcal_crate() {
+fn the_machine_kinds_crate_links_neither_polars_nor_plotters_and_of_dbbcal_only_core() {
+    // dbbcal-core for the kinds' format types (plain data); nothing that reads or draws.
     check(
         "dbbcal-machine",
         &[
             "polars",
             "plotters",
-            "dbbcal-core",
             "dbbcal-io",
             "dbbcal-report",
             "dbbcal-sim",
