@@ -16,5 +16,6 @@ pub mod fit;
 pub mod identify;
 pub mod matching;
 pub mod model;
+pub mod positions;
 pub mod series;
 pub mod signal;

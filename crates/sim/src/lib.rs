@@ -332,6 +332,7 @@ fn build_manifest(
                 bar: bar.id.clone(),
                 length,
                 device,
+                leg: None,
                 tilt_deg: (explicit_tilts || m.tilt_deg != cfg.plate.tilt_deg)
                     .then_some(m.tilt_deg),
                 purpose: Some(m.purpose),
@@ -362,6 +363,7 @@ fn build_manifest(
             })
             .collect(),
         mount,
+        device: Vec::new(),
     })
 }
 
