@@ -44,6 +44,8 @@ pub struct RunResults {
     pub acceptance: Option<Vec<crate::acceptance::BarAcceptance>>,
     /// What ingest dropped, counted and flagged (`series::quality`).
     pub(crate) quality: crate::series::Quality,
+    /// Device stage: the six errors of the machine axis (`pipeline::device`).
+    pub device: Option<super::device::DeviceStage>,
 }
 
 /// A bar a stage could not process, and why: one bad bar never stops the others. Written as
@@ -160,6 +162,7 @@ impl RunResults {
             compensation: None,
             acceptance: None,
             quality: Default::default(),
+            device: None,
         }
     }
 }

@@ -9,6 +9,7 @@ mod base_noise;
 mod cli;
 mod corpus;
 mod determinism;
+mod device;
 mod diagnose;
 mod false_alarms;
 mod head_heating;
