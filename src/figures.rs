@@ -193,8 +193,13 @@ fn device_errors_figure(results: &RunResults) -> Option<report::SeriesPanelsFigu
         .map(|c| {
             let mut groups: std::collections::BTreeMap<(i64, i8), Vec<(f64, f64)>> =
                 Default::default();
-            for d in &evaluated {
-                let dir = d.input.approach[k];
+            for (i, d) in evaluated.iter().enumerate() {
+                // A dwell approached from nowhere (the datum, a reversal) opens the next sweep.
+                let dir = evaluated[i..]
+                    .iter()
+                    .map(|d| d.input.approach[k])
+                    .find(|&a| a != 0)
+                    .unwrap_or(0);
                 let e = d.errors.map_or(f64::NAN, |e| e.to_array()[c]);
                 groups
                     .entry((d.input.run.unwrap_or(0), dir))

@@ -10,20 +10,6 @@ use dbbcal::io::{write_table, Column, Table};
 
 use crate::support::run_cli;
 
-/// `dbbcal simulate --config pipelines/sim-device.toml --out <root>/campaign`.
-fn simulate(root: &Path) -> PathBuf {
-    let dir = root.join("campaign");
-    let (code, _, err) = run_cli(&[
-        "simulate",
-        "--config",
-        "pipelines/sim-device.toml",
-        "--out",
-        dir.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "simulate: {err}");
-    dir
-}
-
 fn run_device(campaign: &Path, out: &Path) -> (i32, String) {
     let (code, _, err) = run_cli(&[
         "run",
@@ -69,47 +55,76 @@ fn recovery(device: &serde_json::Value, truth: &serde_json::Value) -> (f64, f64,
     (worst, inside as f64 / n.max(1) as f64, beyond, n)
 }
 
+/// `dbbcal simulate --config pipelines/sim-device.toml [--seed S]` and `dbbcal run
+/// pipelines/device.toml` on it: the output folder and the campaign.
+fn simulate_and_run(root: &Path, seed: Option<u64>) -> (PathBuf, PathBuf) {
+    let name = seed.map_or("default".to_string(), |s| format!("seed-{s}"));
+    let campaign = root.join(format!("campaign-{name}"));
+    let seed_text = seed.map(|s| s.to_string());
+    let mut args = vec![
+        "simulate",
+        "--config",
+        "pipelines/sim-device.toml",
+        "--out",
+        campaign.to_str().unwrap(),
+    ];
+    if let Some(s) = &seed_text {
+        args.extend(["--seed", s.as_str()]);
+    }
+    let (code, _, err) = run_cli(&args);
+    assert_eq!(code, 0, "simulate: {err}");
+    let out = root.join(format!("out-{name}"));
+    let (code, err) = run_device(&campaign, &out);
+    assert_eq!(code, 0, "run: {err}");
+    (campaign, out)
+}
+
+/// The six true errors are recovered within U: the joint-centre offsets are one draw per
+/// campaign, the same at every station, so the coverage is pooled over four campaigns (the
+/// config's seed and three more); no component of any may lie beyond 2U.
 #[test]
 fn a_simulated_hexapod_axis_is_recovered_within_u_at_every_station() {
     let tmp = tempfile::tempdir().unwrap();
-    let campaign = simulate(tmp.path());
-    assert!(campaign.join("positions/positions.parquet").is_file());
-    let out = tmp.path().join("out");
-    let (code, err) = run_device(&campaign, &out);
-    assert_eq!(code, 0, "run: {err}");
-    let device = json(&out.join("device.json"));
-    let truth = json(&campaign.join("truth.json"));
-    assert_eq!(device["axis"], "X");
-    assert_eq!(device["names"][0], "EXX");
-    assert!(device["not_evaluated"].is_null(), "{}", device["not_evaluated"]);
-    let (worst, coverage, beyond, n) = recovery(&device, &truth);
-    eprintln!(
-        "device recovery: {n} components, worst |error − truth| / U = {worst:.3}, \
-         {:.1} % within U, {beyond} beyond 2U",
-        100.0 * coverage
-    );
-    assert!(n >= 6 * 40, "{n} components compared");
-    assert!(coverage >= 0.9, "coverage {coverage}");
-    assert_eq!(beyond, 0, "worst {worst}");
-    // The other outputs: the table, the figure, the sections, the inputs' hashes.
-    assert!(out.join("device_errors.parquet").is_file());
-    assert!(out.join("figures/device-errors.png").is_file());
-    let page = std::fs::read_to_string(out.join("index.html")).unwrap();
-    assert!(page.contains("id=\"device\"") && page.contains("device-errors.png"));
-    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(report.contains("## Device") && report.contains("EYX"));
-    let inputs = device["inputs"].as_array().unwrap();
-    assert!(inputs
-        .iter()
-        .any(|i| i["path"] == "positions/positions.parquet"));
-    if let Ok(keep) = std::env::var("DBBCAL_KEEP_DEVICE_RUN") {
-        let _ = std::fs::remove_dir_all(&keep);
-        let status = std::process::Command::new("cp")
-            .args(["-a", out.to_str().unwrap(), &keep])
-            .status()
-            .unwrap();
-        assert!(status.success());
+    let (mut inside, mut total, mut worst_all) = (0.0, 0usize, 0.0f64);
+    for seed in [None, Some(1), Some(2), Some(3)] {
+        let (campaign, out) = simulate_and_run(tmp.path(), seed);
+        let device = json(&out.join("device.json"));
+        let truth = json(&campaign.join("truth.json"));
+        assert_eq!(device["axis"], "X");
+        assert_eq!(device["names"][0], "EXX");
+        assert!(device["not_evaluated"].is_null(), "{}", device["not_evaluated"]);
+        let (worst, coverage, beyond, n) = recovery(&device, &truth);
+        eprintln!(
+            "device recovery, seed {seed:?}: {n} components, worst |error − truth| / U = \
+             {worst:.3}, {:.1} % within U, {beyond} beyond 2U",
+            100.0 * coverage
+        );
+        assert!(n >= 6 * 40, "{n} components compared");
+        assert_eq!(beyond, 0, "seed {seed:?}: worst {worst}");
+        inside += coverage * n as f64;
+        total += n;
+        worst_all = worst_all.max(worst);
+        if seed.is_some() {
+            continue;
+        }
+        // The other outputs: the table, the figure, the sections, the inputs' hashes.
+        assert!(out.join("device_errors.parquet").is_file());
+        assert!(out.join("figures/device-errors.png").is_file());
+        let page = std::fs::read_to_string(out.join("index.html")).unwrap();
+        assert!(page.contains("id=\"device\"") && page.contains("device-errors.png"));
+        let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+        assert!(report.contains("## Device") && report.contains("EYX"));
+        let inputs = device["inputs"].as_array().unwrap();
+        assert!(inputs
+            .iter()
+            .any(|i| i["path"] == "positions/positions.parquet"));
     }
+    let pooled = inside / total as f64;
+    eprintln!(
+        "device recovery, pooled: {total} components, {:.1} % within U, worst {worst_all:.3} U",
+        100.0 * pooled
+    );
+    assert!(pooled >= 0.9, "pooled coverage {pooled}");
 }
 
 fn write_positions(campaign: &Path, columns: Vec<(&str, Column)>) {
@@ -141,8 +156,8 @@ fn check(campaign: &Path, out: &Path, columns: Vec<(&str, Column)>, words: &[&st
 #[test]
 fn bad_positions_files_are_named_in_one_line_and_exit_3() {
     let tmp = tempfile::tempdir().unwrap();
-    let campaign = simulate(tmp.path());
-    let out = tmp.path().join("out");
+    let (campaign, _) = simulate_and_run(tmp.path(), Some(1));
+    let out = tmp.path().join("out-bad");
     let t0 = 1_793_491_200i64 * 1_000_000_000 + 23 * 3_600_000_000_000;
     let times: Vec<i64> = (0..4).map(|i| t0 + i * 60_000_000_000).collect();
     let good = |x: [f64; 4], station: [Option<i64>; 4]| {
