@@ -229,9 +229,7 @@ fn device_errors_figure(results: &RunResults) -> Option<report::SeriesPanelsFigu
                         let at: Vec<(f64, f64)> = evaluated
                             .iter()
                             .filter(|d| (d.input.position_mm[k] - q).abs() < 1e-3)
-                            .filter_map(|d| {
-                                Some((d.errors?.to_array()[c], d.u_k2?.to_array()[c]))
-                            })
+                            .filter_map(|d| Some((d.errors?.to_array()[c], d.u_k2?.to_array()[c])))
                             .collect();
                         if at.is_empty() {
                             return f64::NAN;

@@ -9,8 +9,11 @@ use crate::pipeline::RunResults;
 
 use super::page::escape;
 
-/// (name, unit, min, max, largest U, straightness range with the line removed) per error.
-fn ranges(results: &RunResults) -> Option<Vec<(String, &'static str, f64, f64, f64, Option<f64>)>> {
+/// (name, unit, min, max, largest U, straightness range with the line removed) of one error.
+type Row = (String, &'static str, f64, f64, f64, Option<f64>);
+
+/// A [`Row`] per error.
+fn ranges(results: &RunResults) -> Option<Vec<Row>> {
     let t = results.device.as_ref()?.outcome.as_ref().ok()?;
     let units = ["µm", "µm", "µm", "µrad", "µrad", "µrad"];
     let straight = t.axis.map(|a| a.straightness_indices());
@@ -34,14 +37,18 @@ fn ranges(results: &RunResults) -> Option<Vec<(String, &'static str, f64, f64, f
                         .iter()
                         .filter_map(|d| Some(d.straightness_line_removed_um?[j]))
                         .collect();
-                    let (lo, hi) = v.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-                        (a.min(*x), b.max(*x))
-                    });
+                    let (lo, hi) = v
+                        .iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                            (a.min(*x), b.max(*x))
+                        });
                     (!v.is_empty()).then_some(hi - lo)
                 });
-                let (lo, hi) = vals.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-                    (a.min(*x), b.max(*x))
-                });
+                let (lo, hi) = vals
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                        (a.min(*x), b.max(*x))
+                    });
                 (t.names[c].clone(), units[c], lo, hi, u, line_removed)
             })
             .collect(),
@@ -58,7 +65,10 @@ fn headline(results: &RunResults) -> Option<String> {
                 "Device {}: {} dwells, {n} evaluated; axis moved: {}; datum: station {}.",
                 s.device.id,
                 t.dwells.len(),
-                t.axis.map_or("none or several (generic names)".to_string(), |a| a.letter().to_string()),
+                t.axis
+                    .map_or("none or several (generic names)".to_string(), |a| a
+                        .letter()
+                        .to_string()),
                 s.dwells.get(t.datum).map_or(0, |d| d.station)
             )
         }
@@ -66,7 +76,11 @@ fn headline(results: &RunResults) -> Option<String> {
 }
 
 fn flagged(results: &RunResults) -> Vec<String> {
-    let Some(t) = results.device.as_ref().and_then(|s| s.outcome.as_ref().ok()) else {
+    let Some(t) = results
+        .device
+        .as_ref()
+        .and_then(|s| s.outcome.as_ref().ok())
+    else {
         return Vec::new();
     };
     t.dwells

@@ -83,7 +83,9 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
     let s = results.device.as_ref()?;
     let names: Vec<String> = match &s.outcome {
         Ok(t) => t.names.to_vec(),
-        Err(_) => ["dx", "dy", "dz", "ex", "ey", "ez"].map(String::from).to_vec(),
+        Err(_) => ["dx", "dy", "dz", "ex", "ey", "ez"]
+            .map(String::from)
+            .to_vec(),
     };
     let (axis, datum_station, lines, dwells) = match &s.outcome {
         Ok(t) => (
@@ -142,8 +144,7 @@ fn dwell_records(s: &DeviceStage, names: &[String]) -> Vec<DwellRecord> {
                 }
                 _ => Vec::new(),
             };
-            let straightness_line_removed = match (r.straightness_line_removed_um, straightness)
-            {
+            let straightness_line_removed = match (r.straightness_line_removed_um, straightness) {
                 (Some(v), Some(idx)) => (0..2)
                     .map(|j| Component {
                         name: names[idx[j]].clone(),
@@ -182,7 +183,8 @@ fn dwell_records(s: &DeviceStage, names: &[String]) -> Vec<DwellRecord> {
 pub(crate) fn device_errors_table(results: &RunResults) -> Option<io::Table> {
     let s = results.device.as_ref()?;
     let t = s.outcome.as_ref().ok();
-    let (mut station, mut run, mut name, mut unit) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut station, mut run, mut name, mut unit) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let (mut x, mut y, mut z) = (Vec::new(), Vec::new(), Vec::new());
     let (mut value, mut u, mut detrended, mut flag) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());

@@ -81,11 +81,23 @@ fn evaluate_device(
     dwells: Vec<Dwell>,
     positions_files: Vec<InputFile>,
 ) -> DeviceStage {
-    let t0_ns = r.campaign.mounts.iter().map(|m| m.from_ns).min().unwrap_or(0);
+    let t0_ns = r
+        .campaign
+        .mounts
+        .iter()
+        .map(|m| m.from_ns)
+        .min()
+        .unwrap_or(0);
     let margin_ns = ((plan.bin_s.max(0.0) + 1.0) * 1e9) as i64;
     let (cals, comp) = (
-        r.calibration.as_ref().map(|c| c.ok.as_slice()).unwrap_or_default(),
-        r.compensation.as_ref().map(|c| c.ok.as_slice()).unwrap_or_default(),
+        r.calibration
+            .as_ref()
+            .map(|c| c.ok.as_slice())
+            .unwrap_or_default(),
+        r.compensation
+            .as_ref()
+            .map(|c| c.ok.as_slice())
+            .unwrap_or_default(),
     );
     let options = crate::acceptance::AcceptanceOptions {
         tolerance_um: plan.acceptance.tolerance_um,
@@ -113,7 +125,10 @@ fn evaluate_device(
             continue;
         };
         let resolution_nm = r.campaign.bar(&m.bar).map_or(0.0, |b| b.resolution_nm);
-        for w in comp.iter().filter(|w| w.bar == m.bar && w.length_mm.is_none()) {
+        for w in comp
+            .iter()
+            .filter(|w| w.bar == m.bar && w.length_mm.is_none())
+        {
             let times: Vec<i64> = w
                 .t_s
                 .iter()
@@ -141,15 +156,16 @@ fn evaluate_device(
         .map(|legs| std::array::from_fn(|i| legs[i].len()))
         .collect();
     let outcome = (|| {
-        let datum = positions::datum_index(&dwells, device.reference_mm).ok_or_else(|| {
-            match device.reference_mm {
-                Some(c) => format!(
-                    "no dwell of device {:?} in positions is at reference_mm = {c:?}",
-                    device.id
-                ),
-                None => format!("positions has no dwell of device {:?}", device.id),
-            }
-        })?;
+        let datum =
+            positions::datum_index(&dwells, device.reference_mm).ok_or_else(|| {
+                match device.reference_mm {
+                    Some(c) => format!(
+                        "no dwell of device {:?} in positions is at reference_mm = {c:?}",
+                        device.id
+                    ),
+                    None => format!("positions has no dwell of device {:?}", device.id),
+                }
+            })?;
         let datum_rotary = dwells[datum].rotary_deg;
         let ring_c = |d: &Dwell| {
             let (a, b) = (

@@ -30,7 +30,9 @@ fn json(path: &Path) -> serde_json::Value {
 /// Each evaluated dwell's six errors against the truth of its station: (worst |e − t| / U,
 /// share of components within U, components beyond 2U, components compared).
 fn recovery(device: &serde_json::Value, truth: &serde_json::Value) -> (f64, f64, usize, usize) {
-    let stations = truth["device"]["stations"].as_array().expect("truth stations");
+    let stations = truth["device"]["stations"]
+        .as_array()
+        .expect("truth stations");
     let (mut worst, mut inside, mut beyond, mut n) = (0.0f64, 0usize, 0usize, 0usize);
     for d in device["dwells"].as_array().expect("dwells") {
         let errors = d["errors"].as_array().unwrap();
@@ -92,7 +94,11 @@ fn a_simulated_hexapod_axis_is_recovered_within_u_at_every_station() {
         let truth = json(&campaign.join("truth.json"));
         assert_eq!(device["axis"], "X");
         assert_eq!(device["names"][0], "EXX");
-        assert!(device["not_evaluated"].is_null(), "{}", device["not_evaluated"]);
+        assert!(
+            device["not_evaluated"].is_null(),
+            "{}",
+            device["not_evaluated"]
+        );
         let (worst, coverage, beyond, n) = recovery(&device, &truth);
         eprintln!(
             "device recovery, seed {seed:?}: {n} components, worst |error − truth| / U = \
@@ -174,7 +180,10 @@ fn bad_positions_files_are_named_in_one_line_and_exit_3() {
     check(
         &campaign,
         &out,
-        good([400.0, 406.0, 400.01, 406.0], [Some(1), Some(2), Some(1), Some(2)]),
+        good(
+            [400.0, 406.0, 400.01, 406.0],
+            [Some(1), Some(2), Some(1), Some(2)],
+        ),
         &["column `x_mm`", "station 1", "row 2", "row 0"],
     );
     // A missing column.
@@ -184,5 +193,10 @@ fn bad_positions_files_are_named_in_one_line_and_exit_3() {
     // A wrong type.
     let mut wrong = good([400.0; 4], [Some(1); 4]);
     wrong[5].1 = Column::F64(vec![1.0, 1.0, 2.0, 2.0]);
-    check(&campaign, &out, wrong, &["column `station`", "int64 or int32"]);
+    check(
+        &campaign,
+        &out,
+        wrong,
+        &["column `station`", "int64 or int32"],
+    );
 }

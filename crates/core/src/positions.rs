@@ -83,30 +83,8 @@ impl Dwell {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PositionsError {
     /// Two rows of one station command different positions.
-    #[error(
-        "{file}: column `{column}`: device {device:?}, station {station}: row {row} says {value} but \
-         {first_file} row {first_row} says {first_value} (a station's rows must agree to 1 µm and 1e-4°)"
-    )]
-    StationDisagrees {
-        /// The device.
-        device: String,
-        /// The station.
-        station: i64,
-        /// The column that differs.
-        column: &'static str,
-        /// The file of the disagreeing row.
-        file: String,
-        /// Its row.
-        row: u64,
-        /// Its value.
-        value: String,
-        /// The file of the station's first row.
-        first_file: String,
-        /// That row.
-        first_row: u64,
-        /// Its value.
-        first_value: String,
-    },
+    #[error("{0}")]
+    StationDisagrees(Box<Disagreement>),
     /// A commanded coordinate is NaN or infinite.
     #[error("{file}: column `{column}`: row {row} holds {value}, not a finite number")]
     NotFinite {
@@ -119,6 +97,48 @@ pub enum PositionsError {
         /// The value.
         value: f64,
     },
+}
+
+/// Two rows of one station that command different positions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Disagreement {
+    /// The device.
+    pub device: String,
+    /// The station.
+    pub station: i64,
+    /// The column that differs.
+    pub column: &'static str,
+    /// The file of the disagreeing row.
+    pub file: String,
+    /// Its row.
+    pub row: u64,
+    /// Its value.
+    pub value: String,
+    /// The file of the station's first row.
+    pub first_file: String,
+    /// That row.
+    pub first_row: u64,
+    /// Its value.
+    pub first_value: String,
+}
+
+impl std::fmt::Display for Disagreement {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: column `{}`: device {:?}, station {}: row {} says {} but {} row {} says {} \
+             (a station's rows must agree to 1 µm and 1e-4°)",
+            self.file,
+            self.column,
+            self.device,
+            self.station,
+            self.row,
+            self.value,
+            self.first_file,
+            self.first_row,
+            self.first_value
+        )
+    }
 }
 
 const LINEAR: [&str; 3] = ["x_mm", "y_mm", "z_mm"];
@@ -166,7 +186,7 @@ impl PositionsLog {
                 continue;
             };
             let differs = |column: &'static str, a: String, b: String| {
-                PositionsError::StationDisagrees {
+                PositionsError::StationDisagrees(Box::new(Disagreement {
                     device: r.device.clone(),
                     station: s,
                     column,
@@ -176,7 +196,7 @@ impl PositionsLog {
                     first_file: self.file(f.file),
                     first_row: f.row,
                     first_value: b,
-                }
+                }))
             };
             for k in 0..3 {
                 if (r.xyz_mm[k] - f.xyz_mm[k]).abs() > STATION_TOLERANCE_MM {
@@ -259,9 +279,9 @@ impl PositionsLog {
 pub fn datum_index(dwells: &[Dwell], reference_mm: Option<[f64; 3]>) -> Option<usize> {
     match reference_mm {
         None => (!dwells.is_empty()).then_some(0),
-        Some(r) => dwells.iter().position(|d| {
-            (0..3).all(|k| (d.position_mm[k] - r[k]).abs() <= STATION_TOLERANCE_MM)
-        }),
+        Some(r) => dwells
+            .iter()
+            .position(|d| (0..3).all(|k| (d.position_mm[k] - r[k]).abs() <= STATION_TOLERANCE_MM)),
     }
 }
 
@@ -282,7 +302,12 @@ pub fn mean_in_dwell(
         .map(|i| values[i])
         .filter(|v| v.is_finite())
         .collect();
-    (!picked.is_empty()).then(|| (picked.iter().sum::<f64>() / picked.len() as f64, picked.len()))
+    (!picked.is_empty()).then(|| {
+        (
+            picked.iter().sum::<f64>() / picked.len() as f64,
+            picked.len(),
+        )
+    })
 }
 
 #[cfg(test)]

@@ -16,9 +16,9 @@ mod write;
 #[cfg(test)]
 mod fuzz_tests;
 #[cfg(test)]
-mod tests;
-#[cfg(test)]
 mod positions_tests;
+#[cfg(test)]
+mod tests;
 
 use std::path::{Path, PathBuf};
 

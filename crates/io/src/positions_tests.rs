@@ -82,11 +82,22 @@ fn split_unsorted_files_in_any_unit_with_optional_columns_absent_or_present_are_
     let dwells = log.dwells("hexapod-1");
     let got: Vec<(i64, i64, Option<i64>, Option<i64>)> = dwells
         .iter()
-        .map(|d| (d.station, (d.from_ns - T0) / S, d.to_ns.map(|t| (t - T0) / S), d.run))
+        .map(|d| {
+            (
+                d.station,
+                (d.from_ns - T0) / S,
+                d.to_ns.map(|t| (t - T0) / S),
+                d.run,
+            )
+        })
         .collect();
     assert_eq!(
         got,
-        vec![(1, 0, Some(20), Some(1)), (2, 30, Some(40), None), (1, 50, None, None)]
+        vec![
+            (1, 0, Some(20), Some(1)),
+            (2, 30, Some(40), None),
+            (1, 50, None, None)
+        ]
     );
     assert_eq!(dwells[1].approach, [1, 0, 0]);
     assert_eq!(dwells[0].rotary_deg, [None; 3]);

@@ -102,15 +102,16 @@ pub enum DeviceTestError {
     },
 }
 
-fn measure(
-    device: &Hexapod,
-    mut lengths: impl FnMut(&[f64; 6]) -> Option<[f64; 6]>,
-) -> (
+/// What [`measure`] found: the forward solution (or why not), the lengths and tilts used, and
+/// the forward solutions done.
+type Measured = (
     Result<crate::hexapod::ForwardSolution, String>,
     Option<[f64; 6]>,
     Option<[f64; 6]>,
     usize,
-) {
+);
+
+fn measure(device: &Hexapod, mut lengths: impl FnMut(&[f64; 6]) -> Option<[f64; 6]>) -> Measured {
     let mut tilts = device.leg_tilts_deg(&device.nominal_pose);
     let Some(mut l) = lengths(&tilts) else {
         return (
@@ -126,7 +127,12 @@ fn measure(
         let sol = match device.forward(&l) {
             Ok(s) => s,
             Err(e @ HexapodError::NearSingular { .. }) => {
-                return (Err(format!("not evaluated: {e}")), Some(l), Some(tilts), passes)
+                return (
+                    Err(format!("not evaluated: {e}")),
+                    Some(l),
+                    Some(tilts),
+                    passes,
+                )
             }
             Err(e) => return (Err(e.to_string()), Some(l), Some(tilts), passes),
         };
@@ -267,7 +273,9 @@ mod tests {
             let s = (q - 400.0) / 60.0;
             SixErrors::from_array([3.0 * s, 2.0 * s * s, -s, 10.0 * s, -5.0 * s * s, 8.0 * s])
         };
-        let positions: Vec<[f64; 3]> = (0..7).map(|k| [400.0 + 10.0 * k as f64, 300.0, -200.0]).collect();
+        let positions: Vec<[f64; 3]> = (0..7)
+            .map(|k| [400.0 + 10.0 * k as f64, 300.0, -200.0])
+            .collect();
         let dwells: Vec<DwellInput> = positions
             .iter()
             .enumerate()

@@ -325,11 +325,11 @@ fn distance_and_error(
                 };
                 (leg_mm, leg_mm, settling, leg_tilt_deg)
             } else {
-            let settling = match bar.settling_tau_s {
-                Some(tau_s) => settling_um * (-((t_ns - from_ns) as f64 * 1e-9) / tau_s).exp(),
-                None => 0.0,
-            };
-            (true_mm, nominal_mm, settling, tilt_deg)
+                let settling = match bar.settling_tau_s {
+                    Some(tau_s) => settling_um * (-((t_ns - from_ns) as f64 * 1e-9) / tau_s).exp(),
+                    None => 0.0,
+                };
+                (true_mm, nominal_mm, settling, tilt_deg)
             }
         }
         Place::Handling {

@@ -95,9 +95,21 @@ fn norm(a: &V3) -> f64 {
 /// R = Rz(rz) Ry(ry) Rx(rx), angles in degrees (device-format.md, "Pose").
 fn rotation_deg(rx: f64, ry: f64, rz: f64) -> M3 {
     let (a, b, c) = (rx.to_radians(), ry.to_radians(), rz.to_radians());
-    let rx_m = [[1.0, 0.0, 0.0], [0.0, a.cos(), -a.sin()], [0.0, a.sin(), a.cos()]];
-    let ry_m = [[b.cos(), 0.0, b.sin()], [0.0, 1.0, 0.0], [-b.sin(), 0.0, b.cos()]];
-    let rz_m = [[c.cos(), -c.sin(), 0.0], [c.sin(), c.cos(), 0.0], [0.0, 0.0, 1.0]];
+    let rx_m = [
+        [1.0, 0.0, 0.0],
+        [0.0, a.cos(), -a.sin()],
+        [0.0, a.sin(), a.cos()],
+    ];
+    let ry_m = [
+        [b.cos(), 0.0, b.sin()],
+        [0.0, 1.0, 0.0],
+        [-b.sin(), 0.0, b.cos()],
+    ];
+    let rz_m = [
+        [c.cos(), -c.sin(), 0.0],
+        [c.sin(), c.cos(), 0.0],
+        [0.0, 0.0, 1.0],
+    ];
     mat_mul(&rz_m, &mat_mul(&ry_m, &rx_m))
 }
 
@@ -305,7 +317,10 @@ impl HexapodSim {
             let eps = [e[3] * 1e-6, e[4] * 1e-6, e[5] * 1e-6];
             let rot = mat_mul(&rotation_of_vector(&eps), &r_cmd);
             let delta = [e[0] * 1e-3, e[1] * 1e-3, e[2] * 1e-3];
-            let t = sub(&add(&add(&t_cmd, &mat_vec(&r_cmd, &r)), &delta), &mat_vec(&rot, &r));
+            let t = sub(
+                &add(&add(&t_cmd, &mat_vec(&r_cmd, &r)), &delta),
+                &mat_vec(&rot, &r),
+            );
             let mut l = [0.0; 6];
             let mut a = [0.0; 6];
             for i in 0..6 {
@@ -441,7 +456,10 @@ mod tests {
         let (l, _) = run.legs[0].at(10);
         assert!((l - 294.887).abs() < 1e-3);
         let mid = run.positions[3 * 5 + 1].t_ns;
-        assert_eq!(run.legs[2].at(mid).0, run.truth.stations[5].leg_lengths_mm[2]);
+        assert_eq!(
+            run.legs[2].at(mid).0,
+            run.truth.stations[5].leg_lengths_mm[2]
+        );
     }
 
     #[test]

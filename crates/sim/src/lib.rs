@@ -296,11 +296,7 @@ fn add_device_to_manifest(cfg: &SimConfig, h: &hexapod::HexapodSim, manifest: &m
     });
     for m in &mut manifest.mount {
         if m.device.as_deref() == Some(d.id.as_str()) {
-            m.leg = d
-                .bars
-                .iter()
-                .position(|b| b == &m.bar)
-                .map(|i| i as u8 + 1);
+            m.leg = d.bars.iter().position(|b| b == &m.bar).map(|i| i as u8 + 1);
         }
     }
 }

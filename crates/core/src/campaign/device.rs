@@ -140,7 +140,11 @@ impl Validator<'_> {
                     if dist < 1e-6 {
                         return Err(self.invalid(
                             key.clone(),
-                            format!("{name}: the joints of legs {} and {} coincide", b + 1, a + 1),
+                            format!(
+                                "{name}: the joints of legs {} and {} coincide",
+                                b + 1,
+                                a + 1
+                            ),
                         ));
                     }
                 }
@@ -422,11 +426,17 @@ to   = 2026-11-06T00:00:00Z
             &["mount[1]", "leg = 7"],
         );
         refused(
-            &manifest(&second("leg = 2", "2026-11-04T01:00:00Z", "length = \"min\""), ""),
+            &manifest(
+                &second("leg = 2", "2026-11-04T01:00:00Z", "length = \"min\""),
+                "",
+            ),
             &["mount[1]", "leg with length"],
         );
         refused(
-            &manifest(&second("leg = 2", "2026-11-04T01:00:00Z", "device = \"other\""), ""),
+            &manifest(
+                &second("leg = 2", "2026-11-04T01:00:00Z", "device = \"other\""),
+                "",
+            ),
             &["mount[1]", "no [[device]] table"],
         );
         refused(
@@ -434,13 +444,19 @@ to   = 2026-11-06T00:00:00Z
             &["mount[1]", "leg 1", "already carries bar \"B01\""],
         );
         // After the first bar left leg 1, another may take it.
-        check(&manifest(&second("leg = 1", "2026-11-06T00:00:00Z", dev), "")).unwrap();
+        check(&manifest(
+            &second("leg = 1", "2026-11-06T00:00:00Z", dev),
+            "",
+        ))
+        .unwrap();
         // An undeclared device keeps the old meaning: no leg.
-        check(&manifest(&second("", "2026-11-04T01:00:00Z", "device = \"other\""), "")).unwrap();
-        let bad_ring = manifest("", "").replace(
-            "[-68.404, -187.939, 0.0]]\nplatform",
-            "]\nplatform",
-        );
+        check(&manifest(
+            &second("", "2026-11-04T01:00:00Z", "device = \"other\""),
+            "",
+        ))
+        .unwrap();
+        let bad_ring =
+            manifest("", "").replace("[-68.404, -187.939, 0.0]]\nplatform", "]\nplatform");
         let bad_ring = bad_ring.replace(", ]", "]");
         refused(&bad_ring, &["device[0]", "base_mm has 5 joint centres"]);
         refused(

@@ -107,7 +107,10 @@ fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
             });
         }
     }
-    let time = df.column("time").and_then(|c| c.i64().cloned()).map_err(err)?;
+    let time = df
+        .column("time")
+        .and_then(|c| c.i64().cloned())
+        .map_err(err)?;
     let device = df
         .column("device")
         .and_then(|c| c.str().cloned())
@@ -131,7 +134,11 @@ fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
         optional_real("c_deg")?,
     ];
     let run = if present.contains(&"run") {
-        Some(df.column("run").and_then(|c| c.i64().cloned()).map_err(err)?)
+        Some(
+            df.column("run")
+                .and_then(|c| c.i64().cloned())
+                .map_err(err)?,
+        )
     } else {
         None
     };
