@@ -71,7 +71,7 @@ const UNITS: [&str; 6] = ["µm", "µm", "µm", "µrad", "µrad", "µrad"];
 const MODEL: [&str; 7] = [
     "leg length: mean over the dwell of D(n - e, A) of the bar in the leg (compensate stage), A the leg's tilt from its joint centres at the pose",
     "leg U (k=2): the compensated distance's budget (calibration lengths, resolution, calibration function, thermal terms)",
-    "rings: joint centres scaled by 1 + cte (T - T0) about each ring's centroid, T the mean air temperature over the dwell",
+    "rings: joint centres scaled by 1 + cte (T - T0) about each ring's centroid, T the device's sensor over the dwell, else the mean air temperature",
     "pose: forward kinematics by Newton from nominal_pose; near-singular poses flagged, not evaluated",
     "commanded pose: R_cmd = R0, t_cmd = t0 + R_MB^T (c - c0) from the datum dwell",
     "errors: measured - commanded at the tool point, in M's axes (delta µm, epsilon µrad)",

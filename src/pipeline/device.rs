@@ -9,8 +9,9 @@
 //!   nominal pose's, then the pose found; `device_test`).
 //! - A leg's U (k = 2) is the compensated distance's budget (`acceptance::compensated_u_k2_um`:
 //!   calibration lengths, resolution, calibration function, thermal terms).
-//! - The rings' temperature is the mean air temperature over the dwell (the campaign's air
-//!   history; a device's own `sensor` is not read yet).
+//! - The rings' temperature is the mean of the device's `sensor` over the dwell (its last reading
+//!   before the dwell when none falls inside), else the mean air temperature over the dwell (the
+//!   campaign's air history).
 
 use dbbcal_core::campaign::{Device, Place};
 use dbbcal_core::positions::{self, Dwell, PositionsLog, STATION_TOLERANCE_DEG};
@@ -36,6 +37,44 @@ pub struct DeviceStage {
     pub outcome: Result<DeviceTestResult, String>,
     /// The `positions` files read, with their hashes.
     pub positions_files: Vec<InputFile>,
+}
+
+/// The logs of the sensors the devices name (`[[device]] sensor`), for their rings' temperature.
+pub(crate) fn sensor_logs(
+    campaign: &crate::campaign::Campaign,
+    sensors: &std::collections::BTreeMap<String, crate::series::SensorLog>,
+) -> std::collections::BTreeMap<String, crate::series::SensorLog> {
+    campaign
+        .devices
+        .iter()
+        .filter_map(|d| d.sensor.as_ref())
+        .filter_map(|id| Some((id.clone(), sensors.get(id)?.clone())))
+        .collect()
+}
+
+/// Mean of `log` over the dwell, else its last reading before it.
+fn sensor_over(log: &crate::series::SensorLog, d: &Dwell) -> Option<f64> {
+    let lo = log.time_ns.partition_point(|&t| t < d.from_ns);
+    let hi = d
+        .to_ns
+        .map_or(log.time_ns.len(), |e| {
+            log.time_ns.partition_point(|&t| t < e)
+        })
+        .max(lo);
+    let inside: Vec<f64> = log.celsius[lo..hi]
+        .iter()
+        .copied()
+        .filter(|c| c.is_finite())
+        .collect();
+    if inside.is_empty() {
+        log.celsius[..lo]
+            .iter()
+            .rev()
+            .copied()
+            .find(|c| c.is_finite())
+    } else {
+        Some(inside.iter().sum::<f64>() / inside.len() as f64)
+    }
 }
 
 fn hexapod_of(d: &Device) -> Hexapod {
@@ -167,7 +206,14 @@ fn evaluate_device(
                 }
             })?;
         let datum_rotary = dwells[datum].rotary_deg;
+        let ring_sensor = device
+            .sensor
+            .as_ref()
+            .and_then(|id| r.device_sensors.get(id));
         let ring_c = |d: &Dwell| {
+            if let Some(c) = ring_sensor.and_then(|log| sensor_over(log, d)) {
+                return c;
+            }
             let (a, b) = (
                 (d.from_ns - t0_ns) as f64 * 1e-9,
                 d.to_ns.map_or(f64::INFINITY, |e| (e - t0_ns) as f64 * 1e-9),

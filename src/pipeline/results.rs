@@ -46,6 +46,8 @@ pub struct RunResults {
     pub(crate) quality: crate::series::Quality,
     /// Device stage: the six errors of the machine axis (`pipeline::device`).
     pub device: Option<super::device::DeviceStage>,
+    /// The logs of the sensors `[[device]]` tables name, for their rings' temperature.
+    pub(crate) device_sensors: BTreeMap<String, crate::series::SensorLog>,
 }
 
 /// A bar a stage could not process, and why: one bad bar never stops the others. Written as
@@ -163,6 +165,7 @@ impl RunResults {
             acceptance: None,
             quality: Default::default(),
             device: None,
+            device_sensors: BTreeMap::new(),
         }
     }
 }
