@@ -70,8 +70,11 @@ fn output_folder(plan: &RunPlan) -> Result<PathBuf> {
 pub fn run(plan: &RunPlan) -> Result<Outcome> {
     let target = OutputTarget::claim(&output_folder(plan)?, &plan.campaign_dir)?;
     // No bin length set: chosen from the campaign before ingest streams (and recorded).
-    let (plan, results) = ingest_and_analyse(plan)?;
+    let (plan, mut results) = ingest_and_analyse(plan)?;
     let plan = &plan;
+    if plan.runs(Stage::Device) {
+        device_stage(plan, &mut results)?;
+    }
     if plan.runs(Stage::Identify) && results.bars.is_empty() {
         return Ok(Outcome {
             status: RunStatus::NoBarSucceeded(results.failed),
@@ -370,6 +373,12 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
     if let Some(record) = records::acceptance_record(plan, results) {
         write_json(&dir.join("acceptance.json"), &record)?;
     }
+    if let Some(record) = crate::output::device_record::device_record(results) {
+        write_json(&dir.join("device.json"), &record)?;
+    }
+    if let Some(table) = crate::output::device_record::device_errors_table(results) {
+        write_table(plan, &dir.join("device_errors.parquet"), &table)?;
+    }
     Ok(())
 }
 
@@ -410,4 +419,26 @@ fn compensated_table(
             ("error_um".into(), OptF64(err)),
         ],
     }
+}
+
+/// The device stage (`pipeline::device`): reads `positions/*.parquet` (a bad file is an input
+/// error, one line naming file, column and rows) and records its hashes with the other inputs.
+fn device_stage(plan: &RunPlan, results: &mut RunResults) -> Result<()> {
+    let Some((log, files)) = io::read_positions(&plan.campaign_dir)? else {
+        return Err(io::IngestError::MissingTable {
+            folder: plan.campaign_dir.join("positions"),
+            table: "positions",
+        }
+        .into());
+    };
+    pipeline::timed("device", || {
+        pipeline::run_device(plan, results, &log, files.clone())
+    })
+    .map_err(|problem| io::IngestError::UnusableCampaign {
+        path: plan.campaign_dir.join("campaign.toml"),
+        problem,
+    })?;
+    results.inputs.extend(files);
+    results.inputs.sort_by(|a, b| a.path.cmp(&b.path));
+    Ok(())
 }

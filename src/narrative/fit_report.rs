@@ -46,6 +46,9 @@ pub(crate) fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headli
             .and_then(quality_line);
         bar_section(&mut md, o, whiteness(&o.model.bar), plan.bin_s, quality);
     }
+    if let Some(device) = super::device::markdown(results) {
+        md.push_str(&device);
+    }
     if !results.failed.is_empty() {
         let _ = writeln!(md, "## Failed bars\n");
         for f in &results.failed {

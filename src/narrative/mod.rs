@@ -5,6 +5,7 @@
 //! Plain data in, text out: no IO, no pixels.
 
 pub(crate) mod axis;
+pub(crate) mod device;
 pub(crate) mod fit_report;
 pub(crate) mod page;
 
@@ -298,7 +299,7 @@ fn stage_command(stage: Stage) -> &'static str {
         Stage::Match | Stage::MatchStudy => "match",
         Stage::Report => "report",
         Stage::Calibrate => "calibrate",
-        Stage::Compensate | Stage::Acceptance => "compensate",
+        Stage::Compensate | Stage::Acceptance | Stage::Device => "compensate",
     }
 }
 

@@ -48,6 +48,7 @@ pub(crate) fn page(
     the_loop(&mut h, results, headline, figures);
     per_bar(&mut h, results, figures);
     acceptance(&mut h, plan, results, figures);
+    super::device::html(&mut h, results, figures);
     fit_report(&mut h, fit_report_md);
     provenance(&mut h, plan, results);
     h.push_str("</body>\n</html>\n");
@@ -453,7 +454,7 @@ fn field(v: &Option<String>) -> String {
     v.clone().unwrap_or_default()
 }
 
-fn figure(h: &mut String, f: &FigureFile) {
+pub(crate) fn figure(h: &mut String, f: &FigureFile) {
     let _ = writeln!(
         h,
         "<figure><img src=\"figures/{}\" alt=\"{}\"><figcaption>{}</figcaption></figure>",

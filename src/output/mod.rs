@@ -27,10 +27,12 @@
 //!
 //! The JSON formats live here too, each converting typed results to text in one place:
 //! `summary` (`summary.json`), `diagnosis` (`diagnosis.json`), `stage_records`
-//! (`calibration.json`, `compensation.json`, `acceptance.json`).
+//! (`calibration.json`, `compensation.json`, `acceptance.json`), `device_record` (`device.json`,
+//! `device_errors.parquet`).
 
 pub(crate) mod axis;
 pub mod controller;
+pub(crate) mod device_record;
 pub(crate) mod diagnosis;
 pub(crate) mod fault;
 mod location;

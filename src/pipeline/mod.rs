@@ -6,11 +6,13 @@
 //! Data flow: ingest (`io`) -> series -> identify (per bar, in parallel) -> match -> diagnose ->
 //! calibrate -> compensate -> acceptance -> outputs (JSON, parquet, figures, the page).
 
+mod device;
 mod plan;
 mod results;
 mod run;
 mod stages;
 
+pub use device::{run_device, DeviceStage};
 pub use plan::*;
 pub use results::*;
 pub use run::*;

@@ -32,6 +32,9 @@ pub enum Stage {
     /// Working bars accepted or not against the tolerance (the ISO 14253-1 decision rule,
     /// `dbbcal_core::acceptance`).
     Acceptance,
+    /// The six errors of a machine axis from a hexapod device's compensated legs and the
+    /// `positions` log (`docs/spec/device-format.md`).
+    Device,
     /// The PNG figures, `report.md` and `index.html`.
     Report,
 }
@@ -49,6 +52,7 @@ impl Stage {
             Calibrate => vec![Ingest, Identify, Calibrate],
             Compensate => vec![Ingest, Identify, Match, Calibrate, Compensate],
             Acceptance => vec![Ingest, Identify, Match, Calibrate, Compensate, Acceptance],
+            Device => vec![Ingest, Identify, Match, Calibrate, Compensate, Device],
             Report => vec![Ingest, Identify, Match, Report],
         }
     }

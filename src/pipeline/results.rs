@@ -44,6 +44,10 @@ pub struct RunResults {
     pub acceptance: Option<Vec<crate::acceptance::BarAcceptance>>,
     /// What ingest dropped, counted and flagged (`series::quality`).
     pub(crate) quality: crate::series::Quality,
+    /// Device stage: the six errors of the machine axis (`pipeline::device`).
+    pub device: Option<super::device::DeviceStage>,
+    /// The logs of the sensors `[[device]]` tables name, for their rings' temperature.
+    pub(crate) device_sensors: BTreeMap<String, crate::series::SensorLog>,
 }
 
 /// A bar a stage could not process, and why: one bad bar never stops the others. Written as
@@ -160,6 +164,8 @@ impl RunResults {
             compensation: None,
             acceptance: None,
             quality: Default::default(),
+            device: None,
+            device_sensors: BTreeMap::new(),
         }
     }
 }

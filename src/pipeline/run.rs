@@ -105,6 +105,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let mut results =
         RunResults::before_stages(campaign, inputs, history, identified.ok, identified.failed);
     results.quality = quality;
+    results.device_sensors = super::device::sensor_logs(&results.campaign, &sensors);
     if plan.runs(Stage::Match) {
         run_match(plan, &mut results);
     }

@@ -120,12 +120,14 @@ fn convert(dir: &Path) {
                 bar: b.clone(),
                 length: Some("spindle".into()),
                 device: None,
+                leg: None,
                 tilt_deg: None,
                 purpose: None,
                 from: datetime(START_NS),
                 to: datetime(end),
             })
             .collect(),
+        device: Vec::new(),
     };
     dbbcal::io::write_campaign(
         dir,

@@ -10,6 +10,7 @@ mod base_noise;
 mod cli;
 mod corpus;
 mod determinism;
+mod device;
 mod diagnose;
 mod docs;
 mod false_alarms;

@@ -184,6 +184,22 @@ pub(crate) fn budget(
     ]
 }
 
+/// Expanded uncertainty U (k = 2), µm, of a working bar's compensated centre distance: the
+/// budget of [`accept`] (calibration lengths, resolution, calibration function, thermal terms),
+/// without a check length. What a device's leg takes (`docs/spec/device-format.md`).
+pub fn compensated_u_k2_um(
+    w: &WorkingSeries,
+    cal: &BarCalibration,
+    resolution_nm: f64,
+    options: &AcceptanceOptions,
+) -> f64 {
+    2.0 * budget(w, cal, resolution_nm, options)
+        .iter()
+        .map(|t| t.u_um * t.u_um)
+        .sum::<f64>()
+        .sqrt()
+}
+
 /// A reading (mm) whose calibrated distance is the working distance: invert `D` by fixed point.
 fn representative_reading_mm(w: &WorkingSeries, cal: &BarCalibration) -> f64 {
     let target = w.distance_for_weights_mm;

@@ -8,6 +8,9 @@
 
 use serde::{Deserialize, Serialize};
 
+pub mod device;
+pub use device::{Device, DeviceDecl, DeviceKind, PerLeg};
+
 /// Nanoseconds since 1970-01-01T00:00:00Z.
 pub(crate) type TimeNs = i64;
 
@@ -30,6 +33,9 @@ pub struct Manifest {
     /// `[[mount]]`: where each bar sat, and when.
     #[serde(default)]
     pub mount: Vec<MountDecl>,
+    /// `[[device]]`: measuring devices whose legs are working bars (`docs/spec/device-format.md`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub device: Vec<DeviceDecl>,
 }
 
 /// `[campaign]`: id and reference temperature.
@@ -139,6 +145,9 @@ pub struct MountDecl {
     /// Device name (on a target device, true distance unknown); absent on the plate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub device: Option<String>,
+    /// The leg (1–6) of a declared hexapod the bar sits in; only on such a device.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub leg: Option<u8>,
     /// Tilt of the bar from horizontal, degrees; absent: the plate's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_deg: Option<f64>,
@@ -168,6 +177,8 @@ pub struct Campaign {
     pub bars: Vec<Bar>,
     /// Sorted by (bar, from_ns).
     pub mounts: Vec<Mount>,
+    /// The `[[device]]` tables, validated, in manifest order.
+    pub devices: Vec<Device>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -224,6 +235,8 @@ pub struct Mount {
     /// `BarSeries::tilt_at_deg`).
     pub(crate) tilt_explicit: bool,
     pub(crate) purpose: Purpose,
+    /// The leg of a declared device the bar sits in (1–6), if any.
+    pub leg: Option<u8>,
     /// Start, ns since the epoch (UTC).
     pub from_ns: TimeNs,
     /// End, ns since the epoch (UTC).
@@ -473,6 +486,7 @@ impl Campaign {
         v.plate(&manifest.plate)?;
         v.sensors(&manifest.sensor)?;
         v.bars(&manifest.bar, &manifest.sensor)?;
+        let devices = v.devices(&manifest)?;
         let mounts = v.mounts(&manifest)?;
         Ok(Campaign {
             id: manifest.campaign.id,
@@ -502,6 +516,7 @@ impl Campaign {
                 })
                 .collect(),
             mounts,
+            devices,
         })
     }
 }
@@ -701,6 +716,7 @@ impl Validator<'_> {
                 ));
             }
         }
+        self.legs_hold_one_bar(&resolved, m)?;
         Ok(resolved.into_iter().map(|(_, mount)| mount).collect())
     }
 
@@ -717,6 +733,7 @@ impl Validator<'_> {
             ));
         };
         let place = self.place(&key, d, bar, &m.plate)?;
+        let leg = self.leg(&key, d.leg, d.device.as_deref(), m)?;
         let tilt_deg = d.tilt_deg.unwrap_or(m.plate.tilt_deg);
         self.in_range(&key, "tilt_deg", tilt_deg, limits::TILT_DEG)?;
         let time = |name: &str, dt: &toml::value::Datetime| {
@@ -747,6 +764,7 @@ impl Validator<'_> {
             tilt_deg,
             tilt_explicit: d.tilt_deg.is_some(),
             purpose: d.purpose.unwrap_or_default(),
+            leg,
             from_ns,
             to_ns,
         })

@@ -164,6 +164,10 @@ pub struct WorkingSeries {
     /// Thermal error removed, µm.
     #[serde(skip)]
     pub thermal_um: Vec<f64>,
+    /// The reading with the thermal error removed, `k n − e`, mm: what `D(·, A)` takes, so that a
+    /// device can evaluate it at a leg's own tilt.
+    #[serde(skip)]
+    pub compensated_reading_mm: Vec<f64>,
     /// Samples without a reference reading near them (compensated by the model instead).
     pub(crate) n_model_fallback: usize,
     /// Samples of another counter epoch than the calibration's (not converted).
@@ -503,11 +507,15 @@ fn compensate_mount(
         };
         thermal_um.push(e);
     }
-    let distance_mm = idx
+    let compensated_reading_mm: Vec<f64> = idx
+        .iter()
+        .zip(&thermal_um)
+        .map(|(&i, e)| (s.reading_um(i) - e) * 1e-3)
+        .collect();
+    let distance_mm = compensated_reading_mm
         .iter()
         .zip(&tilts)
-        .zip(&thermal_um)
-        .map(|((&i, a), e)| cal.chosen.distance_mm((s.reading_um(i) - e) * 1e-3, *a))
+        .map(|(x, a)| cal.chosen.distance_mm(*x, *a))
         .collect();
     let mode = Mode::for_references(refs.len());
     let n_ref = idx.len() - n_model_fallback;
@@ -545,6 +553,7 @@ fn compensate_mount(
         distance_mm,
         uncompensated_mm,
         thermal_um,
+        compensated_reading_mm,
         n_model_fallback,
         n_other_epoch: all.len() - idx.len(),
         u_thermal_residual_um: budget.0,

@@ -19,5 +19,6 @@ pub mod identify;
 pub mod limits;
 pub mod matching;
 pub mod model;
+pub mod positions;
 pub mod series;
 pub mod signal;

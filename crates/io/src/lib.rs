@@ -21,6 +21,8 @@ mod axis_tests;
 #[cfg(test)]
 mod fuzz_tests;
 #[cfg(test)]
+mod positions_tests;
+#[cfg(test)]
 mod tests;
 
 use std::path::{Path, PathBuf};
@@ -171,6 +173,10 @@ pub enum IngestError {
         /// What changed.
         what: String,
     },
+    /// The `positions` log breaks a rule of `docs/spec/device-format.md` (a station's rows
+    /// disagree, a coordinate is not finite).
+    #[error(transparent)]
+    Positions(#[from] dbbcal_core::positions::PositionsError),
     /// A campaign that cannot give any result (no bars, no mounts, no air for a bar).
     #[error("{}: {problem}", path.display())]
     UnusableCampaign {
@@ -179,6 +185,27 @@ pub enum IngestError {
         /// Why no result is possible.
         problem: String,
     },
+}
+
+/// Reads `positions/*.parquet` of a device campaign (`docs/spec/device-format.md`): `None` when
+/// the campaign has none. The files' hashes come with the log, for `inputs.json`. Every error is
+/// one line naming the file, the column and the rows.
+pub fn read_positions(
+    dir: &Path,
+) -> Result<
+    Option<(
+        dbbcal_core::positions::PositionsLog,
+        Vec<dbbcal_core::series::InputFile>,
+    )>,
+    IngestError,
+> {
+    let files = inputs::parquet_files(&dir.join("positions"))?;
+    if files.is_empty() {
+        return Ok(None);
+    }
+    let hashes = inputs::hash_inputs(dir, &files)?;
+    let log = read::read_positions_files(&files)?;
+    Ok(Some((log, hashes)))
 }
 
 /// Reads a campaign directory (see `docs/spec/campaign-format.md`): the manifest, every

@@ -10,7 +10,8 @@
 //!   and the loop (candidates, ledger, what the readings cannot see);
 //! - [`pose`], [`hexapod`], [`pose_errors`]: the hexapod device, its kinematics, and the
 //!   errors of the machine under test from its poses, with their uncertainty;
-//! - [`straightness`]: straightness raw and without its least-squares line.
+//! - [`straightness`]: straightness raw and without its least-squares line;
+//! - [`device_test`]: a hexapod axis test on plain data, dwell by dwell (pose, errors, U).
 //!
 //! INVARIANT (enforced by this crate's dependencies and `tests/e2e/architecture.rs`): no file
 //! IO, no polars, no plotters, no serialisation formats; the application owns those. The
@@ -19,6 +20,7 @@
 pub mod axis;
 pub mod axis_study;
 pub mod components;
+pub mod device_test;
 pub mod edlen;
 pub mod hexapod;
 pub mod iso230_2;

@@ -254,6 +254,7 @@ fn layout() -> SimConfig {
             bars: vec!["B05".into()],
             distance_mm: 333.3,
             tilt_deg: 45.0,
+            hexapod: None,
         }),
     });
     cfg

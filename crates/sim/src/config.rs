@@ -264,6 +264,10 @@ pub struct DeviceLayout {
     pub distance_mm: f64,
     /// Tilt of the bars on the device from horizontal, degrees, in [0, 90].
     pub(crate) tilt_deg: f64,
+    /// A hexapod: `bars` are its legs 1–6, the machine under test moves it (time-varying true
+    /// lengths, a `positions` log, a `[[device]]` table; `crate::hexapod`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub(crate) hexapod: Option<crate::hexapod::HexapodSim>,
 }
 
 /// Geometric, time-invariant errors (`docs/spec/physics.md`, "The instrument"): fleet mean and spread of
@@ -1078,6 +1082,15 @@ impl SimConfig {
                 "schedule.working.device.distance_mm",
                 "must be at least the shortest plate length",
             ));
+        }
+        if let Some(h) = &d.hexapod {
+            if d.bars.len() != 6 {
+                return Err(invalid(
+                    "schedule.working.device.bars",
+                    "a hexapod needs six bars (its legs 1-6, in order)",
+                ));
+            }
+            h.validate("schedule.working.device.hexapod")?;
         }
         tilt("schedule.working.device.tilt_deg", d.tilt_deg)
     }

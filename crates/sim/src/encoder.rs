@@ -37,6 +37,8 @@ pub(crate) struct BarSetup<'a> {
     /// True plate expansion, ppm/K (declared + undeclared).
     pub(crate) plate_cte_ppm_per_k: f64,
     pub(crate) record_true_error: bool,
+    /// The bar is a leg of a simulated hexapod: its true length and tilt on the device over time.
+    pub(crate) leg_track: Option<&'a crate::hexapod::LegTrack>,
 }
 
 /// The bar's lagged states: `x' = (u - x) / tau` for each path (`docs/spec/physics.md`).
@@ -315,11 +317,20 @@ fn distance_and_error(
                 0.0
             };
             let true_mm = nominal_mm * (1.0 + cte * 1e-6 * plate_dt);
-            let settling = match bar.settling_tau_s {
-                Some(tau_s) => settling_um * (-((t_ns - from_ns) as f64 * 1e-9) / tau_s).exp(),
-                None => 0.0,
-            };
-            (true_mm, nominal_mm, settling, tilt_deg)
+            if let (false, Some(track)) = (on_plate, setup.leg_track) {
+                let (leg_mm, leg_tilt_deg) = track.at(t_ns);
+                let settling = match bar.settling_tau_s {
+                    Some(tau_s) => settling_um * (-((t_ns - from_ns) as f64 * 1e-9) / tau_s).exp(),
+                    None => 0.0,
+                };
+                (leg_mm, leg_mm, settling, leg_tilt_deg)
+            } else {
+                let settling = match bar.settling_tau_s {
+                    Some(tau_s) => settling_um * (-((t_ns - from_ns) as f64 * 1e-9) / tau_s).exp(),
+                    None => 0.0,
+                };
+                (true_mm, nominal_mm, settling, tilt_deg)
+            }
         }
         Place::Handling {
             position_mm,

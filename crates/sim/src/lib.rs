@@ -28,6 +28,7 @@ mod encoder;
 mod environment;
 mod fleet;
 mod geometry;
+pub mod hexapod;
 mod lag;
 mod schedule;
 pub(crate) mod truth;
@@ -116,6 +117,8 @@ pub struct Simulation {
     /// Bar id -> noise-free thermal error (indicated − true, µm) of each encoder row; empty
     /// unless `record_true_error`.
     pub true_error_um: BTreeMap<String, Vec<f64>>,
+    /// The `positions` log of a simulated hexapod (`positions/positions.parquet`), if any.
+    pub positions: Option<dbbcal_io::Table>,
 }
 
 /// Seeded random streams, one per purpose (bar-indexed ones add the bar index).
@@ -209,10 +212,17 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
         .enumerate()
         .map(|(i, b)| schedule::plan_bar(cfg, &grid, i, &b.id))
         .collect();
-    let runs = run_bars(cfg, &grid, &env, &bars, &plans, start_ns);
-    let manifest = build_manifest(cfg, &bars, &plans, start_ns)?;
+    let device = simulate_hexapod(cfg, &grid, &bars, &plans)?;
+    let runs = run_bars(cfg, &grid, &env, &bars, &plans, start_ns, device.as_ref());
+    let mut manifest = build_manifest(cfg, &bars, &plans, start_ns)?;
     let events = build_events(cfg, &grid, &env, &bars, &plans, start_ns);
-    let truth = build_truth(cfg, &bars, &plans, &env, &runs, start_ns)?;
+    let mut truth = build_truth(cfg, &bars, &plans, &env, &runs, start_ns)?;
+    let positions = device.map(|(run, h)| {
+        add_device_to_manifest(cfg, h, &mut manifest);
+        let table = positions_table(cfg, &run, start_ns);
+        truth.device = Some(run.truth);
+        table
+    });
     let mut tables = CampaignTables {
         encoders: BTreeMap::new(),
         temperatures: env.sensor_logs(cfg, &grid, start_ns),
@@ -230,7 +240,105 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
         tables,
         truth,
         true_error_um,
+        positions,
     })
+}
+
+/// The working device's hexapod section, when the campaign has one.
+fn hexapod_layout(cfg: &SimConfig) -> Option<(&DeviceLayout, &hexapod::HexapodSim)> {
+    let d = cfg.schedule.working.as_ref()?.device.as_ref()?;
+    Some((d, d.hexapod.as_ref()?))
+}
+
+/// The simulated hexapod: leg tracks from the last leg's mount start, positions, truth.
+fn simulate_hexapod<'c>(
+    cfg: &'c SimConfig,
+    grid: &Grid,
+    bars: &[BarTruth],
+    plans: &[BarPlan],
+) -> Result<Option<(hexapod::HexapodRun, &'c hexapod::HexapodSim)>, SimError> {
+    let Some((d, h)) = hexapod_layout(cfg) else {
+        return Ok(None);
+    };
+    let start_ns = bars
+        .iter()
+        .zip(plans)
+        .filter(|(b, _)| d.bars.contains(&b.id))
+        .flat_map(|(_, p)| p.mounts.iter())
+        .filter(|m| matches!(m.site, Site::Device { .. }))
+        .map(|m| m.from_ns)
+        .max()
+        .ok_or_else(|| SimError::Invalid {
+            key: "schedule.working.device".into(),
+            reason: "the hexapod's bars are never mounted on it (campaign too short?)".into(),
+        })?;
+    if start_ns + h.duration_ns() > grid.duration_ns {
+        return Err(SimError::Invalid {
+            key: "duration_days".into(),
+            reason: format!(
+                "too short for the hexapod test: it ends {:.2} days after the start",
+                (start_ns + h.duration_ns()) as f64 / 86400e9
+            ),
+        });
+    }
+    Ok(Some((h.run(&d.id, cfg.seed, start_ns), h)))
+}
+
+/// The `[[device]]` table and the legs of the device's mounts (leg = index in `bars` + 1).
+fn add_device_to_manifest(cfg: &SimConfig, h: &hexapod::HexapodSim, manifest: &mut Manifest) {
+    let Some((d, _)) = hexapod_layout(cfg) else {
+        return;
+    };
+    manifest.device.push(dbbcal_core::campaign::DeviceDecl {
+        id: d.id.clone(),
+        kind: dbbcal_core::campaign::DeviceKind::Hexapod,
+        base_mm: h.base_mm.clone(),
+        platform_mm: h.platform_mm.clone(),
+        u_base_um: dbbcal_core::campaign::PerLeg::All(h.u_base_um),
+        u_platform_um: dbbcal_core::campaign::PerLeg::All(h.u_platform_um),
+        nominal_pose: h.nominal_pose,
+        tool_point_mm: Some(h.tool_point_mm),
+        base_orientation_deg: None,
+        up: None,
+        reference_mm: Some(h.reference_mm),
+        cte_ppm_per_k: None,
+        sensor: None,
+    });
+    for m in &mut manifest.mount {
+        if m.device.as_deref() == Some(d.id.as_str()) {
+            m.leg = d.bars.iter().position(|b| b == &m.bar).map(|i| i as u8 + 1);
+        }
+    }
+}
+
+/// `positions/positions.parquet` of the simulated test.
+fn positions_table(cfg: &SimConfig, run: &hexapod::HexapodRun, start_ns: i64) -> dbbcal_io::Table {
+    let device = hexapod_layout(cfg).map_or(String::new(), |(d, _)| d.id.clone());
+    let rows = &run.positions;
+    let coordinate = |k: usize| dbbcal_io::Column::F64(rows.iter().map(|r| r.xyz_mm[k]).collect());
+    dbbcal_io::Table {
+        columns: vec![
+            (
+                "time".into(),
+                dbbcal_io::Column::TimeNs(rows.iter().map(|r| start_ns + r.t_ns).collect()),
+            ),
+            (
+                "device".into(),
+                dbbcal_io::Column::Str(vec![device; rows.len()]),
+            ),
+            ("x_mm".into(), coordinate(0)),
+            ("y_mm".into(), coordinate(1)),
+            ("z_mm".into(), coordinate(2)),
+            (
+                "station".into(),
+                dbbcal_io::Column::OptI64(rows.iter().map(|r| r.station).collect()),
+            ),
+            (
+                "run".into(),
+                dbbcal_io::Column::OptI64(rows.iter().map(|r| Some(r.run)).collect()),
+            ),
+        ],
+    }
 }
 
 /// Every bar named in the schedule or a mismatch exists.
@@ -286,7 +394,13 @@ fn run_bars(
     bars: &[BarTruth],
     plans: &[BarPlan],
     start_ns: i64,
+    device: Option<&(hexapod::HexapodRun, &hexapod::HexapodSim)>,
 ) -> Vec<BarRun> {
+    let leg_of = |id: &str| {
+        let (d, _) = hexapod_layout(cfg)?;
+        let leg = d.bars.iter().position(|b| b == id)?;
+        device.map(|(run, _)| &run.legs[leg])
+    };
     let lengths_mm: Vec<f64> = cfg.plate.length.iter().map(|l| l.mm).collect();
     let plate_cte_ppm_per_k = true_plate_cte(cfg);
     bars.par_iter()
@@ -304,6 +418,7 @@ fn run_bars(
                 noise_um: cfg.noise_um,
                 plate_cte_ppm_per_k,
                 record_true_error: cfg.record_true_error,
+                leg_track: leg_of(&bar.id),
             };
             encoder::simulate_bar(&setup, env, grid)
         })
@@ -342,6 +457,7 @@ fn build_manifest(
                 bar: bar.id.clone(),
                 length,
                 device,
+                leg: None,
                 tilt_deg: (explicit_tilts || m.tilt_deg != cfg.plate.tilt_deg)
                     .then_some(m.tilt_deg),
                 purpose: Some(m.purpose),
@@ -372,6 +488,7 @@ fn build_manifest(
             })
             .collect(),
         mount,
+        device: Vec::new(),
     })
 }
 
@@ -498,6 +615,7 @@ fn build_truth(
         mounts,
         n_door_events: env.door_times_s.len(),
         n_encoder_rows: runs.iter().map(|r| r.log.time_ns.len()).sum(),
+        device: None,
     })
 }
 
@@ -523,6 +641,14 @@ pub(crate) fn effects_on(e: &EffectsConfig) -> Vec<String> {
 /// as `opts` says) and `truth.json` next to `campaign.toml`.
 pub fn write(sim: &Simulation, dir: &Path, opts: &dbbcal_io::WriteOptions) -> Result<(), SimError> {
     dbbcal_io::write_campaign(dir, &sim.manifest, &sim.tables, opts)?;
+    if let Some(table) = &sim.positions {
+        let folder = dir.join("positions");
+        std::fs::create_dir_all(&folder).map_err(|source| SimError::Io {
+            path: folder.display().to_string(),
+            source,
+        })?;
+        dbbcal_io::write_table(&folder.join("positions.parquet"), table)?;
+    }
     write_truth(&sim.truth, dir)
 }
 

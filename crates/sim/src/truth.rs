@@ -34,6 +34,9 @@ pub struct Truth {
     pub(crate) n_door_events: usize,
     /// Encoder rows written, all bars.
     pub(crate) n_encoder_rows: usize,
+    /// The simulated hexapod, when there is one: per station the six true errors.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<crate::hexapod::DeviceTruth>,
 }
 
 /// The plate as simulated.

@@ -103,6 +103,8 @@ mod overlaps;
 use overlaps::*;
 mod stream;
 use stream::*;
+mod positions;
+pub(crate) use positions::read_positions_files;
 
 /// Reads and validates `campaign.toml`.
 pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {

@@ -1,0 +1,180 @@
+//! Reading `positions/*.parquet` (`docs/spec/device-format.md`, "positions") into
+//! [`dbbcal_core::positions::PositionsLog`].
+//!
+//! The reader rules of `campaign-format.md` hold: any number of files in any order, unsorted
+//! rows, timestamps in ns/us/ms (naive = UTC), `device` as utf8 or dictionary, `station` and
+//! `run` as int64 or int32, extra columns ignored; `a_deg`, `b_deg`, `c_deg` and `run` may be
+//! absent or all null. A row without time, device or x, y, z, a time out of range, or a station
+//! whose rows disagree refuses the campaign with one line naming the file, the column and the
+//! rows (a commanded position cannot be guessed).
+
+use super::*;
+use dbbcal_core::positions::{PositionRow, PositionsLog};
+
+const REQUIRED: [ColumnSpec; 6] = [
+    spec("time", Kind::Time, false),
+    spec("device", Kind::Text, false),
+    spec("x_mm", Kind::Real, false),
+    spec("y_mm", Kind::Real, false),
+    spec("z_mm", Kind::Real, false),
+    spec("station", Kind::Count, true),
+];
+const OPTIONAL: [ColumnSpec; 4] = [
+    spec("a_deg", Kind::Real, true),
+    spec("b_deg", Kind::Real, true),
+    spec("c_deg", Kind::Real, true),
+    spec("run", Kind::Count, true),
+];
+const INTEGER: &str = "int64 or int32";
+
+/// Every file of the `positions` table, checked (`PositionsLog::check`).
+pub(crate) fn read_positions_files(files: &[PathBuf]) -> Result<PositionsLog, IngestError> {
+    let mut log = PositionsLog {
+        files: files.iter().map(|p| p.display().to_string()).collect(),
+        rows: Vec::new(),
+    };
+    for (index, path) in files.iter().enumerate() {
+        let index = u32::try_from(index).unwrap_or(u32::MAX);
+        let rows = guarded(path, || read_one(path, index))?;
+        log.rows.extend(rows);
+    }
+    log.check()?;
+    Ok(log)
+}
+
+fn integer_only(path: &Path, schema: &Schema, name: &'static str) -> Result<(), IngestError> {
+    match schema.get(name) {
+        Some(dtype) if !dtype.is_integer() && !dtype.is_null() => Err(IngestError::WrongType {
+            path: path.to_path_buf(),
+            column: name,
+            found: dtype.to_string(),
+            expected: INTEGER,
+        }),
+        _ => Ok(()),
+    }
+}
+
+fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
+    let (lazy, schema, mut exprs) = checked_scan(path, &REQUIRED)?;
+    integer_only(path, &schema, "station")?;
+    integer_only(path, &schema, "run")?;
+    let mut present = Vec::new();
+    for c in &OPTIONAL {
+        let Some(dtype) = schema.get(c.name) else {
+            continue;
+        };
+        // An all-null column of no type is as good as an absent one.
+        if dtype.is_null() {
+            continue;
+        }
+        let Some(expr) = c.kind.normalise(c.name, dtype) else {
+            return Err(IngestError::WrongType {
+                path: path.to_path_buf(),
+                column: c.name,
+                found: dtype.to_string(),
+                expected: c.kind.expected(),
+            });
+        };
+        exprs.push(expr.alias(c.name));
+        present.push(c.name);
+    }
+    let unit = TimeColumn::of(schema.get("time"));
+    let df = lazy
+        .select(exprs)
+        .collect()
+        .map_err(|e| not_parquet(path, e))?;
+    let err = |e: PolarsError| not_parquet(path, e);
+    let n = df.height();
+    for c in REQUIRED.iter().filter(|c| !c.nullable) {
+        let column = df.column(c.name).map_err(err)?;
+        if column.null_count() > 0 {
+            let mut bad = None;
+            for (row, null) in column.is_null().iter().enumerate() {
+                if null == Some(true) {
+                    BadRange::add(&mut bad, row as u64, || "null".into());
+                }
+            }
+            let b = bad.expect("nulls found");
+            return Err(IngestError::BadRows {
+                path: path.to_path_buf(),
+                column: c.name,
+                rows: b.rows,
+                first_row: b.first_row,
+                last_row: b.last_row,
+                problem: "are null (every position row needs time, device, x_mm, y_mm and z_mm)"
+                    .into(),
+                example: b.example,
+            });
+        }
+    }
+    let time = df
+        .column("time")
+        .and_then(|c| c.i64().cloned())
+        .map_err(err)?;
+    let device = df
+        .column("device")
+        .and_then(|c| c.str().cloned())
+        .map_err(err)?;
+    let real = |name: &str| df.column(name).and_then(|c| c.f64().cloned()).map_err(err);
+    let (x, y, z) = (real("x_mm")?, real("y_mm")?, real("z_mm")?);
+    let station = df
+        .column("station")
+        .and_then(|c| c.i64().cloned())
+        .map_err(err)?;
+    let optional_real = |name: &str| -> Result<Option<Float64Chunked>, IngestError> {
+        if present.contains(&name) {
+            Ok(Some(real(name)?))
+        } else {
+            Ok(None)
+        }
+    };
+    let abc = [
+        optional_real("a_deg")?,
+        optional_real("b_deg")?,
+        optional_real("c_deg")?,
+    ];
+    let run = if present.contains(&"run") {
+        Some(
+            df.column("run")
+                .and_then(|c| c.i64().cloned())
+                .map_err(err)?,
+        )
+    } else {
+        None
+    };
+    let mut bad_time = None;
+    let mut rows = Vec::with_capacity(n);
+    for i in 0..n {
+        let raw = time.get(i).unwrap_or(0);
+        let Some(time_ns) = unit.to_ns(raw) else {
+            BadRange::add(&mut bad_time, i as u64, || format!("{raw} {}", unit.unit()));
+            continue;
+        };
+        rows.push(PositionRow {
+            time_ns,
+            device: device.get(i).unwrap_or_default().to_string(),
+            xyz_mm: [
+                x.get(i).unwrap_or(f64::NAN),
+                y.get(i).unwrap_or(f64::NAN),
+                z.get(i).unwrap_or(f64::NAN),
+            ],
+            abc_deg: std::array::from_fn(|k| abc[k].as_ref().and_then(|c| c.get(i))),
+            station: station.get(i),
+            run: run.as_ref().and_then(|c| c.get(i)),
+            file: index,
+            row: i as u64,
+        });
+    }
+    if let Some(b) = bad_time {
+        return Err(IngestError::BadRows {
+            path: path.to_path_buf(),
+            column: "time",
+            rows: b.rows,
+            first_row: b.first_row,
+            last_row: b.last_row,
+            problem: TIME_PROBLEM.into(),
+            example: b.example,
+        });
+    }
+    Ok(rows)
+}

@@ -1,0 +1,288 @@
+//! The `device` stage's adapter (`docs/spec/device-format.md`): from the compensated working
+//! bars in a hexapod's legs and the `positions` log to the six errors of the machine axis, dwell
+//! by dwell. The rules of the log live in `dbbcal_core::positions`, the kinematics and the test
+//! in `dbbcal_machine` (`hexapod`, `device_test`); this file only gathers their inputs.
+//!
+//! - A leg's length in a dwell is the mean, over the bar's compensated readings inside the dwell
+//!   (one second plus one bin in from both ends, so that no bin reaches into a move), of
+//!   `D(n − e, A)` at the leg's own tilt `A` (from its joint centres at the pose: first the
+//!   nominal pose's, then the pose found; `device_test`).
+//! - A leg's U (k = 2) is the compensated distance's budget (`acceptance::compensated_u_k2_um`:
+//!   calibration lengths, resolution, calibration function, thermal terms).
+//! - The rings' temperature is the mean of the device's `sensor` over the dwell (its last reading
+//!   before the dwell when none falls inside), else the mean air temperature over the dwell (the
+//!   campaign's air history).
+
+use dbbcal_core::campaign::{Device, Place};
+use dbbcal_core::positions::{self, Dwell, PositionsLog, STATION_TOLERANCE_DEG};
+use dbbcal_core::series::InputFile;
+use dbbcal_machine::device_test::{self, DeviceTestResult, DwellInput};
+use dbbcal_machine::hexapod::Hexapod;
+use dbbcal_machine::pose::Pose;
+
+use super::*;
+
+/// The device stage's result.
+#[derive(Debug, Clone)]
+pub struct DeviceStage {
+    /// The device evaluated.
+    pub device: Device,
+    /// Its dwells, in time order.
+    pub dwells: Vec<Dwell>,
+    /// Per leg (1–6), the bar(s) it carried during the test.
+    pub leg_bars: Vec<Vec<String>>,
+    /// Per dwell, per leg: compensated readings averaged.
+    pub samples: Vec<[usize; 6]>,
+    /// The test, or why it could not be evaluated at all.
+    pub outcome: Result<DeviceTestResult, String>,
+    /// The `positions` files read, with their hashes.
+    pub positions_files: Vec<InputFile>,
+}
+
+/// The logs of the sensors the devices name (`[[device]] sensor`), for their rings' temperature.
+pub(crate) fn sensor_logs(
+    campaign: &crate::campaign::Campaign,
+    sensors: &std::collections::BTreeMap<String, crate::series::SensorLog>,
+) -> std::collections::BTreeMap<String, crate::series::SensorLog> {
+    campaign
+        .devices
+        .iter()
+        .filter_map(|d| d.sensor.as_ref())
+        .filter_map(|id| Some((id.clone(), sensors.get(id)?.clone())))
+        .collect()
+}
+
+/// Mean of `log` over the dwell, else its last reading before it.
+fn sensor_over(log: &crate::series::SensorLog, d: &Dwell) -> Option<f64> {
+    let lo = log.time_ns.partition_point(|&t| t < d.from_ns);
+    let hi = d
+        .to_ns
+        .map_or(log.time_ns.len(), |e| {
+            log.time_ns.partition_point(|&t| t < e)
+        })
+        .max(lo);
+    let inside: Vec<f64> = log.celsius[lo..hi]
+        .iter()
+        .copied()
+        .filter(|c| c.is_finite())
+        .collect();
+    if inside.is_empty() {
+        log.celsius[..lo]
+            .iter()
+            .rev()
+            .copied()
+            .find(|c| c.is_finite())
+    } else {
+        Some(inside.iter().sum::<f64>() / inside.len() as f64)
+    }
+}
+
+fn hexapod_of(d: &Device) -> Hexapod {
+    Hexapod {
+        base_mm: d.base_mm,
+        platform_mm: d.platform_mm,
+        u_base_um: d.u_base_um,
+        u_platform_um: d.u_platform_um,
+        nominal_pose: Pose::from_array(d.nominal_pose),
+        tool_point_mm: d.tool_point_mm,
+        base_orientation_deg: d.base_orientation_deg,
+        up: d.up,
+        cte_ppm_per_k: d.cte_ppm_per_k,
+    }
+}
+
+/// Run the device stage on `results` (compensate must have run) with the `positions` log.
+pub fn run_device(
+    plan: &RunPlan,
+    results: &mut RunResults,
+    log: &PositionsLog,
+    positions_files: Vec<InputFile>,
+) -> Result<(), String> {
+    let named = log.devices();
+    let device = results
+        .campaign
+        .devices
+        .iter()
+        .find(|d| named.contains(&d.id))
+        .or_else(|| results.campaign.devices.first())
+        .cloned()
+        .ok_or("campaign.toml has no [[device]] table: the device stage needs one")?;
+    let dwells = log.dwells(&device.id);
+    let stage = evaluate_device(plan, results, device, dwells, positions_files);
+    results.device = Some(stage);
+    Ok(())
+}
+
+fn evaluate_device(
+    plan: &RunPlan,
+    r: &RunResults,
+    device: Device,
+    dwells: Vec<Dwell>,
+    positions_files: Vec<InputFile>,
+) -> DeviceStage {
+    let t0_ns = r
+        .campaign
+        .mounts
+        .iter()
+        .map(|m| m.from_ns)
+        .min()
+        .unwrap_or(0);
+    let margin_ns = ((plan.bin_s.max(0.0) + 1.0) * 1e9) as i64;
+    let (cals, comp) = (
+        r.calibration
+            .as_ref()
+            .map(|c| c.ok.as_slice())
+            .unwrap_or_default(),
+        r.compensation
+            .as_ref()
+            .map(|c| c.ok.as_slice())
+            .unwrap_or_default(),
+    );
+    let options = crate::acceptance::AcceptanceOptions {
+        tolerance_um: plan.acceptance.tolerance_um,
+        u_temperature_k: plan.acceptance.u_temperature_k,
+    };
+    // Per leg: (bar, its mount interval) of every mount in that leg.
+    let mut leg_bars = vec![Vec::new(); 6];
+    // Per dwell, per leg: compensated readings (mm) and the leg's U (k = 2).
+    let mut readings: Vec<[Vec<f64>; 6]> = vec![Default::default(); dwells.len()];
+    let mut leg_u: Vec<[f64; 6]> = vec![[f64::NAN; 6]; dwells.len()];
+    let mut calibration_of: Vec<[Option<&crate::calibrate::BarCalibration>; 6]> =
+        vec![[None; 6]; dwells.len()];
+    for m in &r.campaign.mounts {
+        let (Place::Device(id), Some(leg)) = (&m.place, m.leg) else {
+            continue;
+        };
+        if id != &device.id {
+            continue;
+        }
+        let leg = leg as usize - 1;
+        if !leg_bars[leg].contains(&m.bar) {
+            leg_bars[leg].push(m.bar.clone());
+        }
+        let Some(cal) = cals.iter().find(|c| c.bar == m.bar) else {
+            continue;
+        };
+        let resolution_nm = r.campaign.bar(&m.bar).map_or(0.0, |b| b.resolution_nm);
+        for w in comp
+            .iter()
+            .filter(|w| w.bar == m.bar && w.length_mm.is_none())
+        {
+            let times: Vec<i64> = w
+                .t_s
+                .iter()
+                .map(|t| t0_ns + (t * 1e9).round() as i64)
+                .collect();
+            let u = crate::acceptance::compensated_u_k2_um(w, cal, resolution_nm, &options);
+            for (k, d) in dwells.iter().enumerate() {
+                if d.from_ns < m.from_ns || d.to_ns.is_none_or(|end| end > m.to_ns) {
+                    continue;
+                }
+                let lo = times.partition_point(|&t| t < d.from_ns.saturating_add(margin_ns));
+                let hi = d.to_ns.map_or(times.len(), |end| {
+                    times.partition_point(|&t| t < end.saturating_sub(margin_ns))
+                });
+                if hi > lo {
+                    readings[k][leg].extend(&w.compensated_reading_mm[lo..hi]);
+                    leg_u[k][leg] = u;
+                    calibration_of[k][leg] = Some(cal);
+                }
+            }
+        }
+    }
+    let samples: Vec<[usize; 6]> = readings
+        .iter()
+        .map(|legs| std::array::from_fn(|i| legs[i].len()))
+        .collect();
+    let outcome = (|| {
+        let datum =
+            positions::datum_index(&dwells, device.reference_mm).ok_or_else(|| {
+                match device.reference_mm {
+                    Some(c) => format!(
+                        "no dwell of device {:?} in positions is at reference_mm = {c:?}",
+                        device.id
+                    ),
+                    None => format!("positions has no dwell of device {:?}", device.id),
+                }
+            })?;
+        let datum_rotary = dwells[datum].rotary_deg;
+        let ring_sensor = device
+            .sensor
+            .as_ref()
+            .and_then(|id| r.device_sensors.get(id));
+        let ring_c = |d: &Dwell| {
+            if let Some(c) = ring_sensor.and_then(|log| sensor_over(log, d)) {
+                return c;
+            }
+            let (a, b) = (
+                (d.from_ns - t0_ns) as f64 * 1e-9,
+                d.to_ns.map_or(f64::INFINITY, |e| (e - t0_ns) as f64 * 1e-9),
+            );
+            let h = &r.history;
+            let inside: Vec<f64> = h
+                .t_s
+                .iter()
+                .zip(&h.delta_c)
+                .filter(|(t, _)| **t >= a && **t < b)
+                .map(|(_, v)| *v)
+                .collect();
+            let mid = if b.is_finite() { 0.5 * (a + b) } else { a };
+            let delta = if inside.is_empty() {
+                dbbcal_core::signal::interpolate::within(&h.t_s, &h.delta_c, mid, f64::INFINITY)
+                    .unwrap_or(0.0)
+            } else {
+                inside.iter().sum::<f64>() / inside.len() as f64
+            };
+            r.campaign.reference_temperature_c + delta
+        };
+        let inputs: Vec<DwellInput> = dwells
+            .iter()
+            .zip(&leg_u)
+            .map(|(d, u)| DwellInput {
+                station: d.station,
+                run: d.run,
+                position_mm: d.position_mm,
+                rotary_as_datum: (0..3).all(|k| match (d.rotary_deg[k], datum_rotary[k]) {
+                    (None, None) => true,
+                    (Some(a), Some(b)) => (a - b).abs() <= STATION_TOLERANCE_DEG,
+                    _ => false,
+                }),
+                approach: d.approach,
+                ring_temperature_c: ring_c(d),
+                leg_u_k2_um: u.map(|v| if v.is_finite() { v } else { 0.0 }),
+            })
+            .collect();
+        let hexapod = hexapod_of(&device);
+        device_test::evaluate(
+            &hexapod,
+            r.campaign.reference_temperature_c,
+            &inputs,
+            datum,
+            |k, tilts| {
+                let mut out = [0.0; 6];
+                for leg in 0..6 {
+                    let cal = calibration_of[k][leg]?;
+                    let xs = &readings[k][leg];
+                    if xs.is_empty() {
+                        return None;
+                    }
+                    out[leg] = xs
+                        .iter()
+                        .map(|x| cal.chosen.distance_mm(*x, tilts[leg]))
+                        .sum::<f64>()
+                        / xs.len() as f64;
+                }
+                Some(out)
+            },
+        )
+        .map_err(|e| e.to_string())
+    })();
+    DeviceStage {
+        device,
+        dwells,
+        leg_bars,
+        samples,
+        outcome,
+        positions_files,
+    }
+}

@@ -1,0 +1,202 @@
+//! The six-bar measuring device end to end (issue 29, `docs/spec/device-format.md`):
+//! `dbbcal simulate --config pipelines/sim-device.toml` then `dbbcal run pipelines/device.toml`
+//! recovers the simulated axis's six true errors within U at every station (the simulator's own
+//! inverse kinematics against `dbbcal-machine`'s forward kinematics), and broken `positions`
+//! files are refused with one line naming file, column and rows (exit 3).
+
+use std::path::{Path, PathBuf};
+
+use dbbcal::io::{write_table, Column, Table};
+
+use crate::support::run_cli;
+
+fn run_device(campaign: &Path, out: &Path) -> (i32, String) {
+    let (code, _, err) = run_cli(&[
+        "run",
+        "pipelines/device.toml",
+        "--campaign",
+        campaign.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    (code, err)
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap()
+}
+
+/// Each evaluated dwell's six errors against the truth of its station: (worst |e − t| / U,
+/// share of components within U, components beyond 2U, components compared).
+fn recovery(device: &serde_json::Value, truth: &serde_json::Value) -> (f64, f64, usize, usize) {
+    let stations = truth["device"]["stations"]
+        .as_array()
+        .expect("truth stations");
+    let (mut worst, mut inside, mut beyond, mut n) = (0.0f64, 0usize, 0usize, 0usize);
+    for d in device["dwells"].as_array().expect("dwells") {
+        let errors = d["errors"].as_array().unwrap();
+        if errors.is_empty() || d["flag"].as_str().is_some_and(|f| f.starts_with("datum")) {
+            continue;
+        }
+        let station = d["station"].as_i64().unwrap();
+        let t = stations
+            .iter()
+            .find(|s| s["station"].as_i64() == Some(station))
+            .expect("station in truth");
+        for (c, e) in errors.iter().enumerate() {
+            assert_eq!(e["name"], t["names"][c], "names agree");
+            let (v, u) = (e["value"].as_f64().unwrap(), e["u_k2"].as_f64().unwrap());
+            let r = (v - t["errors"][c].as_f64().unwrap()).abs() / u;
+            worst = worst.max(r);
+            inside += usize::from(r <= 1.0);
+            beyond += usize::from(r > 2.0);
+            n += 1;
+        }
+    }
+    (worst, inside as f64 / n.max(1) as f64, beyond, n)
+}
+
+/// `dbbcal simulate --config pipelines/sim-device.toml [--seed S]` and `dbbcal run
+/// pipelines/device.toml` on it: the output folder and the campaign.
+fn simulate_and_run(root: &Path, seed: Option<u64>) -> (PathBuf, PathBuf) {
+    let name = seed.map_or("default".to_string(), |s| format!("seed-{s}"));
+    let campaign = root.join(format!("campaign-{name}"));
+    let seed_text = seed.map(|s| s.to_string());
+    let mut args = vec![
+        "simulate",
+        "--config",
+        "pipelines/sim-device.toml",
+        "--out",
+        campaign.to_str().unwrap(),
+    ];
+    if let Some(s) = &seed_text {
+        args.extend(["--seed", s.as_str()]);
+    }
+    let (code, _, err) = run_cli(&args);
+    assert_eq!(code, 0, "simulate: {err}");
+    let out = root.join(format!("out-{name}"));
+    let (code, err) = run_device(&campaign, &out);
+    assert_eq!(code, 0, "run: {err}");
+    (campaign, out)
+}
+
+/// The six true errors are recovered within U: the joint-centre offsets are one draw per
+/// campaign, the same at every station, so the coverage is pooled over four campaigns (the
+/// config's seed and three more); no component of any may lie beyond 2U.
+#[test]
+fn a_simulated_hexapod_axis_is_recovered_within_u_at_every_station() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (mut inside, mut total, mut worst_all) = (0.0, 0usize, 0.0f64);
+    for seed in [None, Some(1), Some(2), Some(3)] {
+        let (campaign, out) = simulate_and_run(tmp.path(), seed);
+        let device = json(&out.join("device.json"));
+        let truth = json(&campaign.join("truth.json"));
+        assert_eq!(device["axis"], "X");
+        assert_eq!(device["names"][0], "EXX");
+        assert!(
+            device["not_evaluated"].is_null(),
+            "{}",
+            device["not_evaluated"]
+        );
+        let (worst, coverage, beyond, n) = recovery(&device, &truth);
+        eprintln!(
+            "device recovery, seed {seed:?}: {n} components, worst |error − truth| / U = \
+             {worst:.3}, {:.1} % within U, {beyond} beyond 2U",
+            100.0 * coverage
+        );
+        assert!(n >= 6 * 40, "{n} components compared");
+        assert_eq!(beyond, 0, "seed {seed:?}: worst {worst}");
+        inside += coverage * n as f64;
+        total += n;
+        worst_all = worst_all.max(worst);
+        if seed.is_some() {
+            continue;
+        }
+        // The other outputs: the table, the figure, the sections, the inputs' hashes.
+        assert!(out.join("device_errors.parquet").is_file());
+        assert!(out.join("figures/device-errors.png").is_file());
+        let page = std::fs::read_to_string(out.join("index.html")).unwrap();
+        assert!(page.contains("id=\"device\"") && page.contains("device-errors.png"));
+        let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+        assert!(report.contains("## Device") && report.contains("EYX"));
+        let inputs = device["inputs"].as_array().unwrap();
+        assert!(inputs
+            .iter()
+            .any(|i| i["path"] == "positions/positions.parquet"));
+    }
+    let pooled = inside / total as f64;
+    eprintln!(
+        "device recovery, pooled: {total} components, {:.1} % within U, worst {worst_all:.3} U",
+        100.0 * pooled
+    );
+    assert!(pooled >= 0.9, "pooled coverage {pooled}");
+}
+
+fn write_positions(campaign: &Path, columns: Vec<(&str, Column)>) {
+    let folder = campaign.join("positions");
+    let _ = std::fs::remove_dir_all(&folder);
+    std::fs::create_dir_all(&folder).unwrap();
+    let table = Table {
+        columns: columns
+            .into_iter()
+            .map(|(n, c)| (n.to_string(), c))
+            .collect(),
+    };
+    write_table(&folder.join("bad.parquet"), &table).unwrap();
+}
+
+/// A bad `positions` file is refused with exit 3 and one line naming file, column and rows.
+fn check(campaign: &Path, out: &Path, columns: Vec<(&str, Column)>, words: &[&str]) {
+    write_positions(campaign, columns);
+    let (code, err) = run_device(campaign, out);
+    assert_eq!(code, 3, "{err}");
+    let line = err.trim();
+    assert!(!line.contains('\n'), "one line: {line}");
+    assert!(line.contains("bad.parquet"), "{line}");
+    for w in words {
+        assert!(line.contains(w), "{line:?} lacks {w:?}");
+    }
+}
+
+#[test]
+fn bad_positions_files_are_named_in_one_line_and_exit_3() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (campaign, _) = simulate_and_run(tmp.path(), Some(1));
+    let out = tmp.path().join("out-bad");
+    let t0 = 1_793_491_200i64 * 1_000_000_000 + 23 * 3_600_000_000_000;
+    let times: Vec<i64> = (0..4).map(|i| t0 + i * 60_000_000_000).collect();
+    let good = |x: [f64; 4], station: [Option<i64>; 4]| {
+        vec![
+            ("time", Column::TimeNs(times.clone())),
+            ("device", Column::Str(vec!["hexapod-1".into(); 4])),
+            ("x_mm", Column::F64(x.to_vec())),
+            ("y_mm", Column::F64(vec![300.0; 4])),
+            ("z_mm", Column::F64(vec![-200.0; 4])),
+            ("station", Column::OptI64(station.to_vec())),
+        ]
+    };
+    // A station whose rows disagree.
+    check(
+        &campaign,
+        &out,
+        good(
+            [400.0, 406.0, 400.01, 406.0],
+            [Some(1), Some(2), Some(1), Some(2)],
+        ),
+        &["column `x_mm`", "station 1", "row 2", "row 0"],
+    );
+    // A missing column.
+    let mut missing = good([400.0; 4], [Some(1); 4]);
+    missing.remove(4);
+    check(&campaign, &out, missing, &["missing column `z_mm`"]);
+    // A wrong type.
+    let mut wrong = good([400.0; 4], [Some(1); 4]);
+    wrong[5].1 = Column::F64(vec![1.0, 1.0, 2.0, 2.0]);
+    check(
+        &campaign,
+        &out,
+        wrong,
+        &["column `station`", "int64 or int32"],
+    );
+}
