@@ -320,7 +320,7 @@ pub(crate) mod limits {
     pub(crate) const BEAM: CountLimit = CountLimit::new(1, 10);
 }
 
-/// The table of `docs/guarantees.md` ("Configuration and fits"), made from the [`limits`] the
+/// The table of `docs/guarantees.md` ("Configuration and fits"), made from the `limits` the
 /// checks use: `| key | allowed |`, one row a limit (tests/e2e/docs.rs holds the doc to it).
 pub fn limits_table() -> String {
     use limits::*;

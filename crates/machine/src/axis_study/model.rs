@@ -130,21 +130,16 @@ fn solve(
 fn class_sigma(readings: &[PlacedReading], s: &LinearSolution) -> [f64; 2] {
     let n = readings.len().max(1) as f64;
     let dof_share = s.dof as f64 / n;
-    let mut rss = [0.0; 2];
-    let mut count = [0.0; 2];
-    for (r, e) in readings.iter().zip(&s.residuals) {
-        let c = usize::from(!r.along);
-        rss[c] += e * e;
-        count[c] += 1.0;
-    }
+    let (rss, count) = class_sums(readings, s);
     std::array::from_fn(|c| {
-        let dof = (count[c] * dof_share).max(1.0);
+        let dof = (count[c] as f64 * dof_share).max(1.0);
         // A floor of 1 pm keeps an exactly fitting class from a zero weight.
         (rss[c] / dof).sqrt().max(1e-6)
     })
 }
 
-fn class_rms(readings: &[PlacedReading], s: &LinearSolution) -> [f64; 2] {
+/// RSS and count of the residuals of each channel class (along, lateral).
+fn class_sums(readings: &[PlacedReading], s: &LinearSolution) -> ([f64; 2], [usize; 2]) {
     let mut rss = [0.0; 2];
     let mut count = [0usize; 2];
     for (r, e) in readings.iter().zip(&s.residuals) {
@@ -152,6 +147,11 @@ fn class_rms(readings: &[PlacedReading], s: &LinearSolution) -> [f64; 2] {
         rss[c] += e * e;
         count[c] += 1;
     }
+    (rss, count)
+}
+
+fn class_rms(readings: &[PlacedReading], s: &LinearSolution) -> [f64; 2] {
+    let (rss, count) = class_sums(readings, s);
     std::array::from_fn(|c| {
         if count[c] == 0 {
             0.0
@@ -164,13 +164,7 @@ fn class_rms(readings: &[PlacedReading], s: &LinearSolution) -> [f64; 2] {
 /// BIC = Σ_class n_c ln(RSS_c / n_c) + k ln n, k the rank (the parameters the readings
 /// determine).
 fn bic(readings: &[PlacedReading], s: &LinearSolution) -> f64 {
-    let mut rss = [0.0; 2];
-    let mut count = [0usize; 2];
-    for (r, e) in readings.iter().zip(&s.residuals) {
-        let c = usize::from(!r.along);
-        rss[c] += e * e;
-        count[c] += 1;
-    }
+    let (rss, count) = class_sums(readings, s);
     let n = readings.len() as f64;
     let fit: f64 = (0..2)
         .filter(|&c| count[c] > 0)
