@@ -69,13 +69,19 @@ pub fn plan_run(
             out,
             &[],
         )?))),
-        CampaignKind::Axis => Ok(KindPlan::Axis(axis::AxisPlan::from_pipeline_text(
-            pipeline,
-            &text,
-            dir,
-            out,
-            add_effects,
-        )?)),
+        CampaignKind::Axis => axis::AxisPlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
+            .map(KindPlan::Axis)
+            .map_err(|e| match e {
+                // Say which kind the campaign is: a ballbar pipeline on it fails on its keys.
+                PlanError::Pipeline { path, message } => PlanError::Pipeline {
+                    path,
+                    message: format!(
+                        "{} is an axis campaign (run it with pipelines/axis.toml): {message}",
+                        dir.display()
+                    ),
+                },
+                other => other,
+            }),
         other => Err(PlanError::NotInCampaign(format!(
             "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\" and \"axis\" campaigns",
             manifest.display(),

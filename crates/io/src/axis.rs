@@ -114,21 +114,7 @@ pub fn read_axis_campaign(dir: &Path) -> Result<AxisCampaignLogs, IngestError> {
 
 /// Reads and validates the `campaign.toml` of an `axis` campaign; another kind is refused, named.
 pub fn read_axis_manifest(dir: &Path) -> Result<AxisCampaign, IngestError> {
-    let path = dir.join(MANIFEST);
-    if !path.is_file() {
-        return Err(IngestError::MissingManifest {
-            dir: dir.to_path_buf(),
-        });
-    }
-    let text = crate::read_small_text(&path, crate::MAX_MANIFEST_BYTES).map_err(|message| {
-        IngestError::Io {
-            path: path.clone(),
-            message: message
-                .strip_prefix("cannot read: ")
-                .unwrap_or(&message)
-                .to_string(),
-        }
-    })?;
+    let (path, text) = crate::read::read_manifest_text(dir)?;
     let file = path.display().to_string();
     let kind = campaign_kind(&text, &file)?;
     if kind != CampaignKind::Axis {

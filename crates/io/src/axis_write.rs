@@ -8,7 +8,6 @@ use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::inputs::parquet_files;
 use super::one_line;
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::axis_campaign::{AxisCampaignTables, AxisManifest, AxisReading};
@@ -212,15 +211,5 @@ fn create_dir(dir: &Path) -> Result<(), WriteError> {
 /// Creates `folder` and removes its `*.parquet` files.
 fn prepare(folder: &Path) -> Result<(), WriteError> {
     create_dir(folder)?;
-    let stale = parquet_files(folder).map_err(|e| WriteError::Io {
-        path: folder.to_path_buf(),
-        message: one_line(e),
-    })?;
-    for file in stale {
-        std::fs::remove_file(&file).map_err(|e| WriteError::Io {
-            path: file.clone(),
-            message: e.to_string(),
-        })?;
-    }
-    Ok(())
+    crate::write::clear_parquet(folder)
 }

@@ -161,7 +161,7 @@ fn write_manifest(path: &Path, manifest: &Manifest) -> Result<(), WriteError> {
     })
 }
 
-fn clear_parquet(folder: &Path) -> Result<(), WriteError> {
+pub(crate) fn clear_parquet(folder: &Path) -> Result<(), WriteError> {
     let stale = parquet_files(folder).map_err(|e| WriteError::Io {
         path: folder.to_path_buf(),
         message: one_line(e),

@@ -106,8 +106,8 @@ use stream::*;
 mod positions;
 pub(crate) use positions::read_positions_files;
 
-/// Reads and validates `campaign.toml`.
-pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
+/// The path and text of `dir/campaign.toml` (any kind), read within its size bound.
+pub(crate) fn read_manifest_text(dir: &Path) -> Result<(PathBuf, String), IngestError> {
     let path = dir.join(MANIFEST);
     if !path.is_file() {
         return Err(IngestError::MissingManifest {
@@ -123,6 +123,12 @@ pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
                 .to_string(),
         }
     })?;
+    Ok((path, text))
+}
+
+/// Reads and validates `campaign.toml`.
+pub(crate) fn read_manifest(dir: &Path) -> Result<Campaign, IngestError> {
+    let (path, text) = read_manifest_text(dir)?;
     let file = path.display().to_string();
     let manifest = Manifest::from_toml_str(&text, &file)?;
     let campaign = Campaign::from_manifest_at(manifest, &file)?;
