@@ -190,9 +190,14 @@ pub(crate) fn run(plan: &AxisPlan) -> Result<Outcome> {
             json.push('\n');
             crate::output::write_file(&tmp.join("axis.json"), json.as_bytes())?;
             crate::io::write_table(&tmp.join("axis_errors.parquet"), &errors_table(&study))?;
-            let md = crate::narrative::axis::report_md(&logs.campaign.id, &study);
+            let figures = [crate::figures::render_axis(
+                &logs.campaign.id,
+                &study,
+                &tmp.join("figures"),
+            )?];
+            let md = crate::narrative::axis::report_md(&logs.campaign.id, &study, &figures);
             crate::output::write_file(&tmp.join("report.md"), md.as_bytes())?;
-            let page = crate::narrative::axis::page(&logs.campaign.id, &study, &lines);
+            let page = crate::narrative::axis::page(&logs.campaign.id, &study, &lines, &figures);
             crate::output::write_file(&tmp.join("index.html"), page.as_bytes())?;
             Ok(())
         })

@@ -4,6 +4,7 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::axis_study::AxisStudy;
 
+use crate::figures::FigureFile;
 use crate::kinds::axis::AxisPlan;
 use crate::output::escape;
 
@@ -108,7 +109,7 @@ fn rival_note(s: &AxisStudy) -> String {
 }
 
 /// `report.md`.
-pub(crate) fn report_md(campaign: &str, s: &AxisStudy) -> String {
+pub(crate) fn report_md(campaign: &str, s: &AxisStudy, figures: &[FigureFile]) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Axis {} — campaign {campaign}\n", s.axis.letter());
     let _ = writeln!(
@@ -125,6 +126,9 @@ pub(crate) fn report_md(campaign: &str, s: &AxisStudy) -> String {
         }
     );
     let _ = writeln!(md, "## The six errors\n");
+    for f in figures {
+        let _ = writeln!(md, "![{}](figures/{})\n", f.caption, f.file);
+    }
     let _ = write!(md, "| target mm | dir |");
     for n in &s.names {
         let _ = write!(md, " {n} | U |");
@@ -227,7 +231,12 @@ pub(crate) fn report_md(campaign: &str, s: &AxisStudy) -> String {
 }
 
 /// `index.html`: the headline, then `report.md`'s tables as HTML.
-pub(crate) fn page(campaign: &str, s: &AxisStudy, lines: &[(&'static str, String)]) -> String {
+pub(crate) fn page(
+    campaign: &str,
+    s: &AxisStudy,
+    lines: &[(&'static str, String)],
+    figures: &[FigureFile],
+) -> String {
     let mut h = String::new();
     let _ = writeln!(
         h,
@@ -244,7 +253,11 @@ pub(crate) fn page(campaign: &str, s: &AxisStudy, lines: &[(&'static str, String
     for (label, text) in lines {
         let _ = writeln!(h, "<tr><td><b>{label}</b></td><td>{}</td></tr>", html(text));
     }
-    let _ = writeln!(h, "</table>\n<h2>The six errors (µm, µrad; U k = 2)</h2>\n<table><tr><th>target mm</th><th>dir</th>");
+    h.push_str("</table>\n<h2>The six errors (µm, µrad; U k = 2)</h2>\n");
+    for f in figures {
+        super::page::figure(&mut h, f);
+    }
+    h.push_str("<table><tr><th>target mm</th><th>dir</th>");
     for n in &s.names {
         let _ = write!(h, "<th>{n}</th><th>U</th>");
     }

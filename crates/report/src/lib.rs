@@ -15,6 +15,7 @@ mod bar_fit;
 mod before_after;
 mod canvas;
 mod data;
+mod error_grid;
 mod fleet;
 mod font;
 mod heatmap;
@@ -31,6 +32,7 @@ use std::path::PathBuf;
 
 pub use bar_fit::{render_bar_fit, BarFitFigure};
 pub use before_after::{render_before_after, BeforeAfterFigure};
+pub use error_grid::{render_error_grid, BandedSeries, ErrorGridFigure, ErrorPanel};
 pub use fleet::{render_fleet, FleetFigure, ParameterPanel};
 pub use heatmap::{render_heat_map, HeatMapFigure, MatrixHighlight};
 pub use ledger::{render_ledger, LedgerFigure};
