@@ -6,6 +6,7 @@ use dbbcal_machine::axis_study::AxisStudy;
 
 use crate::figures::FigureFile;
 use crate::kinds::axis::AxisPlan;
+use crate::output::axis_tables::TableRecord;
 use crate::output::escape;
 
 fn num(v: f64, decimals: usize) -> String {
@@ -29,6 +30,7 @@ pub(crate) fn headline(
     campaign: &str,
     s: &AxisStudy,
     plan: &AxisPlan,
+    tables: &[TableRecord],
 ) -> Vec<(&'static str, String)> {
     let mut lines = vec![(
         "Axis",
@@ -77,10 +79,26 @@ pub(crate) fn headline(
         ),
     };
     lines.push(("Diagnosis", verdict));
+    if let Some(t) = tables_line(tables) {
+        lines.push(("Tables", t));
+    }
     if let Some(e) = d.proposal {
         lines.push(("Next", plan.next_command(e)));
     }
     lines
+}
+
+/// The controller tables: the files written with their sign, and each refusal with its reason.
+fn tables_line(tables: &[TableRecord]) -> Option<String> {
+    let parts: Vec<String> = tables
+        .iter()
+        .map(|t| match (&t.file, &t.meta, &t.refused) {
+            (Some(f), Some(m), _) => format!("{f} ({})", m.sign.describe()),
+            (_, _, Some(why)) => format!("{} not written: {why}", t.format),
+            _ => format!("{} not written", t.format),
+        })
+        .collect();
+    (!parts.is_empty()).then(|| parts.join("; "))
 }
 
 /// BIC differences below this tell two explanations apart only weakly (Kass & Raftery: < 2 is
@@ -109,7 +127,12 @@ fn rival_note(s: &AxisStudy) -> String {
 }
 
 /// `report.md`.
-pub(crate) fn report_md(campaign: &str, s: &AxisStudy, figures: &[FigureFile]) -> String {
+pub(crate) fn report_md(
+    campaign: &str,
+    s: &AxisStudy,
+    figures: &[FigureFile],
+    tables: &[TableRecord],
+) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Axis {} — campaign {campaign}\n", s.axis.letter());
     let _ = writeln!(
@@ -212,6 +235,24 @@ pub(crate) fn report_md(campaign: &str, s: &AxisStudy, figures: &[FigureFile]) -
                     num(*v, 4),
                     num(*u, 4)
                 );
+            }
+        }
+    }
+    if !tables.is_empty() {
+        let _ = writeln!(md, "\n## Controller tables\n\nFrom the mean of both directions at each target (docs/controller-tables.md).\n");
+        for t in tables {
+            match (&t.file, &t.meta, &t.refused) {
+                (Some(f), Some(m), _) => {
+                    let _ = writeln!(md, "- `{f}` ({}): {}", t.format, m.statement);
+                }
+                (_, _, why) => {
+                    let _ = writeln!(
+                        md,
+                        "- {}: not written ({})",
+                        t.format,
+                        why.as_deref().unwrap_or("no reason given")
+                    );
+                }
             }
         }
     }

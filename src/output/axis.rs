@@ -7,6 +7,8 @@ use crate::io::{Column, Table};
 use dbbcal_core::series::InputFile;
 use dbbcal_machine::axis_study::AxisStudy;
 
+use super::axis_tables::TableRecord;
+
 /// A number or `null` (NaN: not determined).
 fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
@@ -35,6 +37,8 @@ pub(crate) struct AxisRecord {
     point_choice: Vec<PointRecord>,
     residuals: Vec<ResidualRecord>,
     diagnosis: DiagnosisRecord,
+    /// The controller tables asked for: written (file, sign, unit) or refused (why).
+    tables: Vec<TableRecord>,
 }
 
 #[derive(Debug, Serialize)]
@@ -152,6 +156,7 @@ impl AxisRecord {
         pipeline: (&str, &str),
         inputs: &[InputFile],
         study: &AxisStudy,
+        tables: &[TableRecord],
     ) -> AxisRecord {
         let d = &study.diagnosis;
         AxisRecord {
@@ -286,6 +291,7 @@ impl AxisRecord {
                     })
                     .collect(),
             },
+            tables: tables.to_vec(),
         }
     }
 }
