@@ -20,6 +20,7 @@
 pub mod axis;
 pub mod axis_study;
 pub mod components;
+pub mod device_study;
 pub mod device_test;
 pub mod edlen;
 pub mod hexapod;

@@ -212,7 +212,7 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
         .enumerate()
         .map(|(i, b)| schedule::plan_bar(cfg, &grid, i, &b.id))
         .collect();
-    let device = simulate_hexapod(cfg, &grid, &bars, &plans)?;
+    let device = simulate_hexapod(cfg, &grid, &env, &bars, &plans)?;
     let runs = run_bars(cfg, &grid, &env, &bars, &plans, start_ns, device.as_ref());
     let mut manifest = build_manifest(cfg, &bars, &plans, start_ns)?;
     let events = build_events(cfg, &grid, &env, &bars, &plans, start_ns);
@@ -254,6 +254,7 @@ fn hexapod_layout(cfg: &SimConfig) -> Option<(&DeviceLayout, &hexapod::HexapodSi
 fn simulate_hexapod<'c>(
     cfg: &'c SimConfig,
     grid: &Grid,
+    env: &Environment,
     bars: &[BarTruth],
     plans: &[BarPlan],
 ) -> Result<Option<(hexapod::HexapodRun, &'c hexapod::HexapodSim)>, SimError> {
@@ -281,7 +282,13 @@ fn simulate_hexapod<'c>(
             ),
         });
     }
-    Ok(Some((h.run(&d.id, cfg.seed, start_ns), h)))
+    // The bodies follow the mean air of the room (what the analysis takes without a sensor).
+    let body_excess_k = |t_ns: i64| {
+        let i = ((t_ns as f64 / 1e9 / grid.step_s).round().max(0.0) as usize)
+            .min(env.t1_c.len().saturating_sub(1));
+        0.5 * (env.t1_c[i] + env.t2_c[i]) - cfg.reference_temperature_c
+    };
+    Ok(Some((h.run(&d.id, cfg.seed, start_ns, &body_excess_k), h)))
 }
 
 /// The `[[device]]` table and the legs of the device's mounts (leg = index in `bars` + 1).
@@ -301,7 +308,7 @@ fn add_device_to_manifest(cfg: &SimConfig, h: &hexapod::HexapodSim, manifest: &m
         base_orientation_deg: None,
         up: None,
         reference_mm: Some(h.reference_mm),
-        cte_ppm_per_k: None,
+        cte_ppm_per_k: h.effects.declared_cte_ppm_per_k,
         sensor: None,
     });
     for m in &mut manifest.mount {
