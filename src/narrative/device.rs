@@ -116,6 +116,7 @@ pub(crate) fn markdown(results: &RunResults) -> Option<String> {
         let _ = writeln!(md, "- {f}");
     }
     md.push('\n');
+    super::device_loop::markdown(&mut md, results);
     Some(md)
 }
 
@@ -152,5 +153,6 @@ pub(crate) fn html(h: &mut String, results: &RunResults, figures: &[FigureFile])
     for f in figures.iter().filter(|f| f.kind == FigureKind::Device) {
         super::page::figure(h, f);
     }
+    super::device_loop::html(h, results);
     h.push_str("</section>\n");
 }

@@ -18,7 +18,11 @@
 //! and ∂l_i/∂s = n_i · (R p_i − b_i) µm per ppm the legs' change when both rings grow by one
 //! ppm about their centres *(ours)*. A candidate is screened by its BIC gain
 //! (Δ = n ln(RSS/RSS') − Δp ln n); the re-seated leg's search over N = 6 legs × every dwell
-//! pays 2 ln N more, the size the largest of N noise-only χ² gains reaches. An effect in the model is fitted and its contribution removed from
+//! pays 2 ln N more, the size the largest of N noise-only χ² gains reaches. A candidate is
+//! proposed only when it is also *material*: its fitted change to some leg at some dwell reaches
+//! `min_effect_um` (0.1 µm by default, a tenth of the patent's ±1 µm). Slow residues of the
+//! bars' thermal compensation are time-correlated, so the BIC alone (which assumes independent
+//! residuals) finds nanometre "drifts" in any long test. An effect in the model is fitted and its contribution removed from
 //! every dwell's lengths before the poses are solved again (the datum's too), so the six errors
 //! are those of the machine's geometry at the datum's time and temperature.
 //!
@@ -137,6 +141,9 @@ pub struct DeviceStudyOptions {
     pub effects: Vec<DeviceEffect>,
     /// The BIC gain an effect must bring to be proposed.
     pub min_bic_gain: f64,
+    /// The largest change an effect must make to some leg at some dwell, µm, to be proposed:
+    /// below it the effect is real but does not matter to the six errors.
+    pub min_effect_um: f64,
 }
 
 impl Default for DeviceStudyOptions {
@@ -144,6 +151,7 @@ impl Default for DeviceStudyOptions {
         DeviceStudyOptions {
             effects: Vec::new(),
             min_bic_gain: 10.0,
+            min_effect_um: 0.1,
         }
     }
 }
@@ -166,8 +174,17 @@ pub struct DeviceCandidate {
     pub delta_bic: f64,
     /// RMS residual of the legs with it, µm.
     pub rms_um: f64,
+    /// Its largest change to a leg at a dwell, as fitted, µm (what makes it material).
+    pub size_um: f64,
     /// Where it acts (e.g. "leg 3 from dwell 27"), when that is part of the fit.
     pub detail: Option<String>,
+}
+
+impl DeviceCandidate {
+    /// Whether it is both significant and material under `options`.
+    pub fn proposed(&self, options: &DeviceStudyOptions) -> bool {
+        self.delta_bic >= options.min_bic_gain && self.size_um >= options.min_effect_um
+    }
 }
 
 /// One step of the forward selection.
@@ -201,7 +218,8 @@ pub struct DeviceStudy {
     pub candidates: Vec<DeviceCandidate>,
     /// Forward selection from the model.
     pub ledger: Vec<DeviceLedgerStep>,
-    /// The effect to add, when one gains at least `min_bic_gain`.
+    /// The effect to add: the best candidate that gains at least `min_bic_gain` and changes a
+    /// leg by at least `min_effect_um`.
     pub proposal: Option<DeviceEffect>,
     /// What repeated dwells cannot show, as (effect, what it becomes).
     pub unseen: Vec<(&'static str, &'static str)>,
@@ -392,10 +410,15 @@ pub fn study(
             with.push(e);
             let blocks = model_blocks(dwells, &g, &y, &with);
             let (rss_c, cost_c) = score(&blocks, &y);
+            let (_, corrections) = fitted(dwells, &y, &blocks, dof, Some(e));
             DeviceCandidate {
                 effect: e,
                 delta_bic: bic(n, rss, cost) - bic(n, rss_c, cost_c),
                 rms_um: rms(rss_c),
+                size_um: corrections
+                    .iter()
+                    .flat_map(|c| c.iter().map(|v| v.abs()))
+                    .fold(0.0, f64::max),
                 detail: blocks
                     .iter()
                     .find(|b| b.0 == e)
@@ -404,12 +427,12 @@ pub fn study(
         })
         .collect();
     candidates.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
-    let ledger = forward(dwells, &g, &y, options, rss, cost);
+    let ledger = forward(dwells, &g, &y, options, (rss, cost), dof);
     let proposal = candidates
-        .first()
-        .filter(|c| c.delta_bic >= options.min_bic_gain)
+        .iter()
+        .find(|c| c.proposed(options))
         .map(|c| c.effect);
-    let (effects, corrections_um) = fitted(dwells, &y, &model, dof);
+    let (effects, corrections_um) = fitted(dwells, &y, &model, dof, None);
     let residual = residual_of(&model, &y);
     let rms_per_leg_um = per_leg(&g, &residual);
     Ok(DeviceStudy {
@@ -436,8 +459,8 @@ fn forward(
     g: &[Vec<usize>],
     y: &[f64],
     options: &DeviceStudyOptions,
-    rss: f64,
-    cost: (f64, f64),
+    (rss, cost): (f64, (f64, f64)),
+    dof: usize,
 ) -> Vec<DeviceLedgerStep> {
     let n = y.len();
     let rms = |rss: f64| (rss / n as f64).sqrt();
@@ -452,11 +475,14 @@ fn forward(
         let best = DeviceEffect::ALL
             .into_iter()
             .filter(|e| !in_model.contains(e))
-            .map(|e| {
+            .filter_map(|e| {
                 let mut with = in_model.clone();
                 with.push(e);
-                let (r, c) = score(&model_blocks(dwells, g, y, &with), y);
-                (e, bic(n, r, c), r)
+                let blocks = model_blocks(dwells, g, y, &with);
+                let (r, c) = score(&blocks, y);
+                let (_, size) = fitted(dwells, y, &blocks, dof, Some(e));
+                let size = size.iter().flatten().map(|v| v.abs()).fold(0.0, f64::max);
+                (size >= options.min_effect_um).then_some((e, bic(n, r, c), r))
             })
             .min_by(|a, b| a.1.total_cmp(&b.1));
         match best {
@@ -499,12 +525,14 @@ fn per_leg(g: &[Vec<usize>], residual: &[f64]) -> [f64; 6] {
 }
 
 /// The model's effects fitted (values, U from the residual scatter) and their contribution to
-/// every dwell's legs (not group-centred: the correction of the lengths themselves).
+/// every dwell's legs (not group-centred: the correction of the lengths themselves), of every
+/// effect or of `only` that one.
 fn fitted(
     dwells: &[DwellLegs],
     y: &[f64],
     model: &[(DeviceEffect, Block)],
     dof: usize,
+    only: Option<DeviceEffect>,
 ) -> (Vec<DeviceEffectFit>, Vec<[f64; 6]>) {
     let cols: Vec<Vec<f64>> = model.iter().flat_map(|b| b.1.columns.clone()).collect();
     let mut corrections = vec![[0.0; 6]; dwells.len()];
@@ -525,9 +553,11 @@ fn fitted(
                 (name.clone(), x[c + j], u)
             })
             .collect();
-        for (k, d) in dwells.iter().enumerate() {
-            for (leg, corr) in corrections[k].iter_mut().enumerate() {
-                *corr += contribution(d, k, leg, *effect, b, &x[c..c + b.names.len()]);
+        if only.is_none_or(|o| o == *effect) {
+            for (k, d) in dwells.iter().enumerate() {
+                for (leg, corr) in corrections[k].iter_mut().enumerate() {
+                    *corr += contribution(d, k, leg, *effect, b, &x[c..c + b.names.len()]);
+                }
             }
         }
         c += b.names.len();
