@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use dbbcal_machine::axis_study::AxisStudy;
+use dbbcal_machine::device_test;
 
 use super::{drawn, FigureFile, FigureKind};
 use crate::pipeline::RunResults;
@@ -111,7 +112,7 @@ pub(super) fn device_errors_figure(results: &RunResults) -> Option<ErrorGridFigu
         .enumerate()
         .filter_map(|(i, d)| {
             Some(ErrorPoint {
-                direction: sweep_direction(&approach, i),
+                direction: device_test::sweep_direction(&approach, i),
                 position_mm: d.input.position_mm[k],
                 errors: d.errors?.to_array(),
                 u_k2: d.u_k2?.to_array(),
@@ -134,14 +135,6 @@ pub(super) fn device_errors_figure(results: &RunResults) -> Option<ErrorGridFigu
         &t.names,
         &points,
     ))
-}
-
-/// The direction of the sweep dwell `i` belongs to: its approach, or for a dwell approached
-/// from rest (the datum, a reversal) the next dwell's, else the previous one's.
-fn sweep_direction(approach: &[i8], i: usize) -> i8 {
-    let next = approach[i..].iter().copied().find(|&a| a != 0);
-    let previous = || approach[..i].iter().rev().copied().find(|&a| a != 0);
-    next.or_else(previous).unwrap_or(0)
 }
 
 /// The `axis` kind's figure: its six errors at every target and direction.
@@ -198,15 +191,6 @@ pub(crate) fn render_axis(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_dwell_from_rest_joins_the_sweep_it_starts_or_ends() {
-        let approach = [0, 1, 1, 0, -1, -1, 0];
-        let d: Vec<i8> = (0..approach.len())
-            .map(|i| sweep_direction(&approach, i))
-            .collect();
-        assert_eq!(d, [1, 1, 1, -1, -1, -1, -1]);
-    }
 
     #[test]
     fn the_grid_averages_runs_per_direction_and_keeps_the_largest_u() {

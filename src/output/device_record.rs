@@ -63,6 +63,9 @@ pub(crate) struct DeviceRecord<'a> {
     pub(crate) straightness_lines: Vec<(String, f64, f64)>,
     pub(crate) dwells: Vec<DwellRecord>,
     pub(crate) not_evaluated: Option<&'a str>,
+    /// ISO 230-2 on the positioning error over the runs, or why not.
+    pub(crate) iso230_2: Option<super::axis::IsoRecord>,
+    pub(crate) iso230_2_missing: Option<String>,
     /// The loop on the legs across repeated dwells (`dbbcal_machine::device_study`).
     #[serde(rename = "loop")]
     pub(crate) device_loop: Option<LoopRecord>,
@@ -99,6 +102,19 @@ pub(crate) struct LoopCandidate {
     pub(crate) rms_um: f64,
     pub(crate) size_um: f64,
     pub(crate) detail: Option<String>,
+}
+
+/// ISO 230-2 on the positioning error (its name and the statistics), or why not.
+pub(crate) fn positioning_iso(
+    s: &DeviceStage,
+) -> Option<Result<(String, dbbcal_machine::iso230_2::Iso230_2), String>> {
+    let t = s.outcome.as_ref().ok()?;
+    let name = t.names[t.axis?.index()].clone();
+    Some(
+        dbbcal_machine::device_test::positioning_iso230_2(t)?
+            .map(|i| (name, i))
+            .map_err(|e| e.to_string()),
+    )
 }
 
 fn loop_record(s: &DeviceStage) -> Option<LoopRecord> {
@@ -184,6 +200,7 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
         ),
         Err(_) => (None, None, Vec::new(), Vec::new()),
     };
+    let iso = positioning_iso(s);
     Some(DeviceRecord {
         campaign: &results.campaign.id,
         device: &s.device.id,
@@ -200,6 +217,11 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
         straightness_lines: lines,
         dwells,
         not_evaluated: s.outcome.as_ref().err().map(String::as_str),
+        iso230_2: iso
+            .as_ref()
+            .and_then(|i| i.as_ref().ok())
+            .map(|(n, i)| super::axis::IsoRecord::new(n, i)),
+        iso230_2_missing: iso.and_then(|i| i.err()),
         device_loop: loop_record(s),
         inputs: &results.inputs,
     })
