@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+mod device_poses;
 mod six_errors;
 
 pub(crate) use six_errors::render_axis;
@@ -175,6 +176,18 @@ pub(crate) fn render_all(
                 .into(),
         )?;
         drawn(|| report::render_error_grid(&spec, &path))?;
+    }
+    let poses = results.device.as_ref().and_then(|s| {
+        device_poses::device_poses_figure(s, &crate::pipeline::hexapod_of(&s.device))
+    });
+    if let Some(spec) = poses {
+        let path = add(
+            "device-poses.png".into(),
+            FigureKind::Device,
+            None,
+            "The device from above and from the side: base, legs and platform at the datum and at the farthest station, the tool point at every dwell".into(),
+        )?;
+        drawn(|| report::render_geometry(&spec, &path))?;
     }
     Ok(written)
 }

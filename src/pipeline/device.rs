@@ -81,7 +81,7 @@ fn sensor_over(log: &crate::series::SensorLog, d: &Dwell) -> Option<f64> {
     }
 }
 
-fn hexapod_of(d: &Device) -> Hexapod {
+pub(crate) fn hexapod_of(d: &Device) -> Hexapod {
     Hexapod {
         base_mm: d.base_mm,
         platform_mm: d.platform_mm,

@@ -121,8 +121,11 @@ fn a_simulated_hexapod_axis_is_recovered_within_u_at_every_station() {
         // The other outputs: the table, the figure, the sections, the inputs' hashes.
         assert!(out.join("device_errors.parquet").is_file());
         assert!(out.join("figures/device-errors.png").is_file());
+        assert!(out.join("figures/device-poses.png").is_file());
         let page = std::fs::read_to_string(out.join("index.html")).unwrap();
         assert!(page.contains("id=\"device\"") && page.contains("device-errors.png"));
+        assert!(page.contains("device-poses.png"));
+        assert!(device["iso230_2"]["error"] == "EXX", "{}", device["iso230_2"]);
         let report = std::fs::read_to_string(out.join("report.md")).unwrap();
         assert!(report.contains("## Device") && report.contains("EYX"));
         let inputs = device["inputs"].as_array().unwrap();
