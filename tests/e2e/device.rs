@@ -125,7 +125,11 @@ fn a_simulated_hexapod_axis_is_recovered_within_u_at_every_station() {
         let page = std::fs::read_to_string(out.join("index.html")).unwrap();
         assert!(page.contains("id=\"device\"") && page.contains("device-errors.png"));
         assert!(page.contains("device-poses.png"));
-        assert!(device["iso230_2"]["error"] == "EXX", "{}", device["iso230_2"]);
+        assert!(
+            device["iso230_2"]["error"] == "EXX",
+            "{}",
+            device["iso230_2"]
+        );
         let report = std::fs::read_to_string(out.join("report.md")).unwrap();
         assert!(report.contains("## Device") && report.contains("EYX"));
         let inputs = device["inputs"].as_array().unwrap();
