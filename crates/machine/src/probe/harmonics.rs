@@ -129,14 +129,24 @@ mod tests {
     #[test]
     fn six_directions_lose_sin_3phi_by_name_and_twelve_do_not() {
         let six: Vec<f64> = (0..6).map(|i| 60.0 * i as f64).collect();
-        let v: Vec<f64> = six.iter().map(|p| 1.0 + 0.5 * (3.0 * p.to_radians()).cos()).collect();
+        let v: Vec<f64> = six
+            .iter()
+            .map(|p| 1.0 + 0.5 * (3.0 * p.to_radians()).cos())
+            .collect();
         let f = fit_harmonics(&six, &v, &[0.05; 6]).unwrap();
-        assert!(f.lost.iter().any(|l| l.contains("h3_sin_um")), "{:?}", f.lost);
+        assert!(
+            f.lost.iter().any(|l| l.contains("h3_sin_um")),
+            "{:?}",
+            f.lost
+        );
         assert!(!f.order(3).unwrap().determined);
         let twelve: Vec<f64> = (0..12).map(|i| 30.0 * i as f64).collect();
         let v: Vec<f64> = twelve
             .iter()
-            .map(|p| 1.0 + 0.3 * (3.0 * (p - 20.0)).to_radians().cos() + 1.4 * (p - 45.0).to_radians().cos())
+            .map(|p| {
+                1.0 + 0.3 * (3.0 * (p - 20.0)).to_radians().cos()
+                    + 1.4 * (p - 45.0).to_radians().cos()
+            })
             .collect();
         let f = fit_harmonics(&twelve, &v, &[0.05; 12]).unwrap();
         let h3 = f.order(3).unwrap();

@@ -53,7 +53,9 @@ fn group_directions(touches: &[ProbeTouch], tol_deg: f64) -> (Vec<usize>, Vec<Gr
     };
     groups.sort_by(|a, b| {
         let (ka, kb) = (key(a), key(b));
-        ka.0.total_cmp(&kb.0).then(ka.1.cmp(&kb.1)).then(ka.2.cmp(&kb.2))
+        ka.0.total_cmp(&kb.0)
+            .then(ka.1.cmp(&kb.1))
+            .then(ka.2.cmp(&kb.2))
     });
     let mut of = vec![0; touches.len()];
     for (g, group) in groups.iter().enumerate() {
@@ -69,7 +71,13 @@ fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 }
 
 /// The observed pretravel of a touch relative to centre `c_mm`, µm.
-fn pretravel_um(kind: ArtefactKind, big_r_mm: f64, r_mm: f64, t: &ProbeTouch, c_mm: &[f64; 3]) -> f64 {
+fn pretravel_um(
+    kind: ArtefactKind,
+    big_r_mm: f64,
+    r_mm: f64,
+    t: &ProbeTouch,
+    c_mm: &[f64; 3],
+) -> f64 {
     let d = [
         t.position_mm[0] - c_mm[0],
         t.position_mm[1] - c_mm[1],
@@ -260,8 +268,14 @@ pub(crate) fn study_setup(
         u_k2_um: 2.0 * ((delta.1).powi(2) + artefact.u_um.powi(2)).sqrt(),
     };
     let form = form_check(artefact, &spec, &inputs, &y, &summary, options.mpe_um)?;
-    let not_identifiable =
-        statements(declared, &spec, &fit, &harmonics, groups.len(), &artefact_fit);
+    let not_identifiable = statements(
+        declared,
+        &spec,
+        &fit,
+        &harmonics,
+        groups.len(),
+        &artefact_fit,
+    );
     let model = model_result(&fit, touches.len());
     let touch_results = touches
         .iter()
@@ -324,7 +338,9 @@ fn two_touch_mean(s: &stats::DirectionSpread) -> f64 {
 
 /// The row of `spec` at a direction restricted to the pretravel and lobing columns.
 fn pretravel_row(spec: &ModelSpec, fit: &ModelFit, t: &TouchInputs) -> Vec<f64> {
-    let phi0 = fit.phi0_deg.map_or(0.0, |p| if p.0.is_finite() { p.0 } else { 0.0 });
+    let phi0 = fit
+        .phi0_deg
+        .map_or(0.0, |p| if p.0.is_finite() { p.0 } else { 0.0 });
     let full = model::row(spec, t, phi0);
     let names = model::names(spec);
     full.into_iter()
@@ -497,7 +513,14 @@ fn form_check(
     let p = stats::range(&s.residuals);
     let sigma = summary.two_sigma_2on_um / 2.0;
     let form = artefact.form_um.unwrap_or(0.0);
-    let u = 2.0 * (form * form / 3.0 + if sigma.is_finite() { sigma * sigma } else { 0.0 }).sqrt();
+    let u = 2.0
+        * (form * form / 3.0
+            + if sigma.is_finite() {
+                sigma * sigma
+            } else {
+                0.0
+            })
+        .sqrt();
     Ok(FormCheck {
         p_form_um: p,
         u_k2_um: u,
@@ -555,7 +578,9 @@ fn statements(
     }
     out.push(NotIdentifiable {
         name: "stylus bending ≡ lobing",
-        says: "stylus bending ∝ the trigger force has the same three lobes: it is inside the lobing".into(),
+        says:
+            "stylus bending ∝ the trigger force has the same three lobes: it is inside the lobing"
+                .into(),
     });
     out
 }

@@ -12,7 +12,6 @@ pub(crate) fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
 
-
 /// max − min; NaN when empty.
 pub fn range(v: &[f64]) -> f64 {
     if v.is_empty() {
@@ -58,7 +57,11 @@ pub struct DirectionSpread {
 /// The spread of one direction from its visits (each in touch order, touch 1 first).
 pub fn direction_spread(visits: &[Vec<f64>]) -> DirectionSpread {
     let all: Vec<f64> = visits.iter().flatten().copied().collect();
-    let two_on: Vec<f64> = visits.iter().flat_map(|v| v.iter().skip(1)).copied().collect();
+    let two_on: Vec<f64> = visits
+        .iter()
+        .flat_map(|v| v.iter().skip(1))
+        .copied()
+        .collect();
     let pooled = |skip: usize| {
         let (mut ss, mut dof) = (0.0, 0usize);
         for v in visits {

@@ -58,8 +58,15 @@ fn seed_tables_summary_rows_recomputed_with_the_two_printed_slips() {
             let (one_two, two_ten) = seed_summary_rows(&cols[k]);
             for (label, printed, ours) in [("1~2", p12[k], one_two), ("2~10", p210[k], two_ten)] {
                 if k == slip.0 && label == slip.1 {
-                    assert!((printed - slip.2).abs() < 1e-9, "table {t} printed {printed}");
-                    assert!((ours - slip.3).abs() < 1e-9, "table {t} {label} at {}°: {ours}", 60 * k);
+                    assert!(
+                        (printed - slip.2).abs() < 1e-9,
+                        "table {t} printed {printed}"
+                    );
+                    assert!(
+                        (ours - slip.3).abs() < 1e-9,
+                        "table {t} {label} at {}°: {ours}",
+                        60 * k
+                    );
                 } else {
                     assert!(
                         (printed - ours).abs() < 1e-9,
@@ -75,18 +82,37 @@ fn seed_tables_summary_rows_recomputed_with_the_two_printed_slips() {
 #[test]
 fn seed_table_1_two_touch_figures_and_the_first_harmonic() {
     let (cols, ..) = table(1);
-    let spreads: Vec<_> = cols.iter().map(|c| direction_spread(&[c.clone()])).collect();
+    let spreads: Vec<_> = cols
+        .iter()
+        .map(|c| direction_spread(&[c.clone()]))
+        .collect();
     let s = two_touch_summary(&spreads);
-    assert!((s.mean_range_all_um - 0.2833).abs() < 5e-5, "{}", s.mean_range_all_um);
-    assert!((s.mean_range_2on_um - 0.150).abs() < 1e-9, "{}", s.mean_range_2on_um);
+    assert!(
+        (s.mean_range_all_um - 0.2833).abs() < 5e-5,
+        "{}",
+        s.mean_range_all_um
+    );
+    assert!(
+        (s.mean_range_2on_um - 0.150).abs() < 1e-9,
+        "{}",
+        s.mean_range_2on_um
+    );
     assert!((s.range_ratio - 1.89).abs() < 5e-3, "{}", s.range_ratio);
-    assert!((s.means_spread_um - 3.41).abs() < 5e-3, "{}", s.means_spread_um);
+    assert!(
+        (s.means_spread_um - 3.41).abs() < 5e-3,
+        "{}",
+        s.means_spread_um
+    );
     assert!((s.first_touch_offset_span_um.0 - (-0.48)).abs() < 5e-3);
     assert!((s.first_touch_offset_span_um.1 - 0.02).abs() < 5e-3);
     let phi: Vec<f64> = (0..6).map(|k| 60.0 * k as f64).collect();
     let means: Vec<f64> = spreads.iter().map(|s| s.mean_2on_um).collect();
     let h = fit_harmonics(&phi, &means, &[0.03; 6]).unwrap();
-    assert!((h.order(1).unwrap().amplitude_um - 1.43).abs() < 5e-3, "{:?}", h.order(1));
+    assert!(
+        (h.order(1).unwrap().amplitude_um - 1.43).abs() < 5e-3,
+        "{:?}",
+        h.order(1)
+    );
     assert!(h.lost.iter().any(|l| l.contains("h3_sin_um")));
 }
 
@@ -103,7 +129,12 @@ struct Truth {
     noise_um: f64,
 }
 
-fn simulate(truth: &Truth, n_dirs: usize, per_dir: usize, seed: u64) -> (ProbeCampaignLogs, Vec<f64>) {
+fn simulate(
+    truth: &Truth,
+    n_dirs: usize,
+    per_dir: usize,
+    seed: u64,
+) -> (ProbeCampaignLogs, Vec<f64>) {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, truth.noise_um).unwrap();
     let (big_r, r) = (25.0, 3.0);
@@ -193,7 +224,12 @@ fn lobing_centre_and_first_touch_are_separated_and_the_loop_names_the_first_touc
     let s = study(&logs, &ProbeStudyOptions::default()).unwrap();
     let setup = &s.setups[0];
     assert_eq!(setup.directions.len(), 24);
-    assert_eq!(setup.diagnosis.proposal, Some(ProbeEffect::FirstTouch), "{:?}", setup.diagnosis);
+    assert_eq!(
+        setup.diagnosis.proposal,
+        Some(ProbeEffect::FirstTouch),
+        "{:?}",
+        setup.diagnosis
+    );
     let options = ProbeStudyOptions {
         effects: vec![ProbeEffect::FirstTouch],
         ..ProbeStudyOptions::default()
