@@ -93,12 +93,13 @@ fn pretravel_um(
 /// nominal radius of the tip-centre surface, averaged.
 fn first_centre(kind: ArtefactKind, big_r_mm: f64, r_mm: f64, touches: &[ProbeTouch]) -> [f64; 3] {
     let mut c = [0.0; 3];
+    let reach = match kind {
+        ArtefactKind::Sphere => -(big_r_mm + r_mm),
+        ArtefactKind::Ring => big_r_mm - r_mm,
+    };
     for t in touches {
-        for k in 0..3 {
-            c[k] += match kind {
-                ArtefactKind::Sphere => t.position_mm[k] + (big_r_mm + r_mm) * t.approach[k],
-                ArtefactKind::Ring => t.position_mm[k] - (big_r_mm - r_mm) * t.approach[k],
-            };
+        for (k, ck) in c.iter_mut().enumerate() {
+            *ck += t.position_mm[k] - reach * t.approach[k];
         }
     }
     c.map(|v| v / touches.len() as f64)

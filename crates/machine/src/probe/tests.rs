@@ -84,7 +84,7 @@ fn seed_table_1_two_touch_figures_and_the_first_harmonic() {
     let (cols, ..) = table(1);
     let spreads: Vec<_> = cols
         .iter()
-        .map(|c| direction_spread(&[c.clone()]))
+        .map(|c| direction_spread(std::slice::from_ref(c)))
         .collect();
     let s = two_touch_summary(&spreads);
     assert!(

@@ -7,8 +7,8 @@
 //! x_k = c_k + 10⁻³ [δ(φ_k) + v τ + noise] a_k − 10⁻³ O_{k−1} − 10⁻³ g(t_k)
 //! ```
 //!
-//! with c_k the tip centre at first contact on the true artefact (true centre = programme centre
-//! + offset; true radius with its lobed form; true tip radius), δ the seed's tri-lobe
+//! with c_k the tip centre at first contact on the true artefact (the true centre is the
+//! programme's centre plus the offset; true radius with its lobed form; true tip radius), δ the seed's tri-lobe
 //! (eqs. 10–11: δ_min / cos(60° − φ'), φ' = (φ − φ₀ − spindle) mod 120°), v τ feed × latency,
 //! O the pendulum's rest offset after the previous touch (O(a) = rest (cos(φ_a + twist),
 //! sin(φ_a + twist), 0)), g the machine's drift. The truth is written beside the campaign
