@@ -258,3 +258,79 @@ fn lobing_centre_and_first_touch_are_separated_and_the_loop_names_the_first_touc
     // U is k = 2: about 95 % of 24 inside.
     assert!(inside >= 20, "{inside} of 24 first-touch offsets within U");
 }
+
+/// Seed Table 1 as touches on a ring with a declared centre (as `tests/e2e/probe.rs` writes it):
+/// the study says by name what six directions cannot tell.
+#[test]
+fn seed_table_1_as_touches_names_what_six_directions_cannot_tell() {
+    let (cols, ..) = table(1);
+    let centre = [250.0, 150.0, -80.0];
+    let mut touches = Vec::new();
+    for (d, col) in cols.iter().enumerate() {
+        let a = approach_of(60.0 * d as f64, 0.0);
+        for (k, v) in col.iter().enumerate() {
+            let seq = (d * 10 + k + 1) as i64;
+            let reach = 22.0 + 1e-3 * v;
+            touches.push(ProbeTouch {
+                time_ns: 1_800_000_000_000_000_000 + seq * 5_000_000_000,
+                seq,
+                approach: a,
+                position_mm: std::array::from_fn(|c| centre[c] + reach * a[c]),
+                feed_mm_min: Some(100.0),
+                stylus: "S1".into(),
+                artefact: "ring".into(),
+                spindle_deg: None,
+                touch_in_direction: 0,
+            });
+        }
+    }
+    derive_directions(&mut touches, 1.0);
+    let logs = ProbeCampaignLogs {
+        campaign: ProbeCampaign {
+            id: "t1".into(),
+            reference_temperature_c: 20.0,
+            probe_model: None,
+            same_direction_deg: 1.0,
+            styli: vec![StylusDecl {
+                id: "S1".into(),
+                tip_diameter_mm: 6.0,
+                length_mm: None,
+            }],
+            artefacts: vec![ArtefactDecl {
+                id: "ring".into(),
+                kind: ArtefactKind::Ring,
+                diameter_mm: 50.0,
+                u_um: 0.05,
+                form_um: Some(0.05),
+                centre_mm: Some(centre),
+            }],
+        },
+        inputs: Vec::new(),
+        touches,
+    };
+    let options = ProbeStudyOptions {
+        mpe_um: Some(1.0),
+        ..ProbeStudyOptions::default()
+    };
+    let s = study(&logs, &options).unwrap();
+    let setup = &s.setups[0];
+    let t = &setup.summary;
+    assert!((t.mean_range_all_um - 0.2833).abs() < 5e-4);
+    assert!((t.range_ratio - 1.89).abs() < 5e-3);
+    assert!((setup.directions[3].spread.range_2on_um - 0.3).abs() < 1e-9);
+    let by_name = |n: &str| setup.not_identifiable.iter().find(|x| x.name == n);
+    let h1 = by_name("1st harmonic ≡ centre offset").expect("1st harmonic statement");
+    assert!(
+        h1.says.contains("1st harmonic of 1.43 µm") && h1.says.contains("not pretravel"),
+        "{}",
+        h1.says
+    );
+    let six = by_name("6 directions: sin 3φ unseen").expect("six-direction statement");
+    assert!(
+        six.says.contains("lobes' phase is not fixed"),
+        "{}",
+        six.says
+    );
+    assert!(by_name("0th harmonic ≡ tip radius").is_some());
+    assert!(setup.form.decision.is_some());
+}
