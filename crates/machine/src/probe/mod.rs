@@ -105,7 +105,8 @@ pub struct DirectionResult {
 pub struct LobingResult {
     /// The model.
     pub model: Lobing,
-    /// Physical: δ_min (µm) and U; harmonic: the 3rd harmonic's amplitude and U.
+    /// Physical: δ_min (µm) and U (NaN when the seat phase is not fixed); harmonic: the 3rd
+    /// harmonic's amplitude and U.
     pub size_um: (f64, f64),
     /// Physical: the seat phase φ₀; harmonic: the 3rd harmonic's phase (degrees, U); NaN when
     /// the touches do not fix it.

@@ -406,11 +406,23 @@ fn lobing_result(fit: &ModelFit) -> LobingResult {
     let s = &fit.solution;
     match fit.spec.lobing {
         Lobing::Physical => {
-            let d = value(s, "lobe_delta_min_um");
+            // δ_min at a seat phase the touches do not fix means nothing: not determined.
+            let phase = fit.phi0_deg.unwrap_or((f64::NAN, f64::NAN));
+            let fixed = phase.1.is_finite();
+            let d = if fixed {
+                value(s, "lobe_delta_min_um")
+            } else {
+                f64::NAN
+            };
+            let u = if fixed {
+                u_k2(s, "lobe_delta_min_um")
+            } else {
+                f64::NAN
+            };
             LobingResult {
                 model: Lobing::Physical,
-                size_um: (d, u_k2(s, "lobe_delta_min_um")),
-                phase_deg: fit.phi0_deg.unwrap_or((f64::NAN, f64::NAN)),
+                size_um: (d, u),
+                phase_deg: phase,
                 peak_to_valley_um: d,
             }
         }

@@ -333,4 +333,6 @@ fn seed_table_1_as_touches_names_what_six_directions_cannot_tell() {
     );
     assert!(by_name("0th harmonic ≡ tip radius").is_some());
     assert!(setup.form.decision.is_some());
+    // Six directions do not fix the seat phase: no δ_min is claimed.
+    assert!(!setup.lobing.phase_deg.1.is_finite() && !setup.lobing.size_um.0.is_finite());
 }
