@@ -160,12 +160,19 @@ fn shortest_fitted_tau_s(results: &RunResults) -> Option<f64> {
 
 /// Write a simulated campaign into `out` (which must not exist).
 /// A simulation TOML with `kind = "axis"` makes an `axis` campaign instead
-/// (`crate::simulate::generate_axis`).
+/// (`crate::simulate::generate_axis`); `kind = "probe"` a `probe` campaign
+/// (`crate::simulate::generate_probe`).
 pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<()> {
     let mut cfg = match config {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read {}", p.display()))?;
+            let probe = crate::simulate::is_probe_config(&text).map_err(|e| {
+                anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
+            })?;
+            if probe {
+                return simulate_probe(p, &text, out, seed);
+            }
             let axis = crate::simulate::is_axis_config(&text).map_err(|e| {
                 anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
             })?;
@@ -203,6 +210,24 @@ fn simulate_axis(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Resu
     let sim = crate::simulate::generate_axis(&cfg)?;
     create_new_folder(out, |tmp| {
         crate::simulate::write_axis(&sim, tmp, &cfg.output, cfg.seed).map_err(anyhow::Error::from)
+    })
+}
+
+/// [`simulate`] for a `probe` campaign: the configuration `text` (of file `path`).
+fn simulate_probe(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
+    let mut cfg = toml::from_str::<crate::simulate::ProbeSimConfig>(text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    if std::fs::symlink_metadata(out).is_ok() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = crate::simulate::generate_probe(&cfg)?;
+    create_new_folder(out, |tmp| {
+        crate::simulate::write_probe(&sim, tmp, &cfg).map_err(anyhow::Error::from)
     })
 }
 

@@ -5,6 +5,7 @@
 //! for a new kind").
 
 pub mod axis;
+pub mod probe;
 
 use std::path::{Path, PathBuf};
 
@@ -20,6 +21,8 @@ pub enum KindPlan {
     Ballbar(Box<RunPlan>),
     /// An `axis` campaign (seed 002).
     Axis(axis::AxisPlan),
+    /// A `probe` campaign (seed 003).
+    Probe(probe::ProbePlan),
 }
 
 /// The campaign directory a run reads: `--campaign`, else the pipeline's `[pipeline] campaign`,
@@ -82,6 +85,18 @@ pub fn plan_run(
                 },
                 other => other,
             }),
+        CampaignKind::Probe => probe::ProbePlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
+            .map(KindPlan::Probe)
+            .map_err(|e| match e {
+                PlanError::Pipeline { path, message } => PlanError::Pipeline {
+                    path,
+                    message: format!(
+                        "{} is a probe campaign (run it with pipelines/probe.toml): {message}",
+                        dir.display()
+                    ),
+                },
+                other => other,
+            }),
         other => Err(PlanError::NotInCampaign(format!(
             "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\" and \"axis\" campaigns",
             manifest.display(),
@@ -95,5 +110,6 @@ pub fn run(plan: &KindPlan) -> anyhow::Result<Outcome> {
     match plan {
         KindPlan::Ballbar(p) => crate::runner::run(p),
         KindPlan::Axis(p) => axis::run(p),
+        KindPlan::Probe(p) => probe::run(p),
     }
 }

@@ -9,6 +9,7 @@ pub(crate) mod device;
 pub(crate) mod device_loop;
 pub(crate) mod fit_report;
 pub(crate) mod page;
+pub(crate) mod probe;
 
 use crate::model::Effect;
 use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};

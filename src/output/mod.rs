@@ -38,6 +38,7 @@ pub(crate) mod diagnosis;
 pub(crate) mod fault;
 mod location;
 mod lock;
+pub(crate) mod probe;
 pub(crate) mod stage_records;
 pub(crate) mod summary;
 use location::*;

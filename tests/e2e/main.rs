@@ -20,6 +20,7 @@ mod machine_tool;
 mod nist;
 mod one_length;
 mod page;
+mod probe;
 mod row_order;
 mod safe_outputs;
 mod support;

@@ -11,6 +11,8 @@ mod axis;
 mod axis_write;
 mod guard;
 mod inputs;
+mod probe;
+mod probe_write;
 mod read;
 mod repeats;
 mod table;
@@ -33,6 +35,8 @@ use dbbcal_core::series::CampaignLogs;
 pub use axis::{read_axis_campaign, read_axis_manifest};
 pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;
+pub use probe::{read_probe_campaign, read_probe_manifest};
+pub use probe_write::{write_probe_campaign, ProbeWriteOptions};
 pub use table::{write_table, write_table_csv, Column, Table};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 

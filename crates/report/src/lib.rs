@@ -23,6 +23,7 @@ mod heatmap;
 mod ledger;
 mod legend;
 mod panel;
+mod polar;
 mod residuals;
 mod series_panels;
 mod style;
@@ -38,6 +39,7 @@ pub use fleet::{render_fleet, FleetFigure, ParameterPanel};
 pub use geometry::{render_geometry, GeometryFigure, GeometryView};
 pub use heatmap::{render_heat_map, HeatMapFigure, MatrixHighlight};
 pub use ledger::{render_ledger, LedgerFigure};
+pub use polar::{render_polar, PolarFigure, PolarSeries};
 pub use residuals::{render_residual_diagnostics, ResidualDiagnosticsFigure};
 pub use series_panels::{render_series_panels, SeriesPanel, SeriesPanelsFigure, XAxis};
 

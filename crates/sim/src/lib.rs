@@ -20,7 +20,8 @@
 //!
 //! The `axis` machine kind (`docs/spec/machine-formats.md`) has its own generator:
 //! [`generate_axis`] from an [`AxisSimConfig`] (a simulation TOML with `kind = "axis"`,
-//! [`is_axis_config`]), written by [`write_axis`].
+//! [`is_axis_config`]), written by [`write_axis`]; so has the `probe` kind: [`generate_probe`]
+//! from a [`ProbeSimConfig`] (`kind = "probe"`, [`is_probe_config`]), written by [`write_probe`].
 
 mod axis;
 pub(crate) mod config;
@@ -30,6 +31,7 @@ mod fleet;
 mod geometry;
 pub mod hexapod;
 mod lag;
+mod probe;
 mod schedule;
 pub(crate) mod truth;
 
@@ -58,6 +60,11 @@ pub use config::{
     WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
+pub use probe::{
+    generate_probe, is_probe_config, write_probe, ProbeSimArtefact, ProbeSimConfig, ProbeSimOutput,
+    ProbeSimPretravel, ProbeSimReversal, ProbeSimStylus, ProbeSimTouches, ProbeSimulation,
+    ProbeTruth, TruthDirection, TruthTouch,
+};
 pub use truth::{
     BarGeometry, BarTruth, ChannelTruth, HeadTruth, HeatTruth, MountTruth, PlateTruth,
     SecondPathTruth, Truth,
