@@ -116,7 +116,7 @@ fn known_kinds() -> String {
         .join(", ")
 }
 
-fn syntax_error(text: &str, file: &str, e: &toml::de::Error) -> CampaignError {
+pub(crate) fn syntax_error(text: &str, file: &str, e: &toml::de::Error) -> CampaignError {
     let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
     CampaignError::Syntax {
         file: file.to_string(),

@@ -22,3 +22,4 @@ pub mod model;
 pub mod positions;
 pub mod series;
 pub mod signal;
+pub mod volumetric_campaign;
