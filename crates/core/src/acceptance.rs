@@ -147,7 +147,7 @@ pub struct BarAcceptance {
 }
 
 /// The ISO 14253-1 decision for a worst error `max_abs_um` with expanded uncertainty `u_k2_um`.
-pub(crate) fn decide(max_abs_um: f64, u_k2_um: f64, tolerance_um: f64) -> Decision {
+pub fn decide(max_abs_um: f64, u_k2_um: f64, tolerance_um: f64) -> Decision {
     if !(max_abs_um.is_finite() && u_k2_um.is_finite()) {
         return Decision::NoDecision;
     }

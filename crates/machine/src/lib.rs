@@ -28,3 +28,4 @@ pub mod linear;
 pub mod pose;
 pub mod pose_errors;
 pub mod straightness;
+pub mod volumetric;
