@@ -296,7 +296,10 @@ impl VolumetricCampaign {
             )?;
         }
         let w = &m.workspace;
-        for (key, p) in [("workspace.min_mm", &w.min_mm), ("workspace.max_mm", &w.max_mm)] {
+        for (key, p) in [
+            ("workspace.min_mm", &w.min_mm),
+            ("workspace.max_mm", &w.max_mm),
+        ] {
             point(p).map_err(|e| invalid(key, e))?;
         }
         if let Some(k) = (0..3).find(|&k| w.max_mm[k] <= w.min_mm[k]) {

@@ -24,9 +24,17 @@ fn the_spec_example_manifest_validates() {
 
 #[test]
 fn a_grid_outside_the_workspace_is_refused_naming_the_key() {
-    let text = MANIFEST.replace("spacing_mm = [500.0, 200.0, 250.0]", "spacing_mm = [600.0, 200.0, 250.0]");
-    let e = VolumetricCampaign::from_toml_str(&text, "campaign.toml").unwrap_err().to_string();
-    assert!(e.contains("grid") && e.contains("outside the workspace"), "{e}");
+    let text = MANIFEST.replace(
+        "spacing_mm = [500.0, 200.0, 250.0]",
+        "spacing_mm = [600.0, 200.0, 250.0]",
+    );
+    let e = VolumetricCampaign::from_toml_str(&text, "campaign.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("grid") && e.contains("outside the workspace"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -59,5 +67,8 @@ fn diagonal_directions_are_derived_and_rows_ordered() {
     let rows = vec![r(3, 0.0), r(1, 0.0), r(2, 100.0)];
     let out = order_diagonal_readings(&rows, &[None, None, None]).unwrap();
     assert_eq!(out.iter().map(|r| r.time_ns).collect::<Vec<_>>(), [1, 2, 3]);
-    assert_eq!(out.iter().map(|r| r.direction).collect::<Vec<_>>(), [1, 1, -1]);
+    assert_eq!(
+        out.iter().map(|r| r.direction).collect::<Vec<_>>(),
+        [1, 1, -1]
+    );
 }

@@ -53,13 +53,17 @@ impl Grid {
         for a in 0..3 {
             let t = (p_mm[a] - self.origin_mm[a]) / self.spacing_mm[a];
             let last = (self.counts[a] - 1) as f64;
-            if !(t >= -1e-9 && t <= last + 1e-9) {
+            if t.is_nan() || t < -1e-9 || t > last + 1e-9 {
                 return None;
             }
             let t = t.clamp(0.0, last);
             let cell = (t.floor() as usize).min(self.counts[a].saturating_sub(2));
             lower[a] = cell + 1;
-            frac[a] = if self.counts[a] == 1 { 0.0 } else { t - cell as f64 };
+            frac[a] = if self.counts[a] == 1 {
+                0.0
+            } else {
+                t - cell as f64
+            };
         }
         let mut f = 0.0;
         for c in 0..2 {
@@ -85,7 +89,9 @@ impl Grid {
 pub fn range(values: impl IntoIterator<Item = f64>) -> f64 {
     let (lo, hi) = values
         .into_iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(v), h.max(v))
+        });
     if lo.is_finite() {
         hi - lo
     } else {

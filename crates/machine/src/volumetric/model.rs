@@ -225,8 +225,10 @@ impl Layout {
                 }
             }
         }
-        let mut runs: Vec<(DiagonalSign, i64, bool)> =
-            obs.iter().map(|o| (o.diagonal, o.run, o.is_step())).collect();
+        let mut runs: Vec<(DiagonalSign, i64, bool)> = obs
+            .iter()
+            .map(|o| (o.diagonal, o.run, o.is_step()))
+            .collect();
         runs.sort();
         runs.dedup();
         let offsets = runs
@@ -372,7 +374,9 @@ impl Layout {
     /// The columns of nuisance parameters (pointing, drift, datum offsets), which the error
     /// field never uses.
     pub fn is_nuisance(&self, index: usize) -> bool {
-        self.pointing.iter().any(|(_, s)| index == *s || index == s + 1)
+        self.pointing
+            .iter()
+            .any(|(_, s)| index == *s || index == s + 1)
             || self.drift.iter().any(|(_, i)| *i == index)
             || self.offsets.iter().any(|(_, i)| *i == index)
     }

@@ -136,7 +136,10 @@ fn gauge_rows(p: usize) -> (Vec<Vec<f64>>, Vec<String>) {
         r[s(b, b)] = -1.0;
         rows.push(r);
     }
-    words.push("equal scales: slope Dx(x) = slope Dy(y) = slope Dz(z) (each = Σ L_k² ε_k / D²)".to_string());
+    words.push(
+        "equal scales: slope Dx(x) = slope Dy(y) = slope Dz(z) (each = Σ L_k² ε_k / D²)"
+            .to_string(),
+    );
     for (a, b) in [(0, 1), (1, 2), (2, 0)] {
         let mut r = vec![0.0; p];
         r[s(b, a)] = 1.0;

@@ -26,7 +26,13 @@ fn frame(min: [f64; 3], max: [f64; 3], counts: [usize; 3]) -> Frame {
 }
 
 /// Body-diagonal readings Dr(d) = u·[e(P0 + d u) − e(P0)], `runs` runs each way, 10 targets.
-fn body_readings(f: &Frame, e: &Field, runs: i64, noise: f64, rng: &mut ChaCha8Rng) -> Vec<Observation> {
+fn body_readings(
+    f: &Frame,
+    e: &Field,
+    runs: i64,
+    noise: f64,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Observation> {
     let mut out = Vec::new();
     let normal = Normal::new(0.0, noise.max(1e-300)).unwrap();
     for sign in DiagonalSign::ALL {
@@ -75,12 +81,19 @@ fn step_readings(
             let mut push = |p: [f64; 3], step: i64, sub: Option<usize>, rng: &mut ChaCha8Rng| {
                 let ep = e(p);
                 let mut v: f64 = (0..3).map(|k| d.u[k] * (ep[k] - e0[k])).sum();
-                v += 1e3 * (0..3).map(|k| beta_rad[sign.index()][k] * (p[k] - d.p0_mm[k])).sum::<f64>();
+                v += 1e3
+                    * (0..3)
+                        .map(|k| beta_rad[sign.index()][k] * (p[k] - d.p0_mm[k]))
+                        .sum::<f64>();
                 out.push(Observation {
                     diagonal: sign,
                     run,
                     direction: 1,
-                    place: Place::Step { position_mm: p, step, submove: sub },
+                    place: Place::Step {
+                        position_mm: p,
+                        step,
+                        submove: sub,
+                    },
                     hours: 0.0,
                     deviation_um: v + if noise > 0.0 { normal.sample(rng) } else { 0.0 },
                 });
@@ -99,7 +112,11 @@ fn step_readings(
 
 #[test]
 fn table_numbering_follows_the_spec() {
-    let g = Grid { counts: [3, 4, 3], origin_mm: [0.0; 3], spacing_mm: [1.0; 3] };
+    let g = Grid {
+        counts: [3, 4, 3],
+        origin_mm: [0.0; 3],
+        spacing_mm: [1.0; 3],
+    };
     assert_eq!(g.line(1, 2, 1), Some(4));
     assert_eq!(g.line(1, 1, 2), Some(13));
     assert_eq!(g.line(3, 4, 3), Some(36));
@@ -114,7 +131,11 @@ fn table_numbering_follows_the_spec() {
 
 #[test]
 fn trilinear_reads_vertices_cell_centres_and_linear_fields() {
-    let g = Grid { counts: [3, 4, 3], origin_mm: [0.0, 0.0, -500.0], spacing_mm: [500.0, 200.0, 250.0] };
+    let g = Grid {
+        counts: [3, 4, 3],
+        origin_mm: [0.0, 0.0, -500.0],
+        spacing_mm: [500.0, 200.0, 250.0],
+    };
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let values: Vec<f64> = (0..36).map(|_| rng.gen_range(-5.0..5.0)).collect();
     for (l, p) in g.positions().iter().enumerate() {
@@ -135,7 +156,11 @@ fn trilinear_reads_vertices_cell_centres_and_linear_fields() {
     let lin = |p: [f64; 3]| 0.3 + 0.01 * p[0] - 0.02 * p[1] + 0.005 * p[2];
     let field: Vec<f64> = g.positions().into_iter().map(lin).collect();
     for _ in 0..50 {
-        let p = [rng.gen_range(0.0..1000.0), rng.gen_range(0.0..600.0), rng.gen_range(-500.0..0.0)];
+        let p = [
+            rng.gen_range(0.0..1000.0),
+            rng.gen_range(0.0..600.0),
+            rng.gen_range(-500.0..0.0),
+        ];
         assert!((g.trilinear(&field, p).unwrap() - lin(p)).abs() < 1e-9);
     }
     assert_eq!(g.trilinear(&values, [1000.1, 0.0, -500.0]), None);
@@ -148,7 +173,9 @@ fn scale_errors_that_cancel_on_the_diagonals_are_14_um_and_invisible_to_them() {
     // Truth figures.
     let errors: Vec<[f64; 3]> = f.grid.positions().into_iter().map(e).collect();
     let positioning = [0, 1, 2].map(|k| {
-        (0..=10).map(|i| e([0, 1, 2].map(|a| if a == k { i as f64 * 100.0 } else { 0.0 }))[k]).collect::<Vec<_>>()
+        (0..=10)
+            .map(|i| e([0, 1, 2].map(|a| if a == k { i as f64 * 100.0 } else { 0.0 }))[k])
+            .collect::<Vec<_>>()
     });
     assert!((grid::v1_um(&positioning) - 14.142).abs() < 1e-3);
     assert!((grid::v2_um(&errors) - 14.142).abs() < 1e-3);
@@ -161,8 +188,14 @@ fn scale_errors_that_cancel_on_the_diagonals_are_14_um_and_invisible_to_them() {
         assert!(c.e_um.unwrap().abs() < 0.005, "{:?}", c.e_um);
     }
     assert!(s.v_diag.unwrap().value_um < 0.005);
-    assert!(s.invisible.iter().any(|l| l.contains("per-axis scale differences are invisible")));
-    assert!(s.invisible.iter().any(|l| l.contains("4 of 9 linear terms")));
+    assert!(s
+        .invisible
+        .iter()
+        .any(|l| l.contains("per-axis scale differences are invisible")));
+    assert!(s
+        .invisible
+        .iter()
+        .any(|l| l.contains("4 of 9 linear terms")));
     assert!(!s.figures_identifiable);
     // The slopes of Dx(x), Dy(y) are not seen; the mean scale is, and is 0.
     assert!(!s.slopes[0][0].identifiable && !s.slopes[1][1].identifiable);
@@ -177,7 +210,12 @@ fn squareness_of_20_urad_gives_v2_v3_20_and_v_diag_11_55() {
     assert!((grid::v2_um(&errors) - 20.0).abs() < 1e-9);
     assert!((grid::v3_um(&errors) - 20.0).abs() < 1e-9);
     let mut rng = ChaCha8Rng::seed_from_u64(2);
-    let s = analyse(body_readings(&f, &e, 2, 0.0, &mut rng), &f, &VolumetricStudyOptions::default()).unwrap();
+    let s = analyse(
+        body_readings(&f, &e, 2, 0.0, &mut rng),
+        &f,
+        &VolumetricStudyOptions::default(),
+    )
+    .unwrap();
     let v = s.v_diag.unwrap().value_um;
     assert!((v - 11.547).abs() < 0.005, "{v}");
     assert!((s.squareness[0].value - 20.0).abs() < 1e-6 && s.squareness[0].identifiable);
@@ -185,7 +223,11 @@ fn squareness_of_20_urad_gives_v2_v3_20_and_v_diag_11_55() {
 }
 
 /// Random smooth truth: scales, squareness and cubic shapes, zero at the min corner.
-fn random_field(rng: &mut ChaCha8Rng, min: [f64; 3], len: [f64; 3]) -> impl Fn([f64; 3]) -> [f64; 3] {
+fn random_field(
+    rng: &mut ChaCha8Rng,
+    min: [f64; 3],
+    len: [f64; 3],
+) -> impl Fn([f64; 3]) -> [f64; 3] {
     let mut c = [[[0.0; 3]; 3]; 3]; // [j][k][power-1]
     for j in 0..3 {
         for k in 0..3 {
@@ -207,7 +249,9 @@ fn random_field(rng: &mut ChaCha8Rng, min: [f64; 3], len: [f64; 3]) -> impl Fn([
 }
 
 fn ls_slope_of(e: &Field, k: usize, j: usize, min: [f64; 3], len: [f64; 3], n: usize) -> f64 {
-    let q: Vec<f64> = (0..=n).map(|i| min[j] + len[j] * i as f64 / n as f64).collect();
+    let q: Vec<f64> = (0..=n)
+        .map(|i| min[j] + len[j] * i as f64 / n as f64)
+        .collect();
     let v: Vec<f64> = q
         .iter()
         .map(|x| {
@@ -239,7 +283,15 @@ fn the_joint_fit_finds_squareness_under_pointing_where_the_naive_inversion_scatt
         let e = random_field(&mut rng, min, len);
         let beta = DiagonalSign::ALL.map(|s| pointing(&mut rng, &Diagonal::new(s, min, max)));
         let obs = step_readings(&f, &e, n, &beta, 2, 0.05, &mut rng);
-        let s = analyse(obs, &f, &VolumetricStudyOptions { forward_steps: 0, ..Default::default() }).unwrap();
+        let s = analyse(
+            obs,
+            &f,
+            &VolumetricStudyOptions {
+                forward_steps: 0,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let truth = [(0, 1), (1, 2), (2, 0)]
             .map(|(a, b)| ls_slope_of(&e, b, a, min, len, n) + ls_slope_of(&e, a, b, min, len, n));
         let naive = s.naive.as_ref().unwrap();
@@ -270,7 +322,11 @@ fn without_pointing_step_diagonals_see_all_nine_slopes_and_the_fourth_pattern_is
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let e = random_field(&mut rng, min, [800.0, 600.0, 400.0]);
     let obs = step_readings(&f, &e, 8, &[[0.0; 3]; 4], 1, 0.0, &mut rng);
-    let opts = VolumetricStudyOptions { effects: vec![], forward_steps: 0, ..Default::default() };
+    let opts = VolumetricStudyOptions {
+        effects: vec![],
+        forward_steps: 0,
+        ..Default::default()
+    };
     let s = analyse(obs, &f, &opts).unwrap();
     assert!(s.fit.lost.is_empty(), "{:?}", s.fit.lost);
     assert!(s.slopes.iter().flatten().all(|q| q.identifiable));
@@ -296,7 +352,11 @@ fn pointing_shows_in_the_fourth_pattern_and_the_loop_names_it() {
     let e = random_field(&mut rng, min, [1000.0, 600.0, 500.0]);
     let beta = DiagonalSign::ALL.map(|s| pointing(&mut rng, &Diagonal::new(s, min, max)));
     let obs = step_readings(&f, &e, 10, &beta, 2, 0.05, &mut rng);
-    let opts = VolumetricStudyOptions { effects: vec![], forward_steps: 1, ..Default::default() };
+    let opts = VolumetricStudyOptions {
+        effects: vec![],
+        forward_steps: 1,
+        ..Default::default()
+    };
     let s = analyse(obs, &f, &opts).unwrap();
     assert_eq!(s.diagnosis.proposal, Some(VolumetricEffect::Pointing));
     let best = &s.diagnosis.candidates[0];

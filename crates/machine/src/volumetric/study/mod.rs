@@ -19,7 +19,7 @@ pub mod diagnosis;
 use std::collections::BTreeMap;
 
 use dbbcal_core::axis_campaign::LaserCompensation;
-use dbbcal_core::volumetric_campaign::{VolumetricCampaignLogs, DiagonalSign};
+use dbbcal_core::volumetric_campaign::{DiagonalSign, VolumetricCampaignLogs};
 
 use super::grid::{self, Grid};
 use super::model::{Layout, Observation, Place, VolumetricEffect, AXES};
@@ -327,9 +327,7 @@ pub fn analyse(
         })
         .collect();
     let (v1, v2, v3) = figures(&fit, &nodes);
-    let figures_identifiable = nodes
-        .iter()
-        .all(|n| n.error.iter().all(|q| q.identifiable));
+    let figures_identifiable = nodes.iter().all(|n| n.error.iter().all(|q| q.identifiable));
     let curves = curves(&obs, frame.min_mm, frame.max_mm);
     let v_diag = v_diag(&curves);
     let mut invisible = invisible(&fit, &obs, n);
@@ -375,7 +373,10 @@ fn figures(fit: &JointFit, nodes: &[NodeError]) -> (Figure, Figure, Figure) {
         })
         .sum::<f64>()
         .sqrt();
-    let errors: Vec<[f64; 3]> = nodes.iter().map(|n| n.error.clone().map(|q| q.value)).collect();
+    let errors: Vec<[f64; 3]> = nodes
+        .iter()
+        .map(|n| n.error.clone().map(|q| q.value))
+        .collect();
     let v2 = grid::v2_um(&errors);
     let mut u2 = 0.0;
     for k in 0..3 {
@@ -426,11 +427,7 @@ fn argmax(v: &[f64], key: impl Fn(f64) -> f64) -> usize {
 }
 
 /// Per diagonal: ISO 230-2 from the body readings, else from the step points on the diagonal.
-fn curves(
-    obs: &[Observation],
-    min_mm: [f64; 3],
-    max_mm: [f64; 3],
-) -> Vec<DiagonalCurve> {
+fn curves(obs: &[Observation], min_mm: [f64; 3], max_mm: [f64; 3]) -> Vec<DiagonalCurve> {
     let mut out = Vec::new();
     for sign in DiagonalSign::ALL {
         let diag = super::Diagonal::new(sign, min_mm, max_mm);
@@ -498,8 +495,16 @@ fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, String> {
             let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
             TargetDeviations {
                 position_mm: key as f64 / 1e3,
-                up_um: runs.iter().filter(|(k, _)| k.0 > 0).map(|(_, v)| mean(v)).collect(),
-                down_um: runs.iter().filter(|(k, _)| k.0 < 0).map(|(_, v)| mean(v)).collect(),
+                up_um: runs
+                    .iter()
+                    .filter(|(k, _)| k.0 > 0)
+                    .map(|(_, v)| mean(v))
+                    .collect(),
+                down_um: runs
+                    .iter()
+                    .filter(|(k, _)| k.0 < 0)
+                    .map(|(_, v)| mean(v))
+                    .collect(),
             }
         })
         .collect();
@@ -507,9 +512,10 @@ fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, String> {
 }
 
 fn v_diag(curves: &[DiagonalCurve]) -> Option<Figure> {
-    let e = curves.iter().filter_map(|c| c.e_um).fold(None, |a: Option<f64>, v| {
-        Some(a.map_or(v, |a| a.max(v)))
-    })?;
+    let e = curves
+        .iter()
+        .filter_map(|c| c.e_um)
+        .fold(None, |a: Option<f64>, v| Some(a.map_or(v, |a| a.max(v))))?;
     let u = curves
         .iter()
         .filter_map(|c| c.iso.as_ref().ok())
@@ -587,11 +593,7 @@ fn count_lost_slopes(fit: &JointFit) -> usize {
         basis.push(c);
     }
     // The identifiable subspace of the 9 slopes: 9 − rank of the null vectors' slope parts.
-    let null_slopes: Vec<Vec<f64>> = fit
-        .lost_vectors()
-        .iter()
-        .map(|v| v[..9].to_vec())
-        .collect();
+    let null_slopes: Vec<Vec<f64>> = fit.lost_vectors().iter().map(|v| v[..9].to_vec()).collect();
     let m = nalgebra::DMatrix::from_fn(null_slopes.len().max(1), 9, |i, j| {
         null_slopes.get(i).map_or(0.0, |v| v[j])
     });
@@ -599,7 +601,10 @@ fn count_lost_slopes(fit: &JointFit) -> usize {
     m.rank(1e-8 * m.norm().max(1e-300))
 }
 
-fn residual_rms(fit: &JointFit, obs: &[Observation]) -> Vec<(DiagonalSign, &'static str, f64, usize)> {
+fn residual_rms(
+    fit: &JointFit,
+    obs: &[Observation],
+) -> Vec<(DiagonalSign, &'static str, f64, usize)> {
     let mut acc: BTreeMap<(DiagonalSign, &'static str), (f64, usize)> = BTreeMap::new();
     for (o, r) in obs.iter().zip(&fit.residuals) {
         let src = match o.place {
