@@ -23,3 +23,4 @@ pub mod positions;
 pub mod probe_campaign;
 pub mod series;
 pub mod signal;
+pub mod volumetric_campaign;

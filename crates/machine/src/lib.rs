@@ -31,3 +31,4 @@ pub mod pose;
 pub mod pose_errors;
 pub mod probe;
 pub mod straightness;
+pub mod volumetric;

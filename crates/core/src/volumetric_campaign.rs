@@ -1,0 +1,432 @@
+//! The `volumetric` campaign kind (`docs/spec/machine-formats.md`, "Kind volumetric"; seed
+//! 001): body diagonals (ISO 230-6) and sequential step diagonals measured by a laser. Types
+//! only, no IO.
+//!
+//! [`VolumetricManifest`] mirrors its `campaign.toml` one to one (and is what the simulator
+//! writes); [`VolumetricCampaign`] is the validated form, every error one line naming the file
+//! and the key. The logs as plain data and the reader rules (order, direction, sub-move order)
+//! are in [`logs`].
+
+use serde::{Deserialize, Serialize};
+
+use crate::axis_campaign::{
+    syntax_error, CampaignKind, KindSection, LaserCompensation, MachineSensorDecl,
+};
+use crate::campaign::{check_campaign_id, display_number, limits, CampaignError};
+
+pub mod logs;
+#[cfg(test)]
+mod tests;
+
+pub use logs::{
+    order_diagonal_readings, order_step_readings, DiagonalReading, StepReading,
+    VolumetricCampaignLogs, VolumetricCampaignTables,
+};
+
+/// A diagonal, named by its sign vector s = (sx, sy, sz) (`"+++"`, `"-++"`, `"+-+"`, `"++-"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum DiagonalSign {
+    /// `+++`.
+    Ppp,
+    /// `-++`.
+    Mpp,
+    /// `+-+`.
+    Pmp,
+    /// `++-`.
+    Ppm,
+}
+
+impl DiagonalSign {
+    /// The four diagonals, in the spec's order.
+    pub const ALL: [DiagonalSign; 4] = [
+        DiagonalSign::Ppp,
+        DiagonalSign::Mpp,
+        DiagonalSign::Pmp,
+        DiagonalSign::Ppm,
+    ];
+
+    /// The sign vector as written (`"+++"` …); `parse(d.as_str()) == Some(d)`.
+    pub fn as_str(self) -> &'static str {
+        ["+++", "-++", "+-+", "++-"][self.index()]
+    }
+
+    /// The diagonal a word names.
+    pub fn parse(word: &str) -> Option<DiagonalSign> {
+        Self::ALL.into_iter().find(|d| d.as_str() == word)
+    }
+
+    /// 0 … 3 in the order of [`ALL`](Self::ALL).
+    pub fn index(self) -> usize {
+        match self {
+            DiagonalSign::Ppp => 0,
+            DiagonalSign::Mpp => 1,
+            DiagonalSign::Pmp => 2,
+            DiagonalSign::Ppm => 3,
+        }
+    }
+
+    /// (sx, sy, sz) as ±1.
+    pub fn signs(self) -> [f64; 3] {
+        match self {
+            DiagonalSign::Ppp => [1.0, 1.0, 1.0],
+            DiagonalSign::Mpp => [-1.0, 1.0, 1.0],
+            DiagonalSign::Pmp => [1.0, -1.0, 1.0],
+            DiagonalSign::Ppm => [1.0, 1.0, -1.0],
+        }
+    }
+}
+
+impl std::fmt::Display for DiagonalSign {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.as_str())
+    }
+}
+
+/// The laser's target (`[laser] target`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LaserTarget {
+    /// A flat mirror: lateral motion does not change the reading (needed by step diagonals).
+    FlatMirror,
+    /// A retroreflector: lateral sub-moves walk the beam off.
+    Retroreflector,
+}
+
+/// `[machine]` of a `volumetric` campaign.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct VolumetricMachineSection {
+    /// Expansion of the machine's scales, ppm/K, for normalising to T0.
+    pub cte_ppm_per_k: f64,
+}
+
+/// `[workspace]`: the corners are the diagonals' ends.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct WorkspaceSection {
+    /// Minimum corner, mm.
+    pub min_mm: [f64; 3],
+    /// Maximum corner, mm.
+    pub max_mm: [f64; 3],
+}
+
+/// `[laser]` of a `volumetric` campaign.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct VolumetricLaserSection {
+    /// Vacuum wavelength, nm.
+    pub wavelength_nm: f64,
+    /// What the readings already include.
+    pub compensation: LaserCompensation,
+    /// Optics to reflector at the datum, mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dead_path_mm: Option<f64>,
+    /// Flat mirror or retroreflector.
+    pub target: LaserTarget,
+}
+
+/// `grid = { I, J, K, origin_mm, spacing_mm }`: the lattice of V2, V3 and the 3-D table.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GridSection {
+    /// Nodes along x.
+    #[serde(rename = "I")]
+    pub i: usize,
+    /// Nodes along y.
+    #[serde(rename = "J")]
+    pub j: usize,
+    /// Nodes along z.
+    #[serde(rename = "K")]
+    pub k: usize,
+    /// Node (1, 1, 1), mm.
+    pub origin_mm: [f64; 3],
+    /// Δx, Δy, Δz, mm.
+    pub spacing_mm: [f64; 3],
+}
+
+/// What the 3-D table holds (`[table] values`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TableValues {
+    /// −error.
+    Correction,
+    /// error = measured − commanded.
+    Error,
+}
+
+/// `[table]`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TableSection {
+    /// `"fanuc-3d"`, the only format of this version.
+    pub format: String,
+    /// Line l is written `N{n_base + l}`.
+    pub n_base: u64,
+    /// One detection unit, µm.
+    pub unit_um: f64,
+    /// Correction or error.
+    pub values: TableValues,
+}
+
+/// `campaign.toml` of a `volumetric` campaign as written, not yet validated.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct VolumetricManifest {
+    /// `[campaign]`.
+    pub campaign: KindSection,
+    /// `[machine]`.
+    pub machine: VolumetricMachineSection,
+    /// `[workspace]`.
+    pub workspace: WorkspaceSection,
+    /// `[laser]`.
+    pub laser: VolumetricLaserSection,
+    /// `grid`.
+    pub grid: GridSection,
+    /// `[table]`; absent: fanuc-3d, n_base 100000, 1 µm, correction.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table: Option<TableSection>,
+    /// `[[sensor]]` of `temperatures/*.parquet`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sensor: Vec<MachineSensorDecl>,
+}
+
+impl VolumetricManifest {
+    /// Parses `campaign.toml` text; `file` names it in messages.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<VolumetricManifest, CampaignError> {
+        toml::from_str(text).map_err(|e| syntax_error(text, file, &e))
+    }
+
+    /// The manifest as TOML text (what the simulator writes).
+    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string(self)
+    }
+}
+
+/// A validated `volumetric` manifest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumetricCampaign {
+    /// The campaign's id.
+    pub id: String,
+    /// T0, °C.
+    pub reference_temperature_c: f64,
+    /// Expansion of the scales, ppm/K.
+    pub cte_ppm_per_k: f64,
+    /// Workspace minimum corner, mm.
+    pub min_mm: [f64; 3],
+    /// Workspace maximum corner, mm.
+    pub max_mm: [f64; 3],
+    /// Vacuum wavelength, nm.
+    pub wavelength_nm: f64,
+    /// What the readings already include.
+    pub compensation: LaserCompensation,
+    /// Dead path, mm.
+    pub dead_path_mm: Option<f64>,
+    /// The laser's target.
+    pub target: LaserTarget,
+    /// The grid.
+    pub grid: GridSection,
+    /// The 3-D table's options.
+    pub table: TableSection,
+    /// The declared sensors.
+    pub sensors: Vec<MachineSensorDecl>,
+}
+
+/// Largest |coordinate| and length accepted, mm.
+const LENGTH_MM: f64 = 10_000.0;
+/// Most grid nodes per axis.
+const MAX_NODES: usize = 1_000;
+
+impl VolumetricCampaign {
+    /// Parses and validates `campaign.toml` text, naming `file` in messages.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<VolumetricCampaign, CampaignError> {
+        Self::from_manifest_at(VolumetricManifest::from_toml_str(text, file)?, file)
+    }
+
+    /// The workspace's extent L = max − min, mm.
+    pub fn lengths_mm(&self) -> [f64; 3] {
+        [0, 1, 2].map(|k| self.max_mm[k] - self.min_mm[k])
+    }
+
+    /// Validates a manifest, naming `file` in messages.
+    pub fn from_manifest_at(
+        m: VolumetricManifest,
+        file: &str,
+    ) -> Result<VolumetricCampaign, CampaignError> {
+        let invalid = |key: &str, problem: String| CampaignError::Invalid {
+            file: file.to_string(),
+            key: key.to_string(),
+            problem,
+        };
+        if m.campaign.kind != CampaignKind::Volumetric {
+            return Err(invalid(
+                "campaign.kind",
+                format!(
+                    "is {:?}, this manifest is read as \"volumetric\"",
+                    m.campaign.kind.as_str()
+                ),
+            ));
+        }
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        let check = |key: &str, v: f64, limit: crate::limits::Limit| {
+            let name = key.rsplit('.').next().unwrap_or(key);
+            limit
+                .check(name, v)
+                .map_err(|e| invalid(key, e.to_string()))
+        };
+        check(
+            "campaign.reference_temperature_c",
+            m.campaign.reference_temperature_c,
+            limits::REFERENCE_TEMPERATURE_C,
+        )?;
+        check(
+            "machine.cte_ppm_per_k",
+            m.machine.cte_ppm_per_k,
+            limits::CTE_PPM_PER_K,
+        )?;
+        check(
+            "laser.wavelength_nm",
+            m.laser.wavelength_nm,
+            crate::limits::Limit::closed(200.0, 2_000.0, "nm"),
+        )?;
+        if let Some(d) = m.laser.dead_path_mm {
+            check(
+                "laser.dead_path_mm",
+                d,
+                crate::limits::Limit::closed(0.0, LENGTH_MM, "mm"),
+            )?;
+        }
+        let w = &m.workspace;
+        for (key, p) in [
+            ("workspace.min_mm", &w.min_mm),
+            ("workspace.max_mm", &w.max_mm),
+        ] {
+            point(p).map_err(|e| invalid(key, e))?;
+        }
+        if let Some(k) = (0..3).find(|&k| w.max_mm[k] <= w.min_mm[k]) {
+            return Err(invalid(
+                "workspace",
+                format!(
+                    "max_mm[{k}] = {} is not above min_mm[{k}] = {}: the corners span the workspace",
+                    display_number(w.max_mm[k]),
+                    display_number(w.min_mm[k])
+                ),
+            ));
+        }
+        check_grid(&m.grid, w).map_err(|(key, p)| invalid(&key, p))?;
+        let table = m.table.unwrap_or(TableSection {
+            format: "fanuc-3d".into(),
+            n_base: 100_000,
+            unit_um: 1.0,
+            values: TableValues::Correction,
+        });
+        if table.format != "fanuc-3d" {
+            return Err(invalid(
+                "table.format",
+                format!(
+                    "is {:?}: \"fanuc-3d\" is the only format of this version",
+                    table.format
+                ),
+            ));
+        }
+        check(
+            "table.unit_um",
+            table.unit_um,
+            crate::limits::Limit::closed(1e-6, 1_000.0, "µm"),
+        )?;
+        Ok(VolumetricCampaign {
+            id: m.campaign.id,
+            reference_temperature_c: m.campaign.reference_temperature_c,
+            cte_ppm_per_k: m.machine.cte_ppm_per_k,
+            min_mm: w.min_mm,
+            max_mm: w.max_mm,
+            wavelength_nm: m.laser.wavelength_nm,
+            compensation: m.laser.compensation,
+            dead_path_mm: m.laser.dead_path_mm,
+            target: m.laser.target,
+            grid: m.grid,
+            table,
+            sensors: m.sensor,
+        })
+    }
+
+    /// `environment/*.parquet` is required unless `compensation = "air+material"`.
+    pub fn check_environment(&self, has_rows: bool, file: &str) -> Result<(), CampaignError> {
+        if has_rows || !self.compensation.needs_environment() {
+            return Ok(());
+        }
+        Err(CampaignError::Invalid {
+            file: file.to_string(),
+            key: "laser.compensation".into(),
+            problem: format!(
+                "is {:?}: the readings are not normalised, so environment/*.parquet is required unless compensation = \"air+material\"; none was found",
+                self.compensation.as_str()
+            ),
+        })
+    }
+
+    /// Step diagonals need a flat mirror (`machine-physics.md`: a retroreflector on a step
+    /// diagonal is not a valid set-up).
+    pub fn check_steps(&self, has_steps: bool, file: &str) -> Result<(), CampaignError> {
+        if !has_steps || self.target == LaserTarget::FlatMirror {
+            return Ok(());
+        }
+        Err(CampaignError::Invalid {
+            file: file.to_string(),
+            key: "laser.target".into(),
+            problem: "is \"retroreflector\" but steps/*.parquet holds step diagonals: lateral sub-moves walk the beam off a retroreflector, step diagonals need target = \"flat-mirror\"".into(),
+        })
+    }
+}
+
+/// A point in mm: finite, within ±10 m.
+fn point(p: &[f64; 3]) -> Result<(), String> {
+    match p.iter().find(|v| !(v.is_finite() && v.abs() <= LENGTH_MM)) {
+        None => Ok(()),
+        Some(v) => Err(format!(
+            "coordinate {} is out of range: each must be a finite number within ±{LENGTH_MM} mm",
+            display_number(*v)
+        )),
+    }
+}
+
+/// Grid nodes must lie inside the workspace (`machine-formats.md`).
+fn check_grid(g: &GridSection, w: &WorkspaceSection) -> Result<(), (String, String)> {
+    let counts = [g.i, g.j, g.k];
+    for (k, name) in ["I", "J", "K"].iter().enumerate() {
+        if !(1..=MAX_NODES).contains(&counts[k]) {
+            return Err((
+                format!("grid.{name}"),
+                format!("is {}: each count is 1 … {MAX_NODES}", counts[k]),
+            ));
+        }
+    }
+    point(&g.origin_mm).map_err(|p| ("grid.origin_mm".to_string(), p))?;
+    for k in 0..3 {
+        let s = g.spacing_mm[k];
+        if !(s.is_finite() && s > 0.0 && s <= LENGTH_MM) {
+            return Err((
+                "grid.spacing_mm".into(),
+                format!(
+                    "spacing_mm[{k}] = {} is not a finite number in (0, {LENGTH_MM}] mm",
+                    display_number(s)
+                ),
+            ));
+        }
+        let last = g.origin_mm[k] + (counts[k] - 1) as f64 * s;
+        let tol = 1e-6;
+        if g.origin_mm[k] < w.min_mm[k] - tol || last > w.max_mm[k] + tol {
+            return Err((
+                "grid".into(),
+                format!(
+                    "nodes along {} run from {} to {} mm, outside the workspace {} … {} mm: grid nodes must lie inside it",
+                    ["x", "y", "z"][k],
+                    display_number(g.origin_mm[k]),
+                    display_number(last),
+                    display_number(w.min_mm[k]),
+                    display_number(w.max_mm[k])
+                ),
+            ));
+        }
+    }
+    Ok(())
+}

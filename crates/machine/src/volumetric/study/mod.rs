@@ -1,0 +1,621 @@
+//! A `volumetric` campaign analysed (`docs/spec/machine-physics.md`, "Kind volumetric",
+//! "Interferometer readings", "ISO 230-2 quantities").
+//!
+//! 1. Every reading is normalised to T0 with the laser's declared compensation
+//!    ([`crate::edlen::normalise_reading_mm`]; the datum of a diagonal is its first reading).
+//! 2. Per diagonal, ISO 230-2 (the ISO 230-6 reading): from the body diagonals, else from the
+//!    step diagonals' points on the diagonal (the end of each step, where β·(P − P0) = 0).
+//!    V_diag is the largest E.
+//! 3. The joint fit ([`super::solve::fit`]) with the model's effects; the squareness values and
+//!    Σ L_k² ε_k / D² with U; the error functions with U in the stated gauge; the naive
+//!    inversion and the fourth sign pattern for comparison.
+//! 4. The grid: the error vector and U at each node, V1, V2, V3.
+//! 5. What cannot be seen, in words ([`VolumetricStudy::invisible`]).
+//! 6. The loop ([`diagnosis`]): each effect of the catalogue not in the model, added in turn;
+//!    the one whose BIC falls most (by more than the threshold) is named.
+
+pub mod diagnosis;
+
+use std::collections::BTreeMap;
+
+use dbbcal_core::axis_campaign::LaserCompensation;
+use dbbcal_core::volumetric_campaign::{DiagonalSign, VolumetricCampaignLogs};
+
+use super::grid::{self, Grid};
+use super::model::{Layout, Observation, Place, VolumetricEffect, AXES};
+use super::solve::{self, JointFit, Naive, Quantity, VolumetricError};
+use crate::edlen::{self, Air, Compensation, LaserSetup, ReadingConditions};
+use crate::iso230_2::{self, Iso230_2, TargetDeviations};
+
+pub use diagnosis::{Candidate, Diagnosis};
+
+/// Options of [`study`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumetricStudyOptions {
+    /// Effects in the model.
+    pub effects: Vec<VolumetricEffect>,
+    /// Steps of forward selection (0: none).
+    pub forward_steps: usize,
+    /// BIC gain an effect needs to be proposed.
+    pub min_bic_gain: f64,
+}
+
+impl Default for VolumetricStudyOptions {
+    fn default() -> Self {
+        VolumetricStudyOptions {
+            effects: vec![VolumetricEffect::Pointing],
+            forward_steps: 2,
+            min_bic_gain: 10.0,
+        }
+    }
+}
+
+/// One diagonal's curve and its ISO 230-2 evaluation.
+#[derive(Debug, Clone)]
+pub struct DiagonalCurve {
+    /// Which.
+    pub sign: DiagonalSign,
+    /// `"body"` or `"step"` (points of the step diagonal on the diagonal).
+    pub source: &'static str,
+    /// D, mm.
+    pub length_mm: f64,
+    /// The evaluation, or why there is none.
+    pub iso: Result<Iso230_2, String>,
+    /// E (bidirectional, else of the one direction), µm.
+    pub e_um: Option<f64>,
+}
+
+/// A grid node's error vector with U.
+#[derive(Debug, Clone)]
+pub struct NodeError {
+    /// Line l.
+    pub line: usize,
+    /// (i, j, k).
+    pub node: [usize; 3],
+    /// Position, mm.
+    pub position_mm: [f64; 3],
+    /// ex, ey, ez with U.
+    pub error: [Quantity; 3],
+}
+
+/// A volumetric figure with its U (k = 2; an estimate, correlations between nodes neglected).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Figure {
+    /// Value, µm.
+    pub value_um: f64,
+    /// U (k = 2), µm; NaN when not available.
+    pub u_k2_um: f64,
+}
+
+/// A `volumetric` campaign analysed.
+#[derive(Debug, Clone)]
+pub struct VolumetricStudy {
+    /// The readings, normalised.
+    pub observations: Vec<Observation>,
+    /// Per diagonal measured.
+    pub curves: Vec<DiagonalCurve>,
+    /// V_diag = max E over the diagonals, µm.
+    pub v_diag: Option<Figure>,
+    /// The joint fit.
+    pub fit: JointFit,
+    /// S_xy, S_yz, S_zx.
+    pub squareness: [Quantity; 3],
+    /// Σ L_k² ε_k / D².
+    pub mean_scale: Quantity,
+    /// Slopes [j][k].
+    pub slopes: [[Quantity; 3]; 3],
+    /// The naive inversion, or why there is none.
+    pub naive: Result<Naive, String>,
+    /// RMS of the fourth pattern of the readings and of the fit's residuals, µm (`None`
+    /// without four standard step diagonals).
+    pub fourth_rms_um: Option<(f64, f64)>,
+    /// The fourth pattern of the fit's residuals per axis at its nodes, µm.
+    pub fourth_residual_um: Option<[Vec<f64>; 3]>,
+    /// The grid.
+    pub grid: Grid,
+    /// Error vectors at the grid's nodes, in line order.
+    pub nodes: Vec<NodeError>,
+    /// V1, V2, V3.
+    pub v1: Figure,
+    /// V2.
+    pub v2: Figure,
+    /// V3.
+    pub v3: Figure,
+    /// Whether every grid error is identifiable (else V1 … V3 are in the gauge).
+    pub figures_identifiable: bool,
+    /// What the readings cannot see, in words.
+    pub invisible: Vec<String>,
+    /// The loop.
+    pub diagnosis: Diagnosis,
+    /// Residual RMS per diagonal and source, µm.
+    pub residual_rms: Vec<(DiagonalSign, &'static str, f64, usize)>,
+}
+
+/// Why a study cannot be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StudyError {
+    /// A reading cannot be normalised.
+    #[error("diagonal {diagonal} at {time_ns} ns: {message}")]
+    Normalise {
+        /// Which diagonal.
+        diagonal: DiagonalSign,
+        /// Reading time.
+        time_ns: i64,
+        /// What is wrong.
+        message: String,
+    },
+    /// The solve failed.
+    #[error(transparent)]
+    Solve(#[from] VolumetricError),
+}
+
+fn to_compensation(c: LaserCompensation) -> Compensation {
+    match c {
+        LaserCompensation::None => Compensation::None,
+        LaserCompensation::Air => Compensation::Air,
+        LaserCompensation::AirMaterial => Compensation::AirMaterial,
+    }
+}
+
+fn conditions(logs: &VolumetricCampaignLogs, t: i64, datum: i64) -> ReadingConditions {
+    let air = |t: i64| {
+        let i = logs.environment.partition_point(|r| r.time_ns <= t);
+        logs.environment.get(i.saturating_sub(1))
+    };
+    let to_air = |e: &dbbcal_core::axis_campaign::EnvironmentRow| Air {
+        temperature_c: e.air_c,
+        pressure_hpa: e.pressure_hpa,
+        humidity_pct: e.humidity_pct,
+    };
+    ReadingConditions {
+        air: air(t).map(to_air),
+        datum_air: air(datum).map(to_air),
+        material_c: air(t).and_then(|e| e.material_c),
+    }
+}
+
+/// The readings as observations normalised to T0.
+pub fn observations(logs: &VolumetricCampaignLogs) -> Result<Vec<Observation>, StudyError> {
+    let c = &logs.campaign;
+    let setup = LaserSetup {
+        wavelength_nm: c.wavelength_nm,
+        compensation: to_compensation(c.compensation),
+        dead_path_mm: c.dead_path_mm,
+        cte_ppm_per_k: c.cte_ppm_per_k,
+        reference_temperature_c: c.reference_temperature_c,
+    };
+    let t0 = logs
+        .diagonals
+        .iter()
+        .map(|r| r.time_ns)
+        .chain(logs.steps.iter().map(|r| r.time_ns))
+        .min()
+        .unwrap_or(0);
+    let mut datum: BTreeMap<DiagonalSign, i64> = BTreeMap::new();
+    for (d, t) in logs
+        .diagonals
+        .iter()
+        .map(|r| (r.diagonal, r.time_ns))
+        .chain(logs.steps.iter().map(|r| (r.diagonal, r.time_ns)))
+    {
+        let e = datum.entry(d).or_insert(t);
+        *e = (*e).min(t);
+    }
+    let normalise = |d: DiagonalSign, t: i64, commanded_mm: f64, dev_um: f64| {
+        let read = commanded_mm + dev_um * 1e-3;
+        let at = conditions(logs, t, datum[&d]);
+        edlen::normalise_reading_mm(read, &setup, &at)
+            .map(|l| (l - commanded_mm) * 1e3)
+            .map_err(|e| StudyError::Normalise {
+                diagonal: d,
+                time_ns: t,
+                message: e.to_string(),
+            })
+    };
+    let hours = |t: i64| (t - t0) as f64 / 3.6e12;
+    let mut out = Vec::new();
+    for r in &logs.diagonals {
+        out.push(Observation {
+            diagonal: r.diagonal,
+            run: r.run,
+            direction: r.direction,
+            place: Place::Body { d_mm: r.target_mm },
+            hours: hours(r.time_ns),
+            deviation_um: normalise(r.diagonal, r.time_ns, r.target_mm, r.deviation_um)?,
+        });
+    }
+    for r in &logs.steps {
+        let diag = super::Diagonal::new(r.diagonal, c.min_mm, c.max_mm);
+        let rel = [0, 1, 2].map(|k| r.position_mm[k] - diag.p0_mm[k]);
+        let commanded = super::dot(diag.u, rel);
+        out.push(Observation {
+            diagonal: r.diagonal,
+            run: r.run,
+            direction: 1,
+            place: Place::Step {
+                position_mm: r.position_mm,
+                step: r.step,
+                submove: r.submove.map(|a| a.index()),
+            },
+            hours: hours(r.time_ns),
+            deviation_um: normalise(r.diagonal, r.time_ns, commanded, r.deviation_um)?,
+        });
+    }
+    Ok(out)
+}
+
+/// The step intervals N: the largest step of any step diagonal (0 without).
+pub fn intervals(obs: &[Observation]) -> usize {
+    obs.iter()
+        .filter_map(|o| match o.place {
+            Place::Step { step, .. } => Some(step.max(0) as usize),
+            Place::Body { .. } => None,
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// The workspace and grid an analysis needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    /// Workspace min corner, mm.
+    pub min_mm: [f64; 3],
+    /// Workspace max corner, mm.
+    pub max_mm: [f64; 3],
+    /// The lattice of V2, V3 and the table.
+    pub grid: Grid,
+}
+
+/// Analyse a campaign.
+pub fn study(
+    logs: &VolumetricCampaignLogs,
+    options: &VolumetricStudyOptions,
+) -> Result<VolumetricStudy, StudyError> {
+    let c = &logs.campaign;
+    let g = &c.grid;
+    let frame = Frame {
+        min_mm: c.min_mm,
+        max_mm: c.max_mm,
+        grid: Grid {
+            counts: [g.i, g.j, g.k],
+            origin_mm: g.origin_mm,
+            spacing_mm: g.spacing_mm,
+        },
+    };
+    analyse(observations(logs)?, &frame, options)
+}
+
+/// Analyse normalised readings (what [`study`] does after [`observations`]).
+pub fn analyse(
+    obs: Vec<Observation>,
+    frame: &Frame,
+    options: &VolumetricStudyOptions,
+) -> Result<VolumetricStudy, StudyError> {
+    let n = intervals(&obs);
+    let layout =
+        |effects: &[VolumetricEffect]| Layout::new(frame.min_mm, frame.max_mm, n, effects, &obs);
+    let fit = solve::fit(layout(&options.effects), &obs)?;
+    let diagnosis = diagnosis::diagnose(&fit, &obs, options, layout)?;
+    let naive = if n > 0 {
+        solve::naive(&fit.layout, &obs)
+    } else {
+        Err("no step diagonals: the naive inversion needs the four step diagonals".into())
+    };
+    let data: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
+    let fourth = |v: &[f64]| {
+        solve::step_series(&fit.layout, &obs, v)
+            .ok()
+            .and_then(|s| solve::fourth_pattern(&s))
+    };
+    let fourth_data = fourth(&data);
+    let fourth_residual_um = fourth(&fit.residuals);
+    let fourth_rms_um = fourth_data
+        .as_ref()
+        .zip(fourth_residual_um.as_ref())
+        .map(|(a, b)| (rms(a), rms(b)));
+    let grid = frame.grid;
+    let nodes: Vec<NodeError> = (1..=grid.counts.iter().product())
+        .filter_map(|l| {
+            let node = grid.node(l)?;
+            let position_mm = grid.position(node);
+            Some(NodeError {
+                line: l,
+                node,
+                position_mm,
+                error: fit.error_at(position_mm),
+            })
+        })
+        .collect();
+    let (v1, v2, v3) = figures(&fit, &nodes);
+    let figures_identifiable = nodes.iter().all(|n| n.error.iter().all(|q| q.identifiable));
+    let curves = curves(&obs, frame.min_mm, frame.max_mm);
+    let v_diag = v_diag(&curves);
+    let mut invisible = invisible(&fit, &obs, n);
+    if !figures_identifiable {
+        invisible.push("V1, V2, V3 and the 3-D table hold terms the readings cannot see: they are given in the stated gauge, not measured".to_string());
+    }
+    let residual_rms = residual_rms(&fit, &obs);
+    Ok(VolumetricStudy {
+        squareness: fit.squareness(),
+        mean_scale: fit.mean_scale(),
+        slopes: fit.slopes(),
+        observations: obs,
+        curves,
+        v_diag,
+        naive,
+        fourth_rms_um,
+        fourth_residual_um,
+        grid,
+        nodes,
+        v1,
+        v2,
+        v3,
+        figures_identifiable,
+        invisible,
+        diagnosis,
+        residual_rms,
+        fit,
+    })
+}
+
+fn rms(series: &[Vec<f64>; 3]) -> f64 {
+    let all: Vec<f64> = series.iter().flatten().copied().collect();
+    (all.iter().map(|v| v * v).sum::<f64>() / all.len().max(1) as f64).sqrt()
+}
+
+fn figures(fit: &JointFit, nodes: &[NodeError]) -> (Figure, Figure, Figure) {
+    let f = fit.functions();
+    let positioning = [0, 1, 2].map(|k| f[k][k].iter().map(|(_, q)| q.value).collect::<Vec<_>>());
+    let v1u = (0..3)
+        .map(|k| {
+            let u: Vec<f64> = f[k][k].iter().map(|(_, q)| q.u_k2).collect();
+            u.iter().fold(0.0_f64, |a, b| a.max(*b)).powi(2) * 2.0
+        })
+        .sum::<f64>()
+        .sqrt();
+    let errors: Vec<[f64; 3]> = nodes
+        .iter()
+        .map(|n| n.error.clone().map(|q| q.value))
+        .collect();
+    let v2 = grid::v2_um(&errors);
+    let mut u2 = 0.0;
+    for k in 0..3 {
+        let col: Vec<f64> = errors.iter().map(|e| e[k]).collect();
+        let r = grid::range(col.iter().copied());
+        if v2 > 0.0 && !col.is_empty() {
+            let imax = argmax(&col, |v| v);
+            let imin = argmax(&col, |v| -v);
+            let um = |i: usize| nodes[i].error[k].u_k2;
+            u2 += (r / v2).powi(2) * (um(imax).powi(2) + um(imin).powi(2));
+        }
+    }
+    let v3 = grid::v3_um(&errors);
+    let u3 = if errors.is_empty() {
+        f64::NAN
+    } else {
+        let norms: Vec<f64> = errors.iter().map(|e| super::norm(*e)).collect();
+        let i = argmax(&norms, |v| v);
+        if norms[i] > 0.0 {
+            (0..3)
+                .map(|k| (errors[i][k] / norms[i] * nodes[i].error[k].u_k2).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        } else {
+            nodes[i].error.iter().map(|q| q.u_k2).fold(0.0, f64::max)
+        }
+    };
+    (
+        Figure {
+            value_um: grid::v1_um(&positioning),
+            u_k2_um: v1u,
+        },
+        Figure {
+            value_um: v2,
+            u_k2_um: u2.sqrt(),
+        },
+        Figure {
+            value_um: v3,
+            u_k2_um: u3,
+        },
+    )
+}
+
+fn argmax(v: &[f64], key: impl Fn(f64) -> f64) -> usize {
+    (0..v.len())
+        .max_by(|&a, &b| key(v[a]).total_cmp(&key(v[b])))
+        .unwrap_or(0)
+}
+
+/// Per diagonal: ISO 230-2 from the body readings, else from the step points on the diagonal.
+fn curves(obs: &[Observation], min_mm: [f64; 3], max_mm: [f64; 3]) -> Vec<DiagonalCurve> {
+    let mut out = Vec::new();
+    for sign in DiagonalSign::ALL {
+        let diag = super::Diagonal::new(sign, min_mm, max_mm);
+        let body: Vec<&Observation> = obs
+            .iter()
+            .filter(|o| o.diagonal == sign && matches!(o.place, Place::Body { .. }))
+            .collect();
+        let (source, points): (&'static str, Vec<(f64, i64, i8, f64)>) = if !body.is_empty() {
+            let pts = body
+                .iter()
+                .map(|o| match o.place {
+                    Place::Body { d_mm } => (d_mm, o.run, o.direction, o.deviation_um),
+                    Place::Step { .. } => unreachable!("filtered"),
+                })
+                .collect();
+            ("body", pts)
+        } else {
+            let pts: Vec<_> = obs
+                .iter()
+                .filter(|o| o.diagonal == sign)
+                .filter_map(|o| {
+                    let p = o.position_mm(&diag);
+                    let rel = [0, 1, 2].map(|k| p[k] - diag.p0_mm[k]);
+                    let d = super::dot(diag.u, rel);
+                    let off = [0, 1, 2].map(|k| rel[k] - d * diag.u[k]);
+                    (super::norm(off) < 1e-3).then_some((d, o.run, 1i8, o.deviation_um))
+                })
+                .collect();
+            if pts.is_empty() {
+                continue;
+            }
+            ("step", pts)
+        };
+        let iso = evaluate(&points);
+        let e_um = iso.as_ref().ok().and_then(|i| {
+            i.systematic_e_um
+                .or(i.up.map(|u| u.systematic_um))
+                .or(i.down.map(|u| u.systematic_um))
+        });
+        out.push(DiagonalCurve {
+            sign,
+            source,
+            length_mm: diag.length_mm,
+            iso,
+            e_um,
+        });
+    }
+    out
+}
+
+/// ISO 230-2 of (d, run, direction, deviation) points: one value per run and direction at
+/// each target (repeated visits averaged).
+fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, String> {
+    let mut by: BTreeMap<i64, BTreeMap<(i8, i64), Vec<f64>>> = BTreeMap::new();
+    for (d, run, dir, v) in points {
+        by.entry((d * 1e3).round() as i64)
+            .or_default()
+            .entry((*dir, *run))
+            .or_default()
+            .push(*v);
+    }
+    let targets: Vec<TargetDeviations> = by
+        .into_iter()
+        .map(|(key, runs)| {
+            let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len() as f64;
+            TargetDeviations {
+                position_mm: key as f64 / 1e3,
+                up_um: runs
+                    .iter()
+                    .filter(|(k, _)| k.0 > 0)
+                    .map(|(_, v)| mean(v))
+                    .collect(),
+                down_um: runs
+                    .iter()
+                    .filter(|(k, _)| k.0 < 0)
+                    .map(|(_, v)| mean(v))
+                    .collect(),
+            }
+        })
+        .collect();
+    iso230_2::evaluate(&targets).map_err(|e| e.to_string())
+}
+
+fn v_diag(curves: &[DiagonalCurve]) -> Option<Figure> {
+    let e = curves
+        .iter()
+        .filter_map(|c| c.e_um)
+        .fold(None, |a: Option<f64>, v| Some(a.map_or(v, |a| a.max(v))))?;
+    let u = curves
+        .iter()
+        .filter_map(|c| c.iso.as_ref().ok())
+        .flat_map(|i| i.targets.iter())
+        .flat_map(|t| [t.up, t.down])
+        .flatten()
+        .map(|s| 2.0 * std::f64::consts::SQRT_2 * s.s_um / (s.runs as f64).sqrt())
+        .fold(0.0, f64::max);
+    Some(Figure {
+        value_um: e,
+        u_k2_um: u,
+    })
+}
+
+/// What the readings cannot see, in words (`machine-physics.md`, "Not identifiable").
+fn invisible(fit: &JointFit, obs: &[Observation], n: usize) -> Vec<String> {
+    let mut out = Vec::new();
+    let has_body = obs.iter().any(|o| matches!(o.place, Place::Body { .. }));
+    let slopes = fit.slopes();
+    let confounded: Vec<String> = slopes
+        .iter()
+        .flatten()
+        .filter(|q| !q.identifiable)
+        .map(|q| q.name.clone())
+        .collect();
+    if n == 0 && has_body {
+        out.push("with body diagonals only: 4 of 9 linear terms: Σ L_k² ε_k / D² and three squareness values; per-axis scale differences are invisible".to_string());
+        out.push("with body diagonals only the error functions' shapes are not separable: the fit holds their slopes only, the rest stays in the residual".to_string());
+    }
+    if n > 0 {
+        let pointing = fit.layout.effects.contains(&VolumetricEffect::Pointing);
+        if pointing && !confounded.is_empty() {
+            out.push(format!(
+                "with step diagonals and unknown pointing: the slopes' rank is {} of 9 (Σ L_k² ε_k / D² and the three squareness values remain); confounded with the beams' pointing: {}; non-linear shapes stay identifiable",
+                9 - count_lost_slopes(fit),
+                confounded.join(", ")
+            ));
+        } else if !pointing {
+            out.push("pointing is taken as zero (effect `pointing` not in the model): every slope is seen, but a mis-pointed beam biases them".to_string());
+        }
+    }
+    let diags: std::collections::BTreeSet<DiagonalSign> = obs.iter().map(|o| o.diagonal).collect();
+    if diags.len() < 4 {
+        out.push(format!(
+            "{} of 4 diagonals measured ({}): the missing sign patterns leave more unseen, listed below",
+            diags.len(),
+            diags.iter().map(|d| d.as_str()).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    if !fit.lost.is_empty() {
+        out.push(format!(
+            "rank {} of {} parameters; lost combinations: {}",
+            fit.rank,
+            fit.layout.len(),
+            fit.lost.join("; ")
+        ));
+        for g in &fit.gauge {
+            out.push(format!("reported in the gauge: {g}"));
+        }
+    }
+    let _ = AXES;
+    out
+}
+
+/// 9 − the slopes' rank: the dimension of the slopes' lost space (estimated as the number of
+/// lost directions with a slope component, at most 9).
+fn count_lost_slopes(fit: &JointFit) -> usize {
+    // Rank of the identifiable slope functionals: 4 when pointing hides the rest (the spec's
+    // count); computed from the quantities that are identifiable among slope combinations.
+    let p = fit.layout.len();
+    let mut basis: Vec<Vec<f64>> = Vec::new();
+    for a in 0..9 {
+        let mut c = vec![0.0; p];
+        c[a] = 1.0;
+        basis.push(c);
+    }
+    // The identifiable subspace of the 9 slopes: 9 − rank of the null vectors' slope parts.
+    let null_slopes: Vec<Vec<f64>> = fit.lost_vectors().iter().map(|v| v[..9].to_vec()).collect();
+    let m = nalgebra::DMatrix::from_fn(null_slopes.len().max(1), 9, |i, j| {
+        null_slopes.get(i).map_or(0.0, |v| v[j])
+    });
+    let _ = basis;
+    m.rank(1e-8 * m.norm().max(1e-300))
+}
+
+fn residual_rms(
+    fit: &JointFit,
+    obs: &[Observation],
+) -> Vec<(DiagonalSign, &'static str, f64, usize)> {
+    let mut acc: BTreeMap<(DiagonalSign, &'static str), (f64, usize)> = BTreeMap::new();
+    for (o, r) in obs.iter().zip(&fit.residuals) {
+        let src = match o.place {
+            Place::Body { .. } => "body",
+            Place::Step { .. } => "step",
+        };
+        let e = acc.entry((o.diagonal, src)).or_insert((0.0, 0));
+        e.0 += r * r;
+        e.1 += 1;
+    }
+    acc.into_iter()
+        .map(|((d, s), (ss, n))| (d, s, (ss / n as f64).sqrt(), n))
+        .collect()
+}
