@@ -20,5 +20,6 @@ pub mod limits;
 pub mod matching;
 pub mod model;
 pub mod positions;
+pub mod roll_campaign;
 pub mod series;
 pub mod signal;
