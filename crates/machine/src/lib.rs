@@ -27,4 +27,5 @@ pub mod iso230_2;
 pub mod linear;
 pub mod pose;
 pub mod pose_errors;
+pub mod roll;
 pub mod straightness;
