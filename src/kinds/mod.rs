@@ -5,6 +5,7 @@
 //! for a new kind").
 
 pub mod axis;
+pub mod roll;
 
 use std::path::{Path, PathBuf};
 
@@ -20,6 +21,8 @@ pub enum KindPlan {
     Ballbar(Box<RunPlan>),
     /// An `axis` campaign (seed 002).
     Axis(axis::AxisPlan),
+    /// A `roll` campaign (seed 004).
+    Roll(roll::RollPlan),
 }
 
 /// The campaign directory a run reads: `--campaign`, else the pipeline's `[pipeline] campaign`,
@@ -82,6 +85,18 @@ pub fn plan_run(
                 },
                 other => other,
             }),
+        CampaignKind::Roll => roll::RollPlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
+            .map(KindPlan::Roll)
+            .map_err(|e| match e {
+                PlanError::Pipeline { path, message } => PlanError::Pipeline {
+                    path,
+                    message: format!(
+                        "{} is a roll campaign (run it with pipelines/roll.toml): {message}",
+                        dir.display()
+                    ),
+                },
+                other => other,
+            }),
         other => Err(PlanError::NotInCampaign(format!(
             "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\" and \"axis\" campaigns",
             manifest.display(),
@@ -95,5 +110,6 @@ pub fn run(plan: &KindPlan) -> anyhow::Result<Outcome> {
     match plan {
         KindPlan::Ballbar(p) => crate::runner::run(p),
         KindPlan::Axis(p) => axis::run(p),
+        KindPlan::Roll(p) => roll::run(p),
     }
 }

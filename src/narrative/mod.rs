@@ -5,6 +5,7 @@
 //! Plain data in, text out: no IO, no pixels.
 
 pub(crate) mod axis;
+pub(crate) mod roll;
 pub(crate) mod device;
 pub(crate) mod fit_report;
 pub(crate) mod page;

@@ -31,6 +31,7 @@
 //! `device_errors.parquet`).
 
 pub(crate) mod axis;
+pub(crate) mod roll;
 pub mod controller;
 pub(crate) mod device_record;
 pub(crate) mod diagnosis;

@@ -19,6 +19,7 @@ mod identify;
 mod machine_tool;
 mod nist;
 mod one_length;
+mod roll;
 mod page;
 mod row_order;
 mod safe_outputs;

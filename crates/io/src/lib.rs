@@ -13,6 +13,8 @@ mod guard;
 mod inputs;
 mod read;
 mod repeats;
+mod roll;
+mod roll_write;
 mod table;
 mod write;
 
@@ -22,6 +24,8 @@ mod axis_tests;
 mod fuzz_tests;
 #[cfg(test)]
 mod positions_tests;
+#[cfg(test)]
+mod roll_tests;
 #[cfg(test)]
 mod tests;
 
@@ -33,6 +37,8 @@ use dbbcal_core::series::CampaignLogs;
 pub use axis::{read_axis_campaign, read_axis_manifest};
 pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;
+pub use roll::{read_roll_campaign, read_roll_manifest};
+pub use roll_write::{write_roll_campaign, RollWriteOptions};
 pub use table::{write_table, write_table_csv, Column, Table};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 

@@ -20,7 +20,8 @@
 //!
 //! The `axis` machine kind (`docs/spec/machine-formats.md`) has its own generator:
 //! [`generate_axis`] from an [`AxisSimConfig`] (a simulation TOML with `kind = "axis"`,
-//! [`is_axis_config`]), written by [`write_axis`].
+//! [`is_axis_config`]), written by [`write_axis`]; the `roll` kind likewise ([`generate_roll`],
+//! [`RollSimConfig`], [`is_roll_config`], [`write_roll`]).
 
 mod axis;
 pub(crate) mod config;
@@ -30,6 +31,7 @@ mod fleet;
 mod geometry;
 pub mod hexapod;
 mod lag;
+mod roll;
 mod schedule;
 pub(crate) mod truth;
 
@@ -49,6 +51,10 @@ pub use axis::{
     generate_axis, is_axis_config, write_axis, AxisEffects, AxisEnvironment, AxisErrorConfig,
     AxisOutput, AxisSimConfig, AxisSimLaser, AxisSimLine, AxisSimulation, AxisTruth, Cosine,
     DeadPath, ErrorCurve, ErrorShape, LineTruth, MachineDrift, OpticsSlope, SensorError, Sine,
+};
+pub use roll::{
+    generate_roll, is_roll_config, write_roll, RollRig, RollSampling, RollSimConfig, RollSimEffects,
+    RollSimLevels, RollSimOutput, RollSimulation, RollTruth, RollTruthConfig,
 };
 pub use config::{
     AirBetweenReadings, BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig,

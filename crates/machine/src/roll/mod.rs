@@ -795,6 +795,4 @@ fn diagnose(
 }
 
 /// The probe names, A … D.
-pub fn probe_names() -> [&'static str; 4] {
-    PROBES
-}
+pub const PROBE_NAMES: [&str; 4] = PROBES;
