@@ -5,10 +5,10 @@
 //! Plain data in, text out: no IO, no pixels.
 
 pub(crate) mod axis;
-pub(crate) mod roll;
 pub(crate) mod device;
 pub(crate) mod fit_report;
 pub(crate) mod page;
+pub(crate) mod roll;
 
 use crate::model::Effect;
 use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};

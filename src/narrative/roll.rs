@@ -157,7 +157,10 @@ pub(crate) fn report_md(campaign: &str, s: &RollStudy) -> String {
             num(st.roll_error_urad, 3)
         );
     }
-    let _ = writeln!(md, "\n## Passes\n\n| pass | direction | stations | RMS residual µrad |\n|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "\n## Passes\n\n| pass | direction | stations | RMS residual µrad |\n|---|---|---|---|"
+    );
     for (p, pass) in s.passes.iter().enumerate() {
         let _ = writeln!(
             md,
@@ -170,12 +173,24 @@ pub(crate) fn report_md(campaign: &str, s: &RollStudy) -> String {
         );
     }
     if !s.levels.is_empty() {
-        let _ = writeln!(md, "\n## Level readings\n\n| station | roll µrad | residual µrad |\n|---|---|---|");
+        let _ = writeln!(
+            md,
+            "\n## Level readings\n\n| station | roll µrad | residual µrad |\n|---|---|---|"
+        );
         for l in &s.levels {
-            let _ = writeln!(md, "| {} | {} | {} |", l.station, num(l.roll_urad, 2), num(l.residual_urad, 3));
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} |",
+                l.station,
+                num(l.roll_urad, 2),
+                num(l.residual_urad, 3)
+            );
         }
     }
-    let _ = writeln!(md, "\n## The loop\n\n| effect | in the model | value | U (k=2) |\n|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "\n## The loop\n\n| effect | in the model | value | U (k=2) |\n|---|---|---|---|"
+    );
     for e in &s.effects {
         let _ = writeln!(
             md,
@@ -186,14 +201,18 @@ pub(crate) fn report_md(campaign: &str, s: &RollStudy) -> String {
             num(e.value.1, 4)
         );
     }
-    let _ = writeln!(md, "\n| candidate | physics | ΔBIC | χ² |\n|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "\n| candidate | physics | ΔBIC | χ² |\n|---|---|---|---|"
+    );
     for c in &s.diagnosis.candidates {
         let _ = writeln!(
             md,
             "| {} | {} | {} | {} |",
             c.effect.name(),
             c.effect.physics(),
-            c.delta_bic.map_or("not identifiable here".into(), |v| num(v, 1)),
+            c.delta_bic
+                .map_or("not identifiable here".into(), |v| num(v, 1)),
             num(c.chi2, 2)
         );
     }
@@ -231,7 +250,12 @@ pub(crate) fn page(
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>dbbcal — roll — {}</title>\n<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}.h td{{text-align:left}}img{{max-width:100%}}</style></head><body>",
         html(campaign)
     );
-    let _ = writeln!(h, "<h1>Roll ({}) — campaign {}</h1>\n<table class=\"h\">", s.roll_error_name, html(campaign));
+    let _ = writeln!(
+        h,
+        "<h1>Roll ({}) — campaign {}</h1>\n<table class=\"h\">",
+        s.roll_error_name,
+        html(campaign)
+    );
     for (label, text) in lines {
         let _ = writeln!(h, "<tr><td><b>{label}</b></td><td>{}</td></tr>", html(text));
     }
@@ -267,7 +291,8 @@ pub(crate) fn page(
             "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
             c.effect.name(),
             html(c.effect.physics()),
-            c.delta_bic.map_or("not identifiable here".into(), |v| num(v, 1))
+            c.delta_bic
+                .map_or("not identifiable here".into(), |v| num(v, 1))
         );
     }
     h.push_str("</table>\n<p>Not identifiable from these data:</p><ul>\n");

@@ -31,13 +31,13 @@
 //! `device_errors.parquet`).
 
 pub(crate) mod axis;
-pub(crate) mod roll;
 pub mod controller;
 pub(crate) mod device_record;
 pub(crate) mod diagnosis;
 pub(crate) mod fault;
 mod location;
 mod lock;
+pub(crate) mod roll;
 pub(crate) mod stage_records;
 pub(crate) mod summary;
 use location::*;

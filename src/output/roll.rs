@@ -260,17 +260,38 @@ pub(crate) fn stations_table(s: &RollStudy) -> Table {
 pub(crate) fn dwells_table(s: &RollStudy) -> Table {
     let d = &s.dwells;
     let mut t = Table::new()
-        .with("pass", Column::I64(d.iter().map(|w| w.pass as i64 + 1).collect()))
-        .with("station", Column::I64(d.iter().map(|w| w.station as i64).collect()))
+        .with(
+            "pass",
+            Column::I64(d.iter().map(|w| w.pass as i64 + 1).collect()),
+        )
+        .with(
+            "station",
+            Column::I64(d.iter().map(|w| w.station as i64).collect()),
+        )
         .with("x_mm", Column::F64(d.iter().map(|w| w.x_mm).collect()))
-        .with("start_s", Column::F64(d.iter().map(|w| w.span_s.0).collect()))
+        .with(
+            "start_s",
+            Column::F64(d.iter().map(|w| w.span_s.0).collect()),
+        )
         .with("end_s", Column::F64(d.iter().map(|w| w.span_s.1).collect()))
-        .with("samples", Column::I64(d.iter().map(|w| w.samples as i64).collect()));
+        .with(
+            "samples",
+            Column::I64(d.iter().map(|w| w.samples as i64).collect()),
+        );
     for (k, p) in ["a", "b", "c", "d"].iter().enumerate() {
         t = t
-            .with(format!("m_{p}_um"), Column::F64(d.iter().map(|w| w.mean_um[k]).collect()))
-            .with(format!("u_{p}_um"), Column::F64(d.iter().map(|w| w.u_um[k]).collect()))
-            .with(format!("tau_{p}"), Column::F64(d.iter().map(|w| w.tau[k]).collect()));
+            .with(
+                format!("m_{p}_um"),
+                Column::F64(d.iter().map(|w| w.mean_um[k]).collect()),
+            )
+            .with(
+                format!("u_{p}_um"),
+                Column::F64(d.iter().map(|w| w.u_um[k]).collect()),
+            )
+            .with(
+                format!("tau_{p}"),
+                Column::F64(d.iter().map(|w| w.tau[k]).collect()),
+            );
     }
     t
 }

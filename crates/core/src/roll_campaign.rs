@@ -86,7 +86,11 @@ impl RollManifest {
             file: file.to_string(),
             line: 0,
             column: 0,
-            message: e.to_string().split_whitespace().collect::<Vec<_>>().join(" "),
+            message: e
+                .to_string()
+                .split_whitespace()
+                .collect::<Vec<_>>()
+                .join(" "),
         })
     }
 
@@ -212,7 +216,11 @@ impl RollCampaign {
             ));
         }
         check("roll.dwell_min_s", r.dwell_min_s, roll_limits::DWELL_MIN_S)?;
-        check("roll.dwell_tol_um", r.dwell_tol_um, roll_limits::DWELL_TOL_UM)?;
+        check(
+            "roll.dwell_tol_um",
+            r.dwell_tol_um,
+            roll_limits::DWELL_TOL_UM,
+        )?;
         let mut probes: [Option<Probe>; 4] = [None; 4];
         for (i, p) in r.probe.iter().enumerate() {
             let key = format!("roll.probe[{i}]");
@@ -406,19 +414,31 @@ xy_mm = [40.0, 80.05]
         let e = RollCampaign::from_toml_str(&text, "c.toml")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("c.toml") && e.contains("roll.s_mm") && e.contains("d_mm"), "{e}");
+        assert!(
+            e.contains("c.toml") && e.contains("roll.s_mm") && e.contains("d_mm"),
+            "{e}"
+        );
     }
 
     #[test]
     fn a_missing_or_repeated_probe_and_a_bad_sign_are_named() {
         let text = SEED_MANIFEST.replace("id = \"D\"", "id = \"C\"");
-        let e = RollCampaign::from_toml_str(&text, "c.toml").unwrap_err().to_string();
+        let e = RollCampaign::from_toml_str(&text, "c.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("roll.probe") && e.contains("\"C\""), "{e}");
         let text = SEED_MANIFEST.replace("b_to_a = -1", "b_to_a = 2");
-        let e = RollCampaign::from_toml_str(&text, "c.toml").unwrap_err().to_string();
+        let e = RollCampaign::from_toml_str(&text, "c.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("roll.b_to_a"), "{e}");
-        let text = SEED_MANIFEST.replace("um_per_v = -10.0\n[[roll.probe]]\nid = \"B\"", "um_per_v = 0.0\n[[roll.probe]]\nid = \"B\"");
-        let e = RollCampaign::from_toml_str(&text, "c.toml").unwrap_err().to_string();
+        let text = SEED_MANIFEST.replace(
+            "um_per_v = -10.0\n[[roll.probe]]\nid = \"B\"",
+            "um_per_v = 0.0\n[[roll.probe]]\nid = \"B\"",
+        );
+        let e = RollCampaign::from_toml_str(&text, "c.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("roll.probe[0].um_per_v"), "{e}");
     }
 }

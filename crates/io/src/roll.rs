@@ -128,10 +128,17 @@ fn read_probes(path: &Path, index: u32) -> Result<ProbeFile, IngestError> {
     }
     let station = cols.optional_int("station")?;
     let pass = cols.optional_int("pass")?;
-    let has_station = station.as_ref().is_some_and(|s| s.iter().any(Option::is_some));
+    let has_station = station
+        .as_ref()
+        .is_some_and(|s| s.iter().any(Option::is_some));
     let has_pass = pass.as_ref().is_some_and(|s| s.iter().any(Option::is_some));
     if let Some(p) = pass.as_ref().filter(|_| has_pass) {
-        cols.bad_rows("pass", p, |v| v.is_none_or(|v| v < 1), "are null or below 1 (passes count from 1)")?;
+        cols.bad_rows(
+            "pass",
+            p,
+            |v| v.is_none_or(|v| v < 1),
+            "are null or below 1 (passes count from 1)",
+        )?;
     }
     if let Some(s) = &station {
         cols.bad_rows("station", s, |v| v.is_some_and(|v| v < 0), "are negative")?;
@@ -202,7 +209,10 @@ struct Columns<'a> {
 
 impl Columns<'_> {
     fn has(&self, name: &str) -> bool {
-        self.df.get_column_names().iter().any(|n| n.as_str() == name)
+        self.df
+            .get_column_names()
+            .iter()
+            .any(|n| n.as_str() == name)
     }
 
     fn polars(&self) -> impl Fn(PolarsError) -> IngestError + '_ {
@@ -213,20 +223,27 @@ impl Columns<'_> {
     }
 
     fn column(&self, name: &'static str) -> Result<&Column, IngestError> {
-        self.df.column(name).map_err(|_| IngestError::MissingColumn {
-            path: self.path.to_path_buf(),
-            column: name,
-            found: self
-                .df
-                .get_column_names()
-                .iter()
-                .map(|n| n.to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-        })
+        self.df
+            .column(name)
+            .map_err(|_| IngestError::MissingColumn {
+                path: self.path.to_path_buf(),
+                column: name,
+                found: self
+                    .df
+                    .get_column_names()
+                    .iter()
+                    .map(|n| n.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
     }
 
-    fn wrong_type(&self, name: &'static str, found: &DataType, expected: &'static str) -> IngestError {
+    fn wrong_type(
+        &self,
+        name: &'static str,
+        found: &DataType,
+        expected: &'static str,
+    ) -> IngestError {
         IngestError::WrongType {
             path: self.path.to_path_buf(),
             column: name,
@@ -238,7 +255,11 @@ impl Columns<'_> {
     fn time(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
         let column = self.column(name)?;
         let DataType::Datetime(unit, _) = column.dtype() else {
-            return Err(self.wrong_type(name, column.dtype(), "a timestamp (ns, us or ms; naive or zoned)"));
+            return Err(self.wrong_type(
+                name,
+                column.dtype(),
+                "a timestamp (ns, us or ms; naive or zoned)",
+            ));
         };
         let per: i64 = match unit {
             TimeUnit::Nanoseconds => 1,
@@ -281,7 +302,9 @@ impl Columns<'_> {
         if !column.dtype().is_integer() {
             return Err(self.wrong_type(name, column.dtype(), "an integer (int8 .. int64)"));
         }
-        let cast = column.strict_cast(&DataType::Int64).map_err(self.polars())?;
+        let cast = column
+            .strict_cast(&DataType::Int64)
+            .map_err(self.polars())?;
         Ok(Some(cast.i64().map_err(self.polars())?.iter().collect()))
     }
 
@@ -296,7 +319,11 @@ impl Columns<'_> {
     }
 
     /// Every value present and finite.
-    fn finite(&self, name: &'static str, values: Vec<Option<f64>>) -> Result<Vec<f64>, IngestError> {
+    fn finite(
+        &self,
+        name: &'static str,
+        values: Vec<Option<f64>>,
+    ) -> Result<Vec<f64>, IngestError> {
         self.bad_rows(
             name,
             &values,

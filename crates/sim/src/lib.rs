@@ -52,10 +52,6 @@ pub use axis::{
     AxisOutput, AxisSimConfig, AxisSimLaser, AxisSimLine, AxisSimulation, AxisTruth, Cosine,
     DeadPath, ErrorCurve, ErrorShape, LineTruth, MachineDrift, OpticsSlope, SensorError, Sine,
 };
-pub use roll::{
-    generate_roll, is_roll_config, write_roll, RollRig, RollSampling, RollSimConfig, RollSimEffects,
-    RollSimLevels, RollSimOutput, RollSimulation, RollTruth, RollTruthConfig,
-};
 pub use config::{
     AirBetweenReadings, BarConfig, CalibrationPhase, Creep, DeviceLayout, EffectsConfig,
     FleetConfig, GenerationConfig, GeometryConfig, HeadHeating, HeadSchedule, HeadStart,
@@ -64,6 +60,10 @@ pub use config::{
     WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
+pub use roll::{
+    generate_roll, is_roll_config, write_roll, RollRig, RollSampling, RollSimConfig,
+    RollSimEffects, RollSimLevels, RollSimOutput, RollSimulation, RollTruth, RollTruthConfig,
+};
 pub use truth::{
     BarGeometry, BarTruth, ChannelTruth, HeadTruth, HeatTruth, MountTruth, PlateTruth,
     SecondPathTruth, Truth,

@@ -212,7 +212,8 @@ pub(crate) fn run(plan: &RollPlan) -> Result<Outcome> {
                 crate::io::MAX_MANIFEST_BYTES,
             )
             .map_err(anyhow::Error::msg)?;
-            let c = dbbcal_core::roll_campaign::RollCampaign::from_toml_str(&text, "campaign.toml")?;
+            let c =
+                dbbcal_core::roll_campaign::RollCampaign::from_toml_str(&text, "campaign.toml")?;
             PathBuf::from("reports").join(c.id)
         }
     };

@@ -6,7 +6,7 @@
 //! cancel. εx(n) = Σ_{i=1..n} p(i), εx(0) := 0. Consecutive p share no reading, so with u_m per
 //! reading u(εx(n)) = 2·10³ u_m √n / L *(ours)*.
 //!
-//! The analysis ([`super::model`]) solves the same equations as one weighted least-squares
+//! The analysis (`roll::model`) solves the same equations as one weighted least-squares
 //! problem over every pass (and the levels, and the effects); this explicit form is the
 //! reference it is tested against.
 
@@ -40,7 +40,10 @@ mod tests {
         // 1 µm resolution: u_m = 1/√12 µm; L = 80 mm; 19 stations (seed §4.2).
         let u = u_law_urad(1.0 / 12f64.sqrt(), 18, 80.0);
         assert!((u - 30.6).abs() < 0.05, "{u}");
-        assert!((u - 30.0).abs() / 30.0 < 0.03, "the seed reports σ = 30 µrad");
+        assert!(
+            (u - 30.0).abs() / 30.0 < 0.03,
+            "the seed reports σ = 30 µrad"
+        );
     }
 
     #[test]

@@ -1,8 +1,8 @@
 //! A `roll` campaign analysed (seed 004; `docs/spec/machine-physics.md`, "Kind roll";
 //! `docs/spec/machine-formats.md`, "Kind roll"): readings in µm (volts × `um_per_v`), dwells
 //! ([`dwells`]), station means with their Type A u ([`stations`]), station indices and passes,
-//! the seed's estimator over every pass at once with the level datum ([`model`], checked
-//! against [`estimator`]), εx(n) with U, EAX, and the loop: residuals per pass, candidates of
+//! the seed's estimator over every pass at once with the level datum (the private `model`,
+//! checked against [`estimator`]), εx(n) with U, EAX, and the loop: residuals per pass, candidates of
 //! the spec's table ranked by BIC, forward selection, the named missing effect, the
 //! plausibility of the roll for a machine table, and what these data cannot tell.
 //!
@@ -381,7 +381,14 @@ pub fn study(logs: &RollCampaignLogs, options: &RollOptions) -> Result<RollStudy
     let scale_u = (probes[2].u_xy_um.powi(2) + probes[0].u_xy_um.powi(2)).sqrt() / (c.l_mm * 1e3);
     let sign = -c.b_to_a;
     let stations = station_results(&fit, &dwell_results, max_station, scale_u, sign);
-    let passes = pass_results(&pass_dwells, &dwell_results, &stations, &steps, &fit, c.l_mm);
+    let passes = pass_results(
+        &pass_dwells,
+        &dwell_results,
+        &stations,
+        &steps,
+        &fit,
+        c.l_mm,
+    );
     let level_results = levels
         .iter()
         .enumerate()
@@ -407,7 +414,15 @@ pub fn study(logs: &RollCampaignLogs, options: &RollOptions) -> Result<RollStudy
         (step_mm - c.d_mm) * 1e3,
         !levels.is_empty(),
     );
-    let diagnosis = diagnose(&steps, &levels, geometry, &fit, options, &implausible, unseen)?;
+    let diagnosis = diagnose(
+        &steps,
+        &levels,
+        geometry,
+        &fit,
+        options,
+        &implausible,
+        unseen,
+    )?;
     Ok(RollStudy {
         roll_error_name: c.axis.error_names()[3 + c.axis.index()].clone(),
         roll_error_sign: sign,
@@ -500,7 +515,11 @@ fn step_rows(passes: &[Vec<usize>], dwells: &[DwellResult]) -> Vec<StepRow> {
             if a.station.abs_diff(b.station) != 1 {
                 continue;
             }
-            let (before, after) = if a.station < b.station { (a, b) } else { (b, a) };
+            let (before, after) = if a.station < b.station {
+                (a, b)
+            } else {
+                (b, a)
+            };
             let q = (after.mean_um[2] - before.mean_um[3]) - (after.mean_um[0] - before.mean_um[1]);
             let u = (after.u_um[2].powi(2)
                 + before.u_um[3].powi(2)
@@ -690,7 +709,10 @@ fn reading_span_um(dwells: &[DwellResult]) -> f64 {
 
 /// The roll is implausible when its largest |εx| exceeds `limit_urad`.
 fn plausibility(stations: &[StationResult], limit_urad: f64, l_mm: f64) -> Option<Implausible> {
-    let ok: Vec<&StationResult> = stations.iter().filter(|s| s.roll_urad.is_finite()).collect();
+    let ok: Vec<&StationResult> = stations
+        .iter()
+        .filter(|s| s.roll_urad.is_finite())
+        .collect();
     let max_abs = ok.iter().map(|s| s.roll_urad.abs()).fold(0.0, f64::max);
     if max_abs <= limit_urad {
         return None;
@@ -723,7 +745,10 @@ fn diagnose(
         Ok(f.effects_determined().then_some(f))
     };
     let mut candidates = Vec::new();
-    for e in RollEffect::ALL.into_iter().filter(|e| !fit.effects.contains(e)) {
+    for e in RollEffect::ALL
+        .into_iter()
+        .filter(|e| !fit.effects.contains(e))
+    {
         let f = with(fit, e)?;
         candidates.push(Candidate {
             effect: e,
@@ -744,7 +769,10 @@ fn diagnose(
     let mut current = fit.clone();
     for _ in 0..options.forward_steps {
         let mut best: Option<(RollEffect, ModelFit)> = None;
-        for e in RollEffect::ALL.into_iter().filter(|e| !current.effects.contains(e)) {
+        for e in RollEffect::ALL
+            .into_iter()
+            .filter(|e| !current.effects.contains(e))
+        {
             if let Some(f) = with(&current, e)? {
                 if best.as_ref().is_none_or(|(_, b)| f.bic < b.bic) {
                     best = Some((e, f));

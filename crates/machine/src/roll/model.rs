@@ -187,8 +187,6 @@ impl ModelFit {
 
     /// Whether every effect's parameter is determined.
     pub(crate) fn effects_determined(&self) -> bool {
-        self.effects
-            .iter()
-            .all(|e| self.effect_value(*e).is_some())
+        self.effects.iter().all(|e| self.effect_value(*e).is_some())
     }
 }

@@ -60,7 +60,11 @@ pub fn mean_type_a(values: &[f64]) -> (f64, f64, f64) {
 /// distinct values as readings, every value within 1e-3 of a step of a multiple of q, q the
 /// smallest gap between distinct values divided by 1 … 10 (the largest that fits). `None`: continuous readings.
 pub fn detect_resolution(values_um: &[f64]) -> Option<f64> {
-    let mut v: Vec<f64> = values_um.iter().copied().filter(|x| x.is_finite()).collect();
+    let mut v: Vec<f64> = values_um
+        .iter()
+        .copied()
+        .filter(|x| x.is_finite())
+        .collect();
     v.sort_by(f64::total_cmp);
     v.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * a.abs().max(1.0));
     if v.len() < 2 || 2 * v.len() > values_um.len() {
@@ -70,7 +74,7 @@ pub fn detect_resolution(values_um: &[f64]) -> Option<f64> {
         .windows(2)
         .map(|w| w[1] - w[0])
         .fold(f64::INFINITY, f64::min);
-    if !(gap > 0.0) {
+    if gap <= 0.0 || !gap.is_finite() {
         return None;
     }
     // The smallest gap may span several steps (few distinct values): the largest q = gap/k,
@@ -157,7 +161,10 @@ mod tests {
         let continuous: Vec<f64> = (0..50).map(|i| (f64::from(i) * 0.37).sin()).collect();
         assert_eq!(detect_resolution(&continuous), None);
         // Few distinct values whose smallest gap is two steps.
-        let sparse: Vec<f64> = [0.0, 2.0, 5.0, 9.0].iter().flat_map(|&v| vec![v; 10]).collect();
+        let sparse: Vec<f64> = [0.0, 2.0, 5.0, 9.0]
+            .iter()
+            .flat_map(|&v| vec![v; 10])
+            .collect();
         assert_eq!(detect_resolution(&sparse), Some(1.0));
     }
 }

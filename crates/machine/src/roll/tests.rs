@@ -76,8 +76,12 @@ fn random_truth(rng: &mut ChaCha8Rng, stations: usize) -> Truth {
     };
     let (f1, f2) = (terms(rng), terms(rng));
     Truth {
-        eps_x: (0..stations).map(|_| rng.gen_range(-1000.0..1000.0)).collect(),
-        eps_y: (0..stations).map(|_| rng.gen_range(-1000.0..1000.0)).collect(),
+        eps_x: (0..stations)
+            .map(|_| rng.gen_range(-1000.0..1000.0))
+            .collect(),
+        eps_y: (0..stations)
+            .map(|_| rng.gen_range(-1000.0..1000.0))
+            .collect(),
         dz: (0..stations).map(|_| rng.gen_range(-20.0..20.0)).collect(),
         f1,
         f2,
@@ -172,13 +176,20 @@ fn noise_free_any_profiles_straightness_and_pitch_give_the_roll_within_1e_12_rad
         } else {
             (0..19).rev().collect()
         };
-        let s = study(&logs(sample(&truth, &order, &mut rng), vec![]), &RollOptions::default())
-            .unwrap();
+        let s = study(
+            &logs(sample(&truth, &order, &mut rng), vec![]),
+            &RollOptions::default(),
+        )
+        .unwrap();
         assert_eq!(s.stations.len(), 19);
         for st in &s.stations {
             let want = truth.eps_x[st.station] - truth.eps_x[0];
             let err_rad = (st.roll_urad - want).abs() * 1e-6;
-            assert!(err_rad < 1e-12, "trial {trial} n {}: {err_rad:e} rad", st.station);
+            assert!(
+                err_rad < 1e-12,
+                "trial {trial} n {}: {err_rad:e} rad",
+                st.station
+            );
             assert_eq!(st.roll_error_urad, st.roll_urad, "b_to_a = −1: EAX = +εx");
         }
         // The global solve of one pass is the seed's eq. 10.
@@ -205,8 +216,11 @@ fn monte_carlo(noise_um: f64, resolution_um: f64, trials: usize) -> (f64, f64) {
         let mut t = random_truth(&mut rng, 19);
         t.noise_um = noise_um;
         t.resolution_um = resolution_um;
-        let s = study(&logs(sample(&t, &forward(19), &mut rng), vec![]), &RollOptions::default())
-            .unwrap();
+        let s = study(
+            &logs(sample(&t, &forward(19), &mut rng), vec![]),
+            &RollOptions::default(),
+        )
+        .unwrap();
         let err = s.stations[18].roll_urad - (t.eps_x[18] - t.eps_x[0]);
         sum += err;
         sum2 += err * err;
@@ -240,8 +254,11 @@ fn the_seed_experiment_reports_30_6_urad_at_station_18() {
     let mut rng = ChaCha8Rng::seed_from_u64(18);
     let mut t = random_truth(&mut rng, 19);
     t.resolution_um = 1.0;
-    let s = study(&logs(sample(&t, &forward(19), &mut rng), vec![]), &RollOptions::default())
-        .unwrap();
+    let s = study(
+        &logs(sample(&t, &forward(19), &mut rng), vec![]),
+        &RollOptions::default(),
+    )
+    .unwrap();
     assert_eq!(s.resolution_um, [1.0; 4]);
     let x18 = s.stations[18].x_mm;
     assert!((x18 + 770.0).abs() < 1e-9 && (s.stations[0].x_mm + 50.0).abs() < 1e-9);
@@ -267,8 +284,11 @@ fn a_5_um_zero_offset_on_c_is_a_62_5_urad_ramp_named_and_removed_by_a_level_datu
     truth.eps_x = (0..19).map(|n| 20.0 * (n as f64 / 5.0).sin()).collect();
     let mut offset = truth.clone();
     offset.offset_um[2] = 5.0;
-    let clean = study(&logs(sample(&truth, &forward(19), &mut rng), vec![]), &RollOptions::default())
-        .unwrap();
+    let clean = study(
+        &logs(sample(&truth, &forward(19), &mut rng), vec![]),
+        &RollOptions::default(),
+    )
+    .unwrap();
     let samples = sample(&offset, &forward(19), &mut rng);
     let plain = study(&logs(samples.clone(), vec![]), &RollOptions::default()).unwrap();
     for (a, b) in plain.stations.iter().zip(&clean.stations) {
@@ -277,7 +297,10 @@ fn a_5_um_zero_offset_on_c_is_a_62_5_urad_ramp_named_and_removed_by_a_level_datu
     }
     assert!(plain.implausible.is_some());
     assert_eq!(plain.diagnosis.missing, Some(RollEffect::ProbeZeroOffset));
-    assert!(plain.diagnosis.missing_because.contains("combined zero offset"));
+    assert!(plain
+        .diagnosis
+        .missing_because
+        .contains("combined zero offset"));
     // Levels read at both ends (true roll relative to an arbitrary level zero of 7 µrad).
     let t_first = samples[50].time_ns;
     let t_last = samples[samples.len() - 50].time_ns;
@@ -293,7 +316,11 @@ fn a_5_um_zero_offset_on_c_is_a_62_5_urad_ramp_named_and_removed_by_a_level_datu
     }
     let offset_fit = &datum.effects[0];
     assert_eq!(offset_fit.effect, RollEffect::ProbeZeroOffset);
-    assert!((offset_fit.value.0 - 5.0).abs() < 1e-6, "{:?}", offset_fit.value);
+    assert!(
+        (offset_fit.value.0 - 5.0).abs() < 1e-6,
+        "{:?}",
+        offset_fit.value
+    );
 }
 
 #[test]
@@ -303,10 +330,19 @@ fn roll_drift_is_told_apart_by_passes_both_ways() {
     t.noise_um = 0.01;
     t.drift_urad_per_h = 300.0;
     let order: Vec<usize> = (0..10).chain((0..9).rev()).collect();
-    let s = study(&logs(sample(&t, &order, &mut rng), vec![]), &RollOptions::default()).unwrap();
+    let s = study(
+        &logs(sample(&t, &order, &mut rng), vec![]),
+        &RollOptions::default(),
+    )
+    .unwrap();
     assert_eq!(s.passes.len(), 2);
     assert_eq!(s.passes[1].direction, -1);
-    assert_eq!(s.diagnosis.missing, Some(RollEffect::RollDrift), "{:?}", s.diagnosis);
+    assert_eq!(
+        s.diagnosis.missing,
+        Some(RollEffect::RollDrift),
+        "{:?}",
+        s.diagnosis
+    );
     let with = RollOptions {
         effects: vec![RollEffect::RollDrift],
         ..RollOptions::default()
@@ -314,4 +350,34 @@ fn roll_drift_is_told_apart_by_passes_both_ways() {
     let s = study(&logs(sample(&t, &order, &mut rng), vec![]), &with).unwrap();
     let (rate, u) = s.effects[0].value;
     assert!((rate - 300.0).abs() < 2.0 * u.max(1.0), "{rate} ± {u}");
+}
+
+#[test]
+fn the_seeds_1_35_mrad_after_18_stations_is_a_6_um_combined_offset_and_is_warned_about() {
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let mut t = random_truth(&mut rng, 19);
+    t.eps_x = vec![0.0; 19];
+    t.offset_um = [0.0, 0.0, 6.0, 0.0];
+    let s = study(
+        &logs(sample(&t, &forward(19), &mut rng), vec![]),
+        &RollOptions::default(),
+    )
+    .unwrap();
+    assert!((s.stations[18].roll_urad - 1350.0).abs() < 1e-6);
+    let i = s
+        .implausible
+        .as_ref()
+        .expect("1.35 mrad is implausible for a machine table");
+    assert!((i.equivalent_offset_um - 6.0).abs() < 1e-9, "{i:?}");
+    assert!((i.max_abs_urad - 1350.0).abs() < 1e-6);
+    // A typical roll (±30 µrad) is not warned about.
+    t.offset_um = [0.0; 4];
+    t.eps_x = (0..19).map(|n| 30.0 * (n as f64 / 4.0).sin()).collect();
+    let s = study(
+        &logs(sample(&t, &forward(19), &mut rng), vec![]),
+        &RollOptions::default(),
+    )
+    .unwrap();
+    assert!(s.implausible.is_none());
+    assert_eq!(s.diagnosis.missing, None);
 }

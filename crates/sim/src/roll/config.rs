@@ -231,9 +231,8 @@ impl RollSimConfig {
             key: key.into(),
             reason,
         };
-        let check = |key: &str, v: f64, l: Limit| {
-            l.check(key, v).map_err(|e| bad(key, e.to_string()))
-        };
+        let check =
+            |key: &str, v: f64, l: Limit| l.check(key, v).map_err(|e| bad(key, e.to_string()));
         if self.kind != CampaignKind::Roll {
             return Err(bad("kind", "must be \"roll\"".into()));
         }
@@ -243,22 +242,51 @@ impl RollSimConfig {
         if self.rig.b_to_a.abs() != 1 {
             return Err(bad("rig.b_to_a", "must be +1 or -1".into()));
         }
-        check("rig.um_per_v", self.rig.um_per_v.abs(), Limit::closed(1e-3, 1e4, "µm/V"))?;
-        check("rig.u_xy_um", self.rig.u_xy_um, Limit::closed(0.0, 1_000.0, "µm"))?;
-        check("rig.x_first_mm", self.rig.x_first_mm, Limit::closed(-1e4, 1e4, "mm"))?;
+        check(
+            "rig.um_per_v",
+            self.rig.um_per_v.abs(),
+            Limit::closed(1e-3, 1e4, "µm/V"),
+        )?;
+        check(
+            "rig.u_xy_um",
+            self.rig.u_xy_um,
+            Limit::closed(0.0, 1_000.0, "µm"),
+        )?;
+        check(
+            "rig.x_first_mm",
+            self.rig.x_first_mm,
+            Limit::closed(-1e4, 1e4, "mm"),
+        )?;
         CountLimit::new(2, 1_000)
             .check("rig.stations", self.rig.stations)
             .map_err(|e| bad("rig.stations", e.to_string()))?;
         let s = &self.sampling;
-        check("sampling.rate_hz", s.rate_hz, Limit::above(0.0, 10_000.0, "Hz"))?;
-        check("sampling.dwell_s", s.dwell_s, Limit::above(0.0, 3_600.0, "s"))?;
+        check(
+            "sampling.rate_hz",
+            s.rate_hz,
+            Limit::above(0.0, 10_000.0, "Hz"),
+        )?;
+        check(
+            "sampling.dwell_s",
+            s.dwell_s,
+            Limit::above(0.0, 3_600.0, "s"),
+        )?;
         check("sampling.move_s", s.move_s, Limit::above(0.0, 3_600.0, "s"))?;
         CountLimit::new(1, 100)
             .check("sampling.passes", s.passes)
             .map_err(|e| bad("sampling.passes", e.to_string()))?;
-        check("sampling.noise_um", s.noise_um, Limit::closed(0.0, 100.0, "µm"))?;
-        check("sampling.resolution_um", s.resolution_um, Limit::closed(0.0, 100.0, "µm"))?;
-        let samples = s.passes as f64 * self.rig.stations as f64 * (s.dwell_s + s.move_s) * s.rate_hz;
+        check(
+            "sampling.noise_um",
+            s.noise_um,
+            Limit::closed(0.0, 100.0, "µm"),
+        )?;
+        check(
+            "sampling.resolution_um",
+            s.resolution_um,
+            Limit::closed(0.0, 100.0, "µm"),
+        )?;
+        let samples =
+            s.passes as f64 * self.rig.stations as f64 * (s.dwell_s + s.move_s) * s.rate_hz;
         if samples > 5e7 {
             return Err(bad(
                 "sampling",
@@ -268,7 +296,10 @@ impl RollSimConfig {
         if !matches!(self.truth.shape.as_str(), "smooth" | "random") {
             return Err(bad(
                 "truth.shape",
-                format!("{:?} is neither \"smooth\" nor \"random\"", self.truth.shape),
+                format!(
+                    "{:?} is neither \"smooth\" nor \"random\"",
+                    self.truth.shape
+                ),
             ));
         }
         for (key, v) in [
@@ -276,11 +307,18 @@ impl RollSimConfig {
             ("truth.pitch_urad", self.truth.pitch_urad),
             ("truth.dz_um", self.truth.dz_um),
             ("truth.profile_um", self.truth.profile_um),
-            ("truth.profile_omega_per_mm", self.truth.profile_omega_per_mm),
+            (
+                "truth.profile_omega_per_mm",
+                self.truth.profile_omega_per_mm,
+            ),
         ] {
             check(key, v, Limit::closed(0.0, 1e5, ""))?;
         }
-        check("levels.u_urad", self.levels.u_urad, Limit::above(0.0, 1e4, "µrad"))?;
+        check(
+            "levels.u_urad",
+            self.levels.u_urad,
+            Limit::above(0.0, 1e4, "µrad"),
+        )?;
         Ok(())
     }
 }

@@ -214,63 +214,73 @@ pub fn generate_roll(cfg: &RollSimConfig) -> Result<RollSimulation, SimError> {
     let mut samples = Vec::new();
     let mut levels = Vec::new();
     let mut now = start_ns;
-    let mut read = |q: f64, now: i64, station: Option<i64>, pass: i64, out: &mut Vec<ProbeSample>| {
-        let t_h = (now - start_ns) as f64 / 3.6e12;
-        let m = rises(cfg, &stage, &pos, q, t_h).map(|v| {
-            let v = v + s.noise_um * normal.sample(&mut noise_rng);
-            let v = if s.resolution_um > 0.0 {
-                (v / s.resolution_um).round() * s.resolution_um
-            } else {
-                v
-            };
-            volts(v)
-        });
-        out.push(ProbeSample {
-            time_ns: now,
-            x_mm: x_of(q),
-            m,
-            station,
-            pass: Some(pass),
-            source: (0, 0),
-        });
-    };
-    for (p, order) in pass_orders(cfg).iter().enumerate() {
-        let pass = p as i64 + 1;
-        for (k, &n) in order.iter().enumerate() {
-            let q = n as f64;
-            for j in 0..per_dwell {
-                read(q, now, Some(n as i64), pass, &mut samples);
-                let at_end = k == 0 || k + 1 == order.len();
-                if cfg.levels.write && at_end && j == per_dwell / 2 {
-                    let t_h = (now - start_ns) as f64 / 3.6e12;
-                    let roll = stage.roll[n] + cfg.effects.roll_drift_urad_per_h * t_h;
-                    levels.push(LevelRow {
-                        time_ns: now,
-                        roll_urad: roll
-                            + cfg.levels.zero_urad
-                            + cfg.levels.u_urad * normal.sample(&mut level_rng),
-                        u_urad: Some(cfg.levels.u_urad),
-                        source: (0, 0),
-                    });
-                }
-                now += dt_ns;
-            }
-            let next = order.get(k + 1).copied().or_else(|| {
-                // Between passes: a short move away and back, so the turn is two dwells.
-                (p + 1 < cfg.sampling.passes).then_some(n)
+    let mut read =
+        |q: f64, now: i64, station: Option<i64>, pass: i64, out: &mut Vec<ProbeSample>| {
+            let t_h = (now - start_ns) as f64 / 3.6e12;
+            let m = rises(cfg, &stage, &pos, q, t_h).map(|v| {
+                let v = v + s.noise_um * normal.sample(&mut noise_rng);
+                let v = if s.resolution_um > 0.0 {
+                    (v / s.resolution_um).round() * s.resolution_um
+                } else {
+                    v
+                };
+                volts(v)
             });
-            if let Some(next) = next {
-                for j in 1..=per_move {
-                    let f = j as f64 / (per_move + 1) as f64;
-                    let qm = if next == n {
-                        q + 0.25 * (std::f64::consts::PI * f).sin()
-                    } else {
-                        q + (next as f64 - q) * f
-                    };
-                    read(qm, now, None, pass, &mut samples);
-                    now += dt_ns;
-                }
+            out.push(ProbeSample {
+                time_ns: now,
+                x_mm: x_of(q),
+                m,
+                station,
+                pass: Some(pass),
+                source: (0, 0),
+            });
+        };
+    // Every visit (pass, station) in time order; a move between consecutive visits (a short
+    // move away and back when the next visit is at the same station: the turn of a pass).
+    let orders = pass_orders(cfg);
+    let visits: Vec<(usize, usize, bool)> = orders
+        .iter()
+        .enumerate()
+        .flat_map(|(p, order)| {
+            let last = order.len() - 1;
+            order
+                .iter()
+                .enumerate()
+                .map(move |(k, &n)| (p, n, k == 0 || k == last))
+        })
+        .collect();
+    for (v, &(p, n, at_end)) in visits.iter().enumerate() {
+        let pass = p as i64 + 1;
+        let q = n as f64;
+        for j in 0..per_dwell {
+            read(q, now, Some(n as i64), pass, &mut samples);
+            if cfg.levels.write && at_end && j == per_dwell / 2 {
+                let t_h = (now - start_ns) as f64 / 3.6e12;
+                let roll = stage.roll[n] + cfg.effects.roll_drift_urad_per_h * t_h;
+                levels.push(LevelRow {
+                    time_ns: now,
+                    roll_urad: roll
+                        + cfg.levels.zero_urad
+                        + cfg.levels.u_urad * normal.sample(&mut level_rng),
+                    u_urad: Some(cfg.levels.u_urad),
+                    source: (0, 0),
+                });
             }
+            now += dt_ns;
+        }
+        let Some(&(next_pass, next, _)) = visits.get(v + 1) else {
+            continue;
+        };
+        for j in 1..=per_move {
+            let f = j as f64 / (per_move + 1) as f64;
+            let qm = if next == n {
+                q + 0.25 * (std::f64::consts::PI * f).sin()
+            } else {
+                q + (next as f64 - q) * f
+            };
+            let moving_pass = if f < 0.5 { pass } else { next_pass as i64 + 1 };
+            read(qm, now, None, moving_pass, &mut samples);
+            now += dt_ns;
         }
     }
     let manifest = manifest(cfg);
