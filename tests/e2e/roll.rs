@@ -154,10 +154,12 @@ fn a_5_um_offset_on_c_is_named_as_a_probe_zero_offset_and_a_level_datum_removes_
             "n {n}: {ramp}"
         );
     }
+    // The slope through the datum also takes the true roll's (±20 µrad: at most
+    // 20 Σn/Σn² = 1.6 µrad per station, 0.13 µm of equivalent offset).
     let equivalent = record["implausible"]["equivalent_offset_um"]
         .as_f64()
         .unwrap();
-    assert!((equivalent - 5.0).abs() < 0.1, "{equivalent}");
+    assert!((equivalent - 5.0).abs() < 0.15, "{equivalent}");
 
     let datum = simulate(tmp.path(), "datum", &[offset, one_pass]);
     let out = tmp.path().join("datum-out");
