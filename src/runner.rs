@@ -167,6 +167,9 @@ pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read {}", p.display()))?;
+            if crate::simulate::is_roll_config(&text).unwrap_or(false) {
+                return simulate_roll(p, &text, out, seed);
+            }
             let probe = crate::simulate::is_probe_config(&text).map_err(|e| {
                 anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
             })?;
@@ -210,6 +213,23 @@ fn simulate_axis(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Resu
     let sim = crate::simulate::generate_axis(&cfg)?;
     create_new_folder(out, |tmp| {
         crate::simulate::write_axis(&sim, tmp, &cfg.output, cfg.seed).map_err(anyhow::Error::from)
+    })
+}
+
+/// [`simulate`] for a `roll` campaign: the configuration `text` (of file `path`).
+fn simulate_roll(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
+    let mut cfg = toml::from_str::<crate::simulate::RollSimConfig>(text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    if std::fs::symlink_metadata(out).is_ok() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = crate::simulate::generate_roll(&cfg)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    create_new_folder(out, |tmp| {
+        crate::simulate::write_roll(&sim, tmp, &cfg).map_err(anyhow::Error::from)
     })
 }
 

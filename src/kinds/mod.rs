@@ -6,6 +6,7 @@
 
 pub mod axis;
 pub mod probe;
+pub mod roll;
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +24,8 @@ pub enum KindPlan {
     Axis(axis::AxisPlan),
     /// A `probe` campaign (seed 003).
     Probe(probe::ProbePlan),
+    /// A `roll` campaign (seed 004).
+    Roll(roll::RollPlan),
 }
 
 /// The campaign directory a run reads: `--campaign`, else the pipeline's `[pipeline] campaign`,
@@ -97,8 +100,20 @@ pub fn plan_run(
                 },
                 other => other,
             }),
+        CampaignKind::Roll => roll::RollPlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
+            .map(KindPlan::Roll)
+            .map_err(|e| match e {
+                PlanError::Pipeline { path, message } => PlanError::Pipeline {
+                    path,
+                    message: format!(
+                        "{} is a roll campaign (run it with pipelines/roll.toml): {message}",
+                        dir.display()
+                    ),
+                },
+                other => other,
+            }),
         other => Err(PlanError::NotInCampaign(format!(
-            "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\" and \"axis\" campaigns",
+            "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\", \"axis\", \"probe\" and \"roll\" campaigns (\"volumetric\": its analysis is in dbbcal-machine, its run not yet)",
             manifest.display(),
             other.as_str()
         ))),
@@ -111,5 +126,6 @@ pub fn run(plan: &KindPlan) -> anyhow::Result<Outcome> {
         KindPlan::Ballbar(p) => crate::runner::run(p),
         KindPlan::Axis(p) => axis::run(p),
         KindPlan::Probe(p) => probe::run(p),
+        KindPlan::Roll(p) => roll::run(p),
     }
 }

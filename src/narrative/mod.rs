@@ -10,6 +10,7 @@ pub(crate) mod device_loop;
 pub(crate) mod fit_report;
 pub(crate) mod page;
 pub(crate) mod probe;
+pub(crate) mod roll;
 
 use crate::model::Effect;
 use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};

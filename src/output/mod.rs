@@ -39,6 +39,7 @@ pub(crate) mod fault;
 mod location;
 mod lock;
 pub(crate) mod probe;
+pub(crate) mod roll;
 pub(crate) mod stage_records;
 pub(crate) mod summary;
 use location::*;

@@ -21,6 +21,7 @@ mod nist;
 mod one_length;
 mod page;
 mod probe;
+mod roll;
 mod row_order;
 mod safe_outputs;
 mod support;

@@ -15,6 +15,8 @@ mod probe;
 mod probe_write;
 mod read;
 mod repeats;
+mod roll;
+mod roll_write;
 mod table;
 mod write;
 
@@ -24,6 +26,8 @@ mod axis_tests;
 mod fuzz_tests;
 #[cfg(test)]
 mod positions_tests;
+#[cfg(test)]
+mod roll_tests;
 #[cfg(test)]
 mod tests;
 
@@ -37,6 +41,8 @@ pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;
 pub use probe::{read_probe_campaign, read_probe_manifest};
 pub use probe_write::{write_probe_campaign, ProbeWriteOptions};
+pub use roll::{read_roll_campaign, read_roll_manifest};
+pub use roll_write::{write_roll_campaign, RollWriteOptions};
 pub use table::{write_table, write_table_csv, Column, Table};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 

@@ -30,5 +30,6 @@ pub mod linear;
 pub mod pose;
 pub mod pose_errors;
 pub mod probe;
+pub mod roll;
 pub mod straightness;
 pub mod volumetric;

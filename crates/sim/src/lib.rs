@@ -22,6 +22,8 @@
 //! [`generate_axis`] from an [`AxisSimConfig`] (a simulation TOML with `kind = "axis"`,
 //! [`is_axis_config`]), written by [`write_axis`]; so has the `probe` kind: [`generate_probe`]
 //! from a [`ProbeSimConfig`] (`kind = "probe"`, [`is_probe_config`]), written by [`write_probe`].
+//! [`is_axis_config`]), written by [`write_axis`]; the `roll` kind likewise ([`generate_roll`],
+//! [`RollSimConfig`], [`is_roll_config`], [`write_roll`]).
 
 mod axis;
 pub(crate) mod config;
@@ -32,6 +34,7 @@ mod geometry;
 pub mod hexapod;
 mod lag;
 mod probe;
+mod roll;
 mod schedule;
 pub(crate) mod truth;
 
@@ -64,6 +67,9 @@ pub use probe::{
     generate_probe, is_probe_config, write_probe, ProbeSimArtefact, ProbeSimConfig, ProbeSimOutput,
     ProbeSimPretravel, ProbeSimReversal, ProbeSimStylus, ProbeSimTouches, ProbeSimulation,
     ProbeTruth, TruthDirection, TruthTouch,
+pub use roll::{
+    generate_roll, is_roll_config, write_roll, RollRig, RollSampling, RollSimConfig,
+    RollSimEffects, RollSimLevels, RollSimOutput, RollSimulation, RollTruth, RollTruthConfig,
 };
 pub use truth::{
     BarGeometry, BarTruth, ChannelTruth, HeadTruth, HeatTruth, MountTruth, PlateTruth,
