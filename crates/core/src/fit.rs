@@ -26,7 +26,7 @@
 //!   intervals of `ln tau` (profile RSS cut at `t² u_hac² / [(JᵀJ)⁻¹]_kk`, the Wald interval when
 //!   linear; `identify::profile_tau_intervals`, ~1.3 fits' cost for two taus; series of ≥ 50 000
 //!   samples are profiled on their 300-s coarse copy, `identify::coarse_copy`). Tested for coverage
-//!   (93-97 % for gains and taus) in `identify.rs`.
+//!   (93-97 % for gains and taus) in `identify`'s tests (`identify/tests.rs`).
 //! - The HAC covariance needs the residual autocorrelation only up to its first non-positive lag:
 //!   direct sums, O(n) a lag, the FFT only past 32 lags (`fit::initial_autocorrelation`).
 

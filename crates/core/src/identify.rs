@@ -23,7 +23,7 @@
 //!   optimum is kept (`BarModel::coarse_theta`; the check that the inputs vary within a mount,
 //!   `identify::vanished_gains`, runs on the same coarse copy) and the profile intervals start there, unless the
 //!   fine fit ended more than `COARSE_BASIN_LN_TAU` in `ln tau` away (then the coarse copy is
-//!   refitted from the fine optimum); the constants are in `identify.rs`.
+//!   refitted from the fine optimum); the constants are in `identify/start.rs`.
 
 use serde::Serialize;
 

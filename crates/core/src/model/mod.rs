@@ -30,7 +30,7 @@
 //!   why (`summary.json`, the bar figure's notes). Matching (`pipeline::matched_inputs`) takes the bars
 //!   with all four base parameters, or, when none has them, every bar on alpha and tau_R (NaN beta and
 //!   tau_S in `MatchInput`).
-//! - `I_p = plate length − fixed_length_mm` per mount (`series.rs`).
+//! - `I_p = plate length − fixed_length_mm` per mount (`series/build.rs`).
 //! - Time constants are fitted as `ln tau` (positive by construction); intervals from the profile of
 //!   `ln tau` mapped to seconds (diagnosis trial fits: `exp(ln tau ± t·u)`).
 //! - Events with values (`head_power`, `tilt`) are held inputs integrated at their own switch times
@@ -46,7 +46,7 @@
 //!   `I_p lag(dT_grad; tau_S)`: the bar's air is its sensor plus a share of the sensor difference,
 //!   through both base paths) and no time constant of its own; every other effect has one gain.
 //! - `plate_expansion` uses the plate sensor smoothed forward and backward (`model::plate_temperature`,
-//!   `lag::zero_phase_lag`, 300 s), as does the declared-CTE correction in `series.rs`: a raw noisy
+//!   `lag::zero_phase_lag`, 300 s), as does the declared-CTE correction in `series/build.rs`: a raw noisy
 //!   level is an error in a regressor and biases alpha and beta.
 //! - Weights: every fit is weighted by `BarSeries::weight` (1 for a reading, the node weight for a
 //!   compressed bin); `ThermalProblem` demeans the zeros with weights and multiplies each row by
