@@ -14,12 +14,12 @@ mod build;
 mod coarse;
 pub mod quality;
 mod temperatures;
+pub(crate) use bins::Region;
 pub use bins::MAX_BIN_S;
 pub use bins::{
     automatic_bin_s, counts_ok, reading_time_ok, reading_times_ok, BarBins, BinAccumulator,
-    BinError, BinGrid, BinKey, BinMoments, Node, Readings, Region, AUTOMATIC_BIN_S,
-    AUTOMATIC_MAX_INTERVAL_S, EARLIEST_READING_NS, LATEST_READING_NS, MAX_ABS_COUNTS,
-    MAX_BAR_READINGS, MIN_BINS_PER_TAU,
+    BinError, BinGrid, Readings, AUTOMATIC_BIN_S, AUTOMATIC_MAX_INTERVAL_S, EARLIEST_READING_NS,
+    LATEST_READING_NS, MAX_ABS_COUNTS, MAX_BAR_READINGS, MIN_BINS_PER_TAU,
 };
 pub use quality::Quality;
 pub use temperatures::{campaign_origin_ns, interpolate_temperatures, sensor_knots};

@@ -22,7 +22,7 @@ pub struct BarLedger {
     /// The bar was not searched on its own: the fleet's selection already brings it within the
     /// materiality threshold of its reading-noise floor ([`needs_own_selection`]), and its
     /// steps are the fleet's, on this bar.
-    pub from_fleet: bool,
+    pub(crate) from_fleet: bool,
 }
 
 /// Whether a bar needs a forward selection of its own: the fleet's selected model for it

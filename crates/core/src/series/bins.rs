@@ -79,9 +79,9 @@ mod reorder;
 
 pub use accumulator::BinAccumulator;
 pub use bar_bins::{BarBins, Readings};
+pub use grid::BinGrid;
+pub(crate) use grid::Region;
 pub(crate) use grid::Segments;
-pub use grid::{BinGrid, BinKey, Region};
-pub use moments::{BinMoments, Node};
 
 /// Longest bin accepted: a bin of more than an hour is not a straight line for the time
 /// constants of `docs/spec/physics.md` (15 min and more), and it bounds the integer sums.

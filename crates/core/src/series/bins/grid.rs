@@ -12,7 +12,7 @@ use crate::series::Event;
 
 /// The region a reading falls in, which no bin crosses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub enum Region {
+pub(crate) enum Region {
     /// Inside the bar's mount (index into `Campaign::mounts`), after this many `rezero` events.
     Segment {
         /// Index into `Campaign::mounts`.
@@ -27,7 +27,7 @@ pub enum Region {
 /// Key of one bin: its start (ns) and region. Bins sort in time order by key: regions follow
 /// one another in time and each region's bins start at or after the region's start.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct BinKey {
+pub(crate) struct BinKey {
     pub(crate) start_ns: TimeNs,
     pub(crate) region: Region,
 }

@@ -9,7 +9,7 @@ use crate::campaign::TimeNs;
 /// Integer moments of one bin's readings: sums over its samples of powers of `u` (µs since the
 /// bin's start) and of the counts `c`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct BinMoments {
+pub(crate) struct BinMoments {
     pub(crate) n: u64,
     /// First and last reading, µs since the bin's start.
     pub(crate) first_us: i64,
@@ -58,7 +58,7 @@ impl Products {
 
 /// One node of a compressed bin: a weighted pseudo-reading.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Node {
+pub(crate) struct Node {
     /// Time since the bin's start, µs.
     pub(crate) offset_us: f64,
     /// Number of readings the node stands for (the two weights of a bin sum to its `n`).

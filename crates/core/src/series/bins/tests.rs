@@ -1,3 +1,5 @@
+use super::grid::BinKey;
+use super::moments::BinMoments;
 use super::reorder::Divide;
 use super::*;
 
