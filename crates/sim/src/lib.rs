@@ -67,6 +67,7 @@ pub use probe::{
     generate_probe, is_probe_config, write_probe, ProbeSimArtefact, ProbeSimConfig, ProbeSimOutput,
     ProbeSimPretravel, ProbeSimReversal, ProbeSimStylus, ProbeSimTouches, ProbeSimulation,
     ProbeTruth, TruthDirection, TruthTouch,
+};
 pub use roll::{
     generate_roll, is_roll_config, write_roll, RollRig, RollSampling, RollSimConfig,
     RollSimEffects, RollSimLevels, RollSimOutput, RollSimulation, RollTruth, RollTruthConfig,
