@@ -2,6 +2,9 @@ use super::*;
 use crate::components::SixErrors;
 use crate::hexapod::tests::example;
 
+/// What a hidden effect adds to the legs (µm) at dwell k, from (k, hours, body excess, dwell).
+type Hidden = Box<dyn Fn(usize, f64, f64, &DwellLegs) -> [f64; 6]>;
+
 /// Noise of a leg's dwell mean, µm.
 const NOISE_UM: f64 = 0.02;
 
@@ -44,8 +47,8 @@ fn campaign(
             let exact = device.leg_lengths_mm(&pose);
             let mut d = DwellLegs::at_pose(&device, &pose, hours, (s as i64, dir), exact, excess);
             let h = hidden(k, hours, excess, &d);
-            for i in 0..6 {
-                d.lengths_mm[i] += (h[i] + NOISE_UM * noise()) * 1e-3;
+            for (l, h) in d.lengths_mm.iter_mut().zip(h) {
+                *l += (h + NOISE_UM * noise()) * 1e-3;
             }
             hidden_um.push(h);
             dwells.push(d);
@@ -84,10 +87,7 @@ fn a_clean_test_proposes_nothing_and_its_residual_is_the_noise() {
 #[test]
 fn each_hidden_effect_is_named_and_adding_it_brings_the_legs_to_the_noise() {
     let drift = [0.8, -0.5, 0.3, 2.0, 0.0, -1.5];
-    let cases: [(
-        DeviceEffect,
-        Box<dyn Fn(usize, f64, f64, &DwellLegs) -> [f64; 6]>,
-    ); 3] = [
+    let cases: [(DeviceEffect, Hidden); 3] = [
         (
             DeviceEffect::MachineDrift,
             Box::new(move |_, h, _, d: &DwellLegs| {

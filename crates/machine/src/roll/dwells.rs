@@ -174,11 +174,11 @@ mod tests {
     /// Stops at 0, 40, 80 mm (b_to_a = +1), 3 s each at 10 Hz, 1 s moves between.
     fn staircase(stops: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let (mut t, mut x) = (Vec::new(), Vec::new());
-        let mut now = 0.0;
+        let mut now: f64 = 0.0;
         for (k, &stop) in stops.iter().enumerate() {
             for _ in 0..30 {
                 t.push(now);
-                x.push(stop + 1e-4 * ((now * 7.0) as f64).sin());
+                x.push(stop + 1e-4 * (now * 7.0).sin());
                 now += 0.1;
             }
             if let Some(&next) = stops.get(k + 1) {

@@ -7,7 +7,7 @@
 //! stage position q (in steps from station 0, continuous while moving) the surface point under
 //! R's origin is u₀ + q s_true and a probe at (x_P, y_P) in R reads, in µm,
 //! (1 + g_P) [z(u₀ + q s_true + x_P, y_P) + δz(q) + 10⁻³ (εx(q, t) y_P − εy(q) x_P)] + o_P(t)
-//! + noise, rounded to the resolution, then divided by `um_per_v` when the unit is V
+//! plus noise, rounded to the resolution, then divided by `um_per_v` when the unit is V
 //! (`docs/spec/machine-physics.md`'s rigid-body rule; with nominal positions, g = 0 and
 //! s_true = d these are the spec's four reading equations). The errors at stations are drawn
 //! (`smooth`: a random sum of sines over the travel; `random`: i.i.d., the seed's simulation)
