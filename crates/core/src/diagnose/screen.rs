@@ -19,6 +19,7 @@ use std::borrow::Cow;
 use std::sync::OnceLock;
 
 use nalgebra::DMatrix;
+use nalgebra::DVector;
 
 use super::noise::{self, NoiseFit};
 use crate::fit::{self, Separable};
@@ -329,7 +330,8 @@ impl Separable for AddedTerms<'_, '_> {
         self.problem.linear_names()[self.first_gain..self.n_gains].to_vec()
     }
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
-        self.added_columns(self.problem.basis(&self.full_theta(theta)))
+        self.problem
+            .basis_columns(&self.full_theta(theta), self.first_gain..self.n_gains)
     }
     fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
         let full = self.full_theta(theta);
@@ -337,6 +339,15 @@ impl Separable for AddedTerms<'_, '_> {
             self.problem
                 .basis_derivative(&full, self.base_theta.len() + k),
         )
+    }
+    /// The added columns' coefficients padded with zeros for the model's own: the added time
+    /// constants move the added columns alone.
+    fn basis_derivative_times(&self, theta: &[f64], k: usize, coef: &DVector<f64>) -> DVector<f64> {
+        let mut padded = DVector::zeros(self.problem.linear_names().len());
+        padded.rows_mut(self.first_gain, coef.len()).copy_from(coef);
+        let full = self.full_theta(theta);
+        self.problem
+            .basis_derivative_times(&full, self.base_theta.len() + k, &padded)
     }
     fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
         self.problem

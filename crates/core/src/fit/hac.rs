@@ -16,6 +16,7 @@ use nalgebra::DVector;
 /// sums are close to independent when `L` exceeds the residual correlation time.
 pub(super) fn covariances(
     jac: &DMatrix<f64>,
+    jtj_inv: &DMatrix<f64>,
     residuals: &[f64],
     s2: f64,
     batch_len: Option<usize>,
@@ -23,11 +24,7 @@ pub(super) fn covariances(
 ) -> Option<(DMatrix<f64>, DMatrix<f64>, usize)> {
     let (n, p) = jac.shape();
     let p_total = p + absorbed;
-    let jtj = jac.tr_mul(jac);
-    // No pseudo-inverse: it would give the directions the data do not determine a zero
-    // variance. [`fit`] refuses those first ([`undetermined_parameters`]).
-    let jtj_inv = jtj.try_inverse()?;
-    let cov_naive = &jtj_inv * s2;
+    let cov_naive = jtj_inv * s2;
     // One autocorrelation serves the batch choice and the batch-edge correction.
     let acf = initial_autocorrelation(residuals);
     let batch = batch_len
@@ -53,7 +50,7 @@ pub(super) fn covariances(
     // Batch sums miss the correlation across batch edges: relative bias -2 Σ k ρ_k / (L τ_int)
     // (ρ_k the residual autocorrelation); undo it.
     meat /= (1.0 - batch_edge_bias(&acf, batch)).max(0.5);
-    let cov_hac = &jtj_inv * meat * &jtj_inv;
+    let cov_hac = jtj_inv * meat * jtj_inv;
     Some((cov_naive, cov_hac, batch))
 }
 
@@ -86,12 +83,12 @@ pub(crate) fn t_quantile_975(dof: f64) -> f64 {
 /// Cost `O(n p²)`, no refits. `None` when `JᵀJ` is singular.
 pub(super) fn satterthwaite_dof(
     jac: &DMatrix<f64>,
+    k_inv: &DMatrix<f64>,
     batch: usize,
     groups: Option<&[Option<usize>]>,
 ) -> Option<Vec<f64>> {
     let (n, p) = jac.shape();
-    let k_inv = jac.tr_mul(jac).try_inverse()?;
-    let a_all = jac * &k_inv;
+    let a_all = jac * k_inv;
     let n_groups = groups
         .map(|g| g.iter().flatten().map(|&g| g + 1).max().unwrap_or(0))
         .unwrap_or(0);
@@ -103,7 +100,7 @@ pub(super) fn satterthwaite_dof(
     }
     let q = p + n_groups;
     let mut w_mat = DMatrix::<f64>::zeros(q, q);
-    w_mat.view_mut((0, 0), (p, p)).copy_from(&k_inv);
+    w_mat.view_mut((0, 0), (p, p)).copy_from(k_inv);
     for (g, &size) in group_size.iter().enumerate() {
         w_mat[(p + g, p + g)] = 1.0 / size.max(1) as f64;
     }

@@ -25,8 +25,8 @@ const UNDETERMINED_LOADING: f64 = 0.1;
 /// direction is determined. A zero or non-finite column is undetermined on its own.
 ///
 /// Columns are scaled to unit norm first: gains and `ln tau` derivatives differ by orders of
-/// magnitude that say nothing about identifiability. Cost `O(n p²)` (SVD of the `n × p`
-/// Jacobian, no left vectors).
+/// magnitude that say nothing about identifiability. Cost `O(n p²)` (QR of the `n × p`
+/// Jacobian, then the SVD of its `p × p` factor).
 pub(crate) fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>, f64)> {
     let p = jac.ncols();
     if p == 0 || jac.nrows() == 0 {
@@ -43,7 +43,15 @@ pub(crate) fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>,
     for (mut c, n) in scaled.column_iter_mut().zip(&norms) {
         c /= *n;
     }
-    let svd = scaled.svd(false, true);
+    // The right singular vectors and singular values of `J = QR` are those of `R` (`p × p`):
+    // the SVD of the tall Jacobian itself cost twice the QR and dominated a refit's
+    // uncertainties.
+    let r = if scaled.nrows() > scaled.ncols() {
+        scaled.qr().r()
+    } else {
+        scaled
+    };
+    let svd = r.svd(false, true);
     let v_t = svd.v_t?;
     let s = &svd.singular_values;
     let s_max = s.iter().copied().fold(0.0, f64::max);

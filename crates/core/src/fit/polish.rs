@@ -4,7 +4,7 @@
 //! the variable-projection residual ([`Reduced`]) and falls back to Levenberg-Marquardt when it
 //! does not converge: one concept, a start that is already close.
 
-use super::projection::solve_linear;
+use super::projection::Factorised;
 use super::{Separable, POLISH_MAX_STEPS, POLISH_TOL};
 use argmin::core::Executor;
 use argmin::core::Jacobian;
@@ -57,9 +57,13 @@ pub(super) fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<Polish
         TerminationStatus::Terminated(TerminationReason::SolverConverged)
     );
     // The basis argmin last evaluated, if at the optimum, serves the uncertainties as it is.
-    let solved = last
-        .filter(|(at, _)| at == theta)
-        .map(|(_, solved)| std::rc::Rc::unwrap_or_clone(solved));
+    let solved =
+        last.filter(|(at, _)| at == theta).map(|(_, solved)| {
+            match std::rc::Rc::try_unwrap(solved) {
+                Ok((phi, coef, _)) => (phi, coef),
+                Err(shared) => (shared.0.clone(), shared.1.clone()),
+            }
+        });
     let theta: Vec<f64> = theta.iter().copied().collect();
     let steps = state.get_iter() as usize;
     tracing::debug!(
@@ -98,8 +102,9 @@ struct Reduced<'a, P> {
     last: std::cell::RefCell<Option<Solved>>,
 }
 
-/// A basis and its linear coefficients, shared between the residual and the Jacobian.
-type BasisSolved = std::rc::Rc<(DMatrix<f64>, DVector<f64>)>;
+/// A basis and its linear coefficients, shared between the residual and the Jacobian, and the
+/// basis' factorisation (the Jacobian projects its columns with it).
+type BasisSolved = std::rc::Rc<(DMatrix<f64>, DVector<f64>, Factorised)>;
 /// The point `θ` a [`BasisSolved`] was computed at, and it.
 type Solved = (DVector<f64>, BasisSolved);
 
@@ -115,9 +120,12 @@ impl<P: Separable> Reduced<'_, P> {
         if !phi.iter().all(|v| v.is_finite()) {
             return Err(argmin::core::Error::msg("the basis is not finite"));
         }
-        let coef = solve_linear(&phi, self.problem.observations())
-            .ok_or_else(|| argmin::core::Error::msg("the basis is singular"))?;
-        let solved = std::rc::Rc::new((phi, coef));
+        let singular = || argmin::core::Error::msg("the basis is singular");
+        let factorised = Factorised::new(&phi).ok_or_else(singular)?;
+        let coef = factorised
+            .coefficients(self.problem.observations())
+            .ok_or_else(singular)?;
+        let solved = std::rc::Rc::new((phi, coef, factorised));
         *self.last.borrow_mut() = Some((theta.clone(), solved.clone()));
         Ok(solved)
     }
@@ -129,7 +137,7 @@ impl<P: Separable> Operator for Reduced<'_, P> {
 
     fn apply(&self, theta: &DVector<f64>) -> Result<DVector<f64>, argmin::core::Error> {
         let solved = self.solved(theta)?;
-        let (phi, coef) = &*solved;
+        let (phi, coef, _) = &*solved;
         let y = self.problem.observations();
         Ok(DVector::from_iterator(
             y.len(),
@@ -144,12 +152,18 @@ impl<P: Separable> Jacobian for Reduced<'_, P> {
 
     fn jacobian(&self, theta: &DVector<f64>) -> Result<DMatrix<f64>, argmin::core::Error> {
         let solved = self.solved(theta)?;
-        let (phi, coef) = &*solved;
-        let q = phi.clone().qr().q();
+        let (phi, coef, factorised) = &*solved;
         let mut jac = DMatrix::zeros(phi.nrows(), theta.len());
         for k in 0..theta.len() {
-            let d = self.problem.basis_derivative(theta.as_slice(), k) * coef;
-            let along = &q * q.tr_mul(&d);
+            let d = self
+                .problem
+                .basis_derivative_times(theta.as_slice(), k, coef);
+            // The part of `d` along the basis, `P_Φ d = Φ (Φ⁺ d)`, by the factorisation the
+            // residual was solved with (forming Q explicitly cost as much as the QR itself).
+            let along_coef = factorised
+                .coefficients(d.as_slice())
+                .ok_or_else(|| argmin::core::Error::msg("the basis is singular"))?;
+            let along = phi * along_coef;
             jac.column_mut(k).copy_from(&(along - d));
         }
         Ok(jac)

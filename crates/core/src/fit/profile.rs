@@ -256,6 +256,11 @@ impl<P: Separable> Separable for FixedTheta<'_, P> {
         let j = if j >= self.k { j + 1 } else { j };
         self.inner.basis_derivative(&self.full(theta), j)
     }
+    fn basis_derivative_times(&self, theta: &[f64], j: usize, coef: &DVector<f64>) -> DVector<f64> {
+        let j = if j >= self.k { j + 1 } else { j };
+        self.inner
+            .basis_derivative_times(&self.full(theta), j, coef)
+    }
     fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
         self.inner.absorbed_groups()
     }

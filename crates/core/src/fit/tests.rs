@@ -182,7 +182,7 @@ fn orthogonalised_fit_sees_only_what_the_directions_cannot_explain() {
 fn satterthwaite_dof_is_batches_minus_one_for_equal_batches_and_less_when_one_dominates() {
     // One parameter (a mean): every batch carries the same information, ν = B − 1.
     let jac = DMatrix::from_element(200, 1, 1.0);
-    let nu = satterthwaite_dof(&jac, 10, None).unwrap();
+    let nu = satterthwaite_dof(&jac, &k_inv_of(&jac), 10, None).unwrap();
     assert!((nu[0] - 19.0).abs() < 1e-9, "{nu:?}");
     // A slope whose information sits at the ends: fewer effective batches.
     let jac = DMatrix::from_fn(200, 2, |i, j| {
@@ -192,7 +192,7 @@ fn satterthwaite_dof_is_batches_minus_one_for_equal_batches_and_less_when_one_do
             (i as f64 / 199.0 - 0.5).powi(3)
         }
     });
-    let nu = satterthwaite_dof(&jac, 10, None).unwrap();
+    let nu = satterthwaite_dof(&jac, &k_inv_of(&jac), 10, None).unwrap();
     assert!(nu[1] < 10.0 && nu[1] >= 1.0, "{nu:?}");
     // The same with the mean absorbed as a group: the slope's ν is unchanged (the column is
     // orthogonal to the mean), the projected-out mean still costs its degree of freedom.
@@ -200,7 +200,8 @@ fn satterthwaite_dof_is_batches_minus_one_for_equal_batches_and_less_when_one_do
     let m = centred.mean();
     centred.add_scalar_mut(-m);
     let groups: Vec<Option<usize>> = vec![Some(0); 200];
-    let nu_g = satterthwaite_dof(&DMatrix::from_columns(&[centred]), 10, Some(&groups)).unwrap();
+    let centred = DMatrix::from_columns(&[centred]);
+    let nu_g = satterthwaite_dof(&centred, &k_inv_of(&centred), 10, Some(&groups)).unwrap();
     assert!((nu_g[0] - nu[1]).abs() < 1e-9 * nu[1], "{nu_g:?} {nu:?}");
 }
 
@@ -374,4 +375,9 @@ fn profile_interval_flags_an_end_the_data_do_not_bound() {
         interval.ends[0] > 0.1 && interval.ends[0] < 1.0,
         "{interval:?}"
     );
+}
+
+/// `(JᵀJ)⁻¹`, as [`fit`] passes it to the covariances.
+fn k_inv_of(jac: &DMatrix<f64>) -> DMatrix<f64> {
+    super::gram(jac).try_inverse().unwrap()
 }

@@ -7,6 +7,7 @@
 use super::problem::{RowMemo, ThermalProblem};
 use crate::fit::Separable;
 use nalgebra::DMatrix;
+use nalgebra::DVector;
 use std::sync::Arc;
 
 impl Separable for ThermalProblem<'_> {
@@ -26,11 +27,84 @@ impl Separable for ThermalProblem<'_> {
     }
 
     fn basis(&self, theta: &[f64]) -> DMatrix<f64> {
+        self.basis_columns(theta, 0..self.gain_columns().len())
+    }
+
+    fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
+        let gains = self.gain_columns();
+        let mut d = DMatrix::zeros(self.y.len(), gains.len());
+        let owner = self.tau_terms[k];
+        // Every term on this time constant: the owner and the terms sharing it.
+        for j in (0..self.terms.len()).filter(|&j| self.tau_source[j] == Some(owner)) {
+            let (_, Some(full)) = self.term_column(j, theta, true) else {
+                continue;
+            };
+            for (c, (_, seg)) in gains.iter().enumerate().filter(|(_, (term, _))| *term == j) {
+                self.write_row_column(&full, *seg, d.column_mut(c).as_mut_slice());
+            }
+        }
+        d
+    }
+
+    /// The columns on `θ_k` alone, each written into one scratch column and summed with its
+    /// coefficient: the full derivative matrix is mostly zero columns.
+    fn basis_derivative_times(&self, theta: &[f64], k: usize, coef: &DVector<f64>) -> DVector<f64> {
+        let gains = self.gain_columns();
+        let n = self.y.len();
+        let mut sum = DVector::zeros(n);
+        let mut scratch = vec![0.0; n];
+        let owner = self.tau_terms[k];
+        for j in (0..self.terms.len()).filter(|&j| self.tau_source[j] == Some(owner)) {
+            let (_, Some(full)) = self.term_column(j, theta, true) else {
+                continue;
+            };
+            for (c, (_, seg)) in gains.iter().enumerate().filter(|(_, (term, _))| *term == j) {
+                scratch.iter_mut().for_each(|v| *v = 0.0);
+                self.write_row_column(&full, *seg, &mut scratch);
+                for (s, v) in sum.iter_mut().zip(&scratch) {
+                    *s += coef[c] * v;
+                }
+            }
+        }
+        sum
+    }
+
+    fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
+        Some((60f64.ln(), (30.0 * 86400f64).ln()))
+    }
+
+    fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
+        Some((0..self.y.len()).map(|r| self.fit_row_zero(r)).collect())
+    }
+
+    fn unexplained_rss(&self) -> f64 {
+        self.series.within_bin_rss_um2
+    }
+
+    fn represented_samples(&self) -> usize {
+        self.series.fitted_readings().max(self.y.len())
+    }
+}
+
+impl ThermalProblem<'_> {
+    /// The basis' gain columns `columns` alone (the screen of a candidate needs only the
+    /// columns it adds, the model's own held at their time constants).
+    pub(crate) fn basis_columns(
+        &self,
+        theta: &[f64],
+        columns: std::ops::Range<usize>,
+    ) -> DMatrix<f64> {
         let gains = self.gain_columns();
         let mut per_term: Vec<Option<Arc<Vec<f64>>>> = vec![None; self.terms.len()];
-        let mut phi = DMatrix::zeros(self.y.len(), gains.len());
-        for (c, (j, seg)) in gains.into_iter().enumerate() {
-            let mut out = phi.column_mut(c);
+        let mut phi = DMatrix::zeros(self.y.len(), columns.len());
+        let first = columns.start;
+        let wanted = gains
+            .into_iter()
+            .enumerate()
+            .skip(first)
+            .take(columns.len());
+        for (c, (j, seg)) in wanted {
+            let mut out = phi.column_mut(c - first);
             let out = out.as_mut_slice();
             // Masked columns (settling's, one per mount) are written over their mount alone:
             // cheap, and memoised they would hold a whole column each.
@@ -60,37 +134,5 @@ impl Separable for ThermalProblem<'_> {
             }
         }
         phi
-    }
-
-    fn basis_derivative(&self, theta: &[f64], k: usize) -> DMatrix<f64> {
-        let gains = self.gain_columns();
-        let mut d = DMatrix::zeros(self.y.len(), gains.len());
-        let owner = self.tau_terms[k];
-        // Every term on this time constant: the owner and the terms sharing it.
-        for j in (0..self.terms.len()).filter(|&j| self.tau_source[j] == Some(owner)) {
-            let (_, Some(full)) = self.term_column(j, theta, true) else {
-                continue;
-            };
-            for (c, (_, seg)) in gains.iter().enumerate().filter(|(_, (term, _))| *term == j) {
-                self.write_row_column(&full, *seg, d.column_mut(c).as_mut_slice());
-            }
-        }
-        d
-    }
-
-    fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
-        Some((60f64.ln(), (30.0 * 86400f64).ln()))
-    }
-
-    fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
-        Some((0..self.y.len()).map(|r| self.fit_row_zero(r)).collect())
-    }
-
-    fn unexplained_rss(&self) -> f64 {
-        self.series.within_bin_rss_um2
-    }
-
-    fn represented_samples(&self) -> usize {
-        self.series.fitted_readings().max(self.y.len())
     }
 }
