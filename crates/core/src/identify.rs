@@ -36,7 +36,7 @@ mod start;
 
 use profile::profile_tau_intervals;
 pub(crate) use start::{coarse_copy, COARSE_START_MIN_SAMPLES};
-use start::{defaults_basin, start_fit, warm_start};
+use start::{defaults_basin, start_fit, warm_start, SearchNew};
 
 /// One estimated parameter.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -257,9 +257,10 @@ fn fit_from_start(
     })?;
     let fresh_theta0 = problem.theta0();
     let mut theta0 = fresh_theta0.clone();
-    if let Some(start) = start {
-        warm_start(&problem, start, &mut theta0);
-    }
+    let reused = match start {
+        Some(start) => warm_start(&problem, start, &mut theta0),
+        None => vec![false; theta0.len()],
+    };
     let mut options = FitOptions {
         absorbed_params: problem.n_zeros(),
         ..FitOptions::default()
@@ -288,15 +289,23 @@ fn fit_from_start(
     let mut coarse_theta = if at_coarse_optimum {
         Some(theta0.clone())
     } else {
-        coarse_problem
-            .as_ref()
-            .and_then(|p| start_fit(p, &bar, &theta0))
+        coarse_problem.as_ref().and_then(|problem| {
+            let searched = SearchNew {
+                problem,
+                reused: &reused,
+            };
+            start_fit(&searched, &bar, &theta0)
+        })
     };
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
         options.start = Start::NearOptimum;
     }
-    let mut fit = fit::fit(&problem, &theta0, &options).map_err(|source| IdentifyError::Fit {
+    let searched = SearchNew {
+        problem: &problem,
+        reused: &reused,
+    };
+    let mut fit = fit::fit(&searched, &theta0, &options).map_err(|source| IdentifyError::Fit {
         bar: bar.clone(),
         source,
     })?;

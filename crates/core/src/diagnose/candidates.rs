@@ -97,6 +97,20 @@ pub fn evaluate_candidates(
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<Candidate>, Vec<Unavailable>) {
+    evaluate_at_most(bars, bases, candidates, criteria, refits, None)
+}
+
+/// [`evaluate_candidates`], refitting at most `max_refits` of the candidates that pass the
+/// screen (the best screened; a catalogue effect that may be material by its shift alone is
+/// refitted whatever its rank): the coarse forward selection's rule ([`super::COARSE_BEAM_REFITS`]).
+pub(super) fn evaluate_at_most(
+    bars: &[(&BarSeries, &BarModel)],
+    bases: &[Option<ScreenBase>],
+    candidates: &[Effect],
+    criteria: &Criteria,
+    refits: &Refits,
+    max_refits: Option<usize>,
+) -> (Vec<Candidate>, Vec<Unavailable>) {
     let threshold = criteria.alpha / candidates.len().max(1) as f64;
     let screens: Vec<Vec<Result<Screen, String>>> = candidates
         .par_iter()
@@ -132,19 +146,21 @@ pub fn evaluate_candidates(
     }
     screened.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
     let best = screened.first().map_or(0.0, |(_, g, _)| *g);
-    let refit: Vec<usize> = screened
-        .iter()
-        .filter(|(_, gain, change)| {
-            *change >= SCREEN_SHARE * criteria.min_gain_um && *gain >= RIVAL_SHARE * best
-        })
-        .map(|(c, _, _)| *c)
-        .collect();
-    let best_effect = screened.first().map(|(c, _, _)| candidates[*c].name());
     let shift_only = |c: usize| {
         screened
             .iter()
             .any(|&(k, gain, change)| k == c && change > gain)
     };
+    let refit: Vec<usize> = screened
+        .iter()
+        .filter(|(_, gain, change)| {
+            *change >= SCREEN_SHARE * criteria.min_gain_um && *gain >= RIVAL_SHARE * best
+        })
+        .enumerate()
+        .filter(|(rank, (c, _, _))| max_refits.is_none_or(|most| *rank < most) || shift_only(*c))
+        .map(|(_, (c, _, _))| *c)
+        .collect();
+    let best_effect = screened.first().map(|(c, _, _)| candidates[*c].name());
     let (refit, starts, coarse_reasons) =
         coarse_tier(bars, bases, refit, candidates, shift_only, refits);
     tracing::debug!(
@@ -165,6 +181,15 @@ pub fn evaluate_candidates(
             let mut summary = summarise_candidate(&candidates[c], per_bar, threshold, criteria);
             if let Some(reason) = coarse_reasons.get(&c) {
                 summary.reason = reason.clone();
+            } else if summary.verdict == Verdict::ScreenedOut
+                && change >= SCREEN_SHARE * criteria.min_gain_um
+                && gain >= RIVAL_SHARE * best
+            {
+                summary.reason = format!(
+                    "screened out: {} candidates of this step screened better and only so many are refitted here (the forward selection on the bars' coarse copies); the fleet RMS it removes is {} µm, screened",
+                    max_refits.unwrap_or_default(),
+                    fmt_um(gain)
+                );
             } else if summary.verdict == Verdict::ScreenedOut
                 && change >= SCREEN_SHARE * criteria.min_gain_um
             {

@@ -43,7 +43,9 @@
 //!   `beam = 1` is plain greedy selection. When every bar is long enough to have a coarse copy, the
 //!   beam searches its paths on the bars' 300-s coarse copies (`CoarseFleet`), and the path it
 //!   chooses is confirmed step by step on the readings (`confirm_path`: each step refitted exactly
-//!   and tested as a candidate; the ledger stops at the first step not proposed there). A bar gets a
+//!   and tested as a candidate; the ledger stops at the first step not proposed there). On the
+//!   coarse copies a step refits at most `COARSE_BEAM_REFITS` of the candidates that pass the
+//!   screen, the best screened. A bar gets a
 //!   search of its own only when the fleet's chosen model leaves it at least the materiality
 //!   threshold above its reading noise (`needs_own_selection`); the others carry the fleet's steps
 //!   (`bar_ledger_from_fleet`).
@@ -140,6 +142,12 @@ pub(crate) const COARSE_RIVAL_SHARE: f64 = 0.5;
 /// `heat:T2-T1`, `heat:T2` on a campaign with an air gradient) all come close to the best, and
 /// each exact refit costs seconds. Three is the default beam.
 pub(crate) const MAX_EXACT_RIVALS: usize = 3;
+/// The coarse forward selection ([`forward_selection`] on the bars' 300-s copies) refits at
+/// most this many of a step's candidates that pass the screen, the best screened (twice the
+/// default beam: each path is extended by at most `beam` of them). The screen passed 7-10
+/// candidates a step on a campaign with three hidden effects, each refit costing a search of
+/// its time constants on every bar; the path chosen is confirmed on the readings step by step.
+pub(crate) const COARSE_BEAM_REFITS: usize = 6;
 /// Two candidates whose coarse refits remove within this share of each other are a tie.
 pub(crate) const NAMED_TIE_SHARE: f64 = 0.02;
 /// The shift of the model's own terms counts toward materiality only for a term that removes at

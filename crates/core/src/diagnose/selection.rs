@@ -6,12 +6,14 @@
 
 use super::bar::{diagnose_bar, screen_bases, term_identity};
 use super::bar_selection::ledger_step;
-use super::candidates::{candidate_effects, evaluate_candidates, exact_refits};
+use super::candidates::{candidate_effects, evaluate_at_most, exact_refits};
 use super::compare::competing_delta_bic;
 use super::refits::Refits;
 use super::screen::Screen;
 use super::summary::summarise_candidate;
-use super::{BarDiagnosis, Candidate, Criteria, CHANNEL_CANDIDATES, HEAT_CANDIDATES};
+use super::{
+    BarDiagnosis, Candidate, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS, HEAT_CANDIDATES,
+};
 use crate::identify::identify_from;
 use crate::identify::BarModel;
 use crate::model::Effect;
@@ -121,8 +123,7 @@ pub fn forward_selection(
         series,
         start,
         first_candidates,
-        max_steps,
-        beam,
+        (max_steps, beam, None),
         criteria,
         refits,
     )
@@ -168,13 +169,13 @@ impl CoarseFleet {
     fn select(&self, max_steps: usize, beam: usize, criteria: &Criteria) -> Vec<Effect> {
         let refits = &self.refits;
         let series: Vec<&BarSeries> = self.series.iter().collect();
-        let first = rank_candidates_for(&series, &self.models, criteria, refits);
+        let cap = Some(COARSE_BEAM_REFITS);
+        let first = rank_candidates_for(&series, &self.models, criteria, refits, cap);
         let (ledger, _) = beam_search(
             &series,
             self.models.clone(),
             &first,
-            max_steps,
-            beam,
+            (max_steps, beam, cap),
             criteria,
             refits,
         );
@@ -272,13 +273,14 @@ fn exact_candidate(
     summarise_candidate(effect, per_bar, threshold, criteria)
 }
 
-/// The beam search of [`forward_selection`] on the series it is given.
+/// The beam search of [`forward_selection`] on the series it is given: at most `max_steps`
+/// steps keeping `beam` paths, each step refitting at most `max_refits` candidates (all that
+/// pass the screen when `None`).
 fn beam_search(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
-    max_steps: usize,
-    beam: usize,
+    (max_steps, beam, max_refits): (usize, usize, Option<usize>),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
@@ -296,7 +298,7 @@ fn beam_search(
             let candidates = if step == 0 {
                 first_candidates.to_vec()
             } else {
-                rank_candidates_for(series, &path.models, criteria, refits)
+                rank_candidates_for(series, &path.models, criteria, refits, max_refits)
             };
             let proposed: Vec<Candidate> = candidates
                 .into_iter()
@@ -364,6 +366,7 @@ fn rank_candidates_for(
     models: &[BarModel],
     criteria: &Criteria,
     refits: &Refits,
+    max_refits: Option<usize>,
 ) -> Vec<Candidate> {
     let effects = effects_of(models);
     let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
@@ -374,7 +377,7 @@ fn rank_candidates_for(
         .map(|((s, m), b)| diagnose_bar(s, m, b.as_ref()))
         .collect();
     let candidates = candidate_effects(&effects, &diagnoses);
-    evaluate_candidates(&pairs, &bases, &candidates, criteria, refits).0
+    evaluate_at_most(&pairs, &bases, &candidates, criteria, refits, max_refits).0
 }
 
 /// `path` with `candidate` added and every bar refitted; `score` is what the step adds to the

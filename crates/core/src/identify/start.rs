@@ -47,7 +47,11 @@ pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarS
 /// evaluations (the linear solve applies Qᵀy without forming Q); the Brent sweep evaluates the projected residual some 40 times, about half of the fit on
 /// the full series (`bench/results.md`), a few per cent on the coarse copy. `None`: the start
 /// failed (the engine then starts as usual).
-pub(super) fn start_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {
+pub(super) fn start_fit<P: fit::Separable>(
+    problem: &P,
+    bar: &str,
+    theta0: &[f64],
+) -> Option<Vec<f64>> {
     let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
     let n = fit::Separable::observations(problem).len();
     tracing::debug!(bar, ?theta, n, "identify: coarse start");
@@ -105,12 +109,75 @@ pub(super) fn defaults_basin(
     Some((theta, lower))
 }
 
-/// Reuse the time constants a previous fit found for the same effects.
-pub(super) fn warm_start(problem: &ThermalProblem, start: &BarModel, theta0: &mut [f64]) {
+/// Reuse the time constants a previous fit found for the same effects; returns which were
+/// reused.
+pub(super) fn warm_start(
+    problem: &ThermalProblem,
+    start: &BarModel,
+    theta0: &mut [f64],
+) -> Vec<bool> {
     let taus = problem.tau_names();
+    let mut reused = vec![false; theta0.len()];
     for (k, name) in taus.iter().enumerate() {
         if let Some(v) = start.value(name) {
             theta0[k] = v.ln();
+            reused[k] = true;
         }
+    }
+    reused
+}
+
+/// A problem whose Brent start searches only the time constants not reused from a previous
+/// fit ([`warm_start`]); everything else is the problem's own.
+///
+/// Why: a refit adds one effect to a fitted model, whose time constants are already at their
+/// optimum for the smaller model; the sweep of each of them (some 40 residuals each) found the
+/// same place again and cost half of a refit on the bars' coarse copies. The new effect's own
+/// time constant still gets its search, Levenberg-Marquardt then moves all of them together,
+/// and the basin of the defaults is searched afresh ([`defaults_basin`]).
+pub(super) struct SearchNew<'a, P> {
+    pub(super) problem: &'a P,
+    pub(super) reused: &'a [bool],
+}
+
+impl<P: fit::Separable> fit::Separable for SearchNew<'_, P> {
+    fn observations(&self) -> &[f64] {
+        self.problem.observations()
+    }
+    fn nonlinear_names(&self) -> Vec<String> {
+        self.problem.nonlinear_names()
+    }
+    fn linear_names(&self) -> Vec<String> {
+        self.problem.linear_names()
+    }
+    fn basis(&self, theta: &[f64]) -> nalgebra::DMatrix<f64> {
+        self.problem.basis(theta)
+    }
+    fn basis_derivative(&self, theta: &[f64], k: usize) -> nalgebra::DMatrix<f64> {
+        self.problem.basis_derivative(theta, k)
+    }
+    fn basis_derivative_times(
+        &self,
+        theta: &[f64],
+        k: usize,
+        coef: &nalgebra::DVector<f64>,
+    ) -> nalgebra::DVector<f64> {
+        self.problem.basis_derivative_times(theta, k, coef)
+    }
+    fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
+        if self.reused.get(k).copied().unwrap_or(false) {
+            None
+        } else {
+            self.problem.start_search_interval(k)
+        }
+    }
+    fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
+        self.problem.absorbed_groups()
+    }
+    fn unexplained_rss(&self) -> f64 {
+        self.problem.unexplained_rss()
+    }
+    fn represented_samples(&self) -> usize {
+        self.problem.represented_samples()
     }
 }
