@@ -166,6 +166,9 @@ pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read {}", p.display()))?;
+            if crate::simulate::volumetric::is_volumetric_config(&text) {
+                return simulate_volumetric(p, &text, out, seed);
+            }
             let axis = crate::simulate::is_axis_config(&text).map_err(|e| {
                 anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
             })?;
@@ -203,6 +206,23 @@ fn simulate_axis(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Resu
     let sim = crate::simulate::generate_axis(&cfg)?;
     create_new_folder(out, |tmp| {
         crate::simulate::write_axis(&sim, tmp, &cfg.output, cfg.seed).map_err(anyhow::Error::from)
+    })
+}
+
+/// [`simulate`] for a `volumetric` campaign.
+fn simulate_volumetric(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
+    use crate::simulate::volumetric as vol;
+    let mut cfg = toml::from_str::<vol::VolumetricSimConfig>(text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    if std::fs::symlink_metadata(out).is_ok() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = vol::generate_volumetric(&cfg)?;
+    create_new_folder(out, |tmp| {
+        vol::write_volumetric(&sim, tmp, &cfg).map_err(anyhow::Error::from)
     })
 }
 

@@ -5,6 +5,7 @@
 //! for a new kind").
 
 pub mod axis;
+pub mod volumetric;
 
 use std::path::{Path, PathBuf};
 
@@ -20,6 +21,8 @@ pub enum KindPlan {
     Ballbar(Box<RunPlan>),
     /// An `axis` campaign (seed 002).
     Axis(axis::AxisPlan),
+    /// A `volumetric` campaign (seed 001).
+    Volumetric(volumetric::VolumetricPlan),
 }
 
 /// The campaign directory a run reads: `--campaign`, else the pipeline's `[pipeline] campaign`,
@@ -82,6 +85,14 @@ pub fn plan_run(
                 },
                 other => other,
             }),
+        CampaignKind::Volumetric => volumetric::VolumetricPlan::from_pipeline_text(
+            pipeline,
+            &text,
+            dir.clone(),
+            out,
+            add_effects,
+        )
+        .map(KindPlan::Volumetric),
         other => Err(PlanError::NotInCampaign(format!(
             "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\" and \"axis\" campaigns",
             manifest.display(),
@@ -95,5 +106,6 @@ pub fn run(plan: &KindPlan) -> anyhow::Result<Outcome> {
     match plan {
         KindPlan::Ballbar(p) => crate::runner::run(p),
         KindPlan::Axis(p) => axis::run(p),
+        KindPlan::Volumetric(p) => volumetric::run(p),
     }
 }

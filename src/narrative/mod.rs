@@ -8,6 +8,7 @@ pub(crate) mod axis;
 pub(crate) mod device;
 pub(crate) mod fit_report;
 pub(crate) mod page;
+pub(crate) mod volumetric;
 
 use crate::model::Effect;
 use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};

@@ -39,6 +39,7 @@ mod location;
 mod lock;
 pub(crate) mod stage_records;
 pub(crate) mod summary;
+pub(crate) mod volumetric;
 use location::*;
 pub use lock::install_signal_handlers;
 use lock::*;

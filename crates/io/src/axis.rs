@@ -129,7 +129,7 @@ pub fn read_axis_manifest(dir: &Path) -> Result<AxisCampaign, IngestError> {
 // ---------------------------------------------------------------- one file's columns
 
 /// One decoded file.
-struct Decoded<'a> {
+pub(crate) struct Decoded<'a> {
     path: &'a Path,
     df: DataFrame,
 }
@@ -142,7 +142,7 @@ fn polars_failed(path: &Path) -> impl Fn(PolarsError) -> IngestError + '_ {
 }
 
 impl<'a> Decoded<'a> {
-    fn read(path: &'a Path) -> Result<Decoded<'a>, IngestError> {
+    pub(crate) fn read(path: &'a Path) -> Result<Decoded<'a>, IngestError> {
         let df = guarded(path, || {
             let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
                 path: path.to_path_buf(),
@@ -155,7 +155,7 @@ impl<'a> Decoded<'a> {
         Ok(Decoded { path, df })
     }
 
-    fn rows(&self) -> usize {
+    pub(crate) fn rows(&self) -> usize {
         self.df.height()
     }
 
@@ -166,7 +166,7 @@ impl<'a> Decoded<'a> {
             .any(|n| n.as_str() == name)
     }
 
-    fn column(&self, name: &'static str) -> Result<&Column, IngestError> {
+    pub(crate) fn column(&self, name: &'static str) -> Result<&Column, IngestError> {
         self.df
             .column(name)
             .map_err(|_| IngestError::MissingColumn {
@@ -198,7 +198,7 @@ impl<'a> Decoded<'a> {
 
     /// A timestamp column as ns UTC (`None`: null); a time that overflows ns or lies outside
     /// 1980 … 2200 refuses the rows.
-    fn time(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
+    pub(crate) fn time(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
         let column = self.column(name)?;
         let DataType::Datetime(unit, _) = column.dtype() else {
             return Err(self.wrong_type(
@@ -239,7 +239,7 @@ impl<'a> Decoded<'a> {
     }
 
     /// An integer column (int8 … int64, uint8 … uint64) as i64.
-    fn int(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
+    pub(crate) fn int(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
         let column = self.column(name)?;
         if !column.dtype().is_integer() {
             return Err(self.wrong_type(name, column.dtype(), "an integer (int8 .. int64)"));
@@ -255,7 +255,7 @@ impl<'a> Decoded<'a> {
     }
 
     /// A float column (float32 or float64) as f64.
-    fn real(&self, name: &'static str) -> Result<Vec<Option<f64>>, IngestError> {
+    pub(crate) fn real(&self, name: &'static str) -> Result<Vec<Option<f64>>, IngestError> {
         let column = self.column(name)?;
         if !column.dtype().is_float() {
             return Err(self.wrong_type(name, column.dtype(), "float64"));
@@ -271,7 +271,7 @@ impl<'a> Decoded<'a> {
     }
 
     /// A utf8 or dictionary(utf8) column as strings.
-    fn text(&self, name: &'static str) -> Result<Vec<Option<String>>, IngestError> {
+    pub(crate) fn text(&self, name: &'static str) -> Result<Vec<Option<String>>, IngestError> {
         let column = self.column(name)?;
         let ok = matches!(
             column.dtype(),
@@ -292,7 +292,7 @@ impl<'a> Decoded<'a> {
     }
 
     /// An optional column: absent is all null.
-    fn optional<T: Clone>(
+    pub(crate) fn optional<T: Clone>(
         &self,
         name: &'static str,
         read: impl Fn(&Self, &'static str) -> Result<Vec<Option<T>>, IngestError>,
@@ -362,7 +362,7 @@ impl Bad {
 }
 
 /// Every value present; nulls refuse their rows.
-fn required<T>(
+pub(crate) fn required<T>(
     path: &Path,
     column: &'static str,
     values: Vec<Option<T>>,
@@ -378,7 +378,7 @@ fn required<T>(
 }
 
 /// Refuses the rows where `ok` fails, showing the first value.
-fn check_rows<T: std::fmt::Debug>(
+pub(crate) fn check_rows<T: std::fmt::Debug>(
     path: &Path,
     column: &'static str,
     values: &[T],
@@ -410,7 +410,7 @@ fn finite_within(
     )
 }
 
-fn finite(path: &Path, column: &'static str, values: &[f64]) -> Result<(), IngestError> {
+pub(crate) fn finite(path: &Path, column: &'static str, values: &[f64]) -> Result<(), IngestError> {
     check_rows(
         path,
         column,
@@ -685,7 +685,7 @@ fn read_fixture(
     Ok(rows)
 }
 
-fn read_environment(files: &[PathBuf]) -> Result<Vec<EnvironmentRow>, IngestError> {
+pub(crate) fn read_environment(files: &[PathBuf]) -> Result<Vec<EnvironmentRow>, IngestError> {
     let mut rows = Vec::new();
     for path in files {
         let file = Decoded::read(path)?;
@@ -805,7 +805,7 @@ fn read_temperatures(
         .collect())
 }
 
-fn read_events(files: &[PathBuf]) -> Result<Vec<Event>, IngestError> {
+pub(crate) fn read_events(files: &[PathBuf]) -> Result<Vec<Event>, IngestError> {
     let mut events = Vec::new();
     for path in files {
         let file = Decoded::read(path)?;

@@ -14,6 +14,8 @@ mod inputs;
 mod read;
 mod repeats;
 mod table;
+mod volumetric;
+mod volumetric_write;
 mod write;
 
 #[cfg(test)]
@@ -34,6 +36,8 @@ pub use axis::{read_axis_campaign, read_axis_manifest};
 pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;
 pub use table::{write_table, write_table_csv, Column, Table};
+pub use volumetric::{read_volumetric_campaign, read_volumetric_manifest};
+pub use volumetric_write::{write_volumetric_campaign, VolumetricWriteOptions};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 
 /// Why a campaign directory could not be read. Every message is one line naming the file (and

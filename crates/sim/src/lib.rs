@@ -32,6 +32,7 @@ pub mod hexapod;
 mod lag;
 mod schedule;
 pub(crate) mod truth;
+pub mod volumetric;
 
 use std::collections::BTreeMap;
 use std::path::Path;
