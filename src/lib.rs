@@ -5,6 +5,7 @@
 //! the figures' data ([`figures`]). The analysis, the parquet IO, the plotting and the simulator
 //! are the workspace's other crates, re-exported here under the module names the code and the
 //! tests use (`dbbcal::fit` is `dbbcal_core::fit`, `dbbcal::io` is `dbbcal_io`, ...).
+pub use dbbcal_core::probe_campaign;
 pub use dbbcal_core::{
     acceptance, axis_campaign, calibrate, campaign, compensate, diagnose, fit, identify, matching,
     model, series,

@@ -160,7 +160,8 @@ fn shortest_fitted_tau_s(results: &RunResults) -> Option<f64> {
 
 /// Write a simulated campaign into `out` (which must not exist).
 /// A simulation TOML with `kind = "axis"` makes an `axis` campaign instead
-/// (`crate::simulate::generate_axis`).
+/// (`crate::simulate::generate_axis`); `kind = "probe"` a `probe` campaign
+/// (`crate::simulate::generate_probe`).
 pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<()> {
     let mut cfg = match config {
         Some(p) => {
@@ -168,6 +169,15 @@ pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<
                 .with_context(|| format!("cannot read {}", p.display()))?;
             if crate::simulate::volumetric::is_volumetric_config(&text) {
                 return simulate_volumetric(p, &text, out, seed);
+            }
+            if crate::simulate::is_roll_config(&text).unwrap_or(false) {
+                return simulate_roll(p, &text, out, seed);
+            }
+            let probe = crate::simulate::is_probe_config(&text).map_err(|e| {
+                anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
+            })?;
+            if probe {
+                return simulate_probe(p, &text, out, seed);
             }
             let axis = crate::simulate::is_axis_config(&text).map_err(|e| {
                 anyhow::anyhow!("{}: {}", p.display(), e.to_string().replace('\n', " "))
@@ -209,7 +219,42 @@ fn simulate_axis(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Resu
     })
 }
 
-/// [`simulate`] for a `volumetric` campaign.
+/// [`simulate`] for a `roll` campaign: the configuration `text` (of file `path`).
+fn simulate_roll(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
+    let mut cfg = toml::from_str::<crate::simulate::RollSimConfig>(text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    if std::fs::symlink_metadata(out).is_ok() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = crate::simulate::generate_roll(&cfg)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    create_new_folder(out, |tmp| {
+        crate::simulate::write_roll(&sim, tmp, &cfg).map_err(anyhow::Error::from)
+    })
+}
+
+/// [`simulate`] for a `probe` campaign: the configuration `text` (of file `path`).
+fn simulate_probe(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
+    let mut cfg = toml::from_str::<crate::simulate::ProbeSimConfig>(text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    if std::fs::symlink_metadata(out).is_ok() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = crate::simulate::generate_probe(&cfg)?;
+    create_new_folder(out, |tmp| {
+        crate::simulate::write_probe(&sim, tmp, &cfg).map_err(anyhow::Error::from)
+    })
+}
+
+/// [`simulate`] for a `volumetric` campaign: the configuration `text` (of file `path`).
 fn simulate_volumetric(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
     use crate::simulate::volumetric as vol;
     let mut cfg = toml::from_str::<vol::VolumetricSimConfig>(text)

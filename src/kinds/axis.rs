@@ -10,6 +10,8 @@ use serde::Deserialize;
 use dbbcal_machine::axis_study::{self, AxisEffect, AxisStudyOptions};
 
 use crate::output::axis::{errors_table, AxisRecord};
+use crate::output::axis_tables::{axis_tables, AxisTableFormat, AxisTablesPlan};
+use crate::output::controller::TableSign;
 use crate::output::{Marker, OutputTarget, WriteFailure};
 use crate::pipeline::PlanError;
 use crate::runner::{Outcome, RunStatus};
@@ -21,6 +23,36 @@ struct AxisPipelineFile {
     pipeline: PipelineSection,
     #[serde(default)]
     axis: AxisSection,
+    #[serde(default)]
+    tables: TablesSection,
+}
+
+/// `[tables]`: controller compensation tables (`docs/controller-tables.md`).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TablesSection {
+    /// Format names of `AxisTableFormat`; empty: none.
+    #[serde(default)]
+    formats: Vec<String>,
+    /// `error` or `correction` (= −error). No default: a table's sign is never silent.
+    sign: Option<String>,
+    /// The Siemens machine axis name (`$AA_ENC_COMP[0,N,<name>]`).
+    #[serde(default = "default_siemens_axis")]
+    siemens_axis: String,
+}
+
+impl Default for TablesSection {
+    fn default() -> Self {
+        TablesSection {
+            formats: Vec::new(),
+            sign: None,
+            siemens_axis: default_siemens_axis(),
+        }
+    }
+}
+
+fn default_siemens_axis() -> String {
+    "X1".into()
 }
 
 #[derive(Debug, Deserialize)]
@@ -76,6 +108,7 @@ pub struct AxisPlan {
     campaign_dir: PathBuf,
     out_dir: Option<PathBuf>,
     options: AxisStudyOptions,
+    tables: AxisTablesPlan,
 }
 
 mod limits {
@@ -132,7 +165,9 @@ impl AxisPlan {
                 effects.push(e);
             }
         }
+        let tables = tables_plan(&file.tables).map_err(perr)?;
         Ok(AxisPlan {
+            tables,
             pipeline_name: file.pipeline.name,
             pipeline_path: path.to_path_buf(),
             pipeline_sha256: crate::pipeline::sha256_hex(text.as_bytes()),
@@ -145,6 +180,52 @@ impl AxisPlan {
             },
         })
     }
+}
+
+/// `[tables]` validated: known formats, each once, and a sign whenever a table is asked for.
+fn tables_plan(t: &TablesSection) -> Result<AxisTablesPlan, String> {
+    let mut formats = Vec::new();
+    for (i, name) in t.formats.iter().enumerate() {
+        let f = AxisTableFormat::parse(name).ok_or_else(|| {
+            format!(
+                "tables.formats[{i}]: {name:?} is not a table format of an axis run (known: {})",
+                AxisTableFormat::ALL.map(|f| f.name()).join(", ")
+            )
+        })?;
+        if formats.contains(&f) {
+            return Err(format!("tables.formats[{i}]: {name:?} is listed twice"));
+        }
+        formats.push(f);
+    }
+    let sign = match (t.sign.as_deref(), formats.is_empty()) {
+        (Some("error"), _) => TableSign::Error,
+        (Some("correction"), _) => TableSign::Correction,
+        (Some(other), _) => {
+            return Err(format!(
+                "tables.sign = {other:?}: \"error\" (the value is measured − commanded) or \"correction\" (−error)"
+            ))
+        }
+        (None, true) => TableSign::Error,
+        (None, false) => {
+            return Err("tables.sign is missing: say whether the tables hold the error (\"error\") or the correction (\"correction\"); the controls listed in docs/controller-tables.md want the error".into())
+        }
+    };
+    let name_ok = !t.siemens_axis.is_empty()
+        && t.siemens_axis.len() <= 16
+        && t.siemens_axis
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !name_ok {
+        return Err(format!(
+            "tables.siemens_axis = {:?}: 1 to 16 letters, digits or _",
+            t.siemens_axis
+        ));
+    }
+    Ok(AxisTablesPlan {
+        formats,
+        sign,
+        siemens_axis: t.siemens_axis.clone(),
+    })
 }
 
 /// Claim the output, read and analyse the campaign, write the output folder.
@@ -170,7 +251,8 @@ pub(crate) fn run(plan: &AxisPlan) -> Result<Outcome> {
         .with_context(|| format!("analysing {}", plan.campaign_dir.display()))?;
     let inputs = &logs.inputs;
     let pipeline = (plan.pipeline_name.as_str(), plan.pipeline_sha256.as_str());
-    let record = AxisRecord::new(&logs.campaign.id, pipeline, inputs, &study);
+    let tables = axis_tables(&study, &plan.tables);
+    let record = AxisRecord::new(&logs.campaign.id, pipeline, inputs, &study, &tables);
     let marker = Marker::new(
         &logs.campaign.id,
         serde_json::json!(["axis"]),
@@ -183,16 +265,33 @@ pub(crate) fn run(plan: &AxisPlan) -> Result<Outcome> {
         )?,
         serde_json::to_value(inputs)?,
     );
-    let lines = crate::narrative::axis::headline(&logs.campaign.id, &study, plan);
+    let lines = crate::narrative::axis::headline(&logs.campaign.id, &study, plan, &tables);
     target
         .write(&marker, |tmp| -> Result<()> {
             let mut json = serde_json::to_string_pretty(&record)?;
             json.push('\n');
             crate::output::write_file(&tmp.join("axis.json"), json.as_bytes())?;
             crate::io::write_table(&tmp.join("axis_errors.parquet"), &errors_table(&study))?;
-            let md = crate::narrative::axis::report_md(&logs.campaign.id, &study);
+            let written: Vec<_> = tables
+                .iter()
+                .filter_map(|t| Some((t.file.as_ref()?, t.text.as_ref()?)))
+                .collect();
+            if !written.is_empty() {
+                crate::output::create_dir(&tmp.join("tables"))?;
+            }
+            for (file, text) in written {
+                crate::output::write_file(&tmp.join(file), text.as_bytes())?;
+            }
+            crate::output::create_dir(&tmp.join("figures"))?;
+            let figures = [crate::figures::render_axis(
+                &logs.campaign.id,
+                &study,
+                &tmp.join("figures"),
+            )?];
+            let md =
+                crate::narrative::axis::report_md(&logs.campaign.id, &study, &figures, &tables);
             crate::output::write_file(&tmp.join("report.md"), md.as_bytes())?;
-            let page = crate::narrative::axis::page(&logs.campaign.id, &study, &lines);
+            let page = crate::narrative::axis::page(&logs.campaign.id, &study, &lines, &figures);
             crate::output::write_file(&tmp.join("index.html"), page.as_bytes())?;
             Ok(())
         })

@@ -5,6 +5,8 @@
 //! for a new kind").
 
 pub mod axis;
+pub mod probe;
+pub mod roll;
 pub mod volumetric;
 
 use std::path::{Path, PathBuf};
@@ -21,6 +23,10 @@ pub enum KindPlan {
     Ballbar(Box<RunPlan>),
     /// An `axis` campaign (seed 002).
     Axis(axis::AxisPlan),
+    /// A `probe` campaign (seed 003).
+    Probe(probe::ProbePlan),
+    /// A `roll` campaign (seed 004).
+    Roll(roll::RollPlan),
     /// A `volumetric` campaign (seed 001).
     Volumetric(volumetric::VolumetricPlan),
 }
@@ -85,6 +91,30 @@ pub fn plan_run(
                 },
                 other => other,
             }),
+        CampaignKind::Probe => probe::ProbePlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
+            .map(KindPlan::Probe)
+            .map_err(|e| match e {
+                PlanError::Pipeline { path, message } => PlanError::Pipeline {
+                    path,
+                    message: format!(
+                        "{} is a probe campaign (run it with pipelines/probe.toml): {message}",
+                        dir.display()
+                    ),
+                },
+                other => other,
+            }),
+        CampaignKind::Roll => roll::RollPlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
+            .map(KindPlan::Roll)
+            .map_err(|e| match e {
+                PlanError::Pipeline { path, message } => PlanError::Pipeline {
+                    path,
+                    message: format!(
+                        "{} is a roll campaign (run it with pipelines/roll.toml): {message}",
+                        dir.display()
+                    ),
+                },
+                other => other,
+            }),
         CampaignKind::Volumetric => volumetric::VolumetricPlan::from_pipeline_text(
             pipeline,
             &text,
@@ -92,9 +122,19 @@ pub fn plan_run(
             out,
             add_effects,
         )
-        .map(KindPlan::Volumetric),
+        .map(KindPlan::Volumetric)
+        .map_err(|e| match e {
+            PlanError::Pipeline { path, message } => PlanError::Pipeline {
+                path,
+                message: format!(
+                    "{} is a volumetric campaign (run it with pipelines/volumetric.toml): {message}",
+                    dir.display()
+                ),
+            },
+            other => other,
+        }),
         other => Err(PlanError::NotInCampaign(format!(
-            "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\" and \"axis\" campaigns",
+            "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\", \"axis\", \"probe\", \"roll\" and \"volumetric\" campaigns",
             manifest.display(),
             other.as_str()
         ))),
@@ -106,6 +146,8 @@ pub fn run(plan: &KindPlan) -> anyhow::Result<Outcome> {
     match plan {
         KindPlan::Ballbar(p) => crate::runner::run(p),
         KindPlan::Axis(p) => axis::run(p),
+        KindPlan::Probe(p) => probe::run(p),
+        KindPlan::Roll(p) => roll::run(p),
         KindPlan::Volumetric(p) => volumetric::run(p),
     }
 }

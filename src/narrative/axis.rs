@@ -4,7 +4,9 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::axis_study::AxisStudy;
 
+use crate::figures::FigureFile;
 use crate::kinds::axis::AxisPlan;
+use crate::output::axis_tables::TableRecord;
 use crate::output::escape;
 
 fn num(v: f64, decimals: usize) -> String {
@@ -28,6 +30,7 @@ pub(crate) fn headline(
     campaign: &str,
     s: &AxisStudy,
     plan: &AxisPlan,
+    tables: &[TableRecord],
 ) -> Vec<(&'static str, String)> {
     let mut lines = vec![(
         "Axis",
@@ -76,10 +79,26 @@ pub(crate) fn headline(
         ),
     };
     lines.push(("Diagnosis", verdict));
+    if let Some(t) = tables_line(tables) {
+        lines.push(("Tables", t));
+    }
     if let Some(e) = d.proposal {
         lines.push(("Next", plan.next_command(e)));
     }
     lines
+}
+
+/// The controller tables: the files written with their sign, and each refusal with its reason.
+fn tables_line(tables: &[TableRecord]) -> Option<String> {
+    let parts: Vec<String> = tables
+        .iter()
+        .map(|t| match (&t.file, &t.meta, &t.refused) {
+            (Some(f), Some(m), _) => format!("{f} ({})", m.sign.describe()),
+            (_, _, Some(why)) => format!("{} not written: {why}", t.format),
+            _ => format!("{} not written", t.format),
+        })
+        .collect();
+    (!parts.is_empty()).then(|| parts.join("; "))
 }
 
 /// BIC differences below this tell two explanations apart only weakly (Kass & Raftery: < 2 is
@@ -108,7 +127,12 @@ fn rival_note(s: &AxisStudy) -> String {
 }
 
 /// `report.md`.
-pub(crate) fn report_md(campaign: &str, s: &AxisStudy) -> String {
+pub(crate) fn report_md(
+    campaign: &str,
+    s: &AxisStudy,
+    figures: &[FigureFile],
+    tables: &[TableRecord],
+) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Axis {} — campaign {campaign}\n", s.axis.letter());
     let _ = writeln!(
@@ -125,6 +149,9 @@ pub(crate) fn report_md(campaign: &str, s: &AxisStudy) -> String {
         }
     );
     let _ = writeln!(md, "## The six errors\n");
+    for f in figures {
+        let _ = writeln!(md, "![{}](figures/{})\n", f.caption, f.file);
+    }
     let _ = write!(md, "| target mm | dir |");
     for n in &s.names {
         let _ = write!(md, " {n} | U |");
@@ -211,6 +238,24 @@ pub(crate) fn report_md(campaign: &str, s: &AxisStudy) -> String {
             }
         }
     }
+    if !tables.is_empty() {
+        let _ = writeln!(md, "\n## Controller tables\n\nFrom the mean of both directions at each target (docs/controller-tables.md).\n");
+        for t in tables {
+            match (&t.file, &t.meta, &t.refused) {
+                (Some(f), Some(m), _) => {
+                    let _ = writeln!(md, "- `{f}` ({}): {}", t.format, m.statement);
+                }
+                (_, _, why) => {
+                    let _ = writeln!(
+                        md,
+                        "- {}: not written ({})",
+                        t.format,
+                        why.as_deref().unwrap_or("no reason given")
+                    );
+                }
+            }
+        }
+    }
     let _ = writeln!(md, "\n## Residuals by line and run\n\n| line | run | channel | RMS µm | readings |\n|---:|---:|---|---:|---:|");
     for r in &s.residuals {
         let _ = writeln!(
@@ -227,7 +272,12 @@ pub(crate) fn report_md(campaign: &str, s: &AxisStudy) -> String {
 }
 
 /// `index.html`: the headline, then `report.md`'s tables as HTML.
-pub(crate) fn page(campaign: &str, s: &AxisStudy, lines: &[(&'static str, String)]) -> String {
+pub(crate) fn page(
+    campaign: &str,
+    s: &AxisStudy,
+    lines: &[(&'static str, String)],
+    figures: &[FigureFile],
+) -> String {
     let mut h = String::new();
     let _ = writeln!(
         h,
@@ -244,7 +294,11 @@ pub(crate) fn page(campaign: &str, s: &AxisStudy, lines: &[(&'static str, String
     for (label, text) in lines {
         let _ = writeln!(h, "<tr><td><b>{label}</b></td><td>{}</td></tr>", html(text));
     }
-    let _ = writeln!(h, "</table>\n<h2>The six errors (µm, µrad; U k = 2)</h2>\n<table><tr><th>target mm</th><th>dir</th>");
+    h.push_str("</table>\n<h2>The six errors (µm, µrad; U k = 2)</h2>\n");
+    for f in figures {
+        super::page::figure(&mut h, f);
+    }
+    h.push_str("<table><tr><th>target mm</th><th>dir</th>");
     for n in &s.names {
         let _ = write!(h, "<th>{n}</th><th>U</th>");
     }

@@ -75,6 +75,33 @@ fn headline(results: &RunResults) -> Option<String> {
     })
 }
 
+/// ISO 230-2 on the positioning error, in one sentence (or why it is missing).
+fn iso_line(results: &RunResults) -> Option<String> {
+    let iso = crate::output::device_record::positioning_iso(results.device.as_ref()?)?;
+    Some(match iso {
+        Err(why) => format!("ISO 230-2 not evaluated: {why}."),
+        Ok((name, i)) => {
+            let v = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.3}"));
+            let runs = i
+                .targets
+                .iter()
+                .flat_map(|t| [t.up.map(|d| d.runs), t.down.map(|d| d.runs)])
+                .flatten()
+                .min()
+                .unwrap_or(0);
+            format!(
+                "ISO 230-2 on {name} (µm): A {}, B {}, R {}, E {}, M {}; {runs} run(s) per direction at the fewest{}.",
+                v(i.accuracy_a_um),
+                v(i.reversal_b_um),
+                v(i.repeatability_r_um),
+                v(i.systematic_e_um),
+                v(i.mean_range_m_um),
+                if runs < 5 { " (ISO 230-2 asks for at least 5: R and A rest on few runs)" } else { "" }
+            )
+        }
+    })
+}
+
 fn flagged(results: &RunResults) -> Vec<String> {
     let Some(t) = results
         .device
@@ -115,7 +142,11 @@ pub(crate) fn markdown(results: &RunResults) -> Option<String> {
     for f in flagged(results) {
         let _ = writeln!(md, "- {f}");
     }
+    if let Some(line) = iso_line(results) {
+        let _ = writeln!(md, "\n{line}");
+    }
     md.push('\n');
+    super::device_loop::markdown(&mut md, results);
     Some(md)
 }
 
@@ -152,5 +183,9 @@ pub(crate) fn html(h: &mut String, results: &RunResults, figures: &[FigureFile])
     for f in figures.iter().filter(|f| f.kind == FigureKind::Device) {
         super::page::figure(h, f);
     }
+    if let Some(line) = iso_line(results) {
+        let _ = writeln!(h, "<p>{}</p>", escape(&line));
+    }
+    super::device_loop::html(h, results);
     h.push_str("</section>\n");
 }

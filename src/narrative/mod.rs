@@ -6,8 +6,11 @@
 
 pub(crate) mod axis;
 pub(crate) mod device;
+pub(crate) mod device_loop;
 pub(crate) mod fit_report;
 pub(crate) mod page;
+pub(crate) mod probe;
+pub(crate) mod roll;
 pub(crate) mod volumetric;
 
 use crate::model::Effect;
@@ -56,6 +59,8 @@ pub struct Headline {
     pub(crate) acceptance: Option<(usize, usize, usize, f64)>,
     /// Why a stage has nothing to show, and bars a later stage left out, in words.
     pub(crate) notes: Vec<String>,
+    /// The device's loop: its verdict and the command that adds its proposal.
+    pub(crate) device: Vec<(&'static str, String)>,
 }
 
 impl Headline {
@@ -93,6 +98,7 @@ impl Headline {
             next_command,
             acceptance: acceptance_counts(plan, results),
             notes: notes(plan, results),
+            device: device_loop::headline_lines(plan, results),
         }
     }
 
@@ -147,6 +153,7 @@ impl Headline {
                 ),
             ));
         }
+        lines.extend(self.device.iter().cloned());
         for note in &self.notes {
             lines.push(("Note", note.clone()));
         }

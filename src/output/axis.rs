@@ -7,6 +7,8 @@ use crate::io::{Column, Table};
 use dbbcal_core::series::InputFile;
 use dbbcal_machine::axis_study::AxisStudy;
 
+use super::axis_tables::TableRecord;
+
 /// A number or `null` (NaN: not determined).
 fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
@@ -35,6 +37,8 @@ pub(crate) struct AxisRecord {
     point_choice: Vec<PointRecord>,
     residuals: Vec<ResidualRecord>,
     diagnosis: DiagnosisRecord,
+    /// The controller tables asked for: written (file, sign, unit) or refused (why).
+    tables: Vec<TableRecord>,
 }
 
 #[derive(Debug, Serialize)]
@@ -76,7 +80,7 @@ struct TargetRecord {
 }
 
 #[derive(Debug, Serialize)]
-struct IsoRecord {
+pub(crate) struct IsoRecord {
     error: String,
     accuracy_a_um: Option<f64>,
     reversal_b_um: Option<f64>,
@@ -84,6 +88,21 @@ struct IsoRecord {
     systematic_e_um: Option<f64>,
     mean_range_m_um: Option<f64>,
     undefined: Vec<String>,
+}
+
+impl IsoRecord {
+    /// ISO 230-2's quantities of error `name` (the positioning error of an axis).
+    pub(crate) fn new(name: &str, i: &dbbcal_machine::iso230_2::Iso230_2) -> IsoRecord {
+        IsoRecord {
+            error: name.to_string(),
+            accuracy_a_um: i.accuracy_a_um,
+            reversal_b_um: i.reversal_b_um,
+            repeatability_r_um: i.repeatability_r_um,
+            systematic_e_um: i.systematic_e_um,
+            mean_range_m_um: i.mean_range_m_um,
+            undefined: i.undefined.clone(),
+        }
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -152,6 +171,7 @@ impl AxisRecord {
         pipeline: (&str, &str),
         inputs: &[InputFile],
         study: &AxisStudy,
+        tables: &[TableRecord],
     ) -> AxisRecord {
         let d = &study.diagnosis;
         AxisRecord {
@@ -210,15 +230,10 @@ impl AxisRecord {
                         .collect(),
                 })
                 .collect(),
-            iso230_2: study.iso230_2.as_ref().map(|i| IsoRecord {
-                error: study.names[study.axis.positioning_index()].clone(),
-                accuracy_a_um: i.accuracy_a_um,
-                reversal_b_um: i.reversal_b_um,
-                repeatability_r_um: i.repeatability_r_um,
-                systematic_e_um: i.systematic_e_um,
-                mean_range_m_um: i.mean_range_m_um,
-                undefined: i.undefined.clone(),
-            }),
+            iso230_2: study
+                .iso230_2
+                .as_ref()
+                .map(|i| IsoRecord::new(&study.names[study.axis.positioning_index()], i)),
             iso230_2_missing: study.iso230_2_missing.clone(),
             straightness: study
                 .straightness
@@ -286,6 +301,7 @@ impl AxisRecord {
                     })
                     .collect(),
             },
+            tables: tables.to_vec(),
         }
     }
 }

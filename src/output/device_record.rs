@@ -63,7 +63,108 @@ pub(crate) struct DeviceRecord<'a> {
     pub(crate) straightness_lines: Vec<(String, f64, f64)>,
     pub(crate) dwells: Vec<DwellRecord>,
     pub(crate) not_evaluated: Option<&'a str>,
+    /// ISO 230-2 on the positioning error over the runs, or why not.
+    pub(crate) iso230_2: Option<super::axis::IsoRecord>,
+    pub(crate) iso230_2_missing: Option<String>,
+    /// The loop on the legs across repeated dwells (`dbbcal_machine::device_study`).
+    #[serde(rename = "loop")]
+    pub(crate) device_loop: Option<LoopRecord>,
     pub(crate) inputs: &'a [InputFile],
+}
+
+/// The device's loop in `device.json`.
+#[derive(Debug, Serialize)]
+pub(crate) struct LoopRecord {
+    /// Why the loop could not run.
+    pub(crate) not_run: Option<String>,
+    pub(crate) rms_um: Option<f64>,
+    pub(crate) rms_per_leg_um: Option<[f64; 6]>,
+    pub(crate) station_groups: Option<usize>,
+    pub(crate) effects: Vec<LoopEffect>,
+    pub(crate) candidates: Vec<LoopCandidate>,
+    pub(crate) ledger: Vec<(Option<&'static str>, f64, f64)>,
+    pub(crate) proposal: Option<&'static str>,
+    pub(crate) not_identifiable: Vec<(&'static str, &'static str)>,
+}
+
+#[derive(Debug, Serialize)]
+pub(crate) struct LoopEffect {
+    pub(crate) effect: &'static str,
+    pub(crate) physics: &'static str,
+    /// Name, value, U (k = 2).
+    pub(crate) parameters: Vec<(String, f64, f64)>,
+}
+
+#[derive(Debug, Serialize)]
+pub(crate) struct LoopCandidate {
+    pub(crate) effect: &'static str,
+    pub(crate) delta_bic: f64,
+    pub(crate) rms_um: f64,
+    pub(crate) size_um: f64,
+    pub(crate) detail: Option<String>,
+}
+
+/// ISO 230-2 on the positioning error (its name and the statistics), or why not.
+pub(crate) fn positioning_iso(
+    s: &DeviceStage,
+) -> Option<Result<(String, dbbcal_machine::iso230_2::Iso230_2), String>> {
+    let t = s.outcome.as_ref().ok()?;
+    let name = t.names[t.axis?.index()].clone();
+    Some(
+        dbbcal_machine::device_test::positioning_iso230_2(t)?
+            .map(|i| (name, i))
+            .map_err(|e| e.to_string()),
+    )
+}
+
+fn loop_record(s: &DeviceStage) -> Option<LoopRecord> {
+    let empty = |not_run: String| LoopRecord {
+        not_run: Some(not_run),
+        rms_um: None,
+        rms_per_leg_um: None,
+        station_groups: None,
+        effects: Vec::new(),
+        candidates: Vec::new(),
+        ledger: Vec::new(),
+        proposal: None,
+        not_identifiable: Vec::new(),
+    };
+    Some(match s.study.as_ref()? {
+        Err(e) => empty(e.clone()),
+        Ok(st) => LoopRecord {
+            not_run: None,
+            rms_um: Some(st.rms_um),
+            rms_per_leg_um: Some(st.rms_per_leg_um),
+            station_groups: Some(st.groups),
+            effects: st
+                .effects
+                .iter()
+                .map(|e| LoopEffect {
+                    effect: e.effect.name(),
+                    physics: e.effect.physics(),
+                    parameters: e.parameters.clone(),
+                })
+                .collect(),
+            candidates: st
+                .candidates
+                .iter()
+                .map(|c| LoopCandidate {
+                    effect: c.effect.name(),
+                    delta_bic: c.delta_bic,
+                    rms_um: c.rms_um,
+                    size_um: c.size_um,
+                    detail: c.detail.clone(),
+                })
+                .collect(),
+            ledger: st
+                .ledger
+                .iter()
+                .map(|l| (l.effect.map(|e| e.name()), l.rms_um, l.delta_bic))
+                .collect(),
+            proposal: st.proposal.map(|e| e.name()),
+            not_identifiable: st.unseen.clone(),
+        },
+    })
 }
 
 const UNITS: [&str; 6] = ["µm", "µm", "µm", "µrad", "µrad", "µrad"];
@@ -99,6 +200,7 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
         ),
         Err(_) => (None, None, Vec::new(), Vec::new()),
     };
+    let iso = positioning_iso(s);
     Some(DeviceRecord {
         campaign: &results.campaign.id,
         device: &s.device.id,
@@ -115,6 +217,12 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
         straightness_lines: lines,
         dwells,
         not_evaluated: s.outcome.as_ref().err().map(String::as_str),
+        iso230_2: iso
+            .as_ref()
+            .and_then(|i| i.as_ref().ok())
+            .map(|(n, i)| super::axis::IsoRecord::new(n, i)),
+        iso230_2_missing: iso.and_then(|i| i.err()),
+        device_loop: loop_record(s),
         inputs: &results.inputs,
     })
 }

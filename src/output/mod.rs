@@ -31,12 +31,15 @@
 //! `device_errors.parquet`).
 
 pub(crate) mod axis;
+pub(crate) mod axis_tables;
 pub mod controller;
 pub(crate) mod device_record;
 pub(crate) mod diagnosis;
 pub(crate) mod fault;
 mod location;
 mod lock;
+pub(crate) mod probe;
+pub(crate) mod roll;
 pub(crate) mod stage_records;
 pub(crate) mod summary;
 pub(crate) mod volumetric;
@@ -717,6 +720,14 @@ pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     fault::point("write", path).map_err(OutputError::io(path))?;
     let _step = writing();
     std::fs::write(path, bytes).map_err(OutputError::io(path))
+}
+
+/// Create the folder `path` inside a partial folder, as one write step. `create_dir`, not
+/// `_all`: a partial folder a signal removed is not made again.
+pub(crate) fn create_dir(path: &Path) -> Result<(), OutputError> {
+    fault::point("write", path).map_err(OutputError::io(path))?;
+    let _step = writing();
+    std::fs::create_dir(path).map_err(OutputError::io(path))
 }
 
 /// Held shared by each step that creates or writes something in a partial folder, and taken

@@ -16,6 +16,7 @@
 use dbbcal_core::campaign::{Device, Place};
 use dbbcal_core::positions::{self, Dwell, PositionsLog, STATION_TOLERANCE_DEG};
 use dbbcal_core::series::InputFile;
+use dbbcal_machine::device_study::{self, DeviceStudy, DwellLegs};
 use dbbcal_machine::device_test::{self, DeviceTestResult, DwellInput};
 use dbbcal_machine::hexapod::Hexapod;
 use dbbcal_machine::pose::Pose;
@@ -33,8 +34,11 @@ pub struct DeviceStage {
     pub leg_bars: Vec<Vec<String>>,
     /// Per dwell, per leg: compensated readings averaged.
     pub samples: Vec<[usize; 6]>,
-    /// The test, or why it could not be evaluated at all.
+    /// The test, or why it could not be evaluated at all; with the model's effects removed
+    /// from the legs when `[device] effects` names any.
     pub outcome: Result<DeviceTestResult, String>,
+    /// The device's loop on the legs across repeated dwells, or why it cannot run.
+    pub study: Option<Result<DeviceStudy, String>>,
     /// The `positions` files read, with their hashes.
     pub positions_files: Vec<InputFile>,
 }
@@ -77,7 +81,7 @@ fn sensor_over(log: &crate::series::SensorLog, d: &Dwell) -> Option<f64> {
     }
 }
 
-fn hexapod_of(d: &Device) -> Hexapod {
+pub(crate) fn hexapod_of(d: &Device) -> Hexapod {
     Hexapod {
         base_mm: d.base_mm,
         platform_mm: d.platform_mm,
@@ -253,36 +257,92 @@ fn evaluate_device(
             })
             .collect();
         let hexapod = hexapod_of(&device);
-        device_test::evaluate(
-            &hexapod,
-            r.campaign.reference_temperature_c,
-            &inputs,
-            datum,
-            |k, tilts| {
-                let mut out = [0.0; 6];
-                for leg in 0..6 {
-                    let cal = calibration_of[k][leg]?;
-                    let xs = &readings[k][leg];
-                    if xs.is_empty() {
-                        return None;
-                    }
-                    out[leg] = xs
-                        .iter()
-                        .map(|x| cal.chosen.distance_mm(*x, tilts[leg]))
-                        .sum::<f64>()
-                        / xs.len() as f64;
+        let t_ref = r.campaign.reference_temperature_c;
+        let leg_means = |k: usize, tilts: &[f64; 6]| -> Option<[f64; 6]> {
+            let mut out = [0.0; 6];
+            for leg in 0..6 {
+                let cal = calibration_of[k][leg]?;
+                let xs = &readings[k][leg];
+                if xs.is_empty() {
+                    return None;
                 }
-                Some(out)
-            },
+                out[leg] = xs
+                    .iter()
+                    .map(|x| cal.chosen.distance_mm(*x, tilts[leg]))
+                    .sum::<f64>()
+                    / xs.len() as f64;
+            }
+            Some(out)
+        };
+        let first = device_test::evaluate(&hexapod, t_ref, &inputs, datum, leg_means)
+            .map_err(|e| e.to_string())?;
+        let legs = study_inputs(&hexapod, t_ref, &dwells, &first);
+        let study = device_study::study(
+            &legs.iter().map(|(_, d)| d.clone()).collect::<Vec<_>>(),
+            &plan.device,
         )
-        .map_err(|e| e.to_string())
+        .map_err(|e| e.to_string());
+        let corrections: Vec<[f64; 6]> = match &study {
+            Ok(s) if !s.effects.is_empty() => {
+                let mut c = vec![[0.0; 6]; dwells.len()];
+                for ((k, _), corr) in legs.iter().zip(&s.corrections_um) {
+                    c[*k] = *corr;
+                }
+                c
+            }
+            _ => return Ok((first, Some(study))),
+        };
+        let corrected = device_test::evaluate(&hexapod, t_ref, &inputs, datum, |k, tilts| {
+            let l = leg_means(k, tilts)?;
+            Some(std::array::from_fn(|i| l[i] - corrections[k][i] * 1e-3))
+        })
+        .map_err(|e| e.to_string())?;
+        Ok((corrected, Some(study)))
     })();
+    let (outcome, study) = match outcome {
+        Ok((test, study)) => (Ok(test), study),
+        Err(e) => (Err(e), None),
+    };
     DeviceStage {
         device,
         dwells,
         leg_bars,
         samples,
         outcome,
+        study,
         positions_files,
     }
+}
+
+/// The evaluated dwells of a first pass as the loop's input, each with its index in `dwells`:
+/// hours since the datum's start, (station, approach along the moved axis), lengths, the rings'
+/// excess over T0 and the sensitivities at the pose found.
+fn study_inputs(
+    hexapod: &Hexapod,
+    t_ref: f64,
+    dwells: &[Dwell],
+    test: &DeviceTestResult,
+) -> Vec<(usize, DwellLegs)> {
+    let axis = test.axis.map_or(0, |a| a.index());
+    let t0_ns = dwells.get(test.datum).map_or(0, |d| d.from_ns);
+    test.dwells
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.errors.is_some())
+        .filter_map(|(k, d)| {
+            let (pose, lengths) = (d.pose?, d.leg_lengths_mm?);
+            let at = hexapod.at_temperature(d.input.ring_temperature_c, t_ref);
+            Some((
+                k,
+                DwellLegs::at_pose(
+                    &at,
+                    &pose,
+                    (dwells[k].from_ns - t0_ns) as f64 / 3600e9,
+                    (d.input.station, d.input.approach[axis]),
+                    lengths,
+                    d.input.ring_temperature_c - t_ref,
+                ),
+            ))
+        })
+        .collect()
 }

@@ -12,6 +12,7 @@ mod results;
 mod run;
 mod stages;
 
+pub(crate) use device::hexapod_of;
 pub use device::{run_device, DeviceStage};
 pub use plan::*;
 pub use results::*;

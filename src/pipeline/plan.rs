@@ -75,6 +75,62 @@ pub(crate) struct PipelineFile {
     pub(crate) report: ReportSection,
     #[serde(default)]
     pub(crate) output: OutputSection,
+    #[serde(default)]
+    pub(crate) device: DeviceSection,
+}
+
+/// `[device]`: the device stage's loop (`dbbcal_machine::device_study`).
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct DeviceSection {
+    /// Effects in the device's model: machine_drift, body_expansion, reseated_leg.
+    #[serde(default)]
+    pub(crate) effects: Vec<String>,
+    /// The BIC gain an effect must bring to be proposed.
+    #[serde(default = "default_device_min_bic_gain")]
+    pub(crate) min_bic_gain: f64,
+    /// The largest change to a leg an effect must make to be proposed, µm.
+    #[serde(default = "default_device_min_effect_um")]
+    pub(crate) min_effect_um: f64,
+}
+
+impl Default for DeviceSection {
+    fn default() -> Self {
+        DeviceSection {
+            effects: Vec::new(),
+            min_bic_gain: default_device_min_bic_gain(),
+            min_effect_um: default_device_min_effect_um(),
+        }
+    }
+}
+
+fn default_device_min_bic_gain() -> f64 {
+    dbbcal_machine::device_study::DeviceStudyOptions::default().min_bic_gain
+}
+
+fn default_device_min_effect_um() -> f64 {
+    dbbcal_machine::device_study::DeviceStudyOptions::default().min_effect_um
+}
+
+/// Effect names for the device's loop, each with the key that gave it: parsed, deduplicated.
+fn device_effects(
+    names: &[(String, String)],
+) -> Result<Vec<dbbcal_machine::device_study::DeviceEffect>, PlanError> {
+    use dbbcal_machine::device_study::DeviceEffect;
+    let mut out = Vec::new();
+    for (name, key) in names {
+        let e = DeviceEffect::parse(name).ok_or_else(|| PlanError::Pipeline {
+            path: key.clone(),
+            message: format!(
+                "{name:?} is not an effect of the device's loop (known: {})",
+                DeviceEffect::ALL.map(|e| e.name()).join(", ")
+            ),
+        })?;
+        if !out.contains(&e) {
+            out.push(e);
+        }
+    }
+    Ok(out)
 }
 
 /// `[report]`: what the data cannot say and a filed report must (ISO/IEC 17025 §7.8): the lab's
@@ -316,6 +372,8 @@ pub(crate) mod limits {
     pub(crate) const BIN_S: Limit = Limit::closed(0.0, crate::series::MAX_BIN_S, "s");
     /// `[diagnose] forward_steps` (0: rank the candidates only).
     pub(crate) const FORWARD_STEPS: CountLimit = CountLimit::new(0, 10);
+    /// `[device] min_bic_gain`: the BIC gain the device's loop needs to propose an effect.
+    pub(crate) const DEVICE_MIN_BIC_GAIN: Limit = Limit::closed(0.0, 1e6, "");
     /// `[diagnose] beam` (1: plain greedy selection).
     pub(crate) const BEAM: CountLimit = CountLimit::new(1, 10);
 }
@@ -328,7 +386,7 @@ pub fn limits_table() -> String {
         "0 (every reading) or {}",
         Limit::closed(MIN_BIN_S, crate::series::MAX_BIN_S, "s").describe()
     );
-    let rows: [(&str, String); 9] = [
+    let rows: [(&str, String); 11] = [
         (
             "`[match] limit_um`, `[diagnose] tolerance_um`, `[acceptance] tolerance_um`",
             TOLERANCE_UM.describe(),
@@ -347,6 +405,8 @@ pub fn limits_table() -> String {
         ),
         ("`[acceptance] u_temperature_k`", U_TEMPERATURE_K.describe()),
         ("`[acceptance] max_gap_s`", MAX_GAP_S.describe()),
+        ("`[device] min_bic_gain`", DEVICE_MIN_BIC_GAIN.describe()),
+        ("`[device] min_effect_um`", TOLERANCE_UM.describe()),
     ];
     let mut table = String::from("| key | allowed |\n|---|---|\n");
     for (key, allowed) in rows {
@@ -386,6 +446,16 @@ impl PipelineFile {
             U_TEMPERATURE_K,
         )?;
         check_range("acceptance.max_gap_s", a.max_gap_s, MAX_GAP_S)?;
+        check_range(
+            "device.min_bic_gain",
+            self.device.min_bic_gain,
+            DEVICE_MIN_BIC_GAIN,
+        )?;
+        check_range(
+            "device.min_effect_um",
+            self.device.min_effect_um,
+            TOLERANCE_UM,
+        )?;
         if let Some(bin_s) = self.model.bin_s {
             check_bin_s("model.bin_s", bin_s)?;
         }
@@ -570,6 +640,8 @@ pub struct RunPlan {
     pub(crate) acceptance: AcceptanceSection,
     pub(crate) report: ReportSection,
     pub(crate) output: OutputSection,
+    /// The device stage's loop: its effects and proposal threshold.
+    pub(crate) device: dbbcal_machine::device_study::DeviceStudyOptions,
 }
 
 impl RunPlan {
@@ -638,6 +710,18 @@ impl RunPlan {
         plan.acceptance = file.acceptance;
         plan.report = file.report;
         plan.output = file.output;
+        let keyed: Vec<(String, String)> = file
+            .device
+            .effects
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (e.clone(), format!("{}: device.effects[{i}]", shown(path))))
+            .collect();
+        plan.device = dbbcal_machine::device_study::DeviceStudyOptions {
+            effects: device_effects(&keyed)?,
+            min_bic_gain: file.device.min_bic_gain,
+            min_effect_um: file.device.min_effect_um,
+        };
         Ok(plan)
     }
 
@@ -694,6 +778,7 @@ impl RunPlan {
             acceptance: AcceptanceSection::default(),
             report: ReportSection::default(),
             output: OutputSection::default(),
+            device: Default::default(),
         })
     }
 
@@ -753,7 +838,24 @@ impl RunPlan {
                 .map(|e| (e.clone(), "--effects".to_string()))
                 .collect()
         };
-        names.extend(add.iter().map(|e| (e.clone(), "--add-effect".to_string())));
+        // The device's loop has effects of its own: `--add-effect` names either kind.
+        let (device, add): (Vec<&String>, Vec<&String>) = add.iter().partition(|e| {
+            self.runs(Stage::Device)
+                && dbbcal_machine::device_study::DeviceEffect::parse(e).is_some()
+        });
+        let device: Vec<(String, String)> = device
+            .into_iter()
+            .map(|e| (e.clone(), "--add-effect".to_string()))
+            .collect();
+        for e in device_effects(&device)? {
+            if !self.device.effects.contains(&e) {
+                self.device.effects.push(e);
+            }
+        }
+        names.extend(
+            add.iter()
+                .map(|e| ((*e).clone(), "--add-effect".to_string())),
+        );
         self.effects = validated_effects(
             &self.campaign_dir,
             &names,

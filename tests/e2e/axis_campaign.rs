@@ -175,3 +175,118 @@ fn the_axis_loop_names_each_hidden_effect_and_adding_it_brings_the_errors_within
     );
     check("cosine", "[effects.cosine]\nmrad = [1.0, 0.5, 1.5]", None);
 }
+
+/// The axis run's controller tables (`[tables]` of `pipelines/axis.toml`): each written file
+/// holds, per target, the mean of the two directions' errors of `axis.json` with the sign asked
+/// for; `correction` writes the negated values; the figure is on the page; a `[tables]` without
+/// a sign or with an unknown format is refused before any reading.
+#[test]
+fn the_axis_run_writes_controller_tables_with_their_sign_and_its_figure() {
+    let tmp = tempfile::tempdir().unwrap();
+    let campaign = tmp.path().join("axis");
+    let (code, ..) = run_cli(&[
+        "simulate",
+        "--config",
+        "pipelines/sim-axis.toml",
+        "--out",
+        &campaign.display().to_string(),
+    ]);
+    assert_eq!(code, 0);
+    let base = std::fs::read_to_string(crate::support::root().join("pipelines/axis.toml")).unwrap();
+    let run = |name: &str, pipeline_text: &str| {
+        let pipeline = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&pipeline, pipeline_text).unwrap();
+        let out = tmp.path().join(name);
+        let r = run_cli(&[
+            "run",
+            &pipeline.display().to_string(),
+            "--campaign",
+            &campaign.display().to_string(),
+            "--out",
+            &out.display().to_string(),
+        ]);
+        (r, out)
+    };
+    // The ISG CSV's EXX column against axis.json: mean of ↑ and ↓ per target, µm → mm.
+    let exx_columns = |out: &std::path::Path| -> (Vec<f64>, Vec<f64>) {
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("axis.json")).unwrap()).unwrap();
+        let mut by_target: std::collections::BTreeMap<i64, Vec<f64>> = Default::default();
+        for t in record["targets"].as_array().unwrap() {
+            let x = (t["target_mm"].as_f64().unwrap() * 1000.0).round() as i64;
+            by_target
+                .entry(x)
+                .or_default()
+                .push(t["errors"][0][1].as_f64().unwrap());
+        }
+        let expected: Vec<f64> = by_target
+            .values()
+            .map(|v| v.iter().sum::<f64>() / v.len() as f64 / 1000.0)
+            .collect();
+        let csv = std::fs::read_to_string(out.join("tables/X.csv")).unwrap();
+        let mut lines = csv.lines().filter(|l| !l.starts_with("//"));
+        let header: Vec<&str> = lines.next().unwrap().split(' ').collect();
+        assert_eq!(header, ["X", "EXX", "EYX", "EZX", "EAX", "EBX", "ECX"]);
+        let written = lines
+            .map(|l| l.split(' ').nth(1).unwrap().parse::<f64>().unwrap())
+            .collect();
+        (expected, written)
+    };
+    let ((code, stdout, err), out) = run("error", &base);
+    assert_eq!(code, 0, "{stdout}\n{err}");
+    for f in [
+        "tables/X.COM",
+        "tables/X1_EEC.INI",
+        "tables/X.csv",
+        "figures/axis-errors.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    assert!(std::fs::read_to_string(out.join("index.html"))
+        .unwrap()
+        .contains("figures/axis-errors.png"));
+    assert!(
+        format!("{stdout}{err}").contains("tables/X.COM (error = measured - commanded)"),
+        "{stdout}{err}"
+    );
+    let (expected, written) = exx_columns(&out);
+    assert_eq!(expected.len(), written.len());
+    for (e, w) in expected.iter().zip(&written) {
+        assert!(
+            (e - w).abs() <= 0.5e-4 + 1e-12,
+            "EXX {w} mm written, {e} mm measured"
+        );
+    }
+    let ((code, ..), out) = run(
+        "correction",
+        &base.replace("sign = \"error\"", "sign = \"correction\""),
+    );
+    assert_eq!(code, 0);
+    let (expected, written) = exx_columns(&out);
+    for (e, w) in expected.iter().zip(&written) {
+        assert!(
+            (e + w).abs() <= 0.5e-4 + 1e-12,
+            "correction {w} mm for an error of {e} mm"
+        );
+    }
+    assert!(std::fs::read_to_string(out.join("tables/X.csv"))
+        .unwrap()
+        .starts_with("// dbbcal: values are correction = -error"));
+    for (name, text, says) in [
+        (
+            "nosign",
+            base.replace("sign = \"error\"", ""),
+            "tables.sign is missing",
+        ),
+        (
+            "unknown",
+            base.replace("\"isg-csv\"", "\"fanuc-1d\""),
+            "tables.formats[2]: \"fanuc-1d\"",
+        ),
+    ] {
+        let ((code, _, err), out) = run(name, &text);
+        assert_eq!(code, 3, "{name}: {err}");
+        assert!(err.contains(says), "{name}: {err}");
+        assert!(!out.exists(), "{name}: no output folder");
+    }
+}

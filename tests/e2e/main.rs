@@ -20,6 +20,8 @@ mod machine_tool;
 mod nist;
 mod one_length;
 mod page;
+mod probe;
+mod roll;
 mod row_order;
 mod safe_outputs;
 mod support;

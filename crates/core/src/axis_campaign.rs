@@ -172,6 +172,29 @@ pub struct KindSection {
     pub reference_temperature_c: f64,
 }
 
+/// `axis` is not X, Y or Z.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown axis {0:?} (X | Y | Z)")]
+pub struct UnknownAxis(pub String);
+
+impl std::str::FromStr for MachineAxis {
+    type Err = UnknownAxis;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "X" | "x" => Ok(MachineAxis::X),
+            "Y" | "y" => Ok(MachineAxis::Y),
+            "Z" | "z" => Ok(MachineAxis::Z),
+            other => Err(UnknownAxis(other.to_string())),
+        }
+    }
+}
+
+impl std::fmt::Display for MachineAxis {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.letter())
+    }
+}
+
 /// A linear axis of the machine frame M.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum MachineAxis {
@@ -208,6 +231,31 @@ impl MachineAxis {
     pub fn error_names(self) -> [String; 6] {
         let j = self.as_str();
         ["X", "Y", "Z", "A", "B", "C"].map(|c| format!("E{c}{j}"))
+    }
+
+    /// The axis's letter.
+    pub fn letter(self) -> char {
+        ['X', 'Y', 'Z'][self.index()]
+    }
+
+    /// ISO 230-1 names of the six errors when this axis moves (δx, δy, δz, εx, εy, εz): the
+    /// same as [`MachineAxis::error_names`], in `docs/spec/device-format.md`'s words.
+    pub fn iso230_1_names(self) -> [String; 6] {
+        self.error_names()
+    }
+
+    /// Index (0–5, δx … εz) of this axis's positioning error (EXX, EYY, EZZ).
+    pub fn positioning_index(self) -> usize {
+        self.index()
+    }
+
+    /// Indices (0–2) of its two straightness errors (the other translations).
+    pub fn straightness_indices(self) -> [usize; 2] {
+        match self {
+            MachineAxis::X => [1, 2],
+            MachineAxis::Y => [0, 2],
+            MachineAxis::Z => [0, 1],
+        }
     }
 
     /// The channel along the axis (`dx` for X).

@@ -20,6 +20,8 @@ pub mod limits;
 pub mod matching;
 pub mod model;
 pub mod positions;
+pub mod probe_campaign;
+pub mod roll_campaign;
 pub mod series;
 pub mod signal;
 pub mod volumetric_campaign;

@@ -131,7 +131,7 @@ pub fn read_axis_manifest(dir: &Path) -> Result<AxisCampaign, IngestError> {
 /// One decoded file.
 pub(crate) struct Decoded<'a> {
     path: &'a Path,
-    df: DataFrame,
+    pub(crate) df: DataFrame,
 }
 
 fn polars_failed(path: &Path) -> impl Fn(PolarsError) -> IngestError + '_ {
@@ -159,7 +159,7 @@ impl<'a> Decoded<'a> {
         self.df.height()
     }
 
-    fn has(&self, name: &str) -> bool {
+    pub(crate) fn has(&self, name: &str) -> bool {
         self.df
             .get_column_names()
             .iter()

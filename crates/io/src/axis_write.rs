@@ -179,7 +179,7 @@ fn readings_frame(rows: &[&AxisReading], opts: &AxisWriteOptions) -> PolarsResul
     DataFrame::new(rows.len(), columns)
 }
 
-fn time_column(ns: impl Iterator<Item = i64>, unit: TimeUnit) -> Column {
+pub(crate) fn time_column(ns: impl Iterator<Item = i64>, unit: TimeUnit) -> Column {
     let (per, polars_unit) = match unit {
         TimeUnit::Ns => (1, polars::prelude::TimeUnit::Nanoseconds),
         TimeUnit::Us => (1_000, polars::prelude::TimeUnit::Microseconds),
@@ -190,18 +190,18 @@ fn time_column(ns: impl Iterator<Item = i64>, unit: TimeUnit) -> Column {
         .into_column()
 }
 
-fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> Column {
+pub(crate) fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> Column {
     Float64Chunked::from_vec(name.into(), values.collect()).into_column()
 }
 
-fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
+pub(crate) fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
     move |e| WriteError::Polars {
         path: path.to_path_buf(),
         message: one_line(e),
     }
 }
 
-fn create_dir(dir: &Path) -> Result<(), WriteError> {
+pub(crate) fn create_dir(dir: &Path) -> Result<(), WriteError> {
     std::fs::create_dir_all(dir).map_err(|e| WriteError::Io {
         path: dir.to_path_buf(),
         message: e.to_string(),
@@ -209,7 +209,7 @@ fn create_dir(dir: &Path) -> Result<(), WriteError> {
 }
 
 /// Creates `folder` and removes its `*.parquet` files.
-fn prepare(folder: &Path) -> Result<(), WriteError> {
+pub(crate) fn prepare(folder: &Path) -> Result<(), WriteError> {
     create_dir(folder)?;
     crate::write::clear_parquet(folder)
 }

@@ -11,8 +11,12 @@ mod axis;
 mod axis_write;
 mod guard;
 mod inputs;
+mod probe;
+mod probe_write;
 mod read;
 mod repeats;
+mod roll;
+mod roll_write;
 mod table;
 mod volumetric;
 mod volumetric_write;
@@ -25,6 +29,8 @@ mod fuzz_tests;
 #[cfg(test)]
 mod positions_tests;
 #[cfg(test)]
+mod roll_tests;
+#[cfg(test)]
 mod tests;
 
 use std::path::{Path, PathBuf};
@@ -35,6 +41,10 @@ use dbbcal_core::series::CampaignLogs;
 pub use axis::{read_axis_campaign, read_axis_manifest};
 pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;
+pub use probe::{read_probe_campaign, read_probe_manifest};
+pub use probe_write::{write_probe_campaign, ProbeWriteOptions};
+pub use roll::{read_roll_campaign, read_roll_manifest};
+pub use roll_write::{write_roll_campaign, RollWriteOptions};
 pub use table::{write_table, write_table_csv, Column, Table};
 pub use volumetric::{read_volumetric_campaign, read_volumetric_manifest};
 pub use volumetric_write::{write_volumetric_campaign, VolumetricWriteOptions};

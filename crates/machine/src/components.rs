@@ -5,83 +5,9 @@
 //! and angular errors ε_J = (EAJ, EBJ, ECJ) µrad, right-handed about +X, +Y, +Z of M; a point at
 //! offset p (mm) from the reporting point moves by Δ(p) = δ + 10⁻³ ε × p (µm).
 
-use std::fmt;
-use std::str::FromStr;
-
-/// A linear axis of the machine under test.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Axis {
-    /// X.
-    X,
-    /// Y.
-    Y,
-    /// Z.
-    Z,
-}
-
-impl Axis {
-    /// The axis's letter.
-    pub fn letter(self) -> char {
-        match self {
-            Axis::X => 'X',
-            Axis::Y => 'Y',
-            Axis::Z => 'Z',
-        }
-    }
-
-    /// Index of the axis's own coordinate (0, 1, 2).
-    pub fn index(self) -> usize {
-        match self {
-            Axis::X => 0,
-            Axis::Y => 1,
-            Axis::Z => 2,
-        }
-    }
-
-    /// ISO 230-1 names of the six errors when this axis moves, in the order δx, δy, δz, εx,
-    /// εy, εz: e.g. X → EXX, EYX, EZX, EAX, EBX, ECX (device-format.md, "Names").
-    pub fn iso230_1_names(self) -> [String; 6] {
-        let j = self.letter();
-        ["EX", "EY", "EZ", "EA", "EB", "EC"].map(|e| format!("{e}{j}"))
-    }
-
-    /// Index (0–5, δx … εz) of the positioning error of this axis (EXX, EYY, EZZ).
-    pub fn positioning_index(self) -> usize {
-        self.index()
-    }
-
-    /// Indices (0–2) of the two straightness errors of this axis (the other translations).
-    pub fn straightness_indices(self) -> [usize; 2] {
-        match self {
-            Axis::X => [1, 2],
-            Axis::Y => [0, 2],
-            Axis::Z => [0, 1],
-        }
-    }
-}
-
-impl fmt::Display for Axis {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.letter())
-    }
-}
-
-/// `axis` is not X, Y or Z.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown axis {0:?} (X | Y | Z)")]
-pub struct UnknownAxis(pub String);
-
-impl FromStr for Axis {
-    type Err = UnknownAxis;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "X" | "x" => Ok(Axis::X),
-            "Y" | "y" => Ok(Axis::Y),
-            "Z" | "z" => Ok(Axis::Z),
-            other => Err(UnknownAxis(other.to_string())),
-        }
-    }
-}
+/// A linear axis of the machine under test: the one type of the format (`dbbcal-core`), with
+/// its ISO 230-1 names, positioning and straightness indices.
+pub use dbbcal_core::axis_campaign::{MachineAxis as Axis, UnknownAxis};
 
 /// Six errors (or their uncertainties) of the tool side relative to the workpiece side, in M's
 /// axes: translations in µm, rotations in µrad.

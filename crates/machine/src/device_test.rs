@@ -13,6 +13,7 @@
 
 use crate::components::{Axis, SixErrors};
 use crate::hexapod::{Hexapod, HexapodError};
+use crate::iso230_2::{Iso230Error, Iso230_2, TargetDeviations};
 use crate::pose::Pose;
 use crate::pose_errors::axis_of_test;
 use crate::straightness::remove_line;
@@ -260,6 +261,50 @@ pub fn evaluate(
     })
 }
 
+/// The direction of the sweep dwell `i` belongs to, given every dwell's approach along the
+/// moved axis: its approach, or for a dwell approached from rest (the datum, a run's start) the
+/// next dwell's, else the previous one's; 0 when no dwell moved.
+pub fn sweep_direction(approach: &[i8], i: usize) -> i8 {
+    let next = approach[i..].iter().copied().find(|&a| a != 0);
+    let previous = || approach[..i].iter().rev().copied().find(|&a| a != 0);
+    next.or_else(previous).unwrap_or(0)
+}
+
+/// ISO 230-2 on the positioning error of the moved axis (EXX for X) over the evaluated dwells:
+/// per station, the runs' values approached moving + (↑) and − (↓), a dwell from rest joining
+/// its sweep ([`sweep_direction`]). `None` when no single axis moved.
+pub fn positioning_iso230_2(r: &DeviceTestResult) -> Option<Result<Iso230_2, Iso230Error>> {
+    let k = r.axis?.index();
+    let approach: Vec<i8> = r.dwells.iter().map(|d| d.input.approach[k]).collect();
+    let mut targets: Vec<TargetDeviations> = Vec::new();
+    for (i, d) in r.dwells.iter().enumerate() {
+        let Some(e) = d.errors else { continue };
+        let x = d.input.position_mm[k];
+        let at = match targets
+            .iter()
+            .position(|t| (t.position_mm - x).abs() < POSITION_TOLERANCE_MM)
+        {
+            Some(at) => at,
+            None => {
+                targets.push(TargetDeviations {
+                    position_mm: x,
+                    up_um: Vec::new(),
+                    down_um: Vec::new(),
+                });
+                targets.len() - 1
+            }
+        };
+        let value = e.to_array()[k];
+        match sweep_direction(&approach, i) {
+            1 => targets[at].up_um.push(value),
+            -1 => targets[at].down_um.push(value),
+            _ => {}
+        }
+    }
+    targets.sort_by(|a, b| a.position_mm.total_cmp(&b.position_mm));
+    Some(crate::iso230_2::evaluate(&targets))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -310,5 +355,20 @@ mod tests {
             assert!(d.straightness_line_removed_um.is_some());
         }
         assert_eq!(r.lines.len(), 2);
+        // One run: ISO 230-2 needs a standard deviation per target, so it says why not.
+        assert!(matches!(
+            positioning_iso230_2(&r),
+            Some(Err(Iso230Error::TooFewRuns { runs: 1, .. }))
+        ));
+    }
+
+    #[test]
+    fn a_dwell_from_rest_joins_the_sweep_it_starts_or_ends() {
+        let approach = [0, 1, 1, 0, -1, -1, 0];
+        let d: Vec<i8> = (0..approach.len())
+            .map(|i| sweep_direction(&approach, i))
+            .collect();
+        assert_eq!(d, [1, 1, 1, -1, -1, -1, -1]);
+        assert_eq!(sweep_direction(&[0, 0], 1), 0);
     }
 }

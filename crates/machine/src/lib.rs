@@ -10,6 +10,7 @@
 //!   and the loop (candidates, ledger, what the readings cannot see);
 //! - [`pose`], [`hexapod`], [`pose_errors`]: the hexapod device, its kinematics, and the
 //!   errors of the machine under test from its poses, with their uncertainty;
+//! - [`probe`]: kind `probe`, touch-trigger probe touches on a ring or sphere (seed 003);
 //! - [`straightness`]: straightness raw and without its least-squares line;
 //! - [`device_test`]: a hexapod axis test on plain data, dwell by dwell (pose, errors, U).
 //!
@@ -20,6 +21,7 @@
 pub mod axis;
 pub mod axis_study;
 pub mod components;
+pub mod device_study;
 pub mod device_test;
 pub mod edlen;
 pub mod hexapod;
@@ -27,5 +29,7 @@ pub mod iso230_2;
 pub mod linear;
 pub mod pose;
 pub mod pose_errors;
+pub mod probe;
+pub mod roll;
 pub mod straightness;
 pub mod volumetric;

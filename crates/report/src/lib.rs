@@ -15,12 +15,15 @@ mod bar_fit;
 mod before_after;
 mod canvas;
 mod data;
+mod error_grid;
 mod fleet;
 mod font;
+mod geometry;
 mod heatmap;
 mod ledger;
 mod legend;
 mod panel;
+mod polar;
 mod residuals;
 mod series_panels;
 mod style;
@@ -31,9 +34,12 @@ use std::path::PathBuf;
 
 pub use bar_fit::{render_bar_fit, BarFitFigure};
 pub use before_after::{render_before_after, BeforeAfterFigure};
+pub use error_grid::{render_error_grid, BandedSeries, ErrorGridFigure, ErrorPanel};
 pub use fleet::{render_fleet, FleetFigure, ParameterPanel};
+pub use geometry::{render_geometry, GeometryFigure, GeometryView};
 pub use heatmap::{render_heat_map, HeatMapFigure, MatrixHighlight};
 pub use ledger::{render_ledger, LedgerFigure};
+pub use polar::{render_polar, PolarFigure, PolarSeries};
 pub use residuals::{render_residual_diagnostics, ResidualDiagnosticsFigure};
 pub use series_panels::{render_series_panels, SeriesPanel, SeriesPanelsFigure, XAxis};
 

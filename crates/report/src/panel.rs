@@ -279,6 +279,40 @@ impl<'a, 'b> Panel<'a, 'b> {
         Ok(())
     }
 
+    /// A filled band between `lo[i]` and `hi[i]` at `xs[i]` (an uncertainty band), broken where
+    /// any value cannot be drawn.
+    pub(crate) fn band(
+        &mut self,
+        xs: &[f64],
+        lo: &[f64],
+        hi: &[f64],
+        style: ShapeStyle,
+    ) -> Result<(), DrawError> {
+        let mut run: Vec<((f64, f64), (f64, f64))> = Vec::new();
+        let mut runs = Vec::new();
+        for ((x, l), h) in xs.iter().zip(lo).zip(hi) {
+            match (self.map(*x, *l), self.map(*x, *h)) {
+                (Some(a), Some(b)) => run.push((a, b)),
+                _ => runs.push(std::mem::take(&mut run)),
+            }
+        }
+        runs.push(run);
+        for run in runs.into_iter().filter(|r| r.len() > 1) {
+            let outline: Vec<(f64, f64)> = run
+                .iter()
+                .map(|p| p.0)
+                .chain(run.iter().rev().map(|p| p.1))
+                .collect();
+            for w in run.windows(2) {
+                let (a, b) = (self.frac(w[0].0), self.frac(w[1].1));
+                self.occupied.mark_rect(a, b);
+            }
+            self.chart
+                .draw_series(std::iter::once(Polygon::new(outline, style)))?;
+        }
+        Ok(())
+    }
+
     /// A dashed straight line between two data points.
     pub(crate) fn dashed(
         &mut self,

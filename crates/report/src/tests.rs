@@ -430,3 +430,47 @@ fn inconsistent_spec_is_an_error_naming_the_path() {
     assert!(matches!(err, ReportError::InvalidSpec { .. }));
     assert!(err.to_string().contains("never.png"), "{err}");
 }
+
+#[test]
+fn a_polar_figure_draws_lobes_and_points() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = std::env::var("DBBCAL_POLAR_PNG")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|_| dir.path().join("polar.png"));
+    let phi: Vec<f64> = (0..24).map(|i| 15.0 * f64::from(i)).collect();
+    let lobe: Vec<f64> = phi
+        .iter()
+        .map(|p| 0.3 / (60.0 - (p - 20.0).rem_euclid(120.0)).to_radians().cos())
+        .collect();
+    let spec = crate::PolarFigure {
+        title: "pretravel by direction".into(),
+        subtitle: "24 directions".into(),
+        value_desc: "pretravel (µm)".into(),
+        series: vec![
+            crate::PolarSeries {
+                name: "model".into(),
+                angle_deg: phi.clone(),
+                value: lobe.clone(),
+                line: true,
+            },
+            crate::PolarSeries {
+                name: "touch 1".into(),
+                angle_deg: phi.clone(),
+                value: lobe.iter().map(|v| v - 0.2).collect(),
+                line: false,
+            },
+        ],
+    };
+    crate::render_polar(&spec, &path).unwrap();
+    assert!(std::fs::metadata(&path).unwrap().len() > 10_000);
+    let bad = crate::PolarFigure {
+        series: vec![crate::PolarSeries {
+            name: "x".into(),
+            angle_deg: vec![0.0],
+            value: vec![],
+            line: false,
+        }],
+        ..spec
+    };
+    assert!(crate::render_polar(&bad, &path).is_err());
+}

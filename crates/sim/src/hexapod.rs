@@ -60,6 +60,40 @@ pub struct HexapodSim {
     /// Multiplies the drawn joint-centre offsets (1: drawn with the declared u; 0: none).
     #[serde(default = "one")]
     pub(crate) joint_error_scale: f64,
+    /// Effects the analysis' model may miss (`machine-physics.md`, "Hexapod"); all off by
+    /// default.
+    #[serde(default)]
+    pub(crate) effects: HexapodEffects,
+}
+
+/// `[schedule.working.device.hexapod.effects]`.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct HexapodEffects {
+    /// Machine thermal drift during the test: the tool point moves by this much per hour in
+    /// x, y, z (µm/h), from the datum dwell's start.
+    #[serde(default)]
+    pub(crate) drift_um_per_h: [f64; 3],
+    /// True expansion of the base and platform bodies (ppm/K) about their frames' origins, at
+    /// the mean air temperature; the manifest declares `declared_cte_ppm_per_k`.
+    #[serde(default)]
+    pub(crate) body_cte_ppm_per_k: f64,
+    /// The expansion the manifest declares (`[[device]] cte_ppm_per_k`); absent: none declared.
+    #[serde(default)]
+    pub(crate) declared_cte_ppm_per_k: Option<f64>,
+    /// A leg's socket re-seated during the test: its length steps.
+    #[serde(default)]
+    pub(crate) reseat: Option<Reseat>,
+}
+
+/// A re-seated socket: leg `leg` (1-6) is `step_um` longer from dwell `from_dwell` on (dwells
+/// counted from 0 in the test's order, the datum first).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Reseat {
+    pub(crate) leg: usize,
+    pub(crate) from_dwell: usize,
+    pub(crate) step_um: f64,
 }
 
 fn one() -> f64 {
@@ -237,6 +271,35 @@ impl HexapodSim {
         if self.dwell_s < 10.0 || self.move_s < 1.0 || self.settle_hours < 0.0 {
             return bad("dwell_s", "dwell_s ≥ 10, move_s ≥ 1, settle_hours ≥ 0");
         }
+        let e = &self.effects;
+        let effect_numbers = [
+            e.drift_um_per_h[0],
+            e.drift_um_per_h[1],
+            e.drift_um_per_h[2],
+            e.body_cte_ppm_per_k,
+            e.declared_cte_ppm_per_k.unwrap_or(0.0),
+        ];
+        if effect_numbers
+            .iter()
+            .any(|v| !v.is_finite() || v.abs() > 1e3)
+        {
+            return bad(
+                "effects",
+                "drift and expansion must be finite and below 1000",
+            );
+        }
+        if let Some(r) = &e.reseat {
+            let dwells = 2 * self.stations * self.runs;
+            if !(1..=6).contains(&r.leg) || !(1..dwells).contains(&r.from_dwell) {
+                return bad(
+                    "effects.reseat",
+                    "leg is 1-6 and from_dwell a dwell after the datum, before the test ends",
+                );
+            }
+            if !r.step_um.is_finite() || r.step_um.abs() > 1e3 {
+                return bad("effects.reseat.step_um", "must be finite and below 1000 µm");
+            }
+        }
         Ok(())
     }
 
@@ -261,8 +324,15 @@ impl HexapodSim {
     }
 
     /// Simulate the device: the legs' true lengths over time from `mount_start_ns` (the last
-    /// leg's mount start), the positions log and the truth.
-    pub(crate) fn run(&self, device: &str, seed: u64, mount_start_ns: i64) -> HexapodRun {
+    /// leg's mount start), the positions log and the truth. `body_excess_k(t_ns)` is the bodies'
+    /// temperature above T0 at a time (used by `effects.body_cte_ppm_per_k`).
+    pub(crate) fn run(
+        &self,
+        device: &str,
+        seed: u64,
+        mount_start_ns: i64,
+        body_excess_k: &dyn Fn(i64) -> f64,
+    ) -> HexapodRun {
         let mut rng = stream_rng(seed, STREAM);
         let unit = Normal::new(0.0, 1.0).expect("unit normal");
         // True joints: manifest + offsets.
@@ -311,8 +381,13 @@ impl HexapodSim {
         let r_cmd = rotation_deg(rx, ry, rz);
         let t0 = [x0, y0, z0];
         let r = self.tool_point_mm;
-        let legs_at = |c: &V3| -> ([f64; 6], [f64; 6], [f64; 6]) {
-            let e = errors_at(c[k_axis]);
+        // `at`: the time effects at a dwell (hours since the datum, body strain, dwell index).
+        let legs_with = |c: &V3, at: Option<(f64, f64, usize)>| -> ([f64; 6], [f64; 6], [f64; 6]) {
+            let mut e = errors_at(c[k_axis]);
+            let (hours, strain, dwell) = at.unwrap_or((0.0, 0.0, 0));
+            for (k, g) in self.effects.drift_um_per_h.iter().enumerate() {
+                e[k] += g * hours;
+            }
             let t_cmd = add(&t0, &sub(c, &self.reference_mm));
             let eps = [e[3] * 1e-6, e[4] * 1e-6, e[5] * 1e-6];
             let rot = mat_mul(&rotation_of_vector(&eps), &r_cmd);
@@ -323,13 +398,24 @@ impl HexapodSim {
             );
             let mut l = [0.0; 6];
             let mut a = [0.0; 6];
+            let grown = |v: &V3| v.map(|x| x * (1.0 + strain));
             for i in 0..6 {
-                let v = sub(&add(&t, &mat_vec(&rot, &platform[i])), &base[i]);
+                let p = grown(&platform[i]);
+                let v = sub(&add(&t, &mat_vec(&rot, &p)), &grown(&base[i]));
                 l[i] = norm(&v);
                 a[i] = (v[2].abs() / l[i]).asin().to_degrees();
             }
+            if let Some(r) = self
+                .effects
+                .reseat
+                .as_ref()
+                .filter(|r| dwell >= r.from_dwell)
+            {
+                l[r.leg - 1] += r.step_um * 1e-3;
+            }
             (l, a, e)
         };
+        let legs_at = |c: &V3| legs_with(c, None);
         let position = |station: usize| -> V3 {
             let mut c = self.reference_mm;
             c[k_axis] += self.step_mm * station as f64;
@@ -351,17 +437,22 @@ impl HexapodSim {
             })
             .collect();
         let mut legs = vec![LegTrack::default(); 6];
-        let mut knot = |t_ns: i64, s: usize| {
-            for (i, leg) in legs.iter_mut().enumerate() {
-                leg.times_ns.push(t_ns);
-                leg.lengths_mm.push(stations[s].leg_lengths_mm[i]);
-                leg.tilts_deg.push(stations[s].leg_tilts_deg[i]);
-            }
-        };
         let dwell_ns = (self.dwell_s * 1e9) as i64;
         let move_ns = (self.move_s * 1e9) as i64;
         let mut t = mount_start_ns + (self.settle_hours * 3600.0 * 1e9) as i64;
-        knot(0, 0);
+        let datum_ns = t;
+        let mut knot = |t_ns: i64, s: usize, dwell: usize| {
+            let hours = (t_ns - datum_ns).max(0) as f64 / 3600e9;
+            let strain = 1e-6 * self.effects.body_cte_ppm_per_k * body_excess_k(t_ns);
+            let (l, a, _) = legs_with(&position(s), Some((hours, strain, dwell)));
+            for (i, leg) in legs.iter_mut().enumerate() {
+                leg.times_ns.push(t_ns);
+                leg.lengths_mm.push(l[i]);
+                leg.tilts_deg.push(a[i]);
+            }
+        };
+        knot(0, 0, 0);
+        let mut dwell = 0;
         let mut positions = Vec::new();
         for run in 1..=self.runs as i64 {
             let up = 0..self.stations;
@@ -374,11 +465,12 @@ impl HexapodSim {
                     station,
                     run,
                 };
-                knot(t, s);
+                knot(t, s, dwell);
                 positions.push(row(t, Some(s as i64 + 1)));
                 positions.push(row(t + dwell_ns / 2, Some(s as i64 + 1)));
                 t += dwell_ns;
-                knot(t, s);
+                knot(t, s, dwell);
+                dwell += 1;
                 positions.push(row(t, None));
                 t += move_ns;
             }
@@ -434,12 +526,13 @@ mod tests {
             straightness_um: 2.0,
             angular_urad: 15.0,
             joint_error_scale: 0.0,
+            effects: HexapodEffects::default(),
         }
     }
 
     #[test]
     fn the_specs_example_device_has_legs_of_294_887_mm_at_61_85_degrees() {
-        let run = example().run("hexapod-1", 1, 0);
+        let run = example().run("hexapod-1", 1, 0, &|_| 0.0);
         let s = &run.truth.stations[0];
         for i in 0..6 {
             assert!((s.leg_lengths_mm[i] - 294.887).abs() < 1e-3, "{s:?}");

@@ -20,7 +20,10 @@
 //!
 //! The `axis` machine kind (`docs/spec/machine-formats.md`) has its own generator:
 //! [`generate_axis`] from an [`AxisSimConfig`] (a simulation TOML with `kind = "axis"`,
-//! [`is_axis_config`]), written by [`write_axis`].
+//! [`is_axis_config`]), written by [`write_axis`]; so has the `probe` kind: [`generate_probe`]
+//! from a [`ProbeSimConfig`] (`kind = "probe"`, [`is_probe_config`]), written by [`write_probe`].
+//! [`is_axis_config`]), written by [`write_axis`]; the `roll` kind likewise ([`generate_roll`],
+//! [`RollSimConfig`], [`is_roll_config`], [`write_roll`]).
 
 mod axis;
 pub(crate) mod config;
@@ -30,6 +33,8 @@ mod fleet;
 mod geometry;
 pub mod hexapod;
 mod lag;
+mod probe;
+mod roll;
 mod schedule;
 pub(crate) mod truth;
 pub mod volumetric;
@@ -59,6 +64,15 @@ pub use config::{
     WorkingLayout,
 };
 pub use environment::{AIR_HIGH, AIR_LOW, PLATE};
+pub use probe::{
+    generate_probe, is_probe_config, write_probe, ProbeSimArtefact, ProbeSimConfig, ProbeSimOutput,
+    ProbeSimPretravel, ProbeSimReversal, ProbeSimStylus, ProbeSimTouches, ProbeSimulation,
+    ProbeTruth, TruthDirection, TruthTouch,
+};
+pub use roll::{
+    generate_roll, is_roll_config, write_roll, RollRig, RollSampling, RollSimConfig,
+    RollSimEffects, RollSimLevels, RollSimOutput, RollSimulation, RollTruth, RollTruthConfig,
+};
 pub use truth::{
     BarGeometry, BarTruth, ChannelTruth, HeadTruth, HeatTruth, MountTruth, PlateTruth,
     SecondPathTruth, Truth,
@@ -213,7 +227,7 @@ pub fn generate(cfg: &SimConfig) -> Result<Simulation, SimError> {
         .enumerate()
         .map(|(i, b)| schedule::plan_bar(cfg, &grid, i, &b.id))
         .collect();
-    let device = simulate_hexapod(cfg, &grid, &bars, &plans)?;
+    let device = simulate_hexapod(cfg, &grid, &env, &bars, &plans)?;
     let runs = run_bars(cfg, &grid, &env, &bars, &plans, start_ns, device.as_ref());
     let mut manifest = build_manifest(cfg, &bars, &plans, start_ns)?;
     let events = build_events(cfg, &grid, &env, &bars, &plans, start_ns);
@@ -255,6 +269,7 @@ fn hexapod_layout(cfg: &SimConfig) -> Option<(&DeviceLayout, &hexapod::HexapodSi
 fn simulate_hexapod<'c>(
     cfg: &'c SimConfig,
     grid: &Grid,
+    env: &Environment,
     bars: &[BarTruth],
     plans: &[BarPlan],
 ) -> Result<Option<(hexapod::HexapodRun, &'c hexapod::HexapodSim)>, SimError> {
@@ -282,7 +297,13 @@ fn simulate_hexapod<'c>(
             ),
         });
     }
-    Ok(Some((h.run(&d.id, cfg.seed, start_ns), h)))
+    // The bodies follow the mean air of the room (what the analysis takes without a sensor).
+    let body_excess_k = |t_ns: i64| {
+        let i = ((t_ns as f64 / 1e9 / grid.step_s).round().max(0.0) as usize)
+            .min(env.t1_c.len().saturating_sub(1));
+        0.5 * (env.t1_c[i] + env.t2_c[i]) - cfg.reference_temperature_c
+    };
+    Ok(Some((h.run(&d.id, cfg.seed, start_ns, &body_excess_k), h)))
 }
 
 /// The `[[device]]` table and the legs of the device's mounts (leg = index in `bars` + 1).
@@ -302,7 +323,7 @@ fn add_device_to_manifest(cfg: &SimConfig, h: &hexapod::HexapodSim, manifest: &m
         base_orientation_deg: None,
         up: None,
         reference_mm: Some(h.reference_mm),
-        cte_ppm_per_k: None,
+        cte_ppm_per_k: h.effects.declared_cte_ppm_per_k,
         sensor: None,
     });
     for m in &mut manifest.mount {

@@ -3,11 +3,16 @@
 
 use std::collections::BTreeMap;
 
+use super::channels::{Channel, ChannelError};
+use super::columns::decay;
+use super::identifiable::identifiable_effects;
 use super::*;
 use crate::campaign::Bar;
 use crate::fit::Separable;
+use crate::series::BarSeries;
 use crate::series::MountSpan;
 use crate::signal::lag;
+use crate::signal::plate_temperature;
 
 const I_MIN: f64 = 230.0;
 

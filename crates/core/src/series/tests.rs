@@ -1,5 +1,7 @@
 use std::collections::BTreeMap;
 
+use super::build::assign_mounts;
+use super::coarse::bin_groups;
 use super::*;
 use crate::campaign::{Manifest, Purpose};
 

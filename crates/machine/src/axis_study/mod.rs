@@ -16,9 +16,7 @@ mod tests;
 
 use std::collections::BTreeMap;
 
-use dbbcal_core::axis_campaign::{
-    AxisCampaignLogs, Channel as LogChannel, LaserCompensation, MachineAxis,
-};
+use dbbcal_core::axis_campaign::{AxisCampaignLogs, Channel as LogChannel, LaserCompensation};
 
 use crate::axis::{self, AxisReading as Reading, Channel, Fixture, LineCandidates, PointChoice};
 use crate::components::Axis;
@@ -203,7 +201,7 @@ pub fn study(
     options: &AxisStudyOptions,
 ) -> Result<AxisStudy, AxisStudyError> {
     let placed = place(logs)?;
-    let axis = to_axis(logs.campaign.axis);
+    let axis = logs.campaign.axis;
     let names = axis.iso230_1_names();
     let fit = model::fit(&placed.readings, &placed.labels, &names, &options.effects)?;
     let diagnosis = diagnose(&placed, &names, &fit, options)?;
@@ -253,14 +251,6 @@ struct Placed {
     datum_block: usize,
     /// Per reading of `logs.readings` kept: its run and its index in `readings`.
     runs: Vec<i64>,
-}
-
-fn to_axis(a: MachineAxis) -> Axis {
-    match a {
-        MachineAxis::X => Axis::X,
-        MachineAxis::Y => Axis::Y,
-        MachineAxis::Z => Axis::Z,
-    }
 }
 
 fn to_channel(c: LogChannel) -> Channel {

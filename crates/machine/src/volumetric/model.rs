@@ -155,6 +155,8 @@ pub fn slope_index(k: usize, j: usize) -> usize {
 impl Layout {
     /// The parameters for readings `obs` on the workspace `min_mm` … `max_mm`, with `intervals`
     /// step intervals per axis and `effects`.
+    // The axes k, j index several arrays at once (error k along axis j: the spec's D_k(j)).
+    #[allow(clippy::needless_range_loop)]
     pub fn new(
         min_mm: [f64; 3],
         max_mm: [f64; 3],
@@ -302,8 +304,8 @@ impl Layout {
 
     /// Adds c · e_k(P) (the model's error field, nuisance excluded) to `row`.
     fn add_error(&self, row: &mut [f64], k: usize, p: [f64; 3], c: f64) {
-        for j in 0..3 {
-            self.add_function(row, k, j, p[j], c);
+        for (j, q) in p.into_iter().enumerate() {
+            self.add_function(row, k, j, q, c);
         }
         let rel = [0, 1, 2].map(|a| p[a] - self.min_mm[a]);
         if let Some(start) = self.abbe {

@@ -234,7 +234,7 @@ impl JointFit {
         self.quantity("Σ L_k² ε_k / D²", &c)
     }
 
-    /// The least-squares slope of every D_k(j), µm/m, [j][k].
+    /// The least-squares slope of every D_k(j), µm/m, `[j][k]`.
     pub fn slopes(&self) -> [[Quantity; 3]; 3] {
         [0, 1, 2].map(|j| {
             [0, 1, 2].map(|k| {
@@ -244,7 +244,7 @@ impl JointFit {
         })
     }
 
-    /// D_k(j) at the nodes of axis j, with U: [j][k] → (node, value, U).
+    /// D_k(j) at the nodes of axis j, with U: `[j][k]` → (node, value, U).
     pub fn functions(&self) -> [[Vec<(f64, Quantity)>; 3]; 3] {
         [0, 1, 2].map(|j| {
             [0, 1, 2].map(|k| {
@@ -359,7 +359,7 @@ pub fn step_series(
 /// The naive inversion and the fourth pattern.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Naive {
-    /// D_k(j) at the nodes of axis j, [j][k].
+    /// D_k(j) at the nodes of axis j, `[j][k]`.
     pub functions: [[Vec<f64>; 3]; 3],
     /// S_xy, S_yz, S_zx from the inverted functions' least-squares slopes, µrad.
     pub squareness_urad: [f64; 3],

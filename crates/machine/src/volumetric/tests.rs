@@ -229,12 +229,8 @@ fn random_field(
     len: [f64; 3],
 ) -> impl Fn([f64; 3]) -> [f64; 3] {
     let mut c = [[[0.0; 3]; 3]; 3]; // [j][k][power-1]
-    for j in 0..3 {
-        for k in 0..3 {
-            for p in 0..3 {
-                c[j][k][p] = rng.gen_range(-4.0..4.0);
-            }
-        }
+    for value in c.iter_mut().flatten().flatten() {
+        *value = rng.gen_range(-4.0..4.0);
     }
     move |p: [f64; 3]| {
         let mut e = [0.0; 3];
@@ -295,13 +291,12 @@ fn the_joint_fit_finds_squareness_under_pointing_where_the_naive_inversion_scatt
         let truth = [(0, 1), (1, 2), (2, 0)]
             .map(|(a, b)| ls_slope_of(&e, b, a, min, len, n) + ls_slope_of(&e, a, b, min, len, n));
         let naive = s.naive.as_ref().unwrap();
-        for i in 0..3 {
-            let q = &s.squareness[i];
+        for (i, (q, t)) in s.squareness.iter().zip(truth).enumerate() {
             assert!(q.identifiable);
-            let err = (q.value - truth[i]).abs();
+            let err = (q.value - t).abs();
             within += usize::from(err <= q.u_k2);
             joint_err = joint_err.max(err);
-            naive_err = naive_err.max((naive.squareness_urad[i] - truth[i]).abs());
+            naive_err = naive_err.max((naive.squareness_urad[i] - t).abs());
             u_sum += q.u_k2 / 60.0;
         }
         // Pointing confounds the per-axis scales: five slope combinations are lost.

@@ -102,7 +102,7 @@ pub struct VolumetricStudy {
     pub squareness: [Quantity; 3],
     /// Σ L_k² ε_k / D².
     pub mean_scale: Quantity,
-    /// Slopes [j][k].
+    /// Slopes `[j][k]`.
     pub slopes: [[Quantity; 3]; 3],
     /// The naive inversion, or why there is none.
     pub naive: Result<Naive, String>,

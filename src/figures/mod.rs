@@ -3,6 +3,11 @@
 
 use std::path::Path;
 
+mod device_poses;
+mod six_errors;
+
+pub(crate) use six_errors::render_axis;
+
 use crate::diagnose::sensors::{channel_sensor_summaries, SensorProfile};
 use crate::diagnose::{BarDiagnosis, LedgerStep};
 use crate::pipeline::{BarOutcome, RunPlan, RunResults, Stage};
@@ -19,6 +24,7 @@ pub(crate) enum FigureKind {
     BeforeAfter,
     Acceptance,
     Device,
+    Axis,
 }
 
 /// A figure written: its file name in `figures/`, what it shows, and its bar when it has one.
@@ -161,7 +167,7 @@ pub(crate) fn render_all(
             drawn(|| report::render_before_after(&acceptance_rms(acc), &path))?;
         }
     }
-    if let Some(spec) = device_errors_figure(results) {
+    if let Some(spec) = six_errors::device_errors_figure(results) {
         let path = add(
             "device-errors.png".into(),
             FigureKind::Device,
@@ -169,113 +175,21 @@ pub(crate) fn render_all(
             "The six errors of the moved axis against the commanded position, with U (k = 2)"
                 .into(),
         )?;
-        drawn(|| report::render_series_panels(&spec, &path))?;
+        drawn(|| report::render_error_grid(&spec, &path))?;
+    }
+    let poses = results.device.as_ref().and_then(|s| {
+        device_poses::device_poses_figure(s, &crate::pipeline::hexapod_of(&s.device))
+    });
+    if let Some(spec) = poses {
+        let path = add(
+            "device-poses.png".into(),
+            FigureKind::Device,
+            None,
+            "The device from above and from the side: base, legs and platform at the datum and at the farthest station, the tool point at every dwell".into(),
+        )?;
+        drawn(|| report::render_geometry(&spec, &path))?;
     }
     Ok(written)
-}
-
-/// The device stage's figure: one panel per error, each run and direction a line, and the
-/// stations' mean ± U (k = 2) as the band's edges.
-fn device_errors_figure(results: &RunResults) -> Option<report::SeriesPanelsFigure> {
-    let s = results.device.as_ref()?;
-    let t = s.outcome.as_ref().ok()?;
-    let k = t.axis.map_or(0, |a| a.index());
-    let evaluated: Vec<&dbbcal_machine::device_test::DwellResult> =
-        t.dwells.iter().filter(|d| d.errors.is_some()).collect();
-    if evaluated.is_empty() {
-        return None;
-    }
-    let units = ["µm", "µm", "µm", "µrad", "µrad", "µrad"];
-    let mut stations: Vec<f64> = evaluated.iter().map(|d| d.input.position_mm[k]).collect();
-    stations.sort_by(f64::total_cmp);
-    stations.dedup_by(|a, b| (*a - *b).abs() < 1e-3);
-    let panels = (0..6)
-        .map(|c| {
-            let mut groups: std::collections::BTreeMap<(i64, i8), Vec<(f64, f64)>> =
-                Default::default();
-            for (i, d) in evaluated.iter().enumerate() {
-                // A dwell approached from nowhere (the datum, a reversal) opens the next sweep.
-                let dir = evaluated[i..]
-                    .iter()
-                    .map(|d| d.input.approach[k])
-                    .find(|&a| a != 0)
-                    .unwrap_or(0);
-                let e = d.errors.map_or(f64::NAN, |e| e.to_array()[c]);
-                groups
-                    .entry((d.input.run.unwrap_or(0), dir))
-                    .or_default()
-                    .push((d.input.position_mm[k], e));
-            }
-            let mut series: Vec<NamedSeries> = groups
-                .into_iter()
-                .map(|((run, dir), mut pts)| {
-                    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-                    let arrow = match dir {
-                        1 => "↑",
-                        -1 => "↓",
-                        _ => "·",
-                    };
-                    NamedSeries {
-                        name: format!("run {run} {arrow}"),
-                        x: pts.iter().map(|p| p.0).collect(),
-                        y: pts.iter().map(|p| p.1).collect(),
-                    }
-                })
-                .collect();
-            let band = |sign: f64| -> Vec<f64> {
-                stations
-                    .iter()
-                    .map(|q| {
-                        let at: Vec<(f64, f64)> = evaluated
-                            .iter()
-                            .filter(|d| (d.input.position_mm[k] - q).abs() < 1e-3)
-                            .filter_map(|d| Some((d.errors?.to_array()[c], d.u_k2?.to_array()[c])))
-                            .collect();
-                        if at.is_empty() {
-                            return f64::NAN;
-                        }
-                        let n = at.len() as f64;
-                        let mean = at.iter().map(|a| a.0).sum::<f64>() / n;
-                        let u = at.iter().map(|a| a.1).fold(0.0, f64::max);
-                        mean + sign * u
-                    })
-                    .collect()
-            };
-            series.push(NamedSeries {
-                name: "mean + U (k=2)".into(),
-                x: stations.clone(),
-                y: band(1.0),
-            });
-            series.push(NamedSeries {
-                name: "mean − U (k=2)".into(),
-                x: stations.clone(),
-                y: band(-1.0),
-            });
-            report::SeriesPanel {
-                title: t.names[c].clone(),
-                y_label: format!("{} ({})", t.names[c], units[c]),
-                series,
-                ref_lines: Vec::new(),
-            }
-        })
-        .collect();
-    let axis = t.axis.map_or('?', |a| a.letter());
-    Some(report::SeriesPanelsFigure {
-        title: format!(
-            "Device {}: the six errors of axis {axis} (measured − commanded)",
-            s.device.id
-        ),
-        subtitle: format!(
-            "{} dwells evaluated of {}; datum station {}; error = measured − commanded in M's axes, at the tool point",
-            evaluated.len(),
-            t.dwells.len(),
-            s.dwells.get(t.datum).map_or(0, |d| d.station)
-        ),
-        x_axis: report::XAxis::Values {
-            label: format!("commanded {axis} (mm)"),
-        },
-        panels,
-    })
 }
 
 /// Draws one figure as one write step of the output ([`crate::output::writing`]): a signal

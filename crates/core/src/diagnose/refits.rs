@@ -1,0 +1,120 @@
+//! The cache of exact refits shared by candidate evaluation and forward selection ([`Refits`]):
+//! a bar's model refitted with a set of effects is computed once per run.
+//!
+//! Separate because it is the one piece of shared state of a diagnosis (a mutex-guarded map of
+//! once-computed fits); the rest of the module is pure functions over it.
+
+use super::noise;
+use crate::identify::identify_from;
+use crate::identify::identify_from_coarse_optimum;
+use crate::identify::BarModel;
+use crate::model::Effect;
+use crate::series::BarSeries;
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::Mutex;
+use std::sync::OnceLock;
+
+/// Exact refits shared by the ranking and every forward selection, fleet-wide and per bar: a bar
+/// with a given list of effects is fitted once (from the model without the last effect, which
+/// is itself a refit of the same cache or the identified model).
+#[derive(Default)]
+pub struct Refits {
+    fits: Mutex<RefitCache>,
+    /// Refits on the bars' coarse copies (`coarse_tier`), by the same keys: the coarse forward
+    /// selection (`CoarseFleet`) starts its cache with them instead of fitting them again.
+    coarse: Mutex<RefitCache>,
+}
+
+/// Refits by (bar, effect names in the order added).
+type RefitCache = HashMap<(String, Vec<String>), Arc<Refit>>;
+
+/// One exact refit, and the log-likelihood of its residual under its own noise model (fitted
+/// when a test first asks for it).
+pub(crate) struct Refit {
+    pub(crate) model: Result<BarModel, String>,
+    noise_log_likelihood: OnceLock<f64>,
+}
+
+impl Refit {
+    pub(super) fn noise_log_likelihood(&self, series: &BarSeries, model: &BarModel) -> f64 {
+        *self.noise_log_likelihood.get_or_init(|| {
+            noise::fit_noise(&series.weighted_residuals(&model.residuals_um)).log_likelihood
+        })
+    }
+}
+
+impl Refits {
+    /// `base` (fitted to `series`) with `effect` added and refitted.
+    pub(crate) fn refit(&self, series: &BarSeries, base: &BarModel, effect: &Effect) -> Arc<Refit> {
+        self.refit_from(series, base, effect, None)
+    }
+
+    /// [`Refits::refit`], polished from `start` (a refit of the same effects on the bar's coarse
+    /// copy: `identify::identify_from_coarse_optimum`) when given, else started from `base`.
+    pub(crate) fn refit_from(
+        &self,
+        series: &BarSeries,
+        base: &BarModel,
+        effect: &Effect,
+        start: Option<&BarModel>,
+    ) -> Arc<Refit> {
+        let mut effects = base.effects.clone();
+        effects.push(effect.clone());
+        let key = (base.bar.clone(), effects.iter().map(Effect::name).collect());
+        if let Some(hit) = self.lock().get(&key) {
+            return hit.clone();
+        }
+        let started = std::time::Instant::now();
+        let model = match start {
+            Some(coarse) => identify_from_coarse_optimum(series, &effects, coarse),
+            None => identify_from(series, &effects, Some(base)),
+        };
+        let fitted = Arc::new(Refit {
+            model: model.map_err(|e| e.to_string()),
+            noise_log_likelihood: OnceLock::new(),
+        });
+        tracing::debug!(bar = %key.0, effects = ?key.1, ms = started.elapsed().as_millis(), "diagnose: exact refit");
+        self.lock().entry(key).or_insert(fitted).clone()
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, RefitCache> {
+        self.fits.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The refit of `bar` with `effects`, if it was made.
+    pub(super) fn get(&self, bar: &str, effects: &[Effect]) -> Option<Arc<Refit>> {
+        let key = (bar.to_string(), effects.iter().map(Effect::name).collect());
+        self.lock().get(&key).cloned()
+    }
+
+    /// Keep `model`, a refit of `bar` on its coarse copy, for the coarse forward selection.
+    pub(super) fn remember_coarse(&self, bar: &str, model: &BarModel) {
+        let key = (
+            bar.to_string(),
+            model.effects.iter().map(Effect::name).collect(),
+        );
+        let refit = Arc::new(Refit {
+            model: Ok(model.clone()),
+            noise_log_likelihood: OnceLock::new(),
+        });
+        self.coarse
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry(key)
+            .or_insert(refit);
+    }
+
+    /// A cache for fits on the bars' coarse copies, started with the coarse refits kept here.
+    pub(super) fn for_coarse_copies(&self) -> Refits {
+        let coarse = self
+            .coarse
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        Refits {
+            fits: Mutex::new(coarse),
+            coarse: Mutex::default(),
+        }
+    }
+}

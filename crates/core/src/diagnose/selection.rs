@@ -1,0 +1,416 @@
+//! Fleet forward selection: the ledger of added effects, the beam of selection paths, the coarse
+//! fleet used to rank candidates cheaply and the exact confirmation of a path.
+//!
+//! Separate because it repeats a diagnosis step by step; one step's evaluation is in
+//! `candidates`.
+
+use super::bar::{diagnose_bar, screen_bases, term_identity};
+use super::bar_selection::ledger_step;
+use super::candidates::{candidate_effects, evaluate_candidates, exact_refits};
+use super::compare::competing_delta_bic;
+use super::refits::Refits;
+use super::screen::Screen;
+use super::summary::summarise_candidate;
+use super::{BarDiagnosis, Candidate, Criteria, CHANNEL_CANDIDATES, HEAT_CANDIDATES};
+use crate::identify::identify_from;
+use crate::identify::BarModel;
+use crate::model::Effect;
+use crate::model::CATALOGUE;
+use crate::series::BarSeries;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// One step of forward selection.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct LedgerStep {
+    /// What this step added (written `"base"` for the starting model, else the effect's name).
+    pub added: Added,
+    pub(crate) effects: Vec<Effect>,
+    /// Each bar's RMS residual after this step, µm.
+    pub rms_um: Vec<(String, f64)>,
+    /// Fleet RMS residual after this step, µm.
+    pub fleet_rms_um: f64,
+    /// The added effect's ΔBIC and p-value (absent for the starting model).
+    pub(crate) delta_bic: Option<f64>,
+    pub(crate) p_value: Option<f64>,
+}
+
+/// What a ledger step added to the model before it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Added {
+    /// The starting model: nothing added.
+    Base,
+    /// An effect (written as its name).
+    Effect(Effect),
+}
+
+impl Added {
+    /// `"base"`, or the effect's name.
+    pub fn name(&self) -> String {
+        match self {
+            Added::Base => "base".into(),
+            Added::Effect(e) => e.name(),
+        }
+    }
+
+    /// The axis label of the step in the ledger figures: `base`, `+EFFECT`.
+    pub fn label(&self) -> String {
+        match self {
+            Added::Base => "base".into(),
+            Added::Effect(e) => format!("+{}", e.name()),
+        }
+    }
+}
+
+impl std::fmt::Display for Added {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(&self.name())
+    }
+}
+
+impl Serialize for Added {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(&self.name())
+    }
+}
+
+/// One path through forward selection: its ledger, its models and the sum of its steps' ΔBIC.
+#[derive(Clone)]
+struct SelectionPath {
+    ledger: Vec<LedgerStep>,
+    models: Vec<BarModel>,
+    delta_bic: f64,
+    /// No proposed candidate was left at its last step.
+    finished: bool,
+}
+
+/// Forward selection: add the best proposed candidate (fleet-wide: significant and material by
+/// `criteria`) until none is left or `max_steps` effects were added. Returns the ledger and the
+/// final models. Each step screens every candidate and refits exactly only those that could be
+/// material ([`evaluate_candidates`]).
+///
+/// With `beam > 1` it keeps the `beam` best paths at each step (each extended by its own best
+/// proposed candidates, ranked by the path's total ΔBIC) and returns the best path at the
+/// end: a greedy first step that fits well alone can lead to a worse three-term model than the
+/// runner-up. `beam = 1` is plain greedy forward selection.
+/// `first_candidates` are the candidates already ranked for `start` (reused for the first step).
+pub fn forward_selection(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    max_steps: usize,
+    beam: usize,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    // Nothing proposed at the first step: nothing to search (the beam would stop there too).
+    if max_steps > 0 && first_candidates.iter().any(Candidate::proposed) {
+        if let Some(coarse) = CoarseFleet::new(series, &start, refits) {
+            let path = coarse.select(max_steps, beam, criteria);
+            return confirm_path(
+                series,
+                start,
+                first_candidates,
+                (&path, &coarse),
+                criteria,
+                refits,
+            );
+        }
+    }
+    beam_search(
+        series,
+        start,
+        first_candidates,
+        max_steps,
+        beam,
+        criteria,
+        refits,
+    )
+}
+
+/// Every bar's coarse copy (`identify::coarse_copy`) and its model refitted there: where the
+/// forward selection searches its paths when every bar is long enough to have one.
+struct CoarseFleet {
+    series: Vec<BarSeries>,
+    models: Vec<BarModel>,
+    /// The refits on the coarse copies, started with the ranking's coarse tier
+    /// ([`Refits::for_coarse_copies`]); the exact refits of the chosen path start from them.
+    refits: Refits,
+}
+
+impl CoarseFleet {
+    fn new(series: &[&BarSeries], models: &[BarModel], refits: &Refits) -> Option<CoarseFleet> {
+        let copies: Vec<BarSeries> = series
+            .iter()
+            .map(|s| crate::identify::coarse_copy(s, crate::identify::COARSE_START_MIN_SAMPLES))
+            .collect::<Option<_>>()?;
+        let fitted: Vec<BarModel> = copies
+            .par_iter()
+            .zip(models.par_iter())
+            .map(|(c, m)| identify_from(c, &m.effects, Some(m)).ok())
+            .collect::<Option<_>>()?;
+        Some(CoarseFleet {
+            series: copies,
+            models: fitted,
+            refits: refits.for_coarse_copies(),
+        })
+    }
+
+    /// The coarse refit of `bar` with `effects` and `effect` added, where the search made one:
+    /// the start of that step's exact refit.
+    fn start_for(&self, bar: &str, effects: &[Effect], effect: &Effect) -> Option<BarModel> {
+        let mut all = effects.to_vec();
+        all.push(effect.clone());
+        self.refits.get(bar, &all)?.model.clone().ok()
+    }
+
+    /// The effects the beam search adds on the coarse copies, in order.
+    fn select(&self, max_steps: usize, beam: usize, criteria: &Criteria) -> Vec<Effect> {
+        let refits = &self.refits;
+        let series: Vec<&BarSeries> = self.series.iter().collect();
+        let first = rank_candidates_for(&series, &self.models, criteria, refits);
+        let (ledger, _) = beam_search(
+            &series,
+            self.models.clone(),
+            &first,
+            max_steps,
+            beam,
+            criteria,
+            refits,
+        );
+        ledger
+            .iter()
+            .filter_map(|step| match &step.added {
+                Added::Effect(e) => Some(e.clone()),
+                Added::Base => None,
+            })
+            .collect()
+    }
+}
+
+/// The ledger of `path` (found on the coarse copies) on the bars' own series: each step's
+/// effect refitted exactly on every bar and tested as a candidate is ([`evaluate_candidates`]:
+/// significant and material); the ledger stops at the first step that is not proposed there.
+/// The first step's exact refits and tests are those of the ranking (`first_candidates`).
+fn confirm_path(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    (path, coarse): (&[Effect], &CoarseFleet),
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let mut current = SelectionPath {
+        ledger: vec![ledger_step(Added::Base, &start, None, None)],
+        models: start,
+        delta_bic: 0.0,
+        finished: false,
+    };
+    for (k, effect) in path.iter().enumerate() {
+        let ranked = first_candidates
+            .iter()
+            .find(|c| k == 0 && c.effect == *effect && c.rms_after_um.is_some())
+            .cloned();
+        let candidate = match ranked {
+            Some(c) => c,
+            None => {
+                let starts: Vec<Option<BarModel>> = current
+                    .models
+                    .iter()
+                    .map(|m| coarse.start_for(&m.bar, &m.effects, effect))
+                    .collect();
+                exact_candidate(series, &current.models, effect, &starts, criteria, refits)
+            }
+        };
+        if !candidate.proposed() {
+            tracing::debug!(effect = %effect.name(), reason = %candidate.reason, "diagnose: the coarse path stops here on the readings");
+            break;
+        }
+        let score = candidate.delta_bic.unwrap_or(0.0);
+        current = extend_path(series, &current, &candidate, score, refits);
+    }
+    (current.ledger, current.models)
+}
+
+/// `effect` added to every bar's model in `models`, refitted exactly and tested: the candidate
+/// as [`evaluate_candidates`] would report it after an exact refit.
+fn exact_candidate(
+    series: &[&BarSeries],
+    models: &[BarModel],
+    effect: &Effect,
+    starts: &[Option<BarModel>],
+    criteria: &Criteria,
+    refits: &Refits,
+) -> Candidate {
+    let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
+    let bases = screen_bases(&pairs);
+    let candidates = [effect.clone()];
+    // Tested as one of a step's candidates (Bonferroni over as many as a step offers): the
+    // effect was chosen on the coarse copies of these same readings.
+    let threshold =
+        criteria.alpha / (CATALOGUE.len() + CHANNEL_CANDIDATES + HEAT_CANDIDATES) as f64;
+    let screens: Vec<Vec<Result<Screen, String>>> = vec![bases
+        .iter()
+        .map(|b| match b {
+            Some(b) => b.screen(effect),
+            None => Err("the model could not be linearised on this bar".into()),
+        })
+        .collect()];
+    let starts = vec![starts.to_vec()];
+    let per_bar = exact_refits(
+        &pairs,
+        &bases,
+        &[0],
+        &starts,
+        &candidates,
+        &screens,
+        threshold,
+        refits,
+    )
+    .pop()
+    .unwrap_or_default();
+    summarise_candidate(effect, per_bar, threshold, criteria)
+}
+
+/// The beam search of [`forward_selection`] on the series it is given.
+fn beam_search(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    max_steps: usize,
+    beam: usize,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let beam = beam.max(1);
+    let mut paths = vec![SelectionPath {
+        ledger: vec![ledger_step(Added::Base, &start, None, None)],
+        models: start,
+        delta_bic: 0.0,
+        finished: false,
+    }];
+    for step in 0..max_steps {
+        let mut next: Vec<SelectionPath> = paths.iter().filter(|p| p.finished).cloned().collect();
+        let mut extensions: Vec<(usize, Candidate, f64)> = Vec::new();
+        for (i, path) in paths.iter().enumerate().filter(|(_, p)| !p.finished) {
+            let candidates = if step == 0 {
+                first_candidates.to_vec()
+            } else {
+                rank_candidates_for(series, &path.models, criteria, refits)
+            };
+            let proposed: Vec<Candidate> = candidates
+                .into_iter()
+                .filter(Candidate::proposed)
+                .take(beam)
+                .collect();
+            if proposed.is_empty() {
+                let mut done = path.clone();
+                done.finished = true;
+                next.push(done);
+            }
+            let competing = competing_delta_bic(&proposed, criteria);
+            extensions.extend(proposed.into_iter().zip(competing).map(|(c, d)| (i, c, d)));
+        }
+        if extensions.is_empty() {
+            paths = next;
+            break;
+        }
+        // A stable sort: between equal totals the ranking's order (a named effect first) stays.
+        extensions.sort_by(|(i, _, a), (j, _, b)| {
+            (paths[*i].delta_bic + a).total_cmp(&(paths[*j].delta_bic + b))
+        });
+        let mut seen: std::collections::BTreeSet<Vec<String>> = Default::default();
+        let chosen: Vec<(usize, Candidate, f64)> = extensions
+            .into_iter()
+            .filter(|(i, c, _)| {
+                let mut set: Vec<String> = effects_of(&paths[*i].models)
+                    .iter()
+                    .chain([&c.effect])
+                    .map(term_identity)
+                    .collect();
+                set.sort();
+                seen.insert(set)
+            })
+            .take(beam)
+            .collect();
+        let extended: Vec<SelectionPath> = chosen
+            .into_par_iter()
+            .map(|(i, c, score)| extend_path(series, &paths[i], &c, score, refits))
+            .collect();
+        next.extend(extended);
+        next.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+        next.truncate(beam);
+        paths = next;
+    }
+    let best = paths
+        .into_iter()
+        .min_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
+        .expect("forward selection keeps at least one path");
+    (best.ledger, best.models)
+}
+
+/// The effects of a fleet's models (one model for all bars).
+pub(super) fn effects_of(models: &[BarModel]) -> Vec<Effect> {
+    models
+        .first()
+        .map(|m| m.effects.clone())
+        .unwrap_or_default()
+}
+
+/// The candidates for the fleet's current `models`, ranked best first (only those that could be
+/// material refitted exactly).
+fn rank_candidates_for(
+    series: &[&BarSeries],
+    models: &[BarModel],
+    criteria: &Criteria,
+    refits: &Refits,
+) -> Vec<Candidate> {
+    let effects = effects_of(models);
+    let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
+    let bases = screen_bases(&pairs);
+    let diagnoses: Vec<BarDiagnosis> = pairs
+        .par_iter()
+        .zip(bases.par_iter())
+        .map(|((s, m), b)| diagnose_bar(s, m, b.as_ref()))
+        .collect();
+    let candidates = candidate_effects(&effects, &diagnoses);
+    evaluate_candidates(&pairs, &bases, &candidates, criteria, refits).0
+}
+
+/// `path` with `candidate` added and every bar refitted; `score` is what the step adds to the
+/// path's total (its ΔBIC, or the one it competes with: [`competing_delta_bic`]).
+fn extend_path(
+    series: &[&BarSeries],
+    path: &SelectionPath,
+    candidate: &Candidate,
+    score: f64,
+    refits: &Refits,
+) -> SelectionPath {
+    let effect = &candidate.effect;
+    // A bar whose extended fit fails keeps its model (it is reported as not improved). The
+    // refits are those the candidate's evaluation made.
+    let models: Vec<BarModel> = series
+        .par_iter()
+        .zip(path.models.par_iter())
+        .map(|(s, m)| {
+            refits
+                .refit(s, m, effect)
+                .model
+                .clone()
+                .unwrap_or_else(|_| m.clone())
+        })
+        .collect();
+    let mut ledger = path.ledger.clone();
+    ledger.push(ledger_step(
+        Added::Effect(effect.clone()),
+        &models,
+        candidate.delta_bic,
+        candidate.p_value,
+    ));
+    SelectionPath {
+        ledger,
+        models,
+        delta_bic: path.delta_bic + score,
+        finished: false,
+    }
+}

@@ -1,0 +1,157 @@
+//! Gauss-Newton polish of a fit started at a nearby problem's optimum (`Start::NearOptimum`).
+//!
+//! Separate from the Levenberg-Marquardt path because it works on argmin's operator traits over
+//! the variable-projection residual ([`Reduced`]) and falls back to Levenberg-Marquardt when it
+//! does not converge: one concept, a start that is already close.
+
+use super::projection::solve_linear;
+use super::{Separable, POLISH_MAX_STEPS, POLISH_TOL};
+use argmin::core::Executor;
+use argmin::core::Jacobian;
+use argmin::core::Operator;
+use argmin::core::State;
+use argmin::core::TerminationReason;
+use argmin::core::TerminationStatus;
+use argmin::solver::gaussnewton::GaussNewton;
+use nalgebra::DMatrix;
+use nalgebra::DVector;
+
+/// Gauss-Newton (argmin's) from `theta0`, a nearby problem's optimum, on the
+/// variable-projection residual ([`Reduced`]): the time constants and the number of steps; or,
+/// when it does not converge within [`POLISH_MAX_STEPS`] (a step changing the residual norm by
+/// less than [`POLISH_TOL`] of it) or ends no better than it began, the better of its start and
+/// stop, for Levenberg-Marquardt to go on from.
+///
+/// Why: from a coarse copy's optimum Levenberg-Marquardt spent 4-7 evaluations of the basis, its
+/// derivatives and varpro's SVD before its own tolerances held; Gauss-Newton converges
+/// quadratically from there.
+pub(super) fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<Polished, Vec<f64>> {
+    let reduced = Reduced {
+        problem,
+        last: Default::default(),
+    };
+    let start = DVector::from_column_slice(theta0);
+    let Ok(r0) = reduced.apply(&start) else {
+        return Err(theta0.to_vec());
+    };
+    let norm0 = r0.norm();
+    let Ok(solver) = GaussNewton::new().with_tolerance(POLISH_TOL * norm0) else {
+        return Err(theta0.to_vec());
+    };
+    let run = Executor::new(reduced, solver)
+        .configure(|state| state.param(start).max_iters(POLISH_MAX_STEPS))
+        .run();
+    let Ok(mut result) = run else {
+        return Err(theta0.to_vec());
+    };
+    let last = result
+        .problem
+        .take_problem()
+        .and_then(|reduced| reduced.last.into_inner());
+    let state = result.state();
+    let (Some(theta), cost) = (state.get_best_param(), state.get_best_cost()) else {
+        return Err(theta0.to_vec());
+    };
+    let converged = matches!(
+        state.get_termination_status(),
+        TerminationStatus::Terminated(TerminationReason::SolverConverged)
+    );
+    // The basis argmin last evaluated, if at the optimum, serves the uncertainties as it is.
+    let solved = last
+        .filter(|(at, _)| at == theta)
+        .map(|(_, solved)| std::rc::Rc::unwrap_or_clone(solved));
+    let theta: Vec<f64> = theta.iter().copied().collect();
+    let steps = state.get_iter() as usize;
+    tracing::debug!(
+        ?theta,
+        steps,
+        converged,
+        "fit: after the Gauss-Newton polish"
+    );
+    let finite = cost.is_finite() && theta.iter().all(|t| t.is_finite());
+    match (converged, finite && cost <= norm0) {
+        (true, true) => Ok(Polished {
+            theta,
+            steps,
+            solved,
+        }),
+        (false, true) => Err(theta),
+        _ => Err(theta0.to_vec()),
+    }
+}
+
+/// Where [`polish`] converged: the time constants, the steps taken, and the basis with its
+/// linear coefficients there when argmin's last evaluation was at that point.
+pub(super) struct Polished {
+    pub(super) theta: Vec<f64>,
+    pub(super) steps: usize,
+    pub(super) solved: Option<(DMatrix<f64>, DVector<f64>)>,
+}
+
+/// `problem` reduced to its nonlinear parameters for argmin (variable projection): the residual
+/// `y − Φ(θ) c(θ)`, the linear coefficients `c` solved at every `θ`, and its Jacobian in `θ`
+/// (Kaufman's form: `−(I − P_Φ) ∂Φ/∂θ_k c`, the basis derivatives times the coefficients taken
+/// orthogonal to the basis).
+struct Reduced<'a, P> {
+    problem: &'a P,
+    /// The last `(θ, Φ(θ), c(θ))`: argmin asks for the Jacobian where it just took the residual.
+    last: std::cell::RefCell<Option<Solved>>,
+}
+
+/// A basis and its linear coefficients, shared between the residual and the Jacobian.
+type BasisSolved = std::rc::Rc<(DMatrix<f64>, DVector<f64>)>;
+/// The point `θ` a [`BasisSolved`] was computed at, and it.
+type Solved = (DVector<f64>, BasisSolved);
+
+impl<P: Separable> Reduced<'_, P> {
+    /// The basis at `theta` and its linear coefficients.
+    fn solved(&self, theta: &DVector<f64>) -> Result<BasisSolved, argmin::core::Error> {
+        if let Some((at, solved)) = self.last.borrow().as_ref() {
+            if at == theta {
+                return Ok(solved.clone());
+            }
+        }
+        let phi = self.problem.basis(theta.as_slice());
+        if !phi.iter().all(|v| v.is_finite()) {
+            return Err(argmin::core::Error::msg("the basis is not finite"));
+        }
+        let coef = solve_linear(&phi, self.problem.observations())
+            .ok_or_else(|| argmin::core::Error::msg("the basis is singular"))?;
+        let solved = std::rc::Rc::new((phi, coef));
+        *self.last.borrow_mut() = Some((theta.clone(), solved.clone()));
+        Ok(solved)
+    }
+}
+
+impl<P: Separable> Operator for Reduced<'_, P> {
+    type Param = DVector<f64>;
+    type Output = DVector<f64>;
+
+    fn apply(&self, theta: &DVector<f64>) -> Result<DVector<f64>, argmin::core::Error> {
+        let solved = self.solved(theta)?;
+        let (phi, coef) = &*solved;
+        let y = self.problem.observations();
+        Ok(DVector::from_iterator(
+            y.len(),
+            (phi * coef).iter().zip(y).map(|(f, y)| y - f),
+        ))
+    }
+}
+
+impl<P: Separable> Jacobian for Reduced<'_, P> {
+    type Param = DVector<f64>;
+    type Jacobian = DMatrix<f64>;
+
+    fn jacobian(&self, theta: &DVector<f64>) -> Result<DMatrix<f64>, argmin::core::Error> {
+        let solved = self.solved(theta)?;
+        let (phi, coef) = &*solved;
+        let q = phi.clone().qr().q();
+        let mut jac = DMatrix::zeros(phi.nrows(), theta.len());
+        for k in 0..theta.len() {
+            let d = self.problem.basis_derivative(theta.as_slice(), k) * coef;
+            let along = &q * q.tr_mul(&d);
+            jac.column_mut(k).copy_from(&(along - d));
+        }
+        Ok(jac)
+    }
+}

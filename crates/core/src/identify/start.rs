@@ -1,0 +1,116 @@
+//! Where a fit's time constants start: a long series' coarse copy (300-s bin means) fitted
+//! first, the basin of the default starts, and a previous fit's time constants reused.
+//!
+//! Separate because starts decide speed and which optimum is found, not what is estimated.
+
+use super::BarModel;
+use crate::fit;
+use crate::fit::Fit;
+use crate::fit::FitOptions;
+use crate::fit::Start;
+use crate::model::ThermalProblem;
+use crate::series::BarSeries;
+
+/// Series with at least this many fitted samples start their time constants on a coarse copy.
+/// The engine's own Brent start sweeps the projected residual some 40 times: on the 7.5-day
+/// benchmark campaign (21 600 nodes a bar with 60-s bins) that was two thirds of identify.
+pub(crate) const COARSE_START_MIN_SAMPLES: usize = 20_000;
+/// Series with at least this many fitted samples are profiled on their coarse copy (each
+/// profile point refits the other time constants). The coarse profile's ends are 2-6 % of the
+/// interval's width off the exact profile's (benchmark campaigns of 7.5-30 days, 60-s bins);
+/// below this size the exact profile costs less than the fit, so it is kept.
+pub(super) const COARSE_PROFILE_MIN_SAMPLES: usize = 50_000;
+/// How far (in `ln tau`) the fine fit may end from the coarse optimum it started at for that
+/// optimum to be taken as the coarse fit of the same basin (0.2: 22 %).
+pub(super) const COARSE_BASIN_LN_TAU: f64 = 0.2;
+/// Bin of the coarse copy: a fifth or less of the shortest time constants of `docs/spec/physics.md`
+/// (15 min to 2 h), so the start lands in the fine fit's basin.
+const COARSE_START_BIN_S: f64 = 300.0;
+
+/// The 300-s bin means of a long series, on which its fit starts and its time constants are
+/// profiled; `None` for a series short enough to work on directly (below `min_samples`:
+/// [`COARSE_START_MIN_SAMPLES`] or [`COARSE_PROFILE_MIN_SAMPLES`]), or whose copy would not be
+/// at least 4× shorter.
+pub(crate) fn coarse_copy(series: &BarSeries, min_samples: usize) -> Option<BarSeries> {
+    if series.fit_index.len() < min_samples {
+        return None;
+    }
+    let coarse = series.binned_copy(COARSE_START_BIN_S);
+    (coarse.fit_index.len() * 4 <= series.fit_index.len()).then_some(coarse)
+}
+
+/// The time constants a fit starts from: fitted (Brent start + Levenberg-Marquardt) on
+/// `problem`, the 300-s bin means of a series ([`coarse_copy`]; the fit of the series itself is
+/// then polished from them by argmin's Gauss-Newton, [`Start::NearOptimum`]), or for
+/// [`defaults_basin`] a short series itself. On the 30-day
+/// benchmark campaign the polish takes 3-4 steps where Levenberg-Marquardt takes 4-7
+/// evaluations (the linear solve applies Qᵀy without forming Q); the Brent sweep evaluates the projected residual some 40 times, about half of the fit on
+/// the full series (`bench/results.md`), a few per cent on the coarse copy. `None`: the start
+/// failed (the engine then starts as usual).
+pub(super) fn start_fit(problem: &ThermalProblem, bar: &str, theta0: &[f64]) -> Option<Vec<f64>> {
+    let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
+    let n = fit::Separable::observations(problem).len();
+    tracing::debug!(bar, ?theta, n, "identify: coarse start");
+    theta.iter().all(|t| t.is_finite()).then_some(theta)
+}
+
+/// For a refit (`fit`, started from another model's time constants): the basin of the default
+/// time constants, where it is lower. Its start is searched ([`start_fit`]) on `coarse`, else on
+/// a short series' 300-s copy if that is 4× shorter, else on the series; the series is fitted
+/// from there ([`Start::NearOptimum`]) only when the start's residual is already below `fit`'s,
+/// and that fit is returned, with its start, when it ends lower.
+///
+/// Why: a base model that bent its time constants to mimic a missing effect is a poor start
+/// for the model with that effect. On the second simulator's plate-expansion campaign
+/// (`bench/foreign_sim.py X --effect plate_expansion --seed 2 --air linear --files bar
+/// --sample-s 10 --days 5`) the refit with `plate_expansion` from the base alone stopped at
+/// 20.47 nm on bar F01, where a fresh fit reaches 20.03, and the diagnosis ranked
+/// `air_gradient` first (ΔBIC −12 329 against −11 973); with the defaults' basin too,
+/// `plate_expansion` comes first (−14 010) and reaches the noise. In the usual case (one basin)
+/// this costs a search on the coarse copy and one residual of the series: the nightly runs of
+/// that simulator's 25 hidden-effect campaigns took 5 % longer in all (and 4 % less once the
+/// bent starts' second full fit it made redundant was dropped), where a second full fit for
+/// every refit had cost 1.5-2.5 times the diagnosis.
+pub(super) fn defaults_basin(
+    series: &BarSeries,
+    problem: &ThermalProblem,
+    coarse: Option<&ThermalProblem>,
+    defaults: &[f64],
+    fit: &Fit,
+    options: &FitOptions,
+) -> Option<(Vec<f64>, Fit)> {
+    let short_copy;
+    let short_problem;
+    let search = match coarse {
+        Some(p) => p,
+        None => {
+            short_copy = coarse_copy(series, 0);
+            short_problem = short_copy
+                .as_ref()
+                .and_then(|c| ThermalProblem::new(c, &problem.effects()).ok());
+            short_problem.as_ref().unwrap_or(problem)
+        }
+    };
+    let theta = start_fit(search, &series.bar.id, defaults)?;
+    if fit::projected_rss(problem, &theta) >= fit.rss {
+        return None;
+    }
+    let options = FitOptions {
+        start: Start::NearOptimum,
+        ..*options
+    };
+    let lower = fit::fit(problem, &theta, &options)
+        .ok()
+        .filter(|f| f.rss < fit.rss)?;
+    Some((theta, lower))
+}
+
+/// Reuse the time constants a previous fit found for the same effects.
+pub(super) fn warm_start(problem: &ThermalProblem, start: &BarModel, theta0: &mut [f64]) {
+    let taus = problem.tau_names();
+    for (k, name) in taus.iter().enumerate() {
+        if let Some(v) = start.value(name) {
+            theta0[k] = v.ln();
+        }
+    }
+}

@@ -1,0 +1,128 @@
+//! Writing a `probe` campaign (`docs/spec/machine-formats.md`, "Kind `probe`"):
+//! `campaign.toml` and `touches/*.parquet`, split across files and shuffled as asked, the
+//! approach as i, j, k or as φ, θ.
+
+use std::path::Path;
+
+use polars::prelude::*;
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+
+use super::axis_write::{create_dir, f64_column, polars_err, prepare, time_column};
+use super::one_line;
+use super::write::{write_parquet, TimeUnit, WriteError};
+use dbbcal_core::probe_campaign::{ProbeCampaignTables, ProbeTouch};
+
+/// How a `probe` campaign is written.
+#[derive(Debug, Clone)]
+pub struct ProbeWriteOptions {
+    /// Unit of the `time` column.
+    pub time_unit: TimeUnit,
+    /// Shuffle the rows of each file.
+    pub shuffle_rows: bool,
+    /// Files to split the touches into (round robin by `seq` blocks; at least 1).
+    pub files: usize,
+    /// Write `phi_deg`, `theta_deg` instead of `i`, `j`, `k`.
+    pub angles: bool,
+    /// Seed of the shuffles.
+    pub seed: u64,
+}
+
+impl Default for ProbeWriteOptions {
+    fn default() -> Self {
+        ProbeWriteOptions {
+            time_unit: TimeUnit::Us,
+            shuffle_rows: false,
+            files: 1,
+            angles: false,
+            seed: 0,
+        }
+    }
+}
+
+/// Writes `campaign.toml` and `touches/` under `dir` (created if needed; stale `*.parquet`
+/// removed first).
+pub fn write_probe_campaign(
+    dir: &Path,
+    tables: &ProbeCampaignTables,
+    opts: &ProbeWriteOptions,
+) -> Result<(), WriteError> {
+    create_dir(dir)?;
+    let path = dir.join("campaign.toml");
+    let text = tables
+        .manifest
+        .to_toml_string()
+        .map_err(|e| WriteError::Manifest {
+            path: path.clone(),
+            message: one_line(e),
+        })?;
+    std::fs::write(&path, text).map_err(|e| WriteError::Io {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
+    let mut rng =
+        rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(37).wrapping_add(11));
+    let folder = dir.join("touches");
+    prepare(&folder)?;
+    let files = opts.files.max(1);
+    let block = tables.touches.len().div_ceil(files).max(1);
+    for (f, chunk) in tables.touches.chunks(block).enumerate() {
+        let mut rows: Vec<&ProbeTouch> = chunk.iter().collect();
+        if opts.shuffle_rows {
+            rows.shuffle(&mut rng);
+        }
+        let path = folder.join(format!("touches-{:02}.parquet", files - f));
+        let mut df = touches_frame(&rows, opts).map_err(polars_err(&path))?;
+        write_parquet(&path, &mut df)?;
+    }
+    Ok(())
+}
+
+fn touches_frame(rows: &[&ProbeTouch], opts: &ProbeWriteOptions) -> PolarsResult<DataFrame> {
+    let mut columns = vec![
+        time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
+        Series::new("seq".into(), rows.iter().map(|r| r.seq).collect::<Vec<_>>()).into_column(),
+    ];
+    if opts.angles {
+        columns.push(f64_column("phi_deg", rows.iter().map(|r| r.phi_deg())));
+        columns.push(f64_column("theta_deg", rows.iter().map(|r| r.theta_deg())));
+    } else {
+        for (k, name) in ["i", "j", "k"].iter().enumerate() {
+            columns.push(f64_column(name, rows.iter().map(|r| r.approach[k])));
+        }
+    }
+    for (k, name) in ["x_mm", "y_mm", "z_mm"].iter().enumerate() {
+        columns.push(f64_column(name, rows.iter().map(|r| r.position_mm[k])));
+    }
+    columns.push(
+        Series::new(
+            "feed_mm_min".into(),
+            rows.iter().map(|r| r.feed_mm_min).collect::<Vec<_>>(),
+        )
+        .into_column(),
+    );
+    columns.push(
+        Series::new(
+            "stylus".into(),
+            rows.iter().map(|r| r.stylus.as_str()).collect::<Vec<_>>(),
+        )
+        .into_column(),
+    );
+    columns.push(
+        Series::new(
+            "artefact".into(),
+            rows.iter().map(|r| r.artefact.as_str()).collect::<Vec<_>>(),
+        )
+        .into_column(),
+    );
+    if rows.iter().any(|r| r.spindle_deg.is_some()) {
+        columns.push(
+            Series::new(
+                "spindle_deg".into(),
+                rows.iter().map(|r| r.spindle_deg).collect::<Vec<_>>(),
+            )
+            .into_column(),
+        );
+    }
+    DataFrame::new(rows.len(), columns)
+}
