@@ -133,11 +133,6 @@ pub fn plan_run(
             },
             other => other,
         }),
-        other => Err(PlanError::NotInCampaign(format!(
-            "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\", \"axis\", \"probe\", \"roll\" and \"volumetric\" campaigns",
-            manifest.display(),
-            other.as_str()
-        ))),
     }
 }
 

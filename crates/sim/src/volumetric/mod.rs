@@ -214,7 +214,7 @@ pub fn generate_volumetric(cfg: &VolumetricSimConfig) -> Result<VolumetricSimula
     let mut prng = stream_rng(cfg.seed, streams::POINTING);
     let mut drng = stream_rng(cfg.seed, streams::DRIFT);
     let drift_dir = {
-        let v = [0, 1, 2].map(|_| drng.gen_range(-1.0..1.0));
+        let v = [0, 1, 2].map(|_| drng.gen_range(-1.0_f64..1.0));
         let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-9);
         v.map(|x| x / n)
     };
