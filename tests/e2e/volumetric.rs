@@ -124,7 +124,9 @@ fn the_shipped_pipeline_runs_a_simulated_campaign_and_says_what_it_cannot_see() 
     for f in [
         "figures/diagonals.png",
         "figures/residuals.png",
-        "figures/grid_vectors.png",
+        "figures/fourth_pattern.png",
+        "figures/grid_vectors_xy.png",
+        "figures/grid_vectors_xz.png",
     ] {
         assert!(out_dir.join(f).is_file(), "{f}");
         assert!(page.contains(f), "{f} not on the page");

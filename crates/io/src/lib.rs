@@ -32,6 +32,8 @@ mod positions_tests;
 mod roll_tests;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod volumetric_tests;
 
 use std::path::{Path, PathBuf};
 

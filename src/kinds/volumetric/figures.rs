@@ -1,15 +1,18 @@
 //! The figures of a `volumetric` run as plain specs (pixels in `dbbcal-report`): the diagonal
-//! curves up and down, the residuals and the fourth sign pattern, the error vectors on the grid.
+//! curves up and down, the residuals along each diagonal, the fourth sign pattern's consistency
+//! residual, the error vectors on the grid (two equal-scale projections).
 
 use std::path::Path;
 
 use anyhow::Result;
 
-use dbbcal_machine::volumetric::model::Place;
-use dbbcal_machine::volumetric::study::VolumetricStudy;
+use dbbcal_machine::volumetric::model::AXES;
+use dbbcal_machine::volumetric::solve;
+use dbbcal_machine::volumetric::study::{NodeError, VolumetricStudy};
 use dbbcal_machine::volumetric::DiagonalSign;
 use dbbcal_report::{
-    render_series_panels, NamedSeries, RefLine, SeriesPanel, SeriesPanelsFigure, XAxis,
+    render_geometry, render_series_panels, GeometryFigure, GeometryView, NamedSeries, RefLine,
+    SeriesPanel, SeriesPanelsFigure, XAxis,
 };
 
 /// Renders the figures into `dir`; returns (file relative to the output, caption).
@@ -26,12 +29,31 @@ pub(crate) fn render(s: &VolumetricStudy, dir: &Path) -> Result<Vec<(String, Str
     render_series_panels(&residual_figure(s), &dir.join("residuals.png"))?;
     out.push((
         "figures/residuals.png".into(),
-        "Residuals of the joint fit per diagonal, and the fourth sign pattern".into(),
+        "Residuals of the joint fit along each diagonal (body and step readings)".into(),
     ));
-    render_series_panels(&grid_figure(s), &dir.join("grid_vectors.png"))?;
+    if let Some(f) = fourth_figure(s) {
+        render_series_panels(&f, &dir.join("fourth_pattern.png"))?;
+        out.push((
+            "figures/fourth_pattern.png".into(),
+            "The fourth sign pattern's consistency residual ρ_j, of the readings and of the joint fit's residuals".into(),
+        ));
+    }
+    render_geometry(
+        &grid_figure(s, [0, 1], 2),
+        &dir.join("grid_vectors_xy.png"),
+    )?;
     out.push((
-        "figures/grid_vectors.png".into(),
-        "Error vectors (ex, ey) on the grid, one panel per z level".into(),
+        "figures/grid_vectors_xy.png".into(),
+        "Error vectors (ex, ey) at the grid nodes, seen from above, one view per z level".into(),
+    ));
+    render_geometry(
+        &grid_figure(s, [0, 2], 1),
+        &dir.join("grid_vectors_xz.png"),
+    )?;
+    out.push((
+        "figures/grid_vectors_xz.png".into(),
+        "Error vectors (ex, ez) at the grid nodes, seen from the front, one view per y level"
+            .into(),
     ));
     Ok(out)
 }
@@ -96,139 +118,250 @@ fn curves_figure(s: &VolumetricStudy) -> SeriesPanelsFigure {
 
 fn residual_figure(s: &VolumetricStudy) -> SeriesPanelsFigure {
     let mut panels = Vec::new();
-    let mut series = Vec::new();
     for sign in DiagonalSign::ALL {
+        let diag = s.fit.layout.diagonal(sign);
+        let mut series = Vec::new();
         for (step, name) in [(false, "body"), (true, "step")] {
-            let (x, y): (Vec<f64>, Vec<f64>) = s
-                .observations
-                .iter()
-                .zip(&s.fit.residuals)
-                .filter(|(o, _)| {
-                    o.diagonal == sign && matches!(o.place, Place::Step { .. }) == step
-                })
-                .enumerate()
-                .map(|(i, (_, r))| (i as f64, *r))
-                .unzip();
+            let (mut x, mut y) = (Vec::new(), Vec::new());
+            let mut last: Option<(i64, i8)> = None;
+            for (o, r) in s.observations.iter().zip(&s.fit.residuals) {
+                if o.diagonal != sign || o.is_step() != step {
+                    continue;
+                }
+                // A gap between runs and directions: each line is one pass.
+                if last.is_some_and(|l| l != (o.run, o.direction)) {
+                    x.push(f64::NAN);
+                    y.push(f64::NAN);
+                }
+                last = Some((o.run, o.direction));
+                let p = o.position_mm(diag);
+                x.push((0..3).map(|k| diag.u[k] * (p[k] - diag.p0_mm[k])).sum());
+                y.push(*r);
+            }
             if !x.is_empty() {
                 series.push(NamedSeries {
-                    name: format!("{sign} {name}"),
+                    name: format!("{name} readings"),
                     x,
                     y,
                 });
             }
         }
-    }
-    panels.push(SeriesPanel {
-        title: format!("joint-fit residuals (RMS {:.3} µm)", s.fit.rms_um),
-        y_label: "residual (µm)".into(),
-        series,
-        ref_lines: vec![],
-    });
-    if let Some(f) = &s.fourth_residual_um {
-        let n = f[0].len().max(2) - 1;
-        let series = (0..3)
-            .map(|j| NamedSeries {
-                name: format!("ρ along {}", ["x", "y", "z"][j]),
-                x: (0..f[j].len())
-                    .map(|i| i as f64 * 100.0 / n as f64)
-                    .collect(),
-                y: f[j].clone(),
-            })
-            .collect();
+        if series.is_empty() {
+            continue;
+        }
+        let rms = s
+            .residual_rms
+            .iter()
+            .filter(|(d, ..)| *d == sign)
+            .map(|(_, src, r, n)| format!("{src} {r:.3} µm ({n})"))
+            .collect::<Vec<_>>()
+            .join(", ");
         panels.push(SeriesPanel {
-            title: "fourth sign pattern of the residuals (x axis: % of the travel)".into(),
-            y_label: "ρ (µm)".into(),
+            title: format!("diagonal {sign}: residual RMS {rms}"),
+            y_label: "residual (µm)".into(),
             series,
-            ref_lines: vec![],
+            ref_lines: vec![RefLine {
+                label: "zero".into(),
+                value: 0.0,
+            }],
         });
     }
     SeriesPanelsFigure {
-        title: "Residuals".into(),
+        title: "Residuals of the joint least-squares fit".into(),
         subtitle: format!(
-            "model effects: {}",
-            s.fit
-                .layout
-                .effects
-                .iter()
-                .map(|e| e.name())
-                .collect::<Vec<_>>()
-                .join(", ")
+            "model effects: {}; all readings RMS {:.3} µm",
+            effects(s),
+            s.fit.rms_um
         ),
         x_axis: XAxis::Values {
-            label: "reading number on the diagonal / % of the travel".into(),
+            label: "distance from P0 along the diagonal, u·(P − P0) (mm)".into(),
         },
         panels,
     }
 }
 
-fn grid_figure(s: &VolumetricStudy) -> SeriesPanelsFigure {
+fn effects(s: &VolumetricStudy) -> String {
+    let e: Vec<&str> = s.fit.layout.effects.iter().map(|e| e.name()).collect();
+    if e.is_empty() {
+        "none (the additive model alone)".into()
+    } else {
+        e.join(", ")
+    }
+}
+
+/// ρ_j of the readings and of the residuals, per axis, against % of the axis's travel.
+fn fourth_figure(s: &VolumetricStudy) -> Option<SeriesPanelsFigure> {
+    let data: Vec<f64> = s.observations.iter().map(|o| o.deviation_um).collect();
+    let layout = &s.fit.layout;
+    let of_data = solve::step_series(layout, &s.observations, &data)
+        .ok()
+        .and_then(|f| solve::fourth_pattern(&f))?;
+    let of_residuals = s.fourth_residual_um.as_ref()?;
+    let panels = (0..3)
+        .map(|j| {
+            let nodes = layout.nodes(j);
+            let (lo, len) = (layout.min_mm[j], layout.lengths_mm[j]);
+            let x: Vec<f64> = nodes.iter().map(|q| 100.0 * (q - lo) / len).collect();
+            SeriesPanel {
+                title: format!(
+                    "ρ along {} ({:.0} … {:.0} mm)",
+                    AXES[j],
+                    lo,
+                    lo + len
+                ),
+                y_label: "ρ (µm)".into(),
+                series: vec![
+                    NamedSeries {
+                        name: "of the readings".into(),
+                        x: x.clone(),
+                        y: of_data[j].clone(),
+                    },
+                    NamedSeries {
+                        name: "of the joint fit's residuals".into(),
+                        x,
+                        y: of_residuals[j].clone(),
+                    },
+                ],
+                ref_lines: vec![RefLine {
+                    label: "zero".into(),
+                    value: 0.0,
+                }],
+            }
+        })
+        .collect();
+    let (d, r) = s.fourth_rms_um.unwrap_or((f64::NAN, f64::NAN));
+    Some(SeriesPanelsFigure {
+        title: "Fourth sign pattern: ρ_j = ¼ Σ_d sx·sy·sz F_dj".into(),
+        subtitle: format!(
+            "zero for the additive model with zero pointing; RMS {d:.3} µm in the readings, {r:.3} µm in the residuals (model effects: {})",
+            effects(s)
+        ),
+        x_axis: XAxis::Values {
+            label: "position along the sub-moved axis (% of its travel from the min corner)".into(),
+        },
+        panels,
+    })
+}
+
+/// Error vectors in the plane of axes `plane` (equal scale), one view per level of axis
+/// `level`.
+fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> GeometryFigure {
     let g = &s.grid;
+    let [a, b] = plane;
+    let value = |n: &NodeError, k: usize| n.error[k].value;
     let max_e = s
         .nodes
         .iter()
-        .map(|n| n.error[0].value.hypot(n.error[1].value))
-        .fold(0.0, f64::max)
-        .max(1e-9);
-    let scale = 0.45 * g.spacing_mm[0].min(g.spacing_mm[1]) / max_e; // mm per µm
-    let mut panels = Vec::new();
-    for k in 1..=g.counts[2] {
-        let nodes: Vec<_> = s.nodes.iter().filter(|n| n.node[2] == k).collect();
-        let (mut ax, mut ay) = (Vec::new(), Vec::new());
-        for n in &nodes {
-            ax.extend([
-                n.position_mm[0],
-                n.position_mm[0] + scale * n.error[0].value,
-                f64::NAN,
-            ]);
-            ay.extend([
-                n.position_mm[1],
-                n.position_mm[1] + scale * n.error[1].value,
-                f64::NAN,
-            ]);
-        }
-        panels.push(SeriesPanel {
-            title: format!(
-                "z = {:.0} mm",
-                g.origin_mm[2] + (k - 1) as f64 * g.spacing_mm[2]
-            ),
-            y_label: "y (mm)".into(),
-            series: vec![
-                NamedSeries {
-                    name: "node".into(),
-                    x: nodes
-                        .iter()
-                        .flat_map(|n| [n.position_mm[0], f64::NAN])
-                        .collect(),
-                    y: nodes
-                        .iter()
-                        .flat_map(|n| [n.position_mm[1], f64::NAN])
-                        .collect(),
-                },
-                NamedSeries {
-                    name: format!("error (1 µm = {scale:.1} mm)"),
-                    x: ax,
-                    y: ay,
-                },
-            ],
-            ref_lines: vec![],
-        });
-    }
-    SeriesPanelsFigure {
-        title: "Error vectors on the grid (ex, ey)".into(),
+        .map(|n| value(n, a).hypot(value(n, b)))
+        .fold(0.0, f64::max);
+    let ref_um = round_scale(max_e);
+    let room_mm = [a, b]
+        .map(|k| {
+            if g.counts[k] > 1 {
+                g.spacing_mm[k]
+            } else {
+                s.fit.layout.lengths_mm[k]
+            }
+        })
+        .into_iter()
+        .fold(f64::INFINITY, f64::min);
+    let scale = 0.45 * room_mm / max_e.max(1e-9); // mm of the drawing per µm
+    let views = (1..=g.counts[level])
+        .map(|lv| {
+            let nodes: Vec<&NodeError> = s.nodes.iter().filter(|n| n.node[level] == lv).collect();
+            let (mut ax, mut ay) = (Vec::new(), Vec::new());
+            for n in &nodes {
+                let from = [n.position_mm[a], n.position_mm[b]];
+                let d = [scale * value(n, a), scale * value(n, b)];
+                arrow(&mut ax, &mut ay, from, d);
+            }
+            // The scale arrow, below the min corner.
+            let (mut rx, mut ry) = (Vec::new(), Vec::new());
+            let below = g.origin_mm[b] - 0.2 * room_mm;
+            arrow(&mut rx, &mut ry, [g.origin_mm[a], below], [scale * ref_um, 0.0]);
+            GeometryView {
+                title: format!(
+                    "{} = {:.0} mm",
+                    AXES[level],
+                    g.origin_mm[level] + (lv - 1) as f64 * g.spacing_mm[level]
+                ),
+                x_label: format!("{} (mm)", AXES[a]),
+                y_label: format!("{} (mm)", AXES[b]),
+                lines: vec![
+                    NamedSeries {
+                        name: format!("e{}, e{} (1 µm = {scale:.1} mm)", AXES[a], AXES[b]),
+                        x: ax,
+                        y: ay,
+                    },
+                    NamedSeries {
+                        name: format!("{} µm", num_short(ref_um)),
+                        x: rx,
+                        y: ry,
+                    },
+                ],
+                points: vec![NamedSeries {
+                    name: "grid node".into(),
+                    x: nodes.iter().map(|n| n.position_mm[a]).collect(),
+                    y: nodes.iter().map(|n| n.position_mm[b]).collect(),
+                }],
+            }
+        })
+        .collect();
+    GeometryFigure {
+        title: format!(
+            "Error vectors on the grid: (e{}, e{}), error = measured − commanded",
+            AXES[a], AXES[b]
+        ),
         subtitle: format!(
             "V1 {:.2} µm, V2 {:.2} µm, V3 {:.2} µm{}",
             s.v1.value_um,
             s.v2.value_um,
             s.v3.value_um,
             if s.figures_identifiable {
-                ""
+                String::new()
             } else {
-                " (in the stated gauge: not all seen)"
+                "; in the stated gauge: the readings do not see every term (report.md, \"What these readings cannot see\")".to_string()
             }
         ),
-        x_axis: XAxis::Values {
-            label: "x (mm)".into(),
-        },
-        panels,
+        views,
+    }
+}
+
+/// A polyline arrow from `from` by `d` (with a head), NaN-terminated.
+fn arrow(x: &mut Vec<f64>, y: &mut Vec<f64>, from: [f64; 2], d: [f64; 2]) {
+    let to = [from[0] + d[0], from[1] + d[1]];
+    x.extend([from[0], to[0], f64::NAN]);
+    y.extend([from[1], to[1], f64::NAN]);
+    let len = d[0].hypot(d[1]);
+    if len <= 0.0 {
+        return;
+    }
+    let head = 0.25 * len;
+    let (ux, uy) = (d[0] / len, d[1] / len);
+    for side in [1.0, -1.0] {
+        let (c, s) = (0.94_f64, 0.34 * side); // ±20°
+        let hx = -(c * ux - s * uy) * head;
+        let hy = -(s * ux + c * uy) * head;
+        x.extend([to[0], to[0] + hx, f64::NAN]);
+        y.extend([to[1], to[1] + hy, f64::NAN]);
+    }
+}
+
+/// A round reference length (1, 2 or 5 × 10ⁿ µm) near half the largest error.
+fn round_scale(max_um: f64) -> f64 {
+    let target = (0.5 * max_um).max(1e-3);
+    let p = 10f64.powf(target.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * p)
+        .rfind(|v| *v <= target)
+        .unwrap_or(p)
+}
+
+fn num_short(v: f64) -> String {
+    if v >= 1.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{v}")
     }
 }
