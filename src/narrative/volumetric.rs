@@ -83,7 +83,13 @@ pub(crate) fn headline(
             }
         ),
     ));
-    for line in &s.invisible {
+    // The engine's lost combinations and the gauge are in report.md and volumetric.json; the
+    // terminal says what is unseen in words.
+    for line in s
+        .invisible
+        .iter()
+        .filter(|l| !l.starts_with("rank ") && !l.starts_with("reported in the gauge"))
+    {
         lines.push(("Cannot see", line.clone()));
     }
     for d in decisions {

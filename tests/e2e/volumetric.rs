@@ -8,6 +8,9 @@ use std::path::{Path, PathBuf};
 
 use crate::support::{root, run_cli};
 
+/// White noise per reading in [`config`], µm.
+const NOISE_UM: f64 = 0.05;
+
 /// A simulation config: the shipped one's sections with `test`, `errors` and `effects` given.
 fn config(seed: u64, machine: &str, test: &str, errors: &str, effects: &str) -> String {
     format!(
@@ -194,23 +197,35 @@ fn the_loop_names_each_hidden_effect_and_adding_it_lowers_the_residual() {
     )
     .unwrap();
     let pointing = root().join("pipelines/volumetric.toml");
-    let cases: [(&str, &str, &Path, &[&str]); 4] = [
-        ("pointing", "pointing_urad = 50.0", &base, &[]),
-        ("machine_drift", "drift_um_per_h = 4.0", &pointing, &[]),
+    // Step diagonals alone, evenly timed, make the time a linear function of P: a machine
+    // drift linear in time is then one more linear field, confounded with the slopes and the
+    // pointing (the run says so, see below); body diagonals run up and down separate it.
+    let steps_only = "body = false\nsteps = 10\nstep_runs = 2";
+    let with_body = "body = true\nruns = 2\nsteps = 10\nstep_runs = 2";
+    let cases: [(&str, &str, &str, &Path, &[&str]); 4] = [
+        ("pointing", "pointing_urad = 50.0", steps_only, &base, &[]),
+        ("machine_drift", "drift_um_per_h = 4.0", with_body, &pointing, &[]),
+        // The analysis' Abbe term is bilinear: the angular errors' linear part (the
+        // simulator's non-linear angular shapes are switched off here; with them the residual
+        // falls but not to the noise, see the report of issue 30).
         (
             "abbe",
             "abbe = true\ntool_offset_mm = [0.0, 0.0, 150.0]",
+            steps_only,
             &pointing,
             &[],
         ),
-        ("non_rigid", "non_rigid_sag_um = 5.0", &pointing, &[]),
+        // Along the four diagonals a sag D_z(x, z) is nearly an additive field: the step
+        // diagonals see it only through each staircase cell's mixed difference, so it takes a
+        // sag of some 20 µm to be named at 0.05 µm noise (5 µm is absorbed unseen).
+        ("non_rigid", "non_rigid_sag_um = 30.0", steps_only, &pointing, &[]),
     ];
-    for (i, (name, effects, pipeline, add)) in cases.iter().enumerate() {
+    for (i, (name, effects, test, pipeline, add)) in cases.iter().enumerate() {
         let text = config(
             10 + i as u64,
             machine,
-            "body = false\nsteps = 10\nstep_runs = 2",
-            "shape_um = 2.0\nangular_urad = 20.0",
+            test,
+            "shape_um = 2.0\nangular_urad = 20.0\nangular_shape_urad = 0.0",
             effects,
         );
         let campaign = simulate(tmp.path(), name, &text);
@@ -228,7 +243,61 @@ fn the_loop_names_each_hidden_effect_and_adding_it_lowers_the_residual() {
             before["residual_rms_um"].as_f64().unwrap(),
             after["residual_rms_um"].as_f64().unwrap(),
         );
-        eprintln!("{name}: residual RMS {r0:.4} -> {r1:.4} µm");
-        assert!(r1 < 0.7 * r0, "{name}: {r0} -> {r1}");
+        let t = truth(&campaign);
+        let sq_err = |rec: &serde_json::Value| {
+            (0..3)
+                .map(|i| {
+                    (rec["squareness_urad"][i]["value"].as_f64().unwrap()
+                        - t["squareness_urad"][i].as_f64().unwrap())
+                    .abs()
+                })
+                .fold(0.0, f64::max)
+        };
+        let seen = |rec: &serde_json::Value| {
+            if rec["squareness_urad"][0]["identifiable"] == true {
+                "seen"
+            } else {
+                "gauge value: not seen"
+            }
+        };
+        eprintln!(
+            "{name}: residual RMS {r0:.4} -> {r1:.4} µm; largest squareness error {:.3} ({}) -> {:.3} ({}) µrad",
+            sq_err(&before),
+            seen(&before),
+            sq_err(&after),
+            seen(&after)
+        );
+        // The effect explains the excess: the residual falls to the simulated noise (0.05 µm
+        // per reading) from clearly above it.
+        assert!(r1 <= 1.15 * NOISE_UM, "{name}: {r0} -> {r1}");
+        assert!(r0 >= 1.2 * r1, "{name}: {r0} -> {r1}");
     }
+}
+
+/// Machine drift on step diagonals alone (evenly timed sub-moves): the run says it cannot be
+/// separated, by name, instead of naming it or claiming it absent.
+#[test]
+fn drift_on_step_diagonals_alone_is_named_as_unseparable() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = config(
+        21,
+        "min_mm = [0.0, 0.0, -500.0]\nmax_mm = [1000.0, 600.0, 0.0]",
+        "body = false\nsteps = 10\nstep_runs = 2",
+        "shape_um = 2.0",
+        "drift_um_per_h = 4.0",
+    );
+    let campaign = simulate(tmp.path(), "drift", &text);
+    let rec = run(
+        tmp.path(),
+        &campaign,
+        "drift-out",
+        &root().join("pipelines/volumetric.toml"),
+        &[],
+    );
+    assert_ne!(rec["diagnosis_proposal"].as_str(), Some("machine_drift"));
+    let cannot = rec["cannot_see"].to_string();
+    assert!(
+        cannot.contains("machine_drift") && cannot.contains("confounded"),
+        "{cannot}"
+    );
 }

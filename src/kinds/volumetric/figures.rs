@@ -265,7 +265,7 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
         })
         .into_iter()
         .fold(f64::INFINITY, f64::min);
-    let scale = 0.45 * room_mm / max_e.max(1e-9); // mm of the drawing per µm
+    let scale = 0.8 * room_mm / max_e.max(1e-9); // mm of the drawing per µm
     let views = (1..=g.counts[level])
         .map(|lv| {
             let nodes: Vec<&NodeError> = s.nodes.iter().filter(|n| n.node[level] == lv).collect();

@@ -154,8 +154,11 @@ pub struct ErrorsConfig {
     pub squareness_urad: [f64; 3],
     /// Amplitude of the random shapes, µm.
     pub shape_um: f64,
-    /// Amplitude of the angular errors, µrad (matter only with `[effects] abbe`).
+    /// Amplitude of the angular errors' linear part, µrad (matter only with `[effects] abbe`).
     pub angular_urad: f64,
+    /// Amplitude of their non-linear shapes (a quadratic and a sine), µrad; absent: 0.3 ×
+    /// `angular_urad`. The analysis' Abbe term is bilinear (the linear part only).
+    pub angular_shape_urad: Option<f64>,
 }
 
 impl Default for ErrorsConfig {
@@ -165,6 +168,7 @@ impl Default for ErrorsConfig {
             squareness_urad: [20.0, -12.0, 8.0],
             shape_um: 2.0,
             angular_urad: 20.0,
+            angular_shape_urad: None,
         }
     }
 }

@@ -191,8 +191,8 @@ pub fn generate_volumetric(cfg: &VolumetricSimConfig) -> Result<VolumetricSimula
     let mut rng = stream_rng(cfg.seed, streams::TRUTH);
     let e = &cfg.errors;
     let delta = [0, 1, 2].map(|_| [0, 1, 2].map(|_| Curve::random(&mut rng, 0.0, e.shape_um)));
-    let eps = [0, 1, 2]
-        .map(|_| [0, 1, 2].map(|_| Curve::random(&mut rng, e.angular_urad, e.angular_urad * 0.3)));
+    let eps_shape = e.angular_shape_urad.unwrap_or(0.3 * e.angular_urad);
+    let eps = [0, 1, 2].map(|_| [0, 1, 2].map(|_| Curve::random(&mut rng, e.angular_urad, eps_shape)));
     let mut slope = [[0.0; 3]; 3];
     for k in 0..3 {
         slope[k][k] = e.scale_um_per_m[k];

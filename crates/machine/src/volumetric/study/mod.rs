@@ -334,6 +334,13 @@ pub fn analyse(
     if !figures_identifiable {
         invisible.push("V1, V2, V3 and the 3-D table hold terms the readings cannot see: they are given in the stated gauge, not measured".to_string());
     }
+    for c in diagnosis.candidates.iter().filter(|c| c.rank_gained == 0) {
+        invisible.push(format!(
+            "{} ({}): adds nothing these readings can separate (rank unchanged): it is confounded with the model's terms, so the loop can neither name it nor rule it out",
+            c.effect.name(),
+            c.effect.physics()
+        ));
+    }
     let residual_rms = residual_rms(&fit, &obs);
     Ok(VolumetricStudy {
         squareness: fit.squareness(),
