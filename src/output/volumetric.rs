@@ -68,7 +68,12 @@ pub(crate) fn decisions(s: &VolumetricStudy, t: &Tolerances) -> Vec<DecisionReco
             value_um: q.value,
             u_k2_um: q.u_k2,
         };
-        judge(&format!("|{}|", q.name), Some(f), t.squareness_urad, q.identifiable);
+        judge(
+            &format!("|{}|", q.name),
+            Some(f),
+            t.squareness_urad,
+            q.identifiable,
+        );
     }
     out
 }

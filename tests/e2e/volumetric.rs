@@ -204,7 +204,13 @@ fn the_loop_names_each_hidden_effect_and_adding_it_lowers_the_residual() {
     let with_body = "body = true\nruns = 2\nsteps = 10\nstep_runs = 2";
     let cases: [(&str, &str, &str, &Path, &[&str]); 4] = [
         ("pointing", "pointing_urad = 50.0", steps_only, &base, &[]),
-        ("machine_drift", "drift_um_per_h = 4.0", with_body, &pointing, &[]),
+        (
+            "machine_drift",
+            "drift_um_per_h = 4.0",
+            with_body,
+            &pointing,
+            &[],
+        ),
         // The analysis' Abbe term is bilinear: the angular errors' linear part (the
         // simulator's non-linear angular shapes are switched off here; with them the residual
         // falls but not to the noise, see the report of issue 30).
@@ -218,7 +224,13 @@ fn the_loop_names_each_hidden_effect_and_adding_it_lowers_the_residual() {
         // Along the four diagonals a sag D_z(x, z) is nearly an additive field: the step
         // diagonals see it only through each staircase cell's mixed difference, so it takes a
         // sag of some 20 µm to be named at 0.05 µm noise (5 µm is absorbed unseen).
-        ("non_rigid", "non_rigid_sag_um = 30.0", steps_only, &pointing, &[]),
+        (
+            "non_rigid",
+            "non_rigid_sag_um = 30.0",
+            steps_only,
+            &pointing,
+            &[],
+        ),
     ];
     for (i, (name, effects, test, pipeline, add)) in cases.iter().enumerate() {
         let text = config(

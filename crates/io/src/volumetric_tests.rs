@@ -7,9 +7,8 @@ use dbbcal_core::axis_campaign::{
     CampaignKind, EnvironmentRow, KindSection, LaserCompensation, MachineAxis,
 };
 use dbbcal_core::volumetric_campaign::{
-    DiagonalReading, DiagonalSign, GridSection, LaserTarget, StepReading,
-    VolumetricCampaignTables, VolumetricLaserSection, VolumetricMachineSection,
-    VolumetricManifest, WorkspaceSection,
+    DiagonalReading, DiagonalSign, GridSection, LaserTarget, StepReading, VolumetricCampaignTables,
+    VolumetricLaserSection, VolumetricMachineSection, VolumetricManifest, WorkspaceSection,
 };
 
 const T0: i64 = 1_800_000_000_000_000_000;
@@ -21,7 +20,9 @@ fn manifest(target: LaserTarget) -> VolumetricManifest {
             id: "v".into(),
             reference_temperature_c: 20.0,
         },
-        machine: VolumetricMachineSection { cte_ppm_per_k: 11.5 },
+        machine: VolumetricMachineSection {
+            cte_ppm_per_k: 11.5,
+        },
         workspace: WorkspaceSection {
             min_mm: [0.0, 0.0, 0.0],
             max_mm: [300.0, 200.0, 100.0],
@@ -177,7 +178,9 @@ fn a_bad_submove_is_refused_naming_file_column_and_rows() {
     )
     .unwrap();
     crate::write::write_parquet(&steps.join("steps-bad.parquet"), &mut df).unwrap();
-    let e = read_volumetric_campaign(dir.path()).unwrap_err().to_string();
+    let e = read_volumetric_campaign(dir.path())
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("steps-bad.parquet") && e.contains("submove") && e.contains("2 .. 3"),
         "{e}"
@@ -195,6 +198,11 @@ fn a_retroreflector_on_a_step_diagonal_is_refused() {
         &VolumetricWriteOptions::default(),
     )
     .unwrap();
-    let e = read_volumetric_campaign(dir.path()).unwrap_err().to_string();
-    assert!(e.contains("laser.target") && e.contains("flat-mirror"), "{e}");
+    let e = read_volumetric_campaign(dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("laser.target") && e.contains("flat-mirror"),
+        "{e}"
+    );
 }

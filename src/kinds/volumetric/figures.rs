@@ -38,18 +38,12 @@ pub(crate) fn render(s: &VolumetricStudy, dir: &Path) -> Result<Vec<(String, Str
             "The fourth sign pattern's consistency residual ρ_j, of the readings and of the joint fit's residuals".into(),
         ));
     }
-    render_geometry(
-        &grid_figure(s, [0, 1], 2),
-        &dir.join("grid_vectors_xy.png"),
-    )?;
+    render_geometry(&grid_figure(s, [0, 1], 2), &dir.join("grid_vectors_xy.png"))?;
     out.push((
         "figures/grid_vectors_xy.png".into(),
         "Error vectors (ex, ey) at the grid nodes, seen from above, one view per z level".into(),
     ));
-    render_geometry(
-        &grid_figure(s, [0, 2], 1),
-        &dir.join("grid_vectors_xz.png"),
-    )?;
+    render_geometry(&grid_figure(s, [0, 2], 1), &dir.join("grid_vectors_xz.png"))?;
     out.push((
         "figures/grid_vectors_xz.png".into(),
         "Error vectors (ex, ez) at the grid nodes, seen from the front, one view per y level"
@@ -203,12 +197,7 @@ fn fourth_figure(s: &VolumetricStudy) -> Option<SeriesPanelsFigure> {
             let (lo, len) = (layout.min_mm[j], layout.lengths_mm[j]);
             let x: Vec<f64> = nodes.iter().map(|q| 100.0 * (q - lo) / len).collect();
             SeriesPanel {
-                title: format!(
-                    "ρ along {} ({:.0} … {:.0} mm)",
-                    AXES[j],
-                    lo,
-                    lo + len
-                ),
+                title: format!("ρ along {} ({:.0} … {:.0} mm)", AXES[j], lo, lo + len),
                 y_label: "ρ (µm)".into(),
                 series: vec![
                     NamedSeries {
@@ -278,7 +267,12 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
             // The scale arrow, below the min corner.
             let (mut rx, mut ry) = (Vec::new(), Vec::new());
             let below = g.origin_mm[b] - 0.2 * room_mm;
-            arrow(&mut rx, &mut ry, [g.origin_mm[a], below], [scale * ref_um, 0.0]);
+            arrow(
+                &mut rx,
+                &mut ry,
+                [g.origin_mm[a], below],
+                [scale * ref_um, 0.0],
+            );
             GeometryView {
                 title: format!(
                     "{} = {:.0} mm",

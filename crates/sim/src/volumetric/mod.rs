@@ -147,8 +147,8 @@ impl Machine {
         let mut e = [0.0; 3];
         for j in 0..3 {
             let t = self.t(j, p[j]);
-            for k in 0..3 {
-                e[k] += self.delta[j][k].at(t) + 1e-3 * self.slope[j][k] * (p[j] - self.min[j]);
+            for (k, ek) in e.iter_mut().enumerate() {
+                *ek += self.delta[j][k].at(t) + 1e-3 * self.slope[j][k] * (p[j] - self.min[j]);
             }
             if self.abbe {
                 let mut lever = self.tool_mm;
@@ -161,8 +161,8 @@ impl Machine {
                     eps[2] * lever[0] - eps[0] * lever[2],
                     eps[0] * lever[1] - eps[1] * lever[0],
                 ];
-                for k in 0..3 {
-                    e[k] += 1e-3 * cross[k];
+                for (ek, c) in e.iter_mut().zip(cross) {
+                    *ek += 1e-3 * c;
                 }
             }
         }
@@ -192,10 +192,11 @@ pub fn generate_volumetric(cfg: &VolumetricSimConfig) -> Result<VolumetricSimula
     let e = &cfg.errors;
     let delta = [0, 1, 2].map(|_| [0, 1, 2].map(|_| Curve::random(&mut rng, 0.0, e.shape_um)));
     let eps_shape = e.angular_shape_urad.unwrap_or(0.3 * e.angular_urad);
-    let eps = [0, 1, 2].map(|_| [0, 1, 2].map(|_| Curve::random(&mut rng, e.angular_urad, eps_shape)));
+    let eps =
+        [0, 1, 2].map(|_| [0, 1, 2].map(|_| Curve::random(&mut rng, e.angular_urad, eps_shape)));
     let mut slope = [[0.0; 3]; 3];
-    for k in 0..3 {
-        slope[k][k] = e.scale_um_per_m[k];
+    for (k, row) in slope.iter_mut().enumerate() {
+        row[k] = e.scale_um_per_m[k];
     }
     slope[1][0] += e.squareness_urad[0]; // Dx(y)
     slope[2][1] += e.squareness_urad[1]; // Dy(z)

@@ -376,10 +376,13 @@ fn figures(fit: &JointFit, nodes: &[NodeError]) -> (Figure, Figure, Figure) {
     let v1u = (0..3)
         .map(|k| {
             // NaN (not seen) wins over max: a range in the gauge has no U.
-            let u = f[k][k]
-                .iter()
-                .map(|(_, q)| q.u_k2)
-                .fold(0.0_f64, |a, b| if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) });
+            let u = f[k][k].iter().map(|(_, q)| q.u_k2).fold(0.0_f64, |a, b| {
+                if a.is_nan() || b.is_nan() {
+                    f64::NAN
+                } else {
+                    a.max(b)
+                }
+            });
             u.powi(2) * 2.0
         })
         .sum::<f64>()
