@@ -21,6 +21,8 @@
 //! each grid node) and `truth/volumetric_truth.parquet` (the grid's true errors).
 
 mod config;
+#[cfg(test)]
+mod tests;
 
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
