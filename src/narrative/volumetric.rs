@@ -224,19 +224,22 @@ pub(crate) fn report_md(
     if let Some((data, res)) = s.fourth_rms_um {
         let _ = writeln!(md, "\nFourth sign pattern (sx·sy·sz) consistency residual: RMS {} µm in the readings, {} µm in the fit's residuals (zero for the additive model with β = 0).", num(data, 3), num(res, 3));
     }
-    let _ = writeln!(md, "\n## Error functions (D_k(j) at the step nodes, µm, U k = 2)\n\n| function | position mm | value | U |\n|---|---:|---:|---:|");
+    let _ = writeln!(md, "\n## Error functions (D_k(j) at the step nodes, µm, U k = 2)\n\nD_k(j) is error component k along axis j moved, zero at the workspace's min corner. Where a value's U is \"—\" the value holds a slope the readings cannot see (given in the stated gauge); its shape (the function less its least-squares line over the nodes) is seen, with U.\n\n| function | position mm | value | U | shape | U shape |\n|---|---:|---:|---:|---:|---:|");
     let f = s.fit.functions();
+    let shapes = s.fit.shapes();
     for (j, row) in f.iter().enumerate() {
         for (k, series) in row.iter().enumerate() {
-            for (pos, x) in series {
+            for ((pos, x), (_, sh)) in series.iter().zip(&shapes[j][k]) {
                 let _ = writeln!(
                     md,
-                    "| D{}({}) | {} | {} | {} |",
+                    "| D{}({}) | {} | {} | {} | {} | {} |",
                     ["x", "y", "z"][k],
                     ["x", "y", "z"][j],
                     num(*pos, 1),
                     num(x.value, 3),
-                    num(x.u_k2, 3)
+                    num(x.u_k2, 3),
+                    num(sh.value, 3),
+                    num(sh.u_k2, 3)
                 );
             }
         }

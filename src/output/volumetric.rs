@@ -384,9 +384,20 @@ pub(crate) fn grid_table(s: &VolumetricStudy) -> Table {
     t
 }
 
-/// `volumetric_functions.parquet`: D_k(j) at the nodes of axis j, with U.
+/// `volumetric_functions.parquet`: D_k(j) at the nodes of axis j, with U (NaN where the value
+/// is in the gauge), and its shape (less its least-squares line) with U.
 pub(crate) fn functions_table(s: &VolumetricStudy) -> Table {
     let f = s.fit.functions();
+    let shapes = s.fit.shapes();
+    let (mut shape, mut shape_u) = (Vec::new(), Vec::new());
+    for row in &shapes {
+        for series in row {
+            for (_, quantity) in series {
+                shape.push(quantity.value);
+                shape_u.push(quantity.u_k2);
+            }
+        }
+    }
     let (mut name, mut axis, mut q, mut v, mut u, mut seen) = (
         Vec::new(),
         Vec::new(),
@@ -414,4 +425,6 @@ pub(crate) fn functions_table(s: &VolumetricStudy) -> Table {
         .with("error_um", Column::F64(v))
         .with("u_k2_um", Column::F64(u))
         .with("identifiable", Column::I64(seen))
+        .with("shape_um", Column::F64(shape))
+        .with("shape_u_k2_um", Column::F64(shape_u))
 }

@@ -11,8 +11,9 @@ use dbbcal_machine::volumetric::solve;
 use dbbcal_machine::volumetric::study::{NodeError, VolumetricStudy};
 use dbbcal_machine::volumetric::DiagonalSign;
 use dbbcal_report::{
-    render_geometry, render_series_panels, GeometryFigure, GeometryView, NamedSeries, RefLine,
-    SeriesPanel, SeriesPanelsFigure, XAxis,
+    render_error_grid, render_geometry, render_series_panels, BandedSeries, ErrorGridFigure,
+    ErrorPanel, GeometryFigure, GeometryView, NamedSeries, RefLine, SeriesPanel,
+    SeriesPanelsFigure, XAxis,
 };
 
 /// Renders the figures into `dir`; returns (file relative to the output, caption).
@@ -36,6 +37,14 @@ pub(crate) fn render(s: &VolumetricStudy, dir: &Path) -> Result<Vec<(String, Str
         out.push((
             "figures/fourth_pattern.png".into(),
             "The fourth sign pattern's consistency residual ρ_j, of the readings and of the joint fit's residuals".into(),
+        ));
+    }
+    if s.fit.layout.intervals >= 2 {
+        render_error_grid(&shapes_figure(s), &dir.join("error_shapes.png"))?;
+        out.push((
+            "figures/error_shapes.png".into(),
+            "The error functions' shapes D_k(j) less their least-squares lines, with U (k = 2)"
+                .into(),
         ));
     }
     render_geometry(&grid_figure(s, [0, 1], 2), &dir.join("grid_vectors_xy.png"))?;
@@ -266,7 +275,7 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
             }
             // The scale arrow, below the min corner.
             let (mut rx, mut ry) = (Vec::new(), Vec::new());
-            let below = g.origin_mm[b] - 0.2 * room_mm;
+            let below = g.origin_mm[b] - 0.5 * room_mm;
             arrow(
                 &mut rx,
                 &mut ry,
@@ -357,5 +366,53 @@ fn num_short(v: f64) -> String {
         format!("{v:.0}")
     } else {
         format!("{v}")
+    }
+}
+
+/// The nine shapes with their U bands, one panel each (rows: axis moved; columns: component).
+fn shapes_figure(s: &VolumetricStudy) -> ErrorGridFigure {
+    let shapes = s.fit.shapes();
+    let layout = &s.fit.layout;
+    let mut panels = Vec::new();
+    for (j, row) in shapes.iter().enumerate() {
+        for (k, series) in row.iter().enumerate() {
+            let (lo, len) = (layout.min_mm[j], layout.lengths_mm[j]);
+            panels.push(ErrorPanel {
+                title: format!(
+                    "D{}({}) {}, {} {:.0} … {:.0} mm",
+                    AXES[k],
+                    AXES[j],
+                    if j == k {
+                        "positioning"
+                    } else {
+                        "straightness"
+                    },
+                    AXES[j],
+                    lo,
+                    lo + len
+                ),
+                y_label: "shape (µm)".into(),
+                curves: vec![BandedSeries {
+                    name: "shape ± U".into(),
+                    x: series.iter().map(|(q, _)| 100.0 * (q - lo) / len).collect(),
+                    y: series.iter().map(|(_, v)| v.value).collect(),
+                    u_k2: series.iter().map(|(_, v)| v.u_k2).collect(),
+                }],
+            });
+        }
+    }
+    ErrorGridFigure {
+        title: "Error functions less their least-squares lines (what pointing cannot hide)".into(),
+        subtitle: format!(
+            "error = measured − commanded; the lines' slopes: squareness and Σ L_k² ε_k / D² in report.md{}",
+            if s.slopes.iter().flatten().all(|q| q.identifiable) {
+                ""
+            } else {
+                "; the per-axis slopes are not seen (pointing)"
+            }
+        ),
+        x_label: "% of the moved axis's travel".into(),
+        columns: 3,
+        panels,
     }
 }
