@@ -23,6 +23,7 @@ fn html(text: &str) -> String {
         .replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 fn q(q: &Quantity) -> String {
