@@ -34,6 +34,26 @@ fn q(q: &Quantity) -> String {
     }
 }
 
+/// V1, V2, V3 in words: measured with U, or said not determined (gauge values shown as such).
+fn v_figures(s: &VolumetricStudy) -> String {
+    let values = format!(
+        "{} / {} / {} µm",
+        num(s.v1.value_um, 2),
+        num(s.v2.value_um, 2),
+        num(s.v3.value_um, 2)
+    );
+    if s.figures_identifiable {
+        format!(
+            "{values} (U {} / {} / {} µm)",
+            num(s.v1.u_k2_um, 2),
+            num(s.v2.u_k2_um, 2),
+            num(s.v3.u_k2_um, 2)
+        )
+    } else {
+        format!("not determined by these readings, which cannot see every term of the grid's errors; the values in the stated gauge, {values}, are not the machine's")
+    }
+}
+
 /// The terminal's lines (label, text).
 pub(crate) fn headline(
     campaign: &str,
@@ -70,20 +90,7 @@ pub(crate) fn headline(
             q(&s.mean_scale)
         ),
     ));
-    lines.push((
-        "V1 V2 V3",
-        format!(
-            "{} / {} / {} µm{}",
-            num(s.v1.value_um, 2),
-            num(s.v2.value_um, 2),
-            num(s.v3.value_um, 2),
-            if s.figures_identifiable {
-                ""
-            } else {
-                " (in the stated gauge: the readings do not see all of it)"
-            }
-        ),
-    ));
+    lines.push(("V1 V2 V3", v_figures(s)));
     // The engine's lost combinations and the gauge are in report.md and volumetric.json; the
     // terminal says what is unseen in words.
     for line in s
@@ -245,9 +252,8 @@ pub(crate) fn report_md(
             }
         }
     }
-    let _ = writeln!(md, "\n## The grid\n\nV1 {} µm (U {}), V2 {} µm (U {}), V3 {} µm (U {}){}.\n\n| l | i | j | k | x mm | y mm | z mm | ex µm | ey µm | ez µm | U ex | U ey | U ez |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
-        num(s.v1.value_um, 2), num(s.v1.u_k2_um, 2), num(s.v2.value_um, 2), num(s.v2.u_k2_um, 2), num(s.v3.value_um, 2), num(s.v3.u_k2_um, 2),
-        if s.figures_identifiable { "" } else { "; in the stated gauge: the readings do not see all of it" });
+    let _ = writeln!(md, "\n## The grid\n\nV1, V2, V3: {}.\n\n| l | i | j | k | x mm | y mm | z mm | ex µm | ey µm | ez µm | U ex | U ey | U ez |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        v_figures(s));
     for n in &s.nodes {
         let _ = writeln!(
             md,

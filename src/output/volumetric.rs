@@ -114,8 +114,15 @@ pub(crate) fn controller_tables(
     };
     t.files
         .push(("table_fanuc_3d.txt".into(), fanuc_3d(&grid, &fanuc)?));
-    t.statements
-        .push(("table_fanuc_3d.txt".into(), fanuc.meta().statement));
+    let unseen = if s.figures_identifiable {
+        String::new()
+    } else {
+        "; WARNING: the grid's errors hold terms these readings cannot see, set by the stated gauge, not measured: do not load this table without measurements that see them".to_string()
+    };
+    t.statements.push((
+        "table_fanuc_3d.txt".into(),
+        format!("{}{unseen}", fanuc.meta().statement),
+    ));
     let f = s.fit.functions();
     let isg = IsgCsvOptions {
         sign: TableSign::Error,

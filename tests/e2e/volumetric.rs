@@ -183,6 +183,14 @@ fn body_diagonals_cannot_see_scale_errors_that_cancel() {
     let md = std::fs::read_to_string(tmp.path().join("cube-out/report.md")).unwrap();
     assert!(md.contains("per-axis scale differences are invisible"));
     assert_eq!(rec["figures_identifiable"], false);
+    // V1 … V3 (14.14 µm in truth) are said not determined, and the 3-D table carries a warning.
+    assert!(
+        md.contains("V1, V2, V3: not determined by these readings"),
+        "{md}"
+    );
+    assert!(rec["tables"].to_string().contains("WARNING"));
+    let decisions = rec["decisions"].to_string();
+    assert!(decisions.contains("\"quantity\":\"V2\"") && decisions.contains("no decision"));
 }
 
 /// Each effect hidden in turn: the loop names it, and adding it makes the residual fall.

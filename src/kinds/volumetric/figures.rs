@@ -103,14 +103,23 @@ fn curves_figure(s: &VolumetricStudy) -> SeriesPanelsFigure {
             })
         })
         .collect();
+    let body_only = s
+        .invisible
+        .iter()
+        .any(|l| l.starts_with("with body diagonals only: 4 of 9"));
     SeriesPanelsFigure {
         title: "Diagonal displacement tests".into(),
         subtitle: format!(
-            "V_diag = {}",
+            "V_diag = {}{}",
             s.v_diag.map_or("—".into(), |v| format!(
                 "{:.2} µm (U {:.2} µm)",
                 v.value_um, v.u_k2_um
-            ))
+            )),
+            if body_only {
+                "\nbody diagonals see 4 of 9 linear terms: per-axis scale differences do not show here"
+            } else {
+                ""
+            }
         ),
         x_axis: XAxis::Values {
             label: "distance from P0 along the diagonal (mm)".into(),
@@ -252,7 +261,6 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
         .iter()
         .map(|n| value(n, a).hypot(value(n, b)))
         .fold(0.0, f64::max);
-    let ref_um = round_scale(max_e);
     let room_mm = [a, b]
         .map(|k| {
             if g.counts[k] > 1 {
@@ -263,7 +271,10 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
         })
         .into_iter()
         .fold(f64::INFINITY, f64::min);
-    let scale = 0.8 * room_mm / max_e.max(1e-9); // mm of the drawing per µm
+    // Floor of 1 µm: noise-sized vectors are drawn noise-sized, not blown up into a field.
+    let max_e = max_e.max(1.0);
+    let ref_um = round_scale(max_e);
+    let scale = 0.8 * room_mm / max_e; // mm of the drawing per µm
     let views = (1..=g.counts[level])
         .map(|lv| {
             let nodes: Vec<&NodeError> = s.nodes.iter().filter(|n| n.node[level] == lv).collect();
@@ -311,21 +322,28 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
         })
         .collect();
     GeometryFigure {
-        title: format!(
-            "Error vectors on the grid: (e{}, e{}), error = measured − commanded",
-            AXES[a], AXES[b]
-        ),
-        subtitle: format!(
-            "V1 {:.2} µm, V2 {:.2} µm, V3 {:.2} µm{}",
-            s.v1.value_um,
-            s.v2.value_um,
-            s.v3.value_um,
-            if s.figures_identifiable {
-                String::new()
-            } else {
-                "; in the stated gauge: the readings do not see every term (report.md, \"What these readings cannot see\")".to_string()
-            }
-        ),
+        title: if s.figures_identifiable {
+            format!(
+                "Error vectors on the grid: (e{}, e{}), error = measured − commanded",
+                AXES[a], AXES[b]
+            )
+        } else {
+            format!(
+                "Error vectors (e{}, e{}) in the stated gauge: NOT measured by these readings",
+                AXES[a], AXES[b]
+            )
+        },
+        subtitle: if s.figures_identifiable {
+            format!(
+                "V1 {:.2} µm, V2 {:.2} µm, V3 {:.2} µm",
+                s.v1.value_um, s.v2.value_um, s.v3.value_um
+            )
+        } else {
+            format!(
+                "gauge values, not the machine's (V1 {:.2}, V2 {:.2}, V3 {:.2} µm): report.md, \"What these readings cannot see\"",
+                s.v1.value_um, s.v2.value_um, s.v3.value_um
+            )
+        },
         views,
     }
 }
