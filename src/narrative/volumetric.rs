@@ -336,7 +336,33 @@ pub(crate) fn page(
     for l in &s.invisible {
         let _ = writeln!(h, "<li>{}</li>", html(l));
     }
-    h.push_str("</ul>\n<h2>Squareness and scale (joint fit)</h2>\n<table><tr><th>quantity</th><th>value</th><th>U (k = 2)</th><th>seen</th></tr>\n");
+    h.push_str("</ul>\n<h2>Diagonals (ISO 230-2 statistics, ISO 230-6 reading)</h2>\n<table><tr><th>diagonal</th><th>source</th><th>D mm</th><th>A µm</th><th>B µm</th><th>R µm</th><th>E µm</th></tr>\n");
+    for c in &s.curves {
+        let i = c.iso.as_ref().ok();
+        let o = |v: Option<f64>| num(v.unwrap_or(f64::NAN), 2);
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            html(c.sign.as_str()),
+            c.source,
+            num(c.length_mm, 1),
+            o(i.and_then(|i| i.accuracy_a_um.or(i.up.map(|u| u.accuracy_um)))),
+            o(i.and_then(|i| i.reversal_b_um)),
+            o(i.and_then(|i| i.repeatability_r_um.or(i.up.map(|u| u.repeatability_um)))),
+            o(c.e_um)
+        );
+    }
+    if let Some(v) = s.v_diag {
+        let _ = writeln!(
+            h,
+            "</table>\n<p>V_diag = {} µm (U {} µm), the largest E.</p>",
+            num(v.value_um, 2),
+            num(v.u_k2_um, 2)
+        );
+    } else {
+        h.push_str("</table>\n");
+    }
+    h.push_str("<h2>Squareness and scale (joint fit)</h2>\n<table><tr><th>quantity</th><th>value</th><th>U (k = 2)</th><th>seen</th></tr>\n");
     for x in s.squareness.iter().chain(std::iter::once(&s.mean_scale)) {
         let _ = writeln!(
             h,
