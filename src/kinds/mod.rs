@@ -124,7 +124,8 @@ pub fn plan_run(
         )
         .map(KindPlan::Volumetric)
         .map_err(|e| match e {
-            PlanError::Pipeline { path, message } => PlanError::Pipeline {
+            // A volumetric pipeline's own mistakes need no pointer to the right pipeline.
+            PlanError::Pipeline { path, message } if !names_stage(&text, "volumetric") => PlanError::Pipeline {
                 path,
                 message: format!(
                     "{} is a volumetric campaign (run it with pipelines/volumetric.toml): {message}",
@@ -134,6 +135,17 @@ pub fn plan_run(
             other => other,
         }),
     }
+}
+
+/// Whether the pipeline text's `[pipeline] stages` is `[stage]`.
+fn names_stage(pipeline_text: &str, stage: &str) -> bool {
+    toml::from_str::<toml::Value>(pipeline_text)
+        .ok()
+        .and_then(|v| {
+            let stages = v.get("pipeline")?.get("stages")?.as_array()?.clone();
+            Some(stages.len() == 1 && stages[0].as_str() == Some(stage))
+        })
+        .unwrap_or(false)
 }
 
 /// Run a plan of a kind other than ballbar (ballbar plans run through [`crate::runner::run`]).

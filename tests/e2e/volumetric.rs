@@ -335,3 +335,46 @@ fn drift_on_step_diagonals_alone_is_named_as_unseparable() {
         "{cannot}"
     );
 }
+
+/// The plan is checked before any parquet is read: a wrong effect or an axis pipeline on a
+/// volumetric campaign is one line naming the pipeline, and no output folder appears.
+#[test]
+fn a_bad_pipeline_is_refused_in_one_line_before_reading() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A campaign folder with only a manifest: the plan must not need the tables.
+    let campaign = tmp.path().join("c");
+    std::fs::create_dir_all(&campaign).unwrap();
+    std::fs::write(
+        campaign.join("campaign.toml"),
+        "[campaign]\nkind = \"volumetric\"\nid = \"c\"\nreference_temperature_c = 20.0\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    for (pipeline, add, words) in [
+        (
+            "pipelines/volumetric.toml",
+            "foo",
+            "\"foo\" is not an effect of a volumetric campaign",
+        ),
+        (
+            "pipelines/axis.toml",
+            "pointing",
+            "is a volumetric campaign (run it with pipelines/volumetric.toml)",
+        ),
+    ] {
+        let (code, _o, e) = run_cli(&[
+            "run",
+            &root().join(pipeline).display().to_string(),
+            "--campaign",
+            &campaign.display().to_string(),
+            "--out",
+            &out.display().to_string(),
+            "--add-effect",
+            add,
+        ]);
+        assert_ne!(code, 0);
+        assert!(e.contains(words), "{e}");
+        assert_eq!(e.trim().lines().count(), 1, "{e}");
+        assert!(!out.exists());
+    }
+}
