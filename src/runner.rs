@@ -167,6 +167,9 @@ pub fn simulate(config: Option<&Path>, out: &Path, seed: Option<u64>) -> Result<
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read {}", p.display()))?;
+            if crate::simulate::volumetric::is_volumetric_config(&text) {
+                return simulate_volumetric(p, &text, out, seed);
+            }
             if crate::simulate::is_roll_config(&text).unwrap_or(false) {
                 return simulate_roll(p, &text, out, seed);
             }
@@ -248,6 +251,23 @@ fn simulate_probe(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Res
     let sim = crate::simulate::generate_probe(&cfg)?;
     create_new_folder(out, |tmp| {
         crate::simulate::write_probe(&sim, tmp, &cfg).map_err(anyhow::Error::from)
+    })
+}
+
+/// [`simulate`] for a `volumetric` campaign: the configuration `text` (of file `path`).
+fn simulate_volumetric(path: &Path, text: &str, out: &Path, seed: Option<u64>) -> Result<()> {
+    use crate::simulate::volumetric as vol;
+    let mut cfg = toml::from_str::<vol::VolumetricSimConfig>(text)
+        .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.to_string().replace('\n', " ")))?;
+    if let Some(seed) = seed {
+        cfg.seed = seed;
+    }
+    if std::fs::symlink_metadata(out).is_ok() {
+        anyhow::bail!("{} already exists; choose a new directory", out.display());
+    }
+    let sim = vol::generate_volumetric(&cfg)?;
+    create_new_folder(out, |tmp| {
+        vol::write_volumetric(&sim, tmp, &cfg).map_err(anyhow::Error::from)
     })
 }
 

@@ -7,6 +7,7 @@
 pub mod axis;
 pub mod probe;
 pub mod roll;
+pub mod volumetric;
 
 use std::path::{Path, PathBuf};
 
@@ -26,6 +27,8 @@ pub enum KindPlan {
     Probe(probe::ProbePlan),
     /// A `roll` campaign (seed 004).
     Roll(roll::RollPlan),
+    /// A `volumetric` campaign (seed 001).
+    Volumetric(volumetric::VolumetricPlan),
 }
 
 /// The campaign directory a run reads: `--campaign`, else the pipeline's `[pipeline] campaign`,
@@ -112,12 +115,37 @@ pub fn plan_run(
                 },
                 other => other,
             }),
-        other => Err(PlanError::NotInCampaign(format!(
-            "{}: campaign.kind = {:?}: this version of dbbcal analyses \"ballbar\", \"axis\", \"probe\" and \"roll\" campaigns (\"volumetric\": its analysis is in dbbcal-machine, its run not yet)",
-            manifest.display(),
-            other.as_str()
-        ))),
+        CampaignKind::Volumetric => volumetric::VolumetricPlan::from_pipeline_text(
+            pipeline,
+            &text,
+            dir.clone(),
+            out,
+            add_effects,
+        )
+        .map(KindPlan::Volumetric)
+        .map_err(|e| match e {
+            // A volumetric pipeline's own mistakes need no pointer to the right pipeline.
+            PlanError::Pipeline { path, message } if !names_stage(&text, "volumetric") => PlanError::Pipeline {
+                path,
+                message: format!(
+                    "{} is a volumetric campaign (run it with pipelines/volumetric.toml): {message}",
+                    dir.display()
+                ),
+            },
+            other => other,
+        }),
     }
+}
+
+/// Whether the pipeline text's `[pipeline] stages` is `[stage]`.
+fn names_stage(pipeline_text: &str, stage: &str) -> bool {
+    toml::from_str::<toml::Value>(pipeline_text)
+        .ok()
+        .and_then(|v| {
+            let stages = v.get("pipeline")?.get("stages")?.as_array()?.clone();
+            Some(stages.len() == 1 && stages[0].as_str() == Some(stage))
+        })
+        .unwrap_or(false)
 }
 
 /// Run a plan of a kind other than ballbar (ballbar plans run through [`crate::runner::run`]).
@@ -127,5 +155,6 @@ pub fn run(plan: &KindPlan) -> anyhow::Result<Outcome> {
         KindPlan::Axis(p) => axis::run(p),
         KindPlan::Probe(p) => probe::run(p),
         KindPlan::Roll(p) => roll::run(p),
+        KindPlan::Volumetric(p) => volumetric::run(p),
     }
 }

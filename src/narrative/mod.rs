@@ -11,6 +11,7 @@ pub(crate) mod fit_report;
 pub(crate) mod page;
 pub(crate) mod probe;
 pub(crate) mod roll;
+pub(crate) mod volumetric;
 
 use crate::model::Effect;
 use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};

@@ -42,6 +42,7 @@ pub(crate) mod probe;
 pub(crate) mod roll;
 pub(crate) mod stage_records;
 pub(crate) mod summary;
+pub(crate) mod volumetric;
 use location::*;
 pub use lock::install_signal_handlers;
 use lock::*;

@@ -26,3 +26,4 @@ mod row_order;
 mod safe_outputs;
 mod support;
 mod tclab;
+mod volumetric;

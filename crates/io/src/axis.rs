@@ -685,7 +685,7 @@ fn read_fixture(
     Ok(rows)
 }
 
-fn read_environment(files: &[PathBuf]) -> Result<Vec<EnvironmentRow>, IngestError> {
+pub(crate) fn read_environment(files: &[PathBuf]) -> Result<Vec<EnvironmentRow>, IngestError> {
     let mut rows = Vec::new();
     for path in files {
         let file = Decoded::read(path)?;
@@ -805,7 +805,7 @@ fn read_temperatures(
         .collect())
 }
 
-fn read_events(files: &[PathBuf]) -> Result<Vec<Event>, IngestError> {
+pub(crate) fn read_events(files: &[PathBuf]) -> Result<Vec<Event>, IngestError> {
     let mut events = Vec::new();
     for path in files {
         let file = Decoded::read(path)?;

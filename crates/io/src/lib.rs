@@ -18,6 +18,8 @@ mod repeats;
 mod roll;
 mod roll_write;
 mod table;
+mod volumetric;
+mod volumetric_write;
 mod write;
 
 #[cfg(test)]
@@ -30,6 +32,8 @@ mod positions_tests;
 mod roll_tests;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod volumetric_tests;
 
 use std::path::{Path, PathBuf};
 
@@ -44,6 +48,8 @@ pub use probe_write::{write_probe_campaign, ProbeWriteOptions};
 pub use roll::{read_roll_campaign, read_roll_manifest};
 pub use roll_write::{write_roll_campaign, RollWriteOptions};
 pub use table::{write_table, write_table_csv, Column, Table};
+pub use volumetric::{read_volumetric_campaign, read_volumetric_manifest};
+pub use volumetric_write::{write_volumetric_campaign, VolumetricWriteOptions};
 pub use write::{write_campaign, TimeUnit, WriteError, WriteOptions};
 
 /// Why a campaign directory could not be read. Every message is one line naming the file (and

@@ -24,6 +24,8 @@
 //! from a [`ProbeSimConfig`] (`kind = "probe"`, [`is_probe_config`]), written by [`write_probe`].
 //! [`is_axis_config`]), written by [`write_axis`]; the `roll` kind likewise ([`generate_roll`],
 //! [`RollSimConfig`], [`is_roll_config`], [`write_roll`]).
+//! The `volumetric` kind (seed 001) has its own module, [`volumetric`]: a simulation TOML with
+//! `kind = "volumetric"` ([`volumetric::is_volumetric_config`]).
 
 mod axis;
 pub(crate) mod config;
@@ -37,6 +39,7 @@ mod probe;
 mod roll;
 mod schedule;
 pub(crate) mod truth;
+pub mod volumetric;
 
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -260,6 +260,41 @@ impl JointFit {
         })
     }
 
+    /// The shape of every D_k(j): the function less its least-squares line over the nodes of
+    /// axis j, at those nodes, with U: `[j][k]` → (node, value, U). Pointing adds straight
+    /// lines only, so the shapes stay seen where the slopes are not.
+    pub fn shapes(&self) -> [[Vec<(f64, Quantity)>; 3]; 3] {
+        [0, 1, 2].map(|j| {
+            [0, 1, 2].map(|k| {
+                let l = &self.layout;
+                let nodes = l.nodes(j);
+                let n = nodes.len() as f64;
+                let q_mean = nodes.iter().sum::<f64>() / n;
+                let mut mean = vec![0.0; l.len()];
+                for q in &nodes {
+                    for (m, c) in mean.iter_mut().zip(l.function_coefficients(k, j, *q)) {
+                        *m += c / n;
+                    }
+                }
+                let slope = l.ls_slope_coefficients(k, j);
+                nodes
+                    .iter()
+                    .map(|&q| {
+                        let c: Vec<f64> = l
+                            .function_coefficients(k, j, q)
+                            .iter()
+                            .zip(&mean)
+                            .zip(&slope)
+                            .map(|((f, m), s)| f - m - 1e-3 * (q - q_mean) * s)
+                            .collect();
+                        let name = format!("shape D{}({})", AXES[k], AXES[j]);
+                        (q, self.quantity(name, &c))
+                    })
+                    .collect()
+            })
+        })
+    }
+
     /// The model's error vector at P (µm), each component with U.
     pub fn error_at(&self, p_mm: [f64; 3]) -> [Quantity; 3] {
         [0, 1, 2].map(|k| {

@@ -302,6 +302,13 @@ fn the_joint_fit_finds_squareness_under_pointing_where_the_naive_inversion_scatt
         // Pointing confounds the per-axis scales: five slope combinations are lost.
         assert!(!s.slopes[0][0].identifiable);
         assert!(s.invisible.iter().any(|l| l.contains("unknown pointing")));
+        // Pointing adds straight lines only: every function's shape stays seen, with U.
+        let shapes = s.fit.shapes();
+        assert!(shapes
+            .iter()
+            .flatten()
+            .flatten()
+            .all(|(_, q)| q.identifiable && q.u_k2.is_finite()));
     }
     eprintln!("joint max |err| {joint_err:.3} µrad, mean U {u_sum:.3} µrad, naive max |err| {naive_err:.2} µrad, within U {within}/60");
     // U is k = 2 (95 %): if it is right, 60 draws fall within it 51 times or more with

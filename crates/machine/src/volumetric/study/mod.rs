@@ -334,6 +334,13 @@ pub fn analyse(
     if !figures_identifiable {
         invisible.push("V1, V2, V3 and the 3-D table hold terms the readings cannot see: they are given in the stated gauge, not measured".to_string());
     }
+    for c in diagnosis.candidates.iter().filter(|c| c.rank_gained == 0) {
+        invisible.push(format!(
+            "{} ({}): adds nothing these readings can separate (rank unchanged): it is confounded with the model's terms, so the loop can neither name it nor rule it out",
+            c.effect.name(),
+            c.effect.physics()
+        ));
+    }
     let residual_rms = residual_rms(&fit, &obs);
     Ok(VolumetricStudy {
         squareness: fit.squareness(),
@@ -368,8 +375,15 @@ fn figures(fit: &JointFit, nodes: &[NodeError]) -> (Figure, Figure, Figure) {
     let positioning = [0, 1, 2].map(|k| f[k][k].iter().map(|(_, q)| q.value).collect::<Vec<_>>());
     let v1u = (0..3)
         .map(|k| {
-            let u: Vec<f64> = f[k][k].iter().map(|(_, q)| q.u_k2).collect();
-            u.iter().fold(0.0_f64, |a, b| a.max(*b)).powi(2) * 2.0
+            // NaN (not seen) wins over max: a range in the gauge has no U.
+            let u = f[k][k].iter().map(|(_, q)| q.u_k2).fold(0.0_f64, |a, b| {
+                if a.is_nan() || b.is_nan() {
+                    f64::NAN
+                } else {
+                    a.max(b)
+                }
+            });
+            u.powi(2) * 2.0
         })
         .sum::<f64>()
         .sqrt();

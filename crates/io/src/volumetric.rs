@@ -1,0 +1,230 @@
+//! Reading a `volumetric` campaign (`docs/spec/machine-formats.md`, "Kind volumetric") with
+//! polars and handing it over as plain data ([`VolumetricCampaignLogs`]), on the column readers
+//! and row checks of the `axis` reader (`super::axis`): timestamps ns/us/ms, integers int8 …
+//! int64, strings utf8 or dictionary, optional columns absent or all null, one line naming the
+//! file, the column and the rows. `diagonals/` and/or `steps/` (at least one), `environment/`
+//! (required unless `compensation = "air+material"`), `events/`; files split in any way and
+//! rows in any order give the same logs (`dbbcal_core::volumetric_campaign::logs`).
+
+use std::path::{Path, PathBuf};
+
+use super::axis::{check_rows, finite, read_environment, read_events, required, Decoded};
+use super::inputs::{check_unchanged, hash_inputs, parquet_files, stamps};
+use super::IngestError;
+use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind, MachineAxis};
+use dbbcal_core::volumetric_campaign::{
+    logs::diagonal_of_index, order_diagonal_readings, order_step_readings, DiagonalReading,
+    DiagonalSign, StepReading, VolumetricCampaign, VolumetricCampaignLogs,
+};
+
+const DIAGONALS: &str = "diagonals";
+const STEPS: &str = "steps";
+const ENVIRONMENT: &str = "environment";
+const EVENTS: &str = "events";
+
+/// Reads and validates the `campaign.toml` of a `volumetric` campaign.
+pub fn read_volumetric_manifest(dir: &Path) -> Result<VolumetricCampaign, IngestError> {
+    let (path, text) = crate::read::read_manifest_text(dir)?;
+    let file = path.display().to_string();
+    let kind = campaign_kind(&text, &file)?;
+    if kind != CampaignKind::Volumetric {
+        return Err(IngestError::UnusableCampaign {
+            path,
+            problem: format!("is a {kind} campaign ([campaign] kind), not a volumetric campaign"),
+        });
+    }
+    Ok(VolumetricCampaign::from_toml_str(&text, &file)?)
+}
+
+/// Reads a `volumetric` campaign directory.
+pub fn read_volumetric_campaign(dir: &Path) -> Result<VolumetricCampaignLogs, IngestError> {
+    let manifest = dir.join("campaign.toml");
+    let campaign = read_volumetric_manifest(dir)?;
+    let diagonal_files = parquet_files(&dir.join(DIAGONALS))?;
+    let step_files = parquet_files(&dir.join(STEPS))?;
+    if diagonal_files.is_empty() && step_files.is_empty() {
+        return Err(IngestError::MissingTable {
+            folder: dir.join(DIAGONALS),
+            table: "diagonals (or steps)",
+        });
+    }
+    let environment_files = parquet_files(&dir.join(ENVIRONMENT))?;
+    let event_files = parquet_files(&dir.join(EVENTS))?;
+    let mut all = vec![manifest.clone()];
+    for files in [
+        &diagonal_files,
+        &step_files,
+        &environment_files,
+        &event_files,
+    ] {
+        all.extend(files.iter().cloned());
+    }
+    let before = stamps(&all)?;
+    let inputs = hash_inputs(dir, &all)?;
+    let diagonals = read_diagonals(&diagonal_files, &campaign)?;
+    let steps = read_steps(&step_files)?;
+    let file = manifest.display().to_string();
+    campaign.check_steps(!steps.is_empty(), &file)?;
+    let environment = read_environment(&environment_files)?;
+    campaign.check_environment(!environment.is_empty(), &file)?;
+    let events = read_events(&event_files)?;
+    check_unchanged(dir, &before, &inputs)?;
+    Ok(VolumetricCampaignLogs {
+        campaign,
+        inputs,
+        diagonals,
+        steps,
+        environment,
+        temperatures: Default::default(),
+        events,
+    })
+}
+
+fn signs(path: &Path, words: &[String]) -> Result<Vec<DiagonalSign>, IngestError> {
+    check_rows(
+        path,
+        "diagonal",
+        words,
+        |w| DiagonalSign::parse(w).is_some(),
+        "are not a diagonal's sign vector (\"+++\", \"-++\", \"+-+\" or \"++-\")",
+    )?;
+    Ok(words
+        .iter()
+        .filter_map(|w| DiagonalSign::parse(w))
+        .collect())
+}
+
+fn read_diagonals(
+    files: &[PathBuf],
+    campaign: &VolumetricCampaign,
+) -> Result<Vec<DiagonalReading>, IngestError> {
+    let mut rows = Vec::new();
+    let mut given = Vec::new();
+    let mut source: Vec<(usize, usize)> = Vec::new();
+    for (f, path) in files.iter().enumerate() {
+        let file = Decoded::read(path)?;
+        let time = required(path, "time", file.time("time")?)?;
+        let diagonal = signs(path, &required(path, "diagonal", file.text("diagonal")?)?)?;
+        let run = required(path, "run", file.int("run")?)?;
+        check_rows(
+            path,
+            "run",
+            &run,
+            |&r| r >= 1,
+            "are below 1 (runs count from 1)",
+        )?;
+        let direction = file.optional("direction", Decoded::int)?;
+        check_rows(
+            path,
+            "direction",
+            &direction,
+            |d| d.is_none_or(|d| d == 1 || d == -1),
+            "are neither +1 nor -1 (nor null)",
+        )?;
+        let target = required(path, "target_mm", file.real("target_mm")?)?;
+        finite(path, "target_mm", &target)?;
+        let lengths = campaign.lengths_mm();
+        let d_len = lengths.iter().map(|l| l * l).sum::<f64>().sqrt();
+        check_rows(
+            path,
+            "target_mm",
+            &target,
+            |&t| (-1e-6..=d_len + 1e-6).contains(&t),
+            &format!("are outside 0 … D = {d_len:.3} mm (the diagonal's length)"),
+        )?;
+        let deviation = required(path, "deviation_um", file.real("deviation_um")?)?;
+        finite(path, "deviation_um", &deviation)?;
+        for i in 0..file.rows() {
+            rows.push(DiagonalReading {
+                time_ns: time[i],
+                diagonal: diagonal[i],
+                run: run[i],
+                direction: 0,
+                target_mm: target[i],
+                deviation_um: deviation[i],
+            });
+            given.push(direction[i].map(|d| d as i8));
+            source.push((f, i));
+        }
+    }
+    order_diagonal_readings(&rows, &given).map_err(|p| {
+        let (f, first) = source[p.rows[0]];
+        IngestError::BadRows {
+            path: files[f].clone(),
+            column: "direction",
+            rows: p.rows.len() as u64,
+            first_row: first as u64,
+            last_row: p.rows.iter().map(|&r| source[r].1).max().unwrap_or(first) as u64,
+            problem: format!(
+                "diagonal {}, run {}: {}",
+                diagonal_of_index(p.line).map_or("?", |d| d.as_str()),
+                p.run,
+                p.problem
+            ),
+            example: String::new(),
+        }
+    })
+}
+
+fn read_steps(files: &[PathBuf]) -> Result<Vec<StepReading>, IngestError> {
+    let mut rows = Vec::new();
+    for path in files {
+        let file = Decoded::read(path)?;
+        let time = required(path, "time", file.time("time")?)?;
+        let diagonal = signs(path, &required(path, "diagonal", file.text("diagonal")?)?)?;
+        let run: Vec<i64> = file
+            .optional("run", Decoded::int)?
+            .into_iter()
+            .map(|r| r.unwrap_or(1))
+            .collect();
+        check_rows(
+            path,
+            "run",
+            &run,
+            |&r| r >= 1,
+            "are below 1 (runs count from 1)",
+        )?;
+        let step = required(path, "step", file.int("step")?)?;
+        check_rows(
+            path,
+            "step",
+            &step,
+            |&s| (0..=100_000).contains(&s),
+            "are not 0 … 100000",
+        )?;
+        let submove = file.optional("submove", Decoded::text)?;
+        check_rows(
+            path,
+            "submove",
+            &submove,
+            |s| s.as_deref().is_none_or(|s| ["X", "Y", "Z"].contains(&s)),
+            "are not X, Y or Z (nor null)",
+        )?;
+        let mut xyz = Vec::new();
+        for name in ["x_mm", "y_mm", "z_mm"] {
+            let v = required(path, name, file.real(name)?)?;
+            finite(path, name, &v)?;
+            xyz.push(v);
+        }
+        let deviation = required(path, "deviation_um", file.real("deviation_um")?)?;
+        finite(path, "deviation_um", &deviation)?;
+        for i in 0..file.rows() {
+            let axis = submove[i].as_deref().map(|s| match s {
+                "X" => MachineAxis::X,
+                "Y" => MachineAxis::Y,
+                _ => MachineAxis::Z,
+            });
+            rows.push(StepReading {
+                time_ns: time[i],
+                diagonal: diagonal[i],
+                run: run[i],
+                step: step[i],
+                submove: axis,
+                position_mm: [xyz[0][i], xyz[1][i], xyz[2][i]],
+                deviation_um: deviation[i],
+            });
+        }
+    }
+    order_step_readings(&mut rows);
+    Ok(rows)
+}

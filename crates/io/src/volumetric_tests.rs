@@ -1,0 +1,208 @@
+//! The `volumetric` reader and writer: round trip under every layout (split by diagonal,
+//! shuffled rows, `direction` left out and derived), bad rows named, a retroreflector on a step
+//! diagonal refused.
+
+use super::*;
+use dbbcal_core::axis_campaign::{
+    CampaignKind, EnvironmentRow, KindSection, LaserCompensation, MachineAxis,
+};
+use dbbcal_core::volumetric_campaign::{
+    DiagonalReading, DiagonalSign, GridSection, LaserTarget, StepReading, VolumetricCampaignTables,
+    VolumetricLaserSection, VolumetricMachineSection, VolumetricManifest, WorkspaceSection,
+};
+
+const T0: i64 = 1_800_000_000_000_000_000;
+
+fn manifest(target: LaserTarget) -> VolumetricManifest {
+    VolumetricManifest {
+        campaign: KindSection {
+            kind: CampaignKind::Volumetric,
+            id: "v".into(),
+            reference_temperature_c: 20.0,
+        },
+        machine: VolumetricMachineSection {
+            cte_ppm_per_k: 11.5,
+        },
+        workspace: WorkspaceSection {
+            min_mm: [0.0, 0.0, 0.0],
+            max_mm: [300.0, 200.0, 100.0],
+        },
+        laser: VolumetricLaserSection {
+            wavelength_nm: 632.99,
+            compensation: LaserCompensation::AirMaterial,
+            dead_path_mm: None,
+            target,
+        },
+        grid: GridSection {
+            i: 2,
+            j: 2,
+            k: 2,
+            origin_mm: [0.0, 0.0, 0.0],
+            spacing_mm: [300.0, 200.0, 100.0],
+        },
+        table: None,
+        sensor: Vec::new(),
+    }
+}
+
+/// Two diagonals, two runs up and down of 4 targets; one step diagonal of 2 steps.
+fn tables() -> VolumetricCampaignTables {
+    let d_len = (300.0f64 * 300.0 + 200.0 * 200.0 + 100.0 * 100.0).sqrt();
+    let mut t = VolumetricCampaignTables::default();
+    let mut clock = T0;
+    for sign in [DiagonalSign::Ppp, DiagonalSign::Mpp] {
+        for run in 1..=2 {
+            for dir in [1i8, -1] {
+                for i in 0..=3 {
+                    let i = if dir > 0 { i } else { 3 - i };
+                    t.diagonals.push(DiagonalReading {
+                        time_ns: clock,
+                        diagonal: sign,
+                        run,
+                        direction: dir,
+                        target_mm: d_len * i as f64 / 3.0,
+                        deviation_um: 0.1 * i as f64 + 0.01 * run as f64 + 0.003 * dir as f64,
+                    });
+                    clock += 1_000_000_000;
+                }
+            }
+        }
+    }
+    let mut p = [0.0, 0.0, 0.0];
+    let mut push = |p: [f64; 3], step: i64, submove: Option<MachineAxis>, clock: i64| {
+        t.steps.push(StepReading {
+            time_ns: clock,
+            diagonal: DiagonalSign::Ppp,
+            run: 1,
+            step,
+            submove,
+            position_mm: p,
+            deviation_um: 0.01 * (step as f64) + p[0] * 1e-4,
+        })
+    };
+    push(p, 0, None, clock);
+    for s in 1..=2 {
+        for (j, axis) in [MachineAxis::X, MachineAxis::Y, MachineAxis::Z]
+            .into_iter()
+            .enumerate()
+        {
+            p[j] = [300.0, 200.0, 100.0][j] * s as f64 / 2.0;
+            clock += 1_000_000_000;
+            // Sub-moves of one step logged at the same time: read back in the order X, Y, Z.
+            push(p, s, Some(axis), clock - (j as i64) * 1_000_000_000);
+        }
+    }
+    t.environment.push(EnvironmentRow {
+        time_ns: T0,
+        air_c: 20.0,
+        pressure_hpa: 1013.25,
+        humidity_pct: 50.0,
+        material_c: None,
+        env_factor_ppm: None,
+    });
+    t
+}
+
+#[test]
+fn any_layout_reads_back_the_same_readings() {
+    let t = tables();
+    let mut read = Vec::new();
+    for (k, opts) in [
+        VolumetricWriteOptions::default(),
+        VolumetricWriteOptions {
+            split_by_diagonal: true,
+            shuffle_rows: true,
+            omit_direction: true,
+            seed: 7,
+        },
+    ]
+    .iter()
+    .enumerate()
+    {
+        let dir = tempfile::tempdir().unwrap();
+        write_volumetric_campaign(dir.path(), &manifest(LaserTarget::FlatMirror), &t, opts)
+            .unwrap();
+        let logs = read_volumetric_campaign(dir.path()).unwrap();
+        assert_eq!(logs.diagonals.len(), 32, "layout {k}");
+        assert_eq!(logs.steps.len(), 7, "layout {k}");
+        // Derived directions equal the written ones.
+        let mut written = t.diagonals.clone();
+        written.sort_by_key(|r| (r.diagonal, r.run, r.time_ns));
+        assert_eq!(logs.diagonals, written, "layout {k}");
+        let order: Vec<(i64, Option<MachineAxis>)> =
+            logs.steps.iter().map(|s| (s.step, s.submove)).collect();
+        assert_eq!(order[0], (0, None));
+        assert_eq!(order[1], (1, Some(MachineAxis::X)));
+        assert_eq!(order[3], (1, Some(MachineAxis::Z)));
+        read.push((logs.diagonals.clone(), logs.steps.clone()));
+    }
+    assert_eq!(read[0], read[1]);
+}
+
+#[test]
+fn a_bad_submove_is_refused_naming_file_column_and_rows() {
+    use polars::prelude as pl;
+    use polars::prelude::{IntoColumn, NamedFrom};
+    let dir = tempfile::tempdir().unwrap();
+    let mut t = tables();
+    t.steps.clear();
+    write_volumetric_campaign(
+        dir.path(),
+        &manifest(LaserTarget::FlatMirror),
+        &t,
+        &VolumetricWriteOptions::default(),
+    )
+    .unwrap();
+    let steps = dir.path().join("steps");
+    std::fs::create_dir_all(&steps).unwrap();
+    let n = 4;
+    let time = pl::Int64Chunked::from_vec("time".into(), (0..n).map(|i| T0 + i).collect())
+        .into_datetime(pl::TimeUnit::Nanoseconds, None)
+        .into_column();
+    let f = |name: &str, v: Vec<f64>| pl::Series::new(name.into(), v).into_column();
+    let mut df = pl::DataFrame::new(
+        n as usize,
+        vec![
+            time,
+            pl::Column::new("diagonal".into(), vec!["+++"; 4]),
+            pl::Series::new("step".into(), vec![0i64, 1, 1, 1]).into_column(),
+            pl::Column::new(
+                "submove".into(),
+                vec![None, Some("X"), Some("W"), Some("W")],
+            ),
+            f("x_mm", vec![0.0, 150.0, 150.0, 150.0]),
+            f("y_mm", vec![0.0, 0.0, 100.0, 100.0]),
+            f("z_mm", vec![0.0, 0.0, 0.0, 50.0]),
+            f("deviation_um", vec![0.0; 4]),
+        ],
+    )
+    .unwrap();
+    crate::write::write_parquet(&steps.join("steps-bad.parquet"), &mut df).unwrap();
+    let e = read_volumetric_campaign(dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("steps-bad.parquet") && e.contains("submove") && e.contains("2 .. 3"),
+        "{e}"
+    );
+    assert_eq!(e.lines().count(), 1, "{e}");
+}
+
+#[test]
+fn a_retroreflector_on_a_step_diagonal_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    write_volumetric_campaign(
+        dir.path(),
+        &manifest(LaserTarget::Retroreflector),
+        &tables(),
+        &VolumetricWriteOptions::default(),
+    )
+    .unwrap();
+    let e = read_volumetric_campaign(dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("laser.target") && e.contains("flat-mirror"),
+        "{e}"
+    );
+}

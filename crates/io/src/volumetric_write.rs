@@ -1,0 +1,184 @@
+//! Writing a `volumetric` campaign directory (what the simulator produces): readings split by
+//! diagonal or not, rows shuffled or not, `direction` written or not.
+
+use std::path::Path;
+
+use polars::prelude::*;
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+
+use super::one_line;
+use super::write::{write_parquet, WriteError};
+use dbbcal_core::volumetric_campaign::{VolumetricCampaignTables, VolumetricManifest};
+
+/// How [`write_volumetric_campaign`] lays out the tables.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct VolumetricWriteOptions {
+    /// One file per diagonal instead of one per table.
+    pub split_by_diagonal: bool,
+    /// Shuffle the rows inside each file.
+    pub shuffle_rows: bool,
+    /// Leave out the optional `direction` column of `diagonals/`.
+    pub omit_direction: bool,
+    /// Seed of the shuffle.
+    pub seed: u64,
+}
+
+fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
+    move |e| WriteError::Polars {
+        path: path.to_path_buf(),
+        message: one_line(e),
+    }
+}
+
+fn time_column(ns: impl Iterator<Item = i64>) -> Column {
+    Int64Chunked::from_vec("time".into(), ns.collect())
+        .into_datetime(polars::prelude::TimeUnit::Nanoseconds, None)
+        .into_column()
+}
+
+fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> Column {
+    Float64Chunked::from_vec(name.into(), values.collect()).into_column()
+}
+
+/// Writes `campaign.toml`, `diagonals/`, `steps/` and `environment/` under `dir`.
+pub fn write_volumetric_campaign(
+    dir: &Path,
+    manifest: &VolumetricManifest,
+    tables: &VolumetricCampaignTables,
+    opts: &VolumetricWriteOptions,
+) -> Result<(), WriteError> {
+    std::fs::create_dir_all(dir).map_err(|e| WriteError::Io {
+        path: dir.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let path = dir.join("campaign.toml");
+    let text = manifest
+        .to_toml_string()
+        .map_err(|e| WriteError::Manifest {
+            path: path.clone(),
+            message: one_line(e),
+        })?;
+    std::fs::write(&path, text).map_err(|e| WriteError::Io {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
+    let mut rng =
+        rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(17).wrapping_add(3));
+    let groups = |n: usize, key: &dyn Fn(usize) -> &'static str| -> Vec<(String, Vec<usize>)> {
+        if !opts.split_by_diagonal {
+            return vec![("all".into(), (0..n).collect())];
+        }
+        let mut g: Vec<(String, Vec<usize>)> = Vec::new();
+        for i in 0..n {
+            let name = match key(i) {
+                "+++" => "ppp",
+                "-++" => "mpp",
+                "+-+" => "pmp",
+                _ => "ppm",
+            };
+            match g.iter_mut().find(|(k, _)| k == name) {
+                Some((_, v)) => v.push(i),
+                None => g.push((name.to_string(), vec![i])),
+            }
+        }
+        g
+    };
+    if !tables.diagonals.is_empty() {
+        let folder = dir.join("diagonals");
+        prepare(&folder)?;
+        let rows = &tables.diagonals;
+        for (name, mut idx) in groups(rows.len(), &|i| rows[i].diagonal.as_str()) {
+            if opts.shuffle_rows {
+                idx.shuffle(&mut rng);
+            }
+            let path = folder.join(format!("diagonals-{name}.parquet"));
+            let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
+            let mut columns = vec![
+                time_column(r.iter().map(|x| x.time_ns)),
+                Column::new(
+                    "diagonal".into(),
+                    r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
+                ),
+                Series::new("run".into(), r.iter().map(|x| x.run).collect::<Vec<_>>())
+                    .into_column(),
+            ];
+            if !opts.omit_direction {
+                columns.push(
+                    Series::new(
+                        "direction".into(),
+                        r.iter().map(|x| x.direction).collect::<Vec<i8>>(),
+                    )
+                    .into_column(),
+                );
+            }
+            columns.push(f64_column("target_mm", r.iter().map(|x| x.target_mm)));
+            columns.push(f64_column("deviation_um", r.iter().map(|x| x.deviation_um)));
+            let mut df = DataFrame::new(r.len(), columns).map_err(polars_err(&path))?;
+            write_parquet(&path, &mut df)?;
+        }
+    }
+    if !tables.steps.is_empty() {
+        let folder = dir.join("steps");
+        prepare(&folder)?;
+        let rows = &tables.steps;
+        for (name, mut idx) in groups(rows.len(), &|i| rows[i].diagonal.as_str()) {
+            if opts.shuffle_rows {
+                idx.shuffle(&mut rng);
+            }
+            let path = folder.join(format!("steps-{name}.parquet"));
+            let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
+            let columns = vec![
+                time_column(r.iter().map(|x| x.time_ns)),
+                Column::new(
+                    "diagonal".into(),
+                    r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
+                ),
+                Series::new("run".into(), r.iter().map(|x| x.run).collect::<Vec<_>>())
+                    .into_column(),
+                Series::new("step".into(), r.iter().map(|x| x.step).collect::<Vec<_>>())
+                    .into_column(),
+                Column::new(
+                    "submove".into(),
+                    r.iter()
+                        .map(|x| x.submove.map(|a| a.as_str()))
+                        .collect::<Vec<_>>(),
+                ),
+                f64_column("x_mm", r.iter().map(|x| x.position_mm[0])),
+                f64_column("y_mm", r.iter().map(|x| x.position_mm[1])),
+                f64_column("z_mm", r.iter().map(|x| x.position_mm[2])),
+                f64_column("deviation_um", r.iter().map(|x| x.deviation_um)),
+            ];
+            let mut df = DataFrame::new(r.len(), columns).map_err(polars_err(&path))?;
+            write_parquet(&path, &mut df)?;
+        }
+    }
+    if !tables.environment.is_empty() {
+        let folder = dir.join("environment");
+        prepare(&folder)?;
+        let rows = &tables.environment;
+        let path = folder.join("environment.parquet");
+        let columns = vec![
+            time_column(rows.iter().map(|r| r.time_ns)),
+            f64_column("air_c", rows.iter().map(|r| r.air_c)),
+            f64_column("pressure_hpa", rows.iter().map(|r| r.pressure_hpa)),
+            f64_column("humidity_pct", rows.iter().map(|r| r.humidity_pct)),
+            Series::new(
+                "material_c".into(),
+                rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),
+            )
+            .into_column(),
+        ];
+        let mut df = DataFrame::new(rows.len(), columns).map_err(polars_err(&path))?;
+        write_parquet(&path, &mut df)?;
+    }
+    Ok(())
+}
+
+fn prepare(folder: &Path) -> Result<(), WriteError> {
+    std::fs::create_dir_all(folder).map_err(|e| WriteError::Io {
+        path: folder.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    crate::write::clear_parquet(folder)
+}

@@ -1,0 +1,437 @@
+//! `volumetric.json`, `volumetric_grid.parquet`, `volumetric_functions.parquet` and the
+//! controller tables of a `volumetric` campaign (`docs/spec/machine-formats.md`, "Kind
+//! volumetric"): the results as files, the record this module's own.
+
+use serde::Serialize;
+
+use crate::io::{Column, Table};
+use crate::kinds::volumetric::Tolerances;
+use crate::output::controller::{
+    fanuc_3d, isg_csv, AxisErrors, Component, ComponentErrors, Fanuc3dOptions, GridErrors,
+    IsgCsvOptions, LineEnding, LinearAxis, NumberStyle, TableSign,
+};
+use dbbcal_core::acceptance::{decide, Decision};
+use dbbcal_core::series::InputFile;
+use dbbcal_core::volumetric_campaign::{TableValues, VolumetricCampaign};
+use dbbcal_machine::volumetric::solve::Quantity;
+use dbbcal_machine::volumetric::study::{Figure, VolumetricStudy};
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+/// One ISO 14253-1 decision: a figure against the user's tolerance.
+#[derive(Debug, Clone, Serialize)]
+pub(crate) struct DecisionRecord {
+    /// What is judged (`V2`, `S_xy` …).
+    pub(crate) quantity: String,
+    /// Its value, µm or µrad.
+    pub(crate) value: Option<f64>,
+    /// U (k = 2).
+    pub(crate) u_k2: Option<f64>,
+    /// The tolerance.
+    pub(crate) tolerance: f64,
+    /// pass / fail / no decision.
+    pub(crate) decision: &'static str,
+    /// Why, when the figure cannot be judged as measured.
+    pub(crate) note: Option<String>,
+}
+
+/// The decisions for the tolerances given.
+pub(crate) fn decisions(s: &VolumetricStudy, t: &Tolerances) -> Vec<DecisionRecord> {
+    let mut out = Vec::new();
+    let mut judge = |name: &str, f: Option<Figure>, tol: Option<f64>, seen: bool| {
+        let Some(tol) = tol else { return };
+        let (v, u) = f.map_or((f64::NAN, f64::NAN), |f| (f.value_um.abs(), f.u_k2_um));
+        let d = if seen {
+            decide(v, u, tol)
+        } else {
+            Decision::NoDecision
+        };
+        out.push(DecisionRecord {
+            quantity: name.to_string(),
+            value: finite(v),
+            u_k2: finite(u),
+            tolerance: tol,
+            decision: d.as_str(),
+            note: (!seen).then(|| {
+                "depends on terms the readings cannot see (given in the stated gauge): no decision".to_string()
+            }),
+        });
+    };
+    judge("V_diag", s.v_diag, t.v_diag_um, true);
+    judge("V1", Some(s.v1), t.v1_um, s.figures_identifiable);
+    judge("V2", Some(s.v2), t.v2_um, s.figures_identifiable);
+    judge("V3", Some(s.v3), t.v3_um, s.figures_identifiable);
+    for q in &s.squareness {
+        let f = Figure {
+            value_um: q.value,
+            u_k2_um: q.u_k2,
+        };
+        judge(
+            &format!("|{}|", q.name),
+            Some(f),
+            t.squareness_urad,
+            q.identifiable,
+        );
+    }
+    out
+}
+
+/// The controller tables written, with what each states.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ControllerTables {
+    /// (file name, text).
+    pub(crate) files: Vec<(String, String)>,
+    /// (file name, sign and unit in one sentence).
+    pub(crate) statements: Vec<(String, String)>,
+}
+
+/// The FANUC 3-D table of the grid errors and the ISG CSV of each axis's three translational
+/// functions.
+pub(crate) fn controller_tables(
+    c: &VolumetricCampaign,
+    s: &VolumetricStudy,
+) -> anyhow::Result<ControllerTables> {
+    let mut t = ControllerTables::default();
+    let grid = GridErrors {
+        counts: s.grid.counts,
+        errors_um: s
+            .nodes
+            .iter()
+            .map(|n| n.error.clone().map(|q| q.value))
+            .collect(),
+    };
+    let fanuc = Fanuc3dOptions {
+        sign: match c.table.values {
+            TableValues::Correction => TableSign::Correction,
+            TableValues::Error => TableSign::Error,
+        },
+        n_base: c.table.n_base,
+        unit_um: c.table.unit_um,
+        max_abs_units: 99_999,
+        line_ending: LineEnding::Lf,
+    };
+    t.files
+        .push(("table_fanuc_3d.txt".into(), fanuc_3d(&grid, &fanuc)?));
+    let unseen = if s.figures_identifiable {
+        String::new()
+    } else {
+        "; WARNING: the grid's errors hold terms these readings cannot see, set by the stated gauge, not measured: do not load this table without measurements that see them".to_string()
+    };
+    t.statements.push((
+        "table_fanuc_3d.txt".into(),
+        format!("{}{unseen}", fanuc.meta().statement),
+    ));
+    let f = s.fit.functions();
+    let isg = IsgCsvOptions {
+        sign: TableSign::Error,
+        linear_decimals: 5,
+        angular_decimals: 9,
+        style: NumberStyle::Fixed,
+        line_ending: LineEnding::Lf,
+    };
+    for (j, axis) in [LinearAxis::X, LinearAxis::Y, LinearAxis::Z]
+        .into_iter()
+        .enumerate()
+    {
+        let errors = AxisErrors {
+            axis,
+            positions_mm: f[j][0].iter().map(|(q, _)| *q).collect(),
+            components: [Component::Ex, Component::Ey, Component::Ez]
+                .into_iter()
+                .enumerate()
+                .map(|(k, component)| ComponentErrors {
+                    component,
+                    values: f[j][k].iter().map(|(_, q)| q.value).collect(),
+                })
+                .collect(),
+        };
+        let name = format!("table_isg_{}.csv", axis.letter().to_ascii_lowercase());
+        t.files.push((name.clone(), isg_csv(&errors, &isg)?));
+        t.statements.push((
+            name,
+            format!(
+                "{}; translational errors D_k({}) of the additive model at the step nodes, squareness inside the straightness slopes in the stated gauge",
+                isg.meta().statement,
+                axis.letter()
+            ),
+        ));
+    }
+    Ok(t)
+}
+
+#[derive(Debug, Serialize)]
+struct QuantityRecord {
+    name: String,
+    value: Option<f64>,
+    u_k2: Option<f64>,
+    identifiable: bool,
+}
+
+impl From<&Quantity> for QuantityRecord {
+    fn from(q: &Quantity) -> Self {
+        QuantityRecord {
+            name: q.name.clone(),
+            value: finite(q.value),
+            u_k2: finite(q.u_k2),
+            identifiable: q.identifiable,
+        }
+    }
+}
+
+#[derive(Debug, Serialize)]
+struct FigureRecord {
+    value_um: Option<f64>,
+    u_k2_um: Option<f64>,
+}
+
+impl From<Figure> for FigureRecord {
+    fn from(f: Figure) -> Self {
+        FigureRecord {
+            value_um: finite(f.value_um),
+            u_k2_um: finite(f.u_k2_um),
+        }
+    }
+}
+
+#[derive(Debug, Serialize)]
+struct DiagonalRecord {
+    diagonal: &'static str,
+    source: &'static str,
+    length_mm: f64,
+    accuracy_a_um: Option<f64>,
+    reversal_b_um: Option<f64>,
+    repeatability_r_um: Option<f64>,
+    systematic_e_um: Option<f64>,
+    mean_range_m_um: Option<f64>,
+    e_um: Option<f64>,
+    undefined: Vec<String>,
+    not_evaluated: Option<String>,
+}
+
+#[derive(Debug, Serialize)]
+struct NaiveRecord {
+    squareness_urad: Option<[f64; 3]>,
+    scale_um_per_m: Option<[f64; 3]>,
+    not_available: Option<String>,
+}
+
+#[derive(Debug, Serialize)]
+struct CandidateRecord {
+    effect: &'static str,
+    physics: &'static str,
+    delta_bic: f64,
+    rms_after_um: f64,
+    fourth_pattern_rms_after_um: Option<f64>,
+}
+
+/// `volumetric.json`.
+#[derive(Debug, Serialize)]
+pub(crate) struct VolumetricRecord {
+    dbbcal_version: &'static str,
+    kind: &'static str,
+    campaign: String,
+    pipeline: String,
+    pipeline_sha256: String,
+    inputs: Vec<InputFile>,
+    conventions: &'static str,
+    readings: usize,
+    model_effects: Vec<&'static str>,
+    parameters: usize,
+    rank: usize,
+    lost: Vec<String>,
+    gauge: Vec<String>,
+    cannot_see: Vec<String>,
+    diagonals: Vec<DiagonalRecord>,
+    v_diag: Option<FigureRecord>,
+    squareness_urad: Vec<QuantityRecord>,
+    mean_scale_um_per_m: QuantityRecord,
+    slopes_um_per_m: Vec<QuantityRecord>,
+    naive_inversion: NaiveRecord,
+    fourth_pattern_rms_um: Option<(f64, f64)>,
+    residual_rms_um: f64,
+    residual_sigma_um: Option<f64>,
+    v1: FigureRecord,
+    v2: FigureRecord,
+    v3: FigureRecord,
+    figures_identifiable: bool,
+    decisions: Vec<DecisionRecord>,
+    tables: Vec<(String, String)>,
+    diagnosis_proposal: Option<&'static str>,
+    diagnosis_candidates: Vec<CandidateRecord>,
+    diagnosis_path: Vec<(&'static str, f64)>,
+}
+
+impl VolumetricRecord {
+    pub(crate) fn new(
+        campaign: &str,
+        (pipeline, sha): (&str, &str),
+        inputs: &[InputFile],
+        s: &VolumetricStudy,
+        decisions: &[DecisionRecord],
+        tables: &ControllerTables,
+    ) -> VolumetricRecord {
+        let diagonals = s
+            .curves
+            .iter()
+            .map(|c| {
+                let i = c.iso.as_ref().ok();
+                DiagonalRecord {
+                    diagonal: c.sign.as_str(),
+                    source: c.source,
+                    length_mm: c.length_mm,
+                    accuracy_a_um: i.and_then(|i| i.accuracy_a_um),
+                    reversal_b_um: i.and_then(|i| i.reversal_b_um),
+                    repeatability_r_um: i.and_then(|i| i.repeatability_r_um),
+                    systematic_e_um: i.and_then(|i| i.systematic_e_um),
+                    mean_range_m_um: i.and_then(|i| i.mean_range_m_um),
+                    e_um: c.e_um,
+                    undefined: i.map(|i| i.undefined.clone()).unwrap_or_default(),
+                    not_evaluated: c.iso.as_ref().err().cloned(),
+                }
+            })
+            .collect();
+        VolumetricRecord {
+            dbbcal_version: env!("CARGO_PKG_VERSION"),
+            kind: "volumetric",
+            campaign: campaign.to_string(),
+            pipeline: pipeline.to_string(),
+            pipeline_sha256: sha.to_string(),
+            inputs: inputs.to_vec(),
+            conventions: "error = measured - commanded, µm (displacements), µrad (squareness, slopes = µm/m); the tool relative to the workpiece in the machine frame M; e = 0 at the workspace's min corner",
+            readings: s.observations.len(),
+            model_effects: s.fit.layout.effects.iter().map(|e| e.name()).collect(),
+            parameters: s.fit.layout.len(),
+            rank: s.fit.rank,
+            lost: s.fit.lost.clone(),
+            gauge: s.fit.gauge.clone(),
+            cannot_see: s.invisible.clone(),
+            diagonals,
+            v_diag: s.v_diag.map(FigureRecord::from),
+            squareness_urad: s.squareness.iter().map(QuantityRecord::from).collect(),
+            mean_scale_um_per_m: (&s.mean_scale).into(),
+            slopes_um_per_m: s.slopes.iter().flatten().map(QuantityRecord::from).collect(),
+            naive_inversion: match &s.naive {
+                Ok(n) => NaiveRecord {
+                    squareness_urad: Some(n.squareness_urad),
+                    scale_um_per_m: Some(n.scale_um_per_m),
+                    not_available: None,
+                },
+                Err(e) => NaiveRecord {
+                    squareness_urad: None,
+                    scale_um_per_m: None,
+                    not_available: Some(e.clone()),
+                },
+            },
+            fourth_pattern_rms_um: s.fourth_rms_um,
+            residual_rms_um: s.fit.rms_um,
+            residual_sigma_um: finite(s.fit.sigma_um),
+            v1: s.v1.into(),
+            v2: s.v2.into(),
+            v3: s.v3.into(),
+            figures_identifiable: s.figures_identifiable,
+            decisions: decisions.to_vec(),
+            tables: tables.statements.clone(),
+            diagnosis_proposal: s.diagnosis.proposal.map(|e| e.name()),
+            diagnosis_candidates: s
+                .diagnosis
+                .candidates
+                .iter()
+                .map(|c| CandidateRecord {
+                    effect: c.effect.name(),
+                    physics: c.effect.physics(),
+                    delta_bic: c.delta_bic,
+                    rms_after_um: c.rms_after_um,
+                    fourth_pattern_rms_after_um: c.fourth_rms_after_um,
+                })
+                .collect(),
+            diagnosis_path: s.diagnosis.path.iter().map(|(e, r)| (e.name(), *r)).collect(),
+        }
+    }
+}
+
+/// `volumetric_grid.parquet`: one row per grid node (line order).
+pub(crate) fn grid_table(s: &VolumetricStudy) -> Table {
+    let n = &s.nodes;
+    let mut t = Table::new()
+        .with(
+            "line",
+            Column::I64(n.iter().map(|x| x.line as i64).collect()),
+        )
+        .with(
+            "i",
+            Column::I64(n.iter().map(|x| x.node[0] as i64).collect()),
+        )
+        .with(
+            "j",
+            Column::I64(n.iter().map(|x| x.node[1] as i64).collect()),
+        )
+        .with(
+            "k",
+            Column::I64(n.iter().map(|x| x.node[2] as i64).collect()),
+        );
+    for (a, name) in ["x_mm", "y_mm", "z_mm"].iter().enumerate() {
+        t = t.with(
+            *name,
+            Column::F64(n.iter().map(|x| x.position_mm[a]).collect()),
+        );
+    }
+    for (k, c) in ["x", "y", "z"].iter().enumerate() {
+        t = t
+            .with(
+                format!("e{c}_um"),
+                Column::F64(n.iter().map(|x| x.error[k].value).collect()),
+            )
+            .with(
+                format!("e{c}_u_k2_um"),
+                Column::F64(n.iter().map(|x| x.error[k].u_k2).collect()),
+            );
+    }
+    t
+}
+
+/// `volumetric_functions.parquet`: D_k(j) at the nodes of axis j, with U (NaN where the value
+/// is in the gauge), and its shape (less its least-squares line) with U.
+pub(crate) fn functions_table(s: &VolumetricStudy) -> Table {
+    let f = s.fit.functions();
+    let shapes = s.fit.shapes();
+    let (mut shape, mut shape_u) = (Vec::new(), Vec::new());
+    for row in &shapes {
+        for series in row {
+            for (_, quantity) in series {
+                shape.push(quantity.value);
+                shape_u.push(quantity.u_k2);
+            }
+        }
+    }
+    let (mut name, mut axis, mut q, mut v, mut u, mut seen) = (
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+        Vec::new(),
+    );
+    for (j, row) in f.iter().enumerate() {
+        for (k, series) in row.iter().enumerate() {
+            for (pos, quantity) in series {
+                name.push(format!("D{}({})", ["x", "y", "z"][k], ["x", "y", "z"][j]));
+                axis.push(["X", "Y", "Z"][j].to_string());
+                q.push(*pos);
+                v.push(quantity.value);
+                u.push(quantity.u_k2);
+                seen.push(i64::from(quantity.identifiable));
+            }
+        }
+    }
+    Table::new()
+        .with("function", Column::Str(name))
+        .with("axis", Column::Str(axis))
+        .with("position_mm", Column::F64(q))
+        .with("error_um", Column::F64(v))
+        .with("u_k2_um", Column::F64(u))
+        .with("identifiable", Column::I64(seen))
+        .with("shape_um", Column::F64(shape))
+        .with("shape_u_k2_um", Column::F64(shape_u))
+}
