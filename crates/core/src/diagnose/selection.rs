@@ -89,7 +89,7 @@ struct SelectionPath {
 /// Forward selection: add the best proposed candidate (fleet-wide: significant and material by
 /// `criteria`) until none is left or `max_steps` effects were added. Returns the ledger and the
 /// final models. Each step screens every candidate and refits exactly only those that could be
-/// material ([`evaluate_candidates`]).
+/// material ([`evaluate_candidates`](super::evaluate_candidates)).
 ///
 /// With `beam > 1` it keeps the `beam` best paths at each step (each extended by its own best
 /// proposed candidates, ranked by the path's total ΔBIC) and returns the best path at the
@@ -190,7 +190,7 @@ impl CoarseFleet {
 }
 
 /// The ledger of `path` (found on the coarse copies) on the bars' own series: each step's
-/// effect refitted exactly on every bar and tested as a candidate is ([`evaluate_candidates`]:
+/// effect refitted exactly on every bar and tested as a candidate is ([`evaluate_candidates`](super::evaluate_candidates):
 /// significant and material); the ledger stops at the first step that is not proposed there.
 /// The first step's exact refits and tests are those of the ranking (`first_candidates`).
 fn confirm_path(
@@ -234,7 +234,7 @@ fn confirm_path(
 }
 
 /// `effect` added to every bar's model in `models`, refitted exactly and tested: the candidate
-/// as [`evaluate_candidates`] would report it after an exact refit.
+/// as [`evaluate_candidates`](super::evaluate_candidates) would report it after an exact refit.
 fn exact_candidate(
     series: &[&BarSeries],
     models: &[BarModel],
