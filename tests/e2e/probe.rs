@@ -169,7 +169,6 @@ fn seed_table_1_through_the_cli_says_what_six_directions_cannot_tell() {
 }
 
 #[test]
-#[ignore = "fails: 19 of 24 first-touch errors within U (|z| up to 1.37) on the shipped simulator; U looks ~1.5x too small or the simulator's touch 1 carries more than the reversal error; open in issue 31"]
 fn simulated_24_directions_separate_lobes_centre_and_first_touch_and_the_loop_names_it() {
     let tmp = tempfile::tempdir().unwrap();
     let campaign = tmp.path().join("sim");
@@ -242,23 +241,85 @@ fn simulated_24_directions_separate_lobes_centre_and_first_touch_and_the_loop_na
         let u = f(&a["centre_offset_um"][k][2]);
         assert!(err_um.abs() <= u, "centre {k}: {err_um} µm, U {u}");
     }
-    // First-touch errors per direction within U (k = 2: about 95 % of 24).
-    let dirs = s["directions"].as_array().unwrap();
-    let tdirs = truth["directions"].as_array().unwrap();
-    let mut inside = 0;
-    for d in dirs {
-        let phi = f(&d["phi_deg"]);
-        let t = tdirs
-            .iter()
-            .find(|t| ((f(&t["phi_deg"]) - phi + 180.0).rem_euclid(360.0) - 180.0).abs() < 0.1)
-            .unwrap();
-        let e = f(&t["first_touch_error_um"]);
-        let fit = &d["first_touch_fit"];
-        if (f(&fit["value"]) - e).abs() <= f(&fit["u_k2"]) {
-            inside += 1;
-        }
+    // First-touch errors per direction: their U is judged over many directions, not on one
+    // draw (the shipped seed has 19 of 24 within U; 24 directions share one noise estimate, so
+    // one seed's count scatters far more than a binomial's).
+    let z = first_touch_errors_in_u(&s["directions"], &truth["directions"]);
+    assert_eq!(z.len(), 24);
+}
+
+/// `(fit − truth) / (U/2)` of every direction's first-touch error (U at k = 2).
+fn first_touch_errors_in_u(directions: &Value, truth: &Value) -> Vec<f64> {
+    let truths = truth.as_array().unwrap();
+    directions
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| {
+            let phi = f(&d["phi_deg"]);
+            let t = truths
+                .iter()
+                .find(|t| ((f(&t["phi_deg"]) - phi + 180.0).rem_euclid(360.0) - 180.0).abs() < 0.1)
+                .unwrap();
+            let fit = &d["first_touch_fit"];
+            (f(&fit["value"]) - f(&t["first_touch_error_um"])) / (f(&fit["u_k2"]) / 2.0)
+        })
+        .collect()
+}
+
+/// The first-touch errors' U over ten simulated campaigns (seeds 1-10 of
+/// `pipelines/sim-probe.toml`, 240 directions): at k = 2 about 95 % lie within U; at least 90 %
+/// must (3 standard deviations of the count below 95 %), and the scatter of the errors in units
+/// of U/2 must be 1 within 15 % (U neither too small nor too large). Measured: 221 of 240 (92.1 %),
+/// RMS 1.045.
+#[test]
+fn the_first_touch_errors_u_holds_over_ten_simulated_campaigns() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = std::fs::read_to_string(root().join("pipelines/sim-probe.toml")).unwrap();
+    let mut z = Vec::new();
+    for seed in 1..=10 {
+        let cfg = tmp.path().join(format!("sim{seed}.toml"));
+        std::fs::write(
+            &cfg,
+            config.replace("seed = 3\n", &format!("seed = {seed}\n")),
+        )
+        .unwrap();
+        let campaign = tmp.path().join(format!("sim{seed}"));
+        let out = tmp.path().join(format!("out{seed}"));
+        let (code, _, stderr) = run_cli(&[
+            "simulate",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            campaign.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{stderr}");
+        let (code, stdout, stderr) = run_cli(&[
+            "run",
+            "pipelines/probe.toml",
+            "--campaign",
+            campaign.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--add-effect",
+            "first_touch",
+        ]);
+        assert_eq!(code, 0, "{stdout}\n{stderr}");
+        let truth = json(&campaign.join("truth.json"));
+        let j = json(&out.join("probe.json"));
+        z.extend(first_touch_errors_in_u(
+            &j["setups"][0]["directions"],
+            &truth["directions"],
+        ));
     }
-    assert!(inside >= 20, "{inside} of 24 first-touch errors within U");
+    assert_eq!(z.len(), 240);
+    let inside = z.iter().filter(|z| z.abs() <= 2.0).count();
+    let rms = (z.iter().map(|z| z * z).sum::<f64>() / z.len() as f64).sqrt();
+    assert!(inside >= 216, "{inside} of 240 first-touch errors within U");
+    assert!(
+        (0.85..=1.15).contains(&rms),
+        "RMS of the errors in U/2: {rms}"
+    );
 }
 
 #[test]

@@ -148,6 +148,9 @@ pub(crate) const MAX_EXACT_RIVALS: usize = 3;
 /// candidates a step on a campaign with three hidden effects, each refit costing a search of
 /// its time constants on every bar; the path chosen is confirmed on the readings step by step.
 pub(crate) const COARSE_BEAM_REFITS: usize = 6;
+/// Coarse forward-selection paths whose total ΔBIC is within this share of the best path's are
+/// a tie the readings decide (`selection::confirm_tied_paths`).
+pub(crate) const PATH_TIE_SHARE: f64 = 0.05;
 /// Two candidates whose coarse refits remove within this share of each other are a tie.
 pub(crate) const NAMED_TIE_SHARE: f64 = 0.02;
 /// The shift of the model's own terms counts toward materiality only for a term that removes at

@@ -13,6 +13,7 @@ use super::screen::Screen;
 use super::summary::summarise_candidate;
 use super::{
     BarDiagnosis, Candidate, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS, HEAT_CANDIDATES,
+    PATH_TIE_SHARE,
 };
 use crate::identify::identify_from;
 use crate::identify::BarModel;
@@ -108,12 +109,12 @@ pub fn forward_selection(
     // Nothing proposed at the first step: nothing to search (the beam would stop there too).
     if max_steps > 0 && first_candidates.iter().any(Candidate::proposed) {
         if let Some(coarse) = CoarseFleet::new(series, &start, refits) {
-            let path = coarse.select(max_steps, beam, criteria);
-            return confirm_path(
+            let paths = coarse.select(max_steps, beam, criteria);
+            return confirm_tied_paths(
                 series,
                 start,
                 first_candidates,
-                (&path, &coarse),
+                (&paths, &coarse),
                 criteria,
                 refits,
             );
@@ -165,27 +166,90 @@ impl CoarseFleet {
         self.refits.get(bar, &all)?.model.clone().ok()
     }
 
-    /// The effects the beam search adds on the coarse copies, in order.
-    fn select(&self, max_steps: usize, beam: usize, criteria: &Criteria) -> Vec<Effect> {
+    /// The paths the beam search keeps on the coarse copies (the effects each adds, in order)
+    /// with their total ΔBIC there, best first.
+    fn select(
+        &self,
+        max_steps: usize,
+        beam: usize,
+        criteria: &Criteria,
+    ) -> Vec<(Vec<Effect>, f64)> {
         let refits = &self.refits;
         let series: Vec<&BarSeries> = self.series.iter().collect();
         let cap = Some(COARSE_BEAM_REFITS);
         let first = rank_candidates_for(&series, &self.models, criteria, refits, cap);
-        let (ledger, _) = beam_search(
+        beam_paths(
             &series,
             self.models.clone(),
             &first,
             (max_steps, beam, cap),
             criteria,
             refits,
+        )
+        .into_iter()
+        .map(|path| {
+            let effects = path
+                .ledger
+                .iter()
+                .filter_map(|step| match &step.added {
+                    Added::Effect(e) => Some(e.clone()),
+                    Added::Base => None,
+                })
+                .collect();
+            (effects, path.delta_bic)
+        })
+        .collect()
+    }
+}
+
+/// The coarse paths whose total ΔBIC is within [`PATH_TIE_SHARE`] of the best's, each confirmed
+/// on the readings ([`confirm_path`]); the one whose confirmed ledger ends at the lowest BIC
+/// (its steps' exact ΔBIC summed) is kept, the coarse order breaking ties.
+///
+/// Why: the coarse copies decide near ties that the readings do not. On the second simulator's
+/// plate-expansion campaign (`bench/foreign_sim.py --effect plate_expansion --seed 1`, 10 bars,
+/// 15 days, 10 s) the ranking on the readings put `plate_expansion` first (ΔBIC −128 669 against
+/// `air_gradient`'s −125 729) while the coarse beam preferred `air_gradient`: the ledger named the
+/// wrong effect. A path's first step is usually refitted already (the ranking's exact tier), so
+/// confirming a tied rival costs only its later steps.
+fn confirm_tied_paths(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    (paths, coarse): (&[(Vec<Effect>, f64)], &CoarseFleet),
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let best_total = paths.first().map_or(0.0, |(_, total)| *total);
+    let tied = paths
+        .iter()
+        .filter(|(_, total)| (total - best_total).abs() <= PATH_TIE_SHARE * best_total.abs());
+    let mut kept: Option<(Vec<LedgerStep>, Vec<BarModel>, f64)> = None;
+    for (path, _) in tied {
+        let (ledger, models) = confirm_path(
+            series,
+            start.clone(),
+            first_candidates,
+            (path, coarse),
+            criteria,
+            refits,
         );
-        ledger
-            .iter()
-            .filter_map(|step| match &step.added {
-                Added::Effect(e) => Some(e.clone()),
-                Added::Base => None,
-            })
-            .collect()
+        let total: f64 = ledger.iter().filter_map(|step| step.delta_bic).sum();
+        tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total, "diagnose: a tied coarse path confirmed on the readings");
+        if kept.as_ref().is_none_or(|(_, _, best)| total < *best) {
+            kept = Some((ledger, models, total));
+        }
+    }
+    match kept {
+        Some((ledger, models, _)) => (ledger, models),
+        None => confirm_path(
+            series,
+            start,
+            first_candidates,
+            (&[], coarse),
+            criteria,
+            refits,
+        ),
     }
 }
 
@@ -273,17 +337,34 @@ fn exact_candidate(
     summarise_candidate(effect, per_bar, threshold, criteria)
 }
 
-/// The beam search of [`forward_selection`] on the series it is given: at most `max_steps`
-/// steps keeping `beam` paths, each step refitting at most `max_refits` candidates (all that
-/// pass the screen when `None`).
+/// The beam search of [`forward_selection`] on the series it is given: the best path's ledger
+/// and models ([`beam_paths`]).
 fn beam_search(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    first_candidates: &[Candidate],
+    limits: (usize, usize, Option<usize>),
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let best = beam_paths(series, start, first_candidates, limits, criteria, refits)
+        .into_iter()
+        .next()
+        .expect("forward selection keeps at least one path");
+    (best.ledger, best.models)
+}
+
+/// The paths the beam search keeps at its end, best (lowest total ΔBIC) first: at most
+/// `max_steps` steps keeping `beam` paths, each step refitting at most `max_refits` candidates
+/// (all that pass the screen when `None`).
+fn beam_paths(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
     (max_steps, beam, max_refits): (usize, usize, Option<usize>),
     criteria: &Criteria,
     refits: &Refits,
-) -> (Vec<LedgerStep>, Vec<BarModel>) {
+) -> Vec<SelectionPath> {
     let beam = beam.max(1);
     let mut paths = vec![SelectionPath {
         ledger: vec![ledger_step(Added::Base, &start, None, None)],
@@ -344,11 +425,9 @@ fn beam_search(
         next.truncate(beam);
         paths = next;
     }
-    let best = paths
-        .into_iter()
-        .min_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic))
-        .expect("forward selection keeps at least one path");
-    (best.ledger, best.models)
+    // A stable sort: between equal totals the earlier path (the ranking's order) stays first.
+    paths.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+    paths
 }
 
 /// The effects of a fleet's models (one model for all bars).
