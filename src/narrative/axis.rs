@@ -4,25 +4,10 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::axis_study::AxisStudy;
 
+use super::words::{html, num};
 use crate::figures::FigureFile;
 use crate::kinds::axis::AxisPlan;
 use crate::output::axis_tables::TableRecord;
-use crate::output::escape;
-
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
-fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 /// The terminal's lines (label, text): what was measured, the ISO 230-2 figures, the verdict
 /// and the command that adds the proposed effect.

@@ -4,23 +4,8 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::probe::{ProbeStudy, SetupStudy};
 
+use super::words::{html, num};
 use crate::kinds::probe::{polar_file, ProbePlan};
-use crate::output::escape;
-
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
-fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 fn lobing_line(s: &SetupStudy) -> String {
     let l = &s.lobing;

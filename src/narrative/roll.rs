@@ -4,23 +4,8 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::roll::{RollStudy, PROBE_NAMES};
 
+use super::words::{html, num};
 use crate::kinds::roll::RollPlan;
-use crate::output::escape;
-
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
-fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 /// The terminal's lines (label, text): the roll over the travel, the warning when it is
 /// implausible, the verdict and the command that adds the named effect.

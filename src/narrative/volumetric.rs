@@ -6,24 +6,13 @@ use std::fmt::Write as _;
 use dbbcal_machine::volumetric::solve::Quantity;
 use dbbcal_machine::volumetric::study::VolumetricStudy;
 
+use super::words::{self, num};
 use crate::kinds::volumetric::VolumetricPlan;
-use crate::output::escape;
 use crate::output::volumetric::{ControllerTables, DecisionRecord};
 
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
+/// `text` safe inside an HTML element or attribute.
 fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+    words::html(text).replace('"', "&quot;")
 }
 
 fn q(q: &Quantity) -> String {
