@@ -2,8 +2,6 @@
 //! (claim the output, read, analyse with `dbbcal_machine::axis_study`, write) and its files
 //! (`axis.json`, `axis_errors.parquet`, `report.md`, `index.html`).
 
-use std::path::{Path, PathBuf};
-
 use anyhow::{Context, Result};
 use serde::Deserialize;
 

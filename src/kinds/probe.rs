@@ -3,7 +3,7 @@
 //! (`probe.json`, `probe_directions.parquet`, `probe_touches.parquet`, `report.md`,
 //! `index.html`, `figures/probe-polar-*.png`), and the polar figure's spec.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context, Result};
 use serde::Deserialize;

@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::roll::{RollStudy, PROBE_NAMES};
 
-use super::words::{html, num};
+use super::words::{files_paragraph, html, num};
 use crate::kinds::roll::RollPlan;
 
 /// The terminal's lines (label, text): the roll over the travel, the warning when it is
@@ -284,6 +284,13 @@ pub(crate) fn page(
     for u in &s.diagnosis.unseen {
         let _ = writeln!(h, "<li>{}: {}</li>", html(u.effect), html(&u.becomes));
     }
-    h.push_str("</ul>\n<p>Files: <a href=\"roll.json\">roll.json</a>, <a href=\"roll_stations.parquet\">roll_stations.parquet</a>, <a href=\"roll_dwells.parquet\">roll_dwells.parquet</a>, <a href=\"report.md\">report.md</a>.</p>\n</body></html>\n");
+    h.push_str("</ul>\n");
+    h.push_str(&files_paragraph(&[
+        "roll.json",
+        "roll_stations.parquet",
+        "roll_dwells.parquet",
+        "report.md",
+    ]));
+    h.push_str("</body></html>\n");
     h
 }

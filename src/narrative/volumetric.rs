@@ -399,15 +399,16 @@ pub(crate) fn page(
     }
     h.push_str("</ul>\n<h2>What the model misses</h2>\n<table><tr><th>candidate</th><th>physics</th><th>ΔBIC</th><th>RMS after µm</th></tr>\n");
     for c in &s.diagnosis.candidates {
-        let _ = writeln!(
-            h,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            c.effect.name(),
-            html(c.effect.physics()),
-            num(c.delta_bic, 1),
-            num(c.rms_after_um, 4)
-        );
+        let (name, physics) = (c.effect.name(), c.effect.physics());
+        words::candidate_row(&mut h, name, physics, c.delta_bic, c.rms_after_um);
     }
-    h.push_str("</table>\n<p>Files: <a href=\"volumetric.json\">volumetric.json</a>, <a href=\"volumetric_grid.parquet\">volumetric_grid.parquet</a>, <a href=\"volumetric_functions.parquet\">volumetric_functions.parquet</a>, <a href=\"report.md\">report.md</a>.</p>\n</section></body></html>\n");
+    h.push_str("</table>\n");
+    h.push_str(&words::files_paragraph(&[
+        "volumetric.json",
+        "volumetric_grid.parquet",
+        "volumetric_functions.parquet",
+        "report.md",
+    ]));
+    h.push_str("</section></body></html>\n");
     h
 }

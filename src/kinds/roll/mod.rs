@@ -5,8 +5,6 @@
 
 mod figure;
 
-use std::path::{Path, PathBuf};
-
 use anyhow::{Context, Result};
 use serde::Deserialize;
 

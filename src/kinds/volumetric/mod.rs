@@ -5,8 +5,6 @@
 
 pub(crate) mod figures;
 
-use std::path::{Path, PathBuf};
-
 use anyhow::{Context, Result};
 use serde::Deserialize;
 
