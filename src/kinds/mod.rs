@@ -9,9 +9,13 @@ pub mod probe;
 pub mod roll;
 pub mod volumetric;
 
+mod plan;
+
 use std::path::{Path, PathBuf};
 
 use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind};
+
+use plan::PipelineText;
 
 use crate::pipeline::{PlanError, RunPlan, DEFAULT_CAMPAIGN_DIR};
 use crate::runner::Outcome;
@@ -70,71 +74,61 @@ pub fn plan_run(
         // The ballbar plan says what is wrong with a missing or unreadable manifest.
         Err(_) => CampaignKind::Ballbar,
     };
+    let pt = |kind| PipelineText {
+        path: pipeline,
+        text: &text,
+        kind,
+        campaign_dir: dir.clone(),
+        out_dir: out.clone(),
+        add_effects,
+    };
     match kind {
         // The ballbar plan takes `--add-effect` with the other model flags (`with_effects`).
         CampaignKind::Ballbar => Ok(KindPlan::Ballbar(Box::new(RunPlan::from_pipeline_file(
             pipeline,
-            Some(dir),
-            out,
+            Some(dir.clone()),
+            out.clone(),
             &[],
         )?))),
-        CampaignKind::Axis => axis::AxisPlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
-            .map(KindPlan::Axis)
-            .map_err(|e| match e {
-                // Say which kind the campaign is: a ballbar pipeline on it fails on its keys.
-                PlanError::Pipeline { path, message } => PlanError::Pipeline {
-                    path,
-                    message: format!(
-                        "{} is an axis campaign (run it with pipelines/axis.toml): {message}",
-                        dir.display()
-                    ),
-                },
-                other => other,
-            }),
-        CampaignKind::Probe => probe::ProbePlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
-            .map(KindPlan::Probe)
-            .map_err(|e| match e {
-                PlanError::Pipeline { path, message } => PlanError::Pipeline {
-                    path,
-                    message: format!(
-                        "{} is a probe campaign (run it with pipelines/probe.toml): {message}",
-                        dir.display()
-                    ),
-                },
-                other => other,
-            }),
-        CampaignKind::Roll => roll::RollPlan::from_pipeline_text(pipeline, &text, dir.clone(), out, add_effects)
-            .map(KindPlan::Roll)
-            .map_err(|e| match e {
-                PlanError::Pipeline { path, message } => PlanError::Pipeline {
-                    path,
-                    message: format!(
-                        "{} is a roll campaign (run it with pipelines/roll.toml): {message}",
-                        dir.display()
-                    ),
-                },
-                other => other,
-            }),
-        CampaignKind::Volumetric => volumetric::VolumetricPlan::from_pipeline_text(
-            pipeline,
-            &text,
-            dir.clone(),
-            out,
-            add_effects,
-        )
-        .map(KindPlan::Volumetric)
-        .map_err(|e| match e {
-            // A volumetric pipeline's own mistakes need no pointer to the right pipeline.
-            PlanError::Pipeline { path, message } if !names_stage(&text, "volumetric") => PlanError::Pipeline {
-                path,
-                message: format!(
-                    "{} is a volumetric campaign (run it with pipelines/volumetric.toml): {message}",
-                    dir.display()
-                ),
-            },
-            other => other,
-        }),
+        // Say which kind the campaign is: a ballbar pipeline on it fails on its keys.
+        CampaignKind::Axis => plan_kind(
+            &pt(axis::KIND),
+            axis::AxisPlan::from_pipeline,
+            KindPlan::Axis,
+        ),
+        CampaignKind::Probe => plan_kind(
+            &pt(probe::KIND),
+            probe::ProbePlan::from_pipeline,
+            KindPlan::Probe,
+        ),
+        CampaignKind::Roll => plan_kind(
+            &pt(roll::KIND),
+            roll::RollPlan::from_pipeline,
+            KindPlan::Roll,
+        ),
+        // A volumetric pipeline's own mistakes need no pointer to the right pipeline.
+        CampaignKind::Volumetric if names_stage(&text, "volumetric") => {
+            volumetric::VolumetricPlan::from_pipeline(&pt(volumetric::KIND))
+                .map(KindPlan::Volumetric)
+        }
+        CampaignKind::Volumetric => plan_kind(
+            &pt(volumetric::KIND),
+            volumetric::VolumetricPlan::from_pipeline,
+            KindPlan::Volumetric,
+        ),
     }
+}
+
+/// A machine kind's plan of `pt` as a [`KindPlan`], its pipeline errors saying which pipeline
+/// runs the campaign.
+fn plan_kind<P>(
+    pt: &PipelineText,
+    from_pipeline: fn(&PipelineText) -> Result<P, PlanError>,
+    wrap: fn(P) -> KindPlan,
+) -> Result<KindPlan, PlanError> {
+    from_pipeline(pt)
+        .map(wrap)
+        .map_err(|e| pt.kind.pointed(&pt.campaign_dir, e))
 }
 
 /// Whether the pipeline text's `[pipeline] stages` is `[stage]`.

@@ -3,7 +3,7 @@
 //! (`probe.json`, `probe_directions.parquet`, `probe_touches.parquet`, `report.md`,
 //! `index.html`, `figures/probe-polar-*.png`), and the polar figure's spec.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context, Result};
 use serde::Deserialize;
@@ -11,9 +11,19 @@ use serde::Deserialize;
 use dbbcal_machine::probe::{self, Lobing, ProbeEffect, ProbeStudy, ProbeStudyOptions, SetupStudy};
 
 use crate::output::probe::{directions_table, touches_table, ProbeRecord};
-use crate::output::{Marker, OutputTarget, WriteFailure};
 use crate::pipeline::PlanError;
-use crate::runner::{Outcome, RunStatus};
+use crate::runner::Outcome;
+
+use super::plan::{
+    kind_effect, marker, write_json, write_output, Kind, PipelineFile, PipelineSection,
+    PipelineText, PlanBase,
+};
+
+/// The `probe` kind's name in files and messages.
+pub(crate) const KIND: Kind = Kind {
+    stage: "probe",
+    a_campaign: "a probe campaign",
+};
 
 /// A pipeline file for a `probe` campaign.
 #[derive(Debug, Deserialize)]
@@ -24,16 +34,13 @@ struct ProbePipelineFile {
     probe: ProbeSection,
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PipelineSection {
-    name: String,
-    /// `["probe"]`: the only stage of this kind.
-    stages: Vec<String>,
-    #[serde(default)]
-    #[allow(dead_code)] // read by `kinds::campaign_dir` from the text
-    campaign: Option<PathBuf>,
+impl PipelineFile for ProbePipelineFile {
+    fn pipeline(&self) -> &PipelineSection {
+        &self.pipeline
+    }
 }
+
+kind_effect!(ProbeEffect);
 
 /// `[probe]`.
 #[derive(Debug, Deserialize)]
@@ -85,8 +92,6 @@ pub(crate) mod limits {
     use dbbcal_core::limits::{CountLimit, Limit};
     /// `[probe] forward_steps`.
     pub(crate) const FORWARD_STEPS: CountLimit = CountLimit::new(0, 5);
-    /// `[probe] min_bic_gain`.
-    pub(crate) const MIN_BIC_GAIN: Limit = Limit::closed(0.0, 1e6, "");
     /// `[probe] mpe_um`.
     pub(crate) const MPE_UM: Limit = Limit::above(0.0, 1_000.0, "µm");
 }
@@ -94,77 +99,30 @@ pub(crate) mod limits {
 /// A validated `probe` run.
 #[derive(Debug, Clone)]
 pub struct ProbePlan {
-    pipeline_name: String,
-    pipeline_path: PathBuf,
-    pipeline_sha256: String,
-    campaign_dir: PathBuf,
-    out_dir: Option<PathBuf>,
+    base: PlanBase,
     pub(crate) options: ProbeStudyOptions,
 }
 
 impl ProbePlan {
-    /// Validate the pipeline `text` (of file `path`) for the `probe` campaign in `campaign_dir`.
-    pub(crate) fn from_pipeline_text(
-        path: &Path,
-        text: &str,
-        campaign_dir: PathBuf,
-        out_dir: Option<PathBuf>,
-        add_effects: &[String],
-    ) -> Result<ProbePlan, PlanError> {
-        let perr = |message: String| PlanError::Pipeline {
-            path: path.display().to_string(),
-            message,
-        };
-        let file: ProbePipelineFile =
-            toml::from_str(text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
-        if file.pipeline.stages != ["probe"] {
-            return Err(perr(format!(
-                "pipeline.stages = {:?}: a probe campaign has one stage, [\"probe\"]",
-                file.pipeline.stages
-            )));
-        }
+    /// Validate the pipeline file `pt` for its campaign (`pt.kind` is [`KIND`]).
+    pub(crate) fn from_pipeline(pt: &PipelineText) -> Result<ProbePlan, PlanError> {
+        let file: ProbePipelineFile = pt.parse()?;
         let p = &file.probe;
-        limits::FORWARD_STEPS
-            .check("probe.forward_steps", p.forward_steps)
-            .map_err(|e| perr(e.to_string()))?;
-        limits::MIN_BIC_GAIN
-            .check("probe.min_bic_gain", p.min_bic_gain)
-            .map_err(|e| perr(e.to_string()))?;
+        pt.check_selection(limits::FORWARD_STEPS, p.forward_steps, p.min_bic_gain)?;
         if let Some(m) = p.mpe_um {
             limits::MPE_UM
                 .check("probe.mpe_um", m)
-                .map_err(|e| perr(e.to_string()))?;
+                .map_err(|e| pt.range(e))?;
         }
         let lobing = Lobing::parse(&p.lobing).ok_or_else(|| {
-            perr(format!(
+            pt.error(format!(
                 "probe.lobing = {:?}: physical | harmonic",
                 p.lobing
             ))
         })?;
-        let mut effects = Vec::new();
-        let named = p
-            .effects
-            .iter()
-            .enumerate()
-            .map(|(i, n)| (n, format!("probe.effects[{i}]")))
-            .chain(add_effects.iter().map(|n| (n, "--add-effect".to_string())));
-        for (name, key) in named {
-            let e = ProbeEffect::parse(name).ok_or_else(|| {
-                perr(format!(
-                    "{key}: {name:?} is not an effect of a probe campaign (known: {})",
-                    ProbeEffect::ALL.map(|e| e.name()).join(", ")
-                ))
-            })?;
-            if !effects.contains(&e) {
-                effects.push(e);
-            }
-        }
+        let effects = pt.effects(&p.effects)?;
         Ok(ProbePlan {
-            pipeline_name: file.pipeline.name,
-            pipeline_path: path.to_path_buf(),
-            pipeline_sha256: crate::pipeline::sha256_hex(text.as_bytes()),
-            campaign_dir,
-            out_dir,
+            base: pt.base(&file.pipeline),
             options: ProbeStudyOptions {
                 effects,
                 lobing,
@@ -177,19 +135,7 @@ impl ProbePlan {
 
     /// The command that adds `effect` to this run (same campaign, same output).
     pub(crate) fn next_command(&self, effect: ProbeEffect) -> String {
-        let mut cmd = format!(
-            "dbbcal run {} --campaign {}",
-            self.pipeline_path.display(),
-            self.campaign_dir.display()
-        );
-        if let Some(o) = &self.out_dir {
-            cmd.push_str(&format!(" --out {}", o.display()));
-        }
-        for e in &self.options.effects {
-            cmd.push_str(&format!(" --add-effect {}", e.name()));
-        }
-        cmd.push_str(&format!(" --add-effect {}", effect.name()));
-        cmd
+        self.base.next_command(&self.options.effects, effect)
     }
 }
 
@@ -267,63 +213,32 @@ fn write_png(path: &Path, spec: &crate::report::PolarFigure) -> Result<()> {
 
 /// Claim the output, read and analyse the campaign, write the output folder.
 pub(crate) fn run(plan: &ProbePlan) -> Result<Outcome> {
-    let out = match &plan.out_dir {
-        Some(o) => o.clone(),
-        None => {
-            let c = crate::io::read_probe_manifest(&plan.campaign_dir)?;
-            PathBuf::from("reports").join(c.id)
-        }
-    };
-    let target = OutputTarget::claim(&out, &plan.campaign_dir)?;
-    let logs = crate::pipeline::timed("ingest", || {
-        crate::io::read_probe_campaign(&plan.campaign_dir)
-    })?;
+    let (out, target) = plan
+        .base
+        .claim_output(|dir| Ok(crate::io::read_probe_manifest(dir)?.id))?;
+    let dir = &plan.base.campaign_dir;
+    let logs = crate::pipeline::timed("ingest", || crate::io::read_probe_campaign(dir))?;
     let study: ProbeStudy = crate::pipeline::timed("probe", || probe::study(&logs, &plan.options))
-        .with_context(|| format!("analysing {}", plan.campaign_dir.display()))?;
+        .with_context(|| format!("analysing {}", dir.display()))?;
     let id = &logs.campaign.id;
-    let pipeline = (plan.pipeline_name.as_str(), plan.pipeline_sha256.as_str());
+    let pipeline = plan.base.pipeline();
     let record = ProbeRecord::new(id, pipeline, &logs.inputs, &study, &plan.options);
-    let marker = Marker::new(
-        id,
-        serde_json::json!(["probe"]),
-        serde_json::to_value(
-            plan.options
-                .effects
-                .iter()
-                .map(|e| e.name())
-                .collect::<Vec<_>>(),
-        )?,
-        serde_json::to_value(&logs.inputs)?,
-    );
+    let marker = marker(id, KIND, &plan.options.effects, &logs.inputs)?;
     let lines = crate::narrative::probe::headline(id, &study, plan);
-    target
-        .write(&marker, |tmp| -> Result<()> {
-            let mut json = serde_json::to_string_pretty(&record)?;
-            json.push('\n');
-            crate::output::write_file(&tmp.join("probe.json"), json.as_bytes())?;
-            crate::io::write_table(
-                &tmp.join("probe_directions.parquet"),
-                &directions_table(&study),
-            )?;
-            crate::io::write_table(&tmp.join("probe_touches.parquet"), &touches_table(&study))?;
-            for s in &study.setups {
-                write_png(&tmp.join(polar_file(s)), &polar_figure(id, s))?;
-            }
-            let md = crate::narrative::probe::report_md(id, &study);
-            crate::output::write_file(&tmp.join("report.md"), md.as_bytes())?;
-            let page = crate::narrative::probe::page(id, &study, &lines);
-            crate::output::write_file(&tmp.join("index.html"), page.as_bytes())?;
-            Ok(())
-        })
-        .map_err(|e| match e {
-            WriteFailure::Build(e) => e,
-            WriteFailure::Output(e) => anyhow::Error::from(e),
-        })
-        .with_context(|| format!("writing {}", out.display()))?;
-    Ok(Outcome {
-        status: RunStatus::AllBars,
-        out: Some(out),
-        headline: None,
-        lines,
+    write_output(target, &marker, out, lines, |tmp, lines| {
+        write_json(&tmp.join("probe.json"), &record)?;
+        crate::io::write_table(
+            &tmp.join("probe_directions.parquet"),
+            &directions_table(&study),
+        )?;
+        crate::io::write_table(&tmp.join("probe_touches.parquet"), &touches_table(&study))?;
+        for s in &study.setups {
+            write_png(&tmp.join(polar_file(s)), &polar_figure(id, s))?;
+        }
+        let md = crate::narrative::probe::report_md(id, &study);
+        crate::output::write_file(&tmp.join("report.md"), md.as_bytes())?;
+        let page = crate::narrative::probe::page(id, &study, lines);
+        crate::output::write_file(&tmp.join("index.html"), page.as_bytes())?;
+        Ok(())
     })
 }

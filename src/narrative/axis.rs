@@ -4,25 +4,10 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::axis_study::AxisStudy;
 
+use super::words::{candidate_row, files_paragraph, html, num};
 use crate::figures::FigureFile;
 use crate::kinds::axis::AxisPlan;
 use crate::output::axis_tables::TableRecord;
-use crate::output::escape;
-
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
-fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 /// The terminal's lines (label, text): what was measured, the ISO 230-2 figures, the verdict
 /// and the command that adds the proposed effect.
@@ -317,19 +302,19 @@ pub(crate) fn page(
     }
     h.push_str("</table>\n<h2>What the model misses</h2>\n<table><tr><th>candidate</th><th>physics</th><th>ΔBIC</th><th>RMS along µm</th></tr>\n");
     for c in &s.diagnosis.candidates {
-        let _ = writeln!(
-            h,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            c.effect.name(),
-            html(c.effect.physics()),
-            num(c.delta_bic, 1),
-            num(c.rms_um[0], 4)
-        );
+        let (name, physics) = (c.effect.name(), c.effect.physics());
+        candidate_row(&mut h, name, physics, c.delta_bic, c.rms_um[0]);
     }
     h.push_str("</table>\n<p>Not identifiable from these readings:</p><ul>\n");
     for u in &s.diagnosis.unseen {
         let _ = writeln!(h, "<li>{}: {}</li>", html(u.effect), html(u.becomes));
     }
-    h.push_str("</ul>\n<p>Files: <a href=\"axis.json\">axis.json</a>, <a href=\"axis_errors.parquet\">axis_errors.parquet</a>, <a href=\"report.md\">report.md</a>.</p>\n</body></html>\n");
+    h.push_str("</ul>\n");
+    h.push_str(&files_paragraph(&[
+        "axis.json",
+        "axis_errors.parquet",
+        "report.md",
+    ]));
+    h.push_str("</body></html>\n");
     h
 }

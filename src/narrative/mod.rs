@@ -12,6 +12,7 @@ pub(crate) mod page;
 pub(crate) mod probe;
 pub(crate) mod roll;
 pub(crate) mod volumetric;
+mod words;
 
 use crate::model::Effect;
 use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};

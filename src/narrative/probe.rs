@@ -4,23 +4,8 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::probe::{ProbeStudy, SetupStudy};
 
+use super::words::{candidate_row, files_paragraph, html, num};
 use crate::kinds::probe::{polar_file, ProbePlan};
-use crate::output::escape;
-
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
-fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 fn lobing_line(s: &SetupStudy) -> String {
     let l = &s.lobing;
@@ -393,17 +378,17 @@ pub(crate) fn page(campaign: &str, study: &ProbeStudy, lines: &[(&'static str, S
         }
         h.push_str("</table>\n<h3>What the model misses</h3><table><tr><th>candidate</th><th>physics</th><th>ΔBIC</th><th>RMS touch 1 µm</th></tr>\n");
         for c in &s.diagnosis.candidates {
-            let _ = writeln!(
-                h,
-                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-                c.effect.name(),
-                html(c.effect.physics()),
-                num(c.delta_bic, 1),
-                num(c.rms_um[0], 4)
-            );
+            let (name, physics) = (c.effect.name(), c.effect.physics());
+            candidate_row(&mut h, name, physics, c.delta_bic, c.rms_um[0]);
         }
         h.push_str("</table></section>\n");
     }
-    h.push_str("<p>Files: <a href=\"probe.json\">probe.json</a>, <a href=\"probe_directions.parquet\">probe_directions.parquet</a>, <a href=\"probe_touches.parquet\">probe_touches.parquet</a>, <a href=\"report.md\">report.md</a>.</p>\n</body></html>\n");
+    h.push_str(&files_paragraph(&[
+        "probe.json",
+        "probe_directions.parquet",
+        "probe_touches.parquet",
+        "report.md",
+    ]));
+    h.push_str("</body></html>\n");
     h
 }

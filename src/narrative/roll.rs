@@ -4,23 +4,8 @@ use std::fmt::Write as _;
 
 use dbbcal_machine::roll::{RollStudy, PROBE_NAMES};
 
+use super::words::{files_paragraph, html, num};
 use crate::kinds::roll::RollPlan;
-use crate::output::escape;
-
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
-fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-}
 
 /// The terminal's lines (label, text): the roll over the travel, the warning when it is
 /// implausible, the verdict and the command that adds the named effect.
@@ -299,6 +284,13 @@ pub(crate) fn page(
     for u in &s.diagnosis.unseen {
         let _ = writeln!(h, "<li>{}: {}</li>", html(u.effect), html(&u.becomes));
     }
-    h.push_str("</ul>\n<p>Files: <a href=\"roll.json\">roll.json</a>, <a href=\"roll_stations.parquet\">roll_stations.parquet</a>, <a href=\"roll_dwells.parquet\">roll_dwells.parquet</a>, <a href=\"report.md\">report.md</a>.</p>\n</body></html>\n");
+    h.push_str("</ul>\n");
+    h.push_str(&files_paragraph(&[
+        "roll.json",
+        "roll_stations.parquet",
+        "roll_dwells.parquet",
+        "report.md",
+    ]));
+    h.push_str("</body></html>\n");
     h
 }

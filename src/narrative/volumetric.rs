@@ -6,24 +6,13 @@ use std::fmt::Write as _;
 use dbbcal_machine::volumetric::solve::Quantity;
 use dbbcal_machine::volumetric::study::VolumetricStudy;
 
+use super::words::{self, num};
 use crate::kinds::volumetric::VolumetricPlan;
-use crate::output::escape;
 use crate::output::volumetric::{ControllerTables, DecisionRecord};
 
-fn num(v: f64, decimals: usize) -> String {
-    if v.is_finite() {
-        format!("{v:.decimals$}")
-    } else {
-        "—".to_string()
-    }
-}
-
+/// `text` safe inside an HTML element or attribute.
 fn html(text: &str) -> String {
-    escape(text)
-        .replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+    words::html(text).replace('"', "&quot;")
 }
 
 fn q(q: &Quantity) -> String {
@@ -410,15 +399,16 @@ pub(crate) fn page(
     }
     h.push_str("</ul>\n<h2>What the model misses</h2>\n<table><tr><th>candidate</th><th>physics</th><th>ΔBIC</th><th>RMS after µm</th></tr>\n");
     for c in &s.diagnosis.candidates {
-        let _ = writeln!(
-            h,
-            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
-            c.effect.name(),
-            html(c.effect.physics()),
-            num(c.delta_bic, 1),
-            num(c.rms_after_um, 4)
-        );
+        let (name, physics) = (c.effect.name(), c.effect.physics());
+        words::candidate_row(&mut h, name, physics, c.delta_bic, c.rms_after_um);
     }
-    h.push_str("</table>\n<p>Files: <a href=\"volumetric.json\">volumetric.json</a>, <a href=\"volumetric_grid.parquet\">volumetric_grid.parquet</a>, <a href=\"volumetric_functions.parquet\">volumetric_functions.parquet</a>, <a href=\"report.md\">report.md</a>.</p>\n</section></body></html>\n");
+    h.push_str("</table>\n");
+    h.push_str(&words::files_paragraph(&[
+        "volumetric.json",
+        "volumetric_grid.parquet",
+        "volumetric_functions.parquet",
+        "report.md",
+    ]));
+    h.push_str("</section></body></html>\n");
     h
 }

@@ -5,6 +5,8 @@ use serde::Serialize;
 
 use crate::io::{Column, Table};
 use dbbcal_core::series::InputFile;
+
+use super::kind_record::KindRecordHead;
 use dbbcal_machine::axis_study::AxisStudy;
 
 use super::axis_tables::TableRecord;
@@ -17,12 +19,8 @@ fn finite(v: f64) -> Option<f64> {
 /// `axis.json`.
 #[derive(Debug, Serialize)]
 pub(crate) struct AxisRecord {
-    dbbcal_version: &'static str,
-    kind: &'static str,
-    campaign: String,
-    pipeline: String,
-    pipeline_sha256: String,
-    inputs: Vec<InputFile>,
+    #[serde(flatten)]
+    head: KindRecordHead,
     axis: String,
     /// ISO 230-1 names, δx … εz; δ in µm, ε in µrad; error = measured − commanded.
     names: Vec<String>,
@@ -175,12 +173,7 @@ impl AxisRecord {
     ) -> AxisRecord {
         let d = &study.diagnosis;
         AxisRecord {
-            dbbcal_version: env!("CARGO_PKG_VERSION"),
-            kind: "axis",
-            campaign: campaign.to_string(),
-            pipeline: pipeline.0.to_string(),
-            pipeline_sha256: pipeline.1.to_string(),
-            inputs: inputs.to_vec(),
+            head: KindRecordHead::new("axis", campaign, pipeline, inputs),
             axis: study.axis.letter().to_string(),
             names: study.names.to_vec(),
             datum: DatumRecord {

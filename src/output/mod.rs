@@ -36,6 +36,7 @@ pub mod controller;
 pub(crate) mod device_record;
 pub(crate) mod diagnosis;
 pub(crate) mod fault;
+pub(crate) mod kind_record;
 mod location;
 mod lock;
 pub(crate) mod probe;

@@ -8,6 +8,8 @@ use serde::Serialize;
 
 use crate::io::{Column, Table};
 use dbbcal_core::series::InputFile;
+
+use super::kind_record::KindRecordHead;
 use dbbcal_machine::probe::{ProbeStudy, ProbeStudyOptions, SetupStudy};
 
 /// A number or `null` (NaN: not determined).
@@ -18,12 +20,8 @@ fn finite(v: f64) -> Option<f64> {
 /// `probe.json`.
 #[derive(Debug, Serialize)]
 pub(crate) struct ProbeRecord {
-    dbbcal_version: &'static str,
-    kind: &'static str,
-    campaign: String,
-    pipeline: String,
-    pipeline_sha256: String,
-    inputs: Vec<InputFile>,
+    #[serde(flatten)]
+    head: KindRecordHead,
     touches: usize,
     mpe_um: Option<f64>,
     decision_rule: &'static str,
@@ -202,12 +200,7 @@ impl ProbeRecord {
         options: &ProbeStudyOptions,
     ) -> ProbeRecord {
         ProbeRecord {
-            dbbcal_version: env!("CARGO_PKG_VERSION"),
-            kind: "probe",
-            campaign: campaign.to_string(),
-            pipeline: pipeline.0.to_string(),
-            pipeline_sha256: pipeline.1.to_string(),
-            inputs: inputs.to_vec(),
+            head: KindRecordHead::new("probe", campaign, pipeline, inputs),
             touches: study.touches,
             mpe_um: options.mpe_um,
             decision_rule: dbbcal_core::acceptance::DECISION_RULE,

@@ -6,6 +6,8 @@ use serde::Serialize;
 
 use crate::io::{Column, Table};
 use dbbcal_core::series::InputFile;
+
+use super::kind_record::KindRecordHead;
 use dbbcal_machine::roll::RollStudy;
 
 /// A number or `null` (NaN: not determined).
@@ -16,12 +18,8 @@ fn finite(v: f64) -> Option<f64> {
 /// `roll.json`.
 #[derive(Debug, Serialize)]
 pub(crate) struct RollRecord {
-    dbbcal_version: &'static str,
-    kind: &'static str,
-    campaign: String,
-    pipeline: String,
-    pipeline_sha256: String,
-    inputs: Vec<InputFile>,
+    #[serde(flatten)]
+    head: KindRecordHead,
     /// εx in µrad, right-handed about R's +x (frame R of docs/spec/machine-formats.md), datum
     /// εx = 0 at station 0; the roll error of the axis = sign · εx.
     roll_error: String,
@@ -130,12 +128,7 @@ impl RollRecord {
     ) -> RollRecord {
         let d = &s.diagnosis;
         RollRecord {
-            dbbcal_version: env!("CARGO_PKG_VERSION"),
-            kind: "roll",
-            campaign: campaign.to_string(),
-            pipeline: pipeline.0.to_string(),
-            pipeline_sha256: pipeline.1.to_string(),
-            inputs: inputs.to_vec(),
+            head: KindRecordHead::new("roll", campaign, pipeline, inputs),
             roll_error: s.roll_error_name.clone(),
             roll_error_sign: s.roll_error_sign,
             samples: s.samples.0,

@@ -12,6 +12,8 @@ use crate::output::controller::{
 };
 use dbbcal_core::acceptance::{decide, Decision};
 use dbbcal_core::series::InputFile;
+
+use super::kind_record::KindRecordHead;
 use dbbcal_core::volumetric_campaign::{TableValues, VolumetricCampaign};
 use dbbcal_machine::volumetric::solve::Quantity;
 use dbbcal_machine::volumetric::study::{Figure, VolumetricStudy};
@@ -229,12 +231,8 @@ struct CandidateRecord {
 /// `volumetric.json`.
 #[derive(Debug, Serialize)]
 pub(crate) struct VolumetricRecord {
-    dbbcal_version: &'static str,
-    kind: &'static str,
-    campaign: String,
-    pipeline: String,
-    pipeline_sha256: String,
-    inputs: Vec<InputFile>,
+    #[serde(flatten)]
+    head: KindRecordHead,
     conventions: &'static str,
     readings: usize,
     model_effects: Vec<&'static str>,
@@ -293,12 +291,7 @@ impl VolumetricRecord {
             })
             .collect();
         VolumetricRecord {
-            dbbcal_version: env!("CARGO_PKG_VERSION"),
-            kind: "volumetric",
-            campaign: campaign.to_string(),
-            pipeline: pipeline.to_string(),
-            pipeline_sha256: sha.to_string(),
-            inputs: inputs.to_vec(),
+            head: KindRecordHead::new("volumetric", campaign, (pipeline, sha), inputs),
             conventions: "error = measured - commanded, µm (displacements), µrad (squareness, slopes = µm/m); the tool relative to the workpiece in the machine frame M; e = 0 at the workspace's min corner",
             readings: s.observations.len(),
             model_effects: s.fit.layout.effects.iter().map(|e| e.name()).collect(),

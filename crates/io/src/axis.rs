@@ -23,11 +23,12 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use super::guard::guarded;
-use super::inputs::{check_unchanged, hash_inputs, parquet_files, stamps};
+use super::inputs::{check_unchanged, parquet_files};
+use super::kind_read::{kind_manifest_text, required_table, snapshot};
 use super::{one_line, IngestError};
 use dbbcal_core::axis_campaign::{
-    campaign_kind, derive_order, AxisCampaign, AxisCampaignLogs, AxisReading, CampaignKind,
-    Channel, EnvironmentRow, ExtraColumn, FixtureRow, ReadingKey,
+    derive_order, AxisCampaign, AxisCampaignLogs, AxisReading, CampaignKind, Channel,
+    EnvironmentRow, ExtraColumn, FixtureRow, ReadingKey,
 };
 use dbbcal_core::series::{reading_time_ok, Event, EventKind, SensorLog};
 
@@ -64,29 +65,22 @@ const MATERIAL_C: (f64, f64) = (-50.0, 150.0);
 pub fn read_axis_campaign(dir: &Path) -> Result<AxisCampaignLogs, IngestError> {
     let manifest = dir.join(MANIFEST);
     let campaign = read_axis_manifest(dir)?;
-    let readings_files = parquet_files(&dir.join(READINGS))?;
-    if readings_files.is_empty() {
-        return Err(IngestError::MissingTable {
-            folder: dir.join(READINGS),
-            table: READINGS,
-        });
-    }
+    let readings_files = required_table(dir, READINGS)?;
     let fixture_files = parquet_files(&dir.join(FIXTURE))?;
     let environment_files = parquet_files(&dir.join(ENVIRONMENT))?;
     let temperature_files = parquet_files(&dir.join(TEMPERATURES))?;
     let event_files = parquet_files(&dir.join(EVENTS))?;
-    let mut all = vec![manifest.clone()];
-    for files in [
-        &readings_files,
-        &fixture_files,
-        &environment_files,
-        &temperature_files,
-        &event_files,
-    ] {
-        all.extend(files.iter().cloned());
-    }
-    let before = stamps(&all)?;
-    let inputs = hash_inputs(dir, &all)?;
+    let (before, inputs) = snapshot(
+        dir,
+        &manifest,
+        &[
+            &readings_files,
+            &fixture_files,
+            &environment_files,
+            &temperature_files,
+            &event_files,
+        ],
+    )?;
 
     let Readings {
         readings,
@@ -114,15 +108,7 @@ pub fn read_axis_campaign(dir: &Path) -> Result<AxisCampaignLogs, IngestError> {
 
 /// Reads and validates the `campaign.toml` of an `axis` campaign; another kind is refused, named.
 pub fn read_axis_manifest(dir: &Path) -> Result<AxisCampaign, IngestError> {
-    let (path, text) = crate::read::read_manifest_text(dir)?;
-    let file = path.display().to_string();
-    let kind = campaign_kind(&text, &file)?;
-    if kind != CampaignKind::Axis {
-        return Err(IngestError::UnusableCampaign {
-            path,
-            problem: format!("is a {kind} campaign ([campaign] kind), not an axis campaign"),
-        });
-    }
+    let (file, text) = kind_manifest_text(dir, CampaignKind::Axis, "an axis campaign")?;
     Ok(AxisCampaign::from_toml_str(&text, &file)?)
 }
 

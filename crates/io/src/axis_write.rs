@@ -8,7 +8,7 @@ use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::one_line;
+use super::kind_write::{f64_column, polars_err, prepare, time_column, write_manifest};
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::axis_campaign::{AxisCampaignTables, AxisManifest, AxisReading};
 
@@ -52,18 +52,7 @@ pub fn write_axis_campaign(
     tables: &AxisCampaignTables,
     opts: &AxisWriteOptions,
 ) -> Result<(), WriteError> {
-    create_dir(dir)?;
-    let path = dir.join("campaign.toml");
-    let text = manifest
-        .to_toml_string()
-        .map_err(|e| WriteError::Manifest {
-            path: path.clone(),
-            message: one_line(e),
-        })?;
-    std::fs::write(&path, text).map_err(|e| WriteError::Io {
-        path: path.clone(),
-        message: e.to_string(),
-    })?;
+    write_manifest(dir, manifest.to_toml_string())?;
     let mut rng =
         rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(31).wrapping_add(7));
 
@@ -177,39 +166,4 @@ fn readings_frame(rows: &[&AxisReading], opts: &AxisWriteOptions) -> PolarsResul
         rows.iter().map(|r| r.deviation_um),
     ));
     DataFrame::new(rows.len(), columns)
-}
-
-pub(crate) fn time_column(ns: impl Iterator<Item = i64>, unit: TimeUnit) -> Column {
-    let (per, polars_unit) = match unit {
-        TimeUnit::Ns => (1, polars::prelude::TimeUnit::Nanoseconds),
-        TimeUnit::Us => (1_000, polars::prelude::TimeUnit::Microseconds),
-        TimeUnit::Ms => (1_000_000, polars::prelude::TimeUnit::Milliseconds),
-    };
-    Int64Chunked::from_vec("time".into(), ns.map(|t: i64| t.div_euclid(per)).collect())
-        .into_datetime(polars_unit, None)
-        .into_column()
-}
-
-pub(crate) fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> Column {
-    Float64Chunked::from_vec(name.into(), values.collect()).into_column()
-}
-
-pub(crate) fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
-    move |e| WriteError::Polars {
-        path: path.to_path_buf(),
-        message: one_line(e),
-    }
-}
-
-pub(crate) fn create_dir(dir: &Path) -> Result<(), WriteError> {
-    std::fs::create_dir_all(dir).map_err(|e| WriteError::Io {
-        path: dir.to_path_buf(),
-        message: e.to_string(),
-    })
-}
-
-/// Creates `folder` and removes its `*.parquet` files.
-pub(crate) fn prepare(folder: &Path) -> Result<(), WriteError> {
-    create_dir(folder)?;
-    crate::write::clear_parquet(folder)
 }

@@ -11,6 +11,8 @@ mod axis;
 mod axis_write;
 mod guard;
 mod inputs;
+mod kind_read;
+mod kind_write;
 mod probe;
 mod probe_write;
 mod read;

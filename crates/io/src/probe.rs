@@ -16,9 +16,10 @@
 use std::path::{Path, PathBuf};
 
 use super::axis::{check_rows, finite, required, Decoded};
-use super::inputs::{check_unchanged, hash_inputs, parquet_files, stamps};
+use super::inputs::check_unchanged;
+use super::kind_read::{kind_manifest_text, required_table, snapshot};
 use super::IngestError;
-use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind};
+use dbbcal_core::axis_campaign::CampaignKind;
 use dbbcal_core::probe_campaign::{
     approach_of, derive_directions, ProbeCampaign, ProbeCampaignLogs, ProbeTouch,
 };
@@ -29,17 +30,8 @@ const TOUCHES: &str = "touches";
 pub fn read_probe_campaign(dir: &Path) -> Result<ProbeCampaignLogs, IngestError> {
     let manifest = dir.join("campaign.toml");
     let campaign = read_probe_manifest(dir)?;
-    let files = parquet_files(&dir.join(TOUCHES))?;
-    if files.is_empty() {
-        return Err(IngestError::MissingTable {
-            folder: dir.join(TOUCHES),
-            table: TOUCHES,
-        });
-    }
-    let mut all = vec![manifest];
-    all.extend(files.iter().cloned());
-    let before = stamps(&all)?;
-    let inputs = hash_inputs(dir, &all)?;
+    let files = required_table(dir, TOUCHES)?;
+    let (before, inputs) = snapshot(dir, &manifest, &[&files])?;
     let mut touches = Vec::new();
     let mut origin = Vec::new();
     for (f, path) in files.iter().enumerate() {
@@ -59,15 +51,7 @@ pub fn read_probe_campaign(dir: &Path) -> Result<ProbeCampaignLogs, IngestError>
 
 /// Reads and validates the `campaign.toml` of a `probe` campaign; another kind is refused.
 pub fn read_probe_manifest(dir: &Path) -> Result<ProbeCampaign, IngestError> {
-    let (path, text) = crate::read::read_manifest_text(dir)?;
-    let file = path.display().to_string();
-    let kind = campaign_kind(&text, &file)?;
-    if kind != CampaignKind::Probe {
-        return Err(IngestError::UnusableCampaign {
-            path,
-            problem: format!("is a {kind} campaign ([campaign] kind), not a probe campaign"),
-        });
-    }
+    let (file, text) = kind_manifest_text(dir, CampaignKind::Probe, "a probe campaign")?;
     Ok(ProbeCampaign::from_toml_str(&text, &file)?)
 }
 

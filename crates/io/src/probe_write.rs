@@ -8,8 +8,7 @@ use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::axis_write::{create_dir, f64_column, polars_err, prepare, time_column};
-use super::one_line;
+use super::kind_write::{f64_column, polars_err, prepare, time_column, write_manifest};
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::probe_campaign::{ProbeCampaignTables, ProbeTouch};
 
@@ -47,19 +46,7 @@ pub fn write_probe_campaign(
     tables: &ProbeCampaignTables,
     opts: &ProbeWriteOptions,
 ) -> Result<(), WriteError> {
-    create_dir(dir)?;
-    let path = dir.join("campaign.toml");
-    let text = tables
-        .manifest
-        .to_toml_string()
-        .map_err(|e| WriteError::Manifest {
-            path: path.clone(),
-            message: one_line(e),
-        })?;
-    std::fs::write(&path, text).map_err(|e| WriteError::Io {
-        path: path.clone(),
-        message: e.to_string(),
-    })?;
+    write_manifest(dir, tables.manifest.to_toml_string())?;
     let mut rng =
         rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(37).wrapping_add(11));
     let folder = dir.join("touches");

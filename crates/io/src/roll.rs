@@ -16,9 +16,10 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use super::guard::guarded;
-use super::inputs::{check_unchanged, hash_inputs, parquet_files, stamps};
+use super::inputs::{check_unchanged, parquet_files};
+use super::kind_read::{kind_manifest_text, required_table, snapshot};
 use super::{one_line, IngestError};
-use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind};
+use dbbcal_core::axis_campaign::CampaignKind;
 use dbbcal_core::roll_campaign::{LevelRow, ProbeSample, RollCampaign, RollCampaignLogs};
 use dbbcal_core::series::reading_time_ok;
 
@@ -31,19 +32,9 @@ const READINGS: [&str; 4] = ["m_a", "m_b", "m_c", "m_d"];
 pub fn read_roll_campaign(dir: &Path) -> Result<RollCampaignLogs, IngestError> {
     let manifest = dir.join("campaign.toml");
     let campaign = read_roll_manifest(dir)?;
-    let probe_files = parquet_files(&dir.join(PROBES))?;
-    if probe_files.is_empty() {
-        return Err(IngestError::MissingTable {
-            folder: dir.join(PROBES),
-            table: PROBES,
-        });
-    }
+    let probe_files = required_table(dir, PROBES)?;
     let level_files = parquet_files(&dir.join(LEVELS))?;
-    let mut all = vec![manifest];
-    all.extend(probe_files.iter().cloned());
-    all.extend(level_files.iter().cloned());
-    let before = stamps(&all)?;
-    let inputs = hash_inputs(dir, &all)?;
+    let (before, inputs) = snapshot(dir, &manifest, &[&probe_files, &level_files])?;
     let mut samples = Vec::new();
     let (mut has_station, mut has_pass) = (false, false);
     for (f, path) in probe_files.iter().enumerate() {
@@ -99,15 +90,7 @@ pub fn read_roll_campaign(dir: &Path) -> Result<RollCampaignLogs, IngestError> {
 
 /// Reads and validates the `campaign.toml` of a `roll` campaign; another kind is refused, named.
 pub fn read_roll_manifest(dir: &Path) -> Result<RollCampaign, IngestError> {
-    let (path, text) = crate::read::read_manifest_text(dir)?;
-    let file = path.display().to_string();
-    let kind = campaign_kind(&text, &file)?;
-    if kind != CampaignKind::Roll {
-        return Err(IngestError::UnusableCampaign {
-            path,
-            problem: format!("is a {kind} campaign ([campaign] kind), not a roll campaign"),
-        });
-    }
+    let (file, text) = kind_manifest_text(dir, CampaignKind::Roll, "a roll campaign")?;
     Ok(RollCampaign::from_toml_str(&text, &file)?)
 }
 

@@ -9,9 +9,10 @@
 use std::path::{Path, PathBuf};
 
 use super::axis::{check_rows, finite, read_environment, read_events, required, Decoded};
-use super::inputs::{check_unchanged, hash_inputs, parquet_files, stamps};
+use super::inputs::{check_unchanged, parquet_files};
+use super::kind_read::{kind_manifest_text, snapshot};
 use super::IngestError;
-use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind, MachineAxis};
+use dbbcal_core::axis_campaign::{CampaignKind, MachineAxis};
 use dbbcal_core::volumetric_campaign::{
     logs::diagonal_of_index, order_diagonal_readings, order_step_readings, DiagonalReading,
     DiagonalSign, StepReading, VolumetricCampaign, VolumetricCampaignLogs,
@@ -24,15 +25,7 @@ const EVENTS: &str = "events";
 
 /// Reads and validates the `campaign.toml` of a `volumetric` campaign.
 pub fn read_volumetric_manifest(dir: &Path) -> Result<VolumetricCampaign, IngestError> {
-    let (path, text) = crate::read::read_manifest_text(dir)?;
-    let file = path.display().to_string();
-    let kind = campaign_kind(&text, &file)?;
-    if kind != CampaignKind::Volumetric {
-        return Err(IngestError::UnusableCampaign {
-            path,
-            problem: format!("is a {kind} campaign ([campaign] kind), not a volumetric campaign"),
-        });
-    }
+    let (file, text) = kind_manifest_text(dir, CampaignKind::Volumetric, "a volumetric campaign")?;
     Ok(VolumetricCampaign::from_toml_str(&text, &file)?)
 }
 
@@ -50,17 +43,16 @@ pub fn read_volumetric_campaign(dir: &Path) -> Result<VolumetricCampaignLogs, In
     }
     let environment_files = parquet_files(&dir.join(ENVIRONMENT))?;
     let event_files = parquet_files(&dir.join(EVENTS))?;
-    let mut all = vec![manifest.clone()];
-    for files in [
-        &diagonal_files,
-        &step_files,
-        &environment_files,
-        &event_files,
-    ] {
-        all.extend(files.iter().cloned());
-    }
-    let before = stamps(&all)?;
-    let inputs = hash_inputs(dir, &all)?;
+    let (before, inputs) = snapshot(
+        dir,
+        &manifest,
+        &[
+            &diagonal_files,
+            &step_files,
+            &environment_files,
+            &event_files,
+        ],
+    )?;
     let diagonals = read_diagonals(&diagonal_files, &campaign)?;
     let steps = read_steps(&step_files)?;
     let file = manifest.display().to_string();

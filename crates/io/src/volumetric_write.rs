@@ -7,8 +7,8 @@ use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::one_line;
-use super::write::{write_parquet, WriteError};
+use super::kind_write::{f64_column, polars_err, prepare, time_column, write_manifest};
+use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::volumetric_campaign::{VolumetricCampaignTables, VolumetricManifest};
 
 /// How [`write_volumetric_campaign`] lays out the tables.
@@ -24,23 +24,6 @@ pub struct VolumetricWriteOptions {
     pub seed: u64,
 }
 
-fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
-    move |e| WriteError::Polars {
-        path: path.to_path_buf(),
-        message: one_line(e),
-    }
-}
-
-fn time_column(ns: impl Iterator<Item = i64>) -> Column {
-    Int64Chunked::from_vec("time".into(), ns.collect())
-        .into_datetime(polars::prelude::TimeUnit::Nanoseconds, None)
-        .into_column()
-}
-
-fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> Column {
-    Float64Chunked::from_vec(name.into(), values.collect()).into_column()
-}
-
 /// Writes `campaign.toml`, `diagonals/`, `steps/` and `environment/` under `dir`.
 pub fn write_volumetric_campaign(
     dir: &Path,
@@ -48,21 +31,7 @@ pub fn write_volumetric_campaign(
     tables: &VolumetricCampaignTables,
     opts: &VolumetricWriteOptions,
 ) -> Result<(), WriteError> {
-    std::fs::create_dir_all(dir).map_err(|e| WriteError::Io {
-        path: dir.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    let path = dir.join("campaign.toml");
-    let text = manifest
-        .to_toml_string()
-        .map_err(|e| WriteError::Manifest {
-            path: path.clone(),
-            message: one_line(e),
-        })?;
-    std::fs::write(&path, text).map_err(|e| WriteError::Io {
-        path: path.clone(),
-        message: e.to_string(),
-    })?;
+    write_manifest(dir, manifest.to_toml_string())?;
     let mut rng =
         rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(17).wrapping_add(3));
     let groups = |n: usize, key: &dyn Fn(usize) -> &'static str| -> Vec<(String, Vec<usize>)> {
@@ -95,7 +64,7 @@ pub fn write_volumetric_campaign(
             let path = folder.join(format!("diagonals-{name}.parquet"));
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let mut columns = vec![
-                time_column(r.iter().map(|x| x.time_ns)),
+                time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
                 Column::new(
                     "diagonal".into(),
                     r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
@@ -129,7 +98,7 @@ pub fn write_volumetric_campaign(
             let path = folder.join(format!("steps-{name}.parquet"));
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let columns = vec![
-                time_column(r.iter().map(|x| x.time_ns)),
+                time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
                 Column::new(
                     "diagonal".into(),
                     r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
@@ -159,7 +128,7 @@ pub fn write_volumetric_campaign(
         let rows = &tables.environment;
         let path = folder.join("environment.parquet");
         let columns = vec![
-            time_column(rows.iter().map(|r| r.time_ns)),
+            time_column(rows.iter().map(|r| r.time_ns), TimeUnit::Ns),
             f64_column("air_c", rows.iter().map(|r| r.air_c)),
             f64_column("pressure_hpa", rows.iter().map(|r| r.pressure_hpa)),
             f64_column("humidity_pct", rows.iter().map(|r| r.humidity_pct)),
@@ -173,12 +142,4 @@ pub fn write_volumetric_campaign(
         write_parquet(&path, &mut df)?;
     }
     Ok(())
-}
-
-fn prepare(folder: &Path) -> Result<(), WriteError> {
-    std::fs::create_dir_all(folder).map_err(|e| WriteError::Io {
-        path: folder.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    crate::write::clear_parquet(folder)
 }

@@ -5,8 +5,6 @@
 
 pub(crate) mod figures;
 
-use std::path::{Path, PathBuf};
-
 use anyhow::{Context, Result};
 use serde::Deserialize;
 
@@ -14,27 +12,36 @@ use dbbcal_machine::volumetric::model::VolumetricEffect;
 use dbbcal_machine::volumetric::study::{self, VolumetricStudyOptions};
 
 use crate::output::volumetric::{self as out, VolumetricRecord};
-use crate::output::{Marker, OutputTarget, WriteFailure};
 use crate::pipeline::PlanError;
-use crate::runner::{Outcome, RunStatus};
+use crate::runner::Outcome;
 
+use super::plan::{
+    kind_effect, marker, write_json, write_output, Kind, PipelineFile, PipelineSection,
+    PipelineText, PlanBase,
+};
+
+/// The `volumetric` kind's name in files and messages.
+pub(crate) const KIND: Kind = Kind {
+    stage: "volumetric",
+    a_campaign: "a volumetric campaign",
+};
+
+/// A pipeline file for a `volumetric` campaign.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct PipelineFile {
+struct VolumetricPipelineFile {
     pipeline: PipelineSection,
     #[serde(default)]
     volumetric: Section,
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PipelineSection {
-    name: String,
-    stages: Vec<String>,
-    #[serde(default)]
-    #[allow(dead_code)] // read by `kinds::campaign_dir` from the text
-    campaign: Option<PathBuf>,
+impl PipelineFile for VolumetricPipelineFile {
+    fn pipeline(&self) -> &PipelineSection {
+        &self.pipeline
+    }
 }
+
+kind_effect!(VolumetricEffect);
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -92,11 +99,7 @@ pub(crate) struct Tolerances {
 /// A validated `volumetric` run.
 #[derive(Debug, Clone)]
 pub struct VolumetricPlan {
-    pipeline_name: String,
-    pipeline_path: PathBuf,
-    pipeline_sha256: String,
-    campaign_dir: PathBuf,
-    out_dir: Option<PathBuf>,
+    base: PlanBase,
     options: VolumetricStudyOptions,
     pub(crate) tolerances: Tolerances,
 }
@@ -104,38 +107,15 @@ pub struct VolumetricPlan {
 mod limits {
     use dbbcal_core::limits::{CountLimit, Limit};
     pub(super) const FORWARD_STEPS: CountLimit = CountLimit::new(0, 4);
-    pub(super) const MIN_BIC_GAIN: Limit = Limit::closed(0.0, 1e6, "");
     pub(super) const TOLERANCE: Limit = Limit::closed(0.0, 1e6, "");
 }
 
 impl VolumetricPlan {
-    /// Validate the pipeline `text` (of file `path`) for the campaign in `campaign_dir`.
-    pub(crate) fn from_pipeline_text(
-        path: &Path,
-        text: &str,
-        campaign_dir: PathBuf,
-        out_dir: Option<PathBuf>,
-        add_effects: &[String],
-    ) -> Result<VolumetricPlan, PlanError> {
-        let perr = |message: String| PlanError::Pipeline {
-            path: path.display().to_string(),
-            message,
-        };
-        let file: PipelineFile =
-            toml::from_str(text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
-        if file.pipeline.stages != ["volumetric"] {
-            return Err(perr(format!(
-                "pipeline.stages = {:?}: a volumetric campaign has one stage, [\"volumetric\"]",
-                file.pipeline.stages
-            )));
-        }
+    /// Validate the pipeline file `pt` for its campaign (`pt.kind` is [`KIND`]).
+    pub(crate) fn from_pipeline(pt: &PipelineText) -> Result<VolumetricPlan, PlanError> {
+        let file: VolumetricPipelineFile = pt.parse()?;
         let v = &file.volumetric;
-        limits::FORWARD_STEPS
-            .check("volumetric.forward_steps", v.forward_steps)
-            .map_err(|e| perr(e.to_string()))?;
-        limits::MIN_BIC_GAIN
-            .check("volumetric.min_bic_gain", v.min_bic_gain)
-            .map_err(|e| perr(e.to_string()))?;
+        pt.check_selection(limits::FORWARD_STEPS, v.forward_steps, v.min_bic_gain)?;
         let t = &v.tolerances;
         for (key, value) in [
             ("volumetric.tolerances.v_diag_um", t.v_diag_um),
@@ -145,35 +125,12 @@ impl VolumetricPlan {
             ("volumetric.tolerances.squareness_urad", t.squareness_urad),
         ] {
             if let Some(x) = value {
-                limits::TOLERANCE
-                    .check(key, x)
-                    .map_err(|e| perr(e.to_string()))?;
+                limits::TOLERANCE.check(key, x).map_err(|e| pt.range(e))?;
             }
         }
-        let mut effects = Vec::new();
-        let named = v
-            .effects
-            .iter()
-            .enumerate()
-            .map(|(i, n)| (n, format!("volumetric.effects[{i}]")))
-            .chain(add_effects.iter().map(|n| (n, "--add-effect".to_string())));
-        for (name, key) in named {
-            let e = VolumetricEffect::parse(name).ok_or_else(|| {
-                perr(format!(
-                    "{key}: {name:?} is not an effect of a volumetric campaign (known: {})",
-                    VolumetricEffect::ALL.map(|e| e.name()).join(", ")
-                ))
-            })?;
-            if !effects.contains(&e) {
-                effects.push(e);
-            }
-        }
+        let effects = pt.effects(&v.effects)?;
         Ok(VolumetricPlan {
-            pipeline_name: file.pipeline.name,
-            pipeline_path: path.to_path_buf(),
-            pipeline_sha256: crate::pipeline::sha256_hex(text.as_bytes()),
-            campaign_dir,
-            out_dir,
+            base: pt.base(&file.pipeline),
             options: VolumetricStudyOptions {
                 effects,
                 forward_steps: v.forward_steps,
@@ -185,90 +142,45 @@ impl VolumetricPlan {
 
     /// The command that adds `effect` to this run.
     pub(crate) fn next_command(&self, effect: VolumetricEffect) -> String {
-        let mut cmd = format!(
-            "dbbcal run {} --campaign {}",
-            self.pipeline_path.display(),
-            self.campaign_dir.display()
-        );
-        if let Some(o) = &self.out_dir {
-            cmd.push_str(&format!(" --out {}", o.display()));
-        }
-        for e in &self.options.effects {
-            cmd.push_str(&format!(" --add-effect {}", e.name()));
-        }
-        cmd.push_str(&format!(" --add-effect {}", effect.name()));
-        cmd
+        self.base.next_command(&self.options.effects, effect)
     }
 }
 
 /// Claim the output, read and analyse the campaign, write the output folder.
 pub(crate) fn run(plan: &VolumetricPlan) -> Result<Outcome> {
-    let out = match &plan.out_dir {
-        Some(o) => o.clone(),
-        None => {
-            let c = crate::io::read_volumetric_manifest(&plan.campaign_dir)?;
-            PathBuf::from("reports").join(c.id)
-        }
-    };
-    let target = OutputTarget::claim(&out, &plan.campaign_dir)?;
-    let logs = crate::pipeline::timed("ingest", || {
-        crate::io::read_volumetric_campaign(&plan.campaign_dir)
-    })?;
+    let (out, target) = plan
+        .base
+        .claim_output(|dir| Ok(crate::io::read_volumetric_manifest(dir)?.id))?;
+    let dir = &plan.base.campaign_dir;
+    let logs = crate::pipeline::timed("ingest", || crate::io::read_volumetric_campaign(dir))?;
     let study = crate::pipeline::timed("volumetric", || study::study(&logs, &plan.options))
-        .with_context(|| format!("analysing {}", plan.campaign_dir.display()))?;
+        .with_context(|| format!("analysing {}", dir.display()))?;
     let id = &logs.campaign.id;
-    let pipeline = (plan.pipeline_name.as_str(), plan.pipeline_sha256.as_str());
+    let pipeline = plan.base.pipeline();
     let decisions = out::decisions(&study, &plan.tolerances);
     let tables = out::controller_tables(&logs.campaign, &study)?;
     let record = VolumetricRecord::new(id, pipeline, &logs.inputs, &study, &decisions, &tables);
-    let marker = Marker::new(
-        id,
-        serde_json::json!(["volumetric"]),
-        serde_json::to_value(
-            plan.options
-                .effects
-                .iter()
-                .map(|e| e.name())
-                .collect::<Vec<_>>(),
-        )?,
-        serde_json::to_value(&logs.inputs)?,
-    );
+    let marker = marker(id, KIND, &plan.options.effects, &logs.inputs)?;
     let lines = crate::narrative::volumetric::headline(id, &study, &decisions, plan);
-    target
-        .write(&marker, |tmp| -> Result<()> {
-            let mut json = serde_json::to_string_pretty(&record)?;
-            json.push('\n');
-            crate::output::write_file(&tmp.join("volumetric.json"), json.as_bytes())?;
-            crate::io::write_table(
-                &tmp.join("volumetric_grid.parquet"),
-                &out::grid_table(&study),
-            )?;
-            crate::io::write_table(
-                &tmp.join("volumetric_functions.parquet"),
-                &out::functions_table(&study),
-            )?;
-            for (name, text) in &tables.files {
-                crate::output::write_file(&tmp.join(name), text.as_bytes())?;
-            }
-            let figures = figures::render(&study, &tmp.join("figures"))?;
-            let md =
-                crate::narrative::volumetric::report_md(id, &study, &decisions, &tables, &lines);
-            crate::output::write_file(&tmp.join("report.md"), md.as_bytes())?;
-            let page = crate::narrative::volumetric::page(
-                id, &study, &decisions, &tables, &lines, &figures,
-            );
-            crate::output::write_file(&tmp.join("index.html"), page.as_bytes())?;
-            Ok(())
-        })
-        .map_err(|e| match e {
-            WriteFailure::Build(e) => e,
-            WriteFailure::Output(e) => anyhow::Error::from(e),
-        })
-        .with_context(|| format!("writing {}", out.display()))?;
-    Ok(Outcome {
-        status: RunStatus::AllBars,
-        out: Some(out),
-        headline: None,
-        lines,
+    write_output(target, &marker, out, lines, |tmp, lines| {
+        write_json(&tmp.join("volumetric.json"), &record)?;
+        crate::io::write_table(
+            &tmp.join("volumetric_grid.parquet"),
+            &out::grid_table(&study),
+        )?;
+        crate::io::write_table(
+            &tmp.join("volumetric_functions.parquet"),
+            &out::functions_table(&study),
+        )?;
+        for (name, text) in &tables.files {
+            crate::output::write_file(&tmp.join(name), text.as_bytes())?;
+        }
+        let figures = figures::render(&study, &tmp.join("figures"))?;
+        let md = crate::narrative::volumetric::report_md(id, &study, &decisions, &tables, lines);
+        crate::output::write_file(&tmp.join("report.md"), md.as_bytes())?;
+        let page =
+            crate::narrative::volumetric::page(id, &study, &decisions, &tables, lines, &figures);
+        crate::output::write_file(&tmp.join("index.html"), page.as_bytes())?;
+        Ok(())
     })
 }
