@@ -31,9 +31,9 @@
 //! - Linear algebra on tall matrices: every solve and projected residual goes through one
 //!   column-scaled Householder QR of the basis, by blocks of rows (`projection::Factorised`),
 //!   applied without forming `Q`; the Jacobian's rank check takes the SVD of its `R` factor;
-//!   `JᵀJ` is a matrix product (`gram`). On the three-effect campaign of issue 26 (10 bars,
-//!   15 days, 10 s) these made the nightly run's refits about twice as fast as with varpro's
-//!   SVD at every evaluation, with the same ledger to 12 digits of ΔBIC.
+//!   `JᵀJ` is a matrix product (`gram`). Against varpro's SVD at every evaluation these took
+//!   20-36 % of the CPU off the nightly runs of 10-bar, 15-day, 10-s campaigns with a hidden
+//!   effect, with the same ledgers (ΔBIC equal to 12 digits; `bench/results-speed26b.md`).
 //! - The HAC covariance needs the residual autocorrelation only up to its first non-positive lag:
 //!   direct sums, O(n) a lag, the FFT only past 32 lags (`fit::initial_autocorrelation`).
 
