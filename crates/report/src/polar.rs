@@ -146,17 +146,23 @@ fn draw(spec: &PolarFigure, root: &Area<'_>) -> Result<(), DrawError> {
             style::text(style::LEGEND_PX, style::TEXT, (HPos::Left, VPos::Center)),
         ))?;
     }
+    // The note in two lines: in one it ran past the figure's right edge.
     let note_y = 30 + spec.series.len() as i32 * 34 + 20;
-    body.draw(&Text::new(
+    let note = [
+        format!("radius: {}", spec.value_desc),
         format!(
-            "radius: {} from {} (inner ring) to {}",
-            spec.value_desc,
+            "from {} (inner ring) to {}",
             format_significant(scale.lo),
             format_significant(scale.hi)
         ),
-        (cx + outer + 90, note_y),
-        style::text(style::NOTE_PX, style::MUTED, (HPos::Left, VPos::Top)),
-    ))?;
+    ];
+    for (k, line) in note.into_iter().enumerate() {
+        body.draw(&Text::new(
+            line,
+            (cx + outer + 90, note_y + 22 * k as i32),
+            style::text(style::NOTE_PX, style::MUTED, (HPos::Left, VPos::Top)),
+        ))?;
+    }
     if spec
         .series
         .iter()
