@@ -23,7 +23,7 @@ use nalgebra::DVector;
 /// stop, for Levenberg-Marquardt to go on from.
 ///
 /// Why: from a coarse copy's optimum Levenberg-Marquardt spent 4-7 evaluations of the basis, its
-/// derivatives and varpro's SVD before its own tolerances held; Gauss-Newton converges
+/// derivatives and a factorisation before its own tolerances held; Gauss-Newton converges
 /// quadratically from there.
 pub(super) fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<Polished, Vec<f64>> {
     let reduced = Reduced {
