@@ -13,15 +13,12 @@
 
 use std::path::{Path, PathBuf};
 
-use polars::prelude::*;
-
-use super::guard::guarded;
+use super::axis::{check_rows, finite, required, Decoded};
 use super::inputs::{check_unchanged, parquet_files};
 use super::kind_read::{kind_manifest_text, required_table, snapshot};
-use super::{one_line, IngestError};
+use super::IngestError;
 use dbbcal_core::axis_campaign::CampaignKind;
 use dbbcal_core::roll_campaign::{LevelRow, ProbeSample, RollCampaign, RollCampaignLogs};
-use dbbcal_core::series::reading_time_ok;
 
 const PROBES: &str = "probes";
 const LEVELS: &str = "levels";
@@ -101,32 +98,38 @@ struct ProbeFile {
 }
 
 fn read_probes(path: &Path, index: u32) -> Result<ProbeFile, IngestError> {
-    let df = decode(path)?;
-    let cols = Columns { path, df: &df };
-    let time = cols.required("time", cols.time("time")?)?;
-    let x = cols.finite("x_mm", cols.real("x_mm")?)?;
+    let d = Decoded::read(path)?;
+    let time = required(path, "time", d.time("time")?)?;
+    let x = finite_values(&d, path, "x_mm")?;
     let mut m = Vec::new();
     for name in READINGS {
-        m.push(cols.finite(name, cols.real(name)?)?);
+        m.push(finite_values(&d, path, name)?);
     }
-    let station = cols.optional_int("station")?;
-    let pass = cols.optional_int("pass")?;
+    let station = optional_int(&d, "station")?;
+    let pass = optional_int(&d, "pass")?;
     let has_station = station
         .as_ref()
         .is_some_and(|s| s.iter().any(Option::is_some));
     let has_pass = pass.as_ref().is_some_and(|s| s.iter().any(Option::is_some));
     if let Some(p) = pass.as_ref().filter(|_| has_pass) {
-        cols.bad_rows(
+        check_rows(
+            path,
             "pass",
             p,
-            |v| v.is_none_or(|v| v < 1),
+            |v| v.is_some_and(|v| v >= 1),
             "are null or below 1 (passes count from 1)",
         )?;
     }
     if let Some(s) = &station {
-        cols.bad_rows("station", s, |v| v.is_some_and(|v| v < 0), "are negative")?;
+        check_rows(
+            path,
+            "station",
+            s,
+            |v| v.is_none_or(|v| v >= 0),
+            "are negative",
+        )?;
     }
-    let samples = (0..df.height())
+    let samples = (0..d.rows())
         .map(|i| ProbeSample {
             time_ns: time[i],
             x_mm: x[i],
@@ -144,22 +147,18 @@ fn read_probes(path: &Path, index: u32) -> Result<ProbeFile, IngestError> {
 }
 
 fn read_levels(path: &Path, index: u32) -> Result<Vec<LevelRow>, IngestError> {
-    let df = decode(path)?;
-    let cols = Columns { path, df: &df };
-    let time = cols.required("time", cols.time("time")?)?;
-    let roll = cols.finite("roll_urad", cols.real("roll_urad")?)?;
-    let u = if cols.has("u_urad") {
-        cols.real("u_urad")?
-    } else {
-        vec![None; df.height()]
-    };
-    cols.bad_rows(
+    let d = Decoded::read(path)?;
+    let time = required(path, "time", d.time("time")?)?;
+    let roll = finite_values(&d, path, "roll_urad")?;
+    let u = d.optional("u_urad", Decoded::real)?;
+    check_rows(
+        path,
         "u_urad",
         &u,
-        |v| v.is_some_and(|v| !(v.is_finite() && v > 0.0)),
+        |v| v.is_none_or(|v| v.is_finite() && v > 0.0),
         "are not positive finite uncertainties (nor null)",
     )?;
-    Ok((0..df.height())
+    Ok((0..d.rows())
         .map(|i| LevelRow {
             time_ns: time[i],
             roll_urad: roll[i],
@@ -169,173 +168,24 @@ fn read_levels(path: &Path, index: u32) -> Result<Vec<LevelRow>, IngestError> {
         .collect())
 }
 
-fn decode(path: &Path) -> Result<DataFrame, IngestError> {
-    guarded(path, || {
-        let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
-        ParquetReader::new(file)
-            .finish()
-            .map_err(|e| IngestError::NotParquet {
-                path: path.to_path_buf(),
-                reason: one_line(e),
-            })
-    })
+/// A float column with every value present and finite.
+fn finite_values(
+    d: &Decoded<'_>,
+    path: &Path,
+    name: &'static str,
+) -> Result<Vec<f64>, IngestError> {
+    let values = required(path, name, d.real(name)?)?;
+    finite(path, name, &values)?;
+    Ok(values)
 }
 
-/// One decoded file's columns, checked.
-struct Columns<'a> {
-    path: &'a Path,
-    df: &'a DataFrame,
-}
-
-impl Columns<'_> {
-    fn has(&self, name: &str) -> bool {
-        self.df
-            .get_column_names()
-            .iter()
-            .any(|n| n.as_str() == name)
+/// An optional integer column: `None` when absent or of no type (all null).
+fn optional_int(
+    d: &Decoded<'_>,
+    name: &'static str,
+) -> Result<Option<Vec<Option<i64>>>, IngestError> {
+    if !d.has(name) || d.df.column(name).is_ok_and(|c| c.dtype().is_null()) {
+        return Ok(None);
     }
-
-    fn polars(&self) -> impl Fn(PolarsError) -> IngestError + '_ {
-        move |e| IngestError::NotParquet {
-            path: self.path.to_path_buf(),
-            reason: one_line(e),
-        }
-    }
-
-    fn column(&self, name: &'static str) -> Result<&Column, IngestError> {
-        self.df
-            .column(name)
-            .map_err(|_| IngestError::MissingColumn {
-                path: self.path.to_path_buf(),
-                column: name,
-                found: self
-                    .df
-                    .get_column_names()
-                    .iter()
-                    .map(|n| n.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            })
-    }
-
-    fn wrong_type(
-        &self,
-        name: &'static str,
-        found: &DataType,
-        expected: &'static str,
-    ) -> IngestError {
-        IngestError::WrongType {
-            path: self.path.to_path_buf(),
-            column: name,
-            found: found.to_string(),
-            expected,
-        }
-    }
-
-    fn time(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
-        let column = self.column(name)?;
-        let DataType::Datetime(unit, _) = column.dtype() else {
-            return Err(self.wrong_type(
-                name,
-                column.dtype(),
-                "a timestamp (ns, us or ms; naive or zoned)",
-            ));
-        };
-        let per: i64 = match unit {
-            TimeUnit::Nanoseconds => 1,
-            TimeUnit::Microseconds => 1_000,
-            TimeUnit::Milliseconds => 1_000_000,
-        };
-        let raw = column.cast(&DataType::Int64).map_err(self.polars())?;
-        let raw: Vec<Option<i64>> = raw.i64().map_err(self.polars())?.iter().collect();
-        let ns: Vec<Option<Option<i64>>> = raw
-            .iter()
-            .map(|t| t.map(|t| t.checked_mul(per).filter(|&ns| reading_time_ok(ns))))
-            .collect();
-        self.bad_rows(
-            name,
-            &ns,
-            |v| matches!(v, Some(None)),
-            "hold times outside 1980-01-01 .. 2200-01-01 (NaT, a clock reset, or a unit whose ns value overflows)",
-        )?;
-        Ok(ns.into_iter().map(Option::flatten).collect())
-    }
-
-    fn real(&self, name: &'static str) -> Result<Vec<Option<f64>>, IngestError> {
-        let column = self.column(name)?;
-        if !column.dtype().is_float() {
-            return Err(self.wrong_type(name, column.dtype(), "float64"));
-        }
-        let cast = column.cast(&DataType::Float64).map_err(self.polars())?;
-        Ok(cast.f64().map_err(self.polars())?.iter().collect())
-    }
-
-    /// An optional integer column: `None` when absent or of no type (all null).
-    fn optional_int(&self, name: &'static str) -> Result<Option<Vec<Option<i64>>>, IngestError> {
-        if !self.has(name) {
-            return Ok(None);
-        }
-        let column = self.column(name)?;
-        if column.dtype().is_null() {
-            return Ok(None);
-        }
-        if !column.dtype().is_integer() {
-            return Err(self.wrong_type(name, column.dtype(), "an integer (int8 .. int64)"));
-        }
-        let cast = column
-            .strict_cast(&DataType::Int64)
-            .map_err(self.polars())?;
-        Ok(Some(cast.i64().map_err(self.polars())?.iter().collect()))
-    }
-
-    /// Every value present.
-    fn required<T: Copy + std::fmt::Debug>(
-        &self,
-        name: &'static str,
-        values: Vec<Option<T>>,
-    ) -> Result<Vec<T>, IngestError> {
-        self.bad_rows(name, &values, Option::is_none, "are null")?;
-        Ok(values.into_iter().flatten().collect())
-    }
-
-    /// Every value present and finite.
-    fn finite(
-        &self,
-        name: &'static str,
-        values: Vec<Option<f64>>,
-    ) -> Result<Vec<f64>, IngestError> {
-        self.bad_rows(
-            name,
-            &values,
-            |v| v.is_none_or(|v| !v.is_finite()),
-            "are null or not finite numbers (NaN or infinite)",
-        )?;
-        Ok(values.into_iter().flatten().collect())
-    }
-
-    /// Refuses the rows where `bad` holds: one line with the file, the column, the rows.
-    fn bad_rows<T: std::fmt::Debug>(
-        &self,
-        column: &'static str,
-        values: &[T],
-        bad: impl Fn(&T) -> bool,
-        problem: &str,
-    ) -> Result<(), IngestError> {
-        let rows: Vec<usize> = (0..values.len()).filter(|&i| bad(&values[i])).collect();
-        let (Some(&first), Some(&last)) = (rows.first(), rows.last()) else {
-            return Ok(());
-        };
-        Err(IngestError::BadRows {
-            path: self.path.to_path_buf(),
-            column,
-            rows: rows.len() as u64,
-            first_row: first as u64,
-            last_row: last as u64,
-            problem: problem.to_string(),
-            example: format!("{:?}", values[first]),
-        })
-    }
+    d.int(name).map(Some)
 }
