@@ -22,7 +22,7 @@ pub use bins::{
     LATEST_READING_NS, MAX_ABS_COUNTS, MAX_BAR_READINGS, MIN_BINS_PER_TAU,
 };
 pub use quality::Quality;
-pub use temperatures::{campaign_origin_ns, interpolate_temperatures, sensor_knots};
+pub use temperatures::{campaign_origin_ns, interpolate_temperatures, knot_logs, sensor_knots};
 
 /// One input file the run read, with its hash, for the output's provenance record.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]

@@ -96,6 +96,70 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
     knots
 }
 
+/// The sensor logs a compressed series is built from: each log that reads at least twice per
+/// `knot_ns` on average replaced by its means over consecutive `knot_ns` blocks (each at the
+/// mean time of its readings, so a steady drift is not delayed); slower logs as they are.
+/// `knot_ns` is half the bin (the spacing of a bin's two nodes).
+///
+/// Why: a compressed series keeps every sensor reading between close nodes as a sample
+/// ([`sensor_knots`]), so the lags see the interpolated temperature's every kink. A sensor
+/// logging at 1 Hz would put 30 samples between a 60-s bin's nodes: the series grew from 86 k
+/// to 2.6 M samples a bar on a 30-day 1 Hz campaign, and the campaign's identify from about
+/// 2 to 10 s and 0.5 to 2 GB, for nothing the lags can see: inside a block the mean's error
+/// enters a lag of time constant `tau` weighted by `(t − t_mid)/tau` (`docs/spec/physics.md`:
+/// `tau` ≥ 15 min against 30-s blocks), so what the block means lose is of order `(block/tau)²`
+/// of the fluctuation, far below the readings' noise. Slower logs are unchanged, so their
+/// campaigns give the same fits to the bit.
+pub fn knot_logs(
+    sensors: &BTreeMap<String, SensorLog>,
+    knot_ns: TimeNs,
+) -> BTreeMap<String, SensorLog> {
+    sensors
+        .iter()
+        .map(|(id, log)| {
+            let fast = knot_ns > 0
+                && log.time_ns.len() > 2
+                && (log.time_ns[log.time_ns.len() - 1] - log.time_ns[0])
+                    / (log.time_ns.len() as TimeNs - 1)
+                    * 2
+                    <= knot_ns;
+            let log = if fast {
+                block_means(log, knot_ns)
+            } else {
+                log.clone()
+            };
+            (id.clone(), log)
+        })
+        .collect()
+}
+
+/// `log` (sorted) as the means of its readings over consecutive `block_ns` blocks of the time
+/// axis, each at the mean time of the block's readings.
+fn block_means(log: &SensorLog, block_ns: TimeNs) -> SensorLog {
+    let mut out = SensorLog::default();
+    let mut start = 0;
+    while start < log.time_ns.len() {
+        let block = log.time_ns[start].div_euclid(block_ns);
+        let end = start
+            + log.time_ns[start..]
+                .iter()
+                .take_while(|t| t.div_euclid(block_ns) == block)
+                .count();
+        let first = log.time_ns[start];
+        let n = (end - start) as f64;
+        let offset_ns: f64 = log.time_ns[start..end]
+            .iter()
+            .map(|&t| (t - first) as f64)
+            .sum::<f64>()
+            / n;
+        out.time_ns.push(first + offset_ns.round() as TimeNs);
+        out.celsius
+            .push(log.celsius[start..end].iter().sum::<f64>() / n);
+        start = end;
+    }
+    out
+}
+
 /// Every sensor's temperature at the sorted times `time_ns` (see [`interpolate_temperatures`]).
 pub(crate) fn temperatures_at(
     time_ns: &[TimeNs],

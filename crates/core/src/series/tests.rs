@@ -399,3 +399,40 @@ fn fleet<'a>(
         t0_ns: T0,
     }
 }
+
+/// A sensor logging faster than twice per half bin is sampled once per block, at its readings'
+/// mean time and value (a steady drift stays on its line); a slower log is left as it is.
+#[test]
+fn fast_sensor_logs_become_block_means_and_slow_ones_stay() {
+    // 1 Hz for an hour with 0.2-s jitter, a drift of 1 mK/s; 30-s log with the same drift.
+    let drift = |t: i64| 20.0 + 1e-3 * (t - T0) as f64 / S as f64;
+    let fast_t: Vec<i64> = (0..3600).map(|i| T0 + i * S + (i % 3) * S / 5).collect();
+    let slow_t: Vec<i64> = (0..120).map(|i| T0 + i * 30 * S + 7 * S).collect();
+    let log = |t: &[i64]| SensorLog {
+        time_ns: t.to_vec(),
+        celsius: t.iter().map(|&t| drift(t)).collect(),
+    };
+    let sensors = BTreeMap::from([
+        ("F".to_string(), log(&fast_t)),
+        ("S".to_string(), log(&slow_t)),
+    ]);
+    let knot_ns = 30 * S;
+    let out = knot_logs(&sensors, knot_ns);
+    assert_eq!(
+        out["S"], sensors["S"],
+        "a 30-s log is unchanged at 30-s blocks"
+    );
+    let fast = &out["F"];
+    assert_eq!(fast.time_ns.len(), 120, "one sample per 30-s block");
+    assert!(fast.time_ns.windows(2).all(|w| w[0] < w[1]));
+    for (&t, &c) in fast.time_ns.iter().zip(&fast.celsius) {
+        assert!((c - drift(t)).abs() < 1e-9, "on the drift at {t}: {c}");
+    }
+    // Each block's sample lies inside its block.
+    for &t in &fast.time_ns {
+        let block = (t - T0).div_euclid(knot_ns);
+        assert!((0..120).contains(&block));
+    }
+    // Without bins (knot 0) every log is unchanged.
+    assert_eq!(knot_logs(&sensors, 0), sensors);
+}
