@@ -95,9 +95,11 @@ pub struct BarModel {
     pub log_likelihood: f64,
     /// Parameters fitted (thermal terms and zeros).
     pub n_params: usize,
-    /// Model value (µm) on the bar's whole timeline, zeros included where a segment applies.
+    /// Model value (µm) on the bar's whole timeline, zeros included where a segment applies
+    /// (empty in the diagnosis' refits: [`BarModel::without_curves`]).
     pub model_um: Vec<f64>,
-    /// Thermal part of the model only (no zeros), on the whole timeline.
+    /// Thermal part of the model only (no zeros), on the whole timeline (empty in the
+    /// diagnosis' refits).
     pub thermal_um: Vec<f64>,
     /// Residual at the fitted samples (same order as `series.fit_index`).
     pub residuals_um: Vec<f64>,
@@ -144,6 +146,14 @@ impl BarModel {
     /// The value of parameter `name`, if the model has it.
     pub fn value(&self, name: &str) -> Option<f64> {
         self.param(name).map(|p| p.value)
+    }
+    /// The model without its curves over the bar's timeline (`model_um` and `thermal_um`
+    /// empty): what the diagnosis keeps of its many refits, which it reads by their
+    /// parameters, statistics and residuals only.
+    pub(crate) fn without_curves(mut self) -> BarModel {
+        self.model_um = Vec::new();
+        self.thermal_um = Vec::new();
+        self
     }
     /// The model's effects, by name.
     pub fn effect_names(&self) -> Vec<String> {
