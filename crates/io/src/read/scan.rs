@@ -77,6 +77,33 @@ pub(super) fn read_file(
         .column("time")
         .and_then(|c| c.i64().cloned())
         .map_err(|e| not_parquet(path, e))?;
+    let ns = times_ns(&raw, unit, &mut keep, path, dropped);
+    df.with_column(ns.into_series().with_name("time".into()).into_column())
+        .map_err(|e| not_parquet(path, e))?;
+    if let Some(keep) = keep {
+        let mask: BooleanChunked = keep.into_iter().map(Some).collect();
+        df = df.filter(&mask).map_err(|e| not_parquet(path, e))?;
+    }
+    Ok((df, unit))
+}
+
+/// The stored times `raw` as ns; a time that is no accepted reading time
+/// ([`TimeColumn::to_ns`]) becomes 0, its row is marked in `keep` and flagged in `dropped`.
+fn times_ns(
+    raw: &Int64Chunked,
+    unit: TimeColumn,
+    keep: &mut Option<Vec<bool>>,
+    path: &Path,
+    dropped: &mut Vec<Flag>,
+) -> Int64Chunked {
+    // Every time accepted (the usual file; the check is an interval): one multiplication of the
+    // column instead of a pass of per-row checks (a fifth of a second per 5 M rows).
+    let all_ok = raw.null_count() == 0
+        && raw.min().and_then(|t| unit.to_ns(t)).is_some()
+        && raw.max().and_then(|t| unit.to_ns(t)).is_some();
+    if all_ok {
+        return raw * unit.ns_per_unit;
+    }
     let mut bad = None;
     let ns: Int64Chunked = raw
         .iter()
@@ -96,13 +123,7 @@ pub(super) fn read_file(
     if let Some(b) = bad {
         dropped.push(b.flag(path, "time", TIME_PROBLEM));
     }
-    df.with_column(ns.into_series().with_name("time".into()).into_column())
-        .map_err(|e| not_parquet(path, e))?;
-    if let Some(keep) = keep {
-        let mask: BooleanChunked = keep.into_iter().map(Some).collect();
-        df = df.filter(&mask).map_err(|e| not_parquet(path, e))?;
-    }
-    Ok((df, unit))
+    ns
 }
 
 /// One file's lazy scan, its whole schema, and the expressions that project it to the spec's
