@@ -22,6 +22,7 @@ mod one_length;
 mod page;
 mod probe;
 mod roll;
+mod roll_foreign;
 mod row_order;
 mod safe_outputs;
 mod support;

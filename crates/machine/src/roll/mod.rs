@@ -140,6 +140,9 @@ pub struct DwellResult {
     pub u_um: [f64; 4],
     /// τ of the Type A part per probe.
     pub tau: [f64; 4],
+    /// Standard uncertainty of the means of C − A and D − B taken sample by sample, µm: what
+    /// the estimator's step uses (`difference_u`).
+    pub pair_u_um: [f64; 2],
 }
 
 /// εx at one station.
@@ -492,6 +495,7 @@ fn dwell_means(data: &Converted, dwells: &[Dwell], resolution: [f64; 4]) -> Vec<
                 let v: Vec<f64> = data.m_um[d.first..=d.last].iter().map(|m| m[p]).collect();
                 stations::probe_mean(&v, resolution[p])
             });
+            let readings = &data.m_um[d.first..=d.last];
             DwellResult {
                 pass: 0,
                 station: d.station,
@@ -501,9 +505,29 @@ fn dwell_means(data: &Converted, dwells: &[Dwell], resolution: [f64; 4]) -> Vec<
                 mean_um: means.map(|m| m.mean_um),
                 u_um: means.map(|m| m.u_um),
                 tau: means.map(|m| m.tau),
+                pair_u_um: [
+                    difference_u(readings, (2, 0), resolution),
+                    difference_u(readings, (3, 1), resolution),
+                ],
             }
         })
         .collect()
+}
+
+/// The standard uncertainty of a dwell's mean of `m[i] − m[j]` taken sample by sample, µm:
+/// Type A with τ of the differences, the two probes' resolutions, the floor.
+///
+/// Why the differences: the estimator uses a dwell's readings only as C − A and D − B
+/// (`docs/spec/machine-physics.md`, "Kind roll": δz enters all four, εy both of B and D), so a
+/// stage that settles or vibrates during a dwell moves the four readings together and not their
+/// differences. Each probe's own Type A counted that motion four times over: on a second
+/// simulator whose readings follow the stage into its moves (`tests/e2e/roll_foreign.rs`), the
+/// first samples of a move inside the dwell band made U 30 times the error.
+fn difference_u(readings: &[[f64; 4]], (i, j): (usize, usize), resolution: [f64; 4]) -> f64 {
+    let v: Vec<f64> = readings.iter().map(|m| m[i] - m[j]).collect();
+    let (_, u_a_um, _) = stations::mean_type_a(&v);
+    let u_res2 = (resolution[i].powi(2) + resolution[j].powi(2)) / 12.0;
+    (u_a_um * u_a_um + u_res2).sqrt().max(stations::U_FLOOR_UM)
 }
 
 /// The step rows of every pass: two dwells one station apart, consecutive in the pass.
@@ -521,11 +545,7 @@ fn step_rows(passes: &[Vec<usize>], dwells: &[DwellResult]) -> Vec<StepRow> {
                 (b, a)
             };
             let q = (after.mean_um[2] - before.mean_um[3]) - (after.mean_um[0] - before.mean_um[1]);
-            let u = (after.u_um[2].powi(2)
-                + before.u_um[3].powi(2)
-                + after.u_um[0].powi(2)
-                + before.u_um[1].powi(2))
-            .sqrt();
+            let u = (after.pair_u_um[0].powi(2) + before.pair_u_um[1].powi(2)).sqrt();
             let mid = |d: &DwellResult| 0.5 * (d.span_s.0 + d.span_s.1) / 3600.0;
             rows.push(StepRow {
                 pass: p,
