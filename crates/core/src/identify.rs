@@ -96,7 +96,7 @@ pub struct BarModel {
     /// Parameters fitted (thermal terms and zeros).
     pub n_params: usize,
     /// Model value (µm) on the bar's whole timeline, zeros included where a segment applies
-    /// (empty in the diagnosis' refits: [`BarModel::without_curves`]).
+    /// (empty in the diagnosis' refits: `BarModel::without_curves`).
     pub model_um: Vec<f64>,
     /// Thermal part of the model only (no zeros), on the whole timeline (empty in the
     /// diagnosis' refits).

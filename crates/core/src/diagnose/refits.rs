@@ -18,7 +18,7 @@ use std::sync::OnceLock;
 /// Exact refits shared by the ranking and every forward selection, fleet-wide and per bar: a bar
 /// with a given list of effects is fitted once (from the model without the last effect, which
 /// is itself a refit of the same cache or the identified model). A refit is kept without its
-/// curves over the timeline ([`BarModel::without_curves`]): the diagnosis reads its
+/// curves over the timeline (`BarModel::without_curves`): the diagnosis reads its
 /// parameters, statistics and residuals only, and the 141 exact refits of the second
 /// simulator's plate-expansion campaign (10 bars, 15 days, 10 s) held 0.44 GB of curves.
 #[derive(Default)]
