@@ -31,7 +31,7 @@ fn simulate(root: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
 }
 
 /// `dbbcal run pipelines/roll.toml` on `campaign` into `out`: (exit code, stdout+stderr).
-fn run(campaign: &Path, out: &Path, extra: &[&str]) -> (i32, String) {
+pub(super) fn run(campaign: &Path, out: &Path, extra: &[&str]) -> (i32, String) {
     let mut args = vec![
         "run",
         "pipelines/roll.toml",
@@ -45,7 +45,7 @@ fn run(campaign: &Path, out: &Path, extra: &[&str]) -> (i32, String) {
     (code, format!("{stdout}{stderr}"))
 }
 
-fn json(path: &Path) -> serde_json::Value {
+pub(super) fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 

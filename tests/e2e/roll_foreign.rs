@@ -17,8 +17,6 @@ use dbbcal_core::roll_campaign::{ProbeSample, RollCampaignTables, RollManifest};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use crate::support::run_cli;
-
 const L_MM: f64 = 60.0;
 const D_MM: f64 = 25.0;
 const STATIONS: usize = 24;
@@ -208,17 +206,9 @@ fn a_second_simulator_s_roll_is_recovered_within_u() {
         let settling_um = if seed % 2 == 0 { 2.0 } else { 0.0 };
         let truth = simulate(&campaign, seed, settling_um);
         let out = tmp.path().join(format!("out-{seed}"));
-        let (code, stdout, stderr) = run_cli(&[
-            "run",
-            "pipelines/roll.toml",
-            "--campaign",
-            campaign.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert_eq!(code, 0, "seed {seed}: {stdout}{stderr}");
-        let record: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("roll.json")).unwrap()).unwrap();
+        let (code, said) = super::roll::run(&campaign, &out, &[]);
+        assert_eq!(code, 0, "seed {seed}: {said}");
+        let record = super::roll::json(&out.join("roll.json"));
         assert_eq!(record["passes"].as_array().unwrap().len(), 3, "seed {seed}");
         assert_eq!(record["level_datum"], false, "seed {seed}");
         let stations = record["stations"].as_array().unwrap();
