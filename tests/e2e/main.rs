@@ -21,6 +21,7 @@ mod nist;
 mod one_length;
 mod page;
 mod probe;
+mod probe_foreign;
 mod roll;
 mod roll_foreign;
 mod row_order;
