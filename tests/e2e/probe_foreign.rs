@@ -15,8 +15,6 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use serde_json::Value;
 
-use crate::support::run_cli;
-
 const DIRECTIONS: usize = 18;
 const TOUCHES: usize = 8;
 const RING_MM: f64 = 40.0;
@@ -127,17 +125,8 @@ fn simulate(dir: &Path, seed: u64, reversal: bool) -> Truth {
 }
 
 fn run(campaign: &Path, out: &Path, extra: &[&str]) -> Value {
-    let mut args = vec![
-        "run",
-        "pipelines/probe.toml",
-        "--campaign",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    let (code, stdout, stderr) = run_cli(&args);
-    assert_eq!(code, 0, "{stdout}{stderr}");
+    let (code, said) = crate::support::run_on("pipelines/probe.toml", campaign, out, extra);
+    assert_eq!(code, 0, "{said}");
     serde_json::from_str(&std::fs::read_to_string(out.join("probe.json")).unwrap()).unwrap()
 }
 

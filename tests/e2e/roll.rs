@@ -32,17 +32,7 @@ fn simulate(root: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
 
 /// `dbbcal run pipelines/roll.toml` on `campaign` into `out`: (exit code, stdout+stderr).
 pub(super) fn run(campaign: &Path, out: &Path, extra: &[&str]) -> (i32, String) {
-    let mut args = vec![
-        "run",
-        "pipelines/roll.toml",
-        "--campaign",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend_from_slice(extra);
-    let (code, stdout, stderr) = run_cli(&args);
-    (code, format!("{stdout}{stderr}"))
+    crate::support::run_on("pipelines/roll.toml", campaign, out, extra)
 }
 
 pub(super) fn json(path: &Path) -> serde_json::Value {

@@ -212,6 +212,22 @@ pub(crate) fn run_pipeline_ok(pipeline: &str, out: &Path) -> String {
     stderr
 }
 
+/// `dbbcal run PIPELINE --campaign CAMPAIGN --out OUT EXTRA…`: (exit code, stdout and stderr
+/// together).
+pub(crate) fn run_on(pipeline: &str, campaign: &Path, out: &Path, extra: &[&str]) -> (i32, String) {
+    let mut args = vec![
+        "run",
+        pipeline,
+        "--campaign",
+        campaign.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let (code, stdout, stderr) = run_cli(&args);
+    (code, format!("{stdout}{stderr}"))
+}
+
 /// The repository root, read when the test runs (cargo sets `CARGO_MANIFEST_DIR` for it; tests
 /// also run there). Not `env!`: checkouts that share one target directory share this binary,
 /// and a path baked in at compile time would point into whichever checkout built it.
