@@ -59,12 +59,7 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let progress = crate::progress::bar(bars.len() as u64, "identify");
     // A compressed series samples the sensors at most twice a bin (`series::knot_logs`); the
     // full-rate logs stay for the air history and the device's sensors.
-    let knot_ns = if plan.bin_s > 0.0 {
-        (plan.bin_s * 0.5e9).round() as i64
-    } else {
-        0
-    };
-    let knot_sensors = crate::series::knot_logs(&sensors, knot_ns);
+    let knot_sensors = crate::series::knot_logs(&sensors, plan.bin_s);
     let knots = crate::series::sensor_knots(&knot_sensors);
     let fleet = FleetContext {
         campaign: &campaign,

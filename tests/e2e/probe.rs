@@ -90,6 +90,14 @@ fn write_table_1_campaign(dir: &Path, stylus: &str) {
     dbbcal::io::write_probe_campaign(dir, &tables, &opts).unwrap();
 }
 
+/// `dbbcal run pipelines/probe.toml` on `campaign` into `out`, asserted to succeed: its
+/// `probe.json` and what it printed.
+pub(super) fn run(campaign: &Path, out: &Path, extra: &[&str]) -> (Value, String) {
+    let (code, said) = crate::support::run_on("pipelines/probe.toml", campaign, out, extra);
+    assert_eq!(code, 0, "{said}");
+    (json(&out.join("probe.json")), said)
+}
+
 fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
@@ -104,16 +112,7 @@ fn seed_table_1_through_the_cli_says_what_six_directions_cannot_tell() {
     let campaign = tmp.path().join("table1");
     write_table_1_campaign(&campaign, "S1");
     let out = tmp.path().join("out");
-    let (code, stdout, stderr) = run_cli(&[
-        "run",
-        "pipelines/probe.toml",
-        "--campaign",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "stdout: {stdout}\nstderr: {stderr}");
-    let j = json(&out.join("probe.json"));
+    let (j, _) = run(&campaign, &out, &[]);
     let s = &j["setups"][0];
     let t = &s["two_touch"];
     assert!((f(&t["mean_range_all_um"]) - 0.2833).abs() < 5e-4, "{t}");
@@ -187,39 +186,16 @@ fn simulated_24_directions_separate_lobes_centre_and_first_touch_and_the_loop_na
     assert!(logs.inputs.iter().all(|f| !f.path.starts_with("truth")));
 
     let out1 = tmp.path().join("out1");
-    let (code, stdout, stderr) = run_cli(&[
-        "run",
-        "pipelines/probe.toml",
-        "--campaign",
-        c,
-        "--out",
-        out1.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{stdout}\n{stderr}");
-    let j = json(&out1.join("probe.json"));
+    let (j, said) = run(&campaign, &out1, &[]);
     assert_eq!(
         j["setups"][0]["diagnosis"]["proposal"], "first_touch",
         "{}",
         j["setups"][0]["diagnosis"]
     );
-    assert!(
-        format!("{stdout}{stderr}").contains("--add-effect first_touch"),
-        "{stdout}{stderr}"
-    );
+    assert!(said.contains("--add-effect first_touch"), "{said}");
 
     let out2 = tmp.path().join("out2");
-    let (code, stdout, stderr) = run_cli(&[
-        "run",
-        "pipelines/probe.toml",
-        "--campaign",
-        c,
-        "--out",
-        out2.to_str().unwrap(),
-        "--add-effect",
-        "first_touch",
-    ]);
-    assert_eq!(code, 0, "{stdout}\n{stderr}");
-    let j = json(&out2.join("probe.json"));
+    let (j, _) = run(&campaign, &out2, &["--add-effect", "first_touch"]);
     let s = &j["setups"][0];
     assert_ne!(s["diagnosis"]["proposal"], "first_touch");
     // Tri-lobe: δ_min and the seat phase within U.
@@ -294,19 +270,8 @@ fn the_first_touch_errors_u_holds_over_ten_simulated_campaigns() {
             campaign.to_str().unwrap(),
         ]);
         assert_eq!(code, 0, "{stderr}");
-        let (code, stdout, stderr) = run_cli(&[
-            "run",
-            "pipelines/probe.toml",
-            "--campaign",
-            campaign.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--add-effect",
-            "first_touch",
-        ]);
-        assert_eq!(code, 0, "{stdout}\n{stderr}");
+        let (j, _) = run(&campaign, &out, &["--add-effect", "first_touch"]);
         let truth = json(&campaign.join("truth.json"));
-        let j = json(&out.join("probe.json"));
         z.extend(first_touch_errors_in_u(
             &j["setups"][0]["directions"],
             &truth["directions"],

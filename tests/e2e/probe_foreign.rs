@@ -124,12 +124,6 @@ fn simulate(dir: &Path, seed: u64, reversal: bool) -> Truth {
     truth
 }
 
-fn run(campaign: &Path, out: &Path, extra: &[&str]) -> Value {
-    let (code, said) = crate::support::run_on("pipelines/probe.toml", campaign, out, extra);
-    assert_eq!(code, 0, "{said}");
-    serde_json::from_str(&std::fs::read_to_string(out.join("probe.json")).unwrap()).unwrap()
-}
-
 fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or(f64::NAN)
 }
@@ -143,9 +137,10 @@ fn a_second_simulator_s_probe_is_recovered_within_u() {
     for seed in 1..=8u64 {
         let campaign = tmp.path().join(format!("probe-{seed}"));
         let truth = simulate(&campaign, seed, true);
-        let first = run(&campaign, &tmp.path().join(format!("first-{seed}")), &[]);
+        let (first, _) =
+            super::probe::run(&campaign, &tmp.path().join(format!("first-{seed}")), &[]);
         proposed += usize::from(first["setups"][0]["diagnosis"]["proposal"] == "first_touch");
-        let j = run(
+        let (j, _) = super::probe::run(
             &campaign,
             &tmp.path().join(format!("out-{seed}")),
             &["--add-effect", "first_touch"],
@@ -192,5 +187,20 @@ fn a_second_simulator_s_probe_is_recovered_within_u() {
     assert!(
         within * 5 >= checks * 4,
         "{within}/{checks} within U: {misses:?}"
+    );
+    assert!((0.6..=1.4).contains(&rms_z), "RMS z {rms_z}");
+    // Without a reversal error the first touch is like the others: not proposed.
+    let mut false_alarms = 0;
+    for seed in 11..=14u64 {
+        let campaign = tmp.path().join(format!("still-{seed}"));
+        simulate(&campaign, seed, false);
+        let out = tmp.path().join(format!("still-out-{seed}"));
+        let (j, _) = super::probe::run(&campaign, &out, &[]);
+        false_alarms += usize::from(j["setups"][0]["diagnosis"]["proposal"] == "first_touch");
+    }
+    eprintln!("second probe simulator without reversal: first_touch proposed on {false_alarms}/4");
+    assert!(
+        false_alarms <= 1,
+        "first_touch proposed on {false_alarms} of 4 seeds without it"
     );
 }

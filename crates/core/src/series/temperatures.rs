@@ -96,10 +96,11 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
     knots
 }
 
-/// The sensor logs a compressed series is built from: each log that reads at least twice per
-/// `knot_ns` on average replaced by its means over consecutive `knot_ns` blocks (each at the
-/// mean time of its readings, so a steady drift is not delayed); slower logs as they are.
-/// `knot_ns` is half the bin (the spacing of a bin's two nodes).
+/// The sensor logs a series compressed into `bin_s` bins is built from (`bin_s` ≤ 0: every
+/// reading, the logs as they are): each log that reads at least twice per half bin (the
+/// spacing of a bin's two nodes) on average replaced by its means over consecutive half-bin
+/// blocks, each at the mean time of its readings (a steady drift is not delayed); slower
+/// logs as they are.
 ///
 /// Why: a compressed series keeps every sensor reading between close nodes as a sample
 /// ([`sensor_knots`]), so the lags see the interpolated temperature's every kink. A sensor
@@ -110,21 +111,21 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
 /// `tau` ≥ 15 min against 30-s blocks), so what the block means lose is of order `(block/tau)²`
 /// of the fluctuation, far below the readings' noise. Slower logs are unchanged, so their
 /// campaigns give the same fits to the bit.
-pub fn knot_logs(
-    sensors: &BTreeMap<String, SensorLog>,
-    knot_ns: TimeNs,
-) -> BTreeMap<String, SensorLog> {
+pub fn knot_logs(sensors: &BTreeMap<String, SensorLog>, bin_s: f64) -> BTreeMap<String, SensorLog> {
+    let block_ns = if bin_s > 0.0 {
+        (bin_s * 0.5e9).round() as TimeNs
+    } else {
+        0
+    };
     sensors
         .iter()
         .map(|(id, log)| {
-            let fast = knot_ns > 0
-                && log.time_ns.len() > 2
-                && (log.time_ns[log.time_ns.len() - 1] - log.time_ns[0])
-                    / (log.time_ns.len() as TimeNs - 1)
-                    * 2
-                    <= knot_ns;
+            let n = log.time_ns.len();
+            let fast = block_ns > 0
+                && n > 2
+                && (log.time_ns[n - 1] - log.time_ns[0]) / (n as TimeNs - 1) * 2 <= block_ns;
             let log = if fast {
-                block_means(log, knot_ns)
+                block_means(log, block_ns)
             } else {
                 log.clone()
             };

@@ -416,11 +416,10 @@ fn fast_sensor_logs_become_block_means_and_slow_ones_stay() {
         ("F".to_string(), log(&fast_t)),
         ("S".to_string(), log(&slow_t)),
     ]);
-    let knot_ns = 30 * S;
-    let out = knot_logs(&sensors, knot_ns);
+    let out = knot_logs(&sensors, 60.0);
     assert_eq!(
         out["S"], sensors["S"],
-        "a 30-s log is unchanged at 30-s blocks"
+        "a 30-s log is unchanged with 60-s bins"
     );
     let fast = &out["F"];
     assert_eq!(fast.time_ns.len(), 120, "one sample per 30-s block");
@@ -428,13 +427,12 @@ fn fast_sensor_logs_become_block_means_and_slow_ones_stay() {
     for (&t, &c) in fast.time_ns.iter().zip(&fast.celsius) {
         assert!((c - drift(t)).abs() < 1e-9, "on the drift at {t}: {c}");
     }
-    // Each block's sample lies inside its block.
-    for &t in &fast.time_ns {
-        let block = (t - T0).div_euclid(knot_ns);
-        assert!((0..120).contains(&block));
+    // The k-th sample lies inside the k-th half-bin block.
+    for (k, &t) in fast.time_ns.iter().enumerate() {
+        assert_eq!((t - T0).div_euclid(30 * S), k as i64, "sample {k} at {t}");
     }
-    // Without bins (knot 0) every log is unchanged.
-    assert_eq!(knot_logs(&sensors, 0), sensors);
+    // Without bins every log is unchanged.
+    assert_eq!(knot_logs(&sensors, 0.0), sensors);
 }
 
 /// What the block means cost the lags: a 1 Hz air log (a diurnal swing, a 20-min air-conditioning
@@ -459,7 +457,7 @@ fn block_means_leave_the_lags_of_a_one_hertz_log_as_they_were() {
         })
         .collect();
     let sensors = BTreeMap::from([("T1".to_string(), SensorLog { time_ns, celsius })]);
-    let blocks = knot_logs(&sensors, 30 * S);
+    let blocks = knot_logs(&sensors, 60.0);
     let seconds = |t: &[i64]| -> Vec<f64> { t.iter().map(|&t| (t - T0) as f64 / 1e9).collect() };
     let tau_s = 900.0;
     let full_t = seconds(&sensors["T1"].time_ns);
