@@ -179,13 +179,14 @@ fn evaluate_device(
                 .collect();
             let u = crate::acceptance::compensated_u_k2_um(w, cal, resolution_nm, &options);
             for (k, d) in dwells.iter().enumerate() {
-                if d.from_ns < m.from_ns || d.to_ns.is_none_or(|end| end > m.to_ns) {
+                // A dwell still open at the log's end holds while the leg stays mounted
+                // (`device-format.md`: a row states the position until the next row).
+                let end = d.to_ns.unwrap_or(m.to_ns);
+                if d.from_ns < m.from_ns || end > m.to_ns {
                     continue;
                 }
                 let lo = times.partition_point(|&t| t < d.from_ns.saturating_add(margin_ns));
-                let hi = d.to_ns.map_or(times.len(), |end| {
-                    times.partition_point(|&t| t < end.saturating_sub(margin_ns))
-                });
+                let hi = times.partition_point(|&t| t < end.saturating_sub(margin_ns));
                 if hi > lo {
                     readings[k][leg].extend(&w.compensated_reading_mm[lo..hi]);
                     leg_u[k][leg] = u;
@@ -332,17 +333,23 @@ fn study_inputs(
         .filter_map(|(k, d)| {
             let (pose, lengths) = (d.pose?, d.leg_lengths_mm?);
             let at = hexapod.at_temperature(d.input.ring_temperature_c, t_ref);
-            Some((
-                k,
-                DwellLegs::at_pose(
-                    &at,
-                    &pose,
-                    (dwells[k].from_ns - t0_ns) as f64 / 3600e9,
-                    (d.input.station, d.input.approach[axis]),
-                    lengths,
-                    d.input.ring_temperature_c - t_ref,
-                ),
-            ))
+            let excess_k = d.input.ring_temperature_c - t_ref;
+            let mut legs = DwellLegs::at_pose(
+                &at,
+                &pose,
+                (dwells[k].from_ns - t0_ns) as f64 / 3600e9,
+                (d.input.station, d.input.approach[axis]),
+                lengths,
+                excess_k,
+            );
+            // The declared expansion is in the model: the legs really grow with the rings, so
+            // what repeats compare is the lengths without it (`body_expansion` is only what the
+            // declaration misses). Found by the second simulator (tests/e2e/device_foreign.rs):
+            // with 11.5 ppm/K declared and right, the loop proposed `body_expansion`.
+            for (l, strain) in legs.lengths_mm.iter_mut().zip(legs.strain_um_per_ppm) {
+                *l -= 1e-3 * hexapod.cte_ppm_per_k * excess_k * strain;
+            }
+            Some((k, legs))
         })
         .collect()
 }

@@ -11,6 +11,7 @@ mod cli;
 mod corpus;
 mod determinism;
 mod device;
+mod device_foreign;
 mod diagnose;
 mod docs;
 mod false_alarms;
