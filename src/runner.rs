@@ -440,6 +440,7 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
     }
     if let Some(record) = crate::output::device_record::device_record(results) {
         write_json(&dir.join("device.json"), &record)?;
+        crate::output::axis_tables::write_tables(dir, record.tables)?;
     }
     if let Some(table) = crate::output::device_record::device_errors_table(results) {
         write_table(plan, &dir.join("device_errors.parquet"), &table)?;

@@ -10,8 +10,7 @@ use dbbcal_core::limits::CountLimit;
 use dbbcal_machine::axis_study::{self, AxisEffect, AxisStudyOptions};
 
 use crate::output::axis::{errors_table, AxisRecord};
-use crate::output::axis_tables::{axis_tables, AxisTableFormat, AxisTablesPlan};
-use crate::output::controller::TableSign;
+use crate::output::axis_tables::{axis_tables, tables_plan, AxisTablesPlan, TablesSection};
 use crate::pipeline::PlanError;
 use crate::runner::Outcome;
 
@@ -35,34 +34,6 @@ struct AxisPipelineFile {
     axis: AxisSection,
     #[serde(default)]
     tables: TablesSection,
-}
-
-/// `[tables]`: controller compensation tables (`docs/controller-tables.md`).
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TablesSection {
-    /// Format names of `AxisTableFormat`; empty: none.
-    #[serde(default)]
-    formats: Vec<String>,
-    /// `error` or `correction` (= −error). No default: a table's sign is never silent.
-    sign: Option<String>,
-    /// The Siemens machine axis name (`$AA_ENC_COMP[0,N,<name>]`).
-    #[serde(default = "default_siemens_axis")]
-    siemens_axis: String,
-}
-
-impl Default for TablesSection {
-    fn default() -> Self {
-        TablesSection {
-            formats: Vec::new(),
-            sign: None,
-            siemens_axis: default_siemens_axis(),
-        }
-    }
-}
-
-fn default_siemens_axis() -> String {
-    "X1".into()
 }
 
 impl PipelineFile for AxisPipelineFile {
@@ -137,52 +108,6 @@ impl AxisPlan {
     }
 }
 
-/// `[tables]` validated: known formats, each once, and a sign whenever a table is asked for.
-fn tables_plan(t: &TablesSection) -> Result<AxisTablesPlan, String> {
-    let mut formats = Vec::new();
-    for (i, name) in t.formats.iter().enumerate() {
-        let f = AxisTableFormat::parse(name).ok_or_else(|| {
-            format!(
-                "tables.formats[{i}]: {name:?} is not a table format of an axis run (known: {})",
-                AxisTableFormat::ALL.map(|f| f.name()).join(", ")
-            )
-        })?;
-        if formats.contains(&f) {
-            return Err(format!("tables.formats[{i}]: {name:?} is listed twice"));
-        }
-        formats.push(f);
-    }
-    let sign = match (t.sign.as_deref(), formats.is_empty()) {
-        (Some("error"), _) => TableSign::Error,
-        (Some("correction"), _) => TableSign::Correction,
-        (Some(other), _) => {
-            return Err(format!(
-                "tables.sign = {other:?}: \"error\" (the value is measured − commanded) or \"correction\" (−error)"
-            ))
-        }
-        (None, true) => TableSign::Error,
-        (None, false) => {
-            return Err("tables.sign is missing: say whether the tables hold the error (\"error\") or the correction (\"correction\"); the controls listed in docs/controller-tables.md want the error".into())
-        }
-    };
-    let name_ok = !t.siemens_axis.is_empty()
-        && t.siemens_axis.len() <= 16
-        && t.siemens_axis
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '_');
-    if !name_ok {
-        return Err(format!(
-            "tables.siemens_axis = {:?}: 1 to 16 letters, digits or _",
-            t.siemens_axis
-        ));
-    }
-    Ok(AxisTablesPlan {
-        formats,
-        sign,
-        siemens_axis: t.siemens_axis.clone(),
-    })
-}
-
 /// Claim the output, read and analyse the campaign, write the output folder.
 pub(crate) fn run(plan: &AxisPlan) -> Result<Outcome> {
     let (out, target) = plan.base.claim_output(|dir| {
@@ -202,16 +127,7 @@ pub(crate) fn run(plan: &AxisPlan) -> Result<Outcome> {
     write_output(target, &marker, out, lines, |tmp, lines| {
         write_json(&tmp.join("axis.json"), &record)?;
         crate::io::write_table(&tmp.join("axis_errors.parquet"), &errors_table(&study))?;
-        let written: Vec<_> = tables
-            .iter()
-            .filter_map(|t| Some((t.file.as_ref()?, t.text.as_ref()?)))
-            .collect();
-        if !written.is_empty() {
-            crate::output::create_dir(&tmp.join("tables"))?;
-        }
-        for (file, text) in written {
-            crate::output::write_file(&tmp.join(file), text.as_bytes())?;
-        }
+        crate::output::axis_tables::write_tables(tmp, &tables)?;
         crate::output::create_dir(&tmp.join("figures"))?;
         let figures = [crate::figures::render_axis(
             id,

@@ -73,8 +73,32 @@ pub(crate) fn headline(
     lines
 }
 
+/// `report.md`'s "Controller tables" section (none without tables): each file with its sign and
+/// unit statement, or why it was not written. `at` names the places the values are means at.
+pub(crate) fn tables_markdown(md: &mut String, tables: &[TableRecord], at: &str) {
+    if tables.is_empty() {
+        return;
+    }
+    let _ = writeln!(md, "\n## Controller tables\n\nFrom the mean of both directions at each {at} (docs/controller-tables.md).\n");
+    for t in tables {
+        match (&t.file, &t.meta, &t.refused) {
+            (Some(f), Some(m), _) => {
+                let _ = writeln!(md, "- `{f}` ({}): {}", t.format, m.statement);
+            }
+            (_, _, why) => {
+                let _ = writeln!(
+                    md,
+                    "- {}: not written ({})",
+                    t.format,
+                    why.as_deref().unwrap_or("no reason given")
+                );
+            }
+        }
+    }
+}
+
 /// The controller tables: the files written with their sign, and each refusal with its reason.
-fn tables_line(tables: &[TableRecord]) -> Option<String> {
+pub(crate) fn tables_line(tables: &[TableRecord]) -> Option<String> {
     let parts: Vec<String> = tables
         .iter()
         .map(|t| match (&t.file, &t.meta, &t.refused) {
@@ -223,24 +247,7 @@ pub(crate) fn report_md(
             }
         }
     }
-    if !tables.is_empty() {
-        let _ = writeln!(md, "\n## Controller tables\n\nFrom the mean of both directions at each target (docs/controller-tables.md).\n");
-        for t in tables {
-            match (&t.file, &t.meta, &t.refused) {
-                (Some(f), Some(m), _) => {
-                    let _ = writeln!(md, "- `{f}` ({}): {}", t.format, m.statement);
-                }
-                (_, _, why) => {
-                    let _ = writeln!(
-                        md,
-                        "- {}: not written ({})",
-                        t.format,
-                        why.as_deref().unwrap_or("no reason given")
-                    );
-                }
-            }
-        }
-    }
+    tables_markdown(&mut md, tables, "target");
     let _ = writeln!(md, "\n## Residuals by line and run\n\n| line | run | channel | RMS µm | readings |\n|---:|---:|---|---:|---:|");
     for r in &s.residuals {
         let _ = writeln!(

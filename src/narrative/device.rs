@@ -145,6 +145,9 @@ pub(crate) fn markdown(results: &RunResults) -> Option<String> {
     if let Some(line) = iso_line(results) {
         let _ = writeln!(md, "\n{line}");
     }
+    if let Some(s) = results.device.as_ref() {
+        super::axis::tables_markdown(&mut md, &s.tables, "station");
+    }
     md.push('\n');
     super::device_loop::markdown(&mut md, results);
     Some(md)

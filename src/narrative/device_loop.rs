@@ -70,6 +70,13 @@ pub(crate) fn headline_lines(plan: &RunPlan, results: &RunResults) -> Vec<(&'sta
             ),
         },
     )];
+    if let Some(t) = results
+        .device
+        .as_ref()
+        .and_then(|d| super::axis::tables_line(&d.tables))
+    {
+        lines.push(("Tables", t));
+    }
     if let Some(cmd) = s.proposal.and_then(|e| add_command(plan, e)) {
         lines.push(("Device next", cmd));
     }

@@ -4,10 +4,11 @@
 //! format cannot hold (unequal steps for Siemens, too many points) is not written, and the
 //! record says why, so the rest of the output stands.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use dbbcal_machine::axis_study::AxisStudy;
 use dbbcal_machine::components::Axis;
+use dbbcal_machine::device_test::DeviceTestResult;
 
 use super::controller::{
     heidenhain_com, isg_csv, siemens_lec, AxisErrors, Component, ComponentErrors,
@@ -49,6 +50,91 @@ pub(crate) struct AxisTablesPlan {
     pub(crate) formats: Vec<AxisTableFormat>,
     pub(crate) sign: TableSign,
     pub(crate) siemens_axis: String,
+}
+
+/// No table.
+impl Default for AxisTablesPlan {
+    fn default() -> Self {
+        AxisTablesPlan {
+            formats: Vec::new(),
+            sign: TableSign::Error,
+            siemens_axis: default_siemens_axis(),
+        }
+    }
+}
+
+/// `[tables]`: controller compensation tables (`docs/controller-tables.md`).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct TablesSection {
+    /// Format names of `AxisTableFormat`; empty: none.
+    #[serde(default)]
+    formats: Vec<String>,
+    /// `error` or `correction` (= −error). No default: a table's sign is never silent.
+    sign: Option<String>,
+    /// The Siemens machine axis name (`$AA_ENC_COMP[0,N,<name>]`).
+    #[serde(default = "default_siemens_axis")]
+    siemens_axis: String,
+}
+
+impl Default for TablesSection {
+    fn default() -> Self {
+        TablesSection {
+            formats: Vec::new(),
+            sign: None,
+            siemens_axis: default_siemens_axis(),
+        }
+    }
+}
+
+fn default_siemens_axis() -> String {
+    "X1".into()
+}
+
+/// `[tables]` validated: known formats, each once, and a sign whenever a table is asked for.
+pub(crate) fn tables_plan(t: &TablesSection) -> Result<AxisTablesPlan, String> {
+    let mut formats = Vec::new();
+    for (i, name) in t.formats.iter().enumerate() {
+        let f = AxisTableFormat::parse(name).ok_or_else(|| {
+            format!(
+                "tables.formats[{i}]: {name:?} is not a controller table format (known: {})",
+                AxisTableFormat::ALL.map(|f| f.name()).join(", ")
+            )
+        })?;
+        if formats.contains(&f) {
+            return Err(format!("tables.formats[{i}]: {name:?} is listed twice"));
+        }
+        formats.push(f);
+    }
+    let sign = match (t.sign.as_deref(), formats.is_empty()) {
+        (Some("error"), _) => TableSign::Error,
+        (Some("correction"), _) => TableSign::Correction,
+        (Some(other), _) => {
+            return Err(format!(
+                "tables.sign = {other:?}: \"error\" (the value is measured − commanded) or \"correction\" (−error)"
+            ))
+        }
+        (None, true) => TableSign::Error,
+        (None, false) => {
+            return Err("tables.sign is missing: say whether the tables hold the error (\"error\") or the correction (\"correction\"); the controls listed in docs/controller-tables.md want the error".into())
+        }
+    };
+    let name_ok = !t.siemens_axis.is_empty()
+        && t.siemens_axis.len() <= 16
+        && t.siemens_axis
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !name_ok {
+        return Err(format!(
+            "tables.siemens_axis = {:?}: 1 to 16 letters, digits or _",
+            t.siemens_axis
+        ));
+    }
+    Ok(AxisTablesPlan {
+        formats,
+        sign,
+        siemens_axis: t.siemens_axis.clone(),
+    })
 }
 
 /// One table: written (its file in `tables/` and what it holds) or refused (why).
@@ -110,8 +196,71 @@ pub(crate) fn axis_errors(study: &AxisStudy) -> AxisErrors {
 
 /// Every table the plan asks for, in its order.
 pub(crate) fn axis_tables(study: &AxisStudy, plan: &AxisTablesPlan) -> Vec<TableRecord> {
-    let errors = axis_errors(study);
-    let letter = study.axis.letter();
+    tables_from(&axis_errors(study), plan)
+}
+
+/// The tables of a device test (`pipelines/device.toml`): the six errors at each station of the
+/// moved axis, the mean of its evaluated dwells there (both directions, every run; the datum's
+/// zeros are the datum station's measurement). A test that moved no single linear axis has no
+/// table, and each record says so.
+pub(crate) fn device_tables(test: &DeviceTestResult, plan: &AxisTablesPlan) -> Vec<TableRecord> {
+    let Some(axis) = test.axis else {
+        return plan
+            .formats
+            .iter()
+            .map(|f| refused(*f, "the test moved no single linear axis".into()))
+            .collect();
+    };
+    let evaluated: Vec<(f64, [f64; 6])> = test
+        .dwells
+        .iter()
+        .filter_map(|d| Some((d.input.position_mm[axis.index()], d.errors?.to_array())))
+        .collect();
+    let mut positions: Vec<f64> = evaluated.iter().map(|(x, _)| *x).collect();
+    positions.sort_by(f64::total_cmp);
+    positions.dedup_by(|a, b| (*a - *b).abs() <= POSITION_TOLERANCE_MM);
+    let components = Component::ALL
+        .into_iter()
+        .map(|c| ComponentErrors {
+            component: c,
+            values: positions
+                .iter()
+                .map(|&x| {
+                    let at: Vec<f64> = evaluated
+                        .iter()
+                        .filter(|(p, _)| (p - x).abs() <= POSITION_TOLERANCE_MM)
+                        .map(|(_, e)| e[c.index()])
+                        .collect();
+                    at.iter().sum::<f64>() / at.len() as f64
+                })
+                .collect(),
+        })
+        .collect();
+    let errors = AxisErrors {
+        axis: linear_axis(axis),
+        positions_mm: positions,
+        components,
+    };
+    tables_from(&errors, plan)
+}
+
+/// Commanded positions this close are one station (`device-format.md`: a station's rows agree
+/// to 1 µm).
+const POSITION_TOLERANCE_MM: f64 = 1e-3;
+
+fn refused(format: AxisTableFormat, why: String) -> TableRecord {
+    TableRecord {
+        format: format.name(),
+        file: None,
+        meta: None,
+        refused: Some(why),
+        text: None,
+    }
+}
+
+/// Every table the plan asks for, from `errors`, in the plan's order.
+fn tables_from(errors: &AxisErrors, plan: &AxisTablesPlan) -> Vec<TableRecord> {
+    let letter = errors.axis.letter();
     plan.formats
         .iter()
         .map(|&format| {
@@ -126,7 +275,7 @@ pub(crate) fn axis_tables(study: &AxisStudy, plan: &AxisTablesPlan) -> Vec<Table
                         line_ending: LineEnding::CrLf,
                         max_points: 256,
                     };
-                    heidenhain_com(&errors, &o).map(|t| (format!("{letter}.COM"), t, o.meta()))
+                    heidenhain_com(errors, &o).map(|t| (format!("{letter}.COM"), t, o.meta()))
                 }
                 AxisTableFormat::SiemensLec => {
                     let o = SiemensLecOptions {
@@ -138,7 +287,7 @@ pub(crate) fn axis_tables(study: &AxisStudy, plan: &AxisTablesPlan) -> Vec<Table
                         max_points: SIEMENS_LEC_MAX_POINTS_CEILING,
                         line_ending: LineEnding::Lf,
                     };
-                    siemens_lec(&errors, &o)
+                    siemens_lec(errors, &o)
                         .map(|t| (format!("{}_EEC.INI", plan.siemens_axis), t, o.meta()))
                 }
                 AxisTableFormat::IsgCsv => {
@@ -149,7 +298,7 @@ pub(crate) fn axis_tables(study: &AxisStudy, plan: &AxisTablesPlan) -> Vec<Table
                         style: NumberStyle::Fixed,
                         line_ending: LineEnding::Lf,
                     };
-                    isg_csv(&errors, &o).map(|t| (format!("{letter}.csv"), t, o.meta()))
+                    isg_csv(errors, &o).map(|t| (format!("{letter}.csv"), t, o.meta()))
                 }
             };
             match written {
@@ -160,14 +309,26 @@ pub(crate) fn axis_tables(study: &AxisStudy, plan: &AxisTablesPlan) -> Vec<Table
                     refused: None,
                     text: Some(text),
                 },
-                Err(e) => TableRecord {
-                    format: format.name(),
-                    file: None,
-                    meta: None,
-                    refused: Some(e.to_string()),
-                    text: None,
-                },
+                Err(e) => refused(format, e.to_string()),
             }
         })
         .collect()
+}
+
+/// The written tables' files, in `dir/tables/` (created when there is one).
+pub(crate) fn write_tables(
+    dir: &std::path::Path,
+    tables: &[TableRecord],
+) -> Result<(), super::OutputError> {
+    let written: Vec<_> = tables
+        .iter()
+        .filter_map(|t| Some((t.file.as_ref()?, t.text.as_ref()?)))
+        .collect();
+    if !written.is_empty() {
+        super::create_dir(&dir.join("tables"))?;
+    }
+    for (file, text) in written {
+        super::write_file(&dir.join(file), text.as_bytes())?;
+    }
+    Ok(())
 }

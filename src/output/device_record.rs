@@ -69,6 +69,8 @@ pub(crate) struct DeviceRecord<'a> {
     /// The loop on the legs across repeated dwells (`dbbcal_machine::device_study`).
     #[serde(rename = "loop")]
     pub(crate) device_loop: Option<LoopRecord>,
+    /// The controller tables asked for (`[tables]`): written (file, sign, unit) or refused (why).
+    pub(crate) tables: &'a [super::axis_tables::TableRecord],
     pub(crate) inputs: &'a [InputFile],
 }
 
@@ -223,6 +225,7 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
             .map(|(n, i)| super::axis::IsoRecord::new(n, i)),
         iso230_2_missing: iso.and_then(|i| i.err()),
         device_loop: loop_record(s),
+        tables: &s.tables,
         inputs: &results.inputs,
     })
 }

@@ -41,6 +41,9 @@ pub struct DeviceStage {
     pub study: Option<Result<DeviceStudy, String>>,
     /// The `positions` files read, with their hashes.
     pub positions_files: Vec<InputFile>,
+    /// The controller tables `[tables]` asks for, from the six errors at each station (the
+    /// same formats as an axis run's: `output::axis_tables::device_tables`).
+    pub(crate) tables: Vec<crate::output::axis_tables::TableRecord>,
 }
 
 /// The logs of the sensors the devices name (`[[device]] sensor`), for their rings' temperature.
@@ -112,7 +115,10 @@ pub fn run_device(
         .cloned()
         .ok_or("campaign.toml has no [[device]] table: the device stage needs one")?;
     let dwells = log.dwells(&device.id);
-    let stage = evaluate_device(plan, results, device, dwells, positions_files);
+    let mut stage = evaluate_device(plan, results, device, dwells, positions_files);
+    if let Ok(test) = &stage.outcome {
+        stage.tables = crate::output::axis_tables::device_tables(test, &plan.tables);
+    }
     results.device = Some(stage);
     Ok(())
 }
@@ -312,6 +318,7 @@ fn evaluate_device(
         outcome,
         study,
         positions_files,
+        tables: Vec::new(),
     }
 }
 

@@ -77,6 +77,9 @@ pub(crate) struct PipelineFile {
     pub(crate) output: OutputSection,
     #[serde(default)]
     pub(crate) device: DeviceSection,
+    /// Controller tables from the device's six errors (`[tables]`, as an axis run's).
+    #[serde(default)]
+    pub(crate) tables: crate::output::axis_tables::TablesSection,
 }
 
 /// `[device]`: the device stage's loop (`dbbcal_machine::device_study`).
@@ -642,6 +645,8 @@ pub struct RunPlan {
     pub(crate) output: OutputSection,
     /// The device stage's loop: its effects and proposal threshold.
     pub(crate) device: dbbcal_machine::device_study::DeviceStudyOptions,
+    /// The controller tables the device stage writes (`[tables]`; none by default).
+    pub(crate) tables: crate::output::axis_tables::AxisTablesPlan,
 }
 
 impl RunPlan {
@@ -722,6 +727,7 @@ impl RunPlan {
             min_bic_gain: file.device.min_bic_gain,
             min_effect_um: file.device.min_effect_um,
         };
+        plan.tables = crate::output::axis_tables::tables_plan(&file.tables).map_err(perr)?;
         Ok(plan)
     }
 
@@ -779,6 +785,7 @@ impl RunPlan {
             report: ReportSection::default(),
             output: OutputSection::default(),
             device: Default::default(),
+            tables: Default::default(),
         })
     }
 

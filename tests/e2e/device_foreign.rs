@@ -613,6 +613,44 @@ fn compare(device: &serde_json::Value, truth: &Truth) -> (usize, usize, usize, f
     (inside, beyond, n, z2, worst)
 }
 
+/// The ISG table's EYY column (mm) is the mean over each station's evaluated dwells of
+/// `device.json`'s EYY (µm; the datum's zero counts at its station), to the table's 4 decimals.
+fn check_positioning_table(device: &serde_json::Value, csv: &Path) {
+    let text = std::fs::read_to_string(csv).unwrap_or_else(|e| panic!("{}: {e}", csv.display()));
+    let mut lines = text.lines().filter(|l| !l.starts_with("//"));
+    let header: Vec<&str> = lines.next().unwrap().split_whitespace().collect();
+    assert_eq!(header, ["Y", "EXY", "EYY", "EZY", "EAY", "EBY", "ECY"]);
+    let mut by_station: std::collections::BTreeMap<i64, (f64, Vec<f64>)> = Default::default();
+    for d in device["dwells"].as_array().unwrap() {
+        let y = d["commanded_mm"][1].as_f64().unwrap();
+        let value = match d["errors"].as_array().unwrap().get(1) {
+            Some(e) => e["value"].as_f64().unwrap(),
+            None if d["flag"].as_str().is_some_and(|f| f.starts_with("datum")) => 0.0,
+            None => continue,
+        };
+        let entry = by_station
+            .entry(d["station"].as_i64().unwrap())
+            .or_insert((y, Vec::new()));
+        entry.1.push(value);
+    }
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), STATIONS, "{text}");
+    for (y, values) in by_station.values() {
+        let row = rows
+            .iter()
+            .find(|r| (r[0] - y).abs() < 1e-6)
+            .unwrap_or_else(|| panic!("no row at {y} in {text}"));
+        let mean_mm = 1e-3 * values.iter().sum::<f64>() / values.len() as f64;
+        assert!(
+            (row[2] - mean_mm).abs() <= 0.6e-4,
+            "at {y}: {} against {mean_mm}",
+            row[2]
+        );
+    }
+}
+
 #[test]
 fn a_second_simulator_s_hexapod_axis_is_recovered_within_u() {
     let tmp = tempfile::tempdir().unwrap();
@@ -632,6 +670,9 @@ fn a_second_simulator_s_hexapod_axis_is_recovered_within_u() {
             "seed {seed}, a clean test: {}\n{said}",
             device["loop"]
         );
+        if seed == 1 {
+            check_positioning_table(&device, &tmp.path().join("out-1/tables/Y.csv"));
+        }
         let (i, b, m, z, worst) = compare(&device, &truth);
         eprintln!(
             "second device simulator, seed {seed}: {i}/{m} within U, {b} beyond 2U, worst \
