@@ -86,7 +86,8 @@ pub(crate) struct PipelineFile {
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct DeviceSection {
-    /// Effects in the device's model: machine_drift, body_expansion, reseated_leg.
+    /// Effects in the device's model: machine_drift, machine_warm_up, body_expansion,
+    /// reseated_leg.
     #[serde(default)]
     pub(crate) effects: Vec<String>,
     /// The BIC gain an effect must bring to be proposed.

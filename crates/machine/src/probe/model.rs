@@ -152,7 +152,7 @@ pub(crate) fn fit(
         Lobing::Harmonic => (solve_at(spec, touches, y_um, 0.0)?, None),
         Lobing::Physical => {
             let (best, s) = profile_phi0(spec, touches, y_um)?;
-            (s, Some(best))
+            (with_phi0_counted(spec, touches, y_um, best.0, s), Some(best))
         }
     };
     let n = touches.len() as f64;
@@ -183,6 +183,63 @@ pub(crate) fn fit(
         bic,
         rms_um,
     })
+}
+
+/// `solution` (the linear fit at the profiled φ₀) with its covariance and degrees of freedom
+/// those of the fit linearised in φ₀ too: the design gains the column ∂(model)/∂φ₀ at the
+/// estimate (a central difference), so the residual variance counts φ₀ as the parameter it is
+/// and every gain's variance includes what φ₀'s uncertainty moves it by. The estimates and
+/// residuals stay those of the exact fit (at the optimum the extra column's coefficient is
+/// zero). Unchanged when the lobes are not determined there or the column adds no rank.
+///
+/// Why: with φ₀ profiled but not counted, U of the first-touch errors came out about 4 %
+/// small (ten simulated campaigns pooled: RMS 1.045 in units of U/2).
+fn with_phi0_counted(
+    spec: &ModelSpec,
+    touches: &[TouchInputs],
+    y_um: &[f64],
+    phi0_deg: f64,
+    solution: LinearSolution,
+) -> LinearSolution {
+    const H_DEG: f64 = 0.05;
+    let lobes = solution.index("lobe_delta_min_um");
+    if !lobes.is_some_and(|i| solution.determined[i]) {
+        return solution;
+    }
+    let model = |t: &TouchInputs, p: f64| -> f64 {
+        row(spec, t, p)
+            .iter()
+            .zip(&solution.estimate)
+            .map(|(a, x)| a * x)
+            .sum()
+    };
+    let mut names = names(spec);
+    names.push("phi0_linearised".into());
+    let rows: Vec<Vec<f64>> = touches
+        .iter()
+        .map(|t| {
+            let mut r = row(spec, t, phi0_deg);
+            r.push((model(t, phi0_deg + H_DEG) - model(t, phi0_deg - H_DEG)) / (2.0 * H_DEG));
+            r
+        })
+        .collect();
+    let Ok(full) = linear::solve(&LinearProblem {
+        names,
+        rows,
+        observations: y_um.to_vec(),
+        sigma: None,
+    }) else {
+        return solution;
+    };
+    let p = solution.names.len();
+    match &full.covariance {
+        Some(c) if full.rank == solution.rank + 1 && full.determined[p] => LinearSolution {
+            covariance: Some(c.view((0, 0), (p, p)).into_owned()),
+            dof: full.dof,
+            ..solution
+        },
+        _ => solution,
+    }
 }
 
 /// The best φ₀ and its U (k = 2: where the RSS rises by 4 s²; NaN when that interval spans
