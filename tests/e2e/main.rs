@@ -4,6 +4,7 @@
 mod acceptance;
 mod architecture;
 mod axis_campaign;
+mod axis_foreign;
 mod bad_config;
 mod bad_input;
 mod base_noise;

@@ -280,7 +280,9 @@ fn the_first_touch_errors_u_holds_over_ten_simulated_campaigns() {
     assert_eq!(z.len(), 240);
     let inside = z.iter().filter(|z| z.abs() <= 2.0).count();
     let rms = (z.iter().map(|z| z * z).sum::<f64>() / z.len() as f64).sqrt();
-    eprintln!("first-touch errors over ten campaigns: {inside} of 240 within U, RMS {rms:.3} in U/2");
+    eprintln!(
+        "first-touch errors over ten campaigns: {inside} of 240 within U, RMS {rms:.3} in U/2"
+    );
     assert!(inside >= 216, "{inside} of 240 first-touch errors within U");
     assert!(
         (0.85..=1.15).contains(&rms),

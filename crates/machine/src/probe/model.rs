@@ -152,7 +152,10 @@ pub(crate) fn fit(
         Lobing::Harmonic => (solve_at(spec, touches, y_um, 0.0)?, None),
         Lobing::Physical => {
             let (best, s) = profile_phi0(spec, touches, y_um)?;
-            (with_phi0_counted(spec, touches, y_um, best.0, s), Some(best))
+            (
+                with_phi0_counted(spec, touches, y_um, best.0, s),
+                Some(best),
+            )
         }
     };
     let n = touches.len() as f64;
