@@ -33,8 +33,21 @@ fn add_command(plan: &RunPlan, effect: DeviceEffect) -> Option<String> {
     Some(cmd)
 }
 
-/// The headline's lines of the device's loop: its verdict and, with a proposal, the command.
+/// The headline's lines of the device stage's loop and tables: the loop's verdict and, with a
+/// proposal, the command; the controller tables written or refused.
 pub(crate) fn headline_lines(plan: &RunPlan, results: &RunResults) -> Vec<(&'static str, String)> {
+    let mut lines = loop_lines(plan, results);
+    if let Some(t) = results
+        .device
+        .as_ref()
+        .and_then(|d| super::axis::tables_line(&d.tables))
+    {
+        lines.push(("Tables", t));
+    }
+    lines
+}
+
+fn loop_lines(plan: &RunPlan, results: &RunResults) -> Vec<(&'static str, String)> {
     let Some(s) = study(results) else {
         return Vec::new();
     };
@@ -70,13 +83,6 @@ pub(crate) fn headline_lines(plan: &RunPlan, results: &RunResults) -> Vec<(&'sta
             ),
         },
     )];
-    if let Some(t) = results
-        .device
-        .as_ref()
-        .and_then(|d| super::axis::tables_line(&d.tables))
-    {
-        lines.push(("Tables", t));
-    }
     if let Some(cmd) = s.proposal.and_then(|e| add_command(plan, e)) {
         lines.push(("Device next", cmd));
     }
