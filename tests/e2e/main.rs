@@ -31,3 +31,4 @@ mod safe_outputs;
 mod support;
 mod tclab;
 mod volumetric;
+mod volumetric_foreign;

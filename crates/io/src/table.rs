@@ -18,6 +18,8 @@ pub enum Column {
     I64(Vec<i64>),
     /// Strings.
     Str(Vec<String>),
+    /// Nullable strings (`None` is written as a parquet null).
+    OptStr(Vec<Option<String>>),
     /// Timestamps, nanoseconds since the Unix epoch, written as a naive (= UTC) `Datetime(ns)`.
     TimeNs(Vec<i64>),
     /// Nullable integers.
@@ -41,6 +43,7 @@ impl Column {
             Column::OptF64(v) => v.len(),
             Column::I64(v) => v.len(),
             Column::Str(v) => v.len(),
+            Column::OptStr(v) => v.len(),
             Column::TimeNs(v) => v.len(),
             Column::OptI64(v) => v.len(),
             Column::Time { raw, .. } => raw.len(),
@@ -59,6 +62,7 @@ impl Column {
             Column::OptF64(v) => pl::Series::new(name, v.as_slice()).into_column(),
             Column::I64(v) => pl::Series::new(name, v.as_slice()).into_column(),
             Column::Str(v) => pl::Series::new(name, v.as_slice()).into_column(),
+            Column::OptStr(v) => pl::Series::new(name, v.as_slice()).into_column(),
             Column::TimeNs(v) => pl::Int64Chunked::from_vec(name, v.clone())
                 .into_datetime(pl::TimeUnit::Nanoseconds, None)
                 .into_column(),
@@ -158,6 +162,7 @@ pub fn write_table_csv(path: &Path, table: &Table) -> Result<(), WriteError> {
             Column::I64(v) => v[i].to_string(),
             Column::OptI64(v) => v[i].map(|x| x.to_string()).unwrap_or_default(),
             Column::Str(v) => v[i].clone(),
+            Column::OptStr(v) => v[i].clone().unwrap_or_default(),
             Column::TimeNs(v) => super::format_ns(v[i]),
             Column::Time { raw, .. } => raw[i].map(|x| x.to_string()).unwrap_or_default(),
         }
