@@ -17,6 +17,7 @@
 //!   V_diag, the joint fit, V1 … V3 on the grid, what cannot be seen, and the loop: candidate
 //!   effects by BIC, the missing one named).
 
+pub mod bar_diagonal;
 pub mod grid;
 pub mod model;
 pub mod solve;
