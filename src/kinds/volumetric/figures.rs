@@ -279,10 +279,16 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
         .map(|lv| {
             let nodes: Vec<&NodeError> = s.nodes.iter().filter(|n| n.node[level] == lv).collect();
             let (mut ax, mut ay) = (Vec::new(), Vec::new());
+            let (mut ux, mut uy) = (Vec::new(), Vec::new());
             for n in &nodes {
                 let from = [n.position_mm[a], n.position_mm[b]];
                 let d = [scale * value(n, a), scale * value(n, b)];
                 arrow(&mut ax, &mut ay, from, d);
+                let u = [n.error[a].u_k2, n.error[b].u_k2];
+                if u.iter().all(|u| u.is_finite()) {
+                    let tip = [from[0] + d[0], from[1] + d[1]];
+                    ellipse(&mut ux, &mut uy, tip, [scale * u[0], scale * u[1]]);
+                }
             }
             // The scale arrow, below the min corner.
             let (mut rx, mut ry) = (Vec::new(), Vec::new());
@@ -293,6 +299,25 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
                 [g.origin_mm[a], below],
                 [scale * ref_um, 0.0],
             );
+            let mut lines = vec![
+                NamedSeries {
+                    name: format!("e{}, e{} (1 µm = {scale:.1} mm)", AXES[a], AXES[b]),
+                    x: ax,
+                    y: ay,
+                },
+                NamedSeries {
+                    name: format!("{} µm", num_short(ref_um)),
+                    x: rx,
+                    y: ry,
+                },
+            ];
+            if !ux.is_empty() {
+                lines.push(NamedSeries {
+                    name: "U (k = 2) about the tip".into(),
+                    x: ux,
+                    y: uy,
+                });
+            }
             GeometryView {
                 title: format!(
                     "{} = {:.0} mm",
@@ -301,18 +326,7 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
                 ),
                 x_label: format!("{} (mm)", AXES[a]),
                 y_label: format!("{} (mm)", AXES[b]),
-                lines: vec![
-                    NamedSeries {
-                        name: format!("e{}, e{} (1 µm = {scale:.1} mm)", AXES[a], AXES[b]),
-                        x: ax,
-                        y: ay,
-                    },
-                    NamedSeries {
-                        name: format!("{} µm", num_short(ref_um)),
-                        x: rx,
-                        y: ry,
-                    },
-                ],
+                lines,
                 points: vec![NamedSeries {
                     name: "grid node".into(),
                     x: nodes.iter().map(|n| n.position_mm[a]).collect(),
@@ -349,6 +363,18 @@ fn grid_figure(s: &VolumetricStudy, plane: [usize; 2], level: usize) -> Geometry
 }
 
 /// A polyline arrow from `from` by `d` (with a head), NaN-terminated.
+/// The ellipse of semi-axes `half` about `centre` (each component's U, drawn to the arrows'
+/// scale), as one closed polyline.
+fn ellipse(x: &mut Vec<f64>, y: &mut Vec<f64>, centre: [f64; 2], half: [f64; 2]) {
+    for k in 0..=24 {
+        let t = std::f64::consts::TAU * k as f64 / 24.0;
+        x.push(centre[0] + half[0] * t.cos());
+        y.push(centre[1] + half[1] * t.sin());
+    }
+    x.push(f64::NAN);
+    y.push(f64::NAN);
+}
+
 fn arrow(x: &mut Vec<f64>, y: &mut Vec<f64>, from: [f64; 2], d: [f64; 2]) {
     let to = [from[0] + d[0], from[1] + d[1]];
     x.extend([from[0], to[0], f64::NAN]);
