@@ -253,7 +253,15 @@ fn confirm_tied_paths(
         }
     }
     match kept {
-        Some((ledger, models, _)) => (ledger, models),
+        Some((ledger, models, total)) => led_by_the_ranking(
+            series,
+            start,
+            (ledger, models, total),
+            first_candidates,
+            coarse,
+            criteria,
+            refits,
+        ),
         None => confirm_path(
             series,
             start,
@@ -262,6 +270,69 @@ fn confirm_tied_paths(
             criteria,
             refits,
         ),
+    }
+}
+
+/// `kept` (a confirmed ledger, its models and its total ΔBIC) led by the ranking's best proposed
+/// candidate where it leads with another: that candidate first, then the ledger's other
+/// effects in their order, confirmed on the readings. The reordered ledger is kept when its
+/// total is within [`PATH_TIE_SHARE`] of `kept`'s; otherwise `kept` stands (and the page says
+/// why the two differ).
+///
+/// Why: the coarse beam ranks whole paths, so its first step can be a term that comes first
+/// only on the copies. On the second simulator's creep campaign (`bench/loop_check.py`, k = 1,
+/// seed 2) the readings ranked `creep` first (ΔBIC −904 795 against `second_path`'s −891 332),
+/// while the ledger read `second_path` → `creep`: the same two terms, the hidden effect named
+/// second.
+fn led_by_the_ranking(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    kept: (Vec<LedgerStep>, Vec<BarModel>, f64),
+    first_candidates: &[Candidate],
+    coarse: &CoarseFleet,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let (ledger, models, total) = kept;
+    let Some(best) = first_candidates.iter().find(|c| c.proposed()) else {
+        return (ledger, models);
+    };
+    let added: Vec<Effect> = ledger
+        .iter()
+        .filter_map(|step| match &step.added {
+            Added::Effect(e) => Some(e.clone()),
+            Added::Base => None,
+        })
+        .collect();
+    if added
+        .first()
+        .is_none_or(|e| term_identity(e) == term_identity(&best.effect))
+    {
+        return (ledger, models);
+    }
+    let path: Vec<Effect> = std::iter::once(best.effect.clone())
+        .chain(
+            added
+                .iter()
+                .filter(|e| term_identity(e) != term_identity(&best.effect))
+                .cloned(),
+        )
+        .take(added.len().max(1))
+        .collect();
+    let (reordered, reordered_models) = confirm_path(
+        series,
+        start,
+        first_candidates,
+        (&path, coarse),
+        criteria,
+        refits,
+    );
+    let reordered_total: f64 = reordered.iter().filter_map(|step| step.delta_bic).sum();
+    tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), reordered_total, total, "diagnose: the ledger led by the ranking's best, confirmed");
+    if (reordered_total - total).abs() <= PATH_TIE_SHARE * total.abs() {
+        (reordered, reordered_models)
+    } else {
+        (ledger, models)
     }
 }
 
