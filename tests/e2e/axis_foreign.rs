@@ -141,7 +141,7 @@ fn simulate(dir: &Path, seed: u64, drift_um_per_h: f64) -> [Curve; 6] {
     let mut fixture_rows = Vec::new();
     for (l, (reflector, channels)) in LINES.iter().enumerate() {
         fixture_rows.push((t, l as i64 + 1, *reflector));
-        let mut rows: Vec<(f64, i64, Option<i64>, f64, String, f64)> = Vec::new();
+        let mut rows: Vec<ReadingRow> = Vec::new();
         for run in 1..=RUNS {
             let forward: Vec<usize> = (0..TARGETS).collect();
             let backward: Vec<usize> = (0..TARGETS).rev().collect();
@@ -229,14 +229,10 @@ fn micros(t_s: f64) -> i64 {
     (T0_S as f64 * 1e6 + t_s * 1e6).round() as i64
 }
 
-#[allow(clippy::type_complexity)]
-fn write_line(
-    dir: &Path,
-    line: usize,
-    rows: &mut [(f64, i64, Option<i64>, f64, String, f64)],
-    seed: u64,
-    rng: &mut impl Rng,
-) {
+/// A reading: (time s, run, direction, target mm, channel, deviation µm).
+type ReadingRow = (f64, i64, Option<i64>, f64, String, f64);
+
+fn write_line(dir: &Path, line: usize, rows: &mut [ReadingRow], seed: u64, rng: &mut impl Rng) {
     std::fs::create_dir_all(dir.join("readings")).unwrap();
     rows.shuffle(rng);
     let mut columns = vec![

@@ -179,9 +179,12 @@ impl Machine {
     }
 }
 
+/// A row of the positions log: (time s, commanded y mm, station).
+type PositionRow = (f64, f64, Option<i64>);
+
 /// The positions log: (time s, commanded y mm, station) every 2 s from `POSITIONS_FROM_S`;
 /// and the dwells (station, from s, to s).
-fn programme() -> (Vec<(f64, f64, Option<i64>)>, Vec<(i64, f64, f64)>) {
+fn programme() -> (Vec<PositionRow>, Vec<(i64, f64, f64)>) {
     let y_of = |j: usize| REFERENCE_MM[1] + STATION_STEP_MM * j as f64;
     let forward: Vec<usize> = (0..STATIONS).collect();
     let backward: Vec<usize> = (0..STATIONS).rev().collect();
@@ -229,7 +232,7 @@ fn programme() -> (Vec<(f64, f64, Option<i64>)>, Vec<(i64, f64, f64)>) {
 }
 
 /// The commanded y at time `t_s` (the last positions row at or before it).
-fn commanded_y(rows: &[(f64, f64, Option<i64>)], t_s: f64) -> f64 {
+fn commanded_y(rows: &[PositionRow], t_s: f64) -> f64 {
     let k = rows.partition_point(|r| r.0 <= t_s);
     rows[k.saturating_sub(1)].1
 }
@@ -420,7 +423,7 @@ fn simulate(dir: &Path, seed: u64, warm_up: bool) -> Truth {
 
 /// The positions log in two files, rows shuffled, times in ms (UTC); a `run` column on even
 /// seeds only (the pass: 1, 2 forward, backward, ...).
-fn write_positions(dir: &Path, rows: &[(f64, f64, Option<i64>)], seed: u64, rng: &mut impl Rng) {
+fn write_positions(dir: &Path, rows: &[PositionRow], seed: u64, rng: &mut impl Rng) {
     std::fs::create_dir_all(dir.join("positions")).unwrap();
     let mut order: Vec<usize> = (0..rows.len()).collect();
     order.shuffle(rng);
@@ -469,7 +472,7 @@ fn write_positions(dir: &Path, rows: &[(f64, f64, Option<i64>)], seed: u64, rng:
                 Column::OptI64(chunk.iter().map(|&k| rows[k].2).collect()),
             ),
         ];
-        if seed % 2 == 0 {
+        if seed.is_multiple_of(2) {
             columns.push((
                 "run".into(),
                 Column::OptI64(chunk.iter().map(|&k| run_of[k]).collect()),

@@ -210,8 +210,7 @@ fn simulate(dir: &Path, seed: u64, drift_um_per_h: [f64; 3]) -> (Truth, f64) {
         let (ba, bb) = (rng.gen_range(-40e-6..40e-6), rng.gen_range(-40e-6..40e-6));
         let beta: [f64; 3] = std::array::from_fn(|k| ba * a[k] + bb * b[k]);
         let e0 = truth.error(p0, t_s / 3600.0);
-        let mut steps: Vec<(f64, i64, Option<&str>, [f64; 3], f64)> =
-            vec![(t_s, 0, None, p0, noise.sample(&mut rng))];
+        let mut steps: Vec<StepRow> = vec![(t_s, 0, None, p0, noise.sample(&mut rng))];
         t_s += 6.0;
         let mut p = p0;
         for n in 1..=STEPS {
@@ -298,13 +297,10 @@ fn write_body(
     write_table(&file, &Table { columns }).unwrap();
 }
 
-#[allow(clippy::type_complexity)]
-fn write_steps(
-    dir: &Path,
-    name: &str,
-    rows: &mut [(f64, i64, Option<&str>, [f64; 3], f64)],
-    rng: &mut impl Rng,
-) {
+/// A step diagonal's reading: (time s, step, sub-move, commanded P mm, reading µm).
+type StepRow = (f64, i64, Option<&'static str>, [f64; 3], f64);
+
+fn write_steps(dir: &Path, name: &str, rows: &mut [StepRow], rng: &mut impl Rng) {
     rows.shuffle(rng);
     let coordinate = |k: usize| Column::F64(rows.iter().map(|r| r.3[k]).collect());
     let columns = vec![
