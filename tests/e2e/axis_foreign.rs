@@ -27,7 +27,7 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use crate::support::run_cli;
+use crate::support::run_record;
 
 /// 2027-06-07T07:00:00Z, s.
 const T0_S: i64 = 1_812_697_200;
@@ -324,18 +324,7 @@ fn write_fixture(dir: &Path, rows: &[(f64, i64, [f64; 3])]) {
 
 /// `dbbcal run pipelines/axis.toml` on `campaign` (plus `extra`): axis.json.
 fn run(campaign: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
-    let mut args = vec![
-        "run",
-        "pipelines/axis.toml",
-        "--campaign",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend(extra);
-    let (code, stdout, err) = run_cli(&args);
-    assert_eq!(code, 0, "{}: {stdout}\n{err}", campaign.display());
-    serde_json::from_str(&std::fs::read_to_string(out.join("axis.json")).unwrap()).unwrap()
+    run_record("pipelines/axis.toml", campaign, out, extra, "axis.json").0
 }
 
 /// Each error at each target against the truth, in units of its U: straightness (EXZ, EYZ)

@@ -29,7 +29,7 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use crate::support::run_cli;
+use crate::support::run_record;
 
 /// 2027-05-03T00:00:00Z, s.
 const T0_S: i64 = 1_809_302_400;
@@ -571,21 +571,9 @@ fn manifest(bars: &[Bar], base: &[[f64; 3]; 6], platform: &[[f64; 3]; 6], end_s:
     m
 }
 
-/// `dbbcal run pipelines/device.toml` on `campaign` (plus `extra`): device.json.
+/// `dbbcal run pipelines/device.toml` on `campaign` (plus `extra`): device.json and what the run said.
 fn run(campaign: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value, String) {
-    let mut args = vec![
-        "run",
-        "pipelines/device.toml",
-        "--campaign",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend(extra);
-    let (code, _, err) = run_cli(&args);
-    assert_eq!(code, 0, "{}: {err}", campaign.display());
-    let text = std::fs::read_to_string(out.join("device.json")).unwrap();
-    (serde_json::from_str(&text).unwrap(), err)
+    run_record("pipelines/device.toml", campaign, out, extra, "device.json")
 }
 
 /// Every evaluated dwell's errors against the truth: (within U, beyond 2U, compared, Σ z²,

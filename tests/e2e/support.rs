@@ -228,6 +228,22 @@ pub(crate) fn run_on(pipeline: &str, campaign: &Path, out: &Path, extra: &[&str]
     (code, format!("{stdout}{stderr}"))
 }
 
+/// [`run_on`], asserted to exit 0, and the JSON record `record` it wrote in `out` (with the
+/// run's output, for messages).
+pub(crate) fn run_record(
+    pipeline: &str,
+    campaign: &Path,
+    out: &Path,
+    extra: &[&str],
+    record: &str,
+) -> (serde_json::Value, String) {
+    let (code, said) = run_on(pipeline, campaign, out, extra);
+    assert_eq!(code, 0, "{}: {said}", campaign.display());
+    let text = std::fs::read_to_string(out.join(record))
+        .unwrap_or_else(|e| panic!("{}: {e}", out.join(record).display()));
+    (serde_json::from_str(&text).unwrap(), said)
+}
+
 /// The repository root, read when the test runs (cargo sets `CARGO_MANIFEST_DIR` for it; tests
 /// also run there). Not `env!`: checkouts that share one target directory share this binary,
 /// and a path baked in at compile time would point into whichever checkout built it.

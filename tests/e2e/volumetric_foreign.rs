@@ -26,7 +26,7 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use crate::support::run_cli;
+use crate::support::run_record;
 
 /// 2027-07-05T06:00:00Z, s.
 const T0_S: i64 = 1_815_112_800;
@@ -341,18 +341,14 @@ fn file_tag(name: &str) -> String {
 
 /// `dbbcal run pipelines/volumetric.toml` on `campaign` (plus `extra`): volumetric.json.
 fn run(campaign: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
-    let mut args = vec![
-        "run",
+    run_record(
         "pipelines/volumetric.toml",
-        "--campaign",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    args.extend(extra);
-    let (code, stdout, err) = run_cli(&args);
-    assert_eq!(code, 0, "{}: {stdout}\n{err}", campaign.display());
-    serde_json::from_str(&std::fs::read_to_string(out.join("volumetric.json")).unwrap()).unwrap()
+        campaign,
+        out,
+        extra,
+        "volumetric.json",
+    )
+    .0
 }
 
 /// What the readings can see against the truth, in units of U: (name, |e − t| / U).
