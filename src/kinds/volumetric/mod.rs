@@ -54,6 +54,8 @@ struct Section {
     min_bic_gain: f64,
     #[serde(default)]
     tolerances: Tolerances,
+    #[serde(default)]
+    scale_budget: ScaleBudgetSection,
 }
 
 impl Default for Section {
@@ -63,8 +65,22 @@ impl Default for Section {
             forward_steps: default_forward_steps(),
             min_bic_gain: default_min_bic_gain(),
             tolerances: Tolerances::default(),
+            scale_budget: ScaleBudgetSection::default(),
         }
     }
+}
+
+/// `[volumetric.scale_budget]`: the standard uncertainties (k = 1) of the laser's environment
+/// sensors and wavelength (`study::ScaleBudget`; each optional, its default a laser system's
+/// stated accuracy taken as rectangular).
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+struct ScaleBudgetSection {
+    air_k: Option<f64>,
+    pressure_hpa: Option<f64>,
+    humidity_pct: Option<f64>,
+    material_k: Option<f64>,
+    wavelength_ppm: Option<f64>,
 }
 
 fn default_effects() -> Vec<String> {
@@ -101,6 +117,8 @@ pub(crate) struct Tolerances {
 pub struct VolumetricPlan {
     base: PlanBase,
     options: VolumetricStudyOptions,
+    /// Turned into `options.scale_u_ppm` with the campaign's expansion coefficient.
+    scale_budget: study::ScaleBudget,
     pub(crate) tolerances: Tolerances,
 }
 
@@ -108,6 +126,7 @@ mod limits {
     use dbbcal_core::limits::{CountLimit, Limit};
     pub(super) const FORWARD_STEPS: CountLimit = CountLimit::new(0, 4);
     pub(super) const TOLERANCE: Limit = Limit::closed(0.0, 1e6, "");
+    pub(super) const BUDGET: Limit = Limit::closed(0.0, 1e3, "");
 }
 
 impl VolumetricPlan {
@@ -128,13 +147,49 @@ impl VolumetricPlan {
                 limits::TOLERANCE.check(key, x).map_err(|e| pt.range(e))?;
             }
         }
+        let b = &v.scale_budget;
+        let mut scale_budget = study::ScaleBudget::default();
+        for (key, given, slot) in [
+            (
+                "volumetric.scale_budget.air_k",
+                b.air_k,
+                &mut scale_budget.air_k,
+            ),
+            (
+                "volumetric.scale_budget.pressure_hpa",
+                b.pressure_hpa,
+                &mut scale_budget.pressure_hpa,
+            ),
+            (
+                "volumetric.scale_budget.humidity_pct",
+                b.humidity_pct,
+                &mut scale_budget.humidity_pct,
+            ),
+            (
+                "volumetric.scale_budget.material_k",
+                b.material_k,
+                &mut scale_budget.material_k,
+            ),
+            (
+                "volumetric.scale_budget.wavelength_ppm",
+                b.wavelength_ppm,
+                &mut scale_budget.wavelength_ppm,
+            ),
+        ] {
+            if let Some(x) = given {
+                limits::BUDGET.check(key, x).map_err(|e| pt.range(e))?;
+                *slot = x;
+            }
+        }
         let effects = pt.effects(&v.effects)?;
         Ok(VolumetricPlan {
+            scale_budget,
             base: pt.base(&file.pipeline),
             options: VolumetricStudyOptions {
                 effects,
                 forward_steps: v.forward_steps,
                 min_bic_gain: v.min_bic_gain,
+                scale_u_ppm: 0.0,
             },
             tolerances: v.tolerances.clone(),
         })
@@ -153,7 +208,11 @@ pub(crate) fn run(plan: &VolumetricPlan) -> Result<Outcome> {
         .claim_output(|dir| Ok(crate::io::read_volumetric_manifest(dir)?.id))?;
     let dir = &plan.base.campaign_dir;
     let logs = crate::pipeline::timed("ingest", || crate::io::read_volumetric_campaign(dir))?;
-    let study = crate::pipeline::timed("volumetric", || study::study(&logs, &plan.options))
+    let options = study::VolumetricStudyOptions {
+        scale_u_ppm: plan.scale_budget.u_ppm(logs.campaign.cte_ppm_per_k),
+        ..plan.options.clone()
+    };
+    let study = crate::pipeline::timed("volumetric", || study::study(&logs, &options))
         .with_context(|| format!("analysing {}", dir.display()))?;
     let id = &logs.campaign.id;
     let pipeline = plan.base.pipeline();

@@ -38,6 +38,62 @@ pub struct VolumetricStudyOptions {
     pub forward_steps: usize,
     /// BIC gain an effect needs to be proposed.
     pub min_bic_gain: f64,
+    /// Standard uncertainty of the scale every reading shares (the laser's wavelength, the air's
+    /// index from the environment sensors, the material normalisation), ppm: [`ScaleBudget`].
+    /// It enters the mean scale Σ L_k² ε_k / D² one to one and V_diag through the diagonal's
+    /// length; squareness, a difference of diagonals, does not see it.
+    pub scale_u_ppm: f64,
+}
+
+/// The standard uncertainties (k = 1) behind the readings' common scale, and the
+/// sensitivities of `machine-physics.md` ("Interferometer readings"): −0.95 ppm/K of air,
+/// +0.27 ppm/hPa, −0.0085 ppm/%RH, the machine's expansion per K of material.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaleBudget {
+    /// Air temperature sensor, K.
+    pub air_k: f64,
+    /// Air pressure sensor, hPa.
+    pub pressure_hpa: f64,
+    /// Humidity sensor, %RH.
+    pub humidity_pct: f64,
+    /// Material temperature sensors, K.
+    pub material_k: f64,
+    /// The laser's vacuum wavelength, ppm.
+    pub wavelength_ppm: f64,
+}
+
+impl Default for ScaleBudget {
+    /// A laser system's environment unit as vendors state it (air ±0.2 K, pressure ±1 hPa,
+    /// humidity ±6 %RH, material ±0.1 K, each taken as rectangular) and a stabilised HeNe
+    /// laser (0.02 ppm).
+    fn default() -> Self {
+        let rect = |half: f64| half / 3f64.sqrt();
+        ScaleBudget {
+            air_k: rect(0.2),
+            pressure_hpa: rect(1.0),
+            humidity_pct: rect(6.0),
+            material_k: rect(0.1),
+            wavelength_ppm: 0.02,
+        }
+    }
+}
+
+impl ScaleBudget {
+    /// The common scale's standard uncertainty, ppm, for a machine of expansion
+    /// `cte_ppm_per_k`.
+    pub fn u_ppm(&self, cte_ppm_per_k: f64) -> f64 {
+        [
+            0.95 * self.air_k,
+            0.27 * self.pressure_hpa,
+            0.0085 * self.humidity_pct,
+            cte_ppm_per_k * self.material_k,
+            self.wavelength_ppm,
+        ]
+        .iter()
+        .map(|x| x * x)
+        .sum::<f64>()
+        .sqrt()
+    }
 }
 
 impl Default for VolumetricStudyOptions {
@@ -46,6 +102,7 @@ impl Default for VolumetricStudyOptions {
             effects: vec![VolumetricEffect::Pointing],
             forward_steps: 2,
             min_bic_gain: 10.0,
+            scale_u_ppm: 0.0,
         }
     }
 }
@@ -329,7 +386,7 @@ pub fn analyse(
     let (v1, v2, v3) = figures(&fit, &nodes);
     let figures_identifiable = nodes.iter().all(|n| n.error.iter().all(|q| q.identifiable));
     let curves = curves(&obs, frame.min_mm, frame.max_mm);
-    let v_diag = v_diag(&curves);
+    let v_diag = v_diag(&curves, options.scale_u_ppm);
     let mut invisible = invisible(&fit, &obs, n);
     if !figures_identifiable {
         invisible.push("V1, V2, V3 and the 3-D table hold terms the readings cannot see: they are given in the stated gauge, not measured".to_string());
@@ -344,7 +401,7 @@ pub fn analyse(
     let residual_rms = residual_rms(&fit, &obs);
     Ok(VolumetricStudy {
         squareness: fit.squareness(),
-        mean_scale: fit.mean_scale(),
+        mean_scale: with_common_scale(fit.mean_scale(), options.scale_u_ppm),
         slopes: fit.slopes(),
         observations: obs,
         curves,
@@ -525,22 +582,39 @@ fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, String> {
     iso230_2::evaluate(&targets).map_err(|e| e.to_string())
 }
 
-fn v_diag(curves: &[DiagonalCurve]) -> Option<Figure> {
-    let e = curves
+/// The mean scale's U with the readings' common scale added (`scale_u_ppm` is µm/m one to
+/// one), where the readings see it.
+fn with_common_scale(q: Quantity, scale_u_ppm: f64) -> Quantity {
+    let u_k2 = if q.u_k2.is_finite() {
+        2.0 * ((q.u_k2 / 2.0).powi(2) + scale_u_ppm.powi(2)).sqrt()
+    } else {
+        q.u_k2
+    };
+    Quantity { u_k2, ..q }
+}
+
+/// V_diag, the largest E over the diagonals, and its U: the runs' scatter (the difference of
+/// two target means, the largest over every target), and the common scale over the length of
+/// the diagonal that gives it (a bound: E spans at most the whole diagonal).
+fn v_diag(curves: &[DiagonalCurve], scale_u_ppm: f64) -> Option<Figure> {
+    let (e, length_mm) = curves
         .iter()
-        .filter_map(|c| c.e_um)
-        .fold(None, |a: Option<f64>, v| Some(a.map_or(v, |a| a.max(v))))?;
+        .filter_map(|c| Some((c.e_um?, c.length_mm)))
+        .fold(None, |a: Option<(f64, f64)>, v| {
+            Some(a.map_or(v, |a| if v.0 > a.0 { v } else { a }))
+        })?;
     let u = curves
         .iter()
         .filter_map(|c| c.iso.as_ref().ok())
         .flat_map(|i| i.targets.iter())
         .flat_map(|t| [t.up, t.down])
         .flatten()
-        .map(|s| 2.0 * std::f64::consts::SQRT_2 * s.s_um / (s.runs as f64).sqrt())
+        .map(|s| std::f64::consts::SQRT_2 * s.s_um / (s.runs as f64).sqrt())
         .fold(0.0, f64::max);
+    let scale = scale_u_ppm * 1e-3 * length_mm;
     Some(Figure {
         value_um: e,
-        u_k2_um: u,
+        u_k2_um: 2.0 * (u * u + scale * scale).sqrt(),
     })
 }
 
