@@ -377,4 +377,24 @@ fn a_bad_pipeline_is_refused_in_one_line_before_reading() {
         assert_eq!(e.trim().lines().count(), 1, "{e}");
         assert!(!out.exists());
     }
+    // A scale budget out of range, named by its key.
+    let text = std::fs::read_to_string(root().join("pipelines/volumetric.toml")).unwrap();
+    let bad = tmp.path().join("bad-budget.toml");
+    std::fs::write(
+        &bad,
+        text.replace("material_k = 0.0577", "material_k = -1.0"),
+    )
+    .unwrap();
+    let (code, _o, e) = run_cli(&[
+        "run",
+        bad.to_str().unwrap(),
+        "--campaign",
+        campaign.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0);
+    assert!(e.contains("volumetric.scale_budget.material_k"), "{e}");
+    assert_eq!(e.trim().lines().count(), 1, "{e}");
+    assert!(!out.exists());
 }
