@@ -220,6 +220,70 @@ fn the_device_loop_names_each_hidden_effect_and_adding_it_restores_the_errors() 
     }
 }
 
+/// A machine warming up during the test (the drift slowing with a 1-h time constant) is named
+/// `machine_drift`, then `machine_warm_up`; with both the legs agree across repeats and the six
+/// errors are recovered as on a clean test.
+#[test]
+fn a_machine_warming_up_is_named_drift_then_warm_up() {
+    let tmp = tempfile::tempdir().unwrap();
+    let base =
+        std::fs::read_to_string(crate::support::root().join("pipelines/sim-device.toml")).unwrap();
+    let config = tmp.path().join("warm.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "{base}\n[schedule.working.device.hexapod.effects]\ndrift_um_per_h = [0.4, -0.3, 1.5]\ndrift_tau_h = 1.0\n"
+        ),
+    )
+    .unwrap();
+    let campaign = tmp.path().join("warm");
+    let (code, _, err) = run_cli(&[
+        "simulate",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        campaign.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let truth = json(&campaign.join("truth.json"));
+    let mut added: Vec<&str> = Vec::new();
+    let mut rms = Vec::new();
+    for expected in ["machine_drift", "machine_warm_up", ""] {
+        let out = tmp.path().join(format!("out-{}", added.len()));
+        let mut args = vec![
+            "run",
+            "pipelines/device.toml",
+            "--campaign",
+            campaign.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        for a in &added {
+            args.extend(["--add-effect", a]);
+        }
+        let (code, _, err) = run_cli(&args);
+        assert_eq!(code, 0, "{err}");
+        let device = json(&out.join("device.json"));
+        let (worst, coverage, beyond, n) = recovery(&device, &truth);
+        let r = device["loop"]["rms_um"].as_f64().unwrap();
+        eprintln!(
+            "device loop, warm-up, with {added:?}: legs' RMS {r:.4} µm, worst {worst:.2} U, {:.1} % of {n} within U, {beyond} beyond 2U; proposed {}",
+            100.0 * coverage,
+            device["loop"]["proposal"]
+        );
+        assert_eq!(
+            device["loop"]["proposal"].as_str().unwrap_or(""),
+            expected,
+            "{}",
+            device["loop"]
+        );
+        rms.push((r, beyond));
+        added.push(expected);
+    }
+    assert!(rms[2].0 < rms[0].0 / 5.0 && rms[2].0 < rms[1].0, "{rms:?}");
+    assert_eq!(rms[2].1, 0, "{rms:?}");
+}
+
 fn write_positions(campaign: &Path, columns: Vec<(&str, Column)>) {
     let folder = campaign.join("positions");
     let _ = std::fs::remove_dir_all(&folder);

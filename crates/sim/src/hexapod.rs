@@ -74,6 +74,11 @@ pub struct HexapodEffects {
     /// x, y, z (µm/h), from the datum dwell's start.
     #[serde(default)]
     pub(crate) drift_um_per_h: [f64; 3],
+    /// The drift's time constant (h): a machine warming up, the tool point moving by
+    /// `drift_um_per_h · τ (1 − e^(−t/τ))` (its initial rate `drift_um_per_h`); absent: a
+    /// constant rate.
+    #[serde(default)]
+    pub(crate) drift_tau_h: Option<f64>,
     /// True expansion of the base and platform bodies (ppm/K) about their frames' origins, at
     /// the mean air temperature; the manifest declares `declared_cte_ppm_per_k`.
     #[serde(default)]
@@ -278,6 +283,7 @@ impl HexapodSim {
             e.drift_um_per_h[2],
             e.body_cte_ppm_per_k,
             e.declared_cte_ppm_per_k.unwrap_or(0.0),
+            e.drift_tau_h.unwrap_or(1.0),
         ];
         if effect_numbers
             .iter()
@@ -287,6 +293,9 @@ impl HexapodSim {
                 "effects",
                 "drift and expansion must be finite and below 1000",
             );
+        }
+        if e.drift_tau_h.is_some_and(|t| t <= 0.0) {
+            return bad("effects.drift_tau_h", "must be above 0 h");
         }
         if let Some(r) = &e.reseat {
             let dwells = 2 * self.stations * self.runs;
@@ -385,8 +394,12 @@ impl HexapodSim {
         let legs_with = |c: &V3, at: Option<(f64, f64, usize)>| -> ([f64; 6], [f64; 6], [f64; 6]) {
             let mut e = errors_at(c[k_axis]);
             let (hours, strain, dwell) = at.unwrap_or((0.0, 0.0, 0));
+            let drift_hours = match self.effects.drift_tau_h {
+                Some(tau) => tau * (1.0 - (-hours / tau).exp()),
+                None => hours,
+            };
             for (k, g) in self.effects.drift_um_per_h.iter().enumerate() {
-                e[k] += g * hours;
+                e[k] += g * drift_hours;
             }
             let t_cmd = add(&t0, &sub(c, &self.reference_mm));
             let eps = [e[3] * 1e-6, e[4] * 1e-6, e[5] * 1e-6];
