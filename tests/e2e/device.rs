@@ -162,22 +162,7 @@ fn the_device_loop_names_each_hidden_effect_and_adding_it_restores_the_errors() 
             "reseat = { leg = 3, from_dwell = 30, step_um = 0.8 }",
         ),
     ] {
-        let config = tmp.path().join(format!("{effect}.toml"));
-        std::fs::write(
-            &config,
-            format!("{base}\n[schedule.working.device.hexapod.effects]\n{hidden}\n"),
-        )
-        .unwrap();
-        let campaign = tmp.path().join(effect);
-        let (code, _, err) = run_cli(&[
-            "simulate",
-            "--config",
-            config.to_str().unwrap(),
-            "--out",
-            campaign.to_str().unwrap(),
-        ]);
-        assert_eq!(code, 0, "{effect}: {err}");
-        let truth = json(&campaign.join("truth.json"));
+        let (campaign, truth) = simulate_hidden(tmp.path(), &base, effect, hidden);
         let before = tmp.path().join(format!("{effect}-out"));
         let (code, err) = run_device(&campaign, &before);
         assert_eq!(code, 0, "{effect}: {err}");
@@ -228,24 +213,8 @@ fn a_machine_warming_up_is_named_drift_then_warm_up() {
     let tmp = tempfile::tempdir().unwrap();
     let base =
         std::fs::read_to_string(crate::support::root().join("pipelines/sim-device.toml")).unwrap();
-    let config = tmp.path().join("warm.toml");
-    std::fs::write(
-        &config,
-        format!(
-            "{base}\n[schedule.working.device.hexapod.effects]\ndrift_um_per_h = [0.4, -0.3, 1.5]\ndrift_tau_h = 1.0\n"
-        ),
-    )
-    .unwrap();
-    let campaign = tmp.path().join("warm");
-    let (code, _, err) = run_cli(&[
-        "simulate",
-        "--config",
-        config.to_str().unwrap(),
-        "--out",
-        campaign.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let truth = json(&campaign.join("truth.json"));
+    let hidden = "drift_um_per_h = [0.4, -0.3, 1.5]\ndrift_tau_h = 1.0";
+    let (campaign, truth) = simulate_hidden(tmp.path(), &base, "warm", hidden);
     let mut added: Vec<&str> = Vec::new();
     let mut rms = Vec::new();
     for expected in ["machine_drift", "machine_warm_up", ""] {
@@ -282,6 +251,33 @@ fn a_machine_warming_up_is_named_drift_then_warm_up() {
     }
     assert!(rms[2].0 < rms[0].0 / 5.0 && rms[2].0 < rms[1].0, "{rms:?}");
     assert_eq!(rms[2].1, 0, "{rms:?}");
+}
+
+/// `pipelines/sim-device.toml` (`base`) with `hidden` as its hexapod's effects, simulated into
+/// `dir/name`: the campaign and its truth.
+fn simulate_hidden(
+    dir: &Path,
+    base: &str,
+    name: &str,
+    hidden: &str,
+) -> (PathBuf, serde_json::Value) {
+    let config = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &config,
+        format!("{base}\n[schedule.working.device.hexapod.effects]\n{hidden}\n"),
+    )
+    .unwrap();
+    let campaign = dir.join(name);
+    let (code, _, err) = run_cli(&[
+        "simulate",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        campaign.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{name}: {err}");
+    let truth = json(&campaign.join("truth.json"));
+    (campaign, truth)
 }
 
 fn write_positions(campaign: &Path, columns: Vec<(&str, Column)>) {
