@@ -212,12 +212,16 @@ pub struct OpticsSlope {
     pub moved_um_per_m: f64,
 }
 
-/// `[effects.drift]`: g(t) = rate × hours since the start, per component of M.
+/// `[effects.drift]`: g(t) = rate × hours since the start, per component of M; with `tau_h`,
+/// a warm-up levelling off: g(t) = rate × τ (1 − e^(−t/τ)).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MachineDrift {
-    /// Drift of the functional point along X, Y, Z, µm/h.
+    /// Drift of the functional point along X, Y, Z, µm/h (the initial rate with `tau_h`).
     pub um_per_h: [f64; 3],
+    /// The warm-up's time constant, h; absent: a constant rate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau_h: Option<f64>,
 }
 
 /// `[output]`: the layout of the files.
@@ -495,6 +499,12 @@ impl AxisSimConfig {
         if let Some(d) = &fx.drift {
             for v in d.um_per_h {
                 finite("effects.drift.um_per_h", v)?;
+            }
+            if d.tau_h.is_some_and(|t| !(t.is_finite() && t > 0.0)) {
+                return Err(SimError::Invalid {
+                    key: "effects.drift.tau_h".into(),
+                    reason: "must be a finite time above 0 h".into(),
+                });
             }
         }
         Ok(())

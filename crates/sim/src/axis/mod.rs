@@ -309,9 +309,13 @@ pub fn generate_axis(cfg: &AxisSimConfig) -> Result<AxisSimulation, SimError> {
     let change_ns = (cfg.line_change_s * 1e9).round() as i64;
     let hours = |t: i64| (t - start_ns) as f64 / 3.6e12;
     let drift = |t: i64| -> [f64; 3] {
-        fx.drift
-            .as_ref()
-            .map_or([0.0; 3], |d| d.um_per_h.map(|r| r * hours(t)))
+        fx.drift.as_ref().map_or([0.0; 3], |d| {
+            let h = match d.tau_h {
+                Some(tau) => tau * (1.0 - (-hours(t) / tau).exp()),
+                None => hours(t),
+            };
+            d.um_per_h.map(|r| r * h)
+        })
     };
     let errors_at =
         |x: f64| -> [f64; 6] { std::array::from_fn(|k| curves[k].at(x, x0, travel_mm)) };

@@ -329,6 +329,7 @@ fn machine_drift_is_a_run_to_run_trend() {
     let (sim, diff) = effect_of(AxisEffects {
         drift: Some(MachineDrift {
             um_per_h: [2.0, 1.0, 0.0],
+            tau_h: None,
         }),
         ..AxisEffects::default()
     });
