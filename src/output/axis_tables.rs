@@ -162,22 +162,33 @@ fn linear_axis(axis: Axis) -> LinearAxis {
 /// the readings determine at every target (a component lost at one target is left out: a
 /// control table has no gaps).
 pub(crate) fn axis_errors(study: &AxisStudy) -> AxisErrors {
-    let mut positions: Vec<f64> = study.targets.iter().map(|t| t.target_mm).collect();
+    let measured: Vec<(f64, [f64; 6])> = study
+        .targets
+        .iter()
+        .map(|t| (t.target_mm, t.errors))
+        .collect();
+    mean_at_each_position(study.axis, &measured)
+}
+
+/// The six errors at each commanded position of `axis`, the mean of every measurement there
+/// (positions within [`POSITION_TOLERANCE_MM`] are one), keeping only the components finite at
+/// every position: a control table has no gaps.
+fn mean_at_each_position(axis: Axis, measured: &[(f64, [f64; 6])]) -> AxisErrors {
+    let mut positions: Vec<f64> = measured.iter().map(|(x, _)| *x).collect();
     positions.sort_by(f64::total_cmp);
-    positions.dedup();
-    let at = |x: f64, k: usize| -> f64 {
-        let v: Vec<f64> = study
-            .targets
+    positions.dedup_by(|a, b| (*a - *b).abs() <= POSITION_TOLERANCE_MM);
+    let mean = |x: f64, k: usize| -> f64 {
+        let at: Vec<f64> = measured
             .iter()
-            .filter(|t| t.target_mm == x)
-            .map(|t| t.errors[k])
+            .filter(|(p, _)| (p - x).abs() <= POSITION_TOLERANCE_MM)
+            .map(|(_, e)| e[k])
             .collect();
-        v.iter().sum::<f64>() / v.len() as f64
+        at.iter().sum::<f64>() / at.len() as f64
     };
     let components = Component::ALL
         .into_iter()
         .filter_map(|c| {
-            let values: Vec<f64> = positions.iter().map(|&x| at(x, c.index())).collect();
+            let values: Vec<f64> = positions.iter().map(|&x| mean(x, c.index())).collect();
             values
                 .iter()
                 .all(|v| v.is_finite())
@@ -188,7 +199,7 @@ pub(crate) fn axis_errors(study: &AxisStudy) -> AxisErrors {
         })
         .collect();
     AxisErrors {
-        axis: linear_axis(study.axis),
+        axis: linear_axis(axis),
         positions_mm: positions,
         components,
     }
@@ -216,36 +227,11 @@ pub(crate) fn device_tables(test: &DeviceTestResult, plan: &AxisTablesPlan) -> V
         .iter()
         .filter_map(|d| Some((d.input.position_mm[axis.index()], d.errors?.to_array())))
         .collect();
-    let mut positions: Vec<f64> = evaluated.iter().map(|(x, _)| *x).collect();
-    positions.sort_by(f64::total_cmp);
-    positions.dedup_by(|a, b| (*a - *b).abs() <= POSITION_TOLERANCE_MM);
-    let components = Component::ALL
-        .into_iter()
-        .map(|c| ComponentErrors {
-            component: c,
-            values: positions
-                .iter()
-                .map(|&x| {
-                    let at: Vec<f64> = evaluated
-                        .iter()
-                        .filter(|(p, _)| (p - x).abs() <= POSITION_TOLERANCE_MM)
-                        .map(|(_, e)| e[c.index()])
-                        .collect();
-                    at.iter().sum::<f64>() / at.len() as f64
-                })
-                .collect(),
-        })
-        .collect();
-    let errors = AxisErrors {
-        axis: linear_axis(axis),
-        positions_mm: positions,
-        components,
-    };
-    tables_from(&errors, plan)
+    tables_from(&mean_at_each_position(axis, &evaluated), plan)
 }
 
-/// Commanded positions this close are one station (`device-format.md`: a station's rows agree
-/// to 1 µm).
+/// Commanded positions this close are one target or station (`device-format.md`: a station's
+/// rows agree to 1 µm).
 const POSITION_TOLERANCE_MM: f64 = 1e-3;
 
 fn refused(format: AxisTableFormat, why: String) -> TableRecord {

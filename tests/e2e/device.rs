@@ -219,20 +219,14 @@ fn a_machine_warming_up_is_named_drift_then_warm_up() {
     let mut rms = Vec::new();
     for expected in ["machine_drift", "machine_warm_up", ""] {
         let out = tmp.path().join(format!("out-{}", added.len()));
-        let mut args = vec![
-            "run",
+        let extra: Vec<&str> = added.iter().flat_map(|e| ["--add-effect", *e]).collect();
+        let (device, _) = crate::support::run_record(
             "pipelines/device.toml",
-            "--campaign",
-            campaign.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ];
-        for a in &added {
-            args.extend(["--add-effect", a]);
-        }
-        let (code, _, err) = run_cli(&args);
-        assert_eq!(code, 0, "{err}");
-        let device = json(&out.join("device.json"));
+            &campaign,
+            &out,
+            &extra,
+            "device.json",
+        );
         let (worst, coverage, beyond, n) = recovery(&device, &truth);
         let r = device["loop"]["rms_um"].as_f64().unwrap();
         eprintln!(

@@ -117,8 +117,6 @@ pub(crate) struct Tolerances {
 pub struct VolumetricPlan {
     base: PlanBase,
     options: VolumetricStudyOptions,
-    /// Turned into `options.scale_u_ppm` with the campaign's expansion coefficient.
-    scale_budget: study::ScaleBudget,
     pub(crate) tolerances: Tolerances,
 }
 
@@ -183,13 +181,12 @@ impl VolumetricPlan {
         }
         let effects = pt.effects(&v.effects)?;
         Ok(VolumetricPlan {
-            scale_budget,
             base: pt.base(&file.pipeline),
             options: VolumetricStudyOptions {
                 effects,
                 forward_steps: v.forward_steps,
                 min_bic_gain: v.min_bic_gain,
-                scale_u_ppm: 0.0,
+                scale_budget,
             },
             tolerances: v.tolerances.clone(),
         })
@@ -208,11 +205,7 @@ pub(crate) fn run(plan: &VolumetricPlan) -> Result<Outcome> {
         .claim_output(|dir| Ok(crate::io::read_volumetric_manifest(dir)?.id))?;
     let dir = &plan.base.campaign_dir;
     let logs = crate::pipeline::timed("ingest", || crate::io::read_volumetric_campaign(dir))?;
-    let options = study::VolumetricStudyOptions {
-        scale_u_ppm: plan.scale_budget.u_ppm(logs.campaign.cte_ppm_per_k),
-        ..plan.options.clone()
-    };
-    let study = crate::pipeline::timed("volumetric", || study::study(&logs, &options))
+    let study = crate::pipeline::timed("volumetric", || study::study(&logs, &plan.options))
         .with_context(|| format!("analysing {}", dir.display()))?;
     let id = &logs.campaign.id;
     let pipeline = plan.base.pipeline();

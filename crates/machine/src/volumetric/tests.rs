@@ -22,6 +22,7 @@ fn frame(min: [f64; 3], max: [f64; 3], counts: [usize; 3]) -> Frame {
             origin_mm: min,
             spacing_mm: [0, 1, 2].map(|k| (max[k] - min[k]) / (counts[k] - 1) as f64),
         },
+        cte_ppm_per_k: 11.5,
     }
 }
 

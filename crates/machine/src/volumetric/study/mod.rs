@@ -38,11 +38,11 @@ pub struct VolumetricStudyOptions {
     pub forward_steps: usize,
     /// BIC gain an effect needs to be proposed.
     pub min_bic_gain: f64,
-    /// Standard uncertainty of the scale every reading shares (the laser's wavelength, the air's
-    /// index from the environment sensors, the material normalisation), ppm: [`ScaleBudget`].
-    /// It enters the mean scale Σ L_k² ε_k / D² one to one and V_diag through the diagonal's
-    /// length; squareness, a difference of diagonals, does not see it.
-    pub scale_u_ppm: f64,
+    /// What the scale every reading shares is uncertain by (the laser's wavelength, the air's
+    /// index from the environment sensors, the material normalisation). It enters the mean
+    /// scale Σ L_k² ε_k / D² one to one and V_diag through the diagonal's length; squareness, a
+    /// difference of diagonals, does not see it.
+    pub scale_budget: ScaleBudget,
 }
 
 /// The standard uncertainties (k = 1) behind the readings' common scale, and the
@@ -102,7 +102,7 @@ impl Default for VolumetricStudyOptions {
             effects: vec![VolumetricEffect::Pointing],
             forward_steps: 2,
             min_bic_gain: 10.0,
-            scale_u_ppm: 0.0,
+            scale_budget: ScaleBudget::default(),
         }
     }
 }
@@ -321,6 +321,8 @@ pub struct Frame {
     pub max_mm: [f64; 3],
     /// The lattice of V2, V3 and the table.
     pub grid: Grid,
+    /// The machine's expansion, ppm/K (its material normalisation enters the scale budget).
+    pub cte_ppm_per_k: f64,
 }
 
 /// Analyse a campaign.
@@ -338,6 +340,7 @@ pub fn study(
             origin_mm: g.origin_mm,
             spacing_mm: g.spacing_mm,
         },
+        cte_ppm_per_k: c.cte_ppm_per_k,
     };
     analyse(observations(logs)?, &frame, options)
 }
@@ -386,7 +389,8 @@ pub fn analyse(
     let (v1, v2, v3) = figures(&fit, &nodes);
     let figures_identifiable = nodes.iter().all(|n| n.error.iter().all(|q| q.identifiable));
     let curves = curves(&obs, frame.min_mm, frame.max_mm);
-    let v_diag = v_diag(&curves, options.scale_u_ppm);
+    let scale_u_ppm = options.scale_budget.u_ppm(frame.cte_ppm_per_k);
+    let v_diag = v_diag(&curves, scale_u_ppm);
     let mut invisible = invisible(&fit, &obs, n);
     if !figures_identifiable {
         invisible.push("V1, V2, V3 and the 3-D table hold terms the readings cannot see: they are given in the stated gauge, not measured".to_string());
@@ -401,7 +405,7 @@ pub fn analyse(
     let residual_rms = residual_rms(&fit, &obs);
     Ok(VolumetricStudy {
         squareness: fit.squareness(),
-        mean_scale: with_common_scale(fit.mean_scale(), options.scale_u_ppm),
+        mean_scale: with_common_scale(fit.mean_scale(), scale_u_ppm),
         slopes: fit.slopes(),
         observations: obs,
         curves,
