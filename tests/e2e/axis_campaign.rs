@@ -176,6 +176,42 @@ fn the_axis_loop_names_each_hidden_effect_and_adding_it_brings_the_errors_within
     check("cosine", "[effects.cosine]\nmrad = [1.0, 0.5, 1.5]", None);
 }
 
+/// A machine warming up (drifts of 0.5, 1 and 3 µm/h levelling off with τ = 2 h, over a test of
+/// about two hours): the loop names `machine_warm_up` (the drift with its levelling shape, τ
+/// searched), also after a user added `machine_drift`; with it, nothing is left, the errors are
+/// within U (k = 2) of the truth, and the fitted τ is within a factor 1.5 of the truth.
+#[test]
+fn a_machine_warming_up_on_the_axis_is_named_warm_up() {
+    let tmp = tempfile::tempdir().unwrap();
+    let hidden = "[effects.drift]\num_per_h = [0.5, 1.0, 3.0]\ntau_h = 2.0";
+    let steps: [(&[&str], Option<&str>); 4] = [
+        (&[], Some("machine_warm_up")),
+        (&["machine_drift"], Some("machine_warm_up")),
+        (&["machine_warm_up"], None),
+        (&["machine_drift", "machine_warm_up"], None),
+    ];
+    for (added, expect) in steps {
+        let (proposal, share, worst) = run_axis(tmp.path(), "warm", hidden, added);
+        let seen = format!("with {added:?}: {share} inside U, worst {worst}");
+        assert_eq!(proposal.as_deref(), expect, "{seen}");
+        if expect.is_none() {
+            assert!(share >= 0.9 && worst < 2.0, "{seen}");
+        }
+    }
+    let out = tmp.path().join("warm-out-machine_warm_up");
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("axis.json")).unwrap()).unwrap();
+    let tau_h = record["model"]["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|e| e["parameters"].as_array().unwrap())
+        .find(|p| p["name"] == "warm_up_tau_h")
+        .and_then(|p| p["value"].as_f64())
+        .expect("the warm-up's τ is reported");
+    assert!((2.0 / 1.5..=2.0 * 1.5).contains(&tau_h), "τ = {tau_h} h");
+}
+
 /// The axis run's controller tables (`[tables]` of `pipelines/axis.toml`): each written file
 /// holds, per target, the mean of the two directions' errors of `axis.json` with the sign asked
 /// for; `correction` writes the negated values; the figure is on the page; a `[tables]` without

@@ -275,26 +275,13 @@ fn drift_columns(dwells: &[DwellLegs], g: &[Vec<usize>], f: impl Fn(f64) -> f64)
         .collect()
 }
 
-/// A warm-up's departure from a constant rate, h: τ (1 − e^(−h/τ)) − h (≈ −h²/2τ early on; the
-/// drift levels off after a few τ).
-fn warm_up(h: f64, tau_h: f64) -> f64 {
-    tau_h * (1.0 - (-h / tau_h).exp()) - h
-}
-
-/// Time constants the warm-up's τ is searched over, h: 41 from 0.25 h to 48 h, even in ln τ.
-fn warm_up_grid() -> Vec<f64> {
-    (0..=40)
-        .map(|k| 0.25 * (48.0f64 / 0.25).powf(k as f64 / 40.0))
-        .collect()
-}
-
 /// The warm-up whose τ, fitted with a constant rate beside it, explains most of `y`; τ is a
 /// parameter of the fit (its search pays ln n in the BIC).
 fn best_warm_up(dwells: &[DwellLegs], g: &[Vec<usize>], y: &[f64]) -> Block {
     let linear = drift_columns(dwells, g, |h| h);
     let mut best: Option<(f64, f64, Vec<Vec<f64>>)> = None;
-    for tau in warm_up_grid() {
-        let curve = drift_columns(dwells, g, |h| warm_up(h, tau));
+    for tau in crate::warm_up::tau_grid_h() {
+        let curve = drift_columns(dwells, g, |h| crate::warm_up::departure_h(h, tau));
         let both: Vec<Vec<f64>> = linear.iter().chain(&curve).cloned().collect();
         let (_, _, rss) = fit(&both, y);
         if best.as_ref().is_none_or(|b| rss < b.0) {
@@ -646,7 +633,7 @@ fn contribution(
         DeviceEffect::MachineWarmUp => {
             let tau = b.tau_h.unwrap_or(f64::INFINITY);
             (0..6)
-                .map(|c| d.jacobian_um[leg][c] * warm_up(d.hours, tau) * x[c])
+                .map(|c| d.jacobian_um[leg][c] * crate::warm_up::departure_h(d.hours, tau) * x[c])
                 .sum()
         }
         DeviceEffect::BodyExpansion => d.strain_um_per_ppm[leg] * d.body_excess_k * x[0],

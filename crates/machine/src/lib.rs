@@ -13,6 +13,7 @@
 //! - [`probe`]: kind `probe`, touch-trigger probe touches on a ring or sphere (seed 003);
 //! - [`straightness`]: straightness raw and without its least-squares line;
 //! - [`device_test`]: a hexapod axis test on plain data, dwell by dwell (pose, errors, U).
+//! - [`warm_up`]: a machine warming up, the drift levelling off (device and axis loops).
 //!
 //! INVARIANT (enforced by this crate's dependencies and `tests/e2e/architecture.rs`): no file
 //! IO, no polars, no plotters, no serialisation formats; the application owns those. The
@@ -33,3 +34,4 @@ pub mod probe;
 pub mod roll;
 pub mod straightness;
 pub mod volumetric;
+pub mod warm_up;

@@ -21,9 +21,11 @@ const SCALE_DRIFT: usize = 2;
 const MATERIAL: usize = 3;
 /// Along the axis: L · (n(t) − n(t₀)) · 10³ (µm per unit of missed refraction).
 const REFRACTION: usize = 4;
-/// h² − h_l², h hours since the campaign's first reading and h_l at the line's datum: a drift
-/// whose rate changes at a steady pace, taken from each line's own datum.
-const WARM_UP: usize = 5;
+/// L(h) − L(h_l), L the drift levelling off ([`crate::warm_up::levelled_h`]), h hours since the
+/// campaign's first reading and h_l at the line's datum: the drift's shape when the machine
+/// warms up, taken from each line's own datum. It depends on τ, so a reading carries h and h_l
+/// and the model computes it at the τ it tries ([`warm_up_regressor`]).
+pub(crate) const WARM_UP: usize = 5;
 
 /// An effect the model can add: its columns are regressors the readings carry.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -31,11 +33,16 @@ pub enum AxisEffect {
     /// Machine thermal drift during the runs: the functional point moves linearly in time, one
     /// rate a channel (µm/h).
     MachineDrift,
-    /// The drift's rate changing during the runs, one change a channel (µm/h²): a machine
-    /// warming up drifts like 1 − e^(−t/τ) (`machine-physics.md`: time constants 10 min–2 h),
-    /// which a constant rate leaves a curve of. On the second simulator's Z axis (spindle growth
-    /// 1.5 µm/h slowing with τ = 3 h, `tests/e2e/axis_foreign.rs`) `machine_drift` alone left it,
-    /// and `dead_path` was proposed next to absorb it.
+    /// The drift levelling off: a machine warming up drifts like D τ (1 − e^(−t/τ))
+    /// (`machine-physics.md`: time constants 10 min–2 h), which a constant rate leaves a curve
+    /// of. With `machine_drift` in the model it gives the drift that shape and adds one
+    /// parameter, τ (searched); alone, it is that drift, its first rate a channel (µm/h) and τ.
+    /// One τ for the three channels: a machine warms towards one steady state. Measured: a
+    /// quadratic in time (one curvature a channel) served on the second simulator's Z axis
+    /// (spindle growth 1.5 µm/h slowing with τ = 3 h, `tests/e2e/axis_foreign.rs`) but not on
+    /// ours (3 µm/h with τ = 2 h: `dead_path` was proposed); a departure a channel with τ
+    /// searched paid four parameters for one physical one, and `dead_path` (one) won on the
+    /// second simulator.
     MachineWarmUp,
     /// A dead path the readings were not corrected for: L_dead (n(t) − n(t_datum)) (mm).
     DeadPath,
@@ -122,9 +129,9 @@ impl AxisEffect {
                 &["drift_x_um_per_h", "drift_y_um_per_h", "drift_z_um_per_h"]
             }
             AxisEffect::MachineWarmUp => &[
-                "warm_up_x_um_per_h2",
-                "warm_up_y_um_per_h2",
-                "warm_up_z_um_per_h2",
+                "warm_up_x_first_um_per_h",
+                "warm_up_y_first_um_per_h",
+                "warm_up_z_first_um_per_h",
             ],
             AxisEffect::DeadPath => &["dead_path_mm"],
             AxisEffect::ScaleDrift => &["scale_drift_ppm_per_h"],
@@ -155,8 +162,6 @@ pub(crate) struct RegressorInputs {
 pub(crate) fn regressors(x: &RegressorInputs) -> [f64; REGRESSORS] {
     let mut r = [0.0; REGRESSORS];
     r[HOURS] = x.hours_since_datum;
-    let at_datum = x.hours_since_start - x.hours_since_datum;
-    r[WARM_UP] = x.hours_since_start.powi(2) - at_datum.powi(2);
     if x.along {
         let l = x.displacement_mm;
         if let Some((n, n_datum, n_first)) = x.n {
@@ -169,6 +174,59 @@ pub(crate) fn regressors(x: &RegressorInputs) -> [f64; REGRESSORS] {
         }
     }
     r
+}
+
+/// The warm-up regressor of a reading taken `hours_since_start` after the campaign's first one,
+/// on a line whose datum was read at `datum_hours_since_start`, for time constant `tau_h`.
+pub(crate) fn warm_up_regressor(
+    hours_since_start: f64,
+    datum_hours_since_start: f64,
+    tau_h: f64,
+) -> f64 {
+    crate::warm_up::levelled_h(hours_since_start, tau_h)
+        - crate::warm_up::levelled_h(datum_hours_since_start, tau_h)
+}
+
+/// One column of the effects in a model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct EffectColumn {
+    /// The effect it belongs to.
+    pub(crate) effect: AxisEffect,
+    /// Its parameter's name.
+    pub(crate) name: &'static str,
+    /// The regressor it multiplies.
+    pub(crate) regressor: usize,
+    /// The channel it acts on (`None`: the regressor is already zero elsewhere).
+    pub(crate) channel: Option<Channel>,
+}
+
+/// The columns of a model with `effects`, in order. With both `machine_drift` and
+/// `machine_warm_up`, the drift's columns take the levelling shape and the warm-up adds no
+/// column (its one parameter, τ, is searched).
+pub(crate) fn columns_of(effects: &[AxisEffect]) -> Vec<EffectColumn> {
+    let levelled = effects.contains(&AxisEffect::MachineWarmUp);
+    let drifting = effects.contains(&AxisEffect::MachineDrift);
+    let mut out = Vec::new();
+    for &effect in effects {
+        if effect == AxisEffect::MachineWarmUp && drifting {
+            continue;
+        }
+        for (&(regressor, channel), &name) in effect.columns().iter().zip(effect.parameter_names())
+        {
+            let regressor = if effect == AxisEffect::MachineDrift && levelled {
+                WARM_UP
+            } else {
+                regressor
+            };
+            out.push(EffectColumn {
+                effect,
+                name,
+                regressor,
+                channel,
+            });
+        }
+    }
+    out
 }
 
 /// An effect of the spec's table that these readings cannot see apart from the six errors: its

@@ -94,6 +94,7 @@ pub struct EffectFit {
     /// The effect.
     pub effect: AxisEffect,
     /// (name, value, U (k = 2)) of each parameter; NaN where the readings do not determine it.
+    /// The warm-up's τ (`warm_up_tau_h`) is found by a search on a grid and carries no U.
     pub parameters: Vec<(String, f64, f64)>,
 }
 
@@ -401,6 +402,10 @@ fn place(logs: &AxisCampaignLogs) -> Result<Placed, AxisStudyError> {
             offset_mm: std::array::from_fn(|k| reflector[k] - c.report_point_mm[k]),
             deviation_um,
             regressors: regressors(&inputs),
+            hours_since_start: [
+                inputs.hours_since_start,
+                inputs.hours_since_start - inputs.hours_since_datum,
+            ],
         });
         runs.push(r.run);
     }
@@ -564,25 +569,29 @@ fn rank_and_lost(fit: &ModelFit, names: &[String; 6]) -> (usize, Vec<String>) {
 fn effect_fits(fit: &ModelFit, blocks: usize) -> Vec<EffectFit> {
     let s = &fit.solution;
     let cov = s.covariance_given.as_ref().or(s.covariance.as_ref());
-    let mut i = 6 * blocks;
+    let columns = effects::columns_of(&fit.effects);
     fit.effects
         .iter()
-        .map(|&effect| EffectFit {
-            effect,
-            parameters: effect
-                .parameter_names()
+        .map(|&effect| {
+            let mut parameters: Vec<(String, f64, f64)> = columns
                 .iter()
-                .map(|name| {
+                .enumerate()
+                .filter(|(_, c)| c.effect == effect)
+                .map(|(k, c)| {
+                    let i = 6 * blocks + k;
                     let (value, u) = if s.determined[i] {
                         let u = cov.map_or(f64::NAN, |c| 2.0 * c[(i, i)].max(0.0).sqrt());
                         (s.estimate[i], u)
                     } else {
                         (f64::NAN, f64::NAN)
                     };
-                    i += 1;
-                    (name.to_string(), value, u)
+                    (c.name.to_string(), value, u)
                 })
-                .collect(),
+                .collect();
+            if let (AxisEffect::MachineWarmUp, Some(tau)) = (effect, fit.warm_up_tau_h) {
+                parameters.push(("warm_up_tau_h".to_string(), tau, f64::NAN));
+            }
+            EffectFit { effect, parameters }
         })
         .collect()
 }
@@ -598,11 +607,7 @@ fn positioning_iso(
 ) -> (Option<Iso230_2>, Option<String>) {
     let s = &fit.solution;
     let effect_start = 6 * placed.blocks.len();
-    let columns: Vec<(usize, Option<Channel>)> = fit
-        .effects
-        .iter()
-        .flat_map(|e| e.columns().iter().copied())
-        .collect();
+    let columns = effects::columns_of(&fit.effects);
     let k = axis.positioning_index();
     let fixture = Fixture {
         report_point_mm: [0.0; 3],
@@ -614,11 +619,11 @@ fn positioning_iso(
         let effect: f64 = columns
             .iter()
             .enumerate()
-            .filter(|(_, (_, ch))| ch.is_none_or(|c| c == r.channel))
-            .map(|(j, &(regressor, _))| {
+            .filter(|(_, column)| column.channel.is_none_or(|c| c == r.channel))
+            .map(|(j, column)| {
                 let v = s.estimate[effect_start + j];
                 if v.is_finite() {
-                    v * r.regressors[regressor]
+                    v * r.regressor(column.regressor, fit.warm_up_tau_h)
                 } else {
                     0.0
                 }

@@ -9,8 +9,9 @@ use std::collections::BTreeMap;
 
 use crate::axis::{design_row, Channel};
 use crate::linear::{self, LinearError, LinearProblem, LinearSolution};
+use nalgebra::{DMatrix, DVector};
 
-use super::effects::AxisEffect;
+use super::effects::{columns_of, warm_up_regressor, AxisEffect, WARM_UP};
 
 /// One reading, normalised and placed: what the global model fits.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,8 +30,24 @@ pub(crate) struct PlacedReading {
     pub(crate) offset_mm: [f64; 3],
     /// Normalised deviation, µm.
     pub(crate) deviation_um: f64,
-    /// The effects' regressors at this reading (one value a column of [`AxisEffect::columns`]).
+    /// The effects' regressors at this reading (one value a column of [`AxisEffect::columns`];
+    /// the warm-up's slot is computed at a τ by [`PlacedReading::regressor`]).
     pub(crate) regressors: [f64; super::effects::REGRESSORS],
+    /// Hours since the campaign's first reading, at this reading and at its line's datum.
+    pub(crate) hours_since_start: [f64; 2],
+}
+
+impl PlacedReading {
+    /// Regressor `index` at this reading, the warm-up's at time constant `warm_up_tau_h`.
+    pub(crate) fn regressor(&self, index: usize, warm_up_tau_h: Option<f64>) -> f64 {
+        match (index, warm_up_tau_h) {
+            (WARM_UP, Some(tau)) => {
+                warm_up_regressor(self.hours_since_start[0], self.hours_since_start[1], tau)
+            }
+            (WARM_UP, None) => 0.0,
+            _ => self.regressors[index],
+        }
+    }
 }
 
 /// A fit of the global model with some effects.
@@ -46,6 +63,8 @@ pub(crate) struct ModelFit {
     pub(crate) bic: f64,
     /// RMS residual of along-axis and of lateral readings, µm.
     pub(crate) rms_um: [f64; 2],
+    /// The warm-up's time constant, h, when `machine_warm_up` is in the model.
+    pub(crate) warm_up_tau_h: Option<f64>,
 }
 
 /// The parameter names of block `b`: its six error names `@` the block's label.
@@ -53,22 +72,143 @@ pub(crate) fn block_names(names: &[String; 6], label: &str) -> Vec<String> {
     names.iter().map(|n| format!("{n}@{label}")).collect()
 }
 
-/// Fit the readings with `effects`: weights from a first unweighted pass, then one weighted
-/// pass with σ per channel class, so that straightness (0.1–0.5 µm) does not drown the linear
-/// reading (0.01–0.05 µm).
+/// Fit the readings with `effects`. With `machine_warm_up`, τ is searched
+/// ([`search_warm_up_tau`]) and the model fitted at the τ found; the search pays ln n.
 pub(crate) fn fit(
     readings: &[PlacedReading],
     block_labels: &[String],
     error_names: &[String; 6],
     effects: &[AxisEffect],
 ) -> Result<ModelFit, LinearError> {
-    let first = solve(readings, block_labels, error_names, effects, None)?;
+    if !effects.contains(&AxisEffect::MachineWarmUp) {
+        return fit_at(readings, block_labels, error_names, effects, None);
+    }
+    let tau = search_warm_up_tau(readings, block_labels, error_names, effects)?;
+    let mut fit = fit_at(readings, block_labels, error_names, effects, Some(tau))?;
+    fit.bic += (readings.len().max(2) as f64).ln();
+    Ok(fit)
+}
+
+/// The warm-up's τ on [`crate::warm_up::tau_grid_h`] whose levelling drift explains most of
+/// what the other effects leave: their parameters are projected out (variable projection), so
+/// that each τ costs a product with the model's column space instead of a fit. The rows are
+/// weighted by σ per channel class of the model without the warm-up.
+fn search_warm_up_tau(
+    readings: &[PlacedReading],
+    block_labels: &[String],
+    error_names: &[String; 6],
+    effects: &[AxisEffect],
+) -> Result<f64, LinearError> {
+    let without: Vec<AxisEffect> = effects
+        .iter()
+        .copied()
+        .filter(|&e| e != AxisEffect::MachineWarmUp)
+        .collect();
+    let base = fit_at(readings, block_labels, error_names, &without, None)?;
+    let others: Vec<AxisEffect> = without
+        .into_iter()
+        .filter(|&e| e != AxisEffect::MachineDrift)
+        .collect();
+    let weight: Vec<f64> = readings
+        .iter()
+        .map(|r| 1.0 / base.sigma_um[usize::from(!r.along)].max(1e-12))
+        .collect();
+    let (_, rows) = design(readings, block_labels, error_names, &others, None);
+    let n = readings.len();
+    let a = DMatrix::from_fn(n, rows.first().map_or(0, Vec::len), |i, j| {
+        rows[i][j] * weight[i]
+    });
+    let basis = column_space(a);
+    let project_out = |v: DVector<f64>| -> DVector<f64> {
+        let along = basis.tr_mul(&v);
+        v - &basis * along
+    };
+    let y = project_out(DVector::from_fn(n, |i, _| {
+        readings[i].deviation_um * weight[i]
+    }));
+    let channels = AxisEffect::MachineWarmUp.columns();
+    let mut best = (f64::NEG_INFINITY, 1.0);
+    for tau in crate::warm_up::tau_grid_h() {
+        let z: Vec<DVector<f64>> = channels
+            .iter()
+            .map(|&(regressor, channel)| {
+                project_out(DVector::from_fn(n, |i, _| {
+                    let r = &readings[i];
+                    if channel.is_none_or(|c| c == r.channel) {
+                        r.regressor(regressor, Some(tau)) * weight[i]
+                    } else {
+                        0.0
+                    }
+                }))
+            })
+            .collect();
+        let explained = explained_square(&z, &y);
+        if explained > best.0 {
+            best = (explained, tau);
+        }
+    }
+    Ok(best.1)
+}
+
+/// An orthonormal basis of `a`'s column space (left singular vectors of the non-zero singular
+/// values, at the engine's rank tolerance).
+fn column_space(a: DMatrix<f64>) -> DMatrix<f64> {
+    let rows = a.nrows();
+    if a.ncols() == 0 {
+        return DMatrix::zeros(rows, 0);
+    }
+    let svd = a.svd(true, false);
+    let u = svd.u.expect("u requested");
+    let largest = svd.singular_values.max();
+    let kept: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > linear::DEFAULT_RANK_RTOL * largest)
+        .collect();
+    DMatrix::from_fn(rows, kept.len(), |i, j| u[(i, kept[j])])
+}
+
+/// yᵀ Z (ZᵀZ)⁺ Zᵀ y: the square of `y` that the columns `z` explain (zero columns, a channel
+/// without readings, explain nothing).
+fn explained_square(z: &[DVector<f64>], y: &DVector<f64>) -> f64 {
+    let k = z.len();
+    let gram = DMatrix::from_fn(k, k, |i, j| z[i].dot(&z[j]));
+    let zy = DVector::from_fn(k, |i, _| z[i].dot(y));
+    match gram.svd(true, true).solve(&zy, 1e-12) {
+        Ok(coef) => coef.dot(&zy),
+        Err(_) => 0.0,
+    }
+}
+
+/// Fit the readings with `effects` at one warm-up τ: weights from a first unweighted pass, then
+/// one weighted pass with σ per channel class, so that straightness (0.1–0.5 µm) does not drown
+/// the linear reading (0.01–0.05 µm).
+fn fit_at(
+    readings: &[PlacedReading],
+    block_labels: &[String],
+    error_names: &[String; 6],
+    effects: &[AxisEffect],
+    warm_up_tau_h: Option<f64>,
+) -> Result<ModelFit, LinearError> {
+    let first = solve(
+        readings,
+        block_labels,
+        error_names,
+        effects,
+        warm_up_tau_h,
+        None,
+    )?;
     let sigma = class_sigma(readings, &first);
     let weights: Vec<f64> = readings
         .iter()
         .map(|r| sigma[usize::from(!r.along)])
         .collect();
-    let solution = solve(readings, block_labels, error_names, effects, Some(weights))?;
+    let solution = solve(
+        readings,
+        block_labels,
+        error_names,
+        effects,
+        warm_up_tau_h,
+        Some(weights),
+    )?;
     let sigma_um = class_sigma(readings, &solution);
     let rms_um = class_rms(readings, &solution);
     let bic = bic(readings, &solution);
@@ -78,6 +218,7 @@ pub(crate) fn fit(
         sigma_um,
         bic,
         rms_um,
+        warm_up_tau_h,
     })
 }
 
@@ -86,22 +227,33 @@ fn solve(
     block_labels: &[String],
     error_names: &[String; 6],
     effects: &[AxisEffect],
+    warm_up_tau_h: Option<f64>,
     sigma: Option<Vec<f64>>,
 ) -> Result<LinearSolution, LinearError> {
+    let (names, rows) = design(readings, block_labels, error_names, effects, warm_up_tau_h);
+    linear::solve(&LinearProblem {
+        names,
+        rows,
+        observations: readings.iter().map(|r| r.deviation_um).collect(),
+        sigma,
+    })
+}
+
+/// The parameter names and design rows: six errors a block, then the effects' columns.
+fn design(
+    readings: &[PlacedReading],
+    block_labels: &[String],
+    error_names: &[String; 6],
+    effects: &[AxisEffect],
+    warm_up_tau_h: Option<f64>,
+) -> (Vec<String>, Vec<Vec<f64>>) {
     let blocks = block_labels.len();
     let mut names: Vec<String> = block_labels
         .iter()
         .flat_map(|l| block_names(error_names, l))
         .collect();
-    let columns: Vec<(usize, Option<Channel>)> = effects
-        .iter()
-        .flat_map(|e| e.columns().iter().copied())
-        .collect();
-    names.extend(
-        effects
-            .iter()
-            .flat_map(|e| e.parameter_names().iter().map(|n| n.to_string())),
-    );
+    let columns = columns_of(effects);
+    names.extend(columns.iter().map(|c| c.name.to_string()));
     let width = 6 * blocks + columns.len();
     let rows = readings
         .iter()
@@ -109,20 +261,15 @@ fn solve(
             let mut row = vec![0.0; width];
             let design = design_row(r.channel, r.offset_mm);
             row[6 * r.block..6 * r.block + 6].copy_from_slice(&design);
-            for (k, &(regressor, channel)) in columns.iter().enumerate() {
-                if channel.is_none_or(|c| c == r.channel) {
-                    row[6 * blocks + k] = r.regressors[regressor];
+            for (k, column) in columns.iter().enumerate() {
+                if column.channel.is_none_or(|c| c == r.channel) {
+                    row[6 * blocks + k] = r.regressor(column.regressor, warm_up_tau_h);
                 }
             }
             row
         })
         .collect();
-    linear::solve(&LinearProblem {
-        names,
-        rows,
-        observations: readings.iter().map(|r| r.deviation_um).collect(),
-        sigma,
-    })
+    (names, rows)
 }
 
 /// σ of each channel class (along, lateral) from the residuals: RSS over the class's share of
