@@ -84,6 +84,13 @@ impl AxisEffect {
         AxisEffect::ALL.into_iter().find(|e| e.name() == name)
     }
 
+    /// Whether a model with `effects` already holds this one: it is there, or (`machine_drift`)
+    /// `machine_warm_up`'s levelling drift contains it.
+    pub fn is_within(self, effects: &[AxisEffect]) -> bool {
+        effects.contains(&self)
+            || (self == AxisEffect::MachineDrift && effects.contains(&AxisEffect::MachineWarmUp))
+    }
+
     /// The physical effect in the spec's words.
     pub fn physics(self) -> &'static str {
         match self {

@@ -442,7 +442,7 @@ fn diagnose(
     let mut candidates = Vec::new();
     for e in AxisEffect::ALL
         .into_iter()
-        .filter(|e| !fit.effects.contains(e))
+        .filter(|&e| !e.is_within(&fit.effects))
     {
         let with = try_add(fit, e)?;
         candidates.push(Candidate {
@@ -462,7 +462,7 @@ fn diagnose(
         let mut best: Option<(AxisEffect, ModelFit)> = None;
         for e in AxisEffect::ALL
             .into_iter()
-            .filter(|e| !current.effects.contains(e))
+            .filter(|&e| !e.is_within(&current.effects))
         {
             let with = try_add(&current, e)?;
             if best.as_ref().is_none_or(|(_, b)| with.bic < b.bic) {

@@ -1,6 +1,6 @@
 //! The study on a small synthetic X axis: three lines as in the patent, 5 runs each way, white
 //! noise, and a machine drift hidden in the readings. (The end-to-end check against the
-//! simulator, which shares no code with this crate, is `tests/e2e/axis.rs`.)
+//! simulator, which shares no code with this crate, is `tests/e2e/axis_campaign.rs`.)
 
 use std::collections::BTreeMap;
 
@@ -173,4 +173,18 @@ fn lines_at_one_height_lose_the_roll_by_name() {
         "lost: {:?}",
         s.lost
     );
+}
+
+#[test]
+fn a_levelling_drift_holds_the_constant_rate_but_not_the_reverse() {
+    use effects::AxisEffect::{MachineDrift, MachineWarmUp};
+    assert!(MachineDrift.is_within(&[MachineWarmUp]));
+    assert!(!MachineWarmUp.is_within(&[MachineDrift]));
+    // With both, the drift's three columns take the levelling shape and the warm-up adds none.
+    let both = effects::columns_of(&[MachineDrift, MachineWarmUp]);
+    assert_eq!(both.len(), 3);
+    assert!(both
+        .iter()
+        .all(|c| c.effect == MachineDrift && c.regressor == effects::WARM_UP));
+    assert_eq!(effects::columns_of(&[MachineWarmUp]).len(), 3);
 }
