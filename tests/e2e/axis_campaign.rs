@@ -2,21 +2,14 @@
 //! `pipelines/sim-axis.toml` writes an axis campaign that `io::read_axis_campaign` reads back
 //! whole, with the truth beside it.
 
-use crate::support::run_cli;
+use crate::support::{run_cli, simulate_ok};
 
 #[test]
 fn simulate_writes_an_axis_campaign_that_reads_back() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("axis");
     let out_arg = out.display().to_string();
-    let (code, stdout, stderr) = run_cli(&[
-        "simulate",
-        "--config",
-        "pipelines/sim-axis.toml",
-        "--out",
-        &out_arg,
-    ]);
-    assert_eq!(code, 0, "stdout: {stdout}\nstderr: {stderr}");
+    simulate_ok("pipelines/sim-axis.toml", &out_arg);
     for file in [
         "campaign.toml",
         "readings/readings.parquet",
@@ -42,14 +35,7 @@ fn simulate_writes_an_axis_campaign_that_reads_back() {
     // The same seed gives the same campaign; another seed another.
     let again = tmp.path().join("again");
     let again_arg = again.display().to_string();
-    let (code, ..) = run_cli(&[
-        "simulate",
-        "--config",
-        "pipelines/sim-axis.toml",
-        "--out",
-        &again_arg,
-    ]);
-    assert_eq!(code, 0);
+    simulate_ok("pipelines/sim-axis.toml", &again_arg);
     assert_eq!(
         dbbcal::io::read_axis_campaign(&again).unwrap().readings,
         logs.readings
@@ -76,14 +62,10 @@ fn run_axis(
         let base = std::fs::read_to_string(crate::support::root().join("pipelines/sim-axis.toml"))
             .unwrap();
         std::fs::write(&config, format!("{base}\n{hidden}\n")).unwrap();
-        let (code, _, err) = run_cli(&[
-            "simulate",
-            "--config",
+        simulate_ok(
             &config.display().to_string(),
-            "--out",
             &campaign.display().to_string(),
-        ]);
-        assert_eq!(code, 0, "{err}");
+        );
     }
     let out = dir.join(format!("{name}-out-{}", add.join("-")));
     let mut args = vec![
@@ -220,14 +202,7 @@ fn a_machine_warming_up_on_the_axis_is_named_warm_up() {
 fn the_axis_run_writes_controller_tables_with_their_sign_and_its_figure() {
     let tmp = tempfile::tempdir().unwrap();
     let campaign = tmp.path().join("axis");
-    let (code, ..) = run_cli(&[
-        "simulate",
-        "--config",
-        "pipelines/sim-axis.toml",
-        "--out",
-        &campaign.display().to_string(),
-    ]);
-    assert_eq!(code, 0);
+    simulate_ok("pipelines/sim-axis.toml", &campaign.display().to_string());
     let base = std::fs::read_to_string(crate::support::root().join("pipelines/axis.toml")).unwrap();
     let run = |name: &str, pipeline_text: &str| {
         let pipeline = tmp.path().join(format!("{name}.toml"));

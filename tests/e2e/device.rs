@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use dbbcal::io::{write_table, Column, Table};
 
-use crate::support::run_cli;
+use crate::support::{run_cli, simulate_ok};
 
 fn run_device(campaign: &Path, out: &Path) -> (i32, String) {
     let (code, _, err) = run_cli(&[
@@ -262,14 +262,7 @@ fn simulate_hidden(
     )
     .unwrap();
     let campaign = dir.join(name);
-    let (code, _, err) = run_cli(&[
-        "simulate",
-        "--config",
-        config.to_str().unwrap(),
-        "--out",
-        campaign.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{name}: {err}");
+    simulate_ok(config.to_str().unwrap(), campaign.to_str().unwrap());
     let truth = json(&campaign.join("truth.json"));
     (campaign, truth)
 }

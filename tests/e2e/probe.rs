@@ -11,7 +11,7 @@ use dbbcal::probe_campaign::{
 };
 use serde_json::Value;
 
-use crate::support::{root, run_cli};
+use crate::support::{root, run_cli, simulate_ok};
 
 /// Touches 1 … 10 at 0°, 60°, … 300° of seed 003's Table 1 (µm).
 fn seed_table_1() -> Vec<[f64; 6]> {
@@ -172,14 +172,7 @@ fn simulated_24_directions_separate_lobes_centre_and_first_touch_and_the_loop_na
     let tmp = tempfile::tempdir().unwrap();
     let campaign = tmp.path().join("sim");
     let c = campaign.to_str().unwrap();
-    let (code, _, stderr) = run_cli(&[
-        "simulate",
-        "--config",
-        "pipelines/sim-probe.toml",
-        "--out",
-        c,
-    ]);
-    assert_eq!(code, 0, "{stderr}");
+    simulate_ok("pipelines/sim-probe.toml", c);
     let truth = json(&campaign.join("truth.json"));
     let logs = dbbcal::io::read_probe_campaign(&campaign).unwrap();
     assert_eq!(logs.touches.len(), 240);
@@ -262,14 +255,7 @@ fn the_first_touch_errors_u_holds_over_ten_simulated_campaigns() {
         .unwrap();
         let campaign = tmp.path().join(format!("sim{seed}"));
         let out = tmp.path().join(format!("out{seed}"));
-        let (code, _, stderr) = run_cli(&[
-            "simulate",
-            "--config",
-            cfg.to_str().unwrap(),
-            "--out",
-            campaign.to_str().unwrap(),
-        ]);
-        assert_eq!(code, 0, "{stderr}");
+        simulate_ok(cfg.to_str().unwrap(), campaign.to_str().unwrap());
         let (j, _) = run(&campaign, &out, &["--add-effect", "first_touch"]);
         let truth = json(&campaign.join("truth.json"));
         z.extend(first_touch_errors_in_u(

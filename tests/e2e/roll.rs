@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::support::run_cli;
+use crate::support::{run_cli, simulate_ok};
 
 /// `pipelines/sim-roll.toml` with `edits` (whole-line replacements `from` → `to`), simulated
 /// into `root/name`.
@@ -19,14 +19,7 @@ fn simulate(root: &Path, name: &str, edits: &[(&str, &str)]) -> PathBuf {
     let config = root.join(format!("{name}.toml"));
     std::fs::write(&config, text).unwrap();
     let out = root.join(name);
-    let (code, stdout, stderr) = run_cli(&[
-        "simulate",
-        "--config",
-        config.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "stdout: {stdout}\nstderr: {stderr}");
+    simulate_ok(config.to_str().unwrap(), out.to_str().unwrap());
     out
 }
 

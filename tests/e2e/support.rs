@@ -69,6 +69,12 @@ pub(crate) fn run_cli(args: &[&str]) -> (i32, String, String) {
     )
 }
 
+/// `dbbcal simulate --config CONFIG --out OUT`, which must succeed (its output in the message).
+pub(crate) fn simulate_ok(config: &str, out: &str) {
+    let (code, stdout, stderr) = run_cli(&["simulate", "--config", config, "--out", out]);
+    assert_eq!(code, 0, "simulate {config}: {stdout}\n{stderr}");
+}
+
 /// A base-only campaign (issue 13): the identification room of
 /// `pipelines/sim-identification.toml` (daily swing ±1 K, air conditioning ±0.2 K every 20 min,
 /// 1 K set-point steps every 6 h) with `n_bars` bars over `days`, white reading noise 0.020 µm,

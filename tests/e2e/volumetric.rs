@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::support::{root, run_cli};
+use crate::support::{root, run_cli, simulate_ok};
 
 /// White noise per reading in [`config`], µm.
 const NOISE_UM: f64 = 0.05;
@@ -22,14 +22,7 @@ fn simulate(dir: &Path, name: &str, text: &str) -> PathBuf {
     let cfg = dir.join(format!("{name}.toml"));
     std::fs::write(&cfg, text).unwrap();
     let out = dir.join(name);
-    let (code, o, e) = run_cli(&[
-        "simulate",
-        "--config",
-        &cfg.display().to_string(),
-        "--out",
-        &out.display().to_string(),
-    ]);
-    assert_eq!(code, 0, "{o}\n{e}");
+    simulate_ok(&cfg.display().to_string(), &out.display().to_string());
     out
 }
 
@@ -70,14 +63,7 @@ fn truth(campaign: &Path) -> serde_json::Value {
 fn the_shipped_pipeline_runs_a_simulated_campaign_and_says_what_it_cannot_see() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("vol");
-    let (code, o, e) = run_cli(&[
-        "simulate",
-        "--config",
-        "pipelines/sim-volumetric.toml",
-        "--out",
-        &out.display().to_string(),
-    ]);
-    assert_eq!(code, 0, "{o}\n{e}");
+    simulate_ok("pipelines/sim-volumetric.toml", &out.display().to_string());
     let rec = run(
         tmp.path(),
         &out,
