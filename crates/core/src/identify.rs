@@ -238,10 +238,22 @@ pub(crate) fn identify_from_coarse_optimum(
     effects: &[Effect],
     coarse: &BarModel,
 ) -> Result<BarModel, IdentifyError> {
-    if coarse.effects != effects || series.fit_index.len() < COARSE_START_MIN_SAMPLES {
+    if !same_effects(&coarse.effects, effects) || series.fit_index.len() < COARSE_START_MIN_SAMPLES
+    {
         return identify_from(series, effects, Some(coarse));
     }
     fit_from_start(series, effects, Some(coarse), true)
+}
+
+/// Whether `a` and `b` hold the same effects, in any order (a model's terms are a set; its
+/// time constants are matched by name, `start::warm_start`).
+fn same_effects(a: &[Effect], b: &[Effect]) -> bool {
+    let names = |e: &[Effect]| {
+        let mut n: Vec<String> = e.iter().map(Effect::name).collect();
+        n.sort();
+        n
+    };
+    names(a) == names(b)
 }
 
 fn fit_from(

@@ -6,9 +6,10 @@
 use super::candidates::{candidate_effects, evaluate_candidates};
 use super::refits::Refits;
 use super::screen::ScreenBase;
-use super::selection::{effects_of, forward_selection, Added, LedgerStep};
+use super::selection::{forward_selection, Added, LedgerStep};
 use super::{BarDiagnosis, Criteria};
 use crate::identify::BarModel;
+use crate::model::Effect;
 use crate::series::BarSeries;
 use serde::Serialize;
 
@@ -95,6 +96,7 @@ pub fn forward_selection_of_bar(
             bar,
             steps: vec![ledger_step(
                 Added::Base,
+                model.effects.clone(),
                 std::slice::from_ref(&model),
                 None,
                 None,
@@ -128,6 +130,7 @@ pub fn forward_selection_of_bar(
 
 pub(super) fn ledger_step(
     added: Added,
+    effects: Vec<Effect>,
     models: &[BarModel],
     delta_bic: Option<f64>,
     p_value: Option<f64>,
@@ -139,7 +142,7 @@ pub(super) fn ledger_step(
         .sum();
     LedgerStep {
         added,
-        effects: effects_of(models),
+        effects,
         rms_um: models.iter().map(|m| (m.bar.clone(), m.rms_um)).collect(),
         fleet_rms_um: if n_total > 0 {
             (ss / n_total as f64).sqrt()

@@ -16,7 +16,7 @@ use std::sync::Mutex;
 use std::sync::OnceLock;
 
 /// Exact refits shared by the ranking and every forward selection, fleet-wide and per bar: a bar
-/// with a given list of effects is fitted once (from the model without the last effect, which
+/// with a given set of effects is fitted once (from the model without the last effect, which
 /// is itself a refit of the same cache or the identified model). A refit is kept without its
 /// curves over the timeline (`BarModel::without_curves`): the diagnosis reads its
 /// parameters, statistics and residuals only, and the 141 exact refits of the second
@@ -29,8 +29,21 @@ pub struct Refits {
     coarse: Mutex<RefitCache>,
 }
 
-/// Refits by (bar, effect names in the order added).
+/// Refits by (bar, effect names sorted): a model is the same whichever order its effects were
+/// added in, so a path that adds A then B and one that adds B then A share their refit.
+///
+/// Why: a forward selection confirms tied paths and the ranking's reordering of a path on the
+/// readings (`selection::led_by_the_ranking`); keyed by order, the second confirmation refitted
+/// every bar with the same effects again (7 s of a 44-s night on the second simulator's
+/// air-gradient campaign, 10 bars, 15 days, 10 s).
 type RefitCache = HashMap<(String, Vec<String>), Arc<Refit>>;
+
+/// The cache key of `bar` fitted with `effects`.
+fn key(bar: &str, effects: &[Effect]) -> (String, Vec<String>) {
+    let mut names: Vec<String> = effects.iter().map(Effect::name).collect();
+    names.sort();
+    (bar.to_string(), names)
+}
 
 /// One exact refit, and the log-likelihood of its residual under its own noise model (fitted
 /// when a test first asks for it).
@@ -64,7 +77,7 @@ impl Refits {
     ) -> Arc<Refit> {
         let mut effects = base.effects.clone();
         effects.push(effect.clone());
-        let key = (base.bar.clone(), effects.iter().map(Effect::name).collect());
+        let key = key(&base.bar, &effects);
         if let Some(hit) = self.lock().get(&key) {
             return hit.clone();
         }
@@ -87,18 +100,14 @@ impl Refits {
         self.fits.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// The refit of `bar` with `effects`, if it was made.
+    /// The refit of `bar` with `effects` (in any order), if it was made.
     pub(super) fn get(&self, bar: &str, effects: &[Effect]) -> Option<Arc<Refit>> {
-        let key = (bar.to_string(), effects.iter().map(Effect::name).collect());
-        self.lock().get(&key).cloned()
+        self.lock().get(&key(bar, effects)).cloned()
     }
 
     /// Keep `model`, a refit of `bar` on its coarse copy, for the coarse forward selection.
     pub(super) fn remember_coarse(&self, bar: &str, model: &BarModel) {
-        let key = (
-            bar.to_string(),
-            model.effects.iter().map(Effect::name).collect(),
-        );
+        let key = key(bar, &model.effects);
         let refit = Arc::new(Refit {
             model: Ok(model.clone()),
             noise_log_likelihood: OnceLock::new(),
