@@ -157,6 +157,18 @@ impl<P: Separable> LeastSquaresProblem<f64, Dyn, Dyn> for Projected<'_, P> {
     }
 }
 
+/// Levenberg-Marquardt stops when a step reduces the residual sum of squares by at most this
+/// share of it (MINPACK's `ftol`) ...
+///
+/// Why not tighter: a fit's RSS enters the BIC as `n ln RSS`, so a relative change of 1e-10 moves
+/// a ΔBIC by `n · 1e-10`, 2e-6 on a 10-s, 15-day bar; at 1e-12 (and `xtol` 1e-12) the last
+/// dozens of evaluations of a refit whose time constants lie in a long valley (`second_path`
+/// beside `fixed_part`) crept along it by less than a millionth of their uncertainty.
+const LM_FTOL: f64 = 1e-10;
+/// ... or when a step moves the parameters (log time constants, `ln tau`) by at most this share
+/// of their norm (MINPACK's `xtol`): 1e-8 of `ln tau`, far inside any time constant's U.
+const LM_XTOL: f64 = 1e-8;
+
 pub(super) fn levenberg_marquardt<P: Separable>(
     problem: &P,
     theta0: &[f64],
@@ -173,8 +185,8 @@ pub(super) fn levenberg_marquardt<P: Separable>(
         ));
     }
     let (projected, report) = LevenbergMarquardt::new()
-        .with_ftol(1e-12)
-        .with_xtol(1e-12)
+        .with_ftol(LM_FTOL)
+        .with_xtol(LM_XTOL)
         .with_gtol(1e-14)
         .with_patience(200)
         .minimize(projected);
