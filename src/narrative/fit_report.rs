@@ -30,6 +30,14 @@ pub(crate) fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headli
     for (label, text) in headline.lines() {
         let _ = writeln!(md, "- **{label}**: {text}");
     }
+    // The ledger, and why it differs from the ranking where it does: the page's words.
+    if let Some(text) = results
+        .diagnosis
+        .as_ref()
+        .and_then(super::page::ledger_text)
+    {
+        let _ = writeln!(md, "- **Ledger**: {text}");
+    }
     md.push('\n');
     let whiteness = |bar: &str| {
         results

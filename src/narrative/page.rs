@@ -250,7 +250,7 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
 
 /// The fleet ledger in words, and why its first step is not the top-ranked candidate when it
 /// is not (forward selection keeps the path whose steps together lower the BIC most).
-fn ledger_text(d: &crate::pipeline::Diagnosis) -> Option<String> {
+pub(crate) fn ledger_text(d: &crate::pipeline::Diagnosis) -> Option<String> {
     if d.ledger.len() < 2 {
         return None;
     }

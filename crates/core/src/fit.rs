@@ -291,8 +291,9 @@ pub enum Start {
 }
 
 /// Convergence of the Gauss-Newton polish ([`Start::NearOptimum`]): a step changed the residual
-/// norm by less than this share of it (Levenberg-Marquardt's `ftol` in [`minimise`]).
-pub(crate) const POLISH_TOL: f64 = 1e-12;
+/// norm by less than this share of it: half of Levenberg-Marquardt's `ftol` on the residual sum
+/// of squares (`levmar::LM_FTOL`), the same stop for both.
+pub(crate) const POLISH_TOL: f64 = 5e-11;
 /// Steps the polish may take before Levenberg-Marquardt takes over.
 pub(crate) const POLISH_MAX_STEPS: u64 = 8;
 
