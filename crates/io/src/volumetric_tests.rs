@@ -27,12 +27,13 @@ fn manifest(target: LaserTarget) -> VolumetricManifest {
             min_mm: [0.0, 0.0, 0.0],
             max_mm: [300.0, 200.0, 100.0],
         },
-        laser: VolumetricLaserSection {
+        laser: Some(VolumetricLaserSection {
             wavelength_nm: 632.99,
             compensation: LaserCompensation::AirMaterial,
             dead_path_mm: None,
             target,
-        },
+        }),
+        bar_diagonal: None,
         grid: GridSection {
             i: 2,
             j: 2,

@@ -63,6 +63,6 @@ fn the_readings_follow_the_seed_and_an_effect_leaves_the_other_draws_alone() {
 #[test]
 fn a_retroreflector_layout_is_never_written_for_step_diagonals() {
     let m = generate_volumetric(&cube("", "")).unwrap().manifest;
-    assert_eq!(m.laser.target, LaserTarget::FlatMirror);
+    assert_eq!(m.laser.unwrap().target, LaserTarget::FlatMirror);
     assert_eq!(m.grid.spacing_mm, [500.0, 500.0, 500.0]);
 }
