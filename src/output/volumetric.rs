@@ -237,6 +237,10 @@ struct BarDiagonalRecord {
     /// The bar's share (scale and misalignment) of U² at the far corner.
     bar_share_far_corner: f64,
     segment_constant_um: Vec<(i64, f64)>,
+    /// The stitched curve: targets (mm from P0), Dr (µm) and its U (k = 2, µm).
+    target_mm: Vec<f64>,
+    dr_um: Vec<f64>,
+    u_k2_um: Vec<f64>,
 }
 
 impl From<&BarCurve> for BarDiagonalRecord {
@@ -272,6 +276,9 @@ impl From<&BarCurve> for BarDiagonalRecord {
                 .copied()
                 .zip(st.segment_constant_um.iter().copied())
                 .collect(),
+            target_mm: st.target_mm.clone(),
+            dr_um: st.dr_um.clone(),
+            u_k2_um: st.u_k2_um.clone(),
         }
     }
 }

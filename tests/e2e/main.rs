@@ -31,4 +31,5 @@ mod safe_outputs;
 mod support;
 mod tclab;
 mod volumetric;
+mod volumetric_bar;
 mod volumetric_foreign;
