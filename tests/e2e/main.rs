@@ -32,4 +32,5 @@ mod support;
 mod tclab;
 mod volumetric;
 mod volumetric_bar;
+mod volumetric_bar_foreign;
 mod volumetric_foreign;
