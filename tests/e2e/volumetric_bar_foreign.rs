@@ -368,6 +368,7 @@ fn refused(campaign: &Path, out: &Path, needles: &[&str]) {
     assert_eq!(code, 3, "{said}");
     let errors: Vec<&str> = said.lines().filter(|l| l.contains("error")).collect();
     assert_eq!(errors.len(), 1, "{said}");
+    eprintln!("refused: {}", errors[0]);
     for n in needles {
         assert!(errors[0].contains(n), "{n}: {said}");
     }
