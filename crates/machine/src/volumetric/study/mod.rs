@@ -139,8 +139,8 @@ pub struct VDiagBudget {
     pub d_max_mm: f64,
     /// Distance of the smallest target mean from P0, mm.
     pub d_min_mm: f64,
-    /// The runs' scatter of the two target means (and, for a bar, the stitching's
-    /// covariance), µm.
+    /// The runs' scatter of a difference of two target means (the largest over every target),
+    /// and for a bar the stitching's covariance of the two targets, µm.
     pub random_um: f64,
     /// The instrument's scale u over |d_max − d_min|, µm.
     pub scale_um: f64,
@@ -803,25 +803,25 @@ fn scale_terms(
     })
 }
 
-/// The target means that make E: (distance of the largest, of the smallest, and the sum of
-/// the two means' variances from the runs' scatter, µm²).
-fn extremes(iso: &Iso230_2) -> Option<(f64, f64, f64)> {
-    let means: Vec<(f64, f64, f64)> = iso
+/// The target means that make E: (distance of the largest, of the smallest).
+fn extremes(iso: &Iso230_2) -> Option<(f64, f64)> {
+    let means: Vec<(f64, f64)> = iso
         .targets
         .iter()
         .flat_map(|t| [t.up, t.down].map(|d| (t.position_mm, d)))
-        .filter_map(|(x, d)| d.map(|d| (x, d.mean_um, d.s_um.powi(2) / d.runs as f64)))
+        .filter_map(|(x, d)| d.map(|d| (x, d.mean_um)))
         .collect();
     let hi = means.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
     let lo = means.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
-    Some((hi.0, lo.0, hi.2 + lo.2))
+    Some((hi.0, lo.0))
 }
 
-/// V_diag, the largest E over the diagonals, and its U: the runs' scatter of the two target
-/// means that make E; for a bar-read diagonal also the stitching's covariance of those two
-/// targets (conservative: it holds part of the same scatter); the instrument's scale u over the
-/// distance between the two (the laser's common scale, or the bar's calibration and its
-/// misalignment).
+/// V_diag, the largest E over the diagonals, and its U: the runs' scatter (the difference of
+/// two target means, the largest over every target of every diagonal: a few runs estimate one
+/// target's s poorly); for a bar-read diagonal also the stitching's covariance of the two
+/// targets that make E (conservative: it holds part of the same scatter); the instrument's
+/// scale u over the distance between those two targets (the laser's common scale, or the bar's
+/// calibration and its misalignment).
 fn v_diag(
     curves: &[DiagonalCurve],
     bars: &[BarCurve],
@@ -836,7 +836,15 @@ fn v_diag(
                 _ => Some(c),
             })?;
     let e = c.e_um?;
-    let (d_max_mm, d_min_mm, var_means) = extremes(c.iso.as_ref().ok()?)?;
+    let (d_max_mm, d_min_mm) = extremes(c.iso.as_ref().ok()?)?;
+    let scatter_um = curves
+        .iter()
+        .filter_map(|c| c.iso.as_ref().ok())
+        .flat_map(|i| i.targets.iter())
+        .flat_map(|t| [t.up, t.down])
+        .flatten()
+        .map(|s| std::f64::consts::SQRT_2 * s.s_um / (s.runs as f64).sqrt())
+        .fold(0.0, f64::max);
     let span = (d_max_mm - d_min_mm).abs();
     let bar = bars.iter().find(|b| b.sign == c.sign && c.source == "bar");
     let (random_um, scale_um, scale_u_ppm, cosine_um) = match bar {
@@ -845,18 +853,13 @@ fn v_diag(
             let [stitch_u, scale, cosine] =
                 s.difference_u_um(s.index_of(d_min_mm), s.index_of(d_max_mm));
             (
-                (var_means + stitch_u.powi(2)).sqrt(),
+                scatter_um.hypot(stitch_u),
                 scale,
                 s.budget.scale_u_ppm,
                 cosine,
             )
         }
-        None => (
-            var_means.sqrt(),
-            laser_u_ppm * 1e-3 * span,
-            laser_u_ppm,
-            0.0,
-        ),
+        None => (scatter_um, laser_u_ppm * 1e-3 * span, laser_u_ppm, 0.0),
     };
     let budget = VDiagBudget {
         diagonal: c.sign,
