@@ -17,8 +17,9 @@
 //! − β²/2 d (cosine); step r = u·[e(P, t) − e(P0, t_d)] + 10³ β·(P − P0); each as the laser
 //! reads it under `compensation` (this crate's own Edlén), plus white noise.
 //!
-//! **Bar-read diagonals** (`[bar]`, [`bar`]): the body diagonals a calibrated bar reads in
-//! re-seated segments instead of the laser, from the exact centre distances.
+//! **Bar-read diagonals** (`[bar]`, [`BarConfig`], [`BarTruth`]; `bar.rs`): the body diagonals
+//! a calibrated bar reads in re-seated segments instead of the laser, from the exact centre
+//! distances.
 //!
 //! Written: the campaign, `truth.json` (the truth's squareness, scales, V1 … V3, the error at
 //! each grid node, the true E of every diagonal measured and V_diag, and the bar's scale
@@ -448,14 +449,14 @@ fn manifest(cfg: &VolumetricSimConfig, tables: &VolumetricCampaignTables) -> Vol
             min_mm: min,
             max_mm: max,
         },
-        laser: (!tables.diagonals.is_empty() || !tables.steps.is_empty()).then(|| {
+        laser: (!tables.diagonals.is_empty() || !tables.steps.is_empty()).then_some(
             VolumetricLaserSection {
                 wavelength_nm: cfg.laser.wavelength_nm,
                 compensation: cfg.laser.compensation,
                 dead_path_mm: None,
                 target: LaserTarget::FlatMirror,
-            }
-        }),
+            },
+        ),
         bar_diagonal: (!tables.bar_readings.is_empty()).then(|| BarDiagonalSection {
             bar: cfg.bar.id.clone(),
             scale_u_ppm: cfg.bar.scale_u_ppm,
