@@ -141,11 +141,11 @@ fn residual_figure(s: &VolumetricStudy) -> SeriesPanelsFigure {
     for sign in DiagonalSign::ALL {
         let diag = s.fit.layout.diagonal(sign);
         let mut series = Vec::new();
-        for (step, name) in [(false, "body"), (true, "step")] {
+        for name in ["body", "bar", "step"] {
             let (mut x, mut y) = (Vec::new(), Vec::new());
             let mut last: Option<(i64, i8)> = None;
             for (o, r) in s.observations.iter().zip(&s.fit.residuals) {
-                if o.diagonal != sign || o.is_step() != step {
+                if o.diagonal != sign || solve::source(o) != name {
                     continue;
                 }
                 // A gap between runs and directions: each line is one pass.

@@ -980,10 +980,7 @@ fn residual_rms(
 ) -> Vec<(DiagonalSign, &'static str, f64, usize)> {
     let mut acc: BTreeMap<(DiagonalSign, &'static str), (f64, usize)> = BTreeMap::new();
     for (o, r) in obs.iter().zip(&fit.residuals) {
-        let src = match o.place {
-            Place::Body { .. } => "body",
-            Place::Step { .. } => "step",
-        };
+        let src = solve::source(o);
         let e = acc.entry((o.diagonal, src)).or_insert((0.0, 0));
         e.0 += r * r;
         e.1 += 1;
