@@ -44,6 +44,7 @@ pub fn is_input_error(e: &(dyn std::error::Error + 'static)) -> bool {
     e.is::<io::IngestError>()
         || e.is::<pipeline::PlanError>()
         || e.is::<crate::campaign::CampaignError>()
+        || e.is::<dbbcal_machine::volumetric::study::BarCampaignError>()
         || e.downcast_ref::<output::OutputError>()
             .is_some_and(|o| matches!(o, output::OutputError::Refused { .. }))
 }

@@ -43,6 +43,87 @@ fn v_figures(s: &VolumetricStudy) -> String {
     }
 }
 
+/// Each bar-read diagonal in one sentence: the bar, its segments, U at the far corner and the
+/// bar's share of it.
+fn bar_sentences(s: &VolumetricStudy) -> Vec<String> {
+    s.bars
+        .iter()
+        .map(|b| {
+            let st = &b.stitched;
+            let far = st.target_mm.len() - 1;
+            let [random, scale, cosine] = st.difference_u_um(0, far);
+            let all = random.powi(2) + scale.powi(2) + cosine.powi(2);
+            let share = if all > 0.0 {
+                100.0 * (scale.powi(2) + cosine.powi(2)) / all
+            } else {
+                0.0
+            };
+            format!(
+                "diagonal {} was read by bar {} in {} segments ({} targets, weighted RMS of the stitch {}); U at the far corner {} µm (k = 2), of which the bar's scale ({} ppm, fully correlated) and misalignment make {} % of U²",
+                b.sign,
+                b.bar,
+                b.segments(),
+                st.target_mm.len(),
+                num(st.weighted_rms, 2),
+                num(st.u_k2_um[far], 2),
+                st.budget.scale_u_ppm,
+                num(share, 0)
+            )
+        })
+        .collect()
+}
+
+/// With both instruments: the bar's scale against the laser's, a check of its calibration.
+fn bar_scale_sentence(s: &VolumetricStudy) -> Option<String> {
+    let q = s.bar_scale_vs_laser.as_ref()?;
+    let b = s.bars.first()?;
+    let u_cal = 2.0
+        * b.stitched
+            .budget
+            .scale_u_ppm
+            .hypot(s.scale_terms.laser_u_ppm);
+    Some(format!(
+        "bar {}'s scale less the laser's, fitted from the diagonals both see: {} ppm (U {} ppm from the readings); its calibration and the laser's budget allow ±{} ppm (k = 2){}; the bar's scale is a nuisance of the fit, so Σ L_k² ε_k / D² is the laser's",
+        b.bar,
+        num(q.value, 2),
+        num(q.u_k2, 2),
+        num(u_cal, 2),
+        if q.value.abs() > (u_cal.powi(2) + q.u_k2.powi(2)).sqrt() {
+            ": beyond it, check the bar's calibration"
+        } else {
+            ""
+        }
+    ))
+}
+
+/// V_diag's budget in one sentence: where E lies, and what U holds.
+fn v_diag_sentence(s: &VolumetricStudy) -> Option<String> {
+    let b = s.v_diag_budget.as_ref()?;
+    let instrument = if b.source == "bar" {
+        "the bar's scale"
+    } else {
+        "the laser's scale"
+    };
+    Some(format!(
+        "E of diagonal {} ({}) between its target means at {} mm and {} mm; U (k = 1 parts): runs{} {} µm, {instrument} {} ppm × {} mm = {} µm{}; the instrument's share of U² {} %",
+        b.diagonal,
+        b.source,
+        num(b.d_max_mm, 1),
+        num(b.d_min_mm, 1),
+        if b.source == "bar" { " and stitching" } else { "" },
+        num(b.random_um, 3),
+        num(b.scale_u_ppm, 3),
+        num((b.d_max_mm - b.d_min_mm).abs(), 1),
+        num(b.scale_um, 3),
+        if b.source == "bar" {
+            format!(", misalignment {} µm", num(b.cosine_um, 4))
+        } else {
+            String::new()
+        },
+        num(100.0 * b.instrument_share(), 0)
+    ))
+}
+
 /// The terminal's lines (label, text).
 pub(crate) fn headline(
     campaign: &str,
@@ -70,6 +151,15 @@ pub(crate) fn headline(
                 num(v.u_k2_um, 2)
             ),
         ));
+    }
+    if let Some(b) = v_diag_sentence(s) {
+        lines.push(("V_diag budget", b));
+    }
+    for b in bar_sentences(s) {
+        lines.push(("Bar", b));
+    }
+    if let Some(b) = bar_scale_sentence(s) {
+        lines.push(("Bar scale", b));
     }
     lines.push((
         "Squareness",
@@ -174,6 +264,15 @@ pub(crate) fn report_md(
             num(v.value_um, 2),
             num(v.u_k2_um, 2)
         );
+    }
+    if let Some(b) = v_diag_sentence(s) {
+        let _ = writeln!(md, "\nV_diag's budget: {b}.");
+    }
+    if !s.bars.is_empty() {
+        let _ = writeln!(md, "\n## Body diagonals read by a bar\n\nThe fixed ball re-seated at sockets along each diagonal, one segment per socket; each segment's constant (the socket's place along the line) solved with Dr in one least-squares problem (`docs/bar-diagonals.md`). Dr and its U per target are in `volumetric_bar.parquet`.\n");
+        for l in bar_sentences(s).into_iter().chain(bar_scale_sentence(s)) {
+            let _ = writeln!(md, "- {l}.");
+        }
     }
     let _ = writeln!(md, "\n## The joint least-squares fit\n\nEvery reading in one problem; model effects: {}. Rank {} of {}; residual RMS {} µm, σ {} µm.\n",
         s.fit.layout.effects.iter().map(|e| e.name()).collect::<Vec<_>>().join(", "),
@@ -350,6 +449,16 @@ pub(crate) fn page(
         );
     } else {
         h.push_str("</table>\n");
+    }
+    if let Some(b) = v_diag_sentence(s) {
+        let _ = writeln!(h, "<p>V_diag's budget: {}.</p>", html(&b));
+    }
+    if !s.bars.is_empty() {
+        h.push_str("<h2>Body diagonals read by a bar</h2><ul>\n");
+        for l in bar_sentences(s).into_iter().chain(bar_scale_sentence(s)) {
+            let _ = writeln!(h, "<li>{}.</li>", html(&l));
+        }
+        h.push_str("</ul>\n");
     }
     h.push_str("<h2>Squareness and scale (joint fit)</h2>\n<table><tr><th>quantity</th><th>value</th><th>U (k = 2)</th><th>seen</th></tr>\n");
     for x in s.squareness.iter().chain(std::iter::once(&s.mean_scale)) {

@@ -1,5 +1,5 @@
-//! `volumetric.json`, `volumetric_grid.parquet`, `volumetric_functions.parquet` and the
-//! controller tables of a `volumetric` campaign (`docs/spec/machine-formats.md`, "Kind
+//! `volumetric.json`, `volumetric_grid.parquet`, `volumetric_functions.parquet`,
+//! `volumetric_bar.parquet` (the bar-read diagonals' stitched Dr) and the controller tables of a `volumetric` campaign (`docs/spec/machine-formats.md`, "Kind
 //! volumetric"): the results as files, the record this module's own.
 
 use serde::Serialize;
@@ -16,7 +16,9 @@ use dbbcal_core::series::InputFile;
 use super::kind_record::KindRecordHead;
 use dbbcal_core::volumetric_campaign::{TableValues, VolumetricCampaign};
 use dbbcal_machine::volumetric::solve::Quantity;
-use dbbcal_machine::volumetric::study::{Figure, VolumetricStudy};
+use dbbcal_machine::volumetric::study::{
+    BarCurve, Figure, ScaleTerms, VDiagBudget, VolumetricStudy,
+};
 
 fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
@@ -212,6 +214,134 @@ struct DiagonalRecord {
     not_evaluated: Option<String>,
 }
 
+/// A body diagonal read by the bar (`docs/bar-diagonals.md`).
+#[derive(Debug, Serialize)]
+struct BarDiagonalRecord {
+    diagonal: &'static str,
+    bar: String,
+    segments: usize,
+    targets: usize,
+    readings: usize,
+    /// Whether every reading stated its u (else the covariance is the residuals').
+    weighted: bool,
+    weighted_rms: f64,
+    dof: usize,
+    normalised_to_t0: bool,
+    scale_u_ppm: f64,
+    max_misalignment_rad: f64,
+    /// U (k = 2) of Dr at the far corner, µm, and its parts (k = 1).
+    u_k2_far_corner_um: f64,
+    far_corner_random_um: f64,
+    far_corner_bar_scale_um: f64,
+    far_corner_misalignment_um: f64,
+    /// The bar's share (scale and misalignment) of U² at the far corner.
+    bar_share_far_corner: f64,
+    segment_constant_um: Vec<(i64, f64)>,
+    /// The stitched curve: targets (mm from P0), Dr (µm) and its U (k = 2, µm).
+    target_mm: Vec<f64>,
+    dr_um: Vec<f64>,
+    u_k2_um: Vec<f64>,
+}
+
+impl From<&BarCurve> for BarDiagonalRecord {
+    fn from(b: &BarCurve) -> Self {
+        let st = &b.stitched;
+        let far = st.target_mm.len() - 1;
+        let [random, scale, cosine] = st.difference_u_um(0, far);
+        let all = random.powi(2) + scale.powi(2) + cosine.powi(2);
+        BarDiagonalRecord {
+            diagonal: b.sign.as_str(),
+            bar: b.bar.clone(),
+            segments: b.segments(),
+            targets: st.target_mm.len(),
+            readings: b.observations.len(),
+            weighted: st.weighted,
+            weighted_rms: st.weighted_rms,
+            dof: st.dof,
+            normalised_to_t0: b.normalised,
+            scale_u_ppm: st.budget.scale_u_ppm,
+            max_misalignment_rad: st.budget.max_misalignment_rad,
+            u_k2_far_corner_um: st.u_k2_um[far],
+            far_corner_random_um: random,
+            far_corner_bar_scale_um: scale,
+            far_corner_misalignment_um: cosine,
+            bar_share_far_corner: if all > 0.0 {
+                (scale.powi(2) + cosine.powi(2)) / all
+            } else {
+                0.0
+            },
+            segment_constant_um: st
+                .segments
+                .iter()
+                .copied()
+                .zip(st.segment_constant_um.iter().copied())
+                .collect(),
+            target_mm: st.target_mm.clone(),
+            dr_um: st.dr_um.clone(),
+            u_k2_um: st.u_k2_um.clone(),
+        }
+    }
+}
+
+/// Where V_diag's E lies and what its U (k = 1 parts) holds.
+#[derive(Debug, Serialize)]
+struct VDiagBudgetRecord {
+    diagonal: &'static str,
+    source: &'static str,
+    d_max_mm: f64,
+    d_min_mm: f64,
+    span_mm: f64,
+    random_um: f64,
+    scale_um: f64,
+    scale_u_ppm: f64,
+    misalignment_um: f64,
+    instrument_share: f64,
+}
+
+impl From<&VDiagBudget> for VDiagBudgetRecord {
+    fn from(b: &VDiagBudget) -> Self {
+        VDiagBudgetRecord {
+            diagonal: b.diagonal.as_str(),
+            source: b.source,
+            d_max_mm: b.d_max_mm,
+            d_min_mm: b.d_min_mm,
+            span_mm: (b.d_max_mm - b.d_min_mm).abs(),
+            random_um: b.random_um,
+            scale_um: b.scale_um,
+            scale_u_ppm: b.scale_u_ppm,
+            misalignment_um: b.cosine_um,
+            instrument_share: b.instrument_share(),
+        }
+    }
+}
+
+/// How the instruments' scales enter the mean scale and the squareness values.
+#[derive(Debug, Serialize)]
+struct ScaleTermsRecord {
+    laser_u_ppm: f64,
+    bar_u_ppm: f64,
+    mean_scale_per_laser_ppm: f64,
+    mean_scale_per_bar_ppm: f64,
+    squareness_per_laser_ppm: [f64; 3],
+    squareness_per_bar_ppm: [f64; 3],
+}
+
+impl From<&ScaleTerms> for ScaleTermsRecord {
+    fn from(t: &ScaleTerms) -> Self {
+        // A sensitivity of 1e-17 is the solve's rounding: written as 0 so that the bytes do
+        // not depend on it.
+        let clean = |v: f64| if v.abs() < 1e-9 { 0.0 } else { v };
+        ScaleTermsRecord {
+            laser_u_ppm: t.laser_u_ppm,
+            bar_u_ppm: t.bar_u_ppm,
+            mean_scale_per_laser_ppm: clean(t.mean_scale_per_laser_ppm),
+            mean_scale_per_bar_ppm: clean(t.mean_scale_per_bar_ppm),
+            squareness_per_laser_ppm: t.squareness_per_laser_ppm.map(clean),
+            squareness_per_bar_ppm: t.squareness_per_bar_ppm.map(clean),
+        }
+    }
+}
+
 #[derive(Debug, Serialize)]
 struct NaiveRecord {
     squareness_urad: Option<[f64; 3]>,
@@ -242,7 +372,11 @@ pub(crate) struct VolumetricRecord {
     gauge: Vec<String>,
     cannot_see: Vec<String>,
     diagonals: Vec<DiagonalRecord>,
+    bar_diagonals: Vec<BarDiagonalRecord>,
     v_diag: Option<FigureRecord>,
+    v_diag_budget: Option<VDiagBudgetRecord>,
+    scale_terms: ScaleTermsRecord,
+    bar_scale_vs_laser_ppm: Option<QuantityRecord>,
     squareness_urad: Vec<QuantityRecord>,
     mean_scale_um_per_m: QuantityRecord,
     slopes_um_per_m: Vec<QuantityRecord>,
@@ -301,7 +435,11 @@ impl VolumetricRecord {
             gauge: s.fit.gauge.clone(),
             cannot_see: s.invisible.clone(),
             diagonals,
+            bar_diagonals: s.bars.iter().map(BarDiagonalRecord::from).collect(),
             v_diag: s.v_diag.map(FigureRecord::from),
+            v_diag_budget: s.v_diag_budget.as_ref().map(VDiagBudgetRecord::from),
+            scale_terms: (&s.scale_terms).into(),
+            bar_scale_vs_laser_ppm: s.bar_scale_vs_laser.as_ref().map(QuantityRecord::from),
             squareness_urad: s.squareness.iter().map(QuantityRecord::from).collect(),
             mean_scale_um_per_m: (&s.mean_scale).into(),
             slopes_um_per_m: s.slopes.iter().flatten().map(QuantityRecord::from).collect(),
@@ -427,4 +565,27 @@ pub(crate) fn functions_table(s: &VolumetricStudy) -> Table {
         .with("identifiable", Column::I64(seen))
         .with("shape_um", Column::F64(shape))
         .with("shape_u_k2_um", Column::F64(shape_u))
+}
+
+/// `volumetric_bar.parquet`: one row per bar-read diagonal and target: the stitched Dr and its
+/// U (k = 2).
+pub(crate) fn bar_table(s: &VolumetricStudy) -> Table {
+    let (mut diagonal, mut bar, mut d, mut dr, mut u) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for b in &s.bars {
+        let st = &b.stitched;
+        for j in 0..st.target_mm.len() {
+            diagonal.push(b.sign.as_str().to_string());
+            bar.push(b.bar.clone());
+            d.push(st.target_mm[j]);
+            dr.push(st.dr_um[j]);
+            u.push(st.u_k2_um[j]);
+        }
+    }
+    Table::new()
+        .with("diagonal", Column::Str(diagonal))
+        .with("bar", Column::Str(bar))
+        .with("distance_along_mm", Column::F64(d))
+        .with("dr_um", Column::F64(dr))
+        .with("u_k2_um", Column::F64(u))
 }

@@ -31,4 +31,6 @@ mod safe_outputs;
 mod support;
 mod tclab;
 mod volumetric;
+mod volumetric_bar;
+mod volumetric_bar_foreign;
 mod volumetric_foreign;

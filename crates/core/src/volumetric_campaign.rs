@@ -1,6 +1,7 @@
 //! The `volumetric` campaign kind (`docs/spec/machine-formats.md`, "Kind volumetric"; seed
-//! 001): body diagonals (ISO 230-6) and sequential step diagonals measured by a laser. Types
-//! only, no IO.
+//! 001): body diagonals (ISO 230-6) and sequential step diagonals measured by a laser, and body
+//! diagonals read by a calibrated bar in re-seated segments (`docs/bar-diagonals.md`, our
+//! extension: `[bar_diagonal]` and `bar_diagonals/*.parquet`). Types only, no IO.
 //!
 //! [`VolumetricManifest`] mirrors its `campaign.toml` one to one (and is what the simulator
 //! writes); [`VolumetricCampaign`] is the validated form, every error one line naming the file
@@ -19,8 +20,8 @@ pub mod logs;
 mod tests;
 
 pub use logs::{
-    order_diagonal_readings, order_step_readings, DiagonalReading, StepReading,
-    VolumetricCampaignLogs, VolumetricCampaignTables,
+    order_bar_readings, order_diagonal_readings, order_step_readings, BarReading, DiagonalReading,
+    StepReading, VolumetricCampaignLogs, VolumetricCampaignTables,
 };
 
 /// A diagonal, named by its sign vector s = (sx, sy, sz) (`"+++"`, `"-++"`, `"+-+"`, `"++-"`).
@@ -125,6 +126,20 @@ pub struct VolumetricLaserSection {
     pub target: LaserTarget,
 }
 
+/// `[bar_diagonal]` (`docs/bar-diagonals.md`): the bar that read the body diagonals of
+/// `bar_diagonals/*.parquet` and what its calibration and set-up leave uncertain.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BarDiagonalSection {
+    /// The bar's id (as in its calibration certificate).
+    pub bar: String,
+    /// The standard uncertainty (k = 1) of the bar's scale from its calibration, ppm: every
+    /// segment of every diagonal shares it.
+    pub scale_u_ppm: f64,
+    /// The largest distance of a socket from the diagonal's line, mm.
+    pub misalignment_mm: f64,
+}
+
 /// `grid = { I, J, K, origin_mm, spacing_mm }`: the lattice of V2, V3 and the 3-D table.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -178,8 +193,12 @@ pub struct VolumetricManifest {
     pub machine: VolumetricMachineSection,
     /// `[workspace]`.
     pub workspace: WorkspaceSection,
-    /// `[laser]`.
-    pub laser: VolumetricLaserSection,
+    /// `[laser]`; required when `diagonals/` or `steps/` hold readings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub laser: Option<VolumetricLaserSection>,
+    /// `[bar_diagonal]`; required when `bar_diagonals/` holds readings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bar_diagonal: Option<BarDiagonalSection>,
     /// `grid`.
     pub grid: GridSection,
     /// `[table]`; absent: fanuc-3d, n_base 100000, 1 µm, correction.
@@ -215,14 +234,10 @@ pub struct VolumetricCampaign {
     pub min_mm: [f64; 3],
     /// Workspace maximum corner, mm.
     pub max_mm: [f64; 3],
-    /// Vacuum wavelength, nm.
-    pub wavelength_nm: f64,
-    /// What the readings already include.
-    pub compensation: LaserCompensation,
-    /// Dead path, mm.
-    pub dead_path_mm: Option<f64>,
-    /// The laser's target.
-    pub target: LaserTarget,
+    /// The laser (`[laser]`), when the campaign has laser readings.
+    pub laser: Option<VolumetricLaserSection>,
+    /// The bar of the bar-read diagonals (`[bar_diagonal]`).
+    pub bar_diagonal: Option<BarDiagonalSection>,
     /// The grid.
     pub grid: GridSection,
     /// The 3-D table's options.
@@ -283,16 +298,36 @@ impl VolumetricCampaign {
             m.machine.cte_ppm_per_k,
             limits::CTE_PPM_PER_K,
         )?;
-        check(
-            "laser.wavelength_nm",
-            m.laser.wavelength_nm,
-            crate::limits::Limit::closed(200.0, 2_000.0, "nm"),
-        )?;
-        if let Some(d) = m.laser.dead_path_mm {
+        if let Some(laser) = &m.laser {
             check(
-                "laser.dead_path_mm",
-                d,
-                crate::limits::Limit::closed(0.0, LENGTH_MM, "mm"),
+                "laser.wavelength_nm",
+                laser.wavelength_nm,
+                crate::limits::Limit::closed(200.0, 2_000.0, "nm"),
+            )?;
+            if let Some(d) = laser.dead_path_mm {
+                check(
+                    "laser.dead_path_mm",
+                    d,
+                    crate::limits::Limit::closed(0.0, LENGTH_MM, "mm"),
+                )?;
+            }
+        }
+        if let Some(bar) = &m.bar_diagonal {
+            if bar.bar.trim().is_empty() {
+                return Err(invalid(
+                    "bar_diagonal.bar",
+                    "is empty: name the bar that read the diagonals".into(),
+                ));
+            }
+            check(
+                "bar_diagonal.scale_u_ppm",
+                bar.scale_u_ppm,
+                crate::limits::Limit::closed(0.0, 1_000.0, "ppm"),
+            )?;
+            check(
+                "bar_diagonal.misalignment_mm",
+                bar.misalignment_mm,
+                crate::limits::Limit::closed(0.0, 100.0, "mm"),
             )?;
         }
         let w = &m.workspace;
@@ -339,19 +374,20 @@ impl VolumetricCampaign {
             cte_ppm_per_k: m.machine.cte_ppm_per_k,
             min_mm: w.min_mm,
             max_mm: w.max_mm,
-            wavelength_nm: m.laser.wavelength_nm,
-            compensation: m.laser.compensation,
-            dead_path_mm: m.laser.dead_path_mm,
-            target: m.laser.target,
+            laser: m.laser,
+            bar_diagonal: m.bar_diagonal,
             grid: m.grid,
             table,
             sensors: m.sensor,
         })
     }
 
-    /// `environment/*.parquet` is required unless `compensation = "air+material"`.
+    /// `environment/*.parquet` is required with a laser unless `compensation = "air+material"`.
     pub fn check_environment(&self, has_rows: bool, file: &str) -> Result<(), CampaignError> {
-        if has_rows || !self.compensation.needs_environment() {
+        let Some(laser) = &self.laser else {
+            return Ok(());
+        };
+        if has_rows || !laser.compensation.needs_environment() {
             return Ok(());
         }
         Err(CampaignError::Invalid {
@@ -359,15 +395,54 @@ impl VolumetricCampaign {
             key: "laser.compensation".into(),
             problem: format!(
                 "is {:?}: the readings are not normalised, so environment/*.parquet is required unless compensation = \"air+material\"; none was found",
-                self.compensation.as_str()
+                laser.compensation.as_str()
             ),
         })
+    }
+
+    /// Each instrument's section is there exactly when its readings are: `[laser]` with
+    /// `diagonals/` or `steps/`, `[bar_diagonal]` with `bar_diagonals/`.
+    pub fn check_instruments(
+        &self,
+        has_laser_rows: bool,
+        has_bar_rows: bool,
+        file: &str,
+    ) -> Result<(), CampaignError> {
+        let invalid = |key: &str, problem: &str| CampaignError::Invalid {
+            file: file.to_string(),
+            key: key.into(),
+            problem: problem.into(),
+        };
+        if has_laser_rows && self.laser.is_none() {
+            return Err(invalid(
+                "laser",
+                "is missing but diagonals/ or steps/ hold laser readings: declare [laser] (wavelength_nm, compensation, target)",
+            ));
+        }
+        if has_bar_rows && self.bar_diagonal.is_none() {
+            return Err(invalid(
+                "bar_diagonal",
+                "is missing but bar_diagonals/ holds bar readings: declare [bar_diagonal] (bar, scale_u_ppm, misalignment_mm)",
+            ));
+        }
+        if !has_bar_rows && self.bar_diagonal.is_some() {
+            return Err(invalid(
+                "bar_diagonal",
+                "is declared but bar_diagonals/*.parquet holds no readings",
+            ));
+        }
+        Ok(())
     }
 
     /// Step diagonals need a flat mirror (`machine-physics.md`: a retroreflector on a step
     /// diagonal is not a valid set-up).
     pub fn check_steps(&self, has_steps: bool, file: &str) -> Result<(), CampaignError> {
-        if !has_steps || self.target == LaserTarget::FlatMirror {
+        if !has_steps
+            || self
+                .laser
+                .as_ref()
+                .is_none_or(|l| l.target == LaserTarget::FlatMirror)
+        {
             return Ok(());
         }
         Err(CampaignError::Invalid {

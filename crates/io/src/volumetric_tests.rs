@@ -7,8 +7,9 @@ use dbbcal_core::axis_campaign::{
     CampaignKind, EnvironmentRow, KindSection, LaserCompensation, MachineAxis,
 };
 use dbbcal_core::volumetric_campaign::{
-    DiagonalReading, DiagonalSign, GridSection, LaserTarget, StepReading, VolumetricCampaignTables,
-    VolumetricLaserSection, VolumetricMachineSection, VolumetricManifest, WorkspaceSection,
+    order_bar_readings, BarDiagonalSection, BarReading, DiagonalReading, DiagonalSign, GridSection,
+    LaserTarget, StepReading, VolumetricCampaignTables, VolumetricLaserSection,
+    VolumetricMachineSection, VolumetricManifest, WorkspaceSection,
 };
 
 const T0: i64 = 1_800_000_000_000_000_000;
@@ -27,12 +28,13 @@ fn manifest(target: LaserTarget) -> VolumetricManifest {
             min_mm: [0.0, 0.0, 0.0],
             max_mm: [300.0, 200.0, 100.0],
         },
-        laser: VolumetricLaserSection {
+        laser: Some(VolumetricLaserSection {
             wavelength_nm: 632.99,
             compensation: LaserCompensation::AirMaterial,
             dead_path_mm: None,
             target,
-        },
+        }),
+        bar_diagonal: None,
         grid: GridSection {
             i: 2,
             j: 2,
@@ -203,6 +205,100 @@ fn a_retroreflector_on_a_step_diagonal_is_refused() {
         .to_string();
     assert!(
         e.contains("laser.target") && e.contains("flat-mirror"),
+        "{e}"
+    );
+}
+
+/// Two segments of a bar on "-++" (sharing one target), up and down, rows as given.
+fn bar_readings() -> Vec<BarReading> {
+    let mut out = Vec::new();
+    let mut clock = T0;
+    for (segment, targets) in [(1i64, [0.0, 50.0, 100.0]), (2, [100.0, 150.0, 200.0])] {
+        for direction in [1i8, -1] {
+            for (i, d) in targets.iter().enumerate() {
+                out.push(BarReading {
+                    time_ns: clock,
+                    diagonal: DiagonalSign::Mpp,
+                    segment,
+                    run: 1,
+                    direction,
+                    distance_along_mm: *d,
+                    centre_distance_mm: 300.0 + d + 1e-4 * i as f64,
+                    u_um: (segment == 1).then_some(0.03),
+                });
+                clock += 1_000_000_000;
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn bar_readings_read_back_under_any_layout_and_a_bar_only_campaign_needs_no_laser() {
+    let mut m = manifest(LaserTarget::FlatMirror);
+    m.laser = None;
+    m.bar_diagonal = Some(BarDiagonalSection {
+        bar: "B07".into(),
+        scale_u_ppm: 0.5,
+        misalignment_mm: 0.1,
+    });
+    let t = VolumetricCampaignTables {
+        bar_readings: bar_readings(),
+        ..Default::default()
+    };
+    for opts in [
+        VolumetricWriteOptions::default(),
+        VolumetricWriteOptions {
+            split_by_diagonal: true,
+            shuffle_rows: true,
+            omit_direction: true,
+            seed: 3,
+        },
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        write_volumetric_campaign(dir.path(), &m, &t, &opts).unwrap();
+        let logs = read_volumetric_campaign(dir.path()).unwrap();
+        let mut written = t.bar_readings.clone();
+        order_bar_readings(&mut written);
+        assert_eq!(logs.bar_readings, written);
+        assert!(logs.campaign.laser.is_none());
+    }
+}
+
+#[test]
+fn bar_readings_without_their_section_and_a_diagonal_read_twice_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut t = tables();
+    t.bar_readings = bar_readings();
+    write_volumetric_campaign(
+        dir.path(),
+        &manifest(LaserTarget::FlatMirror),
+        &t,
+        &VolumetricWriteOptions::default(),
+    )
+    .unwrap();
+    // "-++" is in diagonals/ too: one instrument per body diagonal.
+    let e = read_volumetric_campaign(dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bar-all.parquet") && e.contains("diagonal") && e.contains("one instrument"),
+        "{e}"
+    );
+    t.diagonals.retain(|r| r.diagonal != DiagonalSign::Mpp);
+    let dir = tempfile::tempdir().unwrap();
+    write_volumetric_campaign(
+        dir.path(),
+        &manifest(LaserTarget::FlatMirror),
+        &t,
+        &VolumetricWriteOptions::default(),
+    )
+    .unwrap();
+    let e = read_volumetric_campaign(dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bar_diagonal") && e.contains("is missing"),
         "{e}"
     );
 }

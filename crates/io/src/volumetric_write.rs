@@ -24,7 +24,8 @@ pub struct VolumetricWriteOptions {
     pub seed: u64,
 }
 
-/// Writes `campaign.toml`, `diagonals/`, `steps/` and `environment/` under `dir`.
+/// Writes `campaign.toml`, `diagonals/`, `steps/`, `bar_diagonals/` and `environment/` under
+/// `dir`.
 pub fn write_volumetric_campaign(
     dir: &Path,
     manifest: &VolumetricManifest,
@@ -118,6 +119,52 @@ pub fn write_volumetric_campaign(
                 f64_column("z_mm", r.iter().map(|x| x.position_mm[2])),
                 f64_column("deviation_um", r.iter().map(|x| x.deviation_um)),
             ];
+            let mut df = DataFrame::new(r.len(), columns).map_err(polars_err(&path))?;
+            write_parquet(&path, &mut df)?;
+        }
+    }
+    if !tables.bar_readings.is_empty() {
+        let folder = dir.join("bar_diagonals");
+        prepare(&folder)?;
+        let rows = &tables.bar_readings;
+        for (name, mut idx) in groups(rows.len(), &|i| rows[i].diagonal.as_str()) {
+            if opts.shuffle_rows {
+                idx.shuffle(&mut rng);
+            }
+            let path = folder.join(format!("bar-{name}.parquet"));
+            let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
+            let mut columns = vec![
+                time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
+                Column::new(
+                    "diagonal".into(),
+                    r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
+                ),
+                Series::new(
+                    "segment".into(),
+                    r.iter().map(|x| x.segment).collect::<Vec<_>>(),
+                )
+                .into_column(),
+                Series::new("run".into(), r.iter().map(|x| x.run).collect::<Vec<_>>())
+                    .into_column(),
+                // Always written: a bar reading's direction is not derived (default +1).
+                Series::new(
+                    "direction".into(),
+                    r.iter().map(|x| x.direction).collect::<Vec<i8>>(),
+                )
+                .into_column(),
+            ];
+            columns.push(f64_column(
+                "distance_along_mm",
+                r.iter().map(|x| x.distance_along_mm),
+            ));
+            columns.push(f64_column(
+                "centre_distance_mm",
+                r.iter().map(|x| x.centre_distance_mm),
+            ));
+            columns.push(
+                Series::new("u_um".into(), r.iter().map(|x| x.u_um).collect::<Vec<_>>())
+                    .into_column(),
+            );
             let mut df = DataFrame::new(r.len(), columns).map_err(polars_err(&path))?;
             write_parquet(&path, &mut df)?;
         }

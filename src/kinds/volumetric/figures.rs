@@ -1,6 +1,7 @@
 //! The figures of a `volumetric` run as plain specs (pixels in `dbbcal-report`): the diagonal
-//! curves up and down, the residuals along each diagonal, the fourth sign pattern's consistency
-//! residual, the error vectors on the grid (two equal-scale projections).
+//! curves up and down, the body diagonals a bar read (stitched Dr with U), the residuals along
+//! each diagonal, the fourth sign pattern's consistency residual, the error vectors on the grid
+//! (two equal-scale projections).
 
 use std::path::Path;
 
@@ -25,6 +26,13 @@ pub(crate) fn render(s: &VolumetricStudy, dir: &Path) -> Result<Vec<(String, Str
         out.push((
             "figures/diagonals.png".into(),
             "Diagonal deviations, mean of the runs up (↑) and down (↓) (ISO 230-6)".into(),
+        ));
+    }
+    if !s.bars.is_empty() {
+        render_error_grid(&bar_figure(s), &dir.join("bar_diagonals.png"))?;
+        out.push((
+            "figures/bar_diagonals.png".into(),
+            "Body diagonals read by the bar in re-seated segments: Dr stitched, with U (k = 2: the stitching, the bar's scale, the misalignment)".into(),
         ));
     }
     render_series_panels(&residual_figure(s), &dir.join("residuals.png"))?;
@@ -133,11 +141,11 @@ fn residual_figure(s: &VolumetricStudy) -> SeriesPanelsFigure {
     for sign in DiagonalSign::ALL {
         let diag = s.fit.layout.diagonal(sign);
         let mut series = Vec::new();
-        for (step, name) in [(false, "body"), (true, "step")] {
+        for name in ["body", "bar", "step"] {
             let (mut x, mut y) = (Vec::new(), Vec::new());
             let mut last: Option<(i64, i8)> = None;
             for (o, r) in s.observations.iter().zip(&s.fit.residuals) {
-                if o.diagonal != sign || o.is_step() != step {
+                if o.diagonal != sign || solve::source(o) != name {
                     continue;
                 }
                 // A gap between runs and directions: each line is one pass.
@@ -414,6 +422,45 @@ fn num_short(v: f64) -> String {
 }
 
 /// The nine shapes with their U bands, one panel each (rows: axis moved; columns: component).
+/// Each bar-read diagonal: the stitched Dr with U, and where the segments start.
+fn bar_figure(s: &VolumetricStudy) -> ErrorGridFigure {
+    let panels = s
+        .bars
+        .iter()
+        .map(|b| {
+            let st = &b.stitched;
+            ErrorPanel {
+                title: format!(
+                    "diagonal {} by bar {}: {} segments, U at the far corner {:.2} µm",
+                    b.sign,
+                    b.bar,
+                    b.segments(),
+                    st.u_k2_um.last().copied().unwrap_or(f64::NAN)
+                ),
+                y_label: "Dr (µm)".into(),
+                curves: vec![BandedSeries {
+                    name: "Dr ± U".into(),
+                    x: st.target_mm.clone(),
+                    y: st.dr_um.clone(),
+                    u_k2: st.u_k2_um.clone(),
+                }],
+            }
+        })
+        .collect();
+    let b = &s.bars[0];
+    ErrorGridFigure {
+        title: format!("Body diagonals read by bar {}", b.bar),
+        subtitle: format!(
+            "Dr = u · [e(P) − e(P0)], each segment's constant solved for; bar scale u {} ppm (fully correlated), sockets within {:.2} mm of the line",
+            b.stitched.budget.scale_u_ppm,
+            b.stitched.budget.max_misalignment_rad * b.shortest_centre_distance_mm
+        ),
+        x_label: "distance from P0 along the diagonal (mm)".into(),
+        columns: s.bars.len().min(2),
+        panels,
+    }
+}
+
 fn shapes_figure(s: &VolumetricStudy) -> ErrorGridFigure {
     let shapes = s.fit.shapes();
     let layout = &s.fit.layout;

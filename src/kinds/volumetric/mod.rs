@@ -1,7 +1,9 @@
 //! The `volumetric` kind in the application: its pipeline file (`pipelines/volumetric.toml`),
 //! its run (claim the output, read, analyse with `dbbcal_machine::volumetric::study`, write)
 //! and its files (`volumetric.json`, `volumetric_grid.parquet`, `volumetric_functions.parquet`,
-//! the FANUC 3-D table and the ISG CSV files, `figures/`, `report.md`, `index.html`).
+//! `volumetric_bar.parquet` when a bar read body diagonals, the FANUC 3-D table and the ISG CSV
+//! files, `figures/`, `report.md`, `index.html`). A bar-read diagonal that cannot be stitched
+//! (no datum, segments that do not chain) is bad input, refused before any output is written.
 
 pub(crate) mod figures;
 
@@ -205,8 +207,11 @@ pub(crate) fn run(plan: &VolumetricPlan) -> Result<Outcome> {
         .claim_output(|dir| Ok(crate::io::read_volumetric_manifest(dir)?.id))?;
     let dir = &plan.base.campaign_dir;
     let logs = crate::pipeline::timed("ingest", || crate::io::read_volumetric_campaign(dir))?;
-    let study = crate::pipeline::timed("volumetric", || study::study(&logs, &plan.options))
-        .with_context(|| format!("analysing {}", dir.display()))?;
+    let bars = study::bar::stitch_campaign(&logs)?;
+    let study = crate::pipeline::timed("volumetric", || {
+        study::study_with_bars(&logs, bars, &plan.options)
+    })
+    .with_context(|| format!("analysing {}", dir.display()))?;
     let id = &logs.campaign.id;
     let pipeline = plan.base.pipeline();
     let decisions = out::decisions(&study, &plan.tolerances);
@@ -224,6 +229,9 @@ pub(crate) fn run(plan: &VolumetricPlan) -> Result<Outcome> {
             &tmp.join("volumetric_functions.parquet"),
             &out::functions_table(&study),
         )?;
+        if !study.bars.is_empty() {
+            crate::io::write_table(&tmp.join("volumetric_bar.parquet"), &out::bar_table(&study))?;
+        }
         for (name, text) in &tables.files {
             crate::output::write_file(&tmp.join(name), text.as_bytes())?;
         }

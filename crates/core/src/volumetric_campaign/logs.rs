@@ -6,6 +6,8 @@
 //!   ([`crate::axis_campaign::derive_order`], the diagonal standing for the line).
 //! - **Step diagonals** are ordered by diagonal, run, step, then time; sub-moves of one step
 //!   with equal times in the order X, Y, Z (step 0, the datum, first).
+//! - **Bar readings** (`docs/bar-diagonals.md`) are ordered by diagonal, segment, run, time,
+//!   then distance along the diagonal.
 
 use std::collections::BTreeMap;
 
@@ -52,6 +54,39 @@ pub struct StepReading {
     pub deviation_um: f64,
 }
 
+/// One row of `bar_diagonals/*.parquet` (`docs/bar-diagonals.md`): a body diagonal read by a
+/// calibrated bar whose fixed ball sits in a socket on the diagonal's line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BarReading {
+    /// When the reading was taken, ns since the epoch.
+    pub time_ns: TimeNs,
+    /// Which diagonal.
+    pub diagonal: DiagonalSign,
+    /// The segment (one socket set-up), from 1.
+    pub segment: i64,
+    /// Run, from 1 (default 1).
+    pub run: i64,
+    /// +1 moving from P0 towards the end, −1 back (default +1).
+    pub direction: i8,
+    /// Commanded distance from P0 along u, mm.
+    pub distance_along_mm: f64,
+    /// The bar's compensated centre distance (its calibration function and thermal
+    /// compensation applied), mm.
+    pub centre_distance_mm: f64,
+    /// Standard uncertainty of the reading's random part, µm, when known.
+    pub u_um: Option<f64>,
+}
+
+/// Sorts bar readings: diagonal, segment, run, time, distance, centre distance.
+pub fn order_bar_readings(readings: &mut [BarReading]) {
+    readings.sort_by(|a, b| {
+        (a.diagonal, a.segment, a.run, a.time_ns)
+            .cmp(&(b.diagonal, b.segment, b.run, b.time_ns))
+            .then(a.distance_along_mm.total_cmp(&b.distance_along_mm))
+            .then(a.centre_distance_mm.total_cmp(&b.centre_distance_mm))
+    });
+}
+
 /// Everything a `volumetric` campaign directory holds, validated and sorted.
 #[derive(Debug, Clone)]
 pub struct VolumetricCampaignLogs {
@@ -63,6 +98,8 @@ pub struct VolumetricCampaignLogs {
     pub diagonals: Vec<DiagonalReading>,
     /// Step-diagonal readings, ordered ([`order_step_readings`]).
     pub steps: Vec<StepReading>,
+    /// Bar readings of body diagonals, ordered ([`order_bar_readings`]).
+    pub bar_readings: Vec<BarReading>,
     /// Environment rows, sorted by time.
     pub environment: Vec<EnvironmentRow>,
     /// Sensor id -> its log.
@@ -78,6 +115,8 @@ pub struct VolumetricCampaignTables {
     pub diagonals: Vec<DiagonalReading>,
     /// `steps/*.parquet` (none written when empty).
     pub steps: Vec<StepReading>,
+    /// `bar_diagonals/*.parquet` (none written when empty).
+    pub bar_readings: Vec<BarReading>,
     /// `environment/*.parquet`.
     pub environment: Vec<EnvironmentRow>,
 }

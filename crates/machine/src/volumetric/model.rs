@@ -17,6 +17,12 @@
 //! 10⁻⁶ c (q_a − min_a)(q_b − min_b) that angular errors acting on carried coordinates make,
 //! µm/m²) and a non-rigid cross term (the sag D_k(x, z) = c_k 4ξ(1 − ξ) ζ, ξ, ζ the normalised
 //! x and z, µm).
+//!
+//! **Two instruments** *(ours)*: when a campaign's body diagonals are read by a bar and other
+//! readings by the laser, each has its own scale; one nuisance parameter, the bar's scale less
+//! the laser's (ppm, 10⁻³ µm per mm of travel on every bar reading), keeps the bar's
+//! calibration error out of the error field (Σ L_k² ε_k / D² is then the laser's), and is
+//! reported as a check of the bar's calibration.
 
 use super::{dot, Diagonal, DiagonalSign};
 
@@ -102,6 +108,8 @@ pub struct Observation {
     pub hours: f64,
     /// Measured − commanded along u, µm.
     pub deviation_um: f64,
+    /// Read by a bar (a stitched body diagonal), not by the laser.
+    pub bar: bool,
 }
 
 impl Observation {
@@ -118,6 +126,9 @@ impl Observation {
         }
     }
 }
+
+/// The name of the bar's scale less the laser's, ppm.
+pub const BAR_SCALE: &str = "bar scale − laser scale (ppm)";
 
 /// The letters of the axes and components.
 pub const AXES: [&str; 3] = ["x", "y", "z"];
@@ -145,6 +156,7 @@ pub struct Layout {
     abbe: Option<usize>,
     non_rigid: Option<usize>,
     offsets: Vec<((DiagonalSign, i64, bool), usize)>,
+    bar_scale: Option<usize>,
 }
 
 /// Column of slope m_kj.
@@ -241,6 +253,10 @@ impl Layout {
                 ((d, r, step), names.len() - 1)
             })
             .collect();
+        let bar_scale = (obs.iter().any(|o| o.bar) && obs.iter().any(|o| !o.bar)).then(|| {
+            names.push(BAR_SCALE.to_string());
+            names.len() - 1
+        });
         Layout {
             names,
             min_mm,
@@ -253,7 +269,13 @@ impl Layout {
             abbe,
             non_rigid,
             offsets,
+            bar_scale,
         }
+    }
+
+    /// The column of the bar's scale less the laser's (campaigns with both instruments).
+    pub fn bar_scale_index(&self) -> Option<usize> {
+        self.bar_scale
     }
 
     /// Number of parameters.
@@ -366,6 +388,10 @@ impl Layout {
         if let Some((_, i)) = self.drift.iter().find(|(d, _)| *d == o.diagonal) {
             row[*i] = o.hours;
         }
+        if let (Some(i), true) = (self.bar_scale, o.bar) {
+            let rel = [0, 1, 2].map(|a| p[a] - diag.p0_mm[a]);
+            row[i] = 1e-3 * dot(diag.u, rel);
+        }
         let key = (o.diagonal, o.run, o.is_step());
         if let Some((_, i)) = self.offsets.iter().find(|(dr, _)| *dr == key) {
             row[*i] = 1.0;
@@ -381,6 +407,7 @@ impl Layout {
             .any(|(_, s)| index == *s || index == s + 1)
             || self.drift.iter().any(|(_, i)| *i == index)
             || self.offsets.iter().any(|(_, i)| *i == index)
+            || self.bar_scale == Some(index)
     }
 }
 

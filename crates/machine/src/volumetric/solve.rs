@@ -49,6 +49,18 @@ pub struct Quantity {
     pub identifiable: bool,
 }
 
+/// Which instrument and test a reading comes from: `"step"` (laser step diagonal), `"bar"`
+/// (a body diagonal read by a bar) or `"body"` (a laser body diagonal).
+pub fn source(o: &Observation) -> &'static str {
+    if o.is_step() {
+        "step"
+    } else if o.bar {
+        "bar"
+    } else {
+        "body"
+    }
+}
+
 /// The joint least-squares fit.
 #[derive(Debug, Clone)]
 pub struct JointFit {

@@ -53,6 +53,7 @@ fn body_readings(
                         place: Place::Body { d_mm: dist },
                         hours: 0.0,
                         deviation_um: v + if noise > 0.0 { normal.sample(rng) } else { 0.0 },
+                        bar: false,
                     });
                 }
             }
@@ -97,6 +98,7 @@ fn step_readings(
                     },
                     hours: 0.0,
                     deviation_um: v + if noise > 0.0 { normal.sample(rng) } else { 0.0 },
+                    bar: false,
                 });
             };
             push(p, 0, None, rng);

@@ -1,5 +1,6 @@
 //! The simulation TOML of a `volumetric` campaign (`kind = "volumetric"`). Every section has
-//! defaults: a 1000 × 600 × 500 mm machine, four body and four step diagonals, no effect on.
+//! defaults: a 1000 × 600 × 500 mm machine, four body and four step diagonals, no effect on,
+//! no diagonal read by a bar (`[bar] diagonals` empty).
 
 use serde::Deserialize;
 
@@ -43,6 +44,9 @@ pub struct VolumetricSimConfig {
     /// `[output]`.
     #[serde(default)]
     pub output: OutputConfig,
+    /// `[bar]`: body diagonals read by a bar in re-seated segments.
+    #[serde(default)]
+    pub bar: BarConfig,
 }
 
 fn default_seed() -> u64 {
@@ -241,6 +245,76 @@ pub struct VolumetricEffectsConfig {
     pub air_sensor_error_k: f64,
 }
 
+/// `[bar]`: the body diagonals a calibrated bar reads instead of the laser
+/// (`docs/bar-diagonals.md`), its segments and what disturbs it.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BarConfig {
+    /// The body diagonals the bar reads (the laser then reads only their step diagonals).
+    pub diagonals: Vec<String>,
+    /// The bar's id.
+    pub id: String,
+    /// The bar's centre distance at a segment's first target, mm.
+    pub length_mm: f64,
+    /// Targets along the diagonal (intervals: the step is D / targets).
+    pub targets: usize,
+    /// Intervals per segment.
+    pub segment_intervals: usize,
+    /// Intervals consecutive segments share (≥ 1: they share that many + 1 targets).
+    pub overlap_intervals: usize,
+    /// Runs of each direction per segment.
+    pub runs: usize,
+    /// The bar's calibrated scale u (k = 1), ppm; its true scale error is drawn from it.
+    pub scale_u_ppm: f64,
+    /// A socket's placement along the line: uniform within ±this, mm.
+    pub socket_along_mm: f64,
+    /// A socket's distance from the line: uniform within 0 … this, mm (declared as the
+    /// misalignment bound).
+    pub socket_across_mm: f64,
+    /// White noise per reading, µm.
+    pub noise_um: f64,
+    /// Residue of the bar's thermal compensation: a random walk with steps uniform within
+    /// ±this per reading, µm.
+    pub residue_step_um: f64,
+    /// The u each reading states (`u_um`), µm; absent: √(noise² + (5 · residue step)²); 0:
+    /// the column is written null (u not known).
+    pub reading_u_um: Option<f64>,
+    /// Seconds to re-seat the fixed ball in the next socket.
+    pub reseat_s: f64,
+}
+
+impl Default for BarConfig {
+    fn default() -> Self {
+        BarConfig {
+            diagonals: Vec::new(),
+            id: "B07".into(),
+            length_mm: 300.0,
+            targets: 90,
+            segment_intervals: 10,
+            overlap_intervals: 1,
+            runs: 2,
+            scale_u_ppm: 0.5,
+            socket_along_mm: 1.0,
+            socket_across_mm: 0.1,
+            noise_um: 0.03,
+            residue_step_um: 0.003,
+            reading_u_um: None,
+            reseat_s: 300.0,
+        }
+    }
+}
+
+impl BarConfig {
+    /// The u written with each reading, µm (`None`: not written).
+    pub(crate) fn stated_u_um(&self) -> Option<f64> {
+        match self.reading_u_um {
+            Some(u) if u > 0.0 => Some(u),
+            Some(_) => None,
+            None => Some(self.noise_um.hypot(5.0 * self.residue_step_um)),
+        }
+    }
+}
+
 /// `[output]`.
 #[derive(Debug, Clone, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]
@@ -276,7 +350,7 @@ impl VolumetricSimConfig {
                 return Err(bad("grid.counts", "needs at least 2 nodes per axis".into()));
             }
         }
-        if !self.test.body && self.test.steps == 0 {
+        if !self.test.body && self.test.steps == 0 && self.bar.diagonals.is_empty() {
             return Err(bad(
                 "test",
                 "measures nothing: set body = true or steps > 0".into(),
@@ -291,7 +365,65 @@ impl VolumetricSimConfig {
         if self.laser.noise_um.is_nan() || self.laser.noise_um < 0.0 {
             return Err(bad("laser.noise_um", "must be ≥ 0".into()));
         }
-        self.diagonal_signs().map(|_| ())
+        self.diagonal_signs()?;
+        self.validate_bar()
+    }
+
+    fn validate_bar(&self) -> Result<(), SimError> {
+        let b = &self.bar;
+        let bad = |key: &str, reason: &str| SimError::Invalid {
+            key: format!("bar.{key}"),
+            reason: reason.into(),
+        };
+        self.bar_signs()?;
+        if b.diagonals.is_empty() {
+            return Ok(());
+        }
+        if b.targets < 2 || b.segment_intervals < 2 {
+            return Err(bad(
+                "targets",
+                "targets and segment_intervals must each be ≥ 2",
+            ));
+        }
+        if b.overlap_intervals < 1 || b.overlap_intervals >= b.segment_intervals {
+            return Err(bad(
+                "overlap_intervals",
+                "must be ≥ 1 (segments must share targets) and below segment_intervals",
+            ));
+        }
+        if b.runs < 2 {
+            return Err(bad("runs", "needs ≥ 2 runs per direction (ISO 230-2)"));
+        }
+        for (key, v) in [
+            ("length_mm", b.length_mm),
+            ("scale_u_ppm", b.scale_u_ppm),
+            ("socket_along_mm", b.socket_along_mm),
+            ("socket_across_mm", b.socket_across_mm),
+            ("noise_um", b.noise_um),
+            ("residue_step_um", b.residue_step_um),
+            ("reseat_s", b.reseat_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(key, "must be a finite number ≥ 0"));
+            }
+        }
+        if b.length_mm <= 2.0 * b.socket_along_mm {
+            return Err(bad("length_mm", "must exceed twice socket_along_mm"));
+        }
+        Ok(())
+    }
+
+    pub(crate) fn bar_signs(&self) -> Result<Vec<DiagonalSign>, SimError> {
+        self.bar
+            .diagonals
+            .iter()
+            .map(|w| {
+                DiagonalSign::parse(w).ok_or_else(|| SimError::Invalid {
+                    key: "bar.diagonals".into(),
+                    reason: format!("{w:?} is not +++, -++, +-+ or ++-"),
+                })
+            })
+            .collect()
     }
 
     pub(crate) fn diagonal_signs(&self) -> Result<Vec<DiagonalSign>, SimError> {

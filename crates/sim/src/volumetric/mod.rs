@@ -17,9 +17,15 @@
 //! − β²/2 d (cosine); step r = u·[e(P, t) − e(P0, t_d)] + 10³ β·(P − P0); each as the laser
 //! reads it under `compensation` (this crate's own Edlén), plus white noise.
 //!
-//! Written: the campaign, `truth.json` (the truth's squareness, scales, V1 … V3 and the error at
-//! each grid node) and `truth/volumetric_truth.parquet` (the grid's true errors).
+//! **Bar-read diagonals** (`[bar]`, [`BarConfig`], [`BarTruth`]; `bar.rs`): the body diagonals
+//! a calibrated bar reads in re-seated segments instead of the laser, from the exact centre
+//! distances.
+//!
+//! Written: the campaign, `truth.json` (the truth's squareness, scales, V1 … V3, the error at
+//! each grid node, the true E of every diagonal measured and V_diag, and the bar's scale
+//! error, sockets and true Dr) and `truth/volumetric_truth.parquet` (the grid's true errors).
 
+mod bar;
 mod config;
 #[cfg(test)]
 mod tests;
@@ -28,9 +34,10 @@ use rand::Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
+pub use bar::{BarDiagonalTruth, BarTruth};
 pub use config::{
-    CampaignConfig, EnvironmentConfig, ErrorsConfig, GridConfig, LaserConfig, MachineConfig,
-    OutputConfig, TestConfig, VolumetricEffectsConfig, VolumetricSimConfig,
+    BarConfig, CampaignConfig, EnvironmentConfig, ErrorsConfig, GridConfig, LaserConfig,
+    MachineConfig, OutputConfig, TestConfig, VolumetricEffectsConfig, VolumetricSimConfig,
 };
 
 use crate::axis::edlen::refractive_index;
@@ -39,9 +46,9 @@ use dbbcal_core::axis_campaign::{
     CampaignKind, EnvironmentRow, KindSection, LaserCompensation, MachineAxis,
 };
 use dbbcal_core::volumetric_campaign::{
-    DiagonalReading, DiagonalSign, GridSection, LaserTarget, StepReading, TableSection,
-    TableValues, VolumetricCampaignTables, VolumetricLaserSection, VolumetricMachineSection,
-    VolumetricManifest, WorkspaceSection,
+    BarDiagonalSection, DiagonalReading, DiagonalSign, GridSection, LaserTarget, StepReading,
+    TableSection, TableValues, VolumetricCampaignTables, VolumetricLaserSection,
+    VolumetricMachineSection, VolumetricManifest, WorkspaceSection,
 };
 
 /// A simulated `volumetric` campaign.
@@ -78,6 +85,13 @@ pub struct VolumetricTruth {
     pub effects: Vec<String>,
     /// The stacking order.
     pub stacking: &'static str,
+    /// Per diagonal measured, the true E (max − min of the true Dr over the targets its
+    /// instrument reads: the body targets, the bar's, or the step ends), µm.
+    pub diagonal_e_um: Vec<(String, f64)>,
+    /// The largest of them, µm.
+    pub v_diag_um: Option<f64>,
+    /// The bar, when `[bar] diagonals` names any.
+    pub bar: Option<BarTruth>,
 }
 
 /// Whether a simulation TOML asks for a `volumetric` campaign (`kind = "volumetric"`).
@@ -97,6 +111,9 @@ mod streams {
     pub(super) const NOISE: u64 = 30_001;
     pub(super) const POINTING: u64 = 30_002;
     pub(super) const DRIFT: u64 = 30_003;
+    pub(super) const BAR_SCALE: u64 = 30_004;
+    pub(super) const BAR_SOCKETS: u64 = 30_005;
+    pub(super) const BAR_NOISE: u64 = 30_006;
 }
 
 /// One error curve: a q + b q² + c (sin(ω q + φ) − sin φ), q normalised to 0 … 1.
@@ -256,6 +273,7 @@ pub fn generate_volumetric(cfg: &VolumetricSimConfig) -> Result<VolumetricSimula
         }
     };
     let g = |hours: f64| drift_dir.map(|v| v * fx.drift_um_per_h * hours);
+    let bar_signs = cfg.bar_signs()?;
     for sign in cfg.diagonal_signs()? {
         let (p0, u, d_len) = diagonal(sign, min, max);
         let [a, b] = basis(u);
@@ -271,7 +289,7 @@ pub fn generate_volumetric(cfg: &VolumetricSimConfig) -> Result<VolumetricSimula
                 .map(|k| u[k] * (ep[k] + gp[k] - e0[k] - g0[k]))
                 .sum::<f64>()
         };
-        if cfg.test.body {
+        if cfg.test.body && !bar_signs.contains(&sign) {
             let datum_h = clock;
             for run in 1..=cfg.test.runs {
                 for dir in [1i8, -1] {
@@ -342,6 +360,45 @@ pub fn generate_volumetric(cfg: &VolumetricSimConfig) -> Result<VolumetricSimula
             }
         }
     }
+    let bar = if bar_signs.is_empty() {
+        None
+    } else {
+        let b = &cfg.bar;
+        let mut srng = stream_rng(cfg.seed, streams::BAR_SCALE);
+        let scale_error_ppm = Normal::new(0.0, b.scale_u_ppm.max(1e-12))
+            .expect("σ > 0")
+            .sample(&mut srng);
+        let mut bar_streams = bar::BarStreams {
+            sockets: stream_rng(cfg.seed, streams::BAR_SOCKETS),
+            noise: stream_rng(cfg.seed, streams::BAR_NOISE),
+        };
+        let mut bar_clock = bar::Clock {
+            hours: clock,
+            start_ns,
+            drift: &g,
+        };
+        let diagonals = bar_signs
+            .iter()
+            .map(|sign| {
+                bar::read_diagonal(
+                    cfg,
+                    &machine,
+                    *sign,
+                    scale_error_ppm * 1e-6,
+                    &mut bar_streams,
+                    &mut bar_clock,
+                    &mut tables.bar_readings,
+                )
+            })
+            .collect();
+        clock = bar_clock.hours;
+        Some(BarTruth {
+            id: b.id.clone(),
+            scale_error_ppm,
+            scale_u_ppm: b.scale_u_ppm,
+            diagonals,
+        })
+    };
     let end_h = clock;
     let steps = (end_h / 0.05).ceil().max(1.0) as usize;
     for i in 0..=steps {
@@ -355,8 +412,8 @@ pub fn generate_volumetric(cfg: &VolumetricSimConfig) -> Result<VolumetricSimula
             env_factor_ppm: None,
         });
     }
-    let manifest = manifest(cfg);
-    let truth = truth(cfg, &machine, pointing);
+    let manifest = manifest(cfg, &tables);
+    let truth = truth(cfg, &machine, pointing, bar)?;
     Ok(VolumetricSimulation {
         manifest,
         tables,
@@ -376,7 +433,7 @@ fn basis(u: [f64; 3]) -> [[f64; 3]; 2] {
     [a, b]
 }
 
-fn manifest(cfg: &VolumetricSimConfig) -> VolumetricManifest {
+fn manifest(cfg: &VolumetricSimConfig, tables: &VolumetricCampaignTables) -> VolumetricManifest {
     let (min, max) = (cfg.machine.min_mm, cfg.machine.max_mm);
     let counts = cfg.grid.counts;
     VolumetricManifest {
@@ -392,12 +449,19 @@ fn manifest(cfg: &VolumetricSimConfig) -> VolumetricManifest {
             min_mm: min,
             max_mm: max,
         },
-        laser: VolumetricLaserSection {
-            wavelength_nm: cfg.laser.wavelength_nm,
-            compensation: cfg.laser.compensation,
-            dead_path_mm: None,
-            target: LaserTarget::FlatMirror,
-        },
+        laser: (!tables.diagonals.is_empty() || !tables.steps.is_empty()).then_some(
+            VolumetricLaserSection {
+                wavelength_nm: cfg.laser.wavelength_nm,
+                compensation: cfg.laser.compensation,
+                dead_path_mm: None,
+                target: LaserTarget::FlatMirror,
+            },
+        ),
+        bar_diagonal: (!tables.bar_readings.is_empty()).then(|| BarDiagonalSection {
+            bar: cfg.bar.id.clone(),
+            scale_u_ppm: cfg.bar.scale_u_ppm,
+            misalignment_mm: cfg.bar.socket_across_mm,
+        }),
         grid: GridSection {
             i: counts[0],
             j: counts[1],
@@ -424,11 +488,58 @@ fn ls_slope(q: &[f64], v: &[f64]) -> f64 {
     1e3 * sxy / sxx
 }
 
+/// The true E of each diagonal measured, on the targets its instrument reads.
+fn diagonal_e(
+    cfg: &VolumetricSimConfig,
+    m: &Machine,
+    bar: Option<&BarTruth>,
+) -> Result<Vec<(String, f64)>, SimError> {
+    let mut out = Vec::new();
+    let laser = cfg.diagonal_signs()?;
+    for sign in DiagonalSign::ALL {
+        let by_bar = bar.and_then(|b| b.diagonals.iter().find(|d| d.diagonal == sign.as_str()));
+        let intervals = if by_bar.is_some() {
+            None
+        } else if laser.contains(&sign) && cfg.test.body {
+            Some(cfg.test.targets)
+        } else if laser.contains(&sign) && cfg.test.steps > 0 {
+            Some(cfg.test.steps)
+        } else {
+            None
+        };
+        let e = match (by_bar, intervals) {
+            (Some(b), _) => b.e_um,
+            (None, Some(n)) => {
+                let (p0, u, d_len) = diagonal(sign, m.min, cfg.machine.max_mm);
+                let e0 = m.error(p0);
+                let dr: Vec<f64> = (0..=n)
+                    .map(|i| {
+                        let d = d_len * i as f64 / n as f64;
+                        let e = m.error([0, 1, 2].map(|k| p0[k] + d * u[k]));
+                        (0..3).map(|k| u[k] * (e[k] - e0[k])).sum()
+                    })
+                    .collect();
+                dr.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                    - dr.iter().copied().fold(f64::INFINITY, f64::min)
+            }
+            (None, None) => continue,
+        };
+        out.push((sign.as_str().to_string(), e));
+    }
+    Ok(out)
+}
+
 fn truth(
     cfg: &VolumetricSimConfig,
     m: &Machine,
     pointing: Vec<(String, [f64; 3])>,
-) -> VolumetricTruth {
+    bar: Option<BarTruth>,
+) -> Result<VolumetricTruth, SimError> {
+    let diagonal_e_um = diagonal_e(cfg, m, bar.as_ref())?;
+    let v_diag_um = diagonal_e_um
+        .iter()
+        .map(|(_, e)| *e)
+        .fold(None, |a: Option<f64>, e| Some(a.map_or(e, |a| a.max(e))));
     let n = cfg.test.steps.max(1);
     let slope = |k: usize, j: usize| {
         let q: Vec<f64> = (0..=n)
@@ -496,7 +607,7 @@ fn truth(
             effects.push(name.to_string());
         }
     }
-    VolumetricTruth {
+    Ok(VolumetricTruth {
         scale_um_per_m: scale,
         squareness_urad: [
             slope(1, 0) + slope(0, 1),
@@ -511,7 +622,10 @@ fn truth(
         pointing_urad: pointing,
         effects,
         stacking: "workpiece -> X -> Y -> Z -> tool",
-    }
+        diagonal_e_um,
+        v_diag_um,
+        bar,
+    })
 }
 
 /// Writes the campaign and the truth into `dir`.

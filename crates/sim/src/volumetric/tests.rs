@@ -63,6 +63,53 @@ fn the_readings_follow_the_seed_and_an_effect_leaves_the_other_draws_alone() {
 #[test]
 fn a_retroreflector_layout_is_never_written_for_step_diagonals() {
     let m = generate_volumetric(&cube("", "")).unwrap().manifest;
-    assert_eq!(m.laser.target, LaserTarget::FlatMirror);
+    assert_eq!(m.laser.unwrap().target, LaserTarget::FlatMirror);
     assert_eq!(m.grid.spacing_mm, [500.0, 500.0, 500.0]);
+}
+
+#[test]
+fn a_bar_on_a_perfect_machine_reads_its_travel_short_by_the_socket_s_cosine_only() {
+    // No machine error, no noise, no residue, the bar's scale exact: within a segment the
+    // centre distance is √((L₀ + x)² + h²) (the machine at T0), so each reading less the
+    // segment's first is x less a shortfall of at most h²/(2 L₀) · x/(L₀ + x) ≤ θ²/2 · x.
+    let mut cfg = cube(
+        "scale_um_per_m = [0.0, 0.0, 0.0]\nsquareness_urad = [0.0, 0.0, 0.0]\nshape_um = 0.0",
+        "",
+    );
+    cfg.environment.material_c = cfg.campaign.reference_temperature_c;
+    cfg.bar = toml::from_str(
+        "diagonals = [\"+-+\"]\nnoise_um = 0.0\nresidue_step_um = 0.0\nscale_u_ppm = 0.0\nsocket_across_mm = 0.1",
+    )
+    .unwrap();
+    let sim = generate_volumetric(&cfg).unwrap();
+    let rows = &sim.tables.bar_readings;
+    assert!(!rows.is_empty());
+    let theta = 0.1 / cfg.bar.length_mm;
+    let mut worst = 0.0f64;
+    for s in 1..=rows.iter().map(|r| r.segment).max().unwrap() {
+        let seg: Vec<_> = rows
+            .iter()
+            .filter(|r| r.segment == s && r.run == 1 && r.direction == 1)
+            .collect();
+        for r in &seg {
+            let x = r.distance_along_mm - seg[0].distance_along_mm;
+            let short = x - (r.centre_distance_mm - seg[0].centre_distance_mm);
+            assert!(
+                short >= -1e-9 && short <= theta * theta / 2.0 * x + 1e-9,
+                "{short} at {x}"
+            );
+            worst = worst.max(short);
+        }
+    }
+    assert!(worst > 0.0);
+    let truth = sim.truth.bar.unwrap();
+    assert_eq!(truth.diagonals.len(), 1);
+    assert!(truth.diagonals[0].e_um.abs() < 1e-12);
+    // Body diagonal "+-+" by bar: the laser reads the other three.
+    assert!(sim
+        .tables
+        .diagonals
+        .iter()
+        .all(|r| r.diagonal != DiagonalSign::Pmp));
+    assert!(sim.manifest.bar_diagonal.is_some() && sim.manifest.laser.is_some());
 }

@@ -180,10 +180,11 @@ fn segments_that_do_not_overlap_are_refused_by_name() {
         .filter(|r| !shared.contains(&r.target_mm))
         .collect();
     let e = stitch(&cut, budget).unwrap_err();
-    assert!(matches!(e, BarDiagonalError::NotChained(_)), "{e}");
+    assert!(matches!(e, BarDiagonalError::NotChained { .. }), "{e}");
+    let m = e.to_string();
     assert!(
-        e.to_string().contains("segment") && e.to_string().contains("Dr("),
-        "{e}"
+        m.contains("segments 1, 2") && m.contains("share no target") && m.contains("(0)"),
+        "{m}"
     );
 }
 
@@ -191,5 +192,15 @@ fn segments_that_do_not_overlap_are_refused_by_name() {
 fn without_a_reading_at_the_start_corner_there_is_no_datum() {
     let (readings, _, budget) = simulate(2);
     let cut: Vec<BarDiagonalReading> = readings.into_iter().filter(|r| r.target_mm > 0.0).collect();
-    assert_eq!(stitch(&cut, budget).unwrap_err(), BarDiagonalError::NoDatum);
+    let e = stitch(&cut, budget).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            BarDiagonalError::NoDatum {
+                first_segment: 0,
+                ..
+            }
+        ),
+        "{e}"
+    );
 }

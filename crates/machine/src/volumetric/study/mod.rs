@@ -2,18 +2,22 @@
 //! "Interferometer readings", "ISO 230-2 quantities").
 //!
 //! 1. Every reading is normalised to T0 with the laser's declared compensation
-//!    ([`crate::edlen::normalise_reading_mm`]; the datum of a diagonal is its first reading).
-//! 2. Per diagonal, ISO 230-2 (the ISO 230-6 reading): from the body diagonals, else from the
-//!    step diagonals' points on the diagonal (the end of each step, where β·(P − P0) = 0).
-//!    V_diag is the largest E.
+//!    ([`crate::edlen::normalise_reading_mm`]; the datum of a diagonal is its first reading);
+//!    the body diagonals a bar read are stitched ([`bar`]) and enter as body-diagonal readings.
+//! 2. Per diagonal, ISO 230-2 (the ISO 230-6 reading): from the body diagonals (laser or bar),
+//!    else from the step diagonals' points on the diagonal (the end of each step, where
+//!    β·(P − P0) = 0). V_diag is the largest E; its scale term is the instrument's scale u over
+//!    the distance between the two target means that make E ([`VDiagBudget`]).
 //! 3. The joint fit ([`super::solve::fit`]) with the model's effects; the squareness values and
-//!    Σ L_k² ε_k / D² with U; the error functions with U in the stated gauge; the naive
+//!    Σ L_k² ε_k / D² with U (each instrument's scale u entering through the fit's own
+//!    sensitivity to it, [`ScaleTerms`]); the error functions with U in the stated gauge; the naive
 //!    inversion and the fourth sign pattern for comparison.
 //! 4. The grid: the error vector and U at each node, V1, V2, V3.
 //! 5. What cannot be seen, in words ([`VolumetricStudy::invisible`]).
 //! 6. The loop ([`diagnosis`]): each effect of the catalogue not in the model, added in turn;
 //!    the one whose BIC falls most (by more than the threshold) is named.
 
+pub mod bar;
 pub mod diagnosis;
 
 use std::collections::BTreeMap;
@@ -27,6 +31,7 @@ use super::solve::{self, JointFit, Naive, Quantity, VolumetricError};
 use crate::edlen::{self, Air, Compensation, LaserSetup, ReadingConditions};
 use crate::iso230_2::{self, Iso230_2, TargetDeviations};
 
+pub use bar::{BarCampaignError, BarCurve};
 pub use diagnosis::{Candidate, Diagnosis};
 
 /// Options of [`study`].
@@ -112,7 +117,8 @@ impl Default for VolumetricStudyOptions {
 pub struct DiagonalCurve {
     /// Which.
     pub sign: DiagonalSign,
-    /// `"body"` or `"step"` (points of the step diagonal on the diagonal).
+    /// `"body"` (laser), `"bar"` (a bar in segments) or `"step"` (points of the step
+    /// diagonal on the diagonal).
     pub source: &'static str,
     /// D, mm.
     pub length_mm: f64,
@@ -120,6 +126,60 @@ pub struct DiagonalCurve {
     pub iso: Result<Iso230_2, String>,
     /// E (bidirectional, else of the one direction), µm.
     pub e_um: Option<f64>,
+}
+
+/// V_diag's budget: where its E comes from and what U holds (k = 1 parts, µm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VDiagBudget {
+    /// The diagonal whose E is V_diag.
+    pub diagonal: DiagonalSign,
+    /// Its instrument: `"body"` (laser), `"bar"` or `"step"` (laser).
+    pub source: &'static str,
+    /// Distance of the largest target mean from P0, mm.
+    pub d_max_mm: f64,
+    /// Distance of the smallest target mean from P0, mm.
+    pub d_min_mm: f64,
+    /// The runs' scatter of a difference of two target means (the largest over every target),
+    /// and for a bar the stitching's covariance of the two targets, µm.
+    pub random_um: f64,
+    /// The instrument's scale u over |d_max − d_min|, µm.
+    pub scale_um: f64,
+    /// The scale u used, ppm.
+    pub scale_u_ppm: f64,
+    /// A bar's misalignment (cosine) over |d_max − d_min|, µm (0 for the laser).
+    pub cosine_um: f64,
+}
+
+impl VDiagBudget {
+    /// The instrument's share of U² (scale and misalignment), 0 … 1.
+    pub fn instrument_share(&self) -> f64 {
+        let i = self.scale_um.powi(2) + self.cosine_um.powi(2);
+        let all = i + self.random_um.powi(2);
+        if all > 0.0 {
+            i / all
+        } else {
+            0.0
+        }
+    }
+}
+
+/// How each instrument's scale u enters the mean scale and the squareness values: the fit's
+/// own sensitivity (the estimate's change for a 1 ppm scale error on that instrument's
+/// readings alone) times the u.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScaleTerms {
+    /// The laser's common scale u, ppm (0 without laser readings).
+    pub laser_u_ppm: f64,
+    /// The bar's scale and misalignment u, ppm (0 without bar readings).
+    pub bar_u_ppm: f64,
+    /// ∂(Σ L_k² ε_k / D²)/∂(laser scale), (µm/m)/ppm.
+    pub mean_scale_per_laser_ppm: f64,
+    /// ∂(Σ L_k² ε_k / D²)/∂(bar scale).
+    pub mean_scale_per_bar_ppm: f64,
+    /// ∂S/∂(laser scale) for S_xy, S_yz, S_zx, µrad/ppm.
+    pub squareness_per_laser_ppm: [f64; 3],
+    /// ∂S/∂(bar scale).
+    pub squareness_per_bar_ppm: [f64; 3],
 }
 
 /// A grid node's error vector with U.
@@ -153,6 +213,15 @@ pub struct VolumetricStudy {
     pub curves: Vec<DiagonalCurve>,
     /// V_diag = max E over the diagonals, µm.
     pub v_diag: Option<Figure>,
+    /// Where V_diag's E lies and what its U holds.
+    pub v_diag_budget: Option<VDiagBudget>,
+    /// The body diagonals a bar read, stitched.
+    pub bars: Vec<BarCurve>,
+    /// How the instruments' scales enter Σ L_k² ε_k / D² and the squareness values.
+    pub scale_terms: ScaleTerms,
+    /// With both instruments: the bar's scale less the laser's, ppm, with U (the random part
+    /// only; the laser's and the bar's scale u add to it).
+    pub bar_scale_vs_laser: Option<Quantity>,
     /// The joint fit.
     pub fit: JointFit,
     /// S_xy, S_yz, S_zx.
@@ -204,6 +273,9 @@ pub enum StudyError {
     /// The solve failed.
     #[error(transparent)]
     Solve(#[from] VolumetricError),
+    /// A bar-read diagonal cannot be stitched.
+    #[error(transparent)]
+    Bar(#[from] BarCampaignError),
 }
 
 fn to_compensation(c: LaserCompensation) -> Compensation {
@@ -231,23 +303,20 @@ fn conditions(logs: &VolumetricCampaignLogs, t: i64, datum: i64) -> ReadingCondi
     }
 }
 
-/// The readings as observations normalised to T0.
+/// The laser's readings as observations normalised to T0 (none without `[laser]`).
 pub fn observations(logs: &VolumetricCampaignLogs) -> Result<Vec<Observation>, StudyError> {
     let c = &logs.campaign;
+    let Some(laser) = &c.laser else {
+        return Ok(Vec::new());
+    };
     let setup = LaserSetup {
-        wavelength_nm: c.wavelength_nm,
-        compensation: to_compensation(c.compensation),
-        dead_path_mm: c.dead_path_mm,
+        wavelength_nm: laser.wavelength_nm,
+        compensation: to_compensation(laser.compensation),
+        dead_path_mm: laser.dead_path_mm,
         cte_ppm_per_k: c.cte_ppm_per_k,
         reference_temperature_c: c.reference_temperature_c,
     };
-    let t0 = logs
-        .diagonals
-        .iter()
-        .map(|r| r.time_ns)
-        .chain(logs.steps.iter().map(|r| r.time_ns))
-        .min()
-        .unwrap_or(0);
+    let t0 = bar::first_reading_ns(logs);
     let mut datum: BTreeMap<DiagonalSign, i64> = BTreeMap::new();
     for (d, t) in logs
         .diagonals
@@ -279,6 +348,7 @@ pub fn observations(logs: &VolumetricCampaignLogs) -> Result<Vec<Observation>, S
             place: Place::Body { d_mm: r.target_mm },
             hours: hours(r.time_ns),
             deviation_um: normalise(r.diagonal, r.time_ns, r.target_mm, r.deviation_um)?,
+            bar: false,
         });
     }
     for r in &logs.steps {
@@ -296,6 +366,7 @@ pub fn observations(logs: &VolumetricCampaignLogs) -> Result<Vec<Observation>, S
             },
             hours: hours(r.time_ns),
             deviation_um: normalise(r.diagonal, r.time_ns, commanded, r.deviation_um)?,
+            bar: false,
         });
     }
     Ok(out)
@@ -330,6 +401,16 @@ pub fn study(
     logs: &VolumetricCampaignLogs,
     options: &VolumetricStudyOptions,
 ) -> Result<VolumetricStudy, StudyError> {
+    study_with_bars(logs, bar::stitch_campaign(logs)?, options)
+}
+
+/// Analyse a campaign whose bar-read diagonals are already stitched
+/// ([`bar::stitch_campaign`]).
+pub fn study_with_bars(
+    logs: &VolumetricCampaignLogs,
+    bars: Vec<BarCurve>,
+    options: &VolumetricStudyOptions,
+) -> Result<VolumetricStudy, StudyError> {
     let c = &logs.campaign;
     let g = &c.grid;
     let frame = Frame {
@@ -342,16 +423,51 @@ pub fn study(
         },
         cte_ppm_per_k: c.cte_ppm_per_k,
     };
-    analyse(observations(logs)?, &frame, options)
+    let laser_u_ppm = if c.laser.is_some() {
+        options.scale_budget.u_ppm(frame.cte_ppm_per_k)
+    } else {
+        0.0
+    };
+    analyse_readings(observations(logs)?, bars, &frame, options, laser_u_ppm)
 }
 
-/// Analyse normalised readings (what [`study`] does after [`observations`]).
+/// Analyse normalised laser readings (what [`study`] does after [`observations`], without
+/// bar-read diagonals).
 pub fn analyse(
     obs: Vec<Observation>,
     frame: &Frame,
     options: &VolumetricStudyOptions,
 ) -> Result<VolumetricStudy, StudyError> {
+    let laser_u_ppm = options.scale_budget.u_ppm(frame.cte_ppm_per_k);
+    analyse_readings(obs, Vec::new(), frame, options, laser_u_ppm)
+}
+
+/// Analyse the laser's normalised readings `obs` with the stitched bar-read diagonals `bars`;
+/// `laser_u_ppm` is the laser's common scale u.
+pub fn analyse_readings(
+    mut obs: Vec<Observation>,
+    bars: Vec<BarCurve>,
+    frame: &Frame,
+    options: &VolumetricStudyOptions,
+    laser_u_ppm: f64,
+) -> Result<VolumetricStudy, StudyError> {
     let n = intervals(&obs);
+    // Every reading for ISO 230-2; the fit's bar readings at the step nodes (see `bar`).
+    let mut all = obs.clone();
+    let nodes: Option<Vec<f64>> = (n > 0).then(|| {
+        let d = frame
+            .min_mm
+            .iter()
+            .zip(frame.max_mm)
+            .map(|(a, b)| (b - a).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        (0..=n).map(|i| d * i as f64 / n as f64).collect()
+    });
+    for b in &bars {
+        all.extend(b.observations.iter().copied());
+        obs.extend(b.fit_observations(nodes.as_deref()));
+    }
     let layout =
         |effects: &[VolumetricEffect]| Layout::new(frame.min_mm, frame.max_mm, n, effects, &obs);
     let fit = solve::fit(layout(&options.effects), &obs)?;
@@ -388,10 +504,22 @@ pub fn analyse(
         .collect();
     let (v1, v2, v3) = figures(&fit, &nodes);
     let figures_identifiable = nodes.iter().all(|n| n.error.iter().all(|q| q.identifiable));
-    let curves = curves(&obs, frame.min_mm, frame.max_mm);
-    let scale_u_ppm = options.scale_budget.u_ppm(frame.cte_ppm_per_k);
-    let v_diag = v_diag(&curves, scale_u_ppm);
+    let curves = curves(&all, &bars, frame.min_mm, frame.max_mm);
+    let bar_u_ppm = bars.first().map_or(0.0, |b| {
+        let budget = b.stitched.budget;
+        budget.scale_u_ppm.hypot(budget.cosine_ppm())
+    });
+    let scale_terms = scale_terms(&fit, &obs, laser_u_ppm, bar_u_ppm)?;
+    let bar_scale_vs_laser = fit.layout.bar_scale_index().map(|i| {
+        let mut c = vec![0.0; fit.layout.len()];
+        c[i] = 1.0;
+        fit.quantity(super::model::BAR_SCALE, &c)
+    });
+    let (v_diag, v_diag_budget) = v_diag(&curves, &bars, laser_u_ppm).unzip();
     let mut invisible = invisible(&fit, &obs, n);
+    if !bars.is_empty() {
+        invisible.extend(bar_invisible(&bars, &obs));
+    }
     if !figures_identifiable {
         invisible.push("V1, V2, V3 and the 3-D table hold terms the readings cannot see: they are given in the stated gauge, not measured".to_string());
     }
@@ -403,13 +531,34 @@ pub fn analyse(
         ));
     }
     let residual_rms = residual_rms(&fit, &obs);
+    let squareness = fit.squareness();
+    let squareness = [0, 1, 2].map(|i| {
+        with_scales(
+            squareness[i].clone(),
+            &[
+                scale_terms.squareness_per_laser_ppm[i] * laser_u_ppm,
+                scale_terms.squareness_per_bar_ppm[i] * bar_u_ppm,
+            ],
+        )
+    });
+    let mean_scale = with_scales(
+        fit.mean_scale(),
+        &[
+            scale_terms.mean_scale_per_laser_ppm * laser_u_ppm,
+            scale_terms.mean_scale_per_bar_ppm * bar_u_ppm,
+        ],
+    );
     Ok(VolumetricStudy {
-        squareness: fit.squareness(),
-        mean_scale: with_common_scale(fit.mean_scale(), scale_u_ppm),
+        squareness,
+        mean_scale,
         slopes: fit.slopes(),
         observations: obs,
         curves,
         v_diag,
+        v_diag_budget,
+        bars,
+        scale_terms,
+        bar_scale_vs_laser,
         naive,
         fourth_rms_um,
         fourth_residual_um,
@@ -501,8 +650,14 @@ fn argmax(v: &[f64], key: impl Fn(f64) -> f64) -> usize {
         .unwrap_or(0)
 }
 
-/// Per diagonal: ISO 230-2 from the body readings, else from the step points on the diagonal.
-fn curves(obs: &[Observation], min_mm: [f64; 3], max_mm: [f64; 3]) -> Vec<DiagonalCurve> {
+/// Per diagonal: ISO 230-2 from the body readings (laser or bar), else from the step points on
+/// the diagonal.
+fn curves(
+    obs: &[Observation],
+    bars: &[BarCurve],
+    min_mm: [f64; 3],
+    max_mm: [f64; 3],
+) -> Vec<DiagonalCurve> {
     let mut out = Vec::new();
     for sign in DiagonalSign::ALL {
         let diag = super::Diagonal::new(sign, min_mm, max_mm);
@@ -518,7 +673,8 @@ fn curves(obs: &[Observation], min_mm: [f64; 3], max_mm: [f64; 3]) -> Vec<Diagon
                     Place::Step { .. } => unreachable!("filtered"),
                 })
                 .collect();
-            ("body", pts)
+            let by_bar = bars.iter().any(|b| b.sign == sign);
+            (if by_bar { "bar" } else { "body" }, pts)
         } else {
             let pts: Vec<_> = obs
                 .iter()
@@ -586,28 +742,102 @@ fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, String> {
     iso230_2::evaluate(&targets).map_err(|e| e.to_string())
 }
 
-/// The mean scale's U with the readings' common scale added (`scale_u_ppm` is µm/m one to
-/// one), where the readings see it.
-fn with_common_scale(q: Quantity, scale_u_ppm: f64) -> Quantity {
+/// A quantity's U with scale terms added (each a k = 1 contribution), where the readings see
+/// the quantity.
+fn with_scales(q: Quantity, terms: &[f64]) -> Quantity {
     let u_k2 = if q.u_k2.is_finite() {
-        2.0 * ((q.u_k2 / 2.0).powi(2) + scale_u_ppm.powi(2)).sqrt()
+        let extra: f64 = terms.iter().map(|t| t * t).sum();
+        2.0 * ((q.u_k2 / 2.0).powi(2) + extra).sqrt()
     } else {
         q.u_k2
     };
     Quantity { u_k2, ..q }
 }
 
-/// V_diag, the largest E over the diagonals, and its U: the runs' scatter (the difference of
-/// two target means, the largest over every target), and the common scale over the length of
-/// the diagonal that gives it (a bound: E spans at most the whole diagonal).
-fn v_diag(curves: &[DiagonalCurve], scale_u_ppm: f64) -> Option<Figure> {
-    let (e, length_mm) = curves
+/// The fit's sensitivity to each instrument's scale: the same layout fitted to the readings a
+/// 1 ppm scale error of that instrument alone would make (10⁻³ µm per mm of commanded travel
+/// along the beam or the bar).
+fn scale_terms(
+    fit: &JointFit,
+    obs: &[Observation],
+    laser_u_ppm: f64,
+    bar_u_ppm: f64,
+) -> Result<ScaleTerms, StudyError> {
+    let by_bar = |o: &Observation| o.bar;
+    let travel_mm = |o: &Observation| {
+        let diag = fit.layout.diagonal(o.diagonal);
+        let p = o.position_mm(diag);
+        super::dot(diag.u, [0, 1, 2].map(|k| p[k] - diag.p0_mm[k]))
+    };
+    let response = |bar: bool| -> Result<(f64, [f64; 3]), StudyError> {
+        let pattern: Vec<Observation> = obs
+            .iter()
+            .map(|o| Observation {
+                deviation_um: if by_bar(o) == bar {
+                    1e-3 * travel_mm(o)
+                } else {
+                    0.0
+                },
+                ..*o
+            })
+            .collect();
+        if pattern.iter().all(|o| o.deviation_um == 0.0) {
+            return Ok((0.0, [0.0; 3]));
+        }
+        let f = solve::fit(fit.layout.clone(), &pattern)?;
+        Ok((f.mean_scale().value, f.squareness().map(|q| q.value)))
+    };
+    let (ms_laser, sq_laser) = response(false)?;
+    let (ms_bar, sq_bar) = response(true)?;
+    Ok(ScaleTerms {
+        laser_u_ppm: if obs.iter().any(|o| !by_bar(o)) {
+            laser_u_ppm
+        } else {
+            0.0
+        },
+        bar_u_ppm,
+        mean_scale_per_laser_ppm: ms_laser,
+        mean_scale_per_bar_ppm: ms_bar,
+        squareness_per_laser_ppm: sq_laser,
+        squareness_per_bar_ppm: sq_bar,
+    })
+}
+
+/// The target means that make E: (distance of the largest, of the smallest).
+fn extremes(iso: &Iso230_2) -> Option<(f64, f64)> {
+    let means: Vec<(f64, f64)> = iso
+        .targets
         .iter()
-        .filter_map(|c| Some((c.e_um?, c.length_mm)))
-        .fold(None, |a: Option<(f64, f64)>, v| {
-            Some(a.map_or(v, |a| if v.0 > a.0 { v } else { a }))
-        })?;
-    let u = curves
+        .flat_map(|t| [t.up, t.down].map(|d| (t.position_mm, d)))
+        .filter_map(|(x, d)| d.map(|d| (x, d.mean_um)))
+        .collect();
+    let hi = means.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
+    let lo = means.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
+    Some((hi.0, lo.0))
+}
+
+/// V_diag, the largest E over the diagonals, and its U: the runs' scatter (the difference of
+/// two target means, the largest over every target of every diagonal: a few runs estimate one
+/// target's s poorly); for a bar-read diagonal also the stitching's covariance of the two
+/// targets that make E (conservative: it holds part of the same scatter); the instrument's
+/// scale u over the distance between those two targets (the laser's common scale, or the bar's
+/// calibration and its misalignment).
+fn v_diag(
+    curves: &[DiagonalCurve],
+    bars: &[BarCurve],
+    laser_u_ppm: f64,
+) -> Option<(Figure, VDiagBudget)> {
+    let c =
+        curves
+            .iter()
+            .filter(|c| c.e_um.is_some())
+            .fold(None, |a: Option<&DiagonalCurve>, c| match a {
+                Some(a) if a.e_um >= c.e_um => Some(a),
+                _ => Some(c),
+            })?;
+    let e = c.e_um?;
+    let (d_max_mm, d_min_mm) = extremes(c.iso.as_ref().ok()?)?;
+    let scatter_um = curves
         .iter()
         .filter_map(|c| c.iso.as_ref().ok())
         .flat_map(|i| i.targets.iter())
@@ -615,11 +845,62 @@ fn v_diag(curves: &[DiagonalCurve], scale_u_ppm: f64) -> Option<Figure> {
         .flatten()
         .map(|s| std::f64::consts::SQRT_2 * s.s_um / (s.runs as f64).sqrt())
         .fold(0.0, f64::max);
-    let scale = scale_u_ppm * 1e-3 * length_mm;
-    Some(Figure {
-        value_um: e,
-        u_k2_um: 2.0 * (u * u + scale * scale).sqrt(),
-    })
+    let span = (d_max_mm - d_min_mm).abs();
+    let bar = bars.iter().find(|b| b.sign == c.sign && c.source == "bar");
+    let (random_um, scale_um, scale_u_ppm, cosine_um) = match bar {
+        Some(b) => {
+            let s = &b.stitched;
+            let [stitch_u, scale, cosine] =
+                s.difference_u_um(s.index_of(d_min_mm), s.index_of(d_max_mm));
+            (
+                scatter_um.hypot(stitch_u),
+                scale,
+                s.budget.scale_u_ppm,
+                cosine,
+            )
+        }
+        None => (scatter_um, laser_u_ppm * 1e-3 * span, laser_u_ppm, 0.0),
+    };
+    let budget = VDiagBudget {
+        diagonal: c.sign,
+        source: c.source,
+        d_max_mm,
+        d_min_mm,
+        random_um,
+        scale_um,
+        scale_u_ppm,
+        cosine_um,
+    };
+    let u = (random_um.powi(2) + scale_um.powi(2) + cosine_um.powi(2)).sqrt();
+    Some((
+        Figure {
+            value_um: e,
+            u_k2_um: 2.0 * u,
+        },
+        budget,
+    ))
+}
+
+/// What the bar-read diagonals cannot see, in words.
+fn bar_invisible(bars: &[BarCurve], obs: &[Observation]) -> Vec<String> {
+    let mut out = Vec::new();
+    let laser = obs
+        .iter()
+        .any(|o| o.is_step() || !bars.iter().any(|b| b.sign == o.diagonal));
+    let b = &bars[0];
+    if !laser {
+        out.push(format!(
+            "read by bar {} alone: every reading's scale is the bar's calibration, so Σ L_k² ε_k / D² is known only to its scale u ({} ppm, fully correlated over every segment and diagonal); a bar reads along a body diagonal only, so the step diagonals' sub-moves, which separate the per-axis functions and their shapes, are not available",
+            b.bar, b.stitched.budget.scale_u_ppm
+        ));
+    }
+    for b in bars.iter().filter(|b| !b.normalised) {
+        out.push(format!(
+            "diagonal {} (bar {}): no material temperature in environment/*.parquet at its readings: they are taken at the machine's temperature during the test, not normalised to T0",
+            b.sign, b.bar
+        ));
+    }
+    out
 }
 
 /// What the readings cannot see, in words (`machine-physics.md`, "Not identifiable").
@@ -699,10 +980,7 @@ fn residual_rms(
 ) -> Vec<(DiagonalSign, &'static str, f64, usize)> {
     let mut acc: BTreeMap<(DiagonalSign, &'static str), (f64, usize)> = BTreeMap::new();
     for (o, r) in obs.iter().zip(&fit.residuals) {
-        let src = match o.place {
-            Place::Body { .. } => "body",
-            Place::Step { .. } => "step",
-        };
+        let src = solve::source(o);
         let e = acc.entry((o.diagonal, src)).or_insert((0.0, 0));
         e.0 += r * r;
         e.1 += 1;
