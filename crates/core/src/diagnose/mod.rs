@@ -66,7 +66,7 @@
 //!   counts only for a catalogue effect, never for a generic channel term
 //!   (`diagnose::may_be_proposed_for_its_shift`). Forward
 //!   selection adds proposed candidates only. Exact refits go through one cache
-//!   (`diagnose::Refits`, keyed by bar and effect list, with the refit's noise likelihood), shared
+//!   (`diagnose::Refits`, keyed by bar and set of effects, with the refit's noise likelihood), shared
 //!   by the ranking, the fleet-wide and every per-bar forward selection: a bar is never fitted
 //!   twice with the same effects. The coarse tier's refits are kept too, and the coarse forward
 //!   selection's cache starts with them (its first step refitted the same rivals on the same

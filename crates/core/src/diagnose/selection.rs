@@ -331,11 +331,18 @@ fn led_by_the_ranking(
     );
     let reordered_total: f64 = reordered.iter().filter_map(|step| step.delta_bic).sum();
     tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), reordered_total, total, "diagnose: the ledger led by the ranking's best, confirmed");
-    if reordered_total <= total + PATH_TIE_SHARE * total.abs() {
+    if keeps_reordered(reordered_total, total) {
         (reordered, reordered_models)
     } else {
         (ledger, models)
     }
+}
+
+/// Whether a ledger led by the ranking's best, of total ΔBIC `reordered_total`, replaces the
+/// confirmed ledger of total `total`: when it is lower, or within [`PATH_TIE_SHARE`] of it
+/// (a tie the ranking decides).
+fn keeps_reordered(reordered_total: f64, total: f64) -> bool {
+    reordered_total <= total + PATH_TIE_SHARE * total.abs()
 }
 
 /// The ledger of `path` (found on the coarse copies) on the bars' own series: each step's
@@ -596,5 +603,22 @@ fn extend_path(
         models,
         delta_bic: path.delta_bic + score,
         finished: false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::keeps_reordered;
+
+    #[test]
+    fn the_ranking_led_ledger_is_kept_when_lower_or_tied_not_when_worse() {
+        // Lower: the second simulator's air-gradient campaign (seed 3), `air_gradient` alone
+        // against the coarse path `second_path` → `air_gradient`.
+        assert!(keeps_reordered(-179_021.2, -143_375.9));
+        // Within 5 % of the confirmed ledger's total, either side: the ranking decides.
+        assert!(keeps_reordered(-140_000.0, -143_375.9));
+        assert!(keeps_reordered(-146_000.0, -143_375.9));
+        // Worse by more than the tie share: the confirmed ledger stands.
+        assert!(!keeps_reordered(-120_000.0, -143_375.9));
     }
 }
