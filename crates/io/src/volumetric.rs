@@ -110,21 +110,8 @@ fn read_diagonals(
         let time = required(path, "time", file.time("time")?)?;
         let diagonal = signs(path, &required(path, "diagonal", file.text("diagonal")?)?)?;
         let run = required(path, "run", file.int("run")?)?;
-        check_rows(
-            path,
-            "run",
-            &run,
-            |&r| r >= 1,
-            "are below 1 (runs count from 1)",
-        )?;
         let direction = file.optional("direction", Decoded::int)?;
-        check_rows(
-            path,
-            "direction",
-            &direction,
-            |d| d.is_none_or(|d| d == 1 || d == -1),
-            "are neither +1 nor -1 (nor null)",
-        )?;
+        check_runs_and_directions(path, &run, &direction)?;
         let target = required(path, "target_mm", file.real("target_mm")?)?;
         finite(path, "target_mm", &target)?;
         let d_len = diagonal_length_mm(campaign);
@@ -210,21 +197,8 @@ fn read_bar_readings(
             .into_iter()
             .map(|r| r.unwrap_or(1))
             .collect();
-        check_rows(
-            path,
-            "run",
-            &run,
-            |&r| r >= 1,
-            "are below 1 (runs count from 1)",
-        )?;
         let direction = file.optional("direction", Decoded::int)?;
-        check_rows(
-            path,
-            "direction",
-            &direction,
-            |d| d.is_none_or(|d| d == 1 || d == -1),
-            "are neither +1 nor -1 (nor null)",
-        )?;
+        check_runs_and_directions(path, &run, &direction)?;
         let along = required(path, "distance_along_mm", file.real("distance_along_mm")?)?;
         check_rows(
             path,
@@ -327,4 +301,27 @@ fn read_steps(files: &[PathBuf]) -> Result<Vec<StepReading>, IngestError> {
     }
     order_step_readings(&mut rows);
     Ok(rows)
+}
+
+/// The `run` column counts from 1 and `direction` is +1, −1 or null: the rows that are not,
+/// named by file and column (the laser's and the bar's diagonal readings alike).
+fn check_runs_and_directions(
+    path: &Path,
+    run: &[i64],
+    direction: &[Option<i64>],
+) -> Result<(), IngestError> {
+    check_rows(
+        path,
+        "run",
+        run,
+        |&r| r >= 1,
+        "are below 1 (runs count from 1)",
+    )?;
+    check_rows(
+        path,
+        "direction",
+        direction,
+        |d| d.is_none_or(|d| d == 1 || d == -1),
+        "are neither +1 nor -1 (nor null)",
+    )
 }

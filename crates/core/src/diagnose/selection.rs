@@ -87,6 +87,24 @@ struct SelectionPath {
     finished: bool,
 }
 
+impl SelectionPath {
+    /// The path that has added nothing yet: the ledger's base step on `models`.
+    fn starting_at(models: Vec<BarModel>) -> SelectionPath {
+        SelectionPath {
+            ledger: vec![ledger_step(
+                Added::Base,
+                effects_of(&models),
+                &models,
+                None,
+                None,
+            )],
+            models,
+            delta_bic: 0.0,
+            finished: false,
+        }
+    }
+}
+
 /// Forward selection: add the best proposed candidate (fleet-wide: significant and material by
 /// `criteria`) until none is left or `max_steps` effects were added. Returns the ledger and the
 /// final models. Each step screens every candidate and refits exactly only those that could be
@@ -357,18 +375,7 @@ fn confirm_path(
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
-    let mut current = SelectionPath {
-        ledger: vec![ledger_step(
-            Added::Base,
-            effects_of(&start),
-            &start,
-            None,
-            None,
-        )],
-        models: start,
-        delta_bic: 0.0,
-        finished: false,
-    };
+    let mut current = SelectionPath::starting_at(start);
     for (k, effect) in path.iter().enumerate() {
         let ranked = first_candidates
             .iter()
@@ -464,18 +471,7 @@ fn beam_paths(
     refits: &Refits,
 ) -> Vec<SelectionPath> {
     let beam = beam.max(1);
-    let mut paths = vec![SelectionPath {
-        ledger: vec![ledger_step(
-            Added::Base,
-            effects_of(&start),
-            &start,
-            None,
-            None,
-        )],
-        models: start,
-        delta_bic: 0.0,
-        finished: false,
-    }];
+    let mut paths = vec![SelectionPath::starting_at(start)];
     for step in 0..max_steps {
         let mut next: Vec<SelectionPath> = paths.iter().filter(|p| p.finished).cloned().collect();
         let mut extensions: Vec<(usize, Candidate, f64)> = Vec::new();
