@@ -363,6 +363,29 @@ pub(crate) fn required<T>(
     Ok(values.into_iter().flatten().collect())
 }
 
+/// The `run` column counts from 1 and `direction` is +1, −1 or null: the rows that are not,
+/// named by file and column (an axis's lines, a volumetric campaign's laser and bar diagonals alike).
+pub(crate) fn check_runs_and_directions(
+    path: &Path,
+    run: &[i64],
+    direction: &[Option<i64>],
+) -> Result<(), IngestError> {
+    check_rows(
+        path,
+        "run",
+        run,
+        |&r| r >= 1,
+        "are below 1 (runs count from 1)",
+    )?;
+    check_rows(
+        path,
+        "direction",
+        direction,
+        |d| d.is_none_or(|d| d == 1 || d == -1),
+        "are neither +1 nor -1 (nor null)",
+    )
+}
+
 /// Refuses the rows where `ok` fails, showing the first value.
 pub(crate) fn check_rows<T: std::fmt::Debug>(
     path: &Path,
@@ -465,20 +488,7 @@ fn read_readings(files: &[PathBuf], campaign: &AxisCampaign) -> Result<Readings,
         let channel = required(path, "channel", file.text("channel")?)?;
         let deviation = required(path, "deviation_um", file.real("deviation_um")?)?;
         check_lines(path, &line, &time, campaign)?;
-        check_rows(
-            path,
-            "run",
-            &run,
-            |&r| r >= 1,
-            "are below 1 (runs count from 1)",
-        )?;
-        check_rows(
-            path,
-            "direction",
-            &direction,
-            |d| d.is_none_or(|d| d == 1 || d == -1),
-            "are neither +1 nor -1 (nor null)",
-        )?;
+        check_runs_and_directions(path, &run, &direction)?;
         finite(path, "target_mm", &target)?;
         finite(path, "deviation_um", &deviation)?;
         check_rows(

@@ -9,7 +9,9 @@
 
 use std::path::{Path, PathBuf};
 
-use super::axis::{check_rows, finite, read_environment, read_events, required, Decoded};
+use super::axis::{
+    check_rows, check_runs_and_directions, finite, read_environment, read_events, required, Decoded,
+};
 use super::inputs::{check_unchanged, parquet_files};
 use super::kind_read::{kind_manifest_text, snapshot};
 use super::IngestError;
@@ -301,27 +303,4 @@ fn read_steps(files: &[PathBuf]) -> Result<Vec<StepReading>, IngestError> {
     }
     order_step_readings(&mut rows);
     Ok(rows)
-}
-
-/// The `run` column counts from 1 and `direction` is +1, −1 or null: the rows that are not,
-/// named by file and column (the laser's and the bar's diagonal readings alike).
-fn check_runs_and_directions(
-    path: &Path,
-    run: &[i64],
-    direction: &[Option<i64>],
-) -> Result<(), IngestError> {
-    check_rows(
-        path,
-        "run",
-        run,
-        |&r| r >= 1,
-        "are below 1 (runs count from 1)",
-    )?;
-    check_rows(
-        path,
-        "direction",
-        direction,
-        |d| d.is_none_or(|d| d == 1 || d == -1),
-        "are neither +1 nor -1 (nor null)",
-    )
 }
