@@ -189,7 +189,14 @@ pub(super) fn evaluate_at_most(
             batch.iter().cloned().unzip();
         tracing::debug!(refit = ?more.iter().map(|&c| candidates[c].name()).collect::<Vec<_>>(), "diagnose: no rival proposed on the readings; the next ones refitted exactly");
         exact.extend(exact_refits(
-            bars, bases, &more, &more_starts, candidates, &screens, threshold, refits,
+            bars,
+            bases,
+            &more,
+            &more_starts,
+            candidates,
+            &screens,
+            threshold,
+            refits,
         ));
         for c in &more {
             coarse_reasons.remove(c);

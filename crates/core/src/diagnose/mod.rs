@@ -148,6 +148,9 @@ pub(crate) const MAX_EXACT_RIVALS: usize = 3;
 /// candidates a step on a campaign with three hidden effects, each refit costing a search of
 /// its time constants on every bar; the path chosen is confirmed on the readings step by step.
 pub(crate) const COARSE_BEAM_REFITS: usize = 6;
+/// Bars with at least this many fitted samples are screened, ranked and searched on their 300-s
+/// coarse copies (`identify::coarse_copy`), the paths chosen there confirmed on the readings.
+pub(crate) const DIAGNOSE_COARSE_MIN_SAMPLES: usize = 5_000;
 /// Coarse forward-selection paths whose total ΔBIC is within this share of the best path's are
 /// a tie the readings decide (`selection::confirm_tied_paths`).
 pub(crate) const PATH_TIE_SHARE: f64 = 0.05;

@@ -127,7 +127,7 @@ pub fn forward_selection(
     // Nothing proposed at the first step: nothing to search (the beam would stop there too).
     if max_steps > 0 && first_candidates.iter().any(Candidate::proposed) {
         if let Some(coarse) = CoarseFleet::new(series, &start, refits) {
-            let paths = coarse.select(max_steps, beam, criteria);
+            let paths = coarse.select(max_steps, beam, first_candidates, criteria);
             if paths.first().is_some_and(|(path, _)| !path.is_empty()) {
                 return confirm_tied_paths(
                     series,
@@ -176,7 +176,7 @@ impl CoarseFleet {
     fn new(series: &[&BarSeries], models: &[BarModel], refits: &Refits) -> Option<CoarseFleet> {
         let copies: Vec<BarSeries> = series
             .iter()
-            .map(|s| crate::identify::coarse_copy(s, crate::identify::COARSE_START_MIN_SAMPLES))
+            .map(|s| crate::identify::coarse_copy(s, super::DIAGNOSE_COARSE_MIN_SAMPLES))
             .collect::<Option<_>>()?;
         let fitted: Vec<BarModel> = copies
             .par_iter()
@@ -204,12 +204,19 @@ impl CoarseFleet {
         &self,
         max_steps: usize,
         beam: usize,
+        first_candidates: &[Candidate],
         criteria: &Criteria,
     ) -> Vec<(Vec<Effect>, f64)> {
         let refits = &self.refits;
         let series: Vec<&BarSeries> = self.series.iter().collect();
         let cap = Some(COARSE_BEAM_REFITS);
-        let first = rank_candidates_for(&series, &self.models, criteria, refits, cap);
+        // The readings' first candidates are offered on the copies too: a channel whose fast
+        // fluctuations the copies' bins average away ranks low on them, though its lag is
+        // what the readings need first (on the machine-tool log, `lag:t4-t11` on ch3).
+        let from_readings: Vec<Effect> =
+            first_candidates.iter().map(|c| c.effect.clone()).collect();
+        let first =
+            rank_candidates_with(&series, &self.models, &from_readings, criteria, refits, cap);
         beam_paths(
             &series,
             self.models.clone(),
@@ -259,17 +266,9 @@ fn confirm_tied_paths(
     // that part later are aliases at a later step (on the three-effect campaign of our
     // simulator, `air_gradient`, `heat:T2-T1` and `heat:T2` as the third step, within 0.01 % of
     // each other on the readings), whose confirmation cost 9 s for no change.
-    // The path that leads with the ranking's best (on the readings) is confirmed too, so the
-    // ledger and the ranking differ only where the readings' totals say so.
-    let ranked_first = first_candidates
-        .iter()
-        .find(|c| c.proposed())
-        .map(|c| &c.effect);
     let mut firsts: Vec<Option<&Effect>> = Vec::new();
     let tied = paths.iter().filter(|(path, total)| {
-        ((total - best_total).abs() <= PATH_TIE_SHARE * best_total.abs()
-            || (path.first().is_some() && path.first() == ranked_first))
-            && {
+        (total - best_total).abs() <= PATH_TIE_SHARE * best_total.abs() && {
             let first = path.first();
             let new_first = !firsts.contains(&first);
             firsts.push(first);
@@ -298,7 +297,7 @@ fn confirm_tied_paths(
             start,
             (ledger, models, total),
             first_candidates,
-            coarse,
+            (coarse, max_steps),
             criteria,
             refits,
         ),
@@ -331,7 +330,7 @@ fn led_by_the_ranking(
     start: Vec<BarModel>,
     kept: (Vec<LedgerStep>, Vec<BarModel>, f64),
     first_candidates: &[Candidate],
-    coarse: &CoarseFleet,
+    (coarse, max_steps): (&CoarseFleet, usize),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
@@ -365,7 +364,7 @@ fn led_by_the_ranking(
         series,
         start,
         first_candidates,
-        (&path, coarse),
+        (&path, coarse, max_steps),
         criteria,
         refits,
     );
@@ -418,14 +417,15 @@ fn confirm_path(
         };
         let candidate = match candidate.filter(Candidate::proposed) {
             Some(c) => c,
-            None => match best_exact_step(series, &current, k, first_candidates, criteria, refits)
-            {
-                Some(c) => c,
-                None => {
-                    stopped = true;
-                    break;
+            None => {
+                match best_exact_step(series, &current, k, first_candidates, criteria, refits) {
+                    Some(c) => c,
+                    None => {
+                        stopped = true;
+                        break;
+                    }
                 }
-            },
+            }
         };
         let score = candidate.delta_bic.unwrap_or(0.0);
         current = extend_path(series, &current, &candidate, score, refits);
@@ -498,7 +498,7 @@ fn best_exact_step(
     let ranked = if k == 0 {
         first_candidates.to_vec()
     } else {
-        rank_candidates_for(series, &current.models, criteria, refits, None)
+        rank_candidates_with(series, &current.models, &[], criteria, refits, None)
     };
     let best = ranked.into_iter().find(Candidate::proposed);
     tracing::debug!(step = k, replaced_by = ?best.as_ref().map(|c| c.effect.name()), "diagnose: a coarse path's step is not proposed on the readings");
@@ -582,7 +582,7 @@ fn beam_paths(
             let candidates = if step == 0 {
                 first_candidates.to_vec()
             } else {
-                rank_candidates_for(series, &path.models, criteria, refits, max_refits)
+                rank_candidates_with(series, &path.models, &[], criteria, refits, max_refits)
             };
             let proposed: Vec<Candidate> = candidates
                 .into_iter()
@@ -643,9 +643,10 @@ pub(super) fn effects_of(models: &[BarModel]) -> Vec<Effect> {
 
 /// The candidates for the fleet's current `models`, ranked best first (only those that could be
 /// material refitted exactly).
-fn rank_candidates_for(
+fn rank_candidates_with(
     series: &[&BarSeries],
     models: &[BarModel],
+    offered: &[Effect],
     criteria: &Criteria,
     refits: &Refits,
     max_refits: Option<usize>,
@@ -658,7 +659,18 @@ fn rank_candidates_for(
         .zip(bases.par_iter())
         .map(|((s, m), b)| diagnose_bar(s, m, b.as_ref()))
         .collect();
-    let candidates = candidate_effects(&effects, &diagnoses);
+    let mut candidates = candidate_effects(&effects, &diagnoses);
+    let mut taken: std::collections::BTreeSet<String> = effects
+        .iter()
+        .chain(&candidates)
+        .map(term_identity)
+        .collect();
+    candidates.extend(
+        offered
+            .iter()
+            .filter(|e| taken.insert(term_identity(e)))
+            .cloned(),
+    );
     evaluate_at_most(&pairs, &bases, &candidates, criteria, refits, max_refits).0
 }
 
