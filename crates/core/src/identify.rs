@@ -31,8 +31,13 @@ use crate::fit::{self, Fit, FitError, FitOptions, Start};
 use crate::model::{base_effects, Effect, ModelError, NotIdentifiable, ThermalProblem};
 use crate::series::BarSeries;
 
+mod before_after;
+mod fleet;
 mod profile;
 mod start;
+
+pub use before_after::{compare_with_base, BarBeforeAfter, BeforeAfter};
+pub use fleet::{identify_fleet, BarOutcome, FleetLogs, FleetReadings, IdentifyOptions};
 
 use profile::profile_tau_intervals;
 pub(crate) use start::{coarse_copy, COARSE_START_MIN_SAMPLES};

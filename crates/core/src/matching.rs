@@ -8,10 +8,22 @@
 //! 3. [`measured_mismatch_matrix`]: the matching study — every bar as a candidate reference
 //!    against every other bar on the *measured* drifts, to check whether the nearest-the-mean
 //!    rule picked the bar that is actually best.
+//!
+//! [`match_fleet`] runs the three on a fleet's identified bars (`fleet`); the history the models
+//! are compared on is the campaign's mean air ([`air_history`], `history`).
 
 use serde::Serialize;
 
 use crate::signal::lag::lag;
+
+mod fleet;
+mod history;
+
+pub use fleet::{match_fleet, FleetMatch, MatchOptions, ReferenceReport};
+pub use history::air_history;
+
+/// The air history's grid step, s ([`air_history`]).
+pub const AIR_HISTORY_STEP_S: f64 = 60.0;
 
 /// The four base parameters used for matching, in the order of `docs/spec/physics.md`.
 pub const MATCH_PARAMS: [&str; 4] = ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];

@@ -81,6 +81,7 @@ mod bar_selection;
 mod candidates;
 mod compare;
 pub mod explain;
+mod fleet;
 pub(crate) mod noise;
 mod refits;
 pub(crate) mod residual;
@@ -101,6 +102,7 @@ pub use bar_selection::{
     bar_ledger_from_fleet, forward_selection_of_bar, needs_own_selection, BarLedger, Search,
 };
 pub use candidates::{candidate_effects, evaluate_candidates, explain_candidates, Unavailable};
+pub use fleet::{diagnose_fleet, DiagnoseOptions, Diagnosis};
 pub use refits::Refits;
 pub use selection::{forward_selection, Added, LedgerStep};
 

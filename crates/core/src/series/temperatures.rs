@@ -6,7 +6,7 @@
 //! and not as-of is said on [`interpolate_temperatures`]).
 
 use super::Readings;
-use super::{BarLog, CampaignLogs, SensorLog};
+use super::{BarBins, BarLog, CampaignLogs, SensorLog};
 use crate::campaign::TimeNs;
 use crate::signal::interpolate;
 use std::collections::BTreeMap;
@@ -177,13 +177,16 @@ pub(crate) fn temperatures_at(
     out
 }
 
-/// Campaign time origin: the earliest mount start (else the earliest reading).
+/// Campaign time origin: the earliest mount start (else the earliest reading, of the bars' logs
+/// and of the bins ingest compressed readings into; 0 without any).
 pub fn campaign_origin_ns(logs: &CampaignLogs) -> TimeNs {
     let first_mount = logs.campaign.mounts.iter().map(|m| m.from_ns).min();
-    let first_reading = logs
-        .bars
-        .values()
-        .filter_map(|l| l.time_ns.first().copied())
-        .min();
-    first_mount.or(first_reading).unwrap_or(0)
+    let first_reading = || {
+        logs.bars
+            .values()
+            .filter_map(|l| l.time_ns.first().copied())
+            .chain(logs.bins.values().filter_map(BarBins::first_reading_ns))
+            .min()
+    };
+    first_mount.or_else(first_reading).unwrap_or(0)
 }
