@@ -186,7 +186,7 @@ pub(crate) fn budget(
 }
 
 /// Expanded uncertainty U (k = 2), µm, of a working bar's compensated centre distance: the
-/// budget of [`accept`] (calibration lengths, resolution, calibration function, thermal terms),
+/// budget of `accept` (calibration lengths, resolution, calibration function, thermal terms),
 /// without a check length. What a device's leg takes (`docs/spec/device-format.md`).
 pub fn compensated_u_k2_um(
     w: &WorkingSeries,

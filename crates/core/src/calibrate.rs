@@ -657,7 +657,7 @@ pub fn calibrate_fleet(bars: &[BarOutcome], campaign: &Campaign) -> StageOutcome
 }
 
 /// Calibrate one bar from its series and identified model.
-pub fn calibrate_bar(
+pub(crate) fn calibrate_bar(
     series: &BarSeries,
     model: &BarModel,
     campaign: &Campaign,

@@ -196,7 +196,7 @@ impl WorkingSeries {
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 /// Why a working mount could not be compensated.
-pub enum CompensateError {
+pub(crate) enum CompensateError {
     #[error("bar {bar}: no calibration, so no centre-distance function")]
     /// The bar has no centre-distance function.
     NotCalibrated {
@@ -231,7 +231,7 @@ pub enum CompensateError {
 
 impl CompensateError {
     /// The bar that could not be compensated.
-    pub fn bar(&self) -> &str {
+    pub(crate) fn bar(&self) -> &str {
         match self {
             CompensateError::NotCalibrated { bar }
             | CompensateError::OtherEpoch { bar, .. }

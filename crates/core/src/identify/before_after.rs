@@ -37,9 +37,9 @@ pub struct BarBeforeAfter {
     /// RMS residual of the model, µm.
     pub rms_after_um: f64,
     /// Base parameters before and after: how much adding the effects moved them.
-    pub params_before: BTreeMap<String, f64>,
+    pub(crate) params_before: BTreeMap<String, f64>,
     /// The same parameters in the model.
-    pub params_after: BTreeMap<String, f64>,
+    pub(crate) params_after: BTreeMap<String, f64>,
 }
 
 /// Refit each bar with the base model (in parallel) to show what the added effects bought; a

@@ -84,7 +84,7 @@ pub(super) fn with_knots_between(readings: Readings, knots: &[TimeNs]) -> Readin
 }
 
 /// Every sensor's reading times, sorted and deduplicated: the knots of the temperature
-/// interpolation, which a compressed series keeps as samples ([`BarSeries::from_bins`](super::BarSeries::from_bins)). The
+/// interpolation, which a compressed series keeps as samples (`BarSeries::from_bins`(super::BarSeries::from_bins)). The
 /// same for every bar, so made once per campaign.
 pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
     let mut knots: Vec<TimeNs> = sensors
@@ -111,7 +111,10 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
 /// `tau` ≥ 15 min against 30-s blocks), so what the block means lose is of order `(block/tau)²`
 /// of the fluctuation, far below the readings' noise. Slower logs are unchanged, so their
 /// campaigns give the same fits to the bit.
-pub fn knot_logs(sensors: &BTreeMap<String, SensorLog>, bin_s: f64) -> BTreeMap<String, SensorLog> {
+pub(crate) fn knot_logs(
+    sensors: &BTreeMap<String, SensorLog>,
+    bin_s: f64,
+) -> BTreeMap<String, SensorLog> {
     let block_ns = if bin_s > 0.0 {
         (bin_s * 0.5e9).round() as TimeNs
     } else {
