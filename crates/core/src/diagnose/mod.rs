@@ -203,7 +203,7 @@ pub struct Criteria {
 impl Criteria {
     /// Criteria for a fleet with this reading-noise floor and tolerance (µm): `min_gain_um` from
     /// both, the tests at the default family-wise level.
-    pub fn new(noise_floor_um: f64, tolerance_um: f64) -> Criteria {
+    pub(crate) fn new(noise_floor_um: f64, tolerance_um: f64) -> Criteria {
         Criteria {
             noise_floor_um,
             tolerance_um,
