@@ -33,17 +33,17 @@ pub(crate) const MATCH_PARAMS: [&str; 4] =
 #[derive(Debug, Clone)]
 pub(crate) struct MatchInput {
     /// Bar id.
-    pub bar: String,
+    pub(crate) bar: String,
     /// The bar's fixed length, mm.
-    pub fixed_length_mm: f64,
+    pub(crate) fixed_length_mm: f64,
     /// Values of [`MATCH_PARAMS`], in order; NaN for a parameter the bar's data cannot
     /// determine (`beta` and `tau_S` of a bar mounted on one length: its `alpha` and `tau_R`
     /// then describe the whole bar at that length).
-    pub params: [f64; 4],
+    pub(crate) params: [f64; 4],
     /// Measured thermal error (reading minus the fitted zero), µm, at `t_s` (fitted samples).
-    pub t_s: Vec<f64>,
+    pub(crate) t_s: Vec<f64>,
     /// Measured thermal error at `t_s`, µm.
-    pub measured_um: Vec<f64>,
+    pub(crate) measured_um: Vec<f64>,
 }
 
 /// The reference bar: the one nearest the fleet mean.

@@ -319,15 +319,15 @@ pub(crate) enum SeriesError {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct FleetContext<'a> {
     /// The validated manifest.
-    pub campaign: &'a Campaign,
+    pub(crate) campaign: &'a Campaign,
     /// The campaign's events, sorted by time.
-    pub events: &'a [Event],
+    pub(crate) events: &'a [Event],
     /// Every sensor's log.
-    pub sensors: &'a BTreeMap<String, SensorLog>,
+    pub(crate) sensors: &'a BTreeMap<String, SensorLog>,
     /// The sensors' reading times ([`sensor_knots`]).
-    pub knots: &'a [TimeNs],
+    pub(crate) knots: &'a [TimeNs],
     /// The campaign's time origin: its first mount start.
-    pub t0_ns: TimeNs,
+    pub(crate) t0_ns: TimeNs,
 }
 
 impl BarSeries {

@@ -74,7 +74,7 @@ pub(crate) struct Search {
     /// Most effects added.
     pub(crate) max_steps: usize,
     /// Paths kept at each step.
-    pub beam: usize,
+    pub(crate) beam: usize,
 }
 
 /// Forward selection on one bar alone: candidates from its own channel ranking (`diagnosis`
