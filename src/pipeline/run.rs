@@ -1,50 +1,127 @@
-//! The order of the stages: [`analyse`] runs those the plan names on already-read logs.
+//! The order of the stages: [`analyse`] runs those the plan names on already-read logs, each
+//! as one call of its entry point in core (`identify::identify_fleet`, `matching::match_fleet`,
+//! `diagnose::diagnose_fleet`, `calibrate::calibrate_fleet`, `compensate::compensate_fleet`,
+//! `acceptance::accept_fleet`) with its options from the plan. No analysis rule lives here.
 
-use rayon::prelude::*;
+use crate::acceptance::AcceptanceOptions;
+use crate::compensate::CompensateOptions;
+use crate::diagnose::DiagnoseOptions;
+use crate::identify::{FleetLogs, FleetReadings, IdentifyOptions};
+use crate::matching::{MatchOptions, AIR_HISTORY_STEP_S};
+use crate::series::CampaignLogs;
 
-use crate::identify::identify;
-use crate::series::{BarSeries, CampaignLogs, FleetContext};
-
-use super::stages::*;
 use super::*;
 
-/// Run `f` and log how long it took (`DBBCAL_LOG=info`): stage timings go to the log, never
-/// into the byte-identical outputs.
-pub(crate) fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
-    let start = std::time::Instant::now();
-    let out = f();
-    tracing::info!("{what}: {:.3} s", start.elapsed().as_secs_f64());
-    out
-}
+pub(crate) use dbbcal_core::stage::timed;
 
 /// Run the analysis stages on already-read logs (no output written).
 pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
+    let t0_ns = crate::series::campaign_origin_ns(&logs);
     let CampaignLogs {
         campaign,
         inputs,
         bars,
-        mut bins,
+        bins,
         sensors,
         events,
         quality,
     } = logs;
-    let t0 = campaign
-        .mounts
-        .iter()
-        .map(|m| m.from_ns)
-        .min()
-        .unwrap_or_else(|| campaign_origin_from(&bars, &bins));
-    let history = air_history(&campaign, &sensors, t0, 60.0);
+    let history = crate::matching::air_history(&campaign, &sensors, t0_ns, AIR_HISTORY_STEP_S);
     if !plan.runs(Stage::Identify) {
         let mut results =
             RunResults::before_stages(campaign, inputs, history, Vec::new(), Vec::new());
         results.quality = quality;
         return results;
     }
+    let fleet = FleetLogs {
+        campaign: &campaign,
+        events: &events,
+        sensors: &sensors,
+        quality: &quality,
+        t0_ns,
+    };
+    let progress = crate::progress::bar(bars.len() as u64, "identify");
+    let identified = timed("identify", || {
+        crate::identify::identify_fleet(
+            fleet,
+            FleetReadings { bars, bins },
+            &identify_options(plan),
+            &|| progress.inc(1),
+        )
+    });
+    progress.finish_and_clear();
+    let mut results =
+        RunResults::before_stages(campaign, inputs, history, identified.ok, identified.failed);
+    results.quality = quality;
+    results.device_sensors = super::device::sensor_logs(&results.campaign, &sensors);
+    run_later_stages(plan, &mut results);
+    results
+}
+
+/// The stages past identify, in order, each filling its part of `results`.
+fn run_later_stages(plan: &RunPlan, results: &mut RunResults) {
+    if plan.runs(Stage::Match) {
+        let options = match_options(plan);
+        let matched = crate::matching::match_fleet(
+            &results.bars,
+            &results.campaign,
+            &results.history,
+            &options,
+        );
+        if let Some(m) = matched {
+            results.reference = Some(m.reference);
+            results.study = m.study;
+        }
+    }
+    if plan.effects != crate::model::base_effects() {
+        results.before_after = Some(crate::identify::compare_with_base(&results.bars));
+    }
+    if plan.runs(Stage::Diagnose) {
+        let progress = crate::progress::bar(results.bars.len() as u64, "diagnose");
+        let diagnosis = timed("diagnose", || {
+            crate::diagnose::diagnose_fleet(&results.bars, &diagnose_options(plan), &|| {
+                progress.inc(1)
+            })
+        });
+        progress.finish_and_clear();
+        results.diagnosis = Some(diagnosis);
+    }
+    if plan.runs(Stage::Calibrate) {
+        results.calibration = Some(crate::calibrate::calibrate_fleet(
+            &results.bars,
+            &results.campaign,
+        ));
+    }
+    if plan.runs(Stage::Compensate) {
+        results.compensation = Some(crate::compensate::compensate_fleet(
+            &results.bars,
+            &results.campaign,
+            ok_or_empty(&results.calibration),
+            results.reference.as_ref().map(|r| &r.choice),
+            &compensate_options(plan),
+        ));
+    }
+    if plan.runs(Stage::Acceptance) {
+        results.acceptance = Some(crate::acceptance::accept_fleet(
+            ok_or_empty(&results.compensation),
+            ok_or_empty(&results.calibration),
+            &results.campaign,
+            &acceptance_options(plan),
+        ));
+    }
+}
+
+/// A stage's processed bars, none when it did not run.
+fn ok_or_empty<T>(stage: &Option<StageOutcome<T>>) -> &[T] {
+    stage.as_ref().map(|s| s.ok.as_slice()).unwrap_or_default()
+}
+
+/// Identify's options: the model, the bins, and whether later stages read the samples.
+fn identify_options(plan: &RunPlan) -> IdentifyOptions {
     // Every stage past identify reads the bars' samples, and so does the before/after
     // comparison of an extended model; a plain identify run keeps only the models and counts,
     // so it never holds the campaign's series at full rate.
-    let samples_needed = plan.effects != crate::model::base_effects()
+    let keep_samples = plan.effects != crate::model::base_effects()
         || [
             Stage::Match,
             Stage::MatchStudy,
@@ -56,76 +133,46 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         ]
         .into_iter()
         .any(|s| plan.runs(s));
-    let progress = crate::progress::bar(bars.len() as u64, "identify");
-    // A compressed series samples the sensors at most twice a bin (`series::knot_logs`); the
-    // full-rate logs stay for the air history and the device's sensors.
-    let knot_sensors = crate::series::knot_logs(&sensors, plan.bin_s);
-    let knots = crate::series::sensor_knots(&knot_sensors);
-    let fleet = FleetContext {
-        campaign: &campaign,
-        events: &events,
-        sensors: &knot_sensors,
-        knots: &knots,
-        t0_ns: t0,
-    };
-    let outcomes: Vec<(String, Result<BarOutcome, String>)> = timed("identify", || {
-        bars.into_iter()
-            .map(|(id, log)| {
-                let binned = bins.remove(&id);
-                (id, log, binned)
-            })
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .map(|(id, log, binned)| {
-                // A bar ingest found no usable signal in (a dead encoder) fails alone.
-                if let Some(why) = quality.unusable(&id) {
-                    progress.inc(1);
-                    return (id, Err(why.to_string()));
-                }
-                let series = match binned {
-                    Some(b) => BarSeries::from_bins(&fleet, &id, &b),
-                    None => BarSeries::build_binned(&fleet, &id, log, plan.bin_s),
-                };
-                let r = series.map_err(|e| e.to_string()).and_then(|series| {
-                    let model = identify(&series, &plan.effects).map_err(|e| e.to_string())?;
-                    let series = if samples_needed {
-                        series
-                    } else {
-                        series.without_samples()
-                    };
-                    Ok(BarOutcome { series, model })
-                });
-                progress.inc(1);
-                (id, r)
-            })
-            .collect()
-    });
-    progress.finish_and_clear();
-    let identified = StageOutcome::from_results(outcomes);
-    for f in &identified.failed {
-        tracing::info!("{}", f.error); // in failed_bars and the final line
+    IdentifyOptions {
+        effects: plan.effects.clone(),
+        bin_s: plan.bin_s,
+        keep_samples,
     }
-    let mut results =
-        RunResults::before_stages(campaign, inputs, history, identified.ok, identified.failed);
-    results.quality = quality;
-    results.device_sensors = super::device::sensor_logs(&results.campaign, &sensors);
-    if plan.runs(Stage::Match) {
-        run_match(plan, &mut results);
+}
+
+/// `[match]`; the study only when the plan runs `match_study`.
+fn match_options(plan: &RunPlan) -> MatchOptions {
+    MatchOptions {
+        limit_um: plan.matching.limit_um,
+        at_length: plan.matching.at_length.clone(),
+        study_step_s: plan
+            .runs(Stage::MatchStudy)
+            .then_some(plan.matching.study_step_s),
     }
-    if plan.effects != crate::model::base_effects() {
-        results.before_after = Some(before_after(&results.bars));
+}
+
+/// `[diagnose]`; its tolerance defaults to the matching limit.
+fn diagnose_options(plan: &RunPlan) -> DiagnoseOptions {
+    DiagnoseOptions {
+        effects: plan.effects.clone(),
+        tolerance_um: plan.diagnose.tolerance_um.unwrap_or(plan.matching.limit_um),
+        forward_steps: plan.diagnose.forward_steps,
+        beam: plan.diagnose.beam,
     }
-    if plan.runs(Stage::Diagnose) {
-        results.diagnosis = Some(timed("diagnose", || run_diagnose(plan, &results.bars)));
+}
+
+/// `[acceptance]`'s compensation settings.
+fn compensate_options(plan: &RunPlan) -> CompensateOptions {
+    CompensateOptions {
+        model_difference: plan.acceptance.model_difference,
+        max_gap_s: plan.acceptance.max_gap_s,
     }
-    if plan.runs(Stage::Calibrate) {
-        results.calibration = Some(run_calibrate(&results));
+}
+
+/// `[acceptance]`'s tolerance and temperature uncertainty.
+fn acceptance_options(plan: &RunPlan) -> AcceptanceOptions {
+    AcceptanceOptions {
+        tolerance_um: plan.acceptance.tolerance_um,
+        u_temperature_k: plan.acceptance.u_temperature_k,
     }
-    if plan.runs(Stage::Compensate) {
-        results.compensation = Some(run_compensate(plan, &results));
-    }
-    if plan.runs(Stage::Acceptance) {
-        results.acceptance = Some(run_acceptance(plan, &results));
-    }
-    results
 }

@@ -8,6 +8,7 @@
 use serde::Serialize;
 
 use crate::calibrate::{u_from_lengths_um, BarCalibration};
+use crate::campaign::Campaign;
 use crate::compensate::{CompensationMode, WorkingSeries};
 
 /// The rule in one short line, for figures.
@@ -185,7 +186,7 @@ pub(crate) fn budget(
 }
 
 /// Expanded uncertainty U (k = 2), µm, of a working bar's compensated centre distance: the
-/// budget of [`accept`] (calibration lengths, resolution, calibration function, thermal terms),
+/// budget of `accept` (calibration lengths, resolution, calibration function, thermal terms),
 /// without a check length. What a device's leg takes (`docs/spec/device-format.md`).
 pub fn compensated_u_k2_um(
     w: &WorkingSeries,
@@ -210,8 +211,27 @@ fn representative_reading_mm(w: &WorkingSeries, cal: &BarCalibration) -> f64 {
     x
 }
 
+/// The acceptance stage: accept every compensated working series on a known length whose bar
+/// was calibrated (`resolution_nm` from the campaign's bar, 0 for a bar it does not list), in
+/// the order of `working`. Nothing without calibrations or working series.
+pub fn accept_fleet(
+    working: &[WorkingSeries],
+    calibrations: &[BarCalibration],
+    campaign: &Campaign,
+    options: &AcceptanceOptions,
+) -> Vec<BarAcceptance> {
+    working
+        .iter()
+        .filter_map(|w| {
+            let c = calibrations.iter().find(|c| c.bar == w.bar)?;
+            let resolution_nm = campaign.bar(&w.bar).map_or(0.0, |b| b.resolution_nm);
+            accept(w, c, resolution_nm, options)
+        })
+        .collect()
+}
+
 /// Accept one working series on a known length.
-pub fn accept(
+pub(crate) fn accept(
     w: &WorkingSeries,
     cal: &BarCalibration,
     resolution_nm: f64,

@@ -20,8 +20,8 @@ pub mod logs;
 mod tests;
 
 pub use logs::{
-    derive_order, environment_at, reflector_at, AxisCampaignLogs, AxisCampaignTables, AxisReading,
-    Channel, EnvironmentRow, ExtraColumn, FixtureRow, OrderProblem, ReadingKey, ReadingOrder,
+    derive_order, environment_at, AxisCampaignLogs, AxisCampaignTables, AxisReading, Channel,
+    EnvironmentRow, ExtraColumn, FixtureRow, OrderProblem, ReadingKey, ReadingOrder,
 };
 
 // ---------------------------------------------------------------- kinds
@@ -299,7 +299,7 @@ impl LaserCompensation {
     }
 
     /// Whether an analysis needs `environment/*.parquet` (every mode but `air+material`).
-    pub fn needs_environment(self) -> bool {
+    pub(crate) fn needs_environment(self) -> bool {
         self != LaserCompensation::AirMaterial
     }
 }
@@ -382,7 +382,7 @@ impl AxisManifest {
 pub struct Line {
     /// Its id, as in the logs.
     pub id: i64,
-    /// The manifest's reflector point in F, mm (the fallback of [`reflector_at`]).
+    /// The manifest's reflector point in F, mm (the fallback of `reflector_at`).
     pub reflector_mm: [f64; 3],
 }
 

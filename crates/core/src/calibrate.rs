@@ -16,13 +16,15 @@
 //! Pure computation: no IO. Fits go through the one engine, [`crate::fit::fit`].
 
 use nalgebra::DMatrix;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::campaign::{Campaign, Purpose};
 use crate::fit::{self, FitOptions, Start};
-use crate::identify::BarModel;
+use crate::identify::{BarModel, BarOutcome};
 use crate::series::BarSeries;
 use crate::signal::interpolate::{self, Beyond};
+use crate::stage::StageOutcome;
 
 /// One calibration point: a bar on a plate length at one tilt, within one counter epoch.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -641,8 +643,21 @@ pub fn calibrate_points(
     })
 }
 
+/// The calibrate stage: calibrate every identified bar, in parallel, in the fleet's order (a bar
+/// that cannot be calibrated is listed, and warned of, the others go on).
+pub fn calibrate_fleet(bars: &[BarOutcome], campaign: &Campaign) -> StageOutcome<BarCalibration> {
+    let outcomes: Vec<(String, Result<BarCalibration, String>)> = bars
+        .par_iter()
+        .map(|o| {
+            let calibrated = calibrate_bar(&o.series, &o.model, campaign);
+            (o.model.bar.clone(), calibrated.map_err(|e| e.to_string()))
+        })
+        .collect();
+    StageOutcome::from_results(outcomes).with_failures_warned()
+}
+
 /// Calibrate one bar from its series and identified model.
-pub fn calibrate_bar(
+pub(crate) fn calibrate_bar(
     series: &BarSeries,
     model: &BarModel,
     campaign: &Campaign,

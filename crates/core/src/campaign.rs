@@ -257,7 +257,7 @@ impl Campaign {
         self.mounts.iter().filter(move |m| m.bar == bar)
     }
     /// The air sensors, in manifest order.
-    pub fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
+    pub(crate) fn air_sensors(&self) -> impl Iterator<Item = &Sensor> {
         self.sensors.iter().filter(|s| s.kind == SensorKind::Air)
     }
 }

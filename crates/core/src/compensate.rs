@@ -23,20 +23,22 @@ use serde::Serialize;
 
 use crate::calibrate::BarCalibration;
 use crate::campaign::{Campaign, Purpose};
-use crate::identify::BarModel;
+use crate::identify::{BarModel, BarOutcome};
+use crate::matching::ReferenceChoice;
 use crate::model::ThermalProblem;
 use crate::series::BarSeries;
 use crate::signal::interpolate;
+use crate::stage::StageOutcome;
 
 /// What compensation needs of one bar.
 #[derive(Debug, Clone, Copy)]
-pub struct CompBar<'a> {
+pub(crate) struct CompBar<'a> {
     /// The bar's series.
-    pub series: &'a BarSeries,
+    pub(crate) series: &'a BarSeries,
     /// Its identified thermal model.
-    pub model: &'a BarModel,
+    pub(crate) model: &'a BarModel,
     /// Its centre-distance function, if it was calibrated.
-    pub calibration: Option<&'a BarCalibration>,
+    pub(crate) calibration: Option<&'a BarCalibration>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -194,7 +196,7 @@ impl WorkingSeries {
 
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
 /// Why a working mount could not be compensated.
-pub enum CompensateError {
+pub(crate) enum CompensateError {
     #[error("bar {bar}: no calibration, so no centre-distance function")]
     /// The bar has no centre-distance function.
     NotCalibrated {
@@ -229,7 +231,7 @@ pub enum CompensateError {
 
 impl CompensateError {
     /// The bar that could not be compensated.
-    pub fn bar(&self) -> &str {
+    pub(crate) fn bar(&self) -> &str {
         match self {
             CompensateError::NotCalibrated { bar }
             | CompensateError::OtherEpoch { bar, .. }
@@ -257,9 +259,40 @@ pub(crate) fn is_working(series: &BarSeries, mount: usize) -> bool {
     m.device.is_some() || (m.length_mm.is_some() && m.purpose == Purpose::Check)
 }
 
+/// The compensate stage: compensate every working mount (check lengths and devices) of the
+/// identified bars, each bar with its calibration among `calibrations` (if any), the references
+/// nearest the fleet mean (`reference`, the match stage's choice) preferred. A mount that cannot
+/// be compensated is listed, and warned of, under its bar; the others go on.
+pub fn compensate_fleet(
+    bars: &[BarOutcome],
+    campaign: &Campaign,
+    calibrations: &[BarCalibration],
+    reference: Option<&ReferenceChoice>,
+    options: &CompensateOptions,
+) -> StageOutcome<WorkingSeries> {
+    let comp_bars: Vec<CompBar> = bars
+        .iter()
+        .map(|o| CompBar {
+            series: &o.series,
+            model: &o.model,
+            calibration: calibrations.iter().find(|c| c.bar == o.model.bar),
+        })
+        .collect();
+    let fleet_distance: BTreeMap<String, f64> = reference
+        .map(|r| r.distance.iter().cloned().collect())
+        .unwrap_or_default();
+    let outcomes = compensate(&comp_bars, campaign, &fleet_distance, options)
+        .into_iter()
+        .map(|w| match w {
+            Ok(w) => (w.bar.clone(), Ok(w)),
+            Err(e) => (e.bar().to_string(), Err(e.to_string())),
+        });
+    StageOutcome::from_results(outcomes).with_failures_warned()
+}
+
 /// Compensate every working mount of every bar. `fleet_distance`: each bar's scaled distance to
 /// the fleet mean (`matching::choose_reference`); the nearest is preferred as reference.
-pub fn compensate(
+pub(crate) fn compensate(
     bars: &[CompBar],
     campaign: &Campaign,
     fleet_distance: &BTreeMap<String, f64>,

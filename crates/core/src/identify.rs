@@ -31,8 +31,13 @@ use crate::fit::{self, Fit, FitError, FitOptions, Start};
 use crate::model::{base_effects, Effect, ModelError, NotIdentifiable, ThermalProblem};
 use crate::series::BarSeries;
 
+mod before_after;
+mod fleet;
 mod profile;
 mod start;
+
+pub use before_after::{compare_with_base, BarBeforeAfter, BeforeAfter};
+pub use fleet::{identify_fleet, BarOutcome, FleetLogs, FleetReadings, IdentifyOptions};
 
 use profile::profile_tau_intervals;
 pub(crate) use start::{coarse_copy, COARSE_START_MIN_SAMPLES};
@@ -53,7 +58,7 @@ pub struct Estimate {
     /// (Satterthwaite) HAC degrees of freedom ([`BarModel::dof`]). Time constants from
     /// [`identify`]: the adjusted profile-likelihood interval of `ln tau`, mapped to seconds
     /// (asymmetric; the profile RSS cut where a linear model would give `ln tau ± t u_ln`);
-    /// from [`identify_from`] (diagnosis trial fits): the Wald interval `exp(ln tau ± t u_ln)`.
+    /// from `identify_from` (diagnosis trial fits): the Wald interval `exp(ln tau ± t u_ln)`.
     pub ci95: [f64; 2],
     /// Per end of `ci95`: the profile never rose to the cut before the search bound of the time
     /// constants (60 s, 30 days), so that end is the bound and the data do not limit the time
@@ -164,7 +169,7 @@ impl BarModel {
 /// Fit `effects` to one bar.
 ///
 /// The time constants get adjusted profile-likelihood intervals
-/// (`profile_tau_intervals`); [`identify_from`] (the diagnosis' many trial fits) keeps the
+/// (`profile_tau_intervals`); `identify_from` (the diagnosis' many trial fits) keeps the
 /// cheaper Wald intervals.
 pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, IdentifyError> {
     let mut model = identify_from(series, effects, None)?;
@@ -188,7 +193,7 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 /// per cent of a nightly run; a full fresh fit for every refit would cost 1.5-2.5 times the
 /// diagnosis (both measured on the second simulator's hidden-effect campaigns, `docs/model.md`,
 /// "A second simulator").
-pub fn identify_from(
+pub(crate) fn identify_from(
     series: &BarSeries,
     effects: &[Effect],
     start: Option<&BarModel>,

@@ -3,6 +3,10 @@
 //! The campaign's description ([`campaign`]), the bars' series ([`series`]), the thermal model
 //! and its terms ([`model`]), the one fitting engine ([`fit`]), and the stages built on them:
 //! [`identify`], [`matching`], [`diagnose`], [`calibrate`], [`compensate`], [`acceptance`].
+//! Each stage has one entry point over the fleet, plain options in and one result out
+//! ([`identify::identify_fleet`], [`matching::match_fleet`], [`diagnose::diagnose_fleet`],
+//! [`calibrate::calibrate_fleet`], [`compensate::compensate_fleet`],
+//! [`acceptance::accept_fleet`]); a per-bar stage returns a [`stage::StageOutcome`].
 //! The `axis` machine kind's format types and reader rules are in [`axis_campaign`].
 //!
 //! INVARIANT (enforced by this crate's dependencies): no polars, no plotters, no file IO but
@@ -24,4 +28,5 @@ pub mod probe_campaign;
 pub mod roll_campaign;
 pub mod series;
 pub mod signal;
+pub mod stage;
 pub mod volumetric_campaign;

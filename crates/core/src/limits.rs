@@ -24,7 +24,7 @@ pub struct OutOfRange {
 
 /// Whether the low end of a real range is allowed itself.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Low {
+pub(crate) enum Low {
     /// `low ≤ value`.
     Included,
     /// `low < value` (a length, a resolution: zero is not one).
@@ -37,7 +37,7 @@ pub struct Limit {
     /// The low end.
     pub low: f64,
     /// Whether `low` itself is allowed.
-    pub low_end: Low,
+    pub(crate) low_end: Low,
     /// The high end (always included).
     pub high: f64,
     /// The unit as printed after the numbers (`"µm"`, `"s"`, `""` for none).

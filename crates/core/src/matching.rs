@@ -1,36 +1,49 @@
 //! Reference-bar matching (`docs/spec/physics.md`, "Matching"; the patent's rule).
 //!
-//! 1. [`choose_reference`]: the bar whose parameters (alpha, beta, tau_R, tau_S, each scaled by
+//! 1. `choose_reference`: the bar whose parameters (alpha, beta, tau_R, tau_S, each scaled by
 //!    the fleet's spread) are nearest the fleet mean becomes the reference.
-//! 2. [`predicted_mismatch`]: for every other bar, the difference of the two identified models'
+//! 2. `predicted_mismatch`: for every other bar, the difference of the two identified models'
 //!    thermal errors over this campaign's actual temperature history, both evaluated at the same
 //!    centre distance; flagged beyond the limit (±1 µm, the patent's figure).
-//! 3. [`measured_mismatch_matrix`]: the matching study — every bar as a candidate reference
+//! 3. `measured_mismatch_matrix`: the matching study — every bar as a candidate reference
 //!    against every other bar on the *measured* drifts, to check whether the nearest-the-mean
 //!    rule picked the bar that is actually best.
+//!
+//! [`match_fleet`] runs the three on a fleet's identified bars (`fleet`); the history the models
+//! are compared on is the campaign's mean air ([`air_history`], `history`).
 
 use serde::Serialize;
 
 use crate::signal::lag::lag;
 
+mod fleet;
+mod history;
+
+pub use fleet::{match_fleet, FleetMatch, MatchOptions, ReferenceReport};
+pub use history::air_history;
+
+/// The air history's grid step, s ([`air_history`]).
+pub const AIR_HISTORY_STEP_S: f64 = 60.0;
+
 /// The four base parameters used for matching, in the order of `docs/spec/physics.md`.
-pub const MATCH_PARAMS: [&str; 4] = ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
+pub(crate) const MATCH_PARAMS: [&str; 4] =
+    ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
 
 /// What matching needs of one identified bar.
 #[derive(Debug, Clone)]
-pub struct MatchInput {
+pub(crate) struct MatchInput {
     /// Bar id.
-    pub bar: String,
+    pub(crate) bar: String,
     /// The bar's fixed length, mm.
-    pub fixed_length_mm: f64,
+    pub(crate) fixed_length_mm: f64,
     /// Values of [`MATCH_PARAMS`], in order; NaN for a parameter the bar's data cannot
     /// determine (`beta` and `tau_S` of a bar mounted on one length: its `alpha` and `tau_R`
     /// then describe the whole bar at that length).
-    pub params: [f64; 4],
+    pub(crate) params: [f64; 4],
     /// Measured thermal error (reading minus the fitted zero), µm, at `t_s` (fitted samples).
-    pub t_s: Vec<f64>,
+    pub(crate) t_s: Vec<f64>,
     /// Measured thermal error at `t_s`, µm.
-    pub measured_um: Vec<f64>,
+    pub(crate) measured_um: Vec<f64>,
 }
 
 /// The reference bar: the one nearest the fleet mean.
@@ -40,7 +53,7 @@ pub struct ReferenceChoice {
     pub bar: String,
     /// Scaled distance of every bar to the fleet mean, same order as the input.
     pub distance: Vec<(String, f64)>,
-    /// The fleet's mean of each of [`MATCH_PARAMS`].
+    /// The fleet's mean of each of `MATCH_PARAMS`.
     pub fleet_mean: [f64; 4],
     pub(crate) fleet_spread: [f64; 4],
 }
@@ -48,7 +61,7 @@ pub struct ReferenceChoice {
 /// Pick the bar nearest the fleet mean in parameters scaled by the fleet's standard deviation,
 /// over the parameters every bar has (a parameter some bar lacks has NaN mean and spread).
 /// `None` for an empty fleet.
-pub fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
+pub(crate) fn choose_reference(bars: &[MatchInput]) -> Option<ReferenceChoice> {
     if bars.is_empty() {
         return None;
     }
@@ -131,7 +144,7 @@ pub struct Mismatch {
 }
 
 /// Predicted mismatch of every bar against `reference` (the reference itself is left out).
-pub fn predicted_mismatch(
+pub(crate) fn predicted_mismatch(
     bars: &[MatchInput],
     reference: &str,
     history: &TemperatureHistory,
@@ -180,7 +193,7 @@ pub struct MatchStudy {
 
 /// Evaluate every bar as a reference against all others on the measured drifts, on a common
 /// grid of `step_s` (each bar's nearest sample within `step_s / 2`).
-pub fn measured_mismatch_matrix(
+pub(crate) fn measured_mismatch_matrix(
     bars: &[MatchInput],
     nearest_mean: &str,
     step_s: f64,

@@ -6,17 +6,17 @@
 //!   `station`; it begins at its first row and ends at the next row of that device with another
 //!   station or null (open at the end of the log).
 //! - Within one device a station means one commanded position in the whole campaign: all its rows
-//!   agree to [`STATION_TOLERANCE_MM`] and [`STATION_TOLERANCE_DEG`], else the campaign is
+//!   agree to `STATION_TOLERANCE_MM` and [`STATION_TOLERANCE_DEG`], else the campaign is
 //!   rejected ([`PositionsError::StationDisagrees`], naming the station, the files and rows).
 //! - The approach direction of a dwell, per axis, is the sign of that coordinate's change since
 //!   the previous dwell (0 for the first).
-//! - The datum is the first dwell at `reference_mm` (to [`STATION_TOLERANCE_MM`]), or the first
+//! - The datum is the first dwell at `reference_mm` (to `STATION_TOLERANCE_MM`), or the first
 //!   dwell when the device gives none.
 //!
 //! No IO: `dbbcal-io` reads the files into a [`PositionsLog`].
 
 /// Rows of one station agree to this, mm (1 µm).
-pub const STATION_TOLERANCE_MM: f64 = 1e-3;
+pub(crate) const STATION_TOLERANCE_MM: f64 = 1e-3;
 /// Rows of one station agree to this, degrees.
 pub const STATION_TOLERANCE_DEG: f64 = 1e-4;
 
@@ -119,7 +119,7 @@ pub struct Disagreement {
     /// That row.
     pub first_row: u64,
     /// Its value.
-    pub first_value: String,
+    pub(crate) first_value: String,
 }
 
 impl std::fmt::Display for Disagreement {
@@ -274,7 +274,7 @@ impl PositionsLog {
     }
 }
 
-/// The datum: the first dwell at `reference_mm` (to [`STATION_TOLERANCE_MM`]), or the first dwell
+/// The datum: the first dwell at `reference_mm` (to `STATION_TOLERANCE_MM`), or the first dwell
 /// when `reference_mm` is `None`. `None` when no dwell is at the reference.
 pub fn datum_index(dwells: &[Dwell], reference_mm: Option<[f64; 3]>) -> Option<usize> {
     match reference_mm {

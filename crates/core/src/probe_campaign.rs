@@ -18,15 +18,15 @@ use crate::limits::Limit;
 pub mod probe_limits {
     use crate::limits::Limit;
     /// `probe.same_direction_deg`.
-    pub const SAME_DIRECTION_DEG: Limit = Limit::above(0.0, 45.0, "degrees");
+    pub(crate) const SAME_DIRECTION_DEG: Limit = Limit::above(0.0, 45.0, "degrees");
     /// `stylus[].tip_diameter_mm`.
-    pub const TIP_DIAMETER_MM: Limit = Limit::above(0.0, 100.0, "mm");
+    pub(crate) const TIP_DIAMETER_MM: Limit = Limit::above(0.0, 100.0, "mm");
     /// `stylus[].length_mm`.
-    pub const STYLUS_LENGTH_MM: Limit = Limit::above(0.0, 1_000.0, "mm");
+    pub(crate) const STYLUS_LENGTH_MM: Limit = Limit::above(0.0, 1_000.0, "mm");
     /// `artefact[].diameter_mm`.
-    pub const ARTEFACT_DIAMETER_MM: Limit = Limit::above(0.0, 2_000.0, "mm");
+    pub(crate) const ARTEFACT_DIAMETER_MM: Limit = Limit::above(0.0, 2_000.0, "mm");
     /// `artefact[].form_um`.
-    pub const FORM_UM: Limit = Limit::closed(0.0, 1_000.0, "µm");
+    pub(crate) const FORM_UM: Limit = Limit::closed(0.0, 1_000.0, "µm");
     /// Each coordinate of `artefact[].centre_mm`.
     pub const CENTRE_MM: Limit = Limit::closed(-10_000.0, 10_000.0, "mm");
 }

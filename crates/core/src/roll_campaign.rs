@@ -144,17 +144,17 @@ pub struct RollCampaign {
 pub mod roll_limits {
     use crate::limits::Limit;
     /// `L_mm`, `d_mm`, `s_mm`.
-    pub const SPACING_MM: Limit = Limit::above(0.0, 2_000.0, "mm");
+    pub(crate) const SPACING_MM: Limit = Limit::above(0.0, 2_000.0, "mm");
     /// `dwell_min_s`.
-    pub const DWELL_MIN_S: Limit = Limit::above(0.0, 3_600.0, "s");
+    pub(crate) const DWELL_MIN_S: Limit = Limit::above(0.0, 3_600.0, "s");
     /// `dwell_tol_um`.
-    pub const DWELL_TOL_UM: Limit = Limit::above(0.0, 10_000.0, "µm");
+    pub(crate) const DWELL_TOL_UM: Limit = Limit::above(0.0, 10_000.0, "µm");
     /// `um_per_v`: a magnitude from 1 nm/V to 10 mm/V, either sign.
-    pub const UM_PER_V_ABS: Limit = Limit::closed(1e-3, 1e4, "µm/V");
+    pub(crate) const UM_PER_V_ABS: Limit = Limit::closed(1e-3, 1e4, "µm/V");
     /// `xy_mm` coordinates.
-    pub const XY_MM: Limit = Limit::closed(-2_000.0, 2_000.0, "mm");
+    pub(crate) const XY_MM: Limit = Limit::closed(-2_000.0, 2_000.0, "mm");
     /// How far `s_mm` may be from `d_mm` (rounding of a written number), mm.
-    pub const S_EQUALS_D_MM: f64 = 1e-6;
+    pub(crate) const S_EQUALS_D_MM: f64 = 1e-6;
 }
 
 impl RollCampaign {
@@ -164,7 +164,7 @@ impl RollCampaign {
     }
 
     /// The nominal centre of probe `k` (A, B, C, D) in R, mm.
-    pub fn nominal_xy_mm(k: usize, l_mm: f64, d_mm: f64) -> [f64; 2] {
+    pub(crate) fn nominal_xy_mm(k: usize, l_mm: f64, d_mm: f64) -> [f64; 2] {
         [[0.0, 0.0], [d_mm, 0.0], [0.0, l_mm], [d_mm, l_mm]][k]
     }
 

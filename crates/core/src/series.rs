@@ -18,11 +18,11 @@ pub(crate) use bins::Region;
 pub use bins::MAX_BIN_S;
 pub use bins::{
     automatic_bin_s, counts_ok, reading_time_ok, reading_times_ok, BarBins, BinAccumulator,
-    BinError, BinGrid, Readings, AUTOMATIC_BIN_S, AUTOMATIC_MAX_INTERVAL_S, EARLIEST_READING_NS,
-    LATEST_READING_NS, MAX_ABS_COUNTS, MAX_BAR_READINGS, MIN_BINS_PER_TAU,
+    BinError, BinGrid, Readings, MAX_ABS_COUNTS, MIN_BINS_PER_TAU,
 };
 pub use quality::Quality;
-pub use temperatures::{campaign_origin_ns, interpolate_temperatures, knot_logs, sensor_knots};
+pub(crate) use temperatures::knot_logs;
+pub use temperatures::{campaign_origin_ns, interpolate_temperatures, sensor_knots};
 
 /// One input file the run read, with its hash, for the output's provenance record.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
@@ -276,7 +276,7 @@ pub struct BarSeries {
 
 /// Why a bar's series could not be built.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
-pub enum SeriesError {
+pub(crate) enum SeriesError {
     #[error("bar {bar}: no encoder readings")]
     /// The encoder table has no row of the bar.
     NoReadings {
@@ -317,17 +317,17 @@ pub enum SeriesError {
 /// events, the sensors' logs and their reading times (`knots`: [`sensor_knots`]), and the
 /// campaign's time origin.
 #[derive(Debug, Clone, Copy)]
-pub struct FleetContext<'a> {
+pub(crate) struct FleetContext<'a> {
     /// The validated manifest.
-    pub campaign: &'a Campaign,
+    pub(crate) campaign: &'a Campaign,
     /// The campaign's events, sorted by time.
-    pub events: &'a [Event],
+    pub(crate) events: &'a [Event],
     /// Every sensor's log.
-    pub sensors: &'a BTreeMap<String, SensorLog>,
+    pub(crate) sensors: &'a BTreeMap<String, SensorLog>,
     /// The sensors' reading times ([`sensor_knots`]).
-    pub knots: &'a [TimeNs],
+    pub(crate) knots: &'a [TimeNs],
     /// The campaign's time origin: its first mount start.
-    pub t0_ns: TimeNs,
+    pub(crate) t0_ns: TimeNs,
 }
 
 impl BarSeries {
@@ -375,7 +375,7 @@ impl BarSeries {
     /// The series without its samples (every per-sample vector emptied): the bar, its mounts,
     /// zero-segment offsets and `dropped_outside_mounts` stay. For runs that need nothing of a
     /// bar but its fitted model once it is identified.
-    pub fn without_samples(self) -> BarSeries {
+    pub(crate) fn without_samples(self) -> BarSeries {
         BarSeries {
             t_s: Vec::new(),
             y_um: Vec::new(),

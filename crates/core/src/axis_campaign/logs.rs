@@ -14,7 +14,7 @@
 //!   next change in the run, else of the previous one. A run whose readings are all at one
 //!   target has no direction to derive: it is refused, named.
 //! - **Fixture.** A reading takes the latest fixture row of its line at or before its time, else
-//!   the line's first fixture row, else the manifest's `reflector_mm` ([`reflector_at`]).
+//!   the line's first fixture row, else the manifest's `reflector_mm` (`reflector_at`).
 //! - **Environment.** A row holds until the next; before the first row, the first holds
 //!   *(ours)* ([`environment_at`]).
 
@@ -177,7 +177,7 @@ pub struct AxisCampaignLogs {
 }
 
 impl AxisCampaignLogs {
-    /// The reflector point (in F, mm) of `reading`: [`reflector_at`] with the manifest's
+    /// The reflector point (in F, mm) of `reading`: `reflector_at` with the manifest's
     /// fallback. A line the manifest does not declare (never in read logs) gives F's origin.
     pub fn reflector_mm(&self, reading: &AxisReading) -> [f64; 3] {
         let default = self
@@ -208,7 +208,7 @@ pub struct AxisCampaignTables {
 /// The reflector point of a reading on `line` at `time_ns`: the latest row of the line in
 /// `fixture` at or before the time, else the line's first row, else `default` (the manifest's
 /// `reflector_mm`). `fixture` must be sorted by (line, time).
-pub fn reflector_at(
+pub(crate) fn reflector_at(
     fixture: &[FixtureRow],
     line: i64,
     time_ns: TimeNs,

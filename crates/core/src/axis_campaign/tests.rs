@@ -1,5 +1,6 @@
 //! The `axis` manifest's parser and validation, the kind dispatch, and the reader rules.
 
+use super::logs::reflector_at;
 use super::*;
 
 const GOOD: &str = r#"

@@ -20,7 +20,7 @@ pub enum DeviceKind {
 }
 
 /// Number of legs of a hexapod.
-pub const HEXAPOD_LEGS: usize = 6;
+pub(crate) const HEXAPOD_LEGS: usize = 6;
 
 /// A value for every leg: one for all, or one per leg (`u_base_um`, `u_platform_um`).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]

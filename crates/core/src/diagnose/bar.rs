@@ -14,7 +14,7 @@ use crate::series::BarSeries;
 use rayon::prelude::*;
 
 /// Each bar's model linearised for screening (`ScreenBase`); `None` where it cannot be.
-pub fn screen_bases(bars: &[(&BarSeries, &BarModel)]) -> Vec<Option<ScreenBase>> {
+pub(crate) fn screen_bases(bars: &[(&BarSeries, &BarModel)]) -> Vec<Option<ScreenBase>> {
     bars.par_iter()
         .map(|(s, m)| ScreenBase::new(s, m))
         .collect()
@@ -22,7 +22,7 @@ pub fn screen_bases(bars: &[(&BarSeries, &BarModel)]) -> Vec<Option<ScreenBase>>
 
 /// Diagnose one bar's fit: residual statistics and the channel ranking (`base`: the model
 /// linearised, [`screen_bases`]; without it no channel is ranked).
-pub fn diagnose_bar(
+pub(crate) fn diagnose_bar(
     series: &BarSeries,
     model: &BarModel,
     base: Option<&ScreenBase>,

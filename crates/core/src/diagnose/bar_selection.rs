@@ -34,7 +34,7 @@ pub struct BarLedger {
 /// terms (the axes of a machine tool). Where the fleet's terms already bring a bar to its noise,
 /// nothing left on it can be material, and its own search (a beam of exact refits from the base
 /// model, seconds each) would only find the fleet's terms again.
-pub fn needs_own_selection(
+pub(crate) fn needs_own_selection(
     fleet_model: &BarModel,
     base: Option<&ScreenBase>,
     criteria: &Criteria,
@@ -45,7 +45,7 @@ pub fn needs_own_selection(
 
 /// The fleet's `ledger` seen on one bar: its RMS at each step (for a bar that needs no search of
 /// its own, [`needs_own_selection`]).
-pub fn bar_ledger_from_fleet(bar: &str, ledger: &[LedgerStep]) -> BarLedger {
+pub(crate) fn bar_ledger_from_fleet(bar: &str, ledger: &[LedgerStep]) -> BarLedger {
     let steps = ledger
         .iter()
         .filter_map(|step| {
@@ -70,17 +70,17 @@ pub fn bar_ledger_from_fleet(bar: &str, ledger: &[LedgerStep]) -> BarLedger {
 /// How far forward selection searches: at most `max_steps` effects added, the `beam` best
 /// paths kept at each step (`[diagnose] forward_steps`, `beam`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Search {
+pub(crate) struct Search {
     /// Most effects added.
-    pub max_steps: usize,
+    pub(crate) max_steps: usize,
     /// Paths kept at each step.
-    pub beam: usize,
+    pub(crate) beam: usize,
 }
 
 /// Forward selection on one bar alone: candidates from its own channel ranking (`diagnosis`
 /// of `model`), significance from its own likelihood-ratio tests, materiality by the fleet's
 /// `criteria`.
-pub fn forward_selection_of_bar(
+pub(crate) fn forward_selection_of_bar(
     series: &BarSeries,
     model: BarModel,
     base: &Option<ScreenBase>,

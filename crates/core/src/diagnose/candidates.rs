@@ -33,7 +33,7 @@ use std::collections::HashMap;
 /// model, `lag:CH` for the channels that explain most of the residuals fleet-wide and `heat:CH`
 /// for the best of them that are sensors or sensor differences; none
 /// whose term is already in the model or offered under its catalogue name.
-pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<Effect> {
+pub(crate) fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<Effect> {
     let mut taken: std::collections::BTreeSet<String> = effects.iter().map(term_identity).collect();
     let mut out: Vec<Effect> = CATALOGUE
         .iter()
@@ -71,7 +71,10 @@ pub fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) -> Vec<
 }
 
 /// Rewrite the channel candidates' explanations with what their sensors plausibly are.
-pub fn explain_candidates(candidates: &mut [Candidate], profiles: &[sensors::SensorProfile]) {
+pub(crate) fn explain_candidates(
+    candidates: &mut [Candidate],
+    profiles: &[sensors::SensorProfile],
+) {
     for c in candidates {
         c.explanation = explain::explain_with(&c.effect, profiles);
     }
@@ -90,7 +93,7 @@ pub struct Unavailable {
 /// rank them: proposed first, then the other refitted ones (both by the fleet's ΔBIC), then the
 /// screened-out ones (by screened gain).
 /// Candidates that could not be built on any bar are listed apart.
-pub fn evaluate_candidates(
+pub(crate) fn evaluate_candidates(
     bars: &[(&BarSeries, &BarModel)],
     bases: &[Option<ScreenBase>],
     candidates: &[Effect],

@@ -15,9 +15,9 @@
 //! reading-noise floor and of the tolerance the bars serve. Detectable but immaterial structure
 //! is reported as such, never as a missing effect.
 //!
-//! [`forward_selection`] repeats that, adding the best proposed candidate until none is left
+//! `forward_selection` repeats that, adding the best proposed candidate until none is left
 //! (keeping the few best paths, a beam, so that a greedy first step does not lock it in);
-//! [`forward_selection_of_bar`] does the same for one bar on its own channels and tests (bars
+//! `forward_selection_of_bar` does the same for one bar on its own channels and tests (bars
 //! that are different physical objects, like the displacement axes of a machine tool, need
 //! different terms).
 //!
@@ -89,6 +89,7 @@ mod bar_selection;
 mod candidates;
 mod compare;
 pub mod explain;
+mod fleet;
 pub(crate) mod noise;
 mod refits;
 pub(crate) mod residual;
@@ -104,13 +105,17 @@ use crate::model::Effect;
 use residual::ResidualStats;
 use screen::ScreenBase;
 
-pub use bar::{diagnose_bar, screen_bases};
-pub use bar_selection::{
-    bar_ledger_from_fleet, forward_selection_of_bar, needs_own_selection, BarLedger, Search,
+pub(crate) use bar::{diagnose_bar, screen_bases};
+pub use bar_selection::BarLedger;
+pub(crate) use bar_selection::{
+    bar_ledger_from_fleet, forward_selection_of_bar, needs_own_selection, Search,
 };
-pub use candidates::{candidate_effects, evaluate_candidates, explain_candidates, Unavailable};
-pub use refits::Refits;
-pub use selection::{forward_selection, Added, LedgerStep};
+pub use candidates::Unavailable;
+pub(crate) use candidates::{candidate_effects, evaluate_candidates, explain_candidates};
+pub use fleet::{diagnose_fleet, DiagnoseOptions, Diagnosis};
+pub(crate) use refits::Refits;
+pub(crate) use selection::forward_selection;
+pub use selection::{Added, LedgerStep};
 
 /// Family-wise significance level of one selection step: each candidate is tested at
 /// `ALPHA / number of candidates` (Bonferroni). 5 %, the level of CTSM-R's likelihood-ratio
@@ -214,7 +219,7 @@ pub struct Criteria {
 impl Criteria {
     /// Criteria for a fleet with this reading-noise floor and tolerance (µm): `min_gain_um` from
     /// both, the tests at the default family-wise level.
-    pub fn new(noise_floor_um: f64, tolerance_um: f64) -> Criteria {
+    pub(crate) fn new(noise_floor_um: f64, tolerance_um: f64) -> Criteria {
         Criteria {
             noise_floor_um,
             tolerance_um,
@@ -225,7 +230,7 @@ impl Criteria {
     }
 
     /// Criteria for a fleet's models ([`screen_bases`]): the noise floor from their residuals.
-    pub fn for_fleet(bases: &[Option<ScreenBase>], tolerance_um: f64) -> Criteria {
+    pub(crate) fn for_fleet(bases: &[Option<ScreenBase>], tolerance_um: f64) -> Criteria {
         let white: Vec<f64> = bases
             .par_iter()
             .flatten()

@@ -22,7 +22,7 @@ use std::sync::OnceLock;
 /// parameters, statistics and residuals only, and the 141 exact refits of the second
 /// simulator's plate-expansion campaign (10 bars, 15 days, 10 s) held 0.44 GB of curves.
 #[derive(Default)]
-pub struct Refits {
+pub(crate) struct Refits {
     fits: Mutex<RefitCache>,
     /// Refits on the bars' coarse copies (`coarse_tier`), by the same keys: the coarse forward
     /// selection (`CoarseFleet`) starts its cache with them instead of fitting them again.

@@ -28,7 +28,7 @@ use crate::model::{Effect, ThermalProblem};
 use crate::series::BarSeries;
 
 /// A bar's fitted model linearised for screening.
-pub struct ScreenBase {
+pub(crate) struct ScreenBase {
     /// The series screened on: the bar's own, or its coarse copy when it is long.
     series: BarSeries,
     /// `series` is the bar's coarse copy.

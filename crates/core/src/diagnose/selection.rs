@@ -115,7 +115,7 @@ impl SelectionPath {
 /// end: a greedy first step that fits well alone can lead to a worse three-term model than the
 /// runner-up. `beam = 1` is plain greedy forward selection.
 /// `first_candidates` are the candidates already ranked for `start` (reused for the first step).
-pub fn forward_selection(
+pub(crate) fn forward_selection(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],

@@ -57,7 +57,7 @@ pub struct SensorProfile {
 }
 
 /// Profiles of every sensor of `series`' campaign, by sensor name.
-pub fn sensor_profiles(series: &BarSeries) -> Vec<SensorProfile> {
+pub(crate) fn sensor_profiles(series: &BarSeries) -> Vec<SensorProfile> {
     let step = series.t_s.len().div_ceil(MAX_SAMPLES).max(1);
     let t: Vec<f64> = series.t_s.iter().step_by(step).copied().collect();
     let thin = |v: &[f64]| -> Vec<f64> { v.iter().step_by(step).copied().collect() };

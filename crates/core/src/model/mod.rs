@@ -27,7 +27,7 @@
 //!   diagnosis' trial fits, compensation — agrees: one length (`I_p` constant over the fitted
 //!   samples) drops the scale and `air_gradient`'s scale path. `BarModel::effects` stays the effects
 //!   asked for (fleet-wide lists stay equal); `BarModel::not_identifiable` says what was left out and
-//!   why (`summary.json`, the bar figure's notes). Matching (`pipeline::matched_inputs`) takes the bars
+//!   why (`summary.json`, the bar figure's notes). Matching (`matching::matched_inputs`) takes the bars
 //!   with all four base parameters, or, when none has them, every bar on alpha and tau_R (NaN beta and
 //!   tau_S in `MatchInput`).
 //! - `I_p = plate length − fixed_length_mm` per mount (`series/build.rs`).

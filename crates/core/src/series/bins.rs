@@ -92,16 +92,16 @@ const NS_PER_US: i64 = 1_000;
 /// Earliest reading time accepted anywhere (1980-01-01T00:00:00Z, ns): no logger of this kind
 /// predates it, and a time before it is a clock reset (1970) or a NaT (`i64::MIN`), refused at
 /// ingest (`docs/guarantees.md`).
-pub const EARLIEST_READING_NS: TimeNs = 315_532_800_000_000_000;
+pub(crate) const EARLIEST_READING_NS: TimeNs = 315_532_800_000_000_000;
 /// First reading time no longer accepted (2200-01-01T00:00:00Z, ns): a time past it is a broken
 /// clock or a unit mix-up. The bounds keep every sum of times and bin numbers far from `i64`'s
 /// ends, so no arithmetic on an accepted time can wrap.
-pub const LATEST_READING_NS: TimeNs = 7_258_118_400_000_000_000;
+pub(crate) const LATEST_READING_NS: TimeNs = 7_258_118_400_000_000_000;
 /// Largest accepted |counts| (2⁴⁸, 1.4 km at 5 nm a count): with at most
-/// [`MAX_BAR_READINGS`] readings in a bin, `Σ c²` stays below 2¹²⁷ (`i128`).
+/// `MAX_BAR_READINGS` readings in a bin, `Σ c²` stays below 2¹²⁷ (`i128`).
 pub const MAX_ABS_COUNTS: i64 = 1 << 48;
 /// Most readings one bar's accumulator takes (2³¹): bounds every bin's sums (`Σ u³ < 2¹²⁷`).
-pub const MAX_BAR_READINGS: u64 = 1 << 31;
+pub(crate) const MAX_BAR_READINGS: u64 = 1 << 31;
 
 /// Why readings cannot be added to a bar's bins: a value outside what the integer sums hold
 /// exactly. Ingest refuses such rows before they get here; the accumulator checks again so
@@ -134,8 +134,8 @@ pub enum BinError {
     },
 }
 
-/// Whether `t` is an accepted reading time ([`EARLIEST_READING_NS`] ..
-/// [`LATEST_READING_NS`]).
+/// Whether `t` is an accepted reading time (`EARLIEST_READING_NS` ..
+/// `LATEST_READING_NS`).
 #[inline]
 pub fn reading_time_ok(t: TimeNs) -> bool {
     (EARLIEST_READING_NS..LATEST_READING_NS).contains(&t)
@@ -163,12 +163,12 @@ pub fn counts_ok(counts: &[i64]) -> bool {
 /// model to `O((60 s / tau)²)`, tau being 15 min or more for the bars (`docs/spec/physics.md`); measured
 /// on a 1 Hz campaign, 2-60 s bins give the full-rate estimates to 0.002 u
 /// (`tests/e2e/identify.rs`).
-pub const AUTOMATIC_BIN_S: f64 = 60.0;
+pub(crate) const AUTOMATIC_BIN_S: f64 = 60.0;
 
 /// Longest mean interval between a bar's readings that is compressed automatically, s: a bin of
 /// [`AUTOMATIC_BIN_S`] then holds 10 readings or more, and two nodes (plus the sensors' reading
 /// times, weight 0) stand for them. Slower logs gain little and keep every reading.
-pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
+pub(crate) const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
 
 /// A fitted time constant should span at least this many bins: the compression's straight line
 /// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
@@ -176,8 +176,8 @@ pub const AUTOMATIC_MAX_INTERVAL_S: f64 = 6.0;
 pub const MIN_BINS_PER_TAU: f64 = 10.0;
 
 /// The bin length for a campaign of `encoder_rows` readings when none is set (`[model] bin_s`
-/// and `--bin-s` absent): [`AUTOMATIC_BIN_S`] when the bars' mean interval between readings is
-/// at most [`AUTOMATIC_MAX_INTERVAL_S`], else 0 (every reading). The interval is the bars'
+/// and `--bin-s` absent): `AUTOMATIC_BIN_S` when the bars' mean interval between readings is
+/// at most `AUTOMATIC_MAX_INTERVAL_S`, else 0 (every reading). The interval is the bars'
 /// mounted time spans (each bar's first mount start to its last mount end, handling between
 /// them included) shared by the rows: known from `campaign.toml` and the parquet footers before
 /// any row is read, and the same for any row order or file layout. A bar that logged only part

@@ -45,7 +45,7 @@ impl BarSeries {
     /// `bin_s <= 0`: every reading, as `BarSeries::build`. Temperatures are interpolated from
     /// `sensors` at the samples' times here (`knots`: [`sensor_knots`](super::sensor_knots) of `sensors`, used with
     /// bins). The full-rate log lives only inside this call.
-    pub fn build_binned(
+    pub(crate) fn build_binned(
         fleet: &FleetContext<'_>,
         bar_id: &str,
         mut log: BarLog,
@@ -87,7 +87,7 @@ impl BarSeries {
     /// Bar `bar_id`'s series from its compressed bins (ingest can make them while it streams the
     /// encoder files), temperatures interpolated from `sensors` at the nodes' times. `knots`:
     /// [`sensor_knots`](super::sensor_knots) of `sensors`.
-    pub fn from_bins(
+    pub(crate) fn from_bins(
         fleet: &FleetContext<'_>,
         bar_id: &str,
         bins: &BarBins,

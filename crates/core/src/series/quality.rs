@@ -164,9 +164,9 @@ pub enum FlagKind {
     /// No reading for longer than `gap_threshold_ns` inside a mount (a logger down, or its
     /// clock jumped forward).
     Gap,
-    /// Temperatures no sensor of a room reads (below [`PLAUSIBLE_MIN_C`] or above
-    /// [`PLAUSIBLE_MAX_C`]: a disconnected thermocouple, a logger's error code) or steps no air
-    /// makes between two readings ([`plausible_step_k`]): dropped.
+    /// Temperatures no sensor of a room reads (below `PLAUSIBLE_MIN_C` or above
+    /// `PLAUSIBLE_MAX_C`: a disconnected thermocouple, a logger's error code) or steps no air
+    /// makes between two readings (`plausible_step_k`): dropped.
     ImplausibleTemperature,
     /// Rows that cannot be used (a time outside the accepted bounds or null, a null id, an id
     /// `campaign.toml` does not declare, counts that are not whole numbers or beyond ±2^48):
@@ -176,17 +176,17 @@ pub enum FlagKind {
 
 /// The lowest temperature a sensor of a measuring room may read, °C (absolute zero is
 /// −273.15; a logger's error codes sit far below, e.g. −999).
-pub const PLAUSIBLE_MIN_C: f64 = -60.0;
+pub(crate) const PLAUSIBLE_MIN_C: f64 = -60.0;
 /// The highest, °C (a heated head stays far below).
-pub const PLAUSIBLE_MAX_C: f64 = 150.0;
+pub(crate) const PLAUSIBLE_MAX_C: f64 = 150.0;
 /// The largest step between two readings `dt_s` apart that air (or a sensor in it) makes:
 /// 5 K at once, plus 0.05 K a second.
-pub fn plausible_step_k(dt_s: f64) -> f64 {
+pub(crate) fn plausible_step_k(dt_s: f64) -> f64 {
     5.0 + 0.05 * dt_s.max(0.0)
 }
 
 /// Drops temperature readings (sorted by time) outside the plausible range, then those whose
-/// step from the last kept reading exceeds [`plausible_step_k`], walking forward and backward
+/// step from the last kept reading exceeds `plausible_step_k`, walking forward and backward
 /// from the reading nearest the median (so a bad first reading is not the yardstick); counts them
 /// in `fault_rows` and flags them (`implausible_temperature`).
 pub fn drop_implausible_temperatures(

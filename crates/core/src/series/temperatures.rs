@@ -6,7 +6,7 @@
 //! and not as-of is said on [`interpolate_temperatures`]).
 
 use super::Readings;
-use super::{BarLog, CampaignLogs, SensorLog};
+use super::{BarBins, BarLog, CampaignLogs, SensorLog};
 use crate::campaign::TimeNs;
 use crate::signal::interpolate;
 use std::collections::BTreeMap;
@@ -84,7 +84,7 @@ pub(super) fn with_knots_between(readings: Readings, knots: &[TimeNs]) -> Readin
 }
 
 /// Every sensor's reading times, sorted and deduplicated: the knots of the temperature
-/// interpolation, which a compressed series keeps as samples ([`BarSeries::from_bins`](super::BarSeries::from_bins)). The
+/// interpolation, which a compressed series keeps as samples (`BarSeries::from_bins`(super::BarSeries::from_bins)). The
 /// same for every bar, so made once per campaign.
 pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
     let mut knots: Vec<TimeNs> = sensors
@@ -111,7 +111,10 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
 /// `tau` ≥ 15 min against 30-s blocks), so what the block means lose is of order `(block/tau)²`
 /// of the fluctuation, far below the readings' noise. Slower logs are unchanged, so their
 /// campaigns give the same fits to the bit.
-pub fn knot_logs(sensors: &BTreeMap<String, SensorLog>, bin_s: f64) -> BTreeMap<String, SensorLog> {
+pub(crate) fn knot_logs(
+    sensors: &BTreeMap<String, SensorLog>,
+    bin_s: f64,
+) -> BTreeMap<String, SensorLog> {
     let block_ns = if bin_s > 0.0 {
         (bin_s * 0.5e9).round() as TimeNs
     } else {
@@ -177,13 +180,16 @@ pub(crate) fn temperatures_at(
     out
 }
 
-/// Campaign time origin: the earliest mount start (else the earliest reading).
+/// Campaign time origin: the earliest mount start (else the earliest reading, of the bars' logs
+/// and of the bins ingest compressed readings into; 0 without any).
 pub fn campaign_origin_ns(logs: &CampaignLogs) -> TimeNs {
     let first_mount = logs.campaign.mounts.iter().map(|m| m.from_ns).min();
-    let first_reading = logs
-        .bars
-        .values()
-        .filter_map(|l| l.time_ns.first().copied())
-        .min();
-    first_mount.or(first_reading).unwrap_or(0)
+    let first_reading = || {
+        logs.bars
+            .values()
+            .filter_map(|l| l.time_ns.first().copied())
+            .chain(logs.bins.values().filter_map(BarBins::first_reading_ns))
+            .min()
+    };
+    first_mount.or_else(first_reading).unwrap_or(0)
 }

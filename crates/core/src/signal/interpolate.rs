@@ -88,7 +88,7 @@ pub fn within(x: &[f64], y: &[f64], at: f64, max_gap: f64) -> Option<f64> {
 
 /// Values at many ascending abscissae, walking the knots once ([`Beyond::Hold`]): the same
 /// values as [`linear`] at each, in O(knots + queries).
-pub fn linear_ascending<X: Knot>(x: &[X], y: &[f64], at: &[X]) -> Vec<f64> {
+pub(crate) fn linear_ascending<X: Knot>(x: &[X], y: &[f64], at: &[X]) -> Vec<f64> {
     debug_assert_eq!(x.len(), y.len());
     if x.is_empty() {
         return vec![f64::NAN; at.len()];

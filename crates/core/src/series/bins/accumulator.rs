@@ -113,8 +113,8 @@ impl BinAccumulator {
     /// through here). Rows in time order go run by run, each run of one bin in a tight loop;
     /// rows out of order are first grouped by time block (`BinAccumulator::add_by_block`).
     ///
-    /// Every row is checked first (times within [`EARLIEST_READING_NS`](super::EARLIEST_READING_NS) ..
-    /// [`LATEST_READING_NS`](super::LATEST_READING_NS), |counts| ≤ [`MAX_ABS_COUNTS`], at most [`MAX_BAR_READINGS`] in
+    /// Every row is checked first (times within `EARLIEST_READING_NS`(super::EARLIEST_READING_NS) ..
+    /// `LATEST_READING_NS`(super::LATEST_READING_NS), |counts| ≤ [`MAX_ABS_COUNTS`], at most `MAX_BAR_READINGS` in
     /// all): out of those bounds the bin arithmetic could wrap, so nothing of the call is added
     /// and the first offending value is returned.
     pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {

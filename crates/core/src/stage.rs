@@ -1,0 +1,60 @@
+//! What every per-bar stage returns: the bars it processed and those it could not
+//! ([`StageOutcome`]; one bad bar never stops the others), and the stages' timing log
+//! ([`timed`]).
+
+use serde::Serialize;
+
+/// A bar a stage could not process, and why: one bad bar never stops the others. Written as
+/// `{bar, error}` in every JSON output that lists failures.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct BarFailure {
+    /// The bar's id.
+    pub bar: String,
+    /// Why, in one line.
+    pub error: String,
+}
+
+/// What a per-bar stage gave: the bars it processed, and those it could not.
+#[derive(Debug, Clone)]
+pub struct StageOutcome<T> {
+    /// The bars processed, in the campaign's order.
+    pub ok: Vec<T>,
+    /// The bars the stage could not process.
+    pub failed: Vec<BarFailure>,
+}
+
+impl<T> StageOutcome<T> {
+    /// Per-bar results, in their order, split into the processed and the failed.
+    pub(crate) fn from_results(
+        results: impl IntoIterator<Item = (String, Result<T, String>)>,
+    ) -> Self {
+        let mut outcome = StageOutcome {
+            ok: Vec::new(),
+            failed: Vec::new(),
+        };
+        for (bar, result) in results {
+            match result {
+                Ok(t) => outcome.ok.push(t),
+                Err(error) => outcome.failed.push(BarFailure { bar, error }),
+            }
+        }
+        outcome
+    }
+
+    /// The outcome, its failures logged as warnings (they are also in the stage's JSON).
+    pub(crate) fn with_failures_warned(self) -> Self {
+        for f in &self.failed {
+            tracing::warn!("{}", f.error);
+        }
+        self
+    }
+}
+
+/// Run `f` and log how long it took (`DBBCAL_LOG=info`): stage timings go to the log, never
+/// into the byte-identical outputs.
+pub fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
+    let start = std::time::Instant::now();
+    let out = f();
+    tracing::info!("{what}: {:.3} s", start.elapsed().as_secs_f64());
+    out
+}
