@@ -164,16 +164,48 @@ pub(super) fn evaluate_at_most(
         .map(|(_, (c, _, _))| *c)
         .collect();
     let best_effect = screened.first().map(|(c, _, _)| candidates[*c].name());
-    let (refit, starts, coarse_reasons) =
-        coarse_tier(bars, bases, refit, candidates, shift_only, refits);
+    let CoarseTier {
+        kept: (mut refit, starts),
+        deferred,
+        reasons: mut coarse_reasons,
+    } = coarse_tier(bars, bases, refit, candidates, shift_only, refits);
     tracing::debug!(
         bars = bars.len(),
         refit = ?refit.iter().map(|&c| candidates[c].name()).collect::<Vec<_>>(),
         "diagnose: candidates refitted exactly"
     );
-    let exact = exact_refits(
+    let mut exact = exact_refits(
         bars, bases, &refit, &starts, candidates, &screens, threshold, refits,
     );
+    // While no candidate refitted exactly is proposed, the next rivals of the coarse copies are
+    // (their readings' likelihood-ratio test can fail where the smoothed copies' did not).
+    let proposed = |exact: &[Vec<CandidateOnBar>], refit: &[usize]| {
+        refit.iter().zip(exact).any(|(&c, per_bar)| {
+            summarise_candidate(&candidates[c], per_bar.clone(), threshold, criteria).proposed()
+        })
+    };
+    for batch in deferred.chunks(MAX_EXACT_RIVALS) {
+        if proposed(&exact, &refit) {
+            break;
+        }
+        let (more, more_starts): (Vec<usize>, Vec<Vec<Option<BarModel>>>) =
+            batch.iter().cloned().unzip();
+        tracing::debug!(refit = ?more.iter().map(|&c| candidates[c].name()).collect::<Vec<_>>(), "diagnose: no rival proposed on the readings; the next ones refitted exactly");
+        exact.extend(exact_refits(
+            bars,
+            bases,
+            &more,
+            &more_starts,
+            candidates,
+            &screens,
+            threshold,
+            refits,
+        ));
+        for c in &more {
+            coarse_reasons.remove(c);
+        }
+        refit.extend(more);
+    }
     let mut ranked: Vec<Candidate> = screened
         .iter()
         .map(|&(c, gain, change)| {
@@ -258,14 +290,14 @@ fn coarse_tier(
     candidates: &[Effect],
     shift_only: impl Fn(usize) -> bool,
     refits: &Refits,
-) -> (
-    Vec<usize>,
-    Vec<Vec<Option<BarModel>>>,
-    HashMap<usize, String>,
-) {
+) -> CoarseTier {
     let none = |refit: Vec<usize>| {
         let starts = vec![vec![None; bars.len()]; refit.len()];
-        (refit, starts, HashMap::new())
+        CoarseTier {
+            kept: (refit, starts),
+            deferred: Vec::new(),
+            reasons: HashMap::new(),
+        }
     };
     if refit.len() < 2 || !bases.iter().flatten().any(|b| b.coarse_refit_possible()) {
         return none(refit);
@@ -313,17 +345,27 @@ fn coarse_tier(
     let best_at = order[0];
     let mut kept = Vec::new();
     let mut starts = Vec::new();
+    let mut deferred = Vec::new();
     let mut reasons = HashMap::new();
+    let start_of = |k: usize| -> Vec<Option<BarModel>> {
+        per_candidate[k]
+            .iter()
+            .map(|f| f.as_ref().map(|(_, m)| m.clone()))
+            .collect()
+    };
+    for &k in &order {
+        if removed[k] >= COARSE_RIVAL_SHARE * best
+            && rank_of(k) >= MAX_EXACT_RIVALS
+            && !shift_only(refit[k])
+        {
+            deferred.push((refit[k], start_of(k)));
+        }
+    }
     for (k, &c) in refit.iter().enumerate() {
         let rival = removed[k] >= COARSE_RIVAL_SHARE * best && rank_of(k) < MAX_EXACT_RIVALS;
         if rival || shift_only(c) {
             kept.push(c);
-            starts.push(
-                per_candidate[k]
-                    .iter()
-                    .map(|f| f.as_ref().map(|(_, m)| m.clone()))
-                    .collect(),
-            );
+            starts.push(start_of(k));
         } else {
             let why = if removed[k] >= COARSE_RIVAL_SHARE * best {
                 format!("close to the best candidate's ({}, {} µm²), but {MAX_EXACT_RIVALS} candidates that remove more (or as much, with a name) are refitted exactly first; if it is an alias of the one proposed, it is gone once that one is in the model", candidates[refit[best_at]].name(), fmt_um(best))
@@ -340,7 +382,23 @@ fn coarse_tier(
             );
         }
     }
-    (kept, starts, reasons)
+    CoarseTier {
+        kept: (kept, starts),
+        deferred,
+        reasons,
+    }
+}
+
+/// What the coarse tier decided ([`coarse_tier`]).
+struct CoarseTier {
+    /// The candidates to refit exactly and their starts (per candidate, per bar).
+    kept: (Vec<usize>, Vec<Vec<Option<BarModel>>>),
+    /// The rivals close to the best on the coarse copies but past the first
+    /// [`MAX_EXACT_RIVALS`], in their coarse order, with their starts: refitted exactly, a
+    /// batch at a time, only while no candidate refitted exactly is proposed.
+    deferred: Vec<(usize, Vec<Option<BarModel>>)>,
+    /// Why each candidate left out was left out.
+    reasons: HashMap<usize, String>,
 }
 
 /// Exact refits of the candidates `refit` (indices into `candidates`) on every bar where they

@@ -40,10 +40,18 @@
 //! - Forward selection keeps a beam of paths (`[diagnose] beam`, default 3): each path is extended
 //!   by its own best proposed candidates (significant and material), the `beam` best by total ΔBIC
 //!   are kept (their refits come from the ranking's cache), and the best path is reported.
-//!   `beam = 1` is plain greedy selection. When every bar is long enough to have a coarse copy, the
-//!   beam searches its paths on the bars' 300-s coarse copies (`CoarseFleet`), and the path it
-//!   chooses is confirmed step by step on the readings (`confirm_path`: each step refitted exactly
-//!   and tested as a candidate; the ledger stops at the first step not proposed there). On the
+//!   `beam = 1` is plain greedy selection. When every bar has a coarse copy
+//!   (`DIAGNOSE_COARSE_MIN_SAMPLES` fitted samples and a 300-s copy at most a quarter as long), the
+//!   beam searches its paths on the bars' coarse copies (`CoarseFleet`; its first step is also
+//!   offered the readings' own first candidates, whose fast inputs the copies may average away),
+//!   and the path it chooses is confirmed step by step on the readings (`confirm_path`: each step
+//!   refitted exactly and tested as a candidate). The copies smooth the readings' noise, so their
+//!   choices can fail the readings' tests; the readings then decide: a step not proposed there is
+//!   replaced by the readings' best proposed candidate (`best_exact_step`; the ledger stops where
+//!   there is none), a step whose coarse rivals all fail gets the next coarse rivals, a batch of
+//!   `MAX_EXACT_RIVALS` at a time (`evaluate_at_most`), a short fleet's path that ended early on the
+//!   copies is continued on the readings (`EXACT_CONTINUATION_MAX_SAMPLES`), and where the copies
+//!   offer no path at all the beam searches the readings with the coarse step's cap. On the
 //!   coarse copies a step refits at most `COARSE_BEAM_REFITS` of the candidates that pass the
 //!   screen, the best screened. A bar gets a
 //!   search of its own only when the fleet's chosen model leaves it at least the materiality
@@ -153,6 +161,14 @@ pub(crate) const MAX_EXACT_RIVALS: usize = 3;
 /// candidates a step on a campaign with three hidden effects, each refit costing a search of
 /// its time constants on every bar; the path chosen is confirmed on the readings step by step.
 pub(crate) const COARSE_BEAM_REFITS: usize = 6;
+/// Bars with at least this many fitted samples are screened, ranked and searched on their 300-s
+/// coarse copies (`identify::coarse_copy`), the paths chosen there confirmed on the readings.
+///
+/// Why not identify's `COARSE_START_MIN_SAMPLES` (20 000): the machine-tool log's 11 k-sample
+/// bars (15-s readings over 46 h) then had no copies, and their diagnosis made about 1 000 exact
+/// refits (229 CPU-s); on their 555-sample copies it makes a fraction of them (36 CPU-s), with
+/// the same test thresholds met (`tests/e2e/machine_tool.rs`).
+pub(crate) const DIAGNOSE_COARSE_MIN_SAMPLES: usize = 5_000;
 /// Coarse forward-selection paths whose total ΔBIC is within this share of the best path's are
 /// a tie the readings decide (`selection::confirm_tied_paths`).
 pub(crate) const PATH_TIE_SHARE: f64 = 0.05;

@@ -23,7 +23,7 @@ use nalgebra::DVector;
 
 use super::noise::{self, NoiseFit};
 use crate::fit::{self, Separable};
-use crate::identify::{coarse_copy, BarModel, COARSE_START_MIN_SAMPLES};
+use crate::identify::{coarse_copy, BarModel};
 use crate::model::{Effect, ThermalProblem};
 use crate::series::BarSeries;
 
@@ -82,7 +82,7 @@ pub(crate) struct Screen {
 impl ScreenBase {
     /// Linearise `model` (fitted to `series`); `None` when the model cannot be rebuilt there.
     pub(crate) fn new(series: &BarSeries, model: &BarModel) -> Option<ScreenBase> {
-        let coarse = coarse_copy(series, COARSE_START_MIN_SAMPLES);
+        let coarse = coarse_copy(series, super::DIAGNOSE_COARSE_MIN_SAMPLES);
         let is_coarse = coarse.is_some();
         let screened = coarse.unwrap_or_else(|| series.clone());
         let problem = ThermalProblem::new(&screened, &model.effects).ok()?;

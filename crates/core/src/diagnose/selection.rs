@@ -127,12 +127,26 @@ pub(crate) fn forward_selection(
     // Nothing proposed at the first step: nothing to search (the beam would stop there too).
     if max_steps > 0 && first_candidates.iter().any(Candidate::proposed) {
         if let Some(coarse) = CoarseFleet::new(series, &start, refits) {
-            let paths = coarse.select(max_steps, beam, criteria);
-            return confirm_tied_paths(
+            let paths = coarse.select(max_steps, beam, first_candidates, criteria);
+            if paths.first().is_some_and(|(path, _)| !path.is_empty()) {
+                return confirm_tied_paths(
+                    series,
+                    start,
+                    first_candidates,
+                    (&paths, &coarse, max_steps),
+                    criteria,
+                    refits,
+                );
+            }
+            // The copies propose nothing where the readings do (their smoothed noise passes no
+            // test the readings pass): the paths are searched on the readings, each step
+            // refitting as many candidates as a coarse step.
+            tracing::debug!("diagnose: no coarse path; the beam searches the readings");
+            return beam_search(
                 series,
                 start,
                 first_candidates,
-                (&paths, &coarse),
+                (max_steps, beam, Some(COARSE_BEAM_REFITS)),
                 criteria,
                 refits,
             );
@@ -162,7 +176,7 @@ impl CoarseFleet {
     fn new(series: &[&BarSeries], models: &[BarModel], refits: &Refits) -> Option<CoarseFleet> {
         let copies: Vec<BarSeries> = series
             .iter()
-            .map(|s| crate::identify::coarse_copy(s, crate::identify::COARSE_START_MIN_SAMPLES))
+            .map(|s| crate::identify::coarse_copy(s, super::DIAGNOSE_COARSE_MIN_SAMPLES))
             .collect::<Option<_>>()?;
         let fitted: Vec<BarModel> = copies
             .par_iter()
@@ -190,12 +204,19 @@ impl CoarseFleet {
         &self,
         max_steps: usize,
         beam: usize,
+        first_candidates: &[Candidate],
         criteria: &Criteria,
     ) -> Vec<(Vec<Effect>, f64)> {
         let refits = &self.refits;
         let series: Vec<&BarSeries> = self.series.iter().collect();
         let cap = Some(COARSE_BEAM_REFITS);
-        let first = rank_candidates_for(&series, &self.models, criteria, refits, cap);
+        // The readings' first candidates are offered on the copies too: a channel whose fast
+        // fluctuations the copies' bins average away ranks low on them, though its lag is
+        // what the readings need first (on the machine-tool log, `lag:t4-t11` on ch3).
+        let from_readings: Vec<Effect> =
+            first_candidates.iter().map(|c| c.effect.clone()).collect();
+        let first =
+            rank_candidates_with(&series, &self.models, &from_readings, criteria, refits, cap);
         beam_paths(
             &series,
             self.models.clone(),
@@ -235,7 +256,7 @@ fn confirm_tied_paths(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
-    (paths, coarse): (&[(Vec<Effect>, f64)], &CoarseFleet),
+    (paths, coarse, max_steps): (&[(Vec<Effect>, f64)], &CoarseFleet, usize),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
@@ -260,7 +281,7 @@ fn confirm_tied_paths(
             series,
             start.clone(),
             first_candidates,
-            (path, coarse),
+            (path, coarse, max_steps),
             criteria,
             refits,
         );
@@ -276,7 +297,7 @@ fn confirm_tied_paths(
             start,
             (ledger, models, total),
             first_candidates,
-            coarse,
+            (coarse, max_steps),
             criteria,
             refits,
         ),
@@ -284,7 +305,7 @@ fn confirm_tied_paths(
             series,
             start,
             first_candidates,
-            (&[], coarse),
+            (&[], coarse, max_steps),
             criteria,
             refits,
         ),
@@ -309,7 +330,7 @@ fn led_by_the_ranking(
     start: Vec<BarModel>,
     kept: (Vec<LedgerStep>, Vec<BarModel>, f64),
     first_candidates: &[Candidate],
-    coarse: &CoarseFleet,
+    (coarse, max_steps): (&CoarseFleet, usize),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
@@ -343,7 +364,7 @@ fn led_by_the_ranking(
         series,
         start,
         first_candidates,
-        (&path, coarse),
+        (&path, coarse, max_steps),
         criteria,
         refits,
     );
@@ -371,35 +392,117 @@ fn confirm_path(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
-    (path, coarse): (&[Effect], &CoarseFleet),
+    (path, coarse, max_steps): (&[Effect], &CoarseFleet, usize),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let mut current = SelectionPath::starting_at(start);
+    let mut stopped = false;
     for (k, effect) in path.iter().enumerate() {
-        let ranked = first_candidates
+        let in_model = effects_of(&current.models)
             .iter()
-            .find(|c| k == 0 && c.effect == *effect && c.rms_after_um.is_some())
-            .cloned();
-        let candidate = match ranked {
+            .any(|e| term_identity(e) == term_identity(effect));
+        let candidate = if in_model {
+            None
+        } else {
+            Some(confirmed_step(
+                series,
+                &current,
+                (k, effect),
+                first_candidates,
+                coarse,
+                criteria,
+                refits,
+            ))
+        };
+        let candidate = match candidate.filter(Candidate::proposed) {
             Some(c) => c,
             None => {
-                let starts: Vec<Option<BarModel>> = current
-                    .models
-                    .iter()
-                    .map(|m| coarse.start_for(&m.bar, &m.effects, effect))
-                    .collect();
-                exact_candidate(series, &current.models, effect, &starts, criteria, refits)
+                match best_exact_step(series, &current, k, first_candidates, criteria, refits) {
+                    Some(c) => c,
+                    None => {
+                        stopped = true;
+                        break;
+                    }
+                }
             }
         };
-        if !candidate.proposed() {
-            tracing::debug!(effect = %effect.name(), reason = %candidate.reason, "diagnose: the coarse path stops here on the readings");
-            break;
-        }
         let score = candidate.delta_bic.unwrap_or(0.0);
         current = extend_path(series, &current, &candidate, score, refits);
     }
+    // A short fleet's path that ended early on the copies goes on with the readings' best.
+    let samples: usize = series.iter().map(|s| s.fit_index.len()).sum();
+    while !stopped && samples < EXACT_CONTINUATION_MAX_SAMPLES && current.ledger.len() <= max_steps
+    {
+        let k = current.ledger.len() - 1;
+        match best_exact_step(series, &current, k, first_candidates, criteria, refits) {
+            Some(candidate) => {
+                let score = candidate.delta_bic.unwrap_or(0.0);
+                current = extend_path(series, &current, &candidate, score, refits);
+            }
+            None => stopped = true,
+        }
+    }
     (current.ledger, current.models)
+}
+
+/// Below this many fitted samples in all (the fleet's or a bar's own selection), a coarse path
+/// that ends before `forward_steps` is continued on the readings ([`best_exact_step`]): its
+/// exact refits cost little there (about 50 ms each on the machine-tool log's 11 k-sample bars),
+/// and the copies' smoothed noise can stop a path the readings would extend (on that log a
+/// bar's own selection stopped after one step where the readings offered two more). Above it
+/// (10 bars × 15 days × 10 s is 1.3 M) an exact step would cost more than the whole search.
+const EXACT_CONTINUATION_MAX_SAMPLES: usize = 100_000;
+
+/// Step `k` of a coarse path, `effect`, refitted and tested on the readings (the ranking's
+/// exact refit when the first step is one of its).
+fn confirmed_step(
+    series: &[&BarSeries],
+    current: &SelectionPath,
+    (k, effect): (usize, &Effect),
+    first_candidates: &[Candidate],
+    coarse: &CoarseFleet,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> Candidate {
+    let ranked = first_candidates
+        .iter()
+        .find(|c| k == 0 && c.effect == *effect && c.rms_after_um.is_some())
+        .cloned();
+    ranked.unwrap_or_else(|| {
+        let starts: Vec<Option<BarModel>> = current
+            .models
+            .iter()
+            .map(|m| coarse.start_for(&m.bar, &m.effects, effect))
+            .collect();
+        exact_candidate(series, &current.models, effect, &starts, criteria, refits)
+    })
+}
+
+/// Where a coarse path's step is not proposed on the readings: the best candidate that is,
+/// ranked on the readings as the first step is (the ranking itself there); `None` when none is,
+/// and the ledger stops.
+///
+/// Why: the coarse copies smooth the readings' noise, so a term chosen there can fail the
+/// readings' likelihood-ratio test (it lowers the RMS but leaves a less predictable residual:
+/// `compare::lr_p_value`). Stopping there left a bar of the machine-tool log with no step at
+/// all where its readings offered several.
+fn best_exact_step(
+    series: &[&BarSeries],
+    current: &SelectionPath,
+    k: usize,
+    first_candidates: &[Candidate],
+    criteria: &Criteria,
+    refits: &Refits,
+) -> Option<Candidate> {
+    let ranked = if k == 0 {
+        first_candidates.to_vec()
+    } else {
+        rank_candidates_with(series, &current.models, &[], criteria, refits, None)
+    };
+    let best = ranked.into_iter().find(Candidate::proposed);
+    tracing::debug!(step = k, replaced_by = ?best.as_ref().map(|c| c.effect.name()), "diagnose: a coarse path's step is not proposed on the readings");
+    best
 }
 
 /// `effect` added to every bar's model in `models`, refitted exactly and tested: the candidate
@@ -479,7 +582,7 @@ fn beam_paths(
             let candidates = if step == 0 {
                 first_candidates.to_vec()
             } else {
-                rank_candidates_for(series, &path.models, criteria, refits, max_refits)
+                rank_candidates_with(series, &path.models, &[], criteria, refits, max_refits)
             };
             let proposed: Vec<Candidate> = candidates
                 .into_iter()
@@ -540,9 +643,10 @@ pub(super) fn effects_of(models: &[BarModel]) -> Vec<Effect> {
 
 /// The candidates for the fleet's current `models`, ranked best first (only those that could be
 /// material refitted exactly).
-fn rank_candidates_for(
+fn rank_candidates_with(
     series: &[&BarSeries],
     models: &[BarModel],
+    offered: &[Effect],
     criteria: &Criteria,
     refits: &Refits,
     max_refits: Option<usize>,
@@ -555,7 +659,18 @@ fn rank_candidates_for(
         .zip(bases.par_iter())
         .map(|((s, m), b)| diagnose_bar(s, m, b.as_ref()))
         .collect();
-    let candidates = candidate_effects(&effects, &diagnoses);
+    let mut candidates = candidate_effects(&effects, &diagnoses);
+    let mut taken: std::collections::BTreeSet<String> = effects
+        .iter()
+        .chain(&candidates)
+        .map(term_identity)
+        .collect();
+    candidates.extend(
+        offered
+            .iter()
+            .filter(|e| taken.insert(term_identity(e)))
+            .cloned(),
+    );
     evaluate_at_most(&pairs, &bases, &candidates, criteria, refits, max_refits).0
 }
 
