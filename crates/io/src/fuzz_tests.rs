@@ -199,9 +199,9 @@ fn panic_locations() -> &'static Mutex<Vec<String>> {
     })
 }
 
-/// A panic location in a dependency (polars' parquet decoder), not in this crate.
+/// A panic location in a dependency (the parquet decoder), not in this crate.
 fn upstream(location: &str) -> bool {
-    location.contains(".cargo/registry") || location.contains("polars")
+    location.contains(".cargo/registry") || location.contains("parquet")
 }
 
 fn check(dir: &Path) {
