@@ -50,7 +50,7 @@ fn encoder_files(campaign: &str) -> anyhow::Result<Vec<PathBuf>> {
 
 /// A file's footer with `bar` read as string views, and the mask of the three columns.
 struct Opened {
-    file: File,
+    path: PathBuf,
     meta: ArrowReaderMetadata,
     mask: ProjectionMask,
 }
@@ -76,7 +76,11 @@ fn open(path: &Path) -> anyhow::Result<Opened> {
         .collect::<Result<Vec<_>, _>>()?;
     let descr = meta.metadata().file_metadata().schema_descr_ptr();
     let mask = ProjectionMask::roots(&descr, roots);
-    Ok(Opened { file, meta, mask })
+    Ok(Opened {
+        path: path.to_path_buf(),
+        meta,
+        mask,
+    })
 }
 
 /// The batches of row group `group`, each handed to `each`; the rows decoded.
@@ -85,8 +89,9 @@ fn decode_group(
     group: usize,
     each: &mut dyn FnMut(RecordBatch),
 ) -> anyhow::Result<usize> {
+    // A file of its own: a clone would share its offset with another thread's reader.
     let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(
-        opened.file.try_clone()?,
+        File::open(&opened.path)?,
         opened.meta.clone(),
     )
     .with_projection(opened.mask.clone())

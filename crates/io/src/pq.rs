@@ -38,7 +38,6 @@ pub(crate) fn not_parquet(path: &Path, e: impl std::fmt::Display) -> IngestError
 /// A parquet file whose footer has been read (row groups, row counts, arrow schema); no data
 /// page is read until a [`ParquetFile::reader`] is built.
 pub(crate) struct ParquetFile {
-    file: File,
     meta: ArrowReaderMetadata,
 }
 
@@ -51,7 +50,7 @@ impl ParquetFile {
         })?;
         let meta = ArrowReaderMetadata::load(&file, ArrowReaderOptions::new())
             .map_err(|e| not_parquet(path, e))?;
-        Ok(ParquetFile { file, meta })
+        Ok(ParquetFile { meta })
     }
 
     /// The file's arrow schema (from its embedded arrow schema where there is one, else from
@@ -107,7 +106,9 @@ impl ParquetFile {
         groups: Option<Vec<usize>>,
     ) -> Result<ParquetRecordBatchReader, IngestError> {
         let meta = self.hinted(path, columns)?;
-        let file = self.file.try_clone().map_err(|e| IngestError::Io {
+        // A file of its own (not a clone of `self.file`, which would share its offset): the
+        // reader seeks, and two readers of one file run on two threads at once.
+        let file = File::open(path).map_err(|e| IngestError::Io {
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;
