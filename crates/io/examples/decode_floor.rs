@@ -5,7 +5,7 @@
 //! * `collect`: every file decoded into memory (its batches kept until the file is done), row
 //!   groups in parallel on every core, as `bench/bare_scan.py` does in Python;
 //! * `stream`: as ingest reads the encoder files: two threads each take the files' row groups in
-//!   turn and decode them in batches (`time`, `bar` as string views, `counts`), the batches
+//!   turn and decode them in batches (`time`, `bar` as a dictionary, `counts`), the batches
 //!   dropped on arrival.
 //!
 //! ```text
@@ -48,7 +48,8 @@ fn encoder_files(campaign: &str) -> anyhow::Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-/// A file's footer with `bar` read as string views, and the mask of the three columns.
+/// A file's footer with `bar` read as a dictionary (as ingest reads ids), and the mask of the
+/// three columns.
 struct Opened {
     path: PathBuf,
     meta: ArrowReaderMetadata,
@@ -63,7 +64,10 @@ fn open(path: &Path) -> anyhow::Result<Opened> {
         .fields()
         .iter()
         .map(|f| match f.name().as_str() {
-            "bar" => f.as_ref().clone().with_data_type(DataType::Utf8View),
+            "bar" => f.as_ref().clone().with_data_type(DataType::Dictionary(
+                Box::new(DataType::Int32),
+                Box::new(DataType::Utf8),
+            )),
             _ => f.as_ref().clone(),
         })
         .collect();

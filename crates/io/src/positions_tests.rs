@@ -1,7 +1,6 @@
 //! `positions/*.parquet` (`docs/spec/device-format.md`): every form the reader must accept, and
 //! the broken forms it must name in one line (file, column, rows).
 
-use std::path::Path;
 
 use crate::test_frames::{col, df, dict_col, raw_time_col, write_df, Col, Unit};
 

@@ -130,11 +130,6 @@ pub(crate) fn col(name: &str, values: impl Values) -> Col {
     Col(name.to_string(), values.array())
 }
 
-/// A column of all nulls of no type.
-pub(crate) fn null_col(name: &str, rows: usize) -> Col {
-    Col(name.to_string(), Arc::new(arrow_array::NullArray::new(rows)))
-}
-
 /// A timestamp column `time` of raw values in `unit` (`None`: null), naive or in zone `tz`.
 pub(crate) fn raw_time_col(name: &str, raw: Vec<Option<i64>>, unit: Unit, tz: Option<&str>) -> Col {
     let tz: Option<Arc<str>> = tz.map(Arc::from);

@@ -60,14 +60,14 @@ impl Kind {
     }
 
     /// How a column of file type `dtype` is decoded: `Some(None)` as the file's own type,
-    /// `Some(Some(t))` as `t` (ids as string views, whatever their encoding), `None` when
+    /// `Some(Some(t))` as `t` (ids as a dictionary, whatever their encoding), `None` when
     /// `dtype` is not an accepted form.
     pub(super) fn read_as(self, dtype: &DataType) -> Option<Option<DataType>> {
         match (self, dtype) {
             // The stored value of a timestamp is the UTC epoch in its unit, zone or not; it is
             // scaled to ns in Rust with checked arithmetic (`to_ns`), never wrapped.
             (Kind::Time, DataType::Timestamp(..)) => Some(None),
-            (Kind::Text, t) if crate::pq::is_text_or_dictionary(t) => Some(Some(DataType::Utf8View)),
+            (Kind::Text, t) if crate::pq::is_text_or_dictionary(t) => Some(Some(text_type())),
             (
                 Kind::Count,
                 DataType::Int64
@@ -86,12 +86,12 @@ impl Kind {
     }
 
     /// A decoded column in the canonical type of its kind: times as their stored `i64`
-    /// values, ids as string views, counts as `i64` (integers) or `f64` (floats), reals as
+    /// values, ids as a dictionary ([`text_type`]), counts as `i64` (integers) or `f64` (floats), reals as
     /// `f64`.
     pub(super) fn canonical(self, column: &ArrayRef) -> Result<ArrayRef, ArrowError> {
         let target = match (self, column.data_type()) {
             (Kind::Time, _) => DataType::Int64,
-            (Kind::Text, _) => DataType::Utf8View,
+            (Kind::Text, _) => text_type(),
             (Kind::Count, DataType::Float32 | DataType::Float64) => DataType::Float64,
             (Kind::Count, _) => DataType::Int64,
             (Kind::Real, _) => DataType::Float64,
@@ -102,6 +102,13 @@ impl Kind {
             arrow_cast::cast(column, &target)
         }
     }
+}
+
+/// The type ids are decoded as: a dictionary of `i32` keys into utf8 values. Parquet writers
+/// store ids dictionary-encoded; decoded so, the keys come straight from the pages (no string is
+/// materialised per row) and an id's index is looked up once per distinct value and batch.
+pub(super) fn text_type() -> DataType {
+    DataType::Dictionary(Box::new(DataType::Int32), Box::new(DataType::Utf8))
 }
 
 /// How a file stores its `time` column: ns per stored unit, and whether it names a zone.

@@ -51,25 +51,19 @@ impl FileRange {
     }
 }
 
-/// Bar ids of a batch as small indices, found on the string views: an id of 12 bytes or less
-/// (every bar id of the spec's examples) is inline in its 16-byte view, so equal views are equal
-/// ids, and a small open-addressed table of views gives the index without touching the string.
-/// Longer ids are looked up by their string.
+/// Ids of a batch as small indices: each distinct value of the batch's dictionary is looked up
+/// once, then every row's key is mapped (no string is compared per row).
 pub(super) struct IdIndex {
     /// Id -> index (declared bars first, then undeclared ids as they appear).
     pub(super) by_name: BTreeMap<String, u32>,
     pub(super) names: Vec<String>,
-    /// Open-addressed (view, index + 1) table of inline ids; 0 = empty.
-    pub(super) views: Vec<(u128, u32)>,
-    /// Entries of `views` in use (at most half of it).
-    pub(super) filled: usize,
-    pub(super) shift: u32,
+    /// Scratch: the index of each dictionary value of the batch.
+    of_value: Vec<u32>,
 }
 
 impl IdIndex {
     pub(super) fn new<'a>(declared: impl Iterator<Item = &'a str>) -> IdIndex {
         let names: Vec<String> = declared.map(str::to_string).collect();
-        let size = (4 * names.len() + 8).next_power_of_two();
         IdIndex {
             by_name: names
                 .iter()
@@ -77,52 +71,30 @@ impl IdIndex {
                 .map(|(i, n)| (n.clone(), i as u32))
                 .collect(),
             names,
-            views: vec![(0, 0); size],
-            filled: 0,
-            shift: 64 - size.trailing_zeros(),
+            of_value: Vec::new(),
         }
-    }
-
-    pub(super) fn slot(&self, view: u128) -> usize {
-        let mixed = (view as u64) ^ ((view >> 64) as u64).rotate_left(29);
-        (mixed.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
     }
 
     /// Index of every row's id into `out` (a null row gets the index of the empty id: callers
     /// drop or mark null rows themselves).
-    pub(super) fn indices(&mut self, ids: &StringViewArray, out: &mut Vec<u32>) {
+    pub(super) fn indices(&mut self, ids: Ids<'_>, out: &mut Vec<u32>) {
         out.clear();
         out.reserve(ids.len());
-        let mask = self.views.len() - 1;
-        let mut last: Option<(u128, u32)> = None;
-        for (i, &bits) in ids.views().iter().enumerate() {
-            if let Some((_, index)) = last.filter(|&(v, _)| v == bits) {
-                out.push(index);
-                continue;
-            }
-            // The low 32 bits of a view are its string's length.
-            let index = if (bits as u32) <= 12 {
-                let mut slot = self.slot(bits);
-                loop {
-                    match self.views[slot] {
-                        (v, found) if found != 0 && v == bits => break found - 1,
-                        (_, 0) => {
-                            let index = self.by_string(ids.value(i));
-                            if 2 * (self.filled + 1) <= self.views.len() {
-                                self.views[slot] = (bits, index + 1);
-                                self.filled += 1;
-                            }
-                            break index;
-                        }
-                        _ => slot = (slot + 1) & mask,
-                    }
-                }
-            } else {
-                self.by_string(ids.value(i))
+        let mut of_value = std::mem::take(&mut self.of_value);
+        of_value.clear();
+        for v in 0..ids.values.len() {
+            let id = if ids.values.is_valid(v) { ids.values.value(v) } else { "" };
+            of_value.push(self.by_string(id));
+        }
+        let mut empty = None;
+        for &key in ids.keys() {
+            let index = match usize::try_from(key).ok().and_then(|k| of_value.get(k)) {
+                Some(&index) => index,
+                None => *empty.get_or_insert_with(|| self.by_string("")),
             };
-            last = Some((bits, index));
             out.push(index);
         }
+        self.of_value = of_value;
     }
 
     pub(super) fn by_string(&mut self, id: &str) -> u32 {

@@ -24,8 +24,8 @@
 //!   its rows' offset in that file, so rows that cannot be used (a null, an undeclared id, a time
 //!   out of range) are named by file and rows in the one pass.
 //! - Cost and memory do not depend on the row order (the format allows any; a logger of many bars
-//!   interleaves them). Each batch's bar ids become small indices on their string views (an id of
-//!   ≤ 12 bytes is inline in its view: an open-addressed table of views, `io::read::IdIndex`); a
+//!   interleaves them). Each batch's bar ids are decoded as a dictionary and become small indices
+//!   by looking each distinct value up once (`io::read::IdIndex`); a
 //!   batch of few runs of one bar goes run by run, any other is grouped by bar with a stable
 //!   counting sort, so every bar gets its rows as one slice whatever the interleaving. A full-rate
 //!   log is reserved from the parquet footers' row counts and, when not sorted, sorted per bar in
@@ -80,7 +80,11 @@ use std::path::{Path, PathBuf};
 
 use arrow_array::cast::AsArray;
 use arrow_array::types::{Float64Type, Int64Type};
-use arrow_array::{Array, ArrayRef, BooleanArray, Float64Array, Int64Array, RecordBatch, StringViewArray};
+use arrow_array::types::Int32Type;
+use arrow_array::{
+    Array, ArrayRef, BooleanArray, DictionaryArray, Float64Array, Int64Array, RecordBatch,
+    StringArray,
+};
 use arrow_schema::{ArrowError, DataType, TimeUnit};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReader;
 

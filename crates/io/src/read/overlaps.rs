@@ -291,7 +291,7 @@ fn window_rows(
     let floats = counts.as_primitive_opt::<Float64Type>();
     let ints = counts.as_primitive_opt::<Int64Type>();
     for i in 0..batch.rows {
-        if time.is_null(i) || bars.is_null(i) || bars.value(i) != bar {
+        if time.is_null(i) || bars.value(i) != Some(bar) {
             continue;
         }
         let t = time.value(i);

@@ -129,7 +129,7 @@ fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
         };
         rows.push(PositionRow {
             time_ns,
-            device: device.value(i).to_string(),
+            device: device.value(i).unwrap_or_default().to_string(),
             xyz_mm: [
                 get(x, i).unwrap_or(f64::NAN),
                 get(y, i).unwrap_or(f64::NAN),

@@ -47,10 +47,16 @@ impl Canonical {
             .ok_or_else(|| ArrowError::CastError(format!("`{name}` is not float64")))
     }
 
-    pub(super) fn text(&self, name: &str) -> Result<&StringViewArray, ArrowError> {
-        self.get(name)?
-            .as_string_view_opt()
-            .ok_or_else(|| ArrowError::CastError(format!("`{name}` is not utf8")))
+    pub(super) fn text(&self, name: &str) -> Result<Ids<'_>, ArrowError> {
+        let ids = self
+            .get(name)?
+            .as_dictionary_opt::<Int32Type>()
+            .ok_or_else(|| ArrowError::CastError(format!("`{name}` is not a utf8 dictionary")))?;
+        let values = ids
+            .values()
+            .as_string_opt::<i32>()
+            .ok_or_else(|| ArrowError::CastError(format!("`{name}` holds no utf8 values")))?;
+        Ok(Ids { ids, values })
     }
 
     /// The rows where `keep` is true.
@@ -62,6 +68,45 @@ impl Canonical {
             .collect::<Result<Vec<_>, ArrowError>>()?;
         let rows = keep.true_count();
         Ok(Canonical { columns, rows })
+    }
+}
+
+/// An id column of a batch: each row's key into the distinct `values`.
+#[derive(Clone, Copy)]
+pub(super) struct Ids<'a> {
+    pub(super) ids: &'a DictionaryArray<Int32Type>,
+    pub(super) values: &'a StringArray,
+}
+
+impl<'a> Ids<'a> {
+    pub(super) fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    pub(super) fn null_count(&self) -> usize {
+        self.ids.null_count()
+    }
+
+    pub(super) fn is_valid(&self, row: usize) -> bool {
+        self.ids.is_valid(row)
+    }
+
+    pub(super) fn is_null(&self, row: usize) -> bool {
+        self.ids.is_null(row)
+    }
+
+    /// Each row's key into [`Ids::values`] (a null row's key is meaningless).
+    pub(super) fn keys(&self) -> &'a [i32] {
+        self.ids.keys().values()
+    }
+
+    /// The id of row `row` (`None`: null).
+    pub(super) fn value(&self, row: usize) -> Option<&'a str> {
+        if self.ids.is_null(row) {
+            return None;
+        }
+        let key = usize::try_from(*self.keys().get(row)?).ok()?;
+        (key < self.values.len() && self.values.is_valid(key)).then(|| self.values.value(key))
     }
 }
 
