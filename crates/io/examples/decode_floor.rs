@@ -133,14 +133,21 @@ fn collect(paths: &[PathBuf]) -> anyhow::Result<usize> {
                 Ok(batches)
             })
             .collect::<anyhow::Result<_>>()?;
-        rows += kept.iter().flatten().map(RecordBatch::num_rows).sum::<usize>();
+        rows += kept
+            .iter()
+            .flatten()
+            .map(RecordBatch::num_rows)
+            .sum::<usize>();
     }
     Ok(rows)
 }
 
 /// Rows decoded by streaming every file's row groups on two threads, batches dropped.
 fn stream(paths: &[PathBuf]) -> anyhow::Result<usize> {
-    let files = paths.iter().map(|p| open(p)).collect::<anyhow::Result<Vec<_>>>()?;
+    let files = paths
+        .iter()
+        .map(|p| open(p))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let work = tasks(&files);
     let (next, rows) = (AtomicUsize::new(0), AtomicUsize::new(0));
     std::thread::scope(|scope| -> anyhow::Result<()> {
@@ -156,7 +163,8 @@ fn stream(paths: &[PathBuf]) -> anyhow::Result<usize> {
             })
             .collect();
         for t in threads {
-            t.join().map_err(|_| anyhow::anyhow!("a decoding thread panicked"))??;
+            t.join()
+                .map_err(|_| anyhow::anyhow!("a decoding thread panicked"))??;
         }
         Ok(())
     })?;
@@ -187,7 +195,10 @@ fn run() -> anyhow::Result<()> {
     let files = encoder_files(&campaign)?;
     let mut record = serde_json::Map::new();
     for (name, decode) in [
-        ("collect", collect as fn(&[PathBuf]) -> anyhow::Result<usize>),
+        (
+            "collect",
+            collect as fn(&[PathBuf]) -> anyhow::Result<usize>,
+        ),
         ("stream", stream),
     ] {
         let mut runs = Vec::new();

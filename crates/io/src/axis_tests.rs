@@ -97,7 +97,12 @@ fn write(dir: &Path, opts: &AxisWriteOptions) {
 }
 
 fn time_col(ns: &[i64]) -> Col {
-    raw_time_col("time", ns.iter().map(|&t| Some(t)).collect(), Unit::Nanoseconds, None)
+    raw_time_col(
+        "time",
+        ns.iter().map(|&t| Some(t)).collect(),
+        Unit::Nanoseconds,
+        None,
+    )
 }
 
 /// A readings file of `n` rows with the standard columns: line 1, run 1, targets 0, 10, ….
@@ -107,7 +112,9 @@ fn readings_df(n: usize) -> Vec<Col> {
         time_col(&times),
         col("line", vec![1i64; n]),
         col("run", vec![1i64; n]),
-        col("target_mm", (0..n).map(|i| i as f64 * 10.0).collect::<Vec<_>>(),
+        col(
+            "target_mm",
+            (0..n).map(|i| i as f64 * 10.0).collect::<Vec<_>>(),
         ),
         col("channel", vec!["dx"; n]),
         col("deviation_um", vec![0.5f64; n]),
@@ -128,10 +135,7 @@ fn error_with(columns: Vec<Col>) -> String {
     let dir = tempfile::tempdir().unwrap();
     write(dir.path(), &AxisWriteOptions::default());
     std::fs::remove_file(dir.path().join("readings/readings.parquet")).unwrap();
-    write_df(
-        &dir.path().join("readings/bad.parquet"),
-        df(columns),
-    );
+    write_df(&dir.path().join("readings/bad.parquet"), df(columns));
     let e = read_axis_campaign(dir.path())
         .expect_err("should fail")
         .to_string();
@@ -222,10 +226,7 @@ fn narrow_integers_zoned_times_and_extra_columns_are_read() {
     columns = replace(columns, col("run", vec![1u32; n]));
     columns.push(col("laser_temp_c", vec![21.5f32; n]));
     columns.push(col("operator", vec!["ann"; n]));
-    write_df(
-        &dir.path().join("readings/r.parquet"),
-        df(columns),
-    );
+    write_df(&dir.path().join("readings/r.parquet"), df(columns));
     let logs = read_axis_campaign(dir.path()).unwrap();
     assert_eq!(logs.readings.len(), n);
     assert_eq!(logs.readings[1].time_ns, T0 + S);
@@ -252,10 +253,7 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
             &["bad.parquet: missing column `channel`"],
         ),
         (
-            replace(
-                readings_df(n),
-                col("target_mm", vec!["0"; n]),
-            ),
+            replace(readings_df(n), col("target_mm", vec!["0"; n])),
             &[
                 "bad.parquet: column `target_mm` has type",
                 "expected float64",
@@ -273,10 +271,7 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
             ],
         ),
         (
-            replace(
-                readings_df(n),
-                col("line", [1i64, 7, 7, 1, 1]),
-            ),
+            replace(readings_df(n), col("line", [1i64, 7, 7, 1, 1])),
             &["bad.parquet: 2 rows", "have line \"7\"", "known: 1, 2, 3"],
         ),
         (
@@ -294,17 +289,11 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
             &["column `run`: 1 rows (rows 1 .. 1", "are null"],
         ),
         (
-            replace(
-                readings_df(n),
-                col("run", [1i64, 1, 0, 1, 1]),
-            ),
+            replace(readings_df(n), col("run", [1i64, 1, 0, 1, 1])),
             &["column `run`", "runs count from 1"],
         ),
         (
-            replace(
-                readings_df(n),
-                col("direction", [1i64, 1, 3, 1, 1]),
-            ),
+            replace(readings_df(n), col("direction", [1i64, 1, 3, 1, 1])),
             &[
                 "column `direction`: 1 rows (rows 2 .. 2",
                 "neither +1 nor -1",
@@ -320,10 +309,7 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
             ],
         ),
         (
-            replace(
-                readings_df(n),
-                col("target_mm", vec![10.0; n]),
-            ),
+            replace(readings_df(n), col("target_mm", vec![10.0; n])),
             &["of line 1, run 1", "cannot be derived"],
         ),
         (
@@ -389,17 +375,11 @@ fn the_environment_is_required_and_checked() {
 
 #[test]
 fn dictionary_channels_and_categorical_casts_stay_strings() {
-    let columns = replace(
-        readings_df(3),
-        dict_col("channel", &["dx", "dy", "dz"]),
-    );
+    let columns = replace(readings_df(3), dict_col("channel", &["dx", "dy", "dz"]));
     let dir = tempfile::tempdir().unwrap();
     write(dir.path(), &AxisWriteOptions::default());
     std::fs::remove_file(dir.path().join("readings/readings.parquet")).unwrap();
-    write_df(
-        &dir.path().join("readings/r.parquet"),
-        df(columns),
-    );
+    write_df(&dir.path().join("readings/r.parquet"), df(columns));
     let logs = read_axis_campaign(dir.path()).unwrap();
     let channels: Vec<Channel> = logs.readings.iter().map(|r| r.channel).collect();
     assert_eq!(channels, [Channel::Dx, Channel::Dy, Channel::Dz]);
@@ -434,18 +414,25 @@ fn extra_columns_follow_their_rows_through_any_order() {
         let times: Vec<i64> = part.iter().map(|r| r.time_ns).collect();
         let mut columns = vec![
             time_col(&times),
-            col("line", part.iter().map(|r| r.line).collect::<Vec<_>>(),
-            ),
+            col("line", part.iter().map(|r| r.line).collect::<Vec<_>>()),
             col("run", part.iter().map(|r| r.run).collect::<Vec<_>>()),
-            col("target_mm", part.iter().map(|r| r.target_mm).collect::<Vec<_>>(),
+            col(
+                "target_mm",
+                part.iter().map(|r| r.target_mm).collect::<Vec<_>>(),
             ),
-            col("channel", part.iter().map(|r| r.channel.as_str()).collect::<Vec<_>>(),
+            col(
+                "channel",
+                part.iter().map(|r| r.channel.as_str()).collect::<Vec<_>>(),
             ),
-            col("deviation_um", part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
+            col(
+                "deviation_um",
+                part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
             ),
         ];
         if with_extra {
-            columns.push(col("copy", part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
+            columns.push(col(
+                "copy",
+                part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
             ));
         }
         write_df(

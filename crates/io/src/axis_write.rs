@@ -7,7 +7,9 @@ use std::path::Path;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::kind_write::{column, dictionary, f64_column, prepare, time_column, write_manifest, Columns};
+use super::kind_write::{
+    column, dictionary, f64_column, prepare, time_column, write_manifest, Columns,
+};
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::axis_campaign::{AxisCampaignTables, AxisManifest, AxisReading};
 
@@ -87,7 +89,7 @@ pub fn write_axis_campaign(
         let path = folder.join("fixture.parquet");
         let columns = vec![
             time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
-            column("line", rows.iter().map(|r| r.line).collect::<Vec<_>>(),),
+            column("line", rows.iter().map(|r| r.line).collect::<Vec<_>>()),
             f64_column("x_mm", rows.iter().map(|r| r.reflector_mm[0])),
             f64_column("y_mm", rows.iter().map(|r| r.reflector_mm[1])),
             f64_column("z_mm", rows.iter().map(|r| r.reflector_mm[2])),
@@ -108,8 +110,14 @@ pub fn write_axis_campaign(
             f64_column("air_c", rows.iter().map(|r| r.air_c)),
             f64_column("pressure_hpa", rows.iter().map(|r| r.pressure_hpa)),
             f64_column("humidity_pct", rows.iter().map(|r| r.humidity_pct)),
-            column("material_c", rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),),
-            column("env_factor_ppm", rows.iter().map(|r| r.env_factor_ppm).collect::<Vec<_>>(),),
+            column(
+                "material_c",
+                rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),
+            ),
+            column(
+                "env_factor_ppm",
+                rows.iter().map(|r| r.env_factor_ppm).collect::<Vec<_>>(),
+            ),
         ];
         write_parquet(&path, columns)?;
     }
@@ -119,13 +127,14 @@ pub fn write_axis_campaign(
 fn readings_frame(rows: &[&AxisReading], opts: &AxisWriteOptions) -> Columns {
     let mut columns = vec![
         time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
-        column("line", rows.iter().map(|r| r.line).collect::<Vec<_>>(),),
+        column("line", rows.iter().map(|r| r.line).collect::<Vec<_>>()),
         column("run", rows.iter().map(|r| r.run).collect::<Vec<_>>()),
     ];
     if opts.write_direction {
-        columns.push(
-            column("direction", rows.iter().map(|r| r.direction).collect::<Vec<i8>>(),),
-        );
+        columns.push(column(
+            "direction",
+            rows.iter().map(|r| r.direction).collect::<Vec<i8>>(),
+        ));
     }
     columns.push(f64_column("target_mm", rows.iter().map(|r| r.target_mm)));
     let channel = rows.iter().map(|r| r.channel.as_str());

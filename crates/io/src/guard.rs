@@ -60,7 +60,9 @@ pub fn decode_whole_file(path: &Path) -> Result<(), IngestError> {
     guarded(path, || {
         let file = crate::pq::ParquetFile::open(path)?;
         let columns: Vec<(usize, Option<arrow_schema::DataType>)> =
-            (0..file.schema().fields().len()).map(|i| (i, None)).collect();
+            (0..file.schema().fields().len())
+                .map(|i| (i, None))
+                .collect();
         for batch in file.reader(path, &columns, None)? {
             batch.map_err(|e| crate::pq::not_parquet(path, e))?;
         }

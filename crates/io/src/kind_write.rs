@@ -115,7 +115,10 @@ pub(crate) fn column(name: &str, values: impl IntoArray) -> (String, ArrayRef) {
 }
 
 /// Strings as a dictionary (categorical) column: `u32` keys into the distinct strings.
-pub(crate) fn dictionary<'a>(name: &str, values: impl Iterator<Item = &'a str>) -> (String, ArrayRef) {
+pub(crate) fn dictionary<'a>(
+    name: &str,
+    values: impl Iterator<Item = &'a str>,
+) -> (String, ArrayRef) {
     let array: DictionaryArray<UInt32Type> = values.collect();
     (name.to_string(), Arc::new(array))
 }

@@ -1,7 +1,6 @@
 //! `positions/*.parquet` (`docs/spec/device-format.md`): every form the reader must accept, and
 //! the broken forms it must name in one line (file, column, rows).
 
-
 use crate::test_frames::{col, df, dict_col, raw_time_col, write_df, Col, Unit};
 
 use super::{read_positions, IngestError};
@@ -15,7 +14,12 @@ fn time_col(ns: &[i64], unit: Unit) -> Col {
         Unit::Microseconds => 1_000,
         Unit::Milliseconds => 1_000_000,
     };
-    raw_time_col("time", ns.iter().map(|t| Some(t / per)).collect(), unit, None)
+    raw_time_col(
+        "time",
+        ns.iter().map(|t| Some(t / per)).collect(),
+        unit,
+        None,
+    )
 }
 
 fn frame(times: &[i64], unit: Unit, x: &[f64], station: &[Option<i64>]) -> Vec<Col> {

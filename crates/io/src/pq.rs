@@ -152,8 +152,9 @@ impl ParquetFile {
 /// Every column and row of a (small) file, as one batch.
 pub(crate) fn read_whole(path: &Path) -> Result<RecordBatch, IngestError> {
     let file = ParquetFile::open(path)?;
-    let columns: Vec<(usize, Option<DataType>)> =
-        (0..file.schema().fields().len()).map(|i| (i, None)).collect();
+    let columns: Vec<(usize, Option<DataType>)> = (0..file.schema().fields().len())
+        .map(|i| (i, None))
+        .collect();
     let schema = file.schema().clone();
     let batches = file
         .reader(path, &columns, None)?
@@ -238,7 +239,10 @@ pub(crate) fn is_text_or_dictionary(dtype: &DataType) -> bool {
 /// Writes one parquet file holding `columns` (all nullable): zstd, statistics, dictionary pages
 /// where they pay, row groups of 512² rows. The writer records no time, so the bytes depend
 /// only on the columns.
-pub(crate) fn write_columns(path: &Path, columns: Vec<(String, ArrayRef)>) -> Result<(), WriteError> {
+pub(crate) fn write_columns(
+    path: &Path,
+    columns: Vec<(String, ArrayRef)>,
+) -> Result<(), WriteError> {
     let failed = |e: &dyn std::fmt::Display| WriteError::Parquet {
         path: path.to_path_buf(),
         message: one_line(e),
@@ -272,4 +276,3 @@ pub(crate) fn write_columns(path: &Path, columns: Vec<(String, ArrayRef)>) -> Re
         message: e.to_string(),
     })
 }
-

@@ -79,19 +79,23 @@ fn touches_frame(rows: &[&ProbeTouch], opts: &ProbeWriteOptions) -> Columns {
     for (k, name) in ["x_mm", "y_mm", "z_mm"].iter().enumerate() {
         columns.push(f64_column(name, rows.iter().map(|r| r.position_mm[k])));
     }
-    columns.push(
-        column("feed_mm_min", rows.iter().map(|r| r.feed_mm_min).collect::<Vec<_>>(),),
-    );
-    columns.push(
-        column("stylus", rows.iter().map(|r| r.stylus.as_str()).collect::<Vec<_>>(),),
-    );
-    columns.push(
-        column("artefact", rows.iter().map(|r| r.artefact.as_str()).collect::<Vec<_>>(),),
-    );
+    columns.push(column(
+        "feed_mm_min",
+        rows.iter().map(|r| r.feed_mm_min).collect::<Vec<_>>(),
+    ));
+    columns.push(column(
+        "stylus",
+        rows.iter().map(|r| r.stylus.as_str()).collect::<Vec<_>>(),
+    ));
+    columns.push(column(
+        "artefact",
+        rows.iter().map(|r| r.artefact.as_str()).collect::<Vec<_>>(),
+    ));
     if rows.iter().any(|r| r.spindle_deg.is_some()) {
-        columns.push(
-            column("spindle_deg", rows.iter().map(|r| r.spindle_deg).collect::<Vec<_>>(),),
-        );
+        columns.push(column(
+            "spindle_deg",
+            rows.iter().map(|r| r.spindle_deg).collect::<Vec<_>>(),
+        ));
     }
     columns
 }

@@ -67,7 +67,7 @@ pub fn write_roll_campaign(
         let columns = vec![
             time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
             f64_column("roll_urad", rows.iter().map(|r| r.roll_urad)),
-            column("u_urad", rows.iter().map(|r| r.u_urad).collect::<Vec<_>>(),),
+            column("u_urad", rows.iter().map(|r| r.u_urad).collect::<Vec<_>>()),
         ];
         write_parquet(&path, columns)?;
     }
@@ -90,8 +90,10 @@ fn probes_frame(
     // not fit become null, as polars' cast made them).
     let int = |name: &str, v: Vec<Option<i64>>| {
         if opts.int32 {
-            let narrow: Vec<Option<i32>> =
-                v.into_iter().map(|x| x.and_then(|x| i32::try_from(x).ok())).collect();
+            let narrow: Vec<Option<i32>> = v
+                .into_iter()
+                .map(|x| x.and_then(|x| i32::try_from(x).ok()))
+                .collect();
             column(name, narrow)
         } else {
             column(name, v)

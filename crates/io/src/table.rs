@@ -66,7 +66,11 @@ impl Column {
             Column::OptStr(v) => column(name, v.clone()),
             Column::TimeNs(v) => (
                 name.to_string(),
-                timestamps(v.iter().map(|&t| Some(t)).collect(), super::TimeUnit::Ns, None),
+                timestamps(
+                    v.iter().map(|&t| Some(t)).collect(),
+                    super::TimeUnit::Ns,
+                    None,
+                ),
             ),
             Column::OptI64(v) => column(name, v.clone()),
             Column::Time { raw, unit, zone } => (

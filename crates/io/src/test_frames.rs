@@ -182,8 +182,8 @@ pub(crate) fn write_df_in_groups(path: &Path, batch: RecordBatch, group_rows: us
         .set_compression(Compression::ZSTD(ZstdLevel::default()))
         .set_max_row_group_row_count(Some(group_rows))
         .build();
-    let mut writer = parquet::arrow::ArrowWriter::try_new(file, batch.schema(), Some(props))
-        .expect("writer");
+    let mut writer =
+        parquet::arrow::ArrowWriter::try_new(file, batch.schema(), Some(props)).expect("writer");
     writer.write(&batch).expect("write parquet");
     writer.close().expect("close parquet");
 }

@@ -145,11 +145,7 @@ fn reads_any_unit_zone_dictionary_int32_over_unsorted_files() {
         &d.join("encoders/b.parquet"),
         df(vec![
             col("junk", [1.0f64, 2.0]),
-            time_col(
-                &[T0 + 2 * S, T0 + S],
-                Unit::Microseconds,
-                Some("UTC"),
-            ),
+            time_col(&[T0 + 2 * S, T0 + S], Unit::Microseconds, Some("UTC")),
             dict_col("bar", &["B01", "B02"]),
             col("counts", vec![20i32, 100]),
         ]),

@@ -157,22 +157,26 @@ fn a_bad_submove_is_refused_naming_file_column_and_rows() {
     let steps = dir.path().join("steps");
     std::fs::create_dir_all(&steps).unwrap();
     let n = 4;
-    let time = raw_time_col("time", (0..n).map(|i| Some(T0 + i)).collect(), Unit::Nanoseconds, None);
+    let time = raw_time_col(
+        "time",
+        (0..n).map(|i| Some(T0 + i)).collect(),
+        Unit::Nanoseconds,
+        None,
+    );
     let f = |name: &str, v: Vec<f64>| col(name, v);
     let columns: Vec<_> = vec![
-            time,
-            col("diagonal", vec!["+++"; 4]),
-            col("step", vec![0i64, 1, 1, 1]),
-            col("submove", vec![None, Some("X"), Some("W"), Some("W")],
-            ),
-            f("x_mm", vec![0.0, 150.0, 150.0, 150.0]),
-            f("y_mm", vec![0.0, 0.0, 100.0, 100.0]),
-            f("z_mm", vec![0.0, 0.0, 0.0, 50.0]),
-            f("deviation_um", vec![0.0; 4]),
-        ]
-        .into_iter()
-        .map(|c| (c.0, c.1))
-        .collect();
+        time,
+        col("diagonal", vec!["+++"; 4]),
+        col("step", vec![0i64, 1, 1, 1]),
+        col("submove", vec![None, Some("X"), Some("W"), Some("W")]),
+        f("x_mm", vec![0.0, 150.0, 150.0, 150.0]),
+        f("y_mm", vec![0.0, 0.0, 100.0, 100.0]),
+        f("z_mm", vec![0.0, 0.0, 0.0, 50.0]),
+        f("deviation_um", vec![0.0; 4]),
+    ]
+    .into_iter()
+    .map(|c| (c.0, c.1))
+    .collect();
     crate::write::write_parquet(&steps.join("steps-bad.parquet"), columns).unwrap();
     let e = read_volumetric_campaign(dir.path())
         .unwrap_err()

@@ -65,14 +65,17 @@ pub fn write_volumetric_campaign(
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let mut columns = vec![
                 time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
-                column("diagonal", r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
+                column(
+                    "diagonal",
+                    r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
                 ),
                 column("run", r.iter().map(|x| x.run).collect::<Vec<_>>()),
             ];
             if !opts.omit_direction {
-                columns.push(
-                    column("direction", r.iter().map(|x| x.direction).collect::<Vec<i8>>(),),
-                );
+                columns.push(column(
+                    "direction",
+                    r.iter().map(|x| x.direction).collect::<Vec<i8>>(),
+                ));
             }
             columns.push(f64_column("target_mm", r.iter().map(|x| x.target_mm)));
             columns.push(f64_column("deviation_um", r.iter().map(|x| x.deviation_um)));
@@ -91,11 +94,15 @@ pub fn write_volumetric_campaign(
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let columns = vec![
                 time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
-                column("diagonal", r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
+                column(
+                    "diagonal",
+                    r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
                 ),
                 column("run", r.iter().map(|x| x.run).collect::<Vec<_>>()),
                 column("step", r.iter().map(|x| x.step).collect::<Vec<_>>()),
-                column("submove", r.iter()
+                column(
+                    "submove",
+                    r.iter()
                         .map(|x| x.submove.map(|a| a.as_str()))
                         .collect::<Vec<_>>(),
                 ),
@@ -119,12 +126,17 @@ pub fn write_volumetric_campaign(
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let mut columns = vec![
                 time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
-                column("diagonal", r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
+                column(
+                    "diagonal",
+                    r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
                 ),
-                column("segment", r.iter().map(|x| x.segment).collect::<Vec<_>>(),),
+                column("segment", r.iter().map(|x| x.segment).collect::<Vec<_>>()),
                 column("run", r.iter().map(|x| x.run).collect::<Vec<_>>()),
                 // Always written: a bar reading's direction is not derived (default +1).
-                column("direction", r.iter().map(|x| x.direction).collect::<Vec<i8>>(),),
+                column(
+                    "direction",
+                    r.iter().map(|x| x.direction).collect::<Vec<i8>>(),
+                ),
             ];
             columns.push(f64_column(
                 "distance_along_mm",
@@ -134,9 +146,7 @@ pub fn write_volumetric_campaign(
                 "centre_distance_mm",
                 r.iter().map(|x| x.centre_distance_mm),
             ));
-            columns.push(
-                column("u_um", r.iter().map(|x| x.u_um).collect::<Vec<_>>()),
-            );
+            columns.push(column("u_um", r.iter().map(|x| x.u_um).collect::<Vec<_>>()));
             write_parquet(&path, columns)?;
         }
     }
@@ -150,7 +160,10 @@ pub fn write_volumetric_campaign(
             f64_column("air_c", rows.iter().map(|r| r.air_c)),
             f64_column("pressure_hpa", rows.iter().map(|r| r.pressure_hpa)),
             f64_column("humidity_pct", rows.iter().map(|r| r.humidity_pct)),
-            column("material_c", rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),),
+            column(
+                "material_c",
+                rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),
+            ),
         ];
         write_parquet(&path, columns)?;
     }

@@ -13,9 +13,9 @@ use super::kind_write::{column, timestamps, Columns};
 use super::one_line;
 use arrow_array::cast::AsArray;
 use arrow_array::{Array, StringViewArray};
-use std::sync::Arc;
 use dbbcal_core::campaign::Manifest;
 use dbbcal_core::series::CampaignTables;
+use std::sync::Arc;
 
 /// Resolution of the written `time` columns (values are floored to it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -183,7 +183,11 @@ struct Frame {
 const NS_PER_DAY: i64 = 86_400_000_000_000;
 
 /// The `time` column (floored to `unit`) and each row's UTC day.
-fn time_column(time_ns: impl Iterator<Item = i64>, unit: TimeUnit, rows: usize) -> ((String, ArrayRef), Vec<i64>) {
+fn time_column(
+    time_ns: impl Iterator<Item = i64>,
+    unit: TimeUnit,
+    rows: usize,
+) -> ((String, ArrayRef), Vec<i64>) {
     let mut values = Vec::with_capacity(rows);
     let mut day = Vec::with_capacity(rows);
     let per = unit.ns_per_unit();
@@ -204,7 +208,10 @@ fn id_column<'a>(
     if dictionary {
         super::kind_write::dictionary(name, values)
     } else {
-        (name.into(), Arc::new(StringViewArray::from_iter_values(values)))
+        (
+            name.into(),
+            Arc::new(StringViewArray::from_iter_values(values)),
+        )
     }
 }
 
@@ -283,8 +290,14 @@ fn event_frame(tables: &CampaignTables, unit: TimeUnit) -> Frame {
     let events = &tables.events;
     let rows = events.len();
     let (time, day) = time_column(events.iter().map(|e| e.time_ns), unit, rows);
-    let bar = column("bar", events.iter().map(|e| e.bar.as_deref()).collect::<Vec<_>>());
-    let kind = column("kind", events.iter().map(|e| e.kind.as_str()).collect::<Vec<_>>());
+    let bar = column(
+        "bar",
+        events.iter().map(|e| e.bar.as_deref()).collect::<Vec<_>>(),
+    );
+    let kind = column(
+        "kind",
+        events.iter().map(|e| e.kind.as_str()).collect::<Vec<_>>(),
+    );
     let value = column("value", events.iter().map(|e| e.value).collect::<Vec<_>>());
     Frame {
         columns: vec![time, bar, kind, value],

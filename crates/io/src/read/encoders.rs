@@ -83,7 +83,11 @@ impl IdIndex {
         let mut of_value = std::mem::take(&mut self.of_value);
         of_value.clear();
         for v in 0..ids.values.len() {
-            let id = if ids.values.is_valid(v) { ids.values.value(v) } else { "" };
+            let id = if ids.values.is_valid(v) {
+                ids.values.value(v)
+            } else {
+                ""
+            };
             of_value.push(self.by_string(id));
         }
         let mut empty = None;

@@ -79,8 +79,8 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use arrow_array::cast::AsArray;
-use arrow_array::types::{Float64Type, Int64Type};
 use arrow_array::types::Int32Type;
+use arrow_array::types::{Float64Type, Int64Type};
 use arrow_array::{
     Array, ArrayRef, BooleanArray, DictionaryArray, Float64Array, Int64Array, RecordBatch,
     StringArray,
@@ -89,8 +89,8 @@ use arrow_schema::{ArrowError, DataType, TimeUnit};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReader;
 
 use super::guard::guarded;
-use super::pq::{not_parquet, ParquetFile};
 use super::inputs::{CampaignFiles, MANIFEST};
+use super::pq::{not_parquet, ParquetFile};
 use super::repeats::{RepeatSketch, RepeatWindows};
 use super::IngestError;
 use dbbcal_core::campaign::{Campaign, Manifest, SensorKind};
@@ -327,13 +327,7 @@ fn read_events_and_encoders(
     } else {
         0
     };
-    let mut encoders = read_encoders(
-        &files.encoders,
-        bar_ids,
-        &grids,
-        rows_hint,
-        &mut zones,
-    )?;
+    let mut encoders = read_encoders(&files.encoders, bar_ids, &grids, rows_hint, &mut zones)?;
     dropped.append(&mut encoders.dropped);
     encoders.dropped = dropped;
     Ok((events, event_quality, encoders, zones))
@@ -519,7 +513,12 @@ fn events_sorted(table: &TableRows, bar_ids: &BTreeSet<&str>) -> Vec<Event> {
     let mut rows: Vec<(i64, Option<&str>, &str, Option<f64>)> = (0..table.height())
         .map(|i| {
             let v = value.get(i).copied().flatten();
-            (table.time[i], bar.get(i), kind.get(i).unwrap_or_default(), v)
+            (
+                table.time[i],
+                bar.get(i),
+                kind.get(i).unwrap_or_default(),
+                v,
+            )
         })
         .filter(|r| r.1.is_none_or(|b| bar_ids.contains(b)))
         .collect();
@@ -587,7 +586,6 @@ mod merge_tests {
         assert_eq!(ranges[&(0, 2)].rows, 1);
     }
 }
-
 
 #[cfg(test)]
 mod row_group_tests {

@@ -75,17 +75,18 @@ impl TableRows {
         let kept = |i: &usize| keep[*i];
         let n = keep.iter().filter(|&&k| k).count();
         self.file.extend(std::iter::repeat_n(file, n));
-        self.time
-            .extend((0..ns.len()).filter(kept).map(|i| ns[i]));
+        self.time.extend((0..ns.len()).filter(kept).map(|i| ns[i]));
         let mut scratch = Vec::new();
         for (name, column) in &mut self.text {
             let values = rows.text(name)?;
             column.ids.indices(values, &mut scratch);
-            column.index.extend(
-                (0..values.len())
-                    .filter(kept)
-                    .map(|i| if values.is_null(i) { NULL_ID } else { scratch[i] }),
-            );
+            column.index.extend((0..values.len()).filter(kept).map(|i| {
+                if values.is_null(i) {
+                    NULL_ID
+                } else {
+                    scratch[i]
+                }
+            }));
         }
         for (name, column) in &mut self.real {
             let values = rows.f64(name)?;
@@ -107,8 +108,10 @@ impl TableRows {
         value: &str,
         known: &BTreeSet<&str>,
     ) -> BTreeMap<String, Vec<(i64, Option<f64>)>> {
-        let mut out: BTreeMap<String, Vec<(i64, Option<f64>)>> =
-            known.iter().map(|id| (id.to_string(), Vec::new())).collect();
+        let mut out: BTreeMap<String, Vec<(i64, Option<f64>)>> = known
+            .iter()
+            .map(|id| (id.to_string(), Vec::new()))
+            .collect();
         let (Some(ids), Some(values)) = (self.text(key), self.real(value)) else {
             return out;
         };
@@ -130,7 +133,8 @@ impl TableRows {
             }
         }
         use rayon::prelude::*;
-        out.par_iter_mut().for_each(|(_, rows)| sort_by_time_then_value(rows));
+        out.par_iter_mut()
+            .for_each(|(_, rows)| sort_by_time_then_value(rows));
         out
     }
 }

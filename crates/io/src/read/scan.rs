@@ -257,7 +257,9 @@ pub(super) fn read_table(
 ) -> Result<TableRows, IngestError> {
     let mut table = TableRows::new(columns);
     for (index, path) in files.iter().enumerate() {
-        let time = guarded(path, || read_file(path, columns, index, &mut table, dropped))?;
+        let time = guarded(path, || {
+            read_file(path, columns, index, &mut table, dropped)
+        })?;
         zones.push((path.clone(), time.zoned));
     }
     Ok(table)
@@ -314,16 +316,8 @@ fn times_ns(
     // Every time accepted (the usual file; the check is an interval): one multiplication of the
     // column instead of a pass of per-row checks.
     let all_ok = raw.null_count() == 0
-        && values
-            .iter()
-            .min()
-            .and_then(|&t| unit.to_ns(t))
-            .is_some()
-        && values
-            .iter()
-            .max()
-            .and_then(|&t| unit.to_ns(t))
-            .is_some();
+        && values.iter().min().and_then(|&t| unit.to_ns(t)).is_some()
+        && values.iter().max().and_then(|&t| unit.to_ns(t)).is_some();
     if all_ok {
         return values.iter().map(|&t| t * unit.ns_per_unit).collect();
     }

@@ -198,4 +198,3 @@ pub(super) struct IdSummary {
     pub(super) first_ns: i64,
     pub(super) last_ns: i64,
 }
-
