@@ -77,7 +77,7 @@ pub(super) fn stream_encoders(
     };
     let sinks: Vec<Result<EncoderSink, IngestError>> = std::thread::scope(|scope| {
         let consumers: Vec<_> = (0..BATCH_CONSUMERS)
-            .map(|_| scope.spawn(&consume))
+            .map(|_| scope.spawn(consume))
             .collect();
         consumers
             .into_iter()
