@@ -2,8 +2,8 @@
 //! [`RunPlan`] before any heavy IO; errors get their context here (anyhow) and one clear line.
 //!
 //! The commands that read campaign parquet run in a supervised child of this process
-//! ([`dbbcal::supervise`]): a crash no `catch_unwind` can catch (polars aborting on a corrupt
-//! page) still ends in one line naming the file, exit 3, and nothing left in the output location.
+//! ([`dbbcal::supervise`]): a crash no `catch_unwind` can catch (a parquet decoder aborting on a
+//! corrupt page) still ends in one line naming the file, exit 3, and nothing left in the output location.
 
 use std::path::PathBuf;
 use std::process::ExitCode;

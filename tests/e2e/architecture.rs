@@ -1,8 +1,8 @@
 //! The crate graph holds the architecture's invariants (ARCHITECTURE.md): the compiler then
-//! refuses polars outside `dbbcal-io` and plotters outside `dbbcal-report`. These tests hold the
-//! graph itself, transitively, from `Cargo.lock` (which lists every package's dependencies,
-//! dev-dependencies included: a dev-dependency that pulled polars into core's tests would fail
-//! here too, as it would make core's tests link polars).
+//! refuses parquet/arrow outside `dbbcal-io` and plotters outside `dbbcal-report`. These tests
+//! hold the graph itself, transitively, from `Cargo.lock` (which lists every package's
+//! dependencies, dev-dependencies included: a dev-dependency that pulled parquet into core's
+//! tests would fail here too, as it would make core's tests link parquet).
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -55,11 +55,12 @@ fn check(krate: &str, forbidden: &[&str]) {
 }
 
 #[test]
-fn the_analysis_crate_links_neither_polars_nor_plotters_nor_another_dbbcal_crate() {
+fn the_analysis_crate_links_neither_parquet_nor_plotters_nor_another_dbbcal_crate() {
     check(
         "dbbcal-core",
         &[
-            "polars",
+            "parquet",
+            "arrow-array",
             "plotters",
             "dbbcal-io",
             "dbbcal-report",
@@ -70,12 +71,13 @@ fn the_analysis_crate_links_neither_polars_nor_plotters_nor_another_dbbcal_crate
 }
 
 #[test]
-fn the_machine_kinds_crate_links_neither_polars_nor_plotters_and_of_dbbcal_only_core() {
+fn the_machine_kinds_crate_links_neither_parquet_nor_plotters_and_of_dbbcal_only_core() {
     // dbbcal-core for the kinds' format types (plain data); nothing that reads or draws.
     check(
         "dbbcal-machine",
         &[
-            "polars",
+            "parquet",
+            "arrow-array",
             "plotters",
             "dbbcal-io",
             "dbbcal-report",
@@ -86,15 +88,22 @@ fn the_machine_kinds_crate_links_neither_polars_nor_plotters_and_of_dbbcal_only_
 }
 
 #[test]
-fn only_the_io_crate_and_what_builds_on_it_link_polars() {
-    check("dbbcal-report", &["polars", "dbbcal-core", "dbbcal-io"]);
-    check("dbbcal-testkit", &["polars", "plotters", "dbbcal-core"]);
+fn only_the_io_crate_and_what_builds_on_it_link_parquet() {
+    check(
+        "dbbcal-report",
+        &["parquet", "arrow-array", "dbbcal-core", "dbbcal-io"],
+    );
+    check(
+        "dbbcal-testkit",
+        &["parquet", "arrow-array", "plotters", "dbbcal-core"],
+    );
     check("dbbcal-io", &["plotters", "dbbcal-report", "dbbcal-sim"]);
     check("dbbcal-sim", &["plotters", "dbbcal-report"]);
     check(
         "dbbcal-supervise",
         &[
-            "polars",
+            "parquet",
+            "arrow-array",
             "plotters",
             "dbbcal-core",
             "dbbcal-io",
@@ -103,7 +112,7 @@ fn only_the_io_crate_and_what_builds_on_it_link_polars() {
     );
     let graph = lock_graph();
     assert!(
-        closure(&graph, "dbbcal-io").contains("polars"),
+        closure(&graph, "dbbcal-io").contains("parquet"),
         "the io crate reads parquet"
     );
     assert!(
@@ -144,7 +153,7 @@ fn resolved_features(selection: &[&str]) -> BTreeMap<String, BTreeSet<String>> {
 
 /// `cargo test -p dbbcal-io` or `-p dbbcal-sim` resolves every package they share with the
 /// workspace with the workspace's features (the pins in `crates/io/Cargo.toml`): otherwise
-/// each such selection builds polars a second time.
+/// each such selection builds parquet/arrow a second time.
 #[test]
 fn testing_one_member_reuses_the_workspaces_build_of_its_dependencies() {
     let workspace = resolved_features(&["--workspace"]);
@@ -160,8 +169,8 @@ fn testing_one_member_reuses_the_workspaces_build_of_its_dependencies() {
             "-p {member} resolves other features for {differ:?}"
         );
         assert!(
-            alone.keys().any(|p| p.starts_with("polars ")),
-            "{member} builds on polars"
+            alone.keys().any(|p| p.starts_with("parquet ")),
+            "{member} builds on parquet"
         );
     }
 }

@@ -1,4 +1,4 @@
-//! The one integration-test binary (each extra one would link polars again).
+//! The one integration-test binary (each extra one would link parquet/arrow again).
 //! Data-driven through small `check(...)` helpers in each module.
 
 mod acceptance;

@@ -9,7 +9,7 @@
 //! [`acceptance::accept_fleet`]); a per-bar stage returns a [`stage::StageOutcome`].
 //! The `axis` machine kind's format types and reader rules are in [`axis_campaign`].
 //!
-//! INVARIANT (enforced by this crate's dependencies): no polars, no plotters, no file IO but
+//! INVARIANT (enforced by this crate's dependencies): no parquet/arrow, no plotters, no file IO but
 //! the text of a `campaign.toml` handed in by the caller. Ingest (`dbbcal-io`) gives this crate
 //! [`series::CampaignLogs`]; the application writes what it returns. See ARCHITECTURE.md.
 pub mod acceptance;

@@ -1,4 +1,4 @@
-//! Plain, typed time series: what ingest hands to every later stage (no polars past this point).
+//! Plain, typed time series: what ingest hands to every later stage (no parquet/arrow past this point).
 //!
 //! [`CampaignLogs`] is the whole campaign as read from disk, per bar and per sensor, sorted by
 //! time. [`BarSeries`] (built by `BarSeries::build`) is what the fits use: one bar's readings

@@ -1,10 +1,12 @@
-//! The floor under `dbbcal ingest`: how long this crate's polars takes just to decode a
+//! The floor under `dbbcal ingest`: how long this crate's parquet reader takes just to decode a
 //! campaign's encoder files, the same columns `dbbcal` reads, with nothing done to the rows.
 //!
 //! Two ways, best of `--repeat` runs each:
-//! * `collect`: `scan_parquet` + `collect` into memory, as `bench/bare_scan.py` does in Python;
-//! * `stream`: the streaming engine handing over batches (`sink_batches`), as ingest reads the
-//!   encoder files (one scan over all of them), the batches dropped on arrival.
+//! * `collect`: every file decoded into memory (its batches kept until the file is done), row
+//!   groups in parallel on every core, as `bench/bare_scan.py` does in Python;
+//! * `stream`: as ingest reads the encoder files: two threads each take the files' row groups in
+//!   turn and decode them in batches (`time`, `bar` as a dictionary, `counts`), the batches
+//!   dropped on arrival.
 //!
 //! ```text
 //! cargo run --release -p dbbcal-io --features bench-tools --example decode_floor -- bench/out/campaign-full \
@@ -12,16 +14,27 @@
 //! ```
 //!
 //! A benchmark tool (`bench/run.sh` runs it), built only with the `bench-tools` feature so that
-//! `cargo test` does not link polars once more.
+//! `cargo test` does not link it.
 
-use std::path::PathBuf;
+use std::fs::File;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context;
-use polars::lazy::dsl::Engine;
-use polars::prelude::*;
+use arrow_array::RecordBatch;
+use arrow_schema::{DataType, Field, Schema};
+use parquet::arrow::arrow_reader::{
+    ArrowReaderMetadata, ArrowReaderOptions, ParquetRecordBatchReaderBuilder,
+};
+use parquet::arrow::ProjectionMask;
+use rayon::prelude::*;
+
+/// Rows of a batch, as ingest decodes them.
+const BATCH_ROWS: usize = 64 * 1024;
+/// Threads of the `stream` way, as ingest's consumers.
+const STREAM_THREADS: usize = 2;
 
 fn encoder_files(campaign: &str) -> anyhow::Result<Vec<PathBuf>> {
     let dir = PathBuf::from(campaign).join("encoders");
@@ -35,53 +48,126 @@ fn encoder_files(campaign: &str) -> anyhow::Result<Vec<PathBuf>> {
     Ok(files)
 }
 
-fn scan(path: &std::path::Path) -> PolarsResult<LazyFrame> {
-    let args = ScanArgsParquet {
-        glob: false,
-        ..Default::default()
-    };
-    let lazy = LazyFrame::scan_parquet(PlRefPath::try_from_path(path)?, args)?;
-    Ok(lazy.select([
-        col("time").cast(DataType::Int64),
-        col("bar").cast(DataType::String),
-        col("counts").cast(DataType::Int64),
-    ]))
+/// A file's footer with `bar` read as a dictionary (as ingest reads ids), and the mask of the
+/// three columns.
+struct Opened {
+    path: PathBuf,
+    meta: ArrowReaderMetadata,
+    mask: ProjectionMask,
 }
 
-/// Rows decoded by collecting every file into memory.
-fn collect(files: &[PathBuf]) -> PolarsResult<usize> {
+fn open(path: &Path) -> anyhow::Result<Opened> {
+    let file = File::open(path).with_context(|| path.display().to_string())?;
+    let plain = ArrowReaderMetadata::load(&file, ArrowReaderOptions::new())?;
+    let fields: Vec<Field> = plain
+        .schema()
+        .fields()
+        .iter()
+        .map(|f| match f.name().as_str() {
+            "bar" => f.as_ref().clone().with_data_type(DataType::Dictionary(
+                Box::new(DataType::Int32),
+                Box::new(DataType::Utf8),
+            )),
+            _ => f.as_ref().clone(),
+        })
+        .collect();
+    let options = ArrowReaderOptions::new().with_schema(Arc::new(Schema::new(fields)));
+    let meta = ArrowReaderMetadata::try_new(plain.metadata().clone(), options)?;
+    let schema = meta.schema();
+    let roots = ["time", "bar", "counts"]
+        .iter()
+        .map(|n| schema.index_of(n))
+        .collect::<Result<Vec<_>, _>>()?;
+    let descr = meta.metadata().file_metadata().schema_descr_ptr();
+    let mask = ProjectionMask::roots(&descr, roots);
+    Ok(Opened {
+        path: path.to_path_buf(),
+        meta,
+        mask,
+    })
+}
+
+/// The batches of row group `group`, each handed to `each`; the rows decoded.
+fn decode_group(
+    opened: &Opened,
+    group: usize,
+    each: &mut dyn FnMut(RecordBatch),
+) -> anyhow::Result<usize> {
+    // A file of its own: a clone would share its offset with another thread's reader.
+    let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(
+        File::open(&opened.path)?,
+        opened.meta.clone(),
+    )
+    .with_projection(opened.mask.clone())
+    .with_batch_size(BATCH_ROWS)
+    .with_row_groups(vec![group])
+    .build()?;
     let mut rows = 0;
-    for path in files {
-        rows += scan(path)?.collect()?.height();
+    for batch in reader {
+        let batch = batch?;
+        rows += batch.num_rows();
+        each(batch);
     }
     Ok(rows)
 }
 
-/// Rows decoded by streaming every file in batches, each dropped as it arrives: one scan over
-/// all the files, as ingest reads files of one schema.
-fn stream(files: &[PathBuf]) -> PolarsResult<usize> {
-    let rows = Arc::new(AtomicUsize::new(0));
-    let seen = rows.clone();
-    let callback = PlanCallback::new(move |batch: DataFrame| {
-        seen.fetch_add(batch.height(), Ordering::Relaxed);
-        Ok(false)
-    });
-    let args = ScanArgsParquet {
-        glob: false,
-        ..Default::default()
-    };
-    let paths: Vec<PlRefPath> = files
+/// Every (file, row group), in file order.
+fn tasks(files: &[Opened]) -> Vec<(usize, usize)> {
+    files
         .iter()
-        .map(|p| PlRefPath::try_from_path(p))
-        .collect::<PolarsResult<_>>()?;
-    LazyFrame::scan_parquet_files(paths.into(), args)?
-        .select([
-            col("time").cast(DataType::Int64),
-            col("bar").cast(DataType::String),
-            col("counts").cast(DataType::Int64),
-        ])
-        .sink_batches(callback, true, None)?
-        .collect_with_engine(Engine::Streaming)?;
+        .enumerate()
+        .flat_map(|(f, o)| (0..o.meta.metadata().num_row_groups()).map(move |g| (f, g)))
+        .collect()
+}
+
+/// Rows decoded by collecting every file into memory, its row groups in parallel.
+fn collect(paths: &[PathBuf]) -> anyhow::Result<usize> {
+    let mut rows = 0;
+    for path in paths {
+        let opened = [open(path)?];
+        let kept: Vec<Vec<RecordBatch>> = tasks(&opened)
+            .par_iter()
+            .map(|&(_, g)| {
+                let mut batches = Vec::new();
+                decode_group(&opened[0], g, &mut |b| batches.push(b))?;
+                Ok(batches)
+            })
+            .collect::<anyhow::Result<_>>()?;
+        rows += kept
+            .iter()
+            .flatten()
+            .map(RecordBatch::num_rows)
+            .sum::<usize>();
+    }
+    Ok(rows)
+}
+
+/// Rows decoded by streaming every file's row groups on two threads, batches dropped.
+fn stream(paths: &[PathBuf]) -> anyhow::Result<usize> {
+    let files = paths
+        .iter()
+        .map(|p| open(p))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let work = tasks(&files);
+    let (next, rows) = (AtomicUsize::new(0), AtomicUsize::new(0));
+    std::thread::scope(|scope| -> anyhow::Result<()> {
+        let threads: Vec<_> = (0..STREAM_THREADS)
+            .map(|_| {
+                scope.spawn(|| -> anyhow::Result<()> {
+                    while let Some(&(f, g)) = work.get(next.fetch_add(1, Ordering::Relaxed)) {
+                        let n = decode_group(&files[f], g, &mut drop)?;
+                        rows.fetch_add(n, Ordering::Relaxed);
+                    }
+                    Ok(())
+                })
+            })
+            .collect();
+        for t in threads {
+            t.join()
+                .map_err(|_| anyhow::anyhow!("a decoding thread panicked"))??;
+        }
+        Ok(())
+    })?;
     Ok(rows.load(Ordering::Relaxed))
 }
 
@@ -109,7 +195,10 @@ fn run() -> anyhow::Result<()> {
     let files = encoder_files(&campaign)?;
     let mut record = serde_json::Map::new();
     for (name, decode) in [
-        ("collect", collect as fn(&[PathBuf]) -> PolarsResult<usize>),
+        (
+            "collect",
+            collect as fn(&[PathBuf]) -> anyhow::Result<usize>,
+        ),
         ("stream", stream),
     ] {
         let mut runs = Vec::new();

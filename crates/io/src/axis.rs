@@ -1,4 +1,4 @@
-//! Reading an `axis` campaign (`docs/spec/machine-formats.md`, "Kind axis") with polars and
+//! Reading an `axis` campaign (`docs/spec/machine-formats.md`, "Kind axis") with the parquet crate and
 //! handing it over as plain data ([`AxisCampaignLogs`]).
 //!
 //! Small tables (a few thousand readings): each file is decoded whole under
@@ -20,12 +20,16 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use polars::prelude::*;
+use arrow_array::cast::AsArray;
+use arrow_array::types::{Float64Type, Int64Type};
+use arrow_array::{ArrayRef, RecordBatch};
+use arrow_cast::CastOptions;
+use arrow_schema::{DataType, TimeUnit};
 
 use super::guard::guarded;
 use super::inputs::{check_unchanged, parquet_files};
 use super::kind_read::{kind_manifest_text, required_table, snapshot};
-use super::{one_line, IngestError};
+use super::IngestError;
 use dbbcal_core::axis_campaign::{
     derive_order, AxisCampaign, AxisCampaignLogs, AxisReading, CampaignKind, Channel,
     EnvironmentRow, ExtraColumn, FixtureRow, ReadingKey,
@@ -117,54 +121,53 @@ pub fn read_axis_manifest(dir: &Path) -> Result<AxisCampaign, IngestError> {
 /// One decoded file.
 pub(crate) struct Decoded<'a> {
     path: &'a Path,
-    pub(crate) df: DataFrame,
+    batch: RecordBatch,
 }
 
-fn polars_failed(path: &Path) -> impl Fn(PolarsError) -> IngestError + '_ {
-    move |e| IngestError::NotParquet {
-        path: path.to_path_buf(),
-        reason: one_line(e),
-    }
-}
+/// A cast that refuses a value it cannot hold (a `u64` beyond `i64`) instead of nulling it.
+const STRICT: CastOptions<'static> = CastOptions {
+    safe: false,
+    format_options: arrow_cast::display::FormatOptions::new(),
+};
 
 impl<'a> Decoded<'a> {
     pub(crate) fn read(path: &'a Path) -> Result<Decoded<'a>, IngestError> {
-        let df = guarded(path, || {
-            let file = std::fs::File::open(path).map_err(|e| IngestError::Io {
-                path: path.to_path_buf(),
-                message: e.to_string(),
-            })?;
-            ParquetReader::new(file)
-                .finish()
-                .map_err(polars_failed(path))
-        })?;
-        Ok(Decoded { path, df })
+        let batch = guarded(path, || crate::pq::read_whole(path))?;
+        Ok(Decoded { path, batch })
     }
 
     pub(crate) fn rows(&self) -> usize {
-        self.df.height()
+        self.batch.num_rows()
     }
 
     pub(crate) fn has(&self, name: &str) -> bool {
-        self.df
-            .get_column_names()
-            .iter()
-            .any(|n| n.as_str() == name)
+        self.batch.schema().index_of(name).is_ok()
     }
 
-    pub(crate) fn column(&self, name: &'static str) -> Result<&Column, IngestError> {
-        self.df
-            .column(name)
-            .map_err(|_| IngestError::MissingColumn {
+    /// The names of the file's columns, in order.
+    pub(crate) fn names(&self) -> Vec<String> {
+        self.batch
+            .schema()
+            .fields()
+            .iter()
+            .map(|f| f.name().to_string())
+            .collect()
+    }
+
+    /// Whether column `name` is present with no type (every value null).
+    pub(crate) fn is_null_typed(&self, name: &str) -> bool {
+        self.batch
+            .column_by_name(name)
+            .is_some_and(|c| c.data_type() == &DataType::Null)
+    }
+
+    pub(crate) fn column(&self, name: &'static str) -> Result<&ArrayRef, IngestError> {
+        self.batch
+            .column_by_name(name)
+            .ok_or_else(|| IngestError::MissingColumn {
                 path: self.path.to_path_buf(),
                 column: name,
-                found: self
-                    .df
-                    .get_column_names()
-                    .iter()
-                    .map(|n| n.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                found: self.names().join(", "),
             })
     }
 
@@ -177,31 +180,36 @@ impl<'a> Decoded<'a> {
         IngestError::WrongType {
             path: self.path.to_path_buf(),
             column: name,
-            found: found.to_string(),
+            found: crate::pq::type_name(found),
             expected,
         }
+    }
+
+    /// `column` cast to `to`, refusing values it cannot hold.
+    fn cast(&self, column: &ArrayRef, to: &DataType) -> Result<ArrayRef, IngestError> {
+        arrow_cast::cast_with_options(column, to, &STRICT)
+            .map_err(|e| crate::pq::not_parquet(self.path, e))
     }
 
     /// A timestamp column as ns UTC (`None`: null); a time that overflows ns or lies outside
     /// 1980 … 2200 refuses the rows.
     pub(crate) fn time(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
         let column = self.column(name)?;
-        let DataType::Datetime(unit, _) = column.dtype() else {
+        let DataType::Timestamp(unit, _) = column.data_type() else {
             return Err(self.wrong_type(
                 name,
-                column.dtype(),
+                column.data_type(),
                 "a timestamp (ns, us or ms; naive or zoned)",
             ));
         };
         let per: i64 = match unit {
-            TimeUnit::Nanoseconds => 1,
-            TimeUnit::Microseconds => 1_000,
-            TimeUnit::Milliseconds => 1_000_000,
+            TimeUnit::Nanosecond => 1,
+            TimeUnit::Microsecond => 1_000,
+            TimeUnit::Millisecond => 1_000_000,
+            TimeUnit::Second => 1_000_000_000,
         };
-        let raw = column
-            .cast(&DataType::Int64)
-            .map_err(polars_failed(self.path))?;
-        let raw = raw.i64().map_err(polars_failed(self.path))?;
+        let raw = self.cast(column, &DataType::Int64)?;
+        let raw = raw.as_primitive::<Int64Type>();
         let mut bad = Bad::default();
         let values: Vec<Option<i64>> = raw
             .iter()
@@ -227,51 +235,32 @@ impl<'a> Decoded<'a> {
     /// An integer column (int8 … int64, uint8 … uint64) as i64.
     pub(crate) fn int(&self, name: &'static str) -> Result<Vec<Option<i64>>, IngestError> {
         let column = self.column(name)?;
-        if !column.dtype().is_integer() {
-            return Err(self.wrong_type(name, column.dtype(), "an integer (int8 .. int64)"));
+        if !column.data_type().is_integer() {
+            return Err(self.wrong_type(name, column.data_type(), "an integer (int8 .. int64)"));
         }
-        let cast = column
-            .strict_cast(&DataType::Int64)
-            .map_err(polars_failed(self.path))?;
-        Ok(cast
-            .i64()
-            .map_err(polars_failed(self.path))?
-            .iter()
-            .collect())
+        let cast = self.cast(column, &DataType::Int64)?;
+        Ok(cast.as_primitive::<Int64Type>().iter().collect())
     }
 
     /// A float column (float32 or float64) as f64.
     pub(crate) fn real(&self, name: &'static str) -> Result<Vec<Option<f64>>, IngestError> {
         let column = self.column(name)?;
-        if !column.dtype().is_float() {
-            return Err(self.wrong_type(name, column.dtype(), "float64"));
+        if !column.data_type().is_floating() {
+            return Err(self.wrong_type(name, column.data_type(), "float64"));
         }
-        let cast = column
-            .cast(&DataType::Float64)
-            .map_err(polars_failed(self.path))?;
-        Ok(cast
-            .f64()
-            .map_err(polars_failed(self.path))?
-            .iter()
-            .collect())
+        let cast = self.cast(column, &DataType::Float64)?;
+        Ok(cast.as_primitive::<Float64Type>().iter().collect())
     }
 
     /// A utf8 or dictionary(utf8) column as strings.
     pub(crate) fn text(&self, name: &'static str) -> Result<Vec<Option<String>>, IngestError> {
         let column = self.column(name)?;
-        let ok = matches!(
-            column.dtype(),
-            DataType::String | DataType::Categorical(..) | DataType::Enum(..)
-        );
-        if !ok {
-            return Err(self.wrong_type(name, column.dtype(), "utf8 or dictionary(utf8)"));
+        if !crate::pq::is_text_or_dictionary(column.data_type()) {
+            return Err(self.wrong_type(name, column.data_type(), "utf8 or dictionary(utf8)"));
         }
-        let cast = column
-            .cast(&DataType::String)
-            .map_err(polars_failed(self.path))?;
+        let cast = self.cast(column, &DataType::Utf8)?;
         Ok(cast
-            .str()
-            .map_err(polars_failed(self.path))?
+            .as_string::<i32>()
             .iter()
             .map(|s| s.map(str::to_string))
             .collect())
@@ -293,16 +282,17 @@ impl<'a> Decoded<'a> {
     /// An extra column kept by name: numbers and booleans as f64, anything else as text
     /// (`None`: a type that has no text form, left out).
     fn extra(&self, name: &str) -> Option<ExtraColumn> {
-        let column = self.df.column(name).ok()?;
-        let dtype = column.dtype();
-        if dtype.is_primitive_numeric() || dtype.is_bool() {
-            let cast = column.cast(&DataType::Float64).ok()?;
-            return Some(ExtraColumn::Real(cast.f64().ok()?.iter().collect()));
+        let column = self.batch.column_by_name(name)?;
+        let dtype = column.data_type();
+        if dtype.is_numeric() || dtype == &DataType::Boolean {
+            let cast = arrow_cast::cast(column, &DataType::Float64).ok()?;
+            return Some(ExtraColumn::Real(
+                cast.as_primitive::<Float64Type>().iter().collect(),
+            ));
         }
-        let cast = column.cast(&DataType::String).ok()?;
+        let cast = arrow_cast::cast(column, &DataType::Utf8).ok()?;
         Some(ExtraColumn::Text(
-            cast.str()
-                .ok()?
+            cast.as_string::<i32>()
                 .iter()
                 .map(|s| s.map(str::to_string))
                 .collect(),
@@ -512,10 +502,8 @@ fn read_readings(files: &[PathBuf], campaign: &AxisCampaign) -> Result<Readings,
             source.push((f, row as u64));
         }
         let names: Vec<String> = file
-            .df
-            .get_column_names()
-            .iter()
-            .map(|n| n.to_string())
+            .names()
+            .into_iter()
             .filter(|n| !READING_COLUMNS.contains(&n.as_str()))
             .collect();
         for name in names {

@@ -1,10 +1,9 @@
-//! Tests of the `axis` reader and writer: small parquet files written with polars directly, in
+//! Tests of the `axis` reader and writer: small parquet files written with the parquet crate directly, in
 //! the forms the reader rules allow and in the broken forms it must name.
 
 use std::path::Path;
 
-use polars::prelude as pl;
-use polars::prelude::{DataType, IntoColumn};
+use crate::test_frames::{col, df, dict_col, raw_time_col, write_df, Col, Unit};
 
 use super::{read_axis_campaign, write_axis_campaign, AxisWriteOptions, TimeUnit};
 use dbbcal_core::axis_campaign::{
@@ -97,35 +96,32 @@ fn write(dir: &Path, opts: &AxisWriteOptions) {
     write_axis_campaign(dir, &manifest(), &tables(), opts).unwrap();
 }
 
-fn write_df(path: &Path, mut df: pl::DataFrame) {
-    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-    let file = std::fs::File::create(path).unwrap();
-    pl::ParquetWriter::new(file).finish(&mut df).unwrap();
-}
-
-fn time_col(ns: &[i64]) -> pl::Column {
-    pl::Int64Chunked::from_vec("time".into(), ns.to_vec())
-        .into_datetime(pl::TimeUnit::Nanoseconds, None)
-        .into_column()
+fn time_col(ns: &[i64]) -> Col {
+    raw_time_col(
+        "time",
+        ns.iter().map(|&t| Some(t)).collect(),
+        Unit::Nanoseconds,
+        None,
+    )
 }
 
 /// A readings file of `n` rows with the standard columns: line 1, run 1, targets 0, 10, ….
-fn readings_df(n: usize) -> Vec<pl::Column> {
+fn readings_df(n: usize) -> Vec<Col> {
     let times: Vec<i64> = (0..n as i64).map(|i| T0 + i * S).collect();
     vec![
         time_col(&times),
-        pl::Column::new("line".into(), vec![1i64; n]),
-        pl::Column::new("run".into(), vec![1i64; n]),
-        pl::Column::new(
-            "target_mm".into(),
+        col("line", vec![1i64; n]),
+        col("run", vec![1i64; n]),
+        col(
+            "target_mm",
             (0..n).map(|i| i as f64 * 10.0).collect::<Vec<_>>(),
         ),
-        pl::Column::new("channel".into(), vec!["dx"; n]),
-        pl::Column::new("deviation_um".into(), vec![0.5f64; n]),
+        col("channel", vec!["dx"; n]),
+        col("deviation_um", vec![0.5f64; n]),
     ]
 }
 
-fn replace(mut columns: Vec<pl::Column>, column: pl::Column) -> Vec<pl::Column> {
+fn replace(mut columns: Vec<Col>, column: Col) -> Vec<Col> {
     match columns.iter().position(|c| c.name() == column.name()) {
         Some(i) => columns[i] = column,
         None => columns.push(column),
@@ -135,14 +131,11 @@ fn replace(mut columns: Vec<pl::Column>, column: pl::Column) -> Vec<pl::Column> 
 
 /// A campaign of the manifest (compensation = air) with one readings file of `columns` and a
 /// good environment; the reader's error, one line.
-fn error_with(columns: Vec<pl::Column>) -> String {
+fn error_with(columns: Vec<Col>) -> String {
     let dir = tempfile::tempdir().unwrap();
     write(dir.path(), &AxisWriteOptions::default());
     std::fs::remove_file(dir.path().join("readings/readings.parquet")).unwrap();
-    write_df(
-        &dir.path().join("readings/bad.parquet"),
-        pl::DataFrame::new_infer_height(columns).unwrap(),
-    );
+    write_df(&dir.path().join("readings/bad.parquet"), df(columns));
     let e = read_axis_campaign(dir.path())
         .expect_err("should fail")
         .to_string();
@@ -222,21 +215,18 @@ fn narrow_integers_zoned_times_and_extra_columns_are_read() {
     std::fs::remove_file(dir.path().join("readings/readings.parquet")).unwrap();
     let n = 4;
     let times: Vec<i64> = (0..n as i64).map(|i| (T0 + i * S) / 1000).collect();
-    let zoned = pl::Int64Chunked::from_vec("time".into(), times)
-        .into_datetime(
-            pl::TimeUnit::Microseconds,
-            pl::TimeZone::opt_try_new(Some("Europe/Berlin")).unwrap(),
-        )
-        .into_column();
-    let mut columns = replace(readings_df(n), zoned);
-    columns = replace(columns, pl::Column::new("line".into(), vec![1i8; n]));
-    columns = replace(columns, pl::Column::new("run".into(), vec![1u32; n]));
-    columns.push(pl::Column::new("laser_temp_c".into(), vec![21.5f32; n]));
-    columns.push(pl::Column::new("operator".into(), vec!["ann"; n]));
-    write_df(
-        &dir.path().join("readings/r.parquet"),
-        pl::DataFrame::new_infer_height(columns).unwrap(),
+    let zoned = raw_time_col(
+        "time",
+        times.into_iter().map(Some).collect(),
+        Unit::Microseconds,
+        Some("Europe/Berlin"),
     );
+    let mut columns = replace(readings_df(n), zoned);
+    columns = replace(columns, col("line", vec![1i8; n]));
+    columns = replace(columns, col("run", vec![1u32; n]));
+    columns.push(col("laser_temp_c", vec![21.5f32; n]));
+    columns.push(col("operator", vec!["ann"; n]));
+    write_df(&dir.path().join("readings/r.parquet"), df(columns));
     let logs = read_axis_campaign(dir.path()).unwrap();
     assert_eq!(logs.readings.len(), n);
     assert_eq!(logs.readings[1].time_ns, T0 + S);
@@ -254,7 +244,7 @@ fn narrow_integers_zoned_times_and_extra_columns_are_read() {
 #[test]
 fn every_bad_input_is_named_by_file_column_and_rows() {
     let n = 5;
-    let cases: Vec<(Vec<pl::Column>, &[&str])> = vec![
+    let cases: Vec<(Vec<Col>, &[&str])> = vec![
         (
             readings_df(n)
                 .into_iter()
@@ -263,10 +253,7 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
             &["bad.parquet: missing column `channel`"],
         ),
         (
-            replace(
-                readings_df(n),
-                pl::Column::new("target_mm".into(), vec!["0"; n]),
-            ),
+            replace(readings_df(n), col("target_mm", vec!["0"; n])),
             &[
                 "bad.parquet: column `target_mm` has type",
                 "expected float64",
@@ -275,7 +262,7 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
         (
             replace(
                 readings_df(n),
-                pl::Column::new("channel".into(), ["dx", "dx", "dw", "dx", "x"]),
+                col("channel", ["dx", "dx", "dw", "dx", "x"]),
             ),
             &[
                 "column `channel`: 2 rows (rows 2 .. 4",
@@ -284,38 +271,29 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
             ],
         ),
         (
-            replace(
-                readings_df(n),
-                pl::Column::new("line".into(), [1i64, 7, 7, 1, 1]),
-            ),
+            replace(readings_df(n), col("line", [1i64, 7, 7, 1, 1])),
             &["bad.parquet: 2 rows", "have line \"7\"", "known: 1, 2, 3"],
         ),
         (
             replace(
                 readings_df(n),
-                pl::Column::new("deviation_um".into(), [0.5, 0.5, 0.5, f64::NAN, 0.5]),
+                col("deviation_um", [0.5, 0.5, 0.5, f64::NAN, 0.5]),
             ),
             &["column `deviation_um`: 1 rows (rows 3 .. 3", "NaN"],
         ),
         (
             replace(
                 readings_df(n),
-                pl::Column::new("run".into(), [Some(1i64), None, Some(1), Some(1), Some(1)]),
+                col("run", [Some(1i64), None, Some(1), Some(1), Some(1)]),
             ),
             &["column `run`: 1 rows (rows 1 .. 1", "are null"],
         ),
         (
-            replace(
-                readings_df(n),
-                pl::Column::new("run".into(), [1i64, 1, 0, 1, 1]),
-            ),
+            replace(readings_df(n), col("run", [1i64, 1, 0, 1, 1])),
             &["column `run`", "runs count from 1"],
         ),
         (
-            replace(
-                readings_df(n),
-                pl::Column::new("direction".into(), [1i64, 1, 3, 1, 1]),
-            ),
+            replace(readings_df(n), col("direction", [1i64, 1, 3, 1, 1])),
             &[
                 "column `direction`: 1 rows (rows 2 .. 2",
                 "neither +1 nor -1",
@@ -331,10 +309,7 @@ fn every_bad_input_is_named_by_file_column_and_rows() {
             ],
         ),
         (
-            replace(
-                readings_df(n),
-                pl::Column::new("target_mm".into(), vec![10.0; n]),
-            ),
+            replace(readings_df(n), col("target_mm", vec![10.0; n])),
             &["of line 1, run 1", "cannot be derived"],
         ),
         (
@@ -400,19 +375,11 @@ fn the_environment_is_required_and_checked() {
 
 #[test]
 fn dictionary_channels_and_categorical_casts_stay_strings() {
-    let columns = replace(
-        readings_df(3),
-        pl::Column::new("channel".into(), ["dx", "dy", "dz"])
-            .cast(&DataType::from_categories(pl::Categories::global()))
-            .unwrap(),
-    );
+    let columns = replace(readings_df(3), dict_col("channel", &["dx", "dy", "dz"]));
     let dir = tempfile::tempdir().unwrap();
     write(dir.path(), &AxisWriteOptions::default());
     std::fs::remove_file(dir.path().join("readings/readings.parquet")).unwrap();
-    write_df(
-        &dir.path().join("readings/r.parquet"),
-        pl::DataFrame::new_infer_height(columns).unwrap(),
-    );
+    write_df(&dir.path().join("readings/r.parquet"), df(columns));
     let logs = read_axis_campaign(dir.path()).unwrap();
     let channels: Vec<Channel> = logs.readings.iter().map(|r| r.channel).collect();
     assert_eq!(channels, [Channel::Dx, Channel::Dy, Channel::Dz]);
@@ -447,33 +414,30 @@ fn extra_columns_follow_their_rows_through_any_order() {
         let times: Vec<i64> = part.iter().map(|r| r.time_ns).collect();
         let mut columns = vec![
             time_col(&times),
-            pl::Column::new(
-                "line".into(),
-                part.iter().map(|r| r.line).collect::<Vec<_>>(),
-            ),
-            pl::Column::new("run".into(), part.iter().map(|r| r.run).collect::<Vec<_>>()),
-            pl::Column::new(
-                "target_mm".into(),
+            col("line", part.iter().map(|r| r.line).collect::<Vec<_>>()),
+            col("run", part.iter().map(|r| r.run).collect::<Vec<_>>()),
+            col(
+                "target_mm",
                 part.iter().map(|r| r.target_mm).collect::<Vec<_>>(),
             ),
-            pl::Column::new(
-                "channel".into(),
+            col(
+                "channel",
                 part.iter().map(|r| r.channel.as_str()).collect::<Vec<_>>(),
             ),
-            pl::Column::new(
-                "deviation_um".into(),
+            col(
+                "deviation_um",
                 part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
             ),
         ];
         if with_extra {
-            columns.push(pl::Column::new(
-                "copy".into(),
+            columns.push(col(
+                "copy",
                 part.iter().map(|r| r.deviation_um).collect::<Vec<_>>(),
             ));
         }
         write_df(
             &dir.path().join(format!("readings/{name}.parquet")),
-            pl::DataFrame::new_infer_height(columns).unwrap(),
+            df(columns),
         );
     }
     let logs = read_axis_campaign(dir.path()).unwrap();

@@ -4,11 +4,12 @@
 
 use std::path::Path;
 
-use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::kind_write::{f64_column, polars_err, prepare, time_column, write_manifest};
+use super::kind_write::{
+    column, dictionary, f64_column, prepare, time_column, write_manifest, Columns,
+};
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::axis_campaign::{AxisCampaignTables, AxisManifest, AxisReading};
 
@@ -75,8 +76,7 @@ pub fn write_axis_campaign(
             rows.shuffle(&mut rng);
         }
         let path = folder.join(format!("{name}.parquet"));
-        let mut df = readings_frame(&rows, opts).map_err(polars_err(&path))?;
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, readings_frame(&rows, opts))?;
     }
 
     let folder = dir.join("fixture");
@@ -89,17 +89,12 @@ pub fn write_axis_campaign(
         let path = folder.join("fixture.parquet");
         let columns = vec![
             time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
-            Series::new(
-                "line".into(),
-                rows.iter().map(|r| r.line).collect::<Vec<_>>(),
-            )
-            .into_column(),
+            column("line", rows.iter().map(|r| r.line).collect::<Vec<_>>()),
             f64_column("x_mm", rows.iter().map(|r| r.reflector_mm[0])),
             f64_column("y_mm", rows.iter().map(|r| r.reflector_mm[1])),
             f64_column("z_mm", rows.iter().map(|r| r.reflector_mm[2])),
         ];
-        let mut df = DataFrame::new(rows.len(), columns).map_err(polars_err(&path))?;
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, columns)?;
     }
 
     let folder = dir.join("environment");
@@ -115,55 +110,42 @@ pub fn write_axis_campaign(
             f64_column("air_c", rows.iter().map(|r| r.air_c)),
             f64_column("pressure_hpa", rows.iter().map(|r| r.pressure_hpa)),
             f64_column("humidity_pct", rows.iter().map(|r| r.humidity_pct)),
-            Series::new(
-                "material_c".into(),
+            column(
+                "material_c",
                 rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),
-            )
-            .into_column(),
-            Series::new(
-                "env_factor_ppm".into(),
+            ),
+            column(
+                "env_factor_ppm",
                 rows.iter().map(|r| r.env_factor_ppm).collect::<Vec<_>>(),
-            )
-            .into_column(),
+            ),
         ];
-        let mut df = DataFrame::new(rows.len(), columns).map_err(polars_err(&path))?;
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, columns)?;
     }
     Ok(())
 }
 
-fn readings_frame(rows: &[&AxisReading], opts: &AxisWriteOptions) -> PolarsResult<DataFrame> {
+fn readings_frame(rows: &[&AxisReading], opts: &AxisWriteOptions) -> Columns {
     let mut columns = vec![
         time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
-        Series::new(
-            "line".into(),
-            rows.iter().map(|r| r.line).collect::<Vec<_>>(),
-        )
-        .into_column(),
-        Series::new("run".into(), rows.iter().map(|r| r.run).collect::<Vec<_>>()).into_column(),
+        column("line", rows.iter().map(|r| r.line).collect::<Vec<_>>()),
+        column("run", rows.iter().map(|r| r.run).collect::<Vec<_>>()),
     ];
     if opts.write_direction {
-        columns.push(
-            Series::new(
-                "direction".into(),
-                rows.iter().map(|r| r.direction).collect::<Vec<i8>>(),
-            )
-            .into_column(),
-        );
+        columns.push(column(
+            "direction",
+            rows.iter().map(|r| r.direction).collect::<Vec<i8>>(),
+        ));
     }
     columns.push(f64_column("target_mm", rows.iter().map(|r| r.target_mm)));
-    let channel = Column::new(
-        "channel".into(),
-        rows.iter().map(|r| r.channel.as_str()).collect::<Vec<_>>(),
-    );
+    let channel = rows.iter().map(|r| r.channel.as_str());
     columns.push(if opts.dictionary_strings {
-        channel.cast(&DataType::from_categories(Categories::global()))?
+        dictionary("channel", channel)
     } else {
-        channel
+        column("channel", channel.collect::<Vec<_>>())
     });
     columns.push(f64_column(
         "deviation_um",
         rows.iter().map(|r| r.deviation_um),
     ));
-    DataFrame::new(rows.len(), columns)
+    columns
 }

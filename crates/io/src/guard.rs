@@ -1,4 +1,4 @@
-//! A panic inside a dependency (polars on a corrupt page) must not end the run with a backtrace:
+//! A panic inside a dependency (the parquet decoder on a corrupt page) must not end the run with a backtrace:
 //! every read of a file runs under [`guarded`], which turns a panic into one
 //! [`IngestError::Panicked`] line naming the file (exit 3). While a guard is active the panic
 //! hook stays silent (the message becomes the error's); outside it the default hook prints.
@@ -14,7 +14,7 @@ use std::sync::Once;
 
 use super::{one_line, IngestError};
 
-/// Guards running now (polars may panic on one of its own threads: the hook cannot tell whose).
+/// Guards running now (several consumer threads decode at once: the hook cannot tell whose).
 static ACTIVE: AtomicUsize = AtomicUsize::new(0);
 static HOOK: Once = Once::new();
 
@@ -29,22 +29,13 @@ fn install_quiet_hook() {
     });
 }
 
-/// Runs `f`, the reading of `path`; a panic inside becomes [`IngestError::Panicked`].
+/// Runs `f`, the reading of `path`, announced to a supervising process while it runs; a panic
+/// inside becomes [`IngestError::Panicked`].
 pub(crate) fn guarded<T>(
     path: &Path,
     f: impl FnOnce() -> Result<T, IngestError>,
 ) -> Result<T, IngestError> {
-    guarded_scan(path, &[path], f)
-}
-
-/// [`guarded`] for one scan of several files (`all`, `path` among them): a panic is named by
-/// `path`, a crash by every file of `all` (the scan may be decoding any of them).
-pub(crate) fn guarded_scan<T>(
-    path: &Path,
-    all: &[&Path],
-    f: impl FnOnce() -> Result<T, IngestError>,
-) -> Result<T, IngestError> {
-    let _reading = dbbcal_supervise::reading(all.iter().copied());
+    let _reading = dbbcal_supervise::reading([path]);
     install_quiet_hook();
     ACTIVE.fetch_add(1, Ordering::SeqCst);
     let result = catch_unwind(AssertUnwindSafe(f));
@@ -66,24 +57,16 @@ pub(crate) fn guarded_scan<T>(
 /// supervisor's probe of one file after a scan of several crashed (`dbbcal_supervise::probe`).
 /// Whether the process survives is the answer; the error is only for the caller's log.
 pub fn decode_whole_file(path: &Path) -> Result<(), IngestError> {
-    use polars::lazy::dsl::Engine;
-    use polars::prelude::*;
-    let failed = |e: PolarsError| IngestError::NotParquet {
-        path: path.to_path_buf(),
-        reason: one_line(e),
-    };
     guarded(path, || {
-        let source = PlRefPath::try_from_path(path).map_err(failed)?;
-        let args = ScanArgsParquet {
-            glob: false,
-            ..Default::default()
-        };
-        let drop_rows = PlanCallback::new(|_: DataFrame| Ok(false));
-        LazyFrame::scan_parquet(source, args)
-            .and_then(|lazy| lazy.sink_batches(drop_rows, true, None))
-            .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
-            .map(|_| ())
-            .map_err(failed)
+        let file = crate::pq::ParquetFile::open(path)?;
+        let columns: Vec<(usize, Option<arrow_schema::DataType>)> =
+            (0..file.schema().fields().len())
+                .map(|i| (i, None))
+                .collect();
+        for batch in file.reader(path, &columns, None)? {
+            batch.map_err(|e| crate::pq::not_parquet(path, e))?;
+        }
+        Ok(())
     })
 }
 

@@ -4,7 +4,10 @@
 
 use std::path::Path;
 
-use polars::prelude::*;
+use std::sync::Arc;
+
+use arrow_array::types::UInt32Type;
+use arrow_array::{ArrayRef, DictionaryArray, StringViewArray};
 
 use super::one_line;
 use super::write::{TimeUnit, WriteError};
@@ -27,27 +30,97 @@ pub(crate) fn write_manifest(
     })
 }
 
-/// The `time` column of `ns` nanosecond instants, stored in `unit`.
-pub(crate) fn time_column(ns: impl Iterator<Item = i64>, unit: TimeUnit) -> Column {
-    let (per, polars_unit) = match unit {
-        TimeUnit::Ns => (1, polars::prelude::TimeUnit::Nanoseconds),
-        TimeUnit::Us => (1_000, polars::prelude::TimeUnit::Microseconds),
-        TimeUnit::Ms => (1_000_000, polars::prelude::TimeUnit::Milliseconds),
+/// A table's columns in output order: each name and its values.
+pub(crate) type Columns = Vec<(String, ArrayRef)>;
+
+/// The `time` column of `ns` nanosecond instants, stored in `unit` (floored), naive (= UTC).
+pub(crate) fn time_column(ns: impl Iterator<Item = i64>, unit: TimeUnit) -> (String, ArrayRef) {
+    let values: Vec<Option<i64>> = ns.map(|t| Some(t.div_euclid(unit.ns_per_unit()))).collect();
+    ("time".into(), timestamps(values, unit, None))
+}
+
+/// A timestamp array of `values` in `unit` (`None`: null), naive or in `zone`.
+pub(crate) fn timestamps(values: Vec<Option<i64>>, unit: TimeUnit, zone: Option<&str>) -> ArrayRef {
+    use arrow_array::{
+        TimestampMicrosecondArray, TimestampMillisecondArray, TimestampNanosecondArray,
     };
-    Int64Chunked::from_vec("time".into(), ns.map(|t: i64| t.div_euclid(per)).collect())
-        .into_datetime(polars_unit, None)
-        .into_column()
-}
-
-pub(crate) fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> Column {
-    Float64Chunked::from_vec(name.into(), values.collect()).into_column()
-}
-
-pub(crate) fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
-    move |e| WriteError::Polars {
-        path: path.to_path_buf(),
-        message: one_line(e),
+    let zone: Option<Arc<str>> = zone.map(Arc::from);
+    match unit {
+        TimeUnit::Ns => Arc::new(TimestampNanosecondArray::from(values).with_timezone_opt(zone)),
+        TimeUnit::Us => Arc::new(TimestampMicrosecondArray::from(values).with_timezone_opt(zone)),
+        TimeUnit::Ms => Arc::new(TimestampMillisecondArray::from(values).with_timezone_opt(zone)),
     }
+}
+
+pub(crate) fn f64_column(name: &str, values: impl Iterator<Item = f64>) -> (String, ArrayRef) {
+    column(name, values.collect::<Vec<f64>>())
+}
+
+/// Values that make an arrow array of the type polars gave them (strings as string views).
+pub(crate) trait IntoArray {
+    fn into_array(self) -> ArrayRef;
+}
+
+macro_rules! primitive_into_array {
+    ($($t:ty => $array:ty),* $(,)?) => {$(
+        impl IntoArray for Vec<$t> {
+            fn into_array(self) -> ArrayRef {
+                Arc::new(<$array>::from(self))
+            }
+        }
+        impl IntoArray for Vec<Option<$t>> {
+            fn into_array(self) -> ArrayRef {
+                Arc::new(<$array>::from(self))
+            }
+        }
+    )*};
+}
+
+primitive_into_array!(
+    f64 => arrow_array::Float64Array,
+    i64 => arrow_array::Int64Array,
+    i32 => arrow_array::Int32Array,
+    i8 => arrow_array::Int8Array,
+    u32 => arrow_array::UInt32Array,
+    bool => arrow_array::BooleanArray,
+);
+
+impl IntoArray for Vec<&str> {
+    fn into_array(self) -> ArrayRef {
+        Arc::new(StringViewArray::from_iter_values(self))
+    }
+}
+
+impl IntoArray for Vec<Option<&str>> {
+    fn into_array(self) -> ArrayRef {
+        Arc::new(StringViewArray::from(self))
+    }
+}
+
+impl IntoArray for Vec<String> {
+    fn into_array(self) -> ArrayRef {
+        Arc::new(StringViewArray::from_iter_values(self))
+    }
+}
+
+impl IntoArray for Vec<Option<String>> {
+    fn into_array(self) -> ArrayRef {
+        Arc::new(self.into_iter().collect::<StringViewArray>())
+    }
+}
+
+/// A named column of `values`.
+pub(crate) fn column(name: &str, values: impl IntoArray) -> (String, ArrayRef) {
+    (name.to_string(), values.into_array())
+}
+
+/// Strings as a dictionary (categorical) column: `u32` keys into the distinct strings.
+pub(crate) fn dictionary<'a>(
+    name: &str,
+    values: impl Iterator<Item = &'a str>,
+) -> (String, ArrayRef) {
+    let array: DictionaryArray<UInt32Type> = values.collect();
+    (name.to_string(), Arc::new(array))
 }
 
 pub(crate) fn create_dir(dir: &Path) -> Result<(), WriteError> {

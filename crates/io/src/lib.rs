@@ -1,11 +1,11 @@
-//! Everything that touches files and polars: reading a campaign directory into plain typed
+//! Everything that touches files and parquet: reading a campaign directory into plain typed
 //! series ([`read_campaign`]), writing one ([`write_campaign`], used by `simulate` and the tests),
 //! and writing the pipeline's output tables ([`write_table`]). The `axis` machine kind has its
 //! own reader and writer ([`read_axis_campaign`], [`write_axis_campaign`]).
 //!
-//! INVARIANT: this module is the only code in the crate that uses polars. Its public API speaks
-//! only in the crate's own types (`campaign`, `series`, [`Table`]), so a polars upgrade touches
-//! `crates/io/src/` alone.
+//! INVARIANT: this crate is the only code in the workspace that uses parquet and arrow. Its
+//! public API speaks only in the crate's own types (`campaign`, `series`, [`Table`]), so a
+//! parquet/arrow upgrade touches `crates/io/` alone.
 
 mod axis;
 mod axis_write;
@@ -13,6 +13,7 @@ mod guard;
 mod inputs;
 mod kind_read;
 mod kind_write;
+mod pq;
 mod probe;
 mod probe_write;
 mod read;
@@ -32,6 +33,8 @@ mod fuzz_tests;
 mod positions_tests;
 #[cfg(test)]
 mod roll_tests;
+#[cfg(test)]
+mod test_frames;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -144,12 +147,13 @@ pub enum IngestError {
         /// How many nulls.
         count: u64,
     },
-    /// A polars failure that none of the checks above predicted (e.g. a corrupt data page).
+    /// A parquet/arrow failure that none of the checks above predicted (e.g. a corrupt data
+    /// page).
     #[error("{context}: {message}")]
-    Polars {
+    Parquet {
         /// What was being read.
         context: String,
-        /// polars' message.
+        /// The reader's message.
         message: String,
     },
     /// Rows whose value cannot be read as what the spec says (a time out of range, counts that

@@ -1,54 +1,41 @@
 //! `positions/*.parquet` (`docs/spec/device-format.md`): every form the reader must accept, and
 //! the broken forms it must name in one line (file, column, rows).
 
-use std::path::Path;
-
-use polars::prelude as pl;
-use polars::prelude::{DataType, IntoColumn, TimeZone};
+use crate::test_frames::{col, df, dict_col, raw_time_col, write_df, Col, Unit};
 
 use super::{read_positions, IngestError};
 
 const S: i64 = 1_000_000_000;
 const T0: i64 = 1_793_491_200 * S;
 
-fn write_df(path: &Path, mut df: pl::DataFrame) {
-    std::fs::create_dir_all(path.parent().expect("parent")).expect("mkdir");
-    let file = std::fs::File::create(path).expect("create");
-    pl::ParquetWriter::new(file)
-        .finish(&mut df)
-        .expect("write parquet");
-}
-
-fn time_col(ns: &[i64], unit: pl::TimeUnit) -> pl::Column {
+fn time_col(ns: &[i64], unit: Unit) -> Col {
     let per = match unit {
-        pl::TimeUnit::Nanoseconds => 1,
-        pl::TimeUnit::Microseconds => 1_000,
-        pl::TimeUnit::Milliseconds => 1_000_000,
+        Unit::Nanoseconds => 1,
+        Unit::Microseconds => 1_000,
+        Unit::Milliseconds => 1_000_000,
     };
-    let values: Vec<i64> = ns.iter().map(|t| t / per).collect();
-    pl::Int64Chunked::from_vec("time".into(), values)
-        .into_datetime(unit, TimeZone::opt_try_new(None::<&str>).expect("zone"))
-        .into_column()
+    raw_time_col(
+        "time",
+        ns.iter().map(|t| Some(t / per)).collect(),
+        unit,
+        None,
+    )
 }
 
-fn frame(times: &[i64], unit: pl::TimeUnit, x: &[f64], station: &[Option<i64>]) -> Vec<pl::Column> {
+fn frame(times: &[i64], unit: Unit, x: &[f64], station: &[Option<i64>]) -> Vec<Col> {
     let n = times.len();
+    let station: Vec<Option<i32>> = station
+        .iter()
+        .map(|s| s.map(|v| i32::try_from(v).expect("int32")))
+        .collect();
     vec![
         time_col(times, unit),
-        pl::Column::new("device".into(), vec!["hexapod-1"; n])
-            .cast(&DataType::from_categories(pl::Categories::global()))
-            .expect("dictionary"),
-        pl::Column::new("x_mm".into(), x),
-        pl::Column::new("y_mm".into(), vec![300.0; n]),
-        pl::Column::new("z_mm".into(), vec![-200.0; n]),
-        pl::Column::new("station".into(), station)
-            .cast(&DataType::Int32)
-            .expect("int32"),
+        dict_col("device", &vec!["hexapod-1"; n]),
+        col("x_mm", x),
+        col("y_mm", vec![300.0; n]),
+        col("z_mm", vec![-200.0; n]),
+        col("station", station),
     ]
-}
-
-fn df(columns: Vec<pl::Column>) -> pl::DataFrame {
-    pl::DataFrame::new_infer_height(columns).expect("frame")
 }
 
 #[test]
@@ -61,20 +48,20 @@ fn split_unsorted_files_in_any_unit_with_optional_columns_absent_or_present_are_
         &dir.path().join("positions/b.parquet"),
         df(frame(
             &[T0 + 40 * S, T0 + 30 * S, T0 + 50 * S],
-            pl::TimeUnit::Milliseconds,
+            Unit::Milliseconds,
             &[405.0, 410.0, 400.0],
             &[None, Some(2), Some(1)],
         )),
     );
     let mut a = frame(
         &[T0 + 10 * S, T0, T0 + 20 * S],
-        pl::TimeUnit::Microseconds,
+        Unit::Microseconds,
         &[400.0, 400.0, 400.0],
         &[Some(1), Some(1), None],
     );
-    a.push(pl::Column::new("run".into(), [1i64, 1, 1]));
-    a.push(pl::Column::new("c_deg".into(), [None::<f64>, None, None]));
-    a.push(pl::Column::new("extra".into(), ["x", "y", "z"]));
+    a.push(col("run", [1i64, 1, 1]));
+    a.push(col("c_deg", [None::<f64>, None, None]));
+    a.push(col("extra", ["x", "y", "z"]));
     write_df(&dir.path().join("positions/a.parquet"), df(a));
     let (log, hashes) = read_positions(dir.path()).expect("read").expect("some");
     assert_eq!(hashes.len(), 2);
@@ -103,7 +90,7 @@ fn split_unsorted_files_in_any_unit_with_optional_columns_absent_or_present_are_
     assert_eq!(dwells[0].rotary_deg, [None; 3]);
 }
 
-fn refused(columns: Vec<pl::Column>, words: &[&str]) {
+fn refused(columns: Vec<Col>, words: &[&str]) {
     let dir = tempfile::tempdir().expect("tempdir");
     write_df(&dir.path().join("positions/p.parquet"), df(columns));
     let e: IngestError = read_positions(dir.path()).expect_err("refused");
@@ -120,7 +107,7 @@ fn broken_positions_files_are_named_by_file_column_and_rows() {
     let good = || {
         frame(
             &[T0, T0 + S, T0 + 2 * S],
-            pl::TimeUnit::Nanoseconds,
+            Unit::Nanoseconds,
             &[400.0, 400.0, 410.0],
             &[Some(1), None, Some(2)],
         )
@@ -129,15 +116,15 @@ fn broken_positions_files_are_named_by_file_column_and_rows() {
     missing.remove(3); // y_mm
     refused(missing, &["missing column `y_mm`"]);
     let mut wrong = good();
-    wrong[5] = pl::Column::new("station".into(), ["1", "", "2"]);
+    wrong[5] = col("station", ["1", "", "2"]);
     refused(wrong, &["column `station`", "int64 or int32"]);
     let mut nulls = good();
-    nulls[2] = pl::Column::new("x_mm".into(), [Some(400.0), None, None]);
+    nulls[2] = col("x_mm", [Some(400.0), None, None]);
     refused(nulls, &["column `x_mm`", "rows 1 .. 2", "null"]);
     refused(
         frame(
             &[T0, T0 + S, T0 + 2 * S],
-            pl::TimeUnit::Nanoseconds,
+            Unit::Nanoseconds,
             &[400.0, 410.0, 400.01],
             &[Some(1), Some(2), Some(1)],
         ),

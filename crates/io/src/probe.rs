@@ -1,4 +1,4 @@
-//! Reading a `probe` campaign (`docs/spec/machine-formats.md`, "Kind `probe`") with polars and
+//! Reading a `probe` campaign (`docs/spec/machine-formats.md`, "Kind `probe`") with the parquet crate and
 //! handing it over as plain data ([`ProbeCampaignLogs`]).
 //!
 //! `touches/*.parquet` (required), each file decoded whole under the guard, with the reader

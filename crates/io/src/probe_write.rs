@@ -4,11 +4,10 @@
 
 use std::path::Path;
 
-use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::kind_write::{f64_column, polars_err, prepare, time_column, write_manifest};
+use super::kind_write::{column, f64_column, prepare, time_column, write_manifest, Columns};
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::probe_campaign::{ProbeCampaignTables, ProbeTouch};
 
@@ -59,16 +58,15 @@ pub fn write_probe_campaign(
             rows.shuffle(&mut rng);
         }
         let path = folder.join(format!("touches-{:02}.parquet", files - f));
-        let mut df = touches_frame(&rows, opts).map_err(polars_err(&path))?;
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, touches_frame(&rows, opts))?;
     }
     Ok(())
 }
 
-fn touches_frame(rows: &[&ProbeTouch], opts: &ProbeWriteOptions) -> PolarsResult<DataFrame> {
+fn touches_frame(rows: &[&ProbeTouch], opts: &ProbeWriteOptions) -> Columns {
     let mut columns = vec![
         time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
-        Series::new("seq".into(), rows.iter().map(|r| r.seq).collect::<Vec<_>>()).into_column(),
+        column("seq", rows.iter().map(|r| r.seq).collect::<Vec<_>>()),
     ];
     if opts.angles {
         columns.push(f64_column("phi_deg", rows.iter().map(|r| r.phi_deg())));
@@ -81,35 +79,23 @@ fn touches_frame(rows: &[&ProbeTouch], opts: &ProbeWriteOptions) -> PolarsResult
     for (k, name) in ["x_mm", "y_mm", "z_mm"].iter().enumerate() {
         columns.push(f64_column(name, rows.iter().map(|r| r.position_mm[k])));
     }
-    columns.push(
-        Series::new(
-            "feed_mm_min".into(),
-            rows.iter().map(|r| r.feed_mm_min).collect::<Vec<_>>(),
-        )
-        .into_column(),
-    );
-    columns.push(
-        Series::new(
-            "stylus".into(),
-            rows.iter().map(|r| r.stylus.as_str()).collect::<Vec<_>>(),
-        )
-        .into_column(),
-    );
-    columns.push(
-        Series::new(
-            "artefact".into(),
-            rows.iter().map(|r| r.artefact.as_str()).collect::<Vec<_>>(),
-        )
-        .into_column(),
-    );
+    columns.push(column(
+        "feed_mm_min",
+        rows.iter().map(|r| r.feed_mm_min).collect::<Vec<_>>(),
+    ));
+    columns.push(column(
+        "stylus",
+        rows.iter().map(|r| r.stylus.as_str()).collect::<Vec<_>>(),
+    ));
+    columns.push(column(
+        "artefact",
+        rows.iter().map(|r| r.artefact.as_str()).collect::<Vec<_>>(),
+    ));
     if rows.iter().any(|r| r.spindle_deg.is_some()) {
-        columns.push(
-            Series::new(
-                "spindle_deg".into(),
-                rows.iter().map(|r| r.spindle_deg).collect::<Vec<_>>(),
-            )
-            .into_column(),
-        );
+        columns.push(column(
+            "spindle_deg",
+            rows.iter().map(|r| r.spindle_deg).collect::<Vec<_>>(),
+        ));
     }
-    DataFrame::new(rows.len(), columns)
+    columns
 }

@@ -1,4 +1,4 @@
-//! Reading a `roll` campaign (`docs/spec/machine-formats.md`, "Kind roll") with polars and
+//! Reading a `roll` campaign (`docs/spec/machine-formats.md`, "Kind roll") with the parquet crate and
 //! handing it over as plain data ([`RollCampaignLogs`]).
 //!
 //! `probes/*.parquet` (required) and `levels/*.parquet` (optional): each file decoded whole
@@ -184,7 +184,7 @@ fn optional_int(
     d: &Decoded<'_>,
     name: &'static str,
 ) -> Result<Option<Vec<Option<i64>>>, IngestError> {
-    if !d.has(name) || d.df.column(name).is_ok_and(|c| c.dtype().is_null()) {
+    if !d.has(name) || d.is_null_typed(name) {
         return Ok(None);
     }
     d.int(name).map(Some)

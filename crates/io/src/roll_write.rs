@@ -4,11 +4,10 @@
 
 use std::path::Path;
 
-use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::kind_write::{f64_column, polars_err, prepare, time_column, write_manifest};
+use super::kind_write::{column, f64_column, prepare, time_column, write_manifest, Columns};
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::roll_campaign::{ProbeSample, RollCampaignTables, RollManifest};
 
@@ -58,8 +57,7 @@ pub fn write_roll_campaign(
             rows.shuffle(&mut rng);
         }
         let path = folder.join(format!("{name}.parquet"));
-        let mut df = probes_frame(&rows, tables, opts).map_err(polars_err(&path))?;
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, probes_frame(&rows, tables, opts))?;
     }
     let folder = dir.join("levels");
     prepare(&folder)?;
@@ -69,14 +67,9 @@ pub fn write_roll_campaign(
         let columns = vec![
             time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
             f64_column("roll_urad", rows.iter().map(|r| r.roll_urad)),
-            Series::new(
-                "u_urad".into(),
-                rows.iter().map(|r| r.u_urad).collect::<Vec<_>>(),
-            )
-            .into_column(),
+            column("u_urad", rows.iter().map(|r| r.u_urad).collect::<Vec<_>>()),
         ];
-        let mut df = DataFrame::new(rows.len(), columns).map_err(polars_err(&path))?;
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, columns)?;
     }
     Ok(())
 }
@@ -85,7 +78,7 @@ fn probes_frame(
     rows: &[&ProbeSample],
     tables: &RollCampaignTables,
     opts: &RollWriteOptions,
-) -> PolarsResult<DataFrame> {
+) -> Columns {
     let mut columns = vec![
         time_column(rows.iter().map(|r| r.time_ns), opts.time_unit),
         f64_column("x_mm", rows.iter().map(|r| r.x_mm)),
@@ -93,19 +86,24 @@ fn probes_frame(
     for (k, name) in ["m_a", "m_b", "m_c", "m_d"].iter().enumerate() {
         columns.push(f64_column(name, rows.iter().map(|r| r.m[k])));
     }
-    let int = |name: &str, v: Vec<Option<i64>>| -> PolarsResult<Column> {
-        let c = Series::new(name.into(), v).into_column();
+    // `int32`: the integers narrowed as a logger of 32-bit integers writes them (values that do
+    // not fit become null, as polars' cast made them).
+    let int = |name: &str, v: Vec<Option<i64>>| {
         if opts.int32 {
-            c.cast(&DataType::Int32)
+            let narrow: Vec<Option<i32>> = v
+                .into_iter()
+                .map(|x| x.and_then(|x| i32::try_from(x).ok()))
+                .collect();
+            column(name, narrow)
         } else {
-            Ok(c)
+            column(name, v)
         }
     };
     if tables.write_station {
-        columns.push(int("station", rows.iter().map(|r| r.station).collect())?);
+        columns.push(int("station", rows.iter().map(|r| r.station).collect()));
     }
     if tables.write_pass {
-        columns.push(int("pass", rows.iter().map(|r| r.pass).collect())?);
+        columns.push(int("pass", rows.iter().map(|r| r.pass).collect()));
     }
-    DataFrame::new(rows.len(), columns)
+    columns
 }

@@ -2,9 +2,9 @@
 
 use std::path::Path;
 
-use polars::prelude as pl;
-use polars::prelude::{IntoColumn, NamedFrom};
+use arrow_array::ArrayRef;
 
+use super::kind_write::{column, timestamps};
 use super::write::{write_parquet, WriteError};
 
 /// One output column: its values, all columns of a [`Table`] having the same length.
@@ -55,31 +55,28 @@ impl Column {
         self.len() == 0
     }
 
-    fn to_polars(&self, name: &str) -> pl::Column {
-        let name = pl::PlSmallStr::from(name);
+    /// The column as arrow data, of the types the tables have always been written with
+    /// (strings as string views, timestamps naive in ns unless `Time` says otherwise).
+    fn to_arrow(&self, name: &str) -> (String, ArrayRef) {
         match self {
-            Column::F64(v) => pl::Series::new(name, v.as_slice()).into_column(),
-            Column::OptF64(v) => pl::Series::new(name, v.as_slice()).into_column(),
-            Column::I64(v) => pl::Series::new(name, v.as_slice()).into_column(),
-            Column::Str(v) => pl::Series::new(name, v.as_slice()).into_column(),
-            Column::OptStr(v) => pl::Series::new(name, v.as_slice()).into_column(),
-            Column::TimeNs(v) => pl::Int64Chunked::from_vec(name, v.clone())
-                .into_datetime(pl::TimeUnit::Nanoseconds, None)
-                .into_column(),
-            Column::OptI64(v) => pl::Series::new(name, v.as_slice()).into_column(),
-            Column::Time { raw, unit, zone } => {
-                let unit = match unit {
-                    super::TimeUnit::Ns => pl::TimeUnit::Nanoseconds,
-                    super::TimeUnit::Us => pl::TimeUnit::Microseconds,
-                    super::TimeUnit::Ms => pl::TimeUnit::Milliseconds,
-                };
-                let zone = pl::TimeZone::opt_try_new(zone.as_deref()).unwrap_or(None);
-                let ints = pl::Series::new(name, raw.as_slice());
-                match ints.i64() {
-                    Ok(ints) => ints.clone().into_datetime(unit, zone).into_column(),
-                    Err(_) => ints.into_column(),
-                }
-            }
+            Column::F64(v) => column(name, v.clone()),
+            Column::OptF64(v) => column(name, v.clone()),
+            Column::I64(v) => column(name, v.clone()),
+            Column::Str(v) => column(name, v.clone()),
+            Column::OptStr(v) => column(name, v.clone()),
+            Column::TimeNs(v) => (
+                name.to_string(),
+                timestamps(
+                    v.iter().map(|&t| Some(t)).collect(),
+                    super::TimeUnit::Ns,
+                    None,
+                ),
+            ),
+            Column::OptI64(v) => column(name, v.clone()),
+            Column::Time { raw, unit, zone } => (
+                name.to_string(),
+                timestamps(raw.clone(), *unit, zone.as_deref()),
+            ),
         }
     }
 }
@@ -132,13 +129,9 @@ pub fn write_table(path: &Path, table: &Table) -> Result<(), WriteError> {
     let columns = table
         .columns
         .iter()
-        .map(|(name, c)| c.to_polars(name))
+        .map(|(name, c)| c.to_arrow(name))
         .collect();
-    let mut df = pl::DataFrame::new(height, columns).map_err(|e| WriteError::Polars {
-        path: path.to_path_buf(),
-        message: super::one_line(e),
-    })?;
-    write_parquet(path, &mut df)
+    write_parquet(path, columns)
 }
 
 /// Writes `table` as CSV (a header row, then one row per table row): floats in their shortest

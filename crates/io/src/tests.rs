@@ -1,11 +1,14 @@
-//! Tests of the io module: small parquet files written with polars directly, in every form the
+//! Tests of the io module: small parquet files written with the parquet crate directly, in every form the
 //! spec allows and in every broken form the reader must name.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use polars::prelude as pl;
-use polars::prelude::{DataType, IntoColumn, NewChunkedArray, SerReader, TimeZone};
+use arrow_array::cast::AsArray;
+use arrow_array::types::Float64Type;
+use arrow_array::RecordBatch;
+
+use crate::test_frames::*;
 
 use super::{
     read_campaign, write_campaign, write_table, Column, IngestError, Table, TimeUnit, WriteOptions,
@@ -68,42 +71,6 @@ fn campaign_dir() -> tempfile::TempDir {
     dir
 }
 
-fn write_df(path: &Path, mut df: pl::DataFrame) {
-    std::fs::create_dir_all(path.parent().expect("parent")).expect("mkdir");
-    let file = std::fs::File::create(path).expect("create");
-    pl::ParquetWriter::new(file)
-        .finish(&mut df)
-        .expect("write parquet");
-}
-
-/// A timestamp column from ns values, in `unit` (floored) and zone `tz`.
-fn time_col(ns: &[i64], unit: pl::TimeUnit, tz: Option<&str>) -> pl::Column {
-    let per = match unit {
-        pl::TimeUnit::Nanoseconds => 1,
-        pl::TimeUnit::Microseconds => 1_000,
-        pl::TimeUnit::Milliseconds => 1_000_000,
-    };
-    let values: Vec<i64> = ns.iter().map(|t| t.div_euclid(per)).collect();
-    let tz = TimeZone::opt_try_new(tz).expect("zone");
-    pl::Int64Chunked::from_vec("time".into(), values)
-        .into_datetime(unit, tz)
-        .into_column()
-}
-
-fn str_col(name: &str, values: &[&str]) -> pl::Column {
-    pl::Column::new(name.into(), values)
-}
-
-fn dict_col(name: &str, values: &[&str]) -> pl::Column {
-    str_col(name, values)
-        .cast(&DataType::from_categories(pl::Categories::global()))
-        .expect("categorical")
-}
-
-fn df(columns: Vec<pl::Column>) -> pl::DataFrame {
-    pl::DataFrame::new_infer_height(columns).expect("frame")
-}
-
 /// The standard T1 log: one reading per second from T0 - 1 s to T0 + 10 s, value = 20 + i/10.
 fn write_t1(dir: &Path) {
     let times: Vec<i64> = (-1..=10).map(|i| T0 + i * S).collect();
@@ -112,18 +79,18 @@ fn write_t1(dir: &Path) {
     write_df(
         &dir.join("temperatures/t1.parquet"),
         df(vec![
-            time_col(&times, pl::TimeUnit::Nanoseconds, None),
+            time_col(&times, Unit::Nanoseconds, None),
             str_col("sensor", &sensors),
-            pl::Column::new("celsius".into(), celsius),
+            col("celsius", celsius),
         ]),
     );
 }
 
-fn encoders(times: &[i64], bars: &[&str], counts: &[i64]) -> pl::DataFrame {
+fn encoders(times: &[i64], bars: &[&str], counts: &[i64]) -> RecordBatch {
     df(vec![
-        time_col(times, pl::TimeUnit::Nanoseconds, None),
+        time_col(times, Unit::Nanoseconds, None),
         str_col("bar", bars),
-        pl::Column::new("counts".into(), counts),
+        col("counts", counts),
     ])
 }
 
@@ -177,14 +144,10 @@ fn reads_any_unit_zone_dictionary_int32_over_unsorted_files() {
     write_df(
         &d.join("encoders/b.parquet"),
         df(vec![
-            pl::Column::new("junk".into(), [1.0f64, 2.0]),
-            time_col(
-                &[T0 + 2 * S, T0 + S],
-                pl::TimeUnit::Microseconds,
-                Some("UTC"),
-            ),
+            col("junk", [1.0f64, 2.0]),
+            time_col(&[T0 + 2 * S, T0 + S], Unit::Microseconds, Some("UTC")),
             dict_col("bar", &["B01", "B02"]),
-            pl::Int32Chunked::from_vec("counts".into(), vec![20, 100]).into_column(),
+            col("counts", vec![20i32, 100]),
         ]),
     );
     // ms, a non-UTC zone (the stored instant is still UTC).
@@ -193,11 +156,11 @@ fn reads_any_unit_zone_dictionary_int32_over_unsorted_files() {
         df(vec![
             time_col(
                 &[T0 + 4 * S + 5_000_000],
-                pl::TimeUnit::Milliseconds,
+                Unit::Milliseconds,
                 Some("Europe/Berlin"),
             ),
             str_col("bar", &["B01"]),
-            pl::Column::new("counts".into(), [40i64]),
+            col("counts", [40i64]),
         ]),
     );
     let logs = read_campaign(d).expect("read");
@@ -233,9 +196,9 @@ fn temperatures_interpolate_between_readings_and_hold_the_nearest_outside() {
     write_df(
         &d.join("temperatures/t.parquet"),
         df(vec![
-            time_col(&sensor_times, pl::TimeUnit::Nanoseconds, None),
+            time_col(&sensor_times, Unit::Nanoseconds, None),
             str_col("sensor", &["T2", "T2", "T2"]),
-            pl::Column::new("celsius".into(), [3.0f64, 1.0, 2.0]),
+            col("celsius", [3.0f64, 1.0, 2.0]),
         ]),
     );
     let times = [
@@ -279,10 +242,10 @@ fn reads_events_sorted_keeping_unknown_kinds_and_hashes_inputs() {
     write_df(
         &d.join("events/ev.parquet"),
         df(vec![
-            time_col(&[T0 + 2 * S, T0 + S], pl::TimeUnit::Milliseconds, None),
-            pl::Column::new("bar".into(), [Some("B01"), None]),
+            time_col(&[T0 + 2 * S, T0 + S], Unit::Milliseconds, None),
+            col("bar", [Some("B01"), None]),
             str_col("kind", &["door_opened", "head_power"]),
-            pl::Column::new("value".into(), [None, Some(1.0f64)]),
+            col("value", [None, Some(1.0f64)]),
         ]),
     );
     let logs = read_campaign(d).expect("read");
@@ -464,7 +427,7 @@ fn missing_column_is_named() {
     write_df(
         &dir.path().join("encoders/nocounts.parquet"),
         df(vec![
-            time_col(&[T0], pl::TimeUnit::Nanoseconds, None),
+            time_col(&[T0], Unit::Nanoseconds, None),
             str_col("bar", &["B01"]),
         ]),
     );
@@ -482,9 +445,9 @@ fn wrong_column_types_are_named() {
     write_df(
         &dir.path().join("encoders/float.parquet"),
         df(vec![
-            time_col(&[T0], pl::TimeUnit::Nanoseconds, None),
+            time_col(&[T0], Unit::Nanoseconds, None),
             str_col("bar", &["B01"]),
-            pl::Column::new("counts".into(), [1.5f64]),
+            col("counts", [1.5f64]),
         ]),
     );
     // Float counts are accepted when whole; a fraction is refused with file, column and row.
@@ -496,9 +459,9 @@ fn wrong_column_types_are_named() {
     write_df(
         &dir.path().join("encoders/float.parquet"),
         df(vec![
-            time_col(&[T0, T0 + S, T0 + 2 * S], pl::TimeUnit::Nanoseconds, None),
+            time_col(&[T0, T0 + S, T0 + 2 * S], Unit::Nanoseconds, None),
             str_col("bar", &["B01", "B01", "B01"]),
-            pl::Column::new("counts".into(), [Some(-7.0f64), None, Some(f64::NAN)]),
+            col("counts", [Some(-7.0f64), None, Some(f64::NAN)]),
         ]),
     );
     let logs = read_campaign(dir.path()).expect("whole float counts");
@@ -510,9 +473,9 @@ fn wrong_column_types_are_named() {
     write_df(
         &dir.path().join("encoders/float.parquet"),
         df(vec![
-            pl::Column::new("time".into(), [T0]),
+            col("time", [T0]),
             str_col("bar", &["B01"]),
-            pl::Column::new("counts".into(), [1i64]),
+            col("counts", [1i64]),
         ]),
     );
     let msg = read_err(dir.path());
@@ -558,9 +521,9 @@ fn unknown_sensor_is_named() {
     write_df(
         &dir.path().join("temperatures/t.parquet"),
         df(vec![
-            time_col(&[T0], pl::TimeUnit::Nanoseconds, None),
+            time_col(&[T0], Unit::Nanoseconds, None),
             str_col("sensor", &["T9"]),
-            pl::Column::new("celsius".into(), [20.0f64]),
+            col("celsius", [20.0f64]),
         ]),
     );
     let msg = read_dropped(dir.path());
@@ -580,15 +543,13 @@ fn null_times_and_counts_are_named() {
         &dir.path().join("encoders/a.parquet"),
         encoders(&[T0 + 9 * S], &["B01"], &[0]),
     );
-    let times = pl::Int64Chunked::from_slice_options("time".into(), &[Some(T0), None])
-        .into_datetime(pl::TimeUnit::Nanoseconds, None)
-        .into_column();
+    let times = raw_time_col("time", vec![Some(T0), None], Unit::Nanoseconds, None);
     write_df(
         &dir.path().join("encoders/nulltime.parquet"),
         df(vec![
             times,
             str_col("bar", &["B01", "B01"]),
-            pl::Column::new("counts".into(), [1i64, 2]),
+            col("counts", [1i64, 2]),
         ]),
     );
     let msg = read_dropped(dir.path());
@@ -603,9 +564,9 @@ fn null_times_and_counts_are_named() {
     write_df(
         &dir.path().join("encoders/nullcounts.parquet"),
         df(vec![
-            time_col(&[T0, T0 + S], pl::TimeUnit::Nanoseconds, None),
+            time_col(&[T0, T0 + S], Unit::Nanoseconds, None),
             str_col("bar", &["B01", "B01"]),
-            pl::Column::new("counts".into(), [Some(1i64), None]),
+            col("counts", [Some(1i64), None]),
         ]),
     );
     // Null counts are missing readings: dropped and counted for their bar.
@@ -813,15 +774,14 @@ fn write_table_is_readable_deterministic_and_checks_lengths() {
         std::fs::read(&p2).expect("read")
     );
 
-    let back = pl::ParquetReader::new(std::fs::File::open(&p1).expect("open"))
-        .finish()
-        .expect("parquet");
-    let names: Vec<&str> = back.get_column_names().iter().map(|n| n.as_str()).collect();
+    let back = read_df(&p1);
+    let schema = back.schema();
+    let names: Vec<&str> = schema.fields().iter().map(|f| f.name().as_str()).collect();
     assert_eq!(names, vec!["bar", "gain_um_per_k", "tau_s", "n"]);
     let tau: Vec<Option<f64>> = back
-        .column("tau_s")
+        .column_by_name("tau_s")
         .expect("col")
-        .f64()
+        .as_primitive_opt::<Float64Type>()
         .expect("f64")
         .iter()
         .collect();
@@ -903,18 +863,18 @@ fn null_kinds_and_ids_are_dropped_and_named_by_rows() {
     write_df(
         &d.join("events/ev.parquet"),
         df(vec![
-            time_col(&[T0, T0 + S, T0 + 2 * S], pl::TimeUnit::Nanoseconds, None),
-            pl::Column::new("bar".into(), [Some("B01"), None, None]),
-            pl::Column::new("kind".into(), [Some("door"), None, Some("door")]),
-            pl::Column::new("value".into(), [None::<f64>, None, None]),
+            time_col(&[T0, T0 + S, T0 + 2 * S], Unit::Nanoseconds, None),
+            col("bar", [Some("B01"), None, None]),
+            col("kind", [Some("door"), None, Some("door")]),
+            col("value", [None::<f64>, None, None]),
         ]),
     );
     write_df(
         &d.join("temperatures/nullid.parquet"),
         df(vec![
-            time_col(&[T0, T0 + S], pl::TimeUnit::Nanoseconds, None),
-            pl::Column::new("sensor".into(), [None, Some("T1")]),
-            pl::Column::new("celsius".into(), [20.0f64, 20.1]),
+            time_col(&[T0, T0 + S], Unit::Nanoseconds, None),
+            col("sensor", [None, Some("T1")]),
+            col("celsius", [20.0f64, 20.1]),
         ]),
     );
     let msg = read_dropped(d);

@@ -1,5 +1,5 @@
 //! Reading a `volumetric` campaign (`docs/spec/machine-formats.md`, "Kind volumetric") with
-//! polars and handing it over as plain data ([`VolumetricCampaignLogs`]), on the column readers
+//! the parquet crate and handing it over as plain data ([`VolumetricCampaignLogs`]), on the column readers
 //! and row checks of the `axis` reader (`super::axis`): timestamps ns/us/ms, integers int8 …
 //! int64, strings utf8 or dictionary, optional columns absent or all null, one line naming the
 //! file, the column and the rows. `diagonals/`, `steps/` and/or `bar_diagonals/` (at least

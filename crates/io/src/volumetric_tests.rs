@@ -143,8 +143,7 @@ fn any_layout_reads_back_the_same_readings() {
 
 #[test]
 fn a_bad_submove_is_refused_naming_file_column_and_rows() {
-    use polars::prelude as pl;
-    use polars::prelude::{IntoColumn, NamedFrom};
+    use crate::test_frames::{col, raw_time_col, Unit};
     let dir = tempfile::tempdir().unwrap();
     let mut t = tables();
     t.steps.clear();
@@ -158,28 +157,27 @@ fn a_bad_submove_is_refused_naming_file_column_and_rows() {
     let steps = dir.path().join("steps");
     std::fs::create_dir_all(&steps).unwrap();
     let n = 4;
-    let time = pl::Int64Chunked::from_vec("time".into(), (0..n).map(|i| T0 + i).collect())
-        .into_datetime(pl::TimeUnit::Nanoseconds, None)
-        .into_column();
-    let f = |name: &str, v: Vec<f64>| pl::Series::new(name.into(), v).into_column();
-    let mut df = pl::DataFrame::new(
-        n as usize,
-        vec![
-            time,
-            pl::Column::new("diagonal".into(), vec!["+++"; 4]),
-            pl::Series::new("step".into(), vec![0i64, 1, 1, 1]).into_column(),
-            pl::Column::new(
-                "submove".into(),
-                vec![None, Some("X"), Some("W"), Some("W")],
-            ),
-            f("x_mm", vec![0.0, 150.0, 150.0, 150.0]),
-            f("y_mm", vec![0.0, 0.0, 100.0, 100.0]),
-            f("z_mm", vec![0.0, 0.0, 0.0, 50.0]),
-            f("deviation_um", vec![0.0; 4]),
-        ],
-    )
-    .unwrap();
-    crate::write::write_parquet(&steps.join("steps-bad.parquet"), &mut df).unwrap();
+    let time = raw_time_col(
+        "time",
+        (0..n).map(|i| Some(T0 + i)).collect(),
+        Unit::Nanoseconds,
+        None,
+    );
+    let f = |name: &str, v: Vec<f64>| col(name, v);
+    let columns: Vec<_> = vec![
+        time,
+        col("diagonal", vec!["+++"; 4]),
+        col("step", vec![0i64, 1, 1, 1]),
+        col("submove", vec![None, Some("X"), Some("W"), Some("W")]),
+        f("x_mm", vec![0.0, 150.0, 150.0, 150.0]),
+        f("y_mm", vec![0.0, 0.0, 100.0, 100.0]),
+        f("z_mm", vec![0.0, 0.0, 0.0, 50.0]),
+        f("deviation_um", vec![0.0; 4]),
+    ]
+    .into_iter()
+    .map(|c| (c.0, c.1))
+    .collect();
+    crate::write::write_parquet(&steps.join("steps-bad.parquet"), columns).unwrap();
     let e = read_volumetric_campaign(dir.path())
         .unwrap_err()
         .to_string();

@@ -3,11 +3,10 @@
 
 use std::path::Path;
 
-use polars::prelude::*;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use super::kind_write::{f64_column, polars_err, prepare, time_column, write_manifest};
+use super::kind_write::{column, f64_column, prepare, time_column, write_manifest};
 use super::write::{write_parquet, TimeUnit, WriteError};
 use dbbcal_core::volumetric_campaign::{VolumetricCampaignTables, VolumetricManifest};
 
@@ -66,26 +65,21 @@ pub fn write_volumetric_campaign(
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let mut columns = vec![
                 time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
-                Column::new(
-                    "diagonal".into(),
+                column(
+                    "diagonal",
                     r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
                 ),
-                Series::new("run".into(), r.iter().map(|x| x.run).collect::<Vec<_>>())
-                    .into_column(),
+                column("run", r.iter().map(|x| x.run).collect::<Vec<_>>()),
             ];
             if !opts.omit_direction {
-                columns.push(
-                    Series::new(
-                        "direction".into(),
-                        r.iter().map(|x| x.direction).collect::<Vec<i8>>(),
-                    )
-                    .into_column(),
-                );
+                columns.push(column(
+                    "direction",
+                    r.iter().map(|x| x.direction).collect::<Vec<i8>>(),
+                ));
             }
             columns.push(f64_column("target_mm", r.iter().map(|x| x.target_mm)));
             columns.push(f64_column("deviation_um", r.iter().map(|x| x.deviation_um)));
-            let mut df = DataFrame::new(r.len(), columns).map_err(polars_err(&path))?;
-            write_parquet(&path, &mut df)?;
+            write_parquet(&path, columns)?;
         }
     }
     if !tables.steps.is_empty() {
@@ -100,16 +94,14 @@ pub fn write_volumetric_campaign(
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let columns = vec![
                 time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
-                Column::new(
-                    "diagonal".into(),
+                column(
+                    "diagonal",
                     r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
                 ),
-                Series::new("run".into(), r.iter().map(|x| x.run).collect::<Vec<_>>())
-                    .into_column(),
-                Series::new("step".into(), r.iter().map(|x| x.step).collect::<Vec<_>>())
-                    .into_column(),
-                Column::new(
-                    "submove".into(),
+                column("run", r.iter().map(|x| x.run).collect::<Vec<_>>()),
+                column("step", r.iter().map(|x| x.step).collect::<Vec<_>>()),
+                column(
+                    "submove",
                     r.iter()
                         .map(|x| x.submove.map(|a| a.as_str()))
                         .collect::<Vec<_>>(),
@@ -119,8 +111,7 @@ pub fn write_volumetric_campaign(
                 f64_column("z_mm", r.iter().map(|x| x.position_mm[2])),
                 f64_column("deviation_um", r.iter().map(|x| x.deviation_um)),
             ];
-            let mut df = DataFrame::new(r.len(), columns).map_err(polars_err(&path))?;
-            write_parquet(&path, &mut df)?;
+            write_parquet(&path, columns)?;
         }
     }
     if !tables.bar_readings.is_empty() {
@@ -135,23 +126,17 @@ pub fn write_volumetric_campaign(
             let r: Vec<_> = idx.iter().map(|&i| rows[i]).collect();
             let mut columns = vec![
                 time_column(r.iter().map(|x| x.time_ns), TimeUnit::Ns),
-                Column::new(
-                    "diagonal".into(),
+                column(
+                    "diagonal",
                     r.iter().map(|x| x.diagonal.as_str()).collect::<Vec<_>>(),
                 ),
-                Series::new(
-                    "segment".into(),
-                    r.iter().map(|x| x.segment).collect::<Vec<_>>(),
-                )
-                .into_column(),
-                Series::new("run".into(), r.iter().map(|x| x.run).collect::<Vec<_>>())
-                    .into_column(),
+                column("segment", r.iter().map(|x| x.segment).collect::<Vec<_>>()),
+                column("run", r.iter().map(|x| x.run).collect::<Vec<_>>()),
                 // Always written: a bar reading's direction is not derived (default +1).
-                Series::new(
-                    "direction".into(),
+                column(
+                    "direction",
                     r.iter().map(|x| x.direction).collect::<Vec<i8>>(),
-                )
-                .into_column(),
+                ),
             ];
             columns.push(f64_column(
                 "distance_along_mm",
@@ -161,12 +146,8 @@ pub fn write_volumetric_campaign(
                 "centre_distance_mm",
                 r.iter().map(|x| x.centre_distance_mm),
             ));
-            columns.push(
-                Series::new("u_um".into(), r.iter().map(|x| x.u_um).collect::<Vec<_>>())
-                    .into_column(),
-            );
-            let mut df = DataFrame::new(r.len(), columns).map_err(polars_err(&path))?;
-            write_parquet(&path, &mut df)?;
+            columns.push(column("u_um", r.iter().map(|x| x.u_um).collect::<Vec<_>>()));
+            write_parquet(&path, columns)?;
         }
     }
     if !tables.environment.is_empty() {
@@ -179,14 +160,12 @@ pub fn write_volumetric_campaign(
             f64_column("air_c", rows.iter().map(|r| r.air_c)),
             f64_column("pressure_hpa", rows.iter().map(|r| r.pressure_hpa)),
             f64_column("humidity_pct", rows.iter().map(|r| r.humidity_pct)),
-            Series::new(
-                "material_c".into(),
+            column(
+                "material_c",
                 rows.iter().map(|r| r.material_c).collect::<Vec<_>>(),
-            )
-            .into_column(),
+            ),
         ];
-        let mut df = DataFrame::new(rows.len(), columns).map_err(polars_err(&path))?;
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, columns)?;
     }
     Ok(())
 }

@@ -4,14 +4,18 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use polars::prelude::*;
+use arrow_array::ArrayRef;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
 use super::inputs::{parquet_files, ENCODERS, EVENTS, MANIFEST, TEMPERATURES};
+use super::kind_write::{column, timestamps, Columns};
 use super::one_line;
+use arrow_array::cast::AsArray;
+use arrow_array::{Array, StringViewArray};
 use dbbcal_core::campaign::Manifest;
 use dbbcal_core::series::CampaignTables;
+use std::sync::Arc;
 
 /// Resolution of the written `time` columns (values are floored to it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -26,19 +30,11 @@ pub enum TimeUnit {
 }
 
 impl TimeUnit {
-    fn ns_per_unit(self) -> i64 {
+    pub(crate) fn ns_per_unit(self) -> i64 {
         match self {
             TimeUnit::Ns => 1,
             TimeUnit::Us => 1_000,
             TimeUnit::Ms => 1_000_000,
-        }
-    }
-
-    fn polars(self) -> polars::prelude::TimeUnit {
-        match self {
-            TimeUnit::Ns => polars::prelude::TimeUnit::Nanoseconds,
-            TimeUnit::Us => polars::prelude::TimeUnit::Microseconds,
-            TimeUnit::Ms => polars::prelude::TimeUnit::Milliseconds,
         }
     }
 }
@@ -73,12 +69,12 @@ pub enum WriteError {
         /// The OS error.
         message: String,
     },
-    /// polars could not write a table.
+    /// The parquet writer could not write a table.
     #[error("{}: {message}", path.display())]
-    Polars {
+    Parquet {
         /// The file.
         path: PathBuf,
-        /// polars' message.
+        /// The writer's message.
         message: String,
     },
     /// The manifest could not be serialised.
@@ -109,8 +105,9 @@ pub enum WriteError {
         /// The name.
         column: String,
     },
-    /// More rows than polars can index.
-    #[error("{}: more rows than polars can index ({rows})", path.display())]
+    /// More rows than one parquet table can index (a file's rows are counted in `i64`, a
+    /// string column's bytes in `i32` offsets).
+    #[error("{}: more rows than one parquet table can index ({rows})", path.display())]
     TooManyRows {
         /// The file.
         path: PathBuf,
@@ -137,7 +134,7 @@ pub fn write_campaign(
     write_table_files(&dir.join(TEMPERATURES), TEMPERATURES, temperatures, opts, 2)?;
     clear_parquet(&dir.join(EVENTS))?;
     if !tables.events.is_empty() {
-        let events = event_frame(&dir.join(EVENTS), tables, unit)?;
+        let events = event_frame(tables, unit);
         write_table_files(&dir.join(EVENTS), EVENTS, events, opts, 3)?;
     }
     Ok(())
@@ -177,37 +174,28 @@ pub(crate) fn clear_parquet(folder: &Path) -> Result<(), WriteError> {
 
 // ---------------------------------------------------------------- building frames
 
-/// A table's frame plus each row's UTC day (for splitting).
+/// A table's columns plus each row's UTC day (for splitting).
 struct Frame {
-    df: DataFrame,
+    columns: Columns,
     day: Vec<i64>,
 }
 
 const NS_PER_DAY: i64 = 86_400_000_000_000;
 
-fn polars_err(path: &Path) -> impl Fn(PolarsError) -> WriteError + '_ {
-    move |e| WriteError::Polars {
-        path: path.to_path_buf(),
-        message: one_line(e),
-    }
-}
-
+/// The `time` column (floored to `unit`) and each row's UTC day.
 fn time_column(
     time_ns: impl Iterator<Item = i64>,
     unit: TimeUnit,
     rows: usize,
-) -> (Column, Vec<i64>) {
+) -> ((String, ArrayRef), Vec<i64>) {
     let mut values = Vec::with_capacity(rows);
     let mut day = Vec::with_capacity(rows);
     let per = unit.ns_per_unit();
     for t in time_ns {
-        values.push(t.div_euclid(per));
+        values.push(Some(t.div_euclid(per)));
         day.push(t.div_euclid(NS_PER_DAY));
     }
-    let column = Int64Chunked::from_vec("time".into(), values)
-        .into_datetime(unit.polars(), None)
-        .into_column();
-    (column, day)
+    (("time".into(), timestamps(values, unit, None)), day)
 }
 
 /// An id column (`bar`, `sensor`) repeating each id for its rows; categorical when asked.
@@ -215,13 +203,15 @@ fn id_column<'a>(
     name: &str,
     ids: impl Iterator<Item = (&'a str, usize)>,
     dictionary: bool,
-) -> PolarsResult<Column> {
+) -> (String, ArrayRef) {
     let values = ids.flat_map(|(id, n)| std::iter::repeat_n(id, n));
-    let column = StringChunked::from_iter_values(name.into(), values).into_column();
     if dictionary {
-        column.cast(&DataType::from_categories(Categories::global()))
+        super::kind_write::dictionary(name, values)
     } else {
-        Ok(column)
+        (
+            name.into(),
+            Arc::new(StringViewArray::from_iter_values(values)),
+        )
     }
 }
 
@@ -256,13 +246,15 @@ fn encoder_frame(
     let times = logs.values().flat_map(|l| l.time_ns.iter().copied());
     let (time, day) = time_column(times, opts.time_unit, rows);
     let ids = logs.iter().map(|(id, l)| (id.as_str(), l.time_ns.len()));
-    let bar = id_column("bar", ids, opts.dictionary_strings).map_err(polars_err(path))?;
+    let bar = id_column("bar", ids, opts.dictionary_strings);
     let mut counts = Vec::with_capacity(rows);
     logs.values()
         .for_each(|l| counts.extend_from_slice(&l.counts));
-    let counts = Int64Chunked::from_vec("counts".into(), counts).into_column();
-    let df = DataFrame::new(rows, vec![time, bar, counts]).map_err(polars_err(path))?;
-    Ok(Frame { df, day })
+    let counts = column("counts", counts);
+    Ok(Frame {
+        columns: vec![time, bar, counts],
+        day,
+    })
 }
 
 fn temperature_frame(
@@ -283,29 +275,34 @@ fn temperature_frame(
     let times = logs.values().flat_map(|l| l.time_ns.iter().copied());
     let (time, day) = time_column(times, opts.time_unit, rows);
     let ids = logs.iter().map(|(id, l)| (id.as_str(), l.time_ns.len()));
-    let sensor = id_column("sensor", ids, opts.dictionary_strings).map_err(polars_err(path))?;
+    let sensor = id_column("sensor", ids, opts.dictionary_strings);
     let mut celsius = Vec::with_capacity(rows);
     logs.values()
         .for_each(|l| celsius.extend_from_slice(&l.celsius));
-    let celsius = Float64Chunked::from_vec("celsius".into(), celsius).into_column();
-    let df = DataFrame::new(rows, vec![time, sensor, celsius]).map_err(polars_err(path))?;
-    Ok(Frame { df, day })
+    let celsius = column("celsius", celsius);
+    Ok(Frame {
+        columns: vec![time, sensor, celsius],
+        day,
+    })
 }
 
-fn event_frame(path: &Path, tables: &CampaignTables, unit: TimeUnit) -> Result<Frame, WriteError> {
+fn event_frame(tables: &CampaignTables, unit: TimeUnit) -> Frame {
     let events = &tables.events;
     let rows = events.len();
     let (time, day) = time_column(events.iter().map(|e| e.time_ns), unit, rows);
-    let bar =
-        StringChunked::from_iter_options("bar".into(), events.iter().map(|e| e.bar.as_deref()))
-            .into_column();
-    let kind =
-        StringChunked::from_iter_values("kind".into(), events.iter().map(|e| e.kind.as_str()))
-            .into_column();
-    let value = Float64Chunked::from_iter_options("value".into(), events.iter().map(|e| e.value))
-        .into_column();
-    let df = DataFrame::new(rows, vec![time, bar, kind, value]).map_err(polars_err(path))?;
-    Ok(Frame { df, day })
+    let bar = column(
+        "bar",
+        events.iter().map(|e| e.bar.as_deref()).collect::<Vec<_>>(),
+    );
+    let kind = column(
+        "kind",
+        events.iter().map(|e| e.kind.as_str()).collect::<Vec<_>>(),
+    );
+    let value = column("value", events.iter().map(|e| e.value).collect::<Vec<_>>());
+    Frame {
+        columns: vec![time, bar, kind, value],
+        day,
+    }
 }
 
 // ---------------------------------------------------------------- files
@@ -322,8 +319,7 @@ fn write_table_files(
     create_dir(folder)?;
     clear_parquet(folder)?;
     if !opts.split_by_day && !opts.shuffle_rows && !opts.interleave_rows {
-        let mut df = frame.df;
-        return write_parquet(&folder.join(format!("{table}.parquet")), &mut df);
+        return write_parquet(&folder.join(format!("{table}.parquet")), frame.columns);
     }
     let mut rng =
         rand_chacha::ChaCha8Rng::seed_from_u64(opts.seed.wrapping_mul(31).wrapping_add(salt));
@@ -331,16 +327,37 @@ fn write_table_files(
         let path = folder.join(format!("{name}.parquet"));
         if opts.shuffle_rows {
             rows.shuffle(&mut rng);
+        } else if opts.interleave_rows {
+            interleave(&path, &frame.columns, &mut rows)?;
         }
-        let mut df = take_rows(&path, &frame.df, rows)?;
-        if opts.interleave_rows && !opts.shuffle_rows {
-            let by: Vec<PlSmallStr> = df.get_column_names_owned().into_iter().take(2).collect();
-            df = df
-                .sort(by, SortMultipleOptions::default().with_maintain_order(true))
-                .map_err(polars_err(&path))?;
-        }
-        write_parquet(&path, &mut df)?;
+        write_parquet(&path, take_rows(&path, &frame.columns, rows)?)?;
     }
+    Ok(())
+}
+
+/// Sorts `rows` by time, ties by id (stable: rows of one time and id keep their order): the
+/// first two columns, as [`time_column`] and [`id_column`] build them.
+fn interleave(path: &Path, columns: &Columns, rows: &mut [usize]) -> Result<(), WriteError> {
+    let failed = |e: arrow_schema::ArrowError| WriteError::Parquet {
+        path: path.to_path_buf(),
+        message: one_line(e),
+    };
+    let (Some(time), Some(id)) = (columns.first(), columns.get(1)) else {
+        return Ok(());
+    };
+    let time = arrow_cast::cast(&time.1, &arrow_schema::DataType::Int64).map_err(failed)?;
+    let id = arrow_cast::cast(&id.1, &arrow_schema::DataType::Utf8).map_err(failed)?;
+    let (time, id) = (
+        time.as_primitive::<arrow_array::types::Int64Type>(),
+        id.as_string::<i32>(),
+    );
+    let key = |r: usize| {
+        (
+            time.is_valid(r).then(|| time.value(r)),
+            id.is_valid(r).then(|| id.value(r)),
+        )
+    };
+    rows.sort_by(|&a, &b| key(a).cmp(&key(b)));
     Ok(())
 }
 
@@ -365,38 +382,30 @@ fn day_name(day: i64) -> String {
         .map_or_else(|| format!("day{day}"), |t| t.format("%Y-%m-%d").to_string())
 }
 
-fn take_rows(path: &Path, df: &DataFrame, rows: Vec<usize>) -> Result<DataFrame, WriteError> {
-    let in_order = rows.iter().enumerate().all(|(i, &r)| i == r);
-    if in_order && rows.len() == df.height() {
-        return Ok(df.clone());
-    }
+fn take_rows(path: &Path, columns: &Columns, rows: Vec<usize>) -> Result<Columns, WriteError> {
     let n = rows.len();
-    let idx: Vec<IdxSize> = rows
-        .into_iter()
-        .map(IdxSize::try_from)
-        .collect::<Result<_, _>>()
-        .map_err(|_| WriteError::TooManyRows {
-            path: path.to_path_buf(),
-            rows: n,
-        })?;
-    df.take(&IdxCa::from_vec("idx".into(), idx))
-        .map_err(polars_err(path))
+    let in_order = rows.iter().enumerate().all(|(i, &r)| i == r);
+    if in_order && columns.first().is_none_or(|c| c.1.len() == n) {
+        return Ok(columns.clone());
+    }
+    let indices: Vec<u64> = rows.into_iter().map(|r| r as u64).collect();
+    let indices = arrow_array::UInt64Array::from(indices);
+    columns
+        .iter()
+        .map(|(name, values)| {
+            let taken = arrow_select::take::take(values.as_ref(), &indices, None).map_err(|e| {
+                WriteError::Parquet {
+                    path: path.to_path_buf(),
+                    message: one_line(e),
+                }
+            })?;
+            Ok((name.clone(), taken))
+        })
+        .collect()
 }
 
-/// Writes one parquet file (zstd, statistics on; polars embeds no timestamp, so the bytes
-/// depend only on the frame).
-pub(crate) fn write_parquet(path: &Path, df: &mut DataFrame) -> Result<(), WriteError> {
-    let file = std::fs::File::create(path).map_err(|e| WriteError::Io {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    let mut writer = std::io::BufWriter::new(file);
-    ParquetWriter::new(&mut writer)
-        .finish(df)
-        .map_err(polars_err(path))?;
-    use std::io::Write;
-    writer.flush().map_err(|e| WriteError::Io {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })
+/// Writes one parquet file of `columns` (zstd, statistics on; the writer embeds no timestamp,
+/// so the bytes depend only on the columns).
+pub(crate) fn write_parquet(path: &Path, columns: Columns) -> Result<(), WriteError> {
+    crate::pq::write_columns(path, columns)
 }

@@ -16,7 +16,7 @@
 //! - [`warm_up`]: a machine warming up, the drift levelling off (device and axis loops).
 //!
 //! INVARIANT (enforced by this crate's dependencies and `tests/e2e/architecture.rs`): no file
-//! IO, no polars, no plotters, no serialisation formats; the application owns those. The
+//! IO, no parquet/arrow, no plotters, no serialisation formats; the application owns those. The
 //! formulas come from `docs/spec/machine-physics.md`, `docs/spec/machine-formats.md` and
 //! `docs/spec/device-format.md`; each module says which section.
 pub mod axis;

@@ -1,7 +1,7 @@
 //! A crash in a dependency that no `catch_unwind` can catch (issue 14, "never lose a byte").
 //!
-//! polars' parquet decoder can be made to abort the process by a corrupt page: it asks for an
-//! allocation of ~2.3e18 bytes, and Rust's allocation-failure handler aborts (SIGABRT). Nothing
+//! A parquet decoder can be made to abort the process by a corrupt page (polars did: it asked for
+//! an allocation of ~2.3e18 bytes, and Rust's allocation-failure handler aborts, SIGABRT). Nothing
 //! inside the process can turn that into a line naming the file (`dbbcal-io`'s guard catches
 //! panics only). So the commands that read campaign parquet run in a supervised child:
 //!
@@ -10,9 +10,9 @@
 //!   exit code ([`run_self_supervised`], [`Ending`]). It reads nothing itself.
 //! * the **child** ([`child_init`]) writes *breadcrumbs* into a pipe the supervisor passes it:
 //!   before a parquet file is decoded, which file(s) (the read of every file goes through
-//!   `io::guard`, which calls `reading`; a shared scan names all its files); when the decode
+//!   `io::guard`, which calls `reading`); when the decode
 //!   is over; the output folder it claimed and where its swap stands ([`note`]). Several files
-//!   may be decoded at once (polars' threads): the trail is the *set* in progress.
+//!   may be decoded at once (ingest's consumer threads): the trail is the *set* in progress.
 //! * when the child dies from a signal that is not an interrupt (SIGABRT, SIGSEGV, SIGBUS,
 //!   SIGKILL from the OOM killer…), the supervisor reads the trail: the files that were being
 //!   decoded ([`Death::reading`]), the output to clean up ([`Death::output`],

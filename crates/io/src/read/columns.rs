@@ -3,9 +3,6 @@
 
 use super::*;
 
-/// Index of the source file of each row, added while scanning, for error messages.
-pub(super) const FILE_COL: &str = "__source_file";
-
 /// The accepted physical forms of one spec column.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub(super) enum Kind {
@@ -62,18 +59,15 @@ impl Kind {
         }
     }
 
-    /// The expression turning column `name` of type `dtype` into the canonical type, or `None`
-    /// when `dtype` is not an accepted form.
-    pub(super) fn normalise(self, name: &str, dtype: &DataType) -> Option<Expr> {
-        let c = col(name);
+    /// How a column of file type `dtype` is decoded: `Some(None)` as the file's own type,
+    /// `Some(Some(t))` as `t` (ids as a dictionary, whatever their encoding), `None` when
+    /// `dtype` is not an accepted form.
+    pub(super) fn read_as(self, dtype: &DataType) -> Option<Option<DataType>> {
         match (self, dtype) {
-            // The physical value of a polars datetime is UTC epoch in its unit, zone or not; it
-            // is scaled to ns in Rust with checked arithmetic (`to_ns`), never wrapped.
-            (Kind::Time, DataType::Datetime(..)) => Some(c.cast(DataType::Int64)),
-            (Kind::Text, DataType::String) => Some(c),
-            (Kind::Text, DataType::Categorical(..) | DataType::Enum(..)) => {
-                Some(c.cast(DataType::String))
-            }
+            // The stored value of a timestamp is the UTC epoch in its unit, zone or not; it is
+            // scaled to ns in Rust with checked arithmetic (`to_ns`), never wrapped.
+            (Kind::Time, DataType::Timestamp(..)) => Some(None),
+            (Kind::Text, t) if crate::pq::is_text_or_dictionary(t) => Some(Some(text_type())),
             (
                 Kind::Count,
                 DataType::Int64
@@ -82,13 +76,39 @@ impl Kind {
                 | DataType::Int8
                 | DataType::UInt32
                 | DataType::UInt16
-                | DataType::UInt8,
-            ) => Some(c.cast(DataType::Int64)),
-            (Kind::Count, DataType::Float64 | DataType::Float32) => Some(c.cast(DataType::Float64)),
-            (Kind::Real, DataType::Float64 | DataType::Float32) => Some(c.cast(DataType::Float64)),
+                | DataType::UInt8
+                | DataType::Float64
+                | DataType::Float32,
+            ) => Some(None),
+            (Kind::Real, DataType::Float64 | DataType::Float32) => Some(None),
             _ => None,
         }
     }
+
+    /// A decoded column in the canonical type of its kind: times as their stored `i64`
+    /// values, ids as a dictionary ([`text_type`]), counts as `i64` (integers) or `f64` (floats), reals as
+    /// `f64`.
+    pub(super) fn canonical(self, column: &ArrayRef) -> Result<ArrayRef, ArrowError> {
+        let target = match (self, column.data_type()) {
+            (Kind::Time, _) => DataType::Int64,
+            (Kind::Text, _) => text_type(),
+            (Kind::Count, DataType::Float32 | DataType::Float64) => DataType::Float64,
+            (Kind::Count, _) => DataType::Int64,
+            (Kind::Real, _) => DataType::Float64,
+        };
+        if column.data_type() == &target {
+            Ok(column.clone())
+        } else {
+            arrow_cast::cast(column, &target)
+        }
+    }
+}
+
+/// The type ids are decoded as: a dictionary of `i32` keys into utf8 values. Parquet writers
+/// store ids dictionary-encoded; decoded so, the keys come straight from the pages (no string is
+/// materialised per row) and an id's index is looked up once per distinct value and batch.
+pub(super) fn text_type() -> DataType {
+    DataType::Dictionary(Box::new(DataType::Int32), Box::new(DataType::Utf8))
 }
 
 /// How a file stores its `time` column: ns per stored unit, and whether it names a zone.
@@ -101,11 +121,12 @@ pub(super) struct TimeColumn {
 impl TimeColumn {
     pub(super) fn of(dtype: Option<&DataType>) -> TimeColumn {
         match dtype {
-            Some(DataType::Datetime(unit, zone)) => TimeColumn {
+            Some(DataType::Timestamp(unit, zone)) => TimeColumn {
                 ns_per_unit: match unit {
-                    TimeUnit::Nanoseconds => 1,
-                    TimeUnit::Microseconds => 1_000,
-                    TimeUnit::Milliseconds => 1_000_000,
+                    TimeUnit::Nanosecond => 1,
+                    TimeUnit::Microsecond => 1_000,
+                    TimeUnit::Millisecond => 1_000_000,
+                    TimeUnit::Second => 1_000_000_000,
                 },
                 zoned: zone.is_some(),
             },
@@ -120,7 +141,8 @@ impl TimeColumn {
         match self.ns_per_unit {
             1 => "ns",
             1_000 => "us",
-            _ => "ms",
+            1_000_000 => "ms",
+            _ => "s",
         }
     }
 

@@ -51,25 +51,19 @@ impl FileRange {
     }
 }
 
-/// Bar ids of a batch as small indices, found on the string views: an id of 12 bytes or less
-/// (every bar id of the spec's examples) is inline in its 16-byte view, so equal views are equal
-/// ids, and a small open-addressed table of views gives the index without touching the string.
-/// Longer ids are looked up by their string.
+/// Ids of a batch as small indices: each distinct value of the batch's dictionary is looked up
+/// once, then every row's key is mapped (no string is compared per row).
 pub(super) struct IdIndex {
     /// Id -> index (declared bars first, then undeclared ids as they appear).
     pub(super) by_name: BTreeMap<String, u32>,
     pub(super) names: Vec<String>,
-    /// Open-addressed (view, index + 1) table of inline ids; 0 = empty.
-    pub(super) views: Vec<(u128, u32)>,
-    /// Entries of `views` in use (at most half of it).
-    pub(super) filled: usize,
-    pub(super) shift: u32,
+    /// Scratch: the index of each dictionary value of the batch.
+    of_value: Vec<u32>,
 }
 
 impl IdIndex {
     pub(super) fn new<'a>(declared: impl Iterator<Item = &'a str>) -> IdIndex {
         let names: Vec<String> = declared.map(str::to_string).collect();
-        let size = (4 * names.len() + 8).next_power_of_two();
         IdIndex {
             by_name: names
                 .iter()
@@ -77,54 +71,34 @@ impl IdIndex {
                 .map(|(i, n)| (n.clone(), i as u32))
                 .collect(),
             names,
-            views: vec![(0, 0); size],
-            filled: 0,
-            shift: 64 - size.trailing_zeros(),
+            of_value: Vec::new(),
         }
     }
 
-    pub(super) fn slot(&self, view: u128) -> usize {
-        let mixed = (view as u64) ^ ((view >> 64) as u64).rotate_left(29);
-        (mixed.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
-    }
-
-    /// Index of every row's id into `out`.
-    pub(super) fn indices(&mut self, ids: &StringChunked, out: &mut Vec<u32>) {
+    /// Index of every row's id into `out` (a null row gets the index of the empty id: callers
+    /// drop or mark null rows themselves).
+    pub(super) fn indices(&mut self, ids: Ids<'_>, out: &mut Vec<u32>) {
         out.clear();
         out.reserve(ids.len());
-        let mask = self.views.len() - 1;
-        for chunk in ids.downcast_iter() {
-            let views = chunk.views();
-            let mut last: Option<(u128, u32)> = None;
-            for (i, view) in views.iter().enumerate() {
-                let bits = view.as_u128();
-                if let Some((_, index)) = last.filter(|&(v, _)| v == bits) {
-                    out.push(index);
-                    continue;
-                }
-                let index = if view.length <= 12 {
-                    let mut slot = self.slot(bits);
-                    loop {
-                        match self.views[slot] {
-                            (v, found) if found != 0 && v == bits => break found - 1,
-                            (_, 0) => {
-                                let index = self.by_string(chunk.value(i));
-                                if 2 * (self.filled + 1) <= self.views.len() {
-                                    self.views[slot] = (bits, index + 1);
-                                    self.filled += 1;
-                                }
-                                break index;
-                            }
-                            _ => slot = (slot + 1) & mask,
-                        }
-                    }
-                } else {
-                    self.by_string(chunk.value(i))
-                };
-                last = Some((bits, index));
-                out.push(index);
-            }
+        let mut of_value = std::mem::take(&mut self.of_value);
+        of_value.clear();
+        for v in 0..ids.values.len() {
+            let id = if ids.values.is_valid(v) {
+                ids.values.value(v)
+            } else {
+                ""
+            };
+            of_value.push(self.by_string(id));
         }
+        let mut empty = None;
+        for &key in ids.keys() {
+            let index = match usize::try_from(key).ok().and_then(|k| of_value.get(k)) {
+                Some(&index) => index,
+                None => *empty.get_or_insert_with(|| self.by_string("")),
+            };
+            out.push(index);
+        }
+        self.of_value = of_value;
     }
 
     pub(super) fn by_string(&mut self, id: &str) -> u32 {
@@ -169,33 +143,54 @@ pub(super) struct EncoderSink {
 }
 
 impl EncoderSink {
+    /// An empty sink with rows `rows(id)` for every declared bar.
+    pub(super) fn new(
+        bar_ids: &BTreeSet<&str>,
+        rows: &(dyn Fn(&str) -> BarRows + Sync),
+    ) -> EncoderSink {
+        EncoderSink {
+            file: 0,
+            row_offset: 0,
+            time: TimeColumn::of(None),
+            bad: BTreeMap::new(),
+            read: Vec::new(),
+            bin_error: None,
+            ranges: BTreeMap::new(),
+            ids: IdIndex::new(bar_ids.iter().copied()),
+            bars: bar_ids.iter().map(|id| rows(id)).collect(),
+            unknown: BTreeMap::new(),
+            row_ids: Vec::new(),
+            grouped_time: Vec::new(),
+            grouped_counts: Vec::new(),
+            group_start: Vec::new(),
+        }
+    }
+
     /// Split one batch per bar and add each bar's rows to its log or bins. The cost per row does
     /// not depend on the order of the rows: ids are indexed on their string views; a batch of
     /// few runs of one bar (a file sorted or grouped by bar) goes run by run, any other (bars
     /// interleaved, or shuffled) is first grouped by bar with a counting sort (stable: each bar's
     /// rows keep their order), so every bar gets its rows as one slice.
-    pub(super) fn push(&mut self, batch: &DataFrame) -> PolarsResult<()> {
+    pub(super) fn push(&mut self, batch: &Canonical) -> Result<(), ArrowError> {
         let offset = self.row_offset;
-        self.row_offset += batch.height() as u64;
-        let time = batch.column("time")?.i64()?;
-        let bar = batch.column("bar")?.str()?;
+        self.row_offset += batch.rows as u64;
+        let time = batch.i64("time")?;
+        let bar = batch.text("bar")?;
         if time.null_count() > 0 || bar.null_count() > 0 {
             // Rows without a time or a bar cannot be used: dropped, named by file and rows; the
             // others go on.
             let (mut null_time, mut null_bar) = (None, None);
-            let keep: BooleanChunked = time
-                .iter()
-                .zip(bar.iter())
-                .enumerate()
-                .map(|(i, (t, b))| {
+            let keep: BooleanArray = (0..batch.rows)
+                .map(|i| {
                     let row = offset + i as u64;
-                    if t.is_none() {
+                    let (t, b) = (time.is_valid(i), bar.is_valid(i));
+                    if !t {
                         BadRange::add(&mut null_time, row, || "null".into());
                     }
-                    if b.is_none() {
+                    if !b {
                         BadRange::add(&mut null_bar, row, || "null".into());
                     }
-                    Some(t.is_some() && b.is_some())
+                    Some(t && b)
                 })
                 .collect();
             if let Some(b) = null_time {
@@ -204,11 +199,9 @@ impl EncoderSink {
             if let Some(b) = null_bar {
                 self.merge_bad("bar", NULL_PROBLEM, b);
             }
-            let rows: Vec<u64> = keep
-                .iter()
-                .enumerate()
-                .filter(|(_, k)| k.unwrap_or(false))
-                .map(|(i, _)| offset + i as u64)
+            let rows: Vec<u64> = (0..batch.rows)
+                .filter(|&i| keep.value(i))
+                .map(|i| offset + i as u64)
                 .collect();
             let kept = batch.filter(&keep)?;
             return self.push_rows(&kept, &|i| rows.get(i).copied().unwrap_or(offset));
@@ -220,13 +213,11 @@ impl EncoderSink {
     /// the batch's row `i` (rows with a problem are named by it).
     pub(super) fn push_rows(
         &mut self,
-        batch: &DataFrame,
+        batch: &Canonical,
         row_of: &dyn Fn(usize) -> u64,
-    ) -> PolarsResult<()> {
-        let time = batch.column("time")?.i64()?;
-        let bar = batch.column("bar")?.str()?;
-        let time = time.rechunk();
-        let raw = time.cont_slice()?;
+    ) -> Result<(), ArrowError> {
+        let raw: &[i64] = batch.i64("time")?.values();
+        let bar = batch.text("bar")?;
         let converted;
         let time: &[i64] = if self.time.ns_per_unit == 1 && reading_times_ok(raw) {
             raw
@@ -234,7 +225,7 @@ impl EncoderSink {
             let (ns, bad_rows) = self.times_ns(raw, row_of);
             if bad_rows {
                 // Rows with a time out of range are dropped (named by file and rows).
-                let keep: BooleanChunked = raw
+                let keep: BooleanArray = raw
                     .iter()
                     .map(|&t| Some(self.time.to_ns(t).is_some()))
                     .collect();
@@ -243,7 +234,7 @@ impl EncoderSink {
                     .map(row_of)
                     .collect();
                 let kept = batch.filter(&keep)?;
-                if kept.height() == 0 {
+                if kept.rows == 0 {
                     return Ok(());
                 }
                 return self.push_rows(&kept, &|i| rows.get(i).copied().unwrap_or(0));
@@ -260,16 +251,12 @@ impl EncoderSink {
         for &id in &ids {
             self.read[id as usize].0 += 1;
         }
-        let counts = batch.column("counts")?;
-        let whole = counts
-            .i64()
-            .ok()
+        let counts = batch.get("counts")?;
+        let clean = counts
+            .as_primitive_opt::<Int64Type>()
             .filter(|c| c.null_count() == 0)
-            .map(|c| c.rechunk());
-        let clean = whole.as_ref().and_then(|c| {
-            let v = c.cont_slice().ok()?;
-            counts_ok(v).then_some(v)
-        });
+            .map(|c| c.values().as_ref())
+            .filter(|v| counts_ok(v));
         match clean {
             Some(counts) => self.add_rows(&ids, time, counts),
             None => {
@@ -380,19 +367,24 @@ impl EncoderSink {
         &mut self,
         ids: &[u32],
         time: &[i64],
-        counts: &Column,
+        counts: &ArrayRef,
         row_of: &dyn Fn(usize) -> u64,
-    ) -> PolarsResult<KeptRows> {
+    ) -> Result<KeptRows, ArrowError> {
         const FRACTION: &str = "hold counts that are not whole numbers";
         const RANGE: &str = "hold counts beyond ±2^48";
-        let values: Vec<Option<f64>> = match counts.dtype() {
-            DataType::Float64 => counts.f64()?.iter().collect(),
-            _ => counts.i64()?.iter().map(|c| c.map(|c| c as f64)).collect(),
-        };
-        let ints: Vec<Option<i64>> = match counts.dtype() {
-            DataType::Float64 => vec![None; values.len()],
-            _ => counts.i64()?.iter().collect(),
-        };
+        let (values, ints): (Vec<Option<f64>>, Vec<Option<i64>>) =
+            match counts.as_primitive_opt::<Float64Type>() {
+                Some(floats) => (floats.iter().collect(), vec![None; floats.len()]),
+                None => {
+                    let ints = counts.as_primitive_opt::<Int64Type>().ok_or_else(|| {
+                        ArrowError::CastError("`counts` is neither int64 nor float64".into())
+                    })?;
+                    (
+                        ints.iter().map(|c| c.map(|c| c as f64)).collect(),
+                        ints.iter().collect(),
+                    )
+                }
+            };
         let (mut fraction, mut range) = (None, None);
         let mut kept = (Vec::new(), Vec::new(), Vec::new());
         for (i, (&v, &int)) in values.iter().zip(&ints).enumerate() {
@@ -522,15 +514,14 @@ impl EncoderSink {
     }
 }
 
-/// Streams every encoder file (projection and type normalisation inside the scan) into per-bar
-/// logs sorted by (time, counts), or, for the bars `grids` names, straight into compressed bins
-/// (the bar's log then stays empty). Errors as [`read_table`] + [`check_nulls`] +
-/// [`check_ids`] report them: schema errors at the file, then the first column with nulls
-/// (first file), then the first file with an undeclared bar (first id). `rows_hint`: the
-/// encoder rows the files' footers announce (per-bar logs are reserved from it).
+/// Streams every encoder file (projection and type normalisation as each batch is decoded)
+/// into per-bar logs sorted by (time, counts), or, for the bars `grids` names, straight into
+/// compressed bins (the bar's log then stays empty). Schema errors name their file before any
+/// row is read; rows that cannot be used (nulls, undeclared bars, times or counts out of range)
+/// are dropped and flagged by file, column and rows. `rows_hint`: the encoder rows the files'
+/// footers announce (per-bar logs are reserved from it).
 pub(super) fn read_encoders(
     files: &[PathBuf],
-    footer_rows: &[u64],
     bar_ids: &BTreeSet<&str>,
     grids: &BTreeMap<String, (BinGrid, Option<RepeatSketch>)>,
     rows_hint: usize,
@@ -546,24 +537,11 @@ pub(super) fn read_encoders(
             counts: Vec::with_capacity(rows_hint / bar_ids.len().max(1)),
         },
     };
-    // Files of one schema are decoded by one scan (polars then reads ahead across files: ~2x
-    // faster than a query per day file); its batches do not say which file they came from, so
-    // a null or an undeclared id found there is attributed by a second pass, file by file,
-    // that keeps no rows (only on that error path).
-    let clean = |s: &EncoderSink| s.unknown.is_empty() && s.bad.is_empty();
-    let shared = stream_encoders(files, footer_rows, bar_ids, &keep, true, zones);
-    let sink = match shared {
-        Ok(sink) if clean(&sink) => sink,
-        // Rows that cannot be used (or a failing file) in a shared scan: read again file by
-        // file, which names each file's rows exactly (the rows kept are the same); the first
-        // pass's rows are let go first.
-        other => {
-            drop(other);
-            stream_encoders(files, footer_rows, bar_ids, &keep, false, &mut Vec::new())?
-        }
-    };
+    // Every batch knows its file and row offset, so rows that cannot be used are named by
+    // file and rows in this one pass.
+    let sink = stream_encoders(files, bar_ids, &keep, zones)?;
     if let Some(message) = sink.bin_error {
-        return Err(IngestError::Polars {
+        return Err(IngestError::Parquet {
             context: "encoders".into(),
             message,
         });

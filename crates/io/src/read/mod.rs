@@ -1,34 +1,37 @@
-//! Reading a campaign's tables with polars and handing them over as plain series.
+//! Reading a campaign's tables with the parquet crate's arrow reader and handing them over as
+//! plain series.
 //!
-//! Each file is scanned lazily on its own (so every error can name its file), projected to the
-//! columns the spec defines and normalised: timestamps in any unit and zone become `i64` ns UTC,
-//! dictionary/categorical ids become strings, integer counts become `i64`. The per-file frames
-//! are stacked, validated (nulls, unknown ids), then split per bar / sensor and sorted by time.
+//! Each file is opened on its own (so every error can name its file), projected to the columns
+//! the spec defines (a `ProjectionMask`: no other column is decoded) and normalised: timestamps
+//! in any unit and zone become `i64` ns UTC, dictionary/categorical ids become strings, integer
+//! counts become `i64`. The small tables' rows are stacked, validated (nulls, unknown ids), then
+//! split per sensor and sorted by time.
 //!
-//! The encoder table (tens of millions of rows) is never stacked: each file is streamed
-//! (`sink_batches` on the streaming engine) and every batch is split into per-bar `time` /
+//! The encoder table (tens of millions of rows) is never stacked: each file is streamed row
+//! group by row group in batches, and every batch is split into per-bar `time` /
 //! `counts` buffers as it arrives, so ingest holds the per-bar logs and one batch, not the
 //! table beside them. Temperatures are not joined onto the encoder times here: `series`
 //! interpolates each sensor's log per bar (`interpolate_temperatures`), one bar at a time.
 //!
 //! # How it works
 //!
-//! - Ingest streams each encoder file (polars streaming engine, `sink_batches`) into per-bar
-//!   `time`/`counts` vectors or bins: the encoder table is never stacked, and temperatures are not
-//!   joined onto every encoder time (each bar interpolates the sensor logs when it is processed).
-//! - Encoder files of one schema are decoded by one scan (`io::read::stream_files`): polars reads
-//!   ahead across files (what it saves: `bench/README.md`); rows that cannot be used (a null, an undeclared id, a time out of range) found in a
-//!   shared scan make ingest stream the files again one by one, which names each file's rows (only
-//!   then; the first pass's rows are let go first).
+//! - Ingest streams each encoder file in batches (the parquet crate's arrow reader, one row group
+//!   at a time) into per-bar `time`/`counts` vectors or bins: the encoder table is never stacked,
+//!   and temperatures are not joined onto every encoder time (each bar interpolates the sensor
+//!   logs when it is processed).
+//! - Every file's schema is checked from its footer before any row is read; the files' row
+//!   groups are then the work items (`io::read::stream_encoders`), each batch knowing its file and
+//!   its rows' offset in that file, so rows that cannot be used (a null, an undeclared id, a time
+//!   out of range) are named by file and rows in the one pass.
 //! - Cost and memory do not depend on the row order (the format allows any; a logger of many bars
-//!   interleaves them). Each batch's bar ids become small indices on their string views (an id of
-//!   ≤ 12 bytes is inline in its view: an open-addressed table of views, `io::read::IdIndex`); a
+//!   interleaves them). Each batch's bar ids are decoded as a dictionary and become small indices
+//!   by looking each distinct value up once (`io::read::IdIndex`); a
 //!   batch of few runs of one bar goes run by run, any other is grouped by bar with a stable
 //!   counting sort, so every bar gets its rows as one slice whatever the interleaving. A full-rate
 //!   log is reserved from the parquet footers' row counts and, when not sorted, sorted per bar in
 //!   parallel at the end.
-//! - With bins, ingest decodes (polars) while two consumer threads (`io::read::BATCH_CONSUMERS`)
-//!   each take whole batches, split them per bar and accumulate them into sinks of their own
+//! - Two consumer threads (`io::read::BATCH_CONSUMERS`) each take whole row groups, decode them
+//!   and split every batch per bar, accumulating into sinks of their own
 //!   (bins, repeat sketches, per-file ranges), merged at the end: every part is an order-free
 //!   integer sum, count or set (`BinAccumulator::merge`, `RepeatSketch::merge`, tested against one
 //!   accumulator given every row). The temperature files are read on a third thread meanwhile
@@ -41,8 +44,7 @@
 //!   or beyond ±2⁴⁸ is dropped and recorded by file, column and row range (`io::read::BadRange`,
 //!   `EncoderSink::bad`/`unknown`; for temperatures and events in `io::read::read_file` and
 //!   `unknown_id_flags`) as an `unusable_rows` flag in `quality.files`; the narrative's notes quote
-//!   the first three. A shared encoder scan that finds any re-streams file by file, so the rows
-//!   named are each file's. The bin accumulator
+//!   the first three. The bin accumulator
 //!   checks again (`BinAccumulator::add_all` → `BinError`: times in range, |counts| ≤ 2⁴⁸, ≤ 2³¹
 //!   readings a bar), so its integer sums cannot wrap whoever calls it (property tests in
 //!   `series/bins.rs`).
@@ -53,13 +55,11 @@
 //!   their table first (`io::inputs::split_by_shared_size`: only they can be byte-identical),
 //!   reads a byte-identical file once, hashes the others on a thread beside the read, and after
 //!   the read checks each file's size and mtime against those taken before hashing. Every read of a file runs under `io::guard::guarded` (catch_unwind, a quiet panic
-//!   hook while a guard is active; `guarded_scan` for a scan of several files, which all count as
-//!   being decoded). Shared scans that fail are retried file by file to name the file; a shared
-//!   scan that crashes the process is probed file by file by the supervisor (`supervise::probe`,
-//!   `io::decode_whole_file` in a child each).
+//!   hook while a guard is active), which announces its file to the supervisor: a crash while
+//!   several files are being decoded (one per consumer) is probed file by file by the supervisor
+//!   (`supervise::probe`, `io::decode_whole_file` in a child each).
 //! - Rows that several encoder files hold: `io::read::EncoderSink` records each (file, bar) time
-//!   range and row count while streaming (a shared scan's batches are cut at the files' footer row counts,
-//!   `FileCursor`, so every batch knows its file); `io::read::resolve_repeats` re-reads,
+//!   range and row count while streaming (every batch knows its file); `io::read::resolve_repeats` re-reads,
 //!   per bar, only the rows inside the overlapping ranges of the files involved (scan filtered by
 //!   bar and time), keeps one copy of each reading (`compare_copies`) and subtracts the others
 //!   from the bins (`BinAccumulator::remove_all`, exact on integer sums; a duplicate's twin stays,
@@ -78,13 +78,21 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use polars::lazy::dsl::Engine;
-use polars::prelude::*;
+use arrow_array::cast::AsArray;
+use arrow_array::types::Int32Type;
+use arrow_array::types::{Float64Type, Int64Type};
+use arrow_array::{
+    Array, ArrayRef, BooleanArray, DictionaryArray, Float64Array, Int64Array, RecordBatch,
+    StringArray,
+};
+use arrow_schema::{ArrowError, DataType, TimeUnit};
+use parquet::arrow::arrow_reader::ParquetRecordBatchReader;
 
-use super::guard::{guarded, guarded_scan};
+use super::guard::guarded;
 use super::inputs::{CampaignFiles, MANIFEST};
+use super::pq::{not_parquet, ParquetFile};
 use super::repeats::{RepeatSketch, RepeatWindows};
-use super::{one_line, IngestError};
+use super::IngestError;
 use dbbcal_core::campaign::{Campaign, Manifest, SensorKind};
 use dbbcal_core::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
 use dbbcal_core::series::{
@@ -103,6 +111,8 @@ mod overlaps;
 use overlaps::*;
 mod stream;
 use stream::*;
+mod rows;
+use rows::*;
 mod positions;
 pub(crate) use positions::read_positions_files;
 
@@ -194,7 +204,7 @@ pub(crate) fn read_tables(
         let temperatures = scope.spawn(|| read_temperatures(files, &sensor_ids));
         let rest = read_events_and_encoders(files, campaign, &bar_ids, bin_s);
         let temperatures = temperatures.join().unwrap_or_else(|_| {
-            Err(IngestError::Polars {
+            Err(IngestError::Parquet {
                 context: "temperatures".into(),
                 message: "the temperature reader panicked".into(),
             })
@@ -254,9 +264,8 @@ fn read_temperatures(
         &mut zones,
         &mut dropped,
     )?;
-    let readings =
-        sensor_readings(&temperatures, sensor_ids).map_err(polars_error("temperatures"))?;
-    let matched = readings.values().map(DataFrame::height).sum();
+    let readings = temperatures.by_id("sensor", "celsius", sensor_ids);
+    let matched = readings.values().map(Vec::len).sum();
     dropped.extend(unknown_rows(
         &temperatures,
         matched,
@@ -267,10 +276,9 @@ fn read_temperatures(
     drop(temperatures);
     let mut sensors = BTreeMap::new();
     let mut quality = BTreeMap::new();
-    for (id, df) in &readings {
+    for (id, rows) in &readings {
         let q: &mut ChannelQuality = quality.entry(id.clone()).or_default();
-        let log = sensor_log(df, q).map_err(polars_error("temperatures"))?;
-        sensors.insert(id.clone(), log);
+        sensors.insert(id.clone(), sensor_log(rows, q));
     }
     tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
     Ok((sensors, quality, zones, dropped))
@@ -319,14 +327,7 @@ fn read_events_and_encoders(
     } else {
         0
     };
-    let mut encoders = read_encoders(
-        &files.encoders,
-        &footers,
-        bar_ids,
-        &grids,
-        rows_hint,
-        &mut zones,
-    )?;
+    let mut encoders = read_encoders(&files.encoders, bar_ids, &grids, rows_hint, &mut zones)?;
     dropped.append(&mut encoders.dropped);
     encoders.dropped = dropped;
     Ok((events, event_quality, encoders, zones))
@@ -395,22 +396,22 @@ fn flag_mixed_zones(zones: &[(PathBuf, bool)], quality: &mut Quality) {
 /// are undeclared: their rows (dropped) as `unusable_rows` flags, by file and id. This keeps
 /// the costly per-file summary off the path of a good campaign.
 fn unknown_rows(
-    df: &DataFrame,
+    table: &TableRows,
     matched: usize,
     files: &[PathBuf],
     id_column: &'static str,
     known: &BTreeSet<&str>,
 ) -> Result<Vec<Flag>, IngestError> {
-    if matched == df.height() {
+    if matched == table.height() {
         return Ok(Vec::new());
     }
-    let flags = unknown_id_flags(df, files, id_column, known)?;
+    let flags = unknown_id_flags(table, files, id_column, known);
     if flags.is_empty() {
-        return Err(IngestError::Polars {
+        return Err(IngestError::Parquet {
             context: id_column.to_string(),
             message: format!(
                 "{matched} of {} rows have a declared id, but no undeclared id was found",
-                df.height()
+                table.height()
             ),
         });
     }
@@ -419,14 +420,13 @@ fn unknown_rows(
 
 /// Rows of ids the manifest does not declare, per file and id (null ids are skipped).
 fn unknown_id_flags(
-    df: &DataFrame,
+    table: &TableRows,
     files: &[PathBuf],
     id_column: &'static str,
     known: &BTreeSet<&str>,
-) -> Result<Vec<Flag>, IngestError> {
-    let summary = id_summary(df, id_column).map_err(polars_error(id_column))?;
+) -> Vec<Flag> {
     let known_list = known.iter().copied().collect::<Vec<_>>().join(", ");
-    Ok(summary
+    id_summary(table, id_column)
         .into_iter()
         .filter(|row| !known.contains(row.id.as_str()))
         .map(|row| {
@@ -440,74 +440,18 @@ fn unknown_id_flags(
                 &known_list,
             )
         })
-        .collect())
-}
-
-fn polars_error(context: &str) -> impl Fn(PolarsError) -> IngestError + '_ {
-    move |e| IngestError::Polars {
-        context: context.to_string(),
-        message: one_line(e),
-    }
-}
-
-// ---------------------------------------------------------------- per bar / sensor
-
-/// Rows of `df` whose `key` is `id`, columns `columns`, sorted by time (`columns[0]`), ties
-/// broken by the value so that the order never depends on how the rows were split into files.
-fn rows_of(df: &DataFrame, key: &str, id: &str, columns: [&str; 2]) -> PolarsResult<DataFrame> {
-    let by_time = df
-        .clone()
-        .lazy()
-        .filter(col(key).eq(lit(id)))
-        .select([col(columns[0]), col(columns[1])])
-        .sort(
-            [columns[0]],
-            SortMultipleOptions::default().with_maintain_order(true),
-        )
-        .collect()?;
-    // A two-key sort is several times slower than a one-key sort: only pay for it on ties.
-    if has_ties(by_time.column(columns[0])?.i64()?) {
-        by_time.sort(columns, SortMultipleOptions::default())
-    } else {
-        Ok(by_time)
-    }
-}
-
-/// Whether a sorted column holds two equal neighbours.
-fn has_ties(sorted: &Int64Chunked) -> bool {
-    let mut previous = None;
-    sorted.iter().any(|t| {
-        let tie = t.is_some() && t == previous;
-        previous = t;
-        tie
-    })
-}
-
-/// Sensor id -> its (time, celsius) frame sorted by time; every declared sensor is present.
-fn sensor_readings(
-    temperatures: &DataFrame,
-    sensor_ids: &BTreeSet<&str>,
-) -> PolarsResult<BTreeMap<String, DataFrame>> {
-    sensor_ids
-        .iter()
-        .map(|id| {
-            Ok((
-                id.to_string(),
-                rows_of(temperatures, "sensor", id, ["time", "celsius"])?,
-            ))
-        })
         .collect()
 }
+
+// ---------------------------------------------------------------- per sensor
 
 /// A sensor's log from its rows sorted by (time, value): null, NaN and ±inf readings dropped
 /// (a missing reading, not a temperature: one NaN would otherwise spread through every bar
 /// that interpolates the sensor) and exact duplicates counted once, both recorded in `q`.
-fn sensor_log(readings: &DataFrame, q: &mut ChannelQuality) -> PolarsResult<SensorLog> {
-    let time = readings.column("time")?.i64()?;
-    let celsius = readings.column("celsius")?.f64()?;
+fn sensor_log(readings: &[(i64, Option<f64>)], q: &mut ChannelQuality) -> SensorLog {
     let mut log = SensorLog::default();
     let mut missing = Missing::default();
-    for (t, c) in time.into_no_null_iter().zip(celsius.iter()) {
+    for &(t, c) in readings {
         match c {
             Some(c) if c.is_finite() => {
                 log.time_ns.push(t);
@@ -516,14 +460,14 @@ fn sensor_log(readings: &DataFrame, q: &mut ChannelQuality) -> PolarsResult<Sens
             other => missing.add(t, other),
         }
     }
-    q.rows = readings.height() as u64;
+    q.rows = readings.len() as u64;
     missing.record(q, "temperature readings");
     // Sorted by time, ties by value: exact duplicates are neighbours (NaN, which would not
     // compare equal, is gone).
     let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
     quality::record_duplicates(q, dups, range, "temperature readings");
     quality::drop_implausible_temperatures(&mut log.time_ns, &mut log.celsius, q);
-    Ok(log)
+    log
 }
 
 // ---------------------------------------------------------------- events
@@ -539,18 +483,10 @@ fn read_events(
         return Ok(Vec::new());
     }
     let table = read_table(files, &EVENT_COLUMNS, zones, dropped)?;
-    dropped.extend(unknown_id_flags(&table, files, "bar", bar_ids)?);
+    dropped.extend(unknown_id_flags(&table, files, "bar", bar_ids));
     // Events of undeclared bars are dropped (a null bar: a setup-wide event).
-    let declared: BooleanChunked = table
-        .column("bar")
-        .and_then(|c| c.str().cloned())
-        .map_err(polars_error("events"))?
-        .iter()
-        .map(|b| Some(b.is_none_or(|b| bar_ids.contains(b))))
-        .collect();
-    let table = table.filter(&declared).map_err(polars_error("events"))?;
-    q.rows = table.height() as u64;
-    let events = events_sorted(table).map_err(polars_error("events"))?;
+    let events = events_sorted(&table, bar_ids);
+    q.rows = events.len() as u64;
     // A NaN or infinite value is a missing reading, not a level (a null value is a valueless
     // event, as the spec allows): the event is dropped and counted.
     let mut missing = Missing::default();
@@ -568,27 +504,40 @@ fn read_events(
     Ok(kept)
 }
 
-fn events_sorted(table: DataFrame) -> PolarsResult<Vec<Event>> {
-    let sorted = table
-        .lazy()
-        .select([col("time"), col("bar"), col("kind"), col("value")])
-        .sort(
-            ["time", "bar", "kind", "value"],
-            SortMultipleOptions::default(),
-        )
-        .collect()?;
-    let time = sorted.column("time")?.i64()?;
-    let bar = sorted.column("bar")?.str()?;
-    let kind = sorted.column("kind")?.str()?;
-    let value = sorted.column("value")?.f64()?;
-    Ok((0..sorted.height())
-        .map(|i| Event {
-            time_ns: time.get(i).unwrap_or(0),
-            bar: bar.get(i).map(str::to_string),
-            kind: EventKind::parse(kind.get(i).unwrap_or_default()),
-            value: value.get(i),
+/// The events of declared bars (or none), sorted by time, bar, kind and value (nulls first).
+fn events_sorted(table: &TableRows, bar_ids: &BTreeSet<&str>) -> Vec<Event> {
+    let (Some(bar), Some(kind)) = (table.text("bar"), table.text("kind")) else {
+        return Vec::new();
+    };
+    let value = table.real("value").unwrap_or_default();
+    let mut rows: Vec<(i64, Option<&str>, &str, Option<f64>)> = (0..table.height())
+        .map(|i| {
+            let v = value.get(i).copied().flatten();
+            (
+                table.time[i],
+                bar.get(i),
+                kind.get(i).unwrap_or_default(),
+                v,
+            )
         })
-        .collect())
+        .filter(|r| r.1.is_none_or(|b| bar_ids.contains(b)))
+        .collect();
+    rows.sort_by(|a, b| {
+        (a.0, a.1, a.2)
+            .cmp(&(b.0, b.1, b.2))
+            .then_with(|| match (a.3, b.3) {
+                (Some(x), Some(y)) => x.total_cmp(&y),
+                (x, y) => x.is_some().cmp(&y.is_some()),
+            })
+    });
+    rows.into_iter()
+        .map(|(time_ns, bar, kind, value)| Event {
+            time_ns,
+            bar: bar.map(str::to_string),
+            kind: EventKind::parse(kind),
+            value,
+        })
+        .collect()
 }
 
 /// What two consumers' sinks merge: the ranges of bad rows and of a bar's rows in a file.
@@ -639,50 +588,70 @@ mod merge_tests {
 }
 
 #[cfg(test)]
-mod file_cursor_tests {
+mod row_group_tests {
     use super::*;
+    use crate::test_frames::{col, df, raw_time_col, write_df_in_groups, Unit};
 
-    fn batch(n: usize) -> DataFrame {
-        let values: Vec<i64> = (0..n as i64).collect();
-        DataFrame::new(n, vec![Column::new("time".into(), values)]).unwrap()
+    const T0: i64 = 1_793_491_200_000_000_000;
+
+    /// An encoder file of `bars` (`None`: a null bar) at one reading a second, in row groups of
+    /// four rows.
+    fn write(path: &Path, bars: &[Option<&str>]) {
+        let n = bars.len() as i64;
+        let times = (0..n).map(|i| Some(T0 + i * 1_000_000_000)).collect();
+        let batch = df(vec![
+            raw_time_col("time", times, Unit::Nanoseconds, None),
+            col("bar", bars.to_vec()),
+            col("counts", (0..n).collect::<Vec<i64>>()),
+        ]);
+        write_df_in_groups(path, batch, 4);
     }
 
-    /// (file, rows, first time) of each part; the parts' offsets in their files.
-    fn firsts(parts: &[(u32, u64, DataFrame)]) -> Vec<(u32, usize, i64)> {
-        parts
+    #[test]
+    fn every_row_group_is_a_task_with_its_first_row_in_its_file_and_empty_files_none() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let files: Vec<PathBuf> = ["a", "b", "c"]
             .iter()
-            .map(|(f, _, df)| {
-                let first = df.column("time").unwrap().i64().unwrap().get(0).unwrap();
-                (*f, df.height(), first)
-            })
-            .collect()
-    }
-
-    fn offsets(parts: &[(u32, u64, DataFrame)]) -> Vec<u64> {
-        parts.iter().map(|p| p.1).collect()
-    }
-
-    #[test]
-    fn batches_are_cut_at_the_footers_row_counts_and_empty_files_skipped() {
-        // Files 3 (4 rows), 5 (empty), 7 (3 rows), 9 (2 rows).
-        let mut cursor = FileCursor::new(vec![(3, 4), (5, 0), (7, 3), (9, 2)]);
-        let parts = cursor.split(batch(6)).unwrap();
-        assert_eq!(firsts(&parts), vec![(3, 4, 0), (7, 2, 4)]);
-        assert_eq!(offsets(&parts), vec![0, 0]);
-        assert_eq!(cursor.unread(), Some((7, 1)));
-        let parts = cursor.split(batch(3)).unwrap();
-        assert_eq!(firsts(&parts), vec![(7, 1, 0), (9, 2, 1)]);
-        assert_eq!(offsets(&parts), vec![2, 0]);
-        assert_eq!(cursor.unread(), None);
-        assert!(cursor.split(batch(1)).is_err(), "rows beyond the footers");
+            .map(|n| dir.path().join(format!("{n}.parquet")))
+            .collect();
+        write(&files[0], &[Some("B01"); 10]);
+        write(&files[1], &[]);
+        write(&files[2], &[Some("B01"); 3]);
+        let scans: Vec<Scan> = files
+            .iter()
+            .map(|p| checked_scan(p, &ENCODER_COLUMNS).expect("scan"))
+            .collect();
+        let tasks: Vec<(u32, usize, u64)> = row_group_tasks(&scans)
+            .iter()
+            .map(|t| (t.file, t.group, t.row_offset))
+            .collect();
+        assert_eq!(tasks, vec![(0, 0, 0), (0, 1, 4), (0, 2, 8), (2, 0, 0)]);
     }
 
     #[test]
-    fn a_batch_within_one_file_is_passed_whole() {
-        let mut cursor = FileCursor::new(vec![(0, 10)]);
-        let parts = cursor.split(batch(10)).unwrap();
-        assert_eq!(firsts(&parts), vec![(0, 10, 0)]);
-        assert_eq!(cursor.unread(), None);
-        assert_eq!(FileCursor::new(vec![(2, 5)]).unread(), Some((2, 5)));
+    fn rows_of_later_row_groups_are_named_by_their_row_in_their_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let files = vec![dir.path().join("a.parquet"), dir.path().join("b.parquet")];
+        let mut a = vec![Some("B01"); 10];
+        a[5] = None;
+        a[9] = None;
+        write(&files[0], &a);
+        write(&files[1], &[Some("B01"), None, Some("B01")]);
+        let bars: BTreeSet<&str> = ["B01"].into_iter().collect();
+        let kept = |_: &str| BarRows::Kept {
+            time_ns: Vec::new(),
+            counts: Vec::new(),
+        };
+        let sink = stream_encoders(&files, &bars, &kept, &mut Vec::new()).expect("read");
+        let range = |file: u32| {
+            let b = &sink.bad[&(file, "bar", NULL_PROBLEM)];
+            (b.rows, b.first_row, b.last_row)
+        };
+        assert_eq!(range(0), (2, 5, 9));
+        assert_eq!(range(1), (1, 1, 1));
+        let BarRows::Kept { time_ns, .. } = &sink.bars[0] else {
+            panic!("kept rows")
+        };
+        assert_eq!(time_ns.len(), 8 + 2);
     }
 }

@@ -73,7 +73,7 @@ pub(super) fn resolve_repeats(
         report_copies(files, id, binned, &copies, report);
         if let Some(BarRows::Binned { bins, .. }) = bars.get_mut(index) {
             bins.remove_all(&copies.removed.0, &copies.removed.1)
-                .map_err(|e| IngestError::Polars {
+                .map_err(|e| IngestError::Parquet {
                     context: "encoders".into(),
                     message: format!("bar {id}: {e}"),
                 })?;
@@ -250,41 +250,66 @@ pub(super) fn rows_in_window(
     from_ns: i64,
     to_ns: i64,
 ) -> Result<Vec<(i64, i64)>, IngestError> {
-    let (lazy, schema, exprs) = checked_scan(path, &ENCODER_COLUMNS)?;
-    let unit = TimeColumn::of(schema.get("time"));
+    let scan = checked_scan(path, &ENCODER_COLUMNS)?;
+    let unit = scan.time;
     let per = unit.ns_per_unit;
     let (lo, hi) = (
         from_ns.div_euclid(per) + i64::from(from_ns.rem_euclid(per) != 0),
         to_ns.div_euclid(per),
     );
-    let df = lazy
-        .select(exprs)
-        .filter(
-            col("bar")
-                .eq(lit(bar))
-                .and(col("time").gt_eq(lit(lo)))
-                .and(col("time").lt_eq(lit(hi))),
-        )
-        .collect()
-        .map_err(|e| not_parquet(path, e))?;
-    let rows = (|| -> PolarsResult<Vec<(i64, i64)>> {
-        let time = df.column("time")?.i64()?;
-        let counts = df.column("counts")?;
-        let counts: Vec<Option<i64>> = match counts.dtype() {
-            DataType::Float64 => counts
-                .f64()?
-                .iter()
-                .map(|v| v.filter(|v| v.is_finite()).map(|v| v as i64))
-                .collect(),
-            _ => counts.i64()?.iter().collect(),
-        };
-        Ok(time
-            .iter()
-            .zip(counts)
-            .filter_map(|(t, c)| Some((unit.to_ns(t?)?, c?)))
-            .filter(|&(t, _)| t >= from_ns && t <= to_ns)
-            .collect())
-    })()
-    .map_err(|e| not_parquet(path, e))?;
+    // Row groups whose footer statistics put all their times outside the window are skipped.
+    let time_index = scan.columns.first().map_or(0, |c| c.index);
+    let groups: Vec<usize> = (0..scan.file.row_group_rows().len())
+        .filter(|&g| {
+            scan.file
+                .int64_range(g, time_index)
+                .is_none_or(|(min, max)| max >= lo && min <= hi)
+        })
+        .collect();
+    let mut rows = Vec::new();
+    for batch in scan.reader(path, Some(groups))? {
+        let batch = batch.map_err(|e| not_parquet(path, e))?;
+        let batch = scan.canonical(&batch).map_err(|e| not_parquet(path, e))?;
+        window_rows(&batch, bar, (lo, hi), unit, &mut rows).map_err(|e| not_parquet(path, e))?;
+    }
+    rows.retain(|&(t, _)| t >= from_ns && t <= to_ns);
     Ok(rows)
+}
+
+/// The rows of `batch` of bar `bar` with stored times in `[lo, hi]` and a count (whole float
+/// counts converted, missing ones left out), times in ns, appended to `out`.
+fn window_rows(
+    batch: &Canonical,
+    bar: &str,
+    (lo, hi): (i64, i64),
+    unit: TimeColumn,
+    out: &mut Vec<(i64, i64)>,
+) -> Result<(), ArrowError> {
+    let time = batch.i64("time")?;
+    let bars = batch.text("bar")?;
+    let counts = batch.get("counts")?;
+    let floats = counts.as_primitive_opt::<Float64Type>();
+    let ints = counts.as_primitive_opt::<Int64Type>();
+    for i in 0..batch.rows {
+        if time.is_null(i) || bars.value(i) != Some(bar) {
+            continue;
+        }
+        let t = time.value(i);
+        if t < lo || t > hi {
+            continue;
+        }
+        let count = match (floats, ints) {
+            (Some(f), _) => f
+                .is_valid(i)
+                .then(|| f.value(i))
+                .filter(|v| v.is_finite())
+                .map(|v| v as i64),
+            (None, Some(c)) => c.is_valid(i).then(|| c.value(i)),
+            (None, None) => None,
+        };
+        if let (Some(ns), Some(c)) = (unit.to_ns(t), count) {
+            out.push((ns, c));
+        }
+    }
+    Ok(())
 }

@@ -42,59 +42,47 @@ pub(crate) fn read_positions_files(files: &[PathBuf]) -> Result<PositionsLog, In
     Ok(log)
 }
 
-fn integer_only(path: &Path, schema: &Schema, name: &'static str) -> Result<(), IngestError> {
-    match schema.get(name) {
-        Some(dtype) if !dtype.is_integer() && !dtype.is_null() => Err(IngestError::WrongType {
-            path: path.to_path_buf(),
-            column: name,
-            found: dtype.to_string(),
-            expected: INTEGER,
-        }),
+fn integer_only(path: &Path, scan: &Scan, name: &'static str) -> Result<(), IngestError> {
+    match scan.dtype(name) {
+        Some(dtype) if !dtype.is_integer() && dtype != &DataType::Null => {
+            Err(IngestError::WrongType {
+                path: path.to_path_buf(),
+                column: name,
+                found: crate::pq::type_name(dtype),
+                expected: INTEGER,
+            })
+        }
         _ => Ok(()),
     }
 }
 
 fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
-    let (lazy, schema, mut exprs) = checked_scan(path, &REQUIRED)?;
-    integer_only(path, &schema, "station")?;
-    integer_only(path, &schema, "run")?;
+    let mut scan = checked_scan(path, &REQUIRED)?;
+    integer_only(path, &scan, "station")?;
+    integer_only(path, &scan, "run")?;
     let mut present = Vec::new();
     for c in &OPTIONAL {
-        let Some(dtype) = schema.get(c.name) else {
-            continue;
-        };
         // An all-null column of no type is as good as an absent one.
-        if dtype.is_null() {
+        if scan.dtype(c.name).is_none_or(|t| t == &DataType::Null) {
             continue;
         }
-        let Some(expr) = c.kind.normalise(c.name, dtype) else {
-            return Err(IngestError::WrongType {
-                path: path.to_path_buf(),
-                column: c.name,
-                found: dtype.to_string(),
-                expected: c.kind.expected(),
-            });
-        };
-        exprs.push(expr.alias(c.name));
+        scan.add(path, c)?;
         present.push(c.name);
     }
-    let unit = TimeColumn::of(schema.get("time"));
-    let df = lazy
-        .select(exprs)
-        .collect()
-        .map_err(|e| not_parquet(path, e))?;
-    let err = |e: PolarsError| not_parquet(path, e);
-    let n = df.height();
+    let unit = scan.time;
+    let df = scan.decode_all(path)?;
+    let err = |e: ArrowError| not_parquet(path, e);
+    let n = df.rows;
     for c in REQUIRED.iter().filter(|c| !c.nullable) {
-        let column = df.column(c.name).map_err(err)?;
+        let column = df.get(c.name).map_err(err)?;
         if column.null_count() > 0 {
             let mut bad = None;
-            for (row, null) in column.is_null().iter().enumerate() {
-                if null == Some(true) {
+            for row in 0..n {
+                if column.is_null(row) {
                     BadRange::add(&mut bad, row as u64, || "null".into());
                 }
             }
-            let b = bad.expect("nulls found");
+            let Some(b) = bad else { continue };
             return Err(IngestError::BadRows {
                 path: path.to_path_buf(),
                 column: c.name,
@@ -107,21 +95,13 @@ fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
             });
         }
     }
-    let time = df
-        .column("time")
-        .and_then(|c| c.i64().cloned())
-        .map_err(err)?;
-    let device = df
-        .column("device")
-        .and_then(|c| c.str().cloned())
-        .map_err(err)?;
-    let real = |name: &str| df.column(name).and_then(|c| c.f64().cloned()).map_err(err);
+    let time = df.i64("time").map_err(err)?;
+    let device = df.text("device").map_err(err)?;
+    let real = |name: &str| df.f64(name).map_err(err);
     let (x, y, z) = (real("x_mm")?, real("y_mm")?, real("z_mm")?);
-    let station = df
-        .column("station")
-        .and_then(|c| c.i64().cloned())
-        .map_err(err)?;
-    let optional_real = |name: &str| -> Result<Option<Float64Chunked>, IngestError> {
+    let station = df.get("station").map_err(err)?;
+    let station = int_values(station).map_err(err)?;
+    let optional_real = |name: &str| -> Result<Option<&Float64Array>, IngestError> {
         if present.contains(&name) {
             Ok(Some(real(name)?))
         } else {
@@ -134,33 +114,30 @@ fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
         optional_real("c_deg")?,
     ];
     let run = if present.contains(&"run") {
-        Some(
-            df.column("run")
-                .and_then(|c| c.i64().cloned())
-                .map_err(err)?,
-        )
+        Some(int_values(df.get("run").map_err(err)?).map_err(err)?)
     } else {
         None
     };
+    let get = |c: &Float64Array, i: usize| c.is_valid(i).then(|| c.value(i));
     let mut bad_time = None;
     let mut rows = Vec::with_capacity(n);
     for i in 0..n {
-        let raw = time.get(i).unwrap_or(0);
+        let raw = time.value(i);
         let Some(time_ns) = unit.to_ns(raw) else {
             BadRange::add(&mut bad_time, i as u64, || format!("{raw} {}", unit.unit()));
             continue;
         };
         rows.push(PositionRow {
             time_ns,
-            device: device.get(i).unwrap_or_default().to_string(),
+            device: device.value(i).unwrap_or_default().to_string(),
             xyz_mm: [
-                x.get(i).unwrap_or(f64::NAN),
-                y.get(i).unwrap_or(f64::NAN),
-                z.get(i).unwrap_or(f64::NAN),
+                get(x, i).unwrap_or(f64::NAN),
+                get(y, i).unwrap_or(f64::NAN),
+                get(z, i).unwrap_or(f64::NAN),
             ],
-            abc_deg: std::array::from_fn(|k| abc[k].as_ref().and_then(|c| c.get(i))),
-            station: station.get(i),
-            run: run.as_ref().and_then(|c| c.get(i)),
+            abc_deg: std::array::from_fn(|k| abc[k].and_then(|c| get(c, i))),
+            station: station[i],
+            run: run.as_ref().and_then(|c| c[i]),
             file: index,
             row: i as u64,
         });
@@ -177,4 +154,12 @@ fn read_one(path: &Path, index: u32) -> Result<Vec<PositionRow>, IngestError> {
         });
     }
     Ok(rows)
+}
+
+/// An integer column (the spec's `Count` kind, checked integer by [`integer_only`]) as values.
+fn int_values(column: &ArrayRef) -> Result<Vec<Option<i64>>, ArrowError> {
+    let ints = column
+        .as_primitive_opt::<Int64Type>()
+        .ok_or_else(|| ArrowError::CastError("not an integer column".into()))?;
+    Ok(ints.iter().collect())
 }

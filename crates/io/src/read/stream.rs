@@ -1,5 +1,5 @@
-//! Streaming the encoder files in batches cut at the files' footer row counts, so that every
-//! batch knows its file; nulls and ids per file.
+//! Streaming the encoder files row group by row group on the consumer threads, so that every
+//! batch knows its file and its rows' offset in it; undeclared ids per file.
 
 use super::*;
 
@@ -16,262 +16,128 @@ pub(super) struct Encoders {
     pub(super) dropped: Vec<Flag>,
 }
 
-/// One decoded batch of rows of one encoder file, as the consumers get it.
-pub(super) struct Batch {
-    /// Index of the file.
-    pub(super) file: u32,
-    /// The file's rows before this batch (bad rows are named by their row in the file).
-    pub(super) row_offset: u64,
-    /// How the file stores its times.
-    pub(super) time: TimeColumn,
-    pub(super) frame: DataFrame,
-}
-
-/// Consumers of the decoded batches: each splits and accumulates whole batches into a sink of
-/// its own, and the sinks are merged at the end (bins and repeat sketches are order-free
-/// sums). One consumer was the stream's long pole: per row it costs more than polars' decoding.
+/// Threads that each decode whole row groups of the encoder files and split and accumulate
+/// their batches into a sink of their own; the sinks are merged at the end (bins and repeat
+/// sketches are order-free sums). Each thread decodes and consumes in turn, so two keep both
+/// cores of the reference machine busy without a queue between a decoder and its consumers.
 pub(super) const BATCH_CONSUMERS: usize = 2;
 
+/// One row group of one encoder file: the unit of work of a consumer.
+pub(super) struct RowGroupTask {
+    /// Index of the file.
+    pub(super) file: u32,
+    /// Index of the row group in the file.
+    pub(super) group: usize,
+    /// The file's rows before this row group (bad rows are named by their row in the file).
+    pub(super) row_offset: u64,
+}
+
 /// Streams every encoder file into sinks with rows `rows(id)` per declared bar, merged into
-/// one: polars decodes while [`BATCH_CONSUMERS`] threads split and accumulate the batches it
-/// hands over (a bounded queue, so at most a few batches wait). `shared_scans`: files of one
-/// schema share a scan (each batch is cut at the files' footer row counts, `footer_rows`).
+/// one: [`BATCH_CONSUMERS`] threads take the files' row groups in file order, decode each in
+/// batches (only the three spec columns) and split and accumulate every batch, knowing its file
+/// and its rows' offset in that file. Every schema is checked (footers only) before any row is
+/// read; a decode that fails names its file (the first such file, in file order).
 pub(super) fn stream_encoders(
     files: &[PathBuf],
-    footer_rows: &[u64],
     bar_ids: &BTreeSet<&str>,
     rows: &(dyn Fn(&str) -> BarRows + Sync),
-    shared_scans: bool,
     zones: &mut Vec<(PathBuf, bool)>,
 ) -> Result<EncoderSink, IngestError> {
-    let new_sink = || EncoderSink {
-        file: 0,
-        row_offset: 0,
-        time: TimeColumn::of(None),
-        bad: BTreeMap::new(),
-        read: Vec::new(),
-        bin_error: None,
-        ranges: BTreeMap::new(),
-        ids: IdIndex::new(bar_ids.iter().copied()),
-        bars: bar_ids.iter().map(|id| rows(id)).collect(),
-        unknown: BTreeMap::new(),
-        row_ids: Vec::new(),
-        grouped_time: Vec::new(),
-        grouped_counts: Vec::new(),
-        group_start: Vec::new(),
+    let mut scans = Vec::with_capacity(files.len());
+    for path in files {
+        let scan = guarded(path, || checked_scan(path, &ENCODER_COLUMNS))?;
+        zones.push((path.clone(), scan.time.zoned));
+        scans.push(scan);
+    }
+    let tasks = row_group_tasks(&scans);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let failed = std::sync::Mutex::new(None::<(usize, IngestError)>);
+    let consume = || -> Result<EncoderSink, IngestError> {
+        let mut sink = EncoderSink::new(bar_ids, rows);
+        loop {
+            let at = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let Some(task) = tasks.get(at) else { break };
+            if failed.lock().map_or(true, |f| f.is_some()) {
+                break;
+            }
+            if let Err(e) = consume_row_group(files, &scans, task, &mut sink) {
+                if let Ok(mut first) = failed.lock() {
+                    if first.as_ref().is_none_or(|(k, _)| at < *k) {
+                        *first = Some((at, e));
+                    }
+                }
+                break;
+            }
+        }
+        Ok(sink)
     };
-    let (batches, received) = std::sync::mpsc::sync_channel::<Batch>(4);
-    // Shared by the consumers only: when every consumer has stopped (an error), the receiver is
-    // dropped and polars' next send fails, which ends the scan.
-    let received = std::sync::Arc::new(std::sync::Mutex::new(received));
-    let consumer_failed = || IngestError::Polars {
+    let consumer_failed = || IngestError::Parquet {
         context: "encoders".into(),
         message: "a batch consumer panicked".into(),
     };
-    std::thread::scope(|scope| {
+    let sinks: Vec<Result<EncoderSink, IngestError>> = std::thread::scope(|scope| {
         let consumers: Vec<_> = (0..BATCH_CONSUMERS)
-            .map(|_| {
-                let mut sink = new_sink();
-                let received = received.clone();
-                scope.spawn(move || -> PolarsResult<EncoderSink> {
-                    loop {
-                        let next = match received.lock() {
-                            Ok(queue) => queue.recv(),
-                            Err(_) => break,
-                        };
-                        let Ok(batch) = next else { break };
-                        (sink.file, sink.row_offset, sink.time) =
-                            (batch.file, batch.row_offset, batch.time);
-                        sink.push(&batch.frame)?;
-                    }
-                    Ok(sink)
-                })
-            })
+            .map(|_| scope.spawn(consume))
             .collect();
-        drop(received);
-        let streamed = stream_files(files, footer_rows, batches, shared_scans, zones);
-        let mut merged: Option<EncoderSink> = None;
-        for consumer in consumers {
-            let sink = consumer
-                .join()
-                .map_err(|_| consumer_failed())?
-                .map_err(polars_error("encoders"))?;
-            match merged.as_mut() {
-                None => merged = Some(sink),
-                Some(all) => all.merge(sink),
-            }
-        }
-        streamed?;
-        merged.ok_or_else(consumer_failed)
-    })
-}
-
-/// Streams every encoder file, sending each batch with its file's index and its rows' offset in
-/// that file to `batches`. `shared_scans`: consecutive files of one schema are
-/// read by one scan; else one scan a file. `footer_rows`: each file's rows, as its footer says.
-pub(super) fn stream_files(
-    files: &[PathBuf],
-    footer_rows: &[u64],
-    batches: std::sync::mpsc::SyncSender<Batch>,
-    shared_scans: bool,
-    zones: &mut Vec<(PathBuf, bool)>,
-) -> Result<(), IngestError> {
-    // Schemas first (footers only): every schema error is raised before any row is read.
-    let mut groups: Vec<(Vec<usize>, LazyFrame, SchemaRef, Vec<Expr>)> = Vec::new();
-    for (index, path) in files.iter().enumerate() {
-        let (lazy, schema, exprs) = guarded(path, || checked_scan(path, &ENCODER_COLUMNS))?;
-        zones.push((path.clone(), TimeColumn::of(schema.get("time")).zoned));
-        match groups.last_mut() {
-            Some((members, _, shared, _)) if shared_scans && *shared == schema => {
-                members.push(index)
-            }
-            _ => groups.push((vec![index], lazy, schema, exprs)),
+        consumers
+            .into_iter()
+            .map(|c| c.join().unwrap_or_else(|_| Err(consumer_failed())))
+            .collect()
+    });
+    if let Some((_, e)) = failed.into_inner().ok().flatten() {
+        return Err(e);
+    }
+    let mut merged: Option<EncoderSink> = None;
+    for sink in sinks {
+        let sink = sink?;
+        match merged.as_mut() {
+            None => merged = Some(sink),
+            Some(all) => all.merge(sink),
         }
     }
-    for (members, lazy, schema, exprs) in groups {
-        let first = &files[members[0]];
-        let time = TimeColumn::of(schema.get("time"));
-        let (file, lazy, cursor) = if members.len() == 1 {
-            (u32::try_from(members[0]).unwrap_or(u32::MAX), lazy, None)
-        } else {
-            let paths: Vec<PlRefPath> = members
-                .iter()
-                .map(|&i| {
-                    PlRefPath::try_from_path(&files[i]).map_err(|e| not_parquet(&files[i], e))
-                })
-                .collect::<Result<_, _>>()?;
-            let cursor = FileCursor::new(
-                members
-                    .iter()
-                    .map(|&i| (u32::try_from(i).unwrap_or(u32::MAX), footer_rows[i]))
-                    .collect(),
-            );
-            let shared = LazyFrame::scan_parquet_files(paths.into(), scan_args())
-                .map_err(|e| not_parquet(first, e))?;
-            (
-                u32::MAX,
-                shared,
-                Some(std::sync::Arc::new(std::sync::Mutex::new(cursor))),
-            )
-        };
-        // A shared scan's batches arrive in file order (`maintain_order`): each is cut at the
-        // files' footer row counts and sent with its file's index, so every row's file is
-        // known (`FileRange`) without a per-row path column.
-        let to_consumer = batches.clone();
-        let batch_cursor = cursor.clone();
-        // Rows of a scan of one file sent so far: each batch's offset in its file.
-        let sent = std::sync::atomic::AtomicU64::new(0);
-        let callback = PlanCallback::new(move |batch: DataFrame| {
-            let send = |file: u32, row_offset: u64, frame: DataFrame| {
-                to_consumer
-                    .send(Batch {
-                        file,
-                        row_offset,
-                        time,
-                        frame,
-                    })
-                    .map_err(|_| polars_err!(ComputeError: "the batch consumers stopped"))
-            };
-            match &batch_cursor {
-                None => {
-                    let rows = batch.height() as u64;
-                    let offset = sent.fetch_add(rows, std::sync::atomic::Ordering::Relaxed);
-                    send(file, offset, batch)?
-                }
-                Some(cursor) => {
-                    let parts = cursor
-                        .lock()
-                        .map_err(|_| polars_err!(ComputeError: "the file cursor was poisoned"))?
-                        .split(batch)?;
-                    for (file, offset, part) in parts {
-                        send(file, offset, part)?;
-                    }
-                }
-            }
-            Ok(false) // keep going
-        });
-        let scanned: Vec<&Path> = members.iter().map(|&i| files[i].as_path()).collect();
-        guarded_scan(first, &scanned, || {
-            lazy.select(exprs)
-                .sink_batches(callback, true, None)
-                .and_then(|lazy| lazy.collect_with_engine(Engine::Streaming))
-                .map_err(|e| not_parquet(first, e))
-        })?;
-        if let Some(cursor) = cursor {
-            let cursor = cursor.lock().map_err(|_| IngestError::Polars {
-                context: "encoders".into(),
-                message: "the file cursor was poisoned".into(),
-            })?;
-            if let Some((file, missing)) = cursor.unread() {
-                return Err(IngestError::Polars {
-                    context: file_path(files, file).display().to_string(),
-                    message: format!(
-                        "{missing} rows announced by the parquet footer were not decoded"
-                    ),
+    merged.ok_or_else(consumer_failed)
+}
+
+/// Every non-empty row group of every file, in file order, with its first row in its file.
+pub(super) fn row_group_tasks(scans: &[Scan]) -> Vec<RowGroupTask> {
+    let mut tasks = Vec::new();
+    for (file, scan) in scans.iter().enumerate() {
+        let mut row_offset = 0;
+        for (group, rows) in scan.file.row_group_rows().into_iter().enumerate() {
+            if rows > 0 {
+                tasks.push(RowGroupTask {
+                    file: u32::try_from(file).unwrap_or(u32::MAX),
+                    group,
+                    row_offset,
                 });
             }
+            row_offset += rows;
         }
     }
-    Ok(())
+    tasks
 }
 
-/// Where a shared scan is in its files: their indices and footer row counts, the file now
-/// read and its rows not yet seen.
-pub(super) struct FileCursor {
-    pub(super) files: Vec<(u32, u64)>,
-    pub(super) at: usize,
-    pub(super) left: u64,
-}
-
-impl FileCursor {
-    pub(super) fn new(files: Vec<(u32, u64)>) -> FileCursor {
-        let left = files.first().map_or(0, |f| f.1);
-        FileCursor { files, at: 0, left }
-    }
-
-    /// Skips files whose rows have all been seen (empty files included).
-    pub(super) fn settle(&mut self) {
-        while self.left == 0 && self.at + 1 < self.files.len() {
-            self.at += 1;
-            self.left = self.files[self.at].1;
+/// Decodes one row group (announced to the supervisor, a panic named by its file) and adds
+/// every batch to `sink`.
+fn consume_row_group(
+    files: &[PathBuf],
+    scans: &[Scan],
+    task: &RowGroupTask,
+    sink: &mut EncoderSink,
+) -> Result<(), IngestError> {
+    let index = task.file as usize;
+    let (Some(path), Some(scan)) = (files.get(index), scans.get(index)) else {
+        return Ok(());
+    };
+    guarded(path, || {
+        (sink.file, sink.row_offset, sink.time) = (task.file, task.row_offset, scan.time);
+        for batch in scan.reader(path, Some(vec![task.group]))? {
+            let batch = batch.map_err(|e| not_parquet(path, e))?;
+            let rows = scan.canonical(&batch).map_err(|e| not_parquet(path, e))?;
+            sink.push(&rows).map_err(|e| not_parquet(path, e))?;
         }
-    }
-
-    /// The next batch of the scan cut into runs of one file, each with its file's index and
-    /// the file's rows before it. More rows than the footers announce is an error (it cannot
-    /// happen with valid footers).
-    pub(super) fn split(&mut self, batch: DataFrame) -> PolarsResult<Vec<(u32, u64, DataFrame)>> {
-        let mut parts = Vec::with_capacity(1);
-        let (mut start, n) = (0usize, batch.height());
-        while start < n {
-            self.settle();
-            if self.left == 0 {
-                polars_bail!(ComputeError: "the files hold more rows than their footers announce");
-            }
-            let take = (self.left.min((n - start) as u64)) as usize;
-            let part = if start == 0 && take == n {
-                batch.clone()
-            } else {
-                batch.slice(start as i64, take)
-            };
-            let (file, rows) = self.files[self.at];
-            parts.push((file, rows - self.left, part));
-            self.left -= take as u64;
-            start += take;
-        }
-        Ok(parts)
-    }
-
-    /// The first file with rows its footer announced but the scan did not give, if any.
-    pub(super) fn unread(&self) -> Option<(u32, u64)> {
-        let mut cursor = FileCursor {
-            files: self.files.clone(),
-            at: self.at,
-            left: self.left,
-        };
-        cursor.settle();
-        (cursor.left > 0).then(|| (cursor.files[cursor.at].0, cursor.left))
-    }
+        Ok(())
+    })
 }
 
 /// Rows sorted by time, ties by value, so that the order never depends on how the rows were
@@ -299,41 +165,6 @@ pub(super) fn sorted_by_time_then_value(
         (*t, *c) = (rt, rc);
     }
     (time_ns, counts)
-}
-
-/// Rejects nulls in non-nullable columns, naming the first file that has some.
-pub(super) fn check_nulls(
-    df: &DataFrame,
-    files: &[PathBuf],
-    columns: &[ColumnSpec],
-) -> Result<(), IngestError> {
-    for spec in columns.iter().filter(|c| !c.nullable) {
-        let Ok(column) = df.column(spec.name) else {
-            continue;
-        };
-        if column.null_count() == 0 {
-            continue;
-        }
-        let per_file = null_rows_per_file(df, spec.name).map_err(polars_error(spec.name))?;
-        if let Some((&file, &count)) = per_file.iter().next() {
-            return Err(IngestError::Nulls {
-                path: file_path(files, file),
-                column: spec.name,
-                count,
-            });
-        }
-    }
-    Ok(())
-}
-
-pub(super) fn null_rows_per_file(df: &DataFrame, column: &str) -> PolarsResult<BTreeMap<u32, u64>> {
-    let is_null = df.column(column)?.is_null();
-    let files = df.column(FILE_COL)?.filter(&is_null)?;
-    let mut per_file = BTreeMap::new();
-    for file in files.u32()?.iter().flatten() {
-        *per_file.entry(file).or_insert(0u64) += 1;
-    }
-    Ok(per_file)
 }
 
 /// Rows of an id `campaign.toml` does not declare, dropped: an `unusable_rows` flag.
@@ -366,36 +197,4 @@ pub(super) struct IdSummary {
     pub(super) rows: u64,
     pub(super) first_ns: i64,
     pub(super) last_ns: i64,
-}
-
-/// Rows and time range per (file, id), sorted by file then id.
-pub(super) fn id_summary(df: &DataFrame, id_column: &str) -> PolarsResult<Vec<IdSummary>> {
-    let summary = df
-        .clone()
-        .lazy()
-        .filter(col(id_column).is_not_null())
-        .group_by([col(FILE_COL), col(id_column)])
-        .agg([
-            len().cast(DataType::Int64).alias("rows"),
-            col("time").min().alias("first"),
-            col("time").max().alias("last"),
-        ])
-        .sort([FILE_COL, id_column], SortMultipleOptions::default())
-        .collect()?;
-    let files = summary.column(FILE_COL)?.u32()?;
-    let ids = summary.column(id_column)?.str()?;
-    let rows = summary.column("rows")?.i64()?;
-    let first = summary.column("first")?.i64()?;
-    let last = summary.column("last")?.i64()?;
-    let mut out = Vec::with_capacity(summary.height());
-    for i in 0..summary.height() {
-        out.push(IdSummary {
-            file: files.get(i).unwrap_or(u32::MAX),
-            id: ids.get(i).unwrap_or_default().to_string(),
-            rows: rows.get(i).unwrap_or(0).max(0) as u64,
-            first_ns: first.get(i).unwrap_or(0),
-            last_ns: last.get(i).unwrap_or(0),
-        });
-    }
-    Ok(out)
 }
