@@ -76,9 +76,7 @@ pub(super) fn stream_encoders(
         message: "a batch consumer panicked".into(),
     };
     let sinks: Vec<Result<EncoderSink, IngestError>> = std::thread::scope(|scope| {
-        let consumers: Vec<_> = (0..BATCH_CONSUMERS)
-            .map(|_| scope.spawn(consume))
-            .collect();
+        let consumers: Vec<_> = (0..BATCH_CONSUMERS).map(|_| scope.spawn(consume)).collect();
         consumers
             .into_iter()
             .map(|c| c.join().unwrap_or_else(|_| Err(consumer_failed())))
