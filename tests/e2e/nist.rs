@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use dbbcal::fit::{fit, FitOptions, Start};
+use dbbcal::fit::{fit, FitOptions, Start, Stop};
 
 use crate::support::{BasisFn, ClosedForm};
 
@@ -80,6 +80,8 @@ fn check(name: &str, linear: &[usize], nonlinear: &[usize], basis: BasisFn) {
             start: Start::Given,
             hac_batch_len: Some(1),
             absorbed_params: 0,
+            // The certified digits, not the statistical resolution.
+            stop: Stop::Numerical,
         };
         let f = fit(&problem, &theta0, &options).unwrap_or_else(|e| panic!("{name} {label}: {e}"));
         let order: Vec<usize> = linear.iter().chain(nonlinear).copied().collect();

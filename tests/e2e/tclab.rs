@@ -7,7 +7,7 @@
 //! coefficients, its time constants (and dead time) the nonlinear ones, started where the
 //! notebook starts.
 
-use dbbcal::fit::{fit, FitOptions, Start};
+use dbbcal::fit::{fit, FitOptions, Start, Stop};
 
 use crate::support::{BasisFn, ClosedForm};
 
@@ -57,6 +57,8 @@ fn check(
         start: Start::Given,
         hac_batch_len: Some(1),
         absorbed_params: 0,
+        // The reference solution's digits, not the statistical resolution.
+        stop: Stop::Numerical,
     };
     let f = fit(&problem, theta0, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
     eprintln!("{name}: {:?}, SSE {:.11}", f.values, f.rss);

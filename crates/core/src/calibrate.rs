@@ -422,6 +422,7 @@ pub(crate) fn fit_form(
         start: Start::Given,
         hac_batch_len: Some(1),
         absorbed_params: 0,
+        stop: fit::Stop::Numerical,
     };
     let f = fit::fit(&problem, &[], &options).map_err(|e| e.to_string())?;
     let coefficients: Vec<(String, f64)> =

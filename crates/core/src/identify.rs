@@ -290,6 +290,7 @@ fn fit_from_start(
     };
     let mut options = FitOptions {
         absorbed_params: problem.n_zeros(),
+        stop: fit::Stop::Statistical,
         ..FitOptions::default()
     };
     let coarse = if theta0.is_empty() {
@@ -466,7 +467,8 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
             } else {
                 let (ln_tau, u_ln) = (fit.values[i], fit.se(i));
                 let t95 = fit.t95(i);
-                let tau = ln_tau.clamp(0.0, crate::model::MAX_TAU_S.ln()).exp();
+                let (lo, hi) = crate::model::ln_tau_bounds();
+                let tau = ln_tau.clamp(lo, hi).exp();
                 Estimate {
                     name: tau_names[i - n_lin].clone(),
                     value: tau,

@@ -299,7 +299,9 @@ fn coarse_tier(
             reasons: HashMap::new(),
         }
     };
-    if refit.len() < 2 || !bases.iter().flatten().any(|b| b.coarse_refit_possible()) {
+    // A lone candidate is refitted on the copies too: its exact refit then starts at their
+    // optimum instead of searching the readings from the model.
+    if refit.is_empty() || !bases.iter().flatten().any(|b| b.coarse_refit_possible()) {
         return none(refit);
     }
     let jobs: Vec<(usize, usize)> = refit
@@ -497,6 +499,12 @@ fn candidate_on_bar(
     threshold: f64,
     refits: &Refits,
 ) -> CandidateOnBar {
+    if let Some((a, b, r)) = start.and_then(|coarse| unidentifiable_pair(base, coarse)) {
+        return unfit_on_bar(
+            base,
+            format!("not identifiable on this bar's 300-s copy: {a} and {b} correlate at {r:.4}"),
+        );
+    }
     let refit = refits.refit_from(series, base, effect, start);
     let extended = match &refit.model {
         Ok(m) => m,

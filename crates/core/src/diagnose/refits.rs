@@ -92,7 +92,7 @@ impl Refits {
                 .map_err(|e| e.to_string()),
             noise_log_likelihood: OnceLock::new(),
         });
-        tracing::debug!(bar = %key.0, effects = ?key.1, ms = started.elapsed().as_millis(), "diagnose: exact refit");
+        tracing::debug!(bar = %key.0, effects = ?key.1, samples = series.fit_index.len(), ms = started.elapsed().as_millis(), "diagnose: refit");
         self.lock().entry(key).or_insert(fitted).clone()
     }
 

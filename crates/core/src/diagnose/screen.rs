@@ -287,7 +287,7 @@ fn absorbed_rss(x: &DMatrix<f64>, q: &DMatrix<f64>, r: &[f64]) -> f64 {
 
 /// The RSS of `problem`'s observations that its best fit removes, and its time constants there.
 fn removed_rss<P: Separable>(problem: &P, theta0: &[f64]) -> Option<(f64, Vec<f64>)> {
-    let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
+    let (theta, _) = fit::minimise(problem, theta0, true, fit::Stop::Statistical).ok()?;
     let before: f64 = problem.observations().iter().map(|r| r * r).sum();
     let after = fit::projected_rss(problem, &theta);
     after.is_finite().then_some((before - after, theta))
@@ -352,5 +352,8 @@ impl Separable for AddedTerms<'_, '_> {
     fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
         self.problem
             .start_search_interval(self.base_theta.len() + k)
+    }
+    fn nonlinear_bounds(&self, k: usize) -> Option<(f64, f64)> {
+        self.problem.nonlinear_bounds(self.base_theta.len() + k)
     }
 }

@@ -5,7 +5,7 @@
 //! two solver crates and nothing else.
 
 use super::projection::{projected_rss, Factorised};
-use super::{FitError, Separable};
+use super::{held_beyond_bounds, FitError, Separable, Stop};
 use argmin::core::CostFunction;
 use argmin::core::Executor;
 use argmin::solver::brent::BrentOpt;
@@ -144,6 +144,9 @@ impl<P: Separable> LeastSquaresProblem<f64, Dyn, Dyn> for Projected<'_, P> {
         let at = self.solved.as_ref()?;
         let mut jac = DMatrix::zeros(at.phi.nrows(), self.theta.len());
         for k in 0..self.theta.len() {
+            if held_beyond_bounds(self.problem, self.theta.as_slice(), k) {
+                continue;
+            }
             let d = self
                 .problem
                 .basis_derivative_times(self.theta.as_slice(), k, &at.coef);
@@ -157,21 +160,16 @@ impl<P: Separable> LeastSquaresProblem<f64, Dyn, Dyn> for Projected<'_, P> {
     }
 }
 
-/// Levenberg-Marquardt stops when a step reduces the residual sum of squares by at most this
-/// share of it (MINPACK's `ftol`) ...
-///
-/// Why not tighter: a fit's RSS enters the BIC as `n ln RSS`, so a relative change of 1e-10 moves
-/// a ΔBIC by `n · 1e-10`, 2e-6 on a 10-s, 15-day bar; at 1e-12 (and `xtol` 1e-12) the last
-/// dozens of evaluations of a refit whose time constants lie in a long valley (`second_path`
-/// beside `fixed_part`) crept along it by less than a millionth of their uncertainty.
-const LM_FTOL: f64 = 1e-10;
-/// ... or when a step moves the parameters (log time constants, `ln tau`) by at most this share
-/// of their norm (MINPACK's `xtol`): 1e-8 of `ln tau`, far inside any time constant's U.
+/// Levenberg-Marquardt stops when a step reduces the residual sum of squares by at most
+/// [`Stop::relative_rss_tolerance`] of it (MINPACK's `ftol`),
+/// or when a step moves the parameters (log time constants, `ln tau`) by at most this share of
+/// their norm (MINPACK's `xtol`): 1e-8 of `ln tau`, far inside any time constant's U.
 const LM_XTOL: f64 = 1e-8;
 
 pub(super) fn levenberg_marquardt<P: Separable>(
     problem: &P,
     theta0: &[f64],
+    stop: Stop,
 ) -> Result<(Vec<f64>, usize), FitError> {
     let mut projected = Projected {
         problem,
@@ -185,7 +183,7 @@ pub(super) fn levenberg_marquardt<P: Separable>(
         ));
     }
     let (projected, report) = LevenbergMarquardt::new()
-        .with_ftol(LM_FTOL)
+        .with_ftol(stop.relative_rss_tolerance(problem.observations().len()))
         .with_xtol(LM_XTOL)
         .with_gtol(1e-14)
         .with_patience(200)

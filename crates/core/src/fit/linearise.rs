@@ -135,6 +135,9 @@ impl<P: Separable> Separable for Orthogonalised<'_, P> {
     fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
         self.inner.start_search_interval(k)
     }
+    fn nonlinear_bounds(&self, k: usize) -> Option<(f64, f64)> {
+        self.inner.nonlinear_bounds(k)
+    }
     fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
         self.inner.absorbed_groups()
     }

@@ -5,7 +5,7 @@
 //! does not converge: one concept, a start that is already close.
 
 use super::projection::Factorised;
-use super::{Separable, POLISH_MAX_STEPS, POLISH_TOL};
+use super::{held_beyond_bounds, Separable, Stop, POLISH_MAX_STEPS};
 use argmin::core::Executor;
 use argmin::core::Jacobian;
 use argmin::core::Operator;
@@ -19,13 +19,17 @@ use nalgebra::DVector;
 /// Gauss-Newton (argmin's) from `theta0`, a nearby problem's optimum, on the
 /// variable-projection residual ([`Reduced`]): the time constants and the number of steps; or,
 /// when it does not converge within [`POLISH_MAX_STEPS`] (a step changing the residual norm by
-/// less than [`POLISH_TOL`] of it) or ends no better than it began, the better of its start and
+/// less than [`Stop::polish_tolerance`] of it) or ends no better than it began, the better of its start and
 /// stop, for Levenberg-Marquardt to go on from.
 ///
 /// Why: from a coarse copy's optimum Levenberg-Marquardt spent 4-7 evaluations of the basis, its
 /// derivatives and a factorisation before its own tolerances held; Gauss-Newton converges
 /// quadratically from there.
-pub(super) fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<Polished, Vec<f64>> {
+pub(super) fn polish<P: Separable>(
+    problem: &P,
+    theta0: &[f64],
+    stop: Stop,
+) -> Result<Polished, Vec<f64>> {
     let reduced = Reduced {
         problem,
         last: Default::default(),
@@ -35,7 +39,8 @@ pub(super) fn polish<P: Separable>(problem: &P, theta0: &[f64]) -> Result<Polish
         return Err(theta0.to_vec());
     };
     let norm0 = r0.norm();
-    let Ok(solver) = GaussNewton::new().with_tolerance(POLISH_TOL * norm0) else {
+    let Ok(solver) = GaussNewton::new().with_tolerance(stop.polish_tolerance(r0.len()) * norm0)
+    else {
         return Err(theta0.to_vec());
     };
     let run = Executor::new(reduced, solver)
@@ -155,6 +160,9 @@ impl<P: Separable> Jacobian for Reduced<'_, P> {
         let (phi, coef, factorised) = &*solved;
         let mut jac = DMatrix::zeros(phi.nrows(), theta.len());
         for k in 0..theta.len() {
+            if held_beyond_bounds(self.problem, theta.as_slice(), k) {
+                continue;
+            }
             let d = self
                 .problem
                 .basis_derivative_times(theta.as_slice(), k, coef);

@@ -261,6 +261,10 @@ impl<P: Separable> Separable for FixedTheta<'_, P> {
         self.inner
             .basis_derivative_times(&self.full(theta), j, coef)
     }
+    fn nonlinear_bounds(&self, j: usize) -> Option<(f64, f64)> {
+        let j = if j >= self.k { j + 1 } else { j };
+        self.inner.nonlinear_bounds(j)
+    }
     fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
         self.inner.absorbed_groups()
     }

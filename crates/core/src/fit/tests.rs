@@ -108,6 +108,7 @@ fn the_polish_from_a_near_start_reaches_the_optimum_and_falls_back_from_a_far_on
             start,
             hac_batch_len: Some(1),
             absorbed_params: 0,
+            stop: Stop::Numerical,
         };
         fit(&p, &[theta0], &options).unwrap()
     };
@@ -136,6 +137,7 @@ fn recovers_noise_free_exponential() {
             start: Start::Given,
             hac_batch_len: None,
             absorbed_params: 0,
+            stop: Stop::Numerical,
         },
     )
     .unwrap();
@@ -169,6 +171,7 @@ fn orthogonalised_fit_sees_only_what_the_directions_cannot_explain() {
         start: Start::Given,
         hac_batch_len: None,
         absorbed_params: 0,
+        stop: Stop::Numerical,
     };
     let f = fit(&o, &[0.2], &options).unwrap();
     assert!((f.values[0] - 3.0).abs() < 1e-8, "{:?}", f.values);

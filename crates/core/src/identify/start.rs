@@ -52,7 +52,7 @@ pub(super) fn start_fit<P: fit::Separable>(
     bar: &str,
     theta0: &[f64],
 ) -> Option<Vec<f64>> {
-    let (theta, _) = fit::minimise(problem, theta0, true).ok()?;
+    let (theta, _) = fit::minimise(problem, theta0, true, fit::Stop::Statistical).ok()?;
     let n = fit::Separable::observations(problem).len();
     tracing::debug!(bar, ?theta, n, "identify: coarse start");
     theta.iter().all(|t| t.is_finite()).then_some(theta)
@@ -163,6 +163,9 @@ impl<P: fit::Separable> fit::Separable for SearchNew<'_, P> {
         coef: &nalgebra::DVector<f64>,
     ) -> nalgebra::DVector<f64> {
         self.problem.basis_derivative_times(theta, k, coef)
+    }
+    fn nonlinear_bounds(&self, k: usize) -> Option<(f64, f64)> {
+        self.problem.nonlinear_bounds(k)
     }
     fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
         if self.reused.get(k).copied().unwrap_or(false) {

@@ -4,8 +4,8 @@
 //! Separate because it is the numerical heart of the model's evaluation, called on every trial
 //! of the fit, while `problem` only sets the problem up.
 
+use super::ln_tau_bounds;
 use super::problem::{TermColumn, TermKind, TermMemo, ThermalProblem};
-use super::MAX_TAU_S;
 use crate::series::BarSeries;
 use std::sync::Arc;
 
@@ -37,15 +37,14 @@ impl ThermalProblem<'_> {
             .collect()
     }
 
-    /// Time constant of term `j` (its own or the one it shares), kept within 1 s ..
-    /// [`MAX_TAU_S`] so that a solver wandering off to an unidentifiable extreme never produces
-    /// infinities.
+    /// Time constant of term `j` (its own or the one it shares), kept within
+    /// [`ln_tau_bounds`].
     pub(super) fn tau_of(&self, j: usize, theta: &[f64]) -> Option<f64> {
         let owner = self.tau_source[j]?;
-        self.tau_terms
-            .iter()
-            .position(|&i| i == owner)
-            .map(|k| theta[k].clamp(0.0, MAX_TAU_S.ln()).exp())
+        self.tau_terms.iter().position(|&i| i == owner).map(|k| {
+            let (lo, hi) = ln_tau_bounds();
+            theta[k].clamp(lo, hi).exp()
+        })
     }
 
     /// Column of term `j` on the bar's whole timeline, and its derivative in `ln tau`

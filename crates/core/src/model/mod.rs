@@ -154,6 +154,12 @@ impl std::fmt::Display for Effect {
 /// Longest time constant a term takes, s (about 32 years): the end of the range the fits search.
 pub(crate) const MAX_TAU_S: f64 = 1e9;
 
+/// The interval every fitted `ln τ` is held to, `ln 1 s ..= ln MAX_TAU_S`: a solver wandering
+/// off to an unidentifiable extreme never produces infinities.
+pub(crate) fn ln_tau_bounds() -> (f64, f64) {
+    (0.0, MAX_TAU_S.ln())
+}
+
 /// The named effects of the catalogue (`docs/spec/physics.md`), in display order.
 pub(crate) const CATALOGUE: &[&str] = &[
     "fixed_part",

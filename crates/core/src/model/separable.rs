@@ -4,6 +4,7 @@
 //! Separate so that the model's own code does not depend on the engine's trait, and the trait's
 //! implementation reads in one place.
 
+use super::ln_tau_bounds;
 use super::problem::{RowMemo, ThermalProblem};
 use crate::fit::Separable;
 use nalgebra::DMatrix;
@@ -71,6 +72,11 @@ impl Separable for ThermalProblem<'_> {
 
     fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
         Some((60f64.ln(), (30.0 * 86400f64).ln()))
+    }
+
+    /// Every time constant is held to [`ln_tau_bounds`] (`ThermalProblem::tau_of`).
+    fn nonlinear_bounds(&self, _k: usize) -> Option<(f64, f64)> {
+        Some(ln_tau_bounds())
     }
 
     fn absorbed_groups(&self) -> Option<Vec<Option<usize>>> {
