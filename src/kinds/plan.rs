@@ -244,13 +244,13 @@ pub(crate) fn marker<E: KindEffect>(
     campaign_id: &str,
     kind: Kind,
     effects: &[E],
-    inputs: &impl Serialize,
+    inputs: &[crate::series::InputFile],
 ) -> Result<Marker> {
     Ok(Marker::new(
         campaign_id,
         serde_json::json!([kind.stage]),
         serde_json::to_value(effects.iter().map(|e| e.name()).collect::<Vec<_>>())?,
-        serde_json::to_value(inputs)?,
+        serde_json::to_value(crate::output::inputs::input_records(inputs))?,
     ))
 }
 

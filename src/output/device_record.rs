@@ -7,7 +7,6 @@ use serde::Serialize;
 
 use crate::io;
 use crate::pipeline::{DeviceStage, RunResults};
-use crate::series::InputFile;
 
 /// One error component at a dwell.
 #[derive(Debug, Serialize)]
@@ -71,7 +70,7 @@ pub(crate) struct DeviceRecord<'a> {
     pub(crate) device_loop: Option<LoopRecord>,
     /// The controller tables asked for (`[tables]`): written (file, sign, unit) or refused (why).
     pub(crate) tables: &'a [super::axis_tables::TableRecord],
-    pub(crate) inputs: &'a [InputFile],
+    pub(crate) inputs: Vec<super::inputs::InputRecord>,
 }
 
 /// The device's loop in `device.json`.
@@ -226,7 +225,7 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
         iso230_2_missing: iso.and_then(|i| i.err()),
         device_loop: loop_record(s),
         tables: &s.tables,
-        inputs: &results.inputs,
+        inputs: super::inputs::input_records(&results.inputs),
     })
 }
 

@@ -30,16 +30,23 @@
 //! (`calibration.json`, `compensation.json`, `acceptance.json`), `device_record` (`device.json`,
 //! `device_errors.parquet`).
 
+pub(crate) mod acceptance;
 pub(crate) mod axis;
 pub(crate) mod axis_tables;
+pub(crate) mod before_after;
+pub(crate) mod calibration;
+pub(crate) mod compensation;
 pub mod controller;
 pub(crate) mod device_record;
 pub(crate) mod diagnosis;
 pub(crate) mod fault;
+pub(crate) mod inputs;
 pub(crate) mod kind_record;
 mod location;
 mod lock;
+pub(crate) mod match_study;
 pub(crate) mod probe;
+pub(crate) mod quality;
 pub(crate) mod roll;
 pub(crate) mod stage_records;
 pub(crate) mod summary;

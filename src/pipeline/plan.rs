@@ -265,15 +265,36 @@ pub(crate) struct ModelSection {
 #[serde(deny_unknown_fields)]
 pub(crate) struct GenericTerm {
     pub(crate) channel: String,
-    pub(crate) transform: crate::model::Transform,
+    pub(crate) transform: TransformWord,
     #[serde(default)]
     pub(crate) tau_s: Option<f64>,
+}
+
+/// `[[model.term]] transform`: how a generic channel enters the model (`model::Transform`).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub(crate) enum TransformWord {
+    Lag,
+    Rate,
+    Level,
+    Heat,
+}
+
+impl From<TransformWord> for crate::model::Transform {
+    fn from(w: TransformWord) -> Self {
+        match w {
+            TransformWord::Lag => crate::model::Transform::Lag,
+            TransformWord::Rate => crate::model::Transform::Rate,
+            TransformWord::Level => crate::model::Transform::Level,
+            TransformWord::Heat => crate::model::Transform::Heat,
+        }
+    }
 }
 
 impl GenericTerm {
     fn effect(&self) -> Effect {
         Effect::Channel {
-            transform: self.transform,
+            transform: self.transform.into(),
             channel: self.channel.clone(),
             tau0_s: self.tau_s,
         }

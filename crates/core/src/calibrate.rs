@@ -17,7 +17,6 @@
 
 use nalgebra::DMatrix;
 use rayon::prelude::*;
-use serde::Serialize;
 
 use crate::campaign::{Campaign, Purpose};
 use crate::fit::{self, FitOptions, Start};
@@ -27,27 +26,29 @@ use crate::signal::interpolate::{self, Beyond};
 use crate::stage::StageOutcome;
 
 /// One calibration point: a bar on a plate length at one tilt, within one counter epoch.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationPoint {
     /// Index into the bar's `BarSeries::mounts`.
-    pub(crate) mount: usize,
+    pub mount: usize,
     /// The plate length's id (`plate.length[].id`).
     pub length_id: String,
     /// True centre distance `D_i` (calibrated plate length), mm.
     pub length_mm: f64,
     /// Standard uncertainty of `D_i`, µm.
-    pub(crate) u_length_um: f64,
+    pub u_length_um: f64,
     /// Tilt of the bar from horizontal at this point, degrees.
     pub tilt_deg: f64,
     /// Indicated reading `k n` brought to the reference temperature, mm.
     pub reading_mm: f64,
     /// Standard uncertainty of the mean reading (scatter over the mount, autocorrelation
     /// accounted for), µm.
-    pub(crate) u_reading_um: f64,
+    pub u_reading_um: f64,
     /// Counter epoch: number of `rezero` events before the point.
-    pub(crate) epoch: usize,
-    pub(crate) purpose: Purpose,
-    pub(crate) n_samples: usize,
+    pub epoch: usize,
+    /// What the mount was for.
+    pub purpose: Purpose,
+    /// Readings averaged into the point.
+    pub n_samples: usize,
 }
 
 /// The tilt function of a gravity-sag term (`docs/spec/physics.md`: largest horizontal, zero vertical).
@@ -165,30 +166,26 @@ impl Form {
     }
 }
 
-impl Serialize for Form {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&self.name())
-    }
-}
-
 /// A fitted centre-distance function `D(k n, A)`.
 ///
 /// Parametric forms model the correction `D − k n` (µm) in the normalised reading
 /// `u = (k n − centre) / half_range`, which keeps the columns well conditioned.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct DistanceFunction {
     /// The form fitted.
     pub form: Form,
-    pub(crate) reading_centre_mm: f64,
-    pub(crate) reading_half_range_mm: f64,
+    /// Centre of the normalised reading `u`, mm.
+    pub reading_centre_mm: f64,
+    /// Half range of the normalised reading `u`, mm.
+    pub reading_half_range_mm: f64,
     /// Coefficient names and values (µm), parametric forms only.
-    pub(crate) coefficients: Vec<(String, f64)>,
+    pub coefficients: Vec<(String, f64)>,
     /// The patent's `a` (1/mm), `b` (1) and `c` (mm) of the tilt-free part, quadratic forms only.
-    pub(crate) patent_abc: Option<[f64; 3]>,
+    pub patent_abc: Option<[f64; 3]>,
     /// Table form: (tilt, [(reading mm, correction µm)] sorted by reading), sorted by tilt.
-    pub(crate) table: Vec<(f64, Vec<(f64, f64)>)>,
+    pub table: Vec<(f64, Vec<(f64, f64)>)>,
     /// RMS of the fit residuals at the points, µm.
-    pub(crate) fit_rms_um: f64,
+    pub fit_rms_um: f64,
 }
 
 impl DistanceFunction {
@@ -211,37 +208,34 @@ impl DistanceFunction {
 }
 
 /// One form's cross-validation result.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FormScore {
     /// The form scored.
     pub form: Form,
-    pub(crate) n_params: usize,
+    /// Its number of linear coefficients (0 for the table).
+    pub n_params: usize,
     /// RMS of the leave-one-point-out prediction errors, µm (`None`: the form cannot be fitted).
     pub cv_rms_um: Option<f64>,
-    pub(crate) cv_max_abs_um: Option<f64>,
+    /// Largest absolute leave-one-point-out prediction error, µm.
+    pub cv_max_abs_um: Option<f64>,
     /// RMS of the residuals of the fit on all points, µm.
-    pub(crate) fit_rms_um: Option<f64>,
+    pub fit_rms_um: Option<f64>,
     /// Why the form could not be fitted or cross-validated.
-    pub(crate) note: Option<String>,
-}
-
-/// A point left out of the calibration, and why.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub(crate) struct ExcludedPoint {
-    pub(crate) point: CalibrationPoint,
-    pub(crate) reason: String,
+    pub note: Option<String>,
 }
 
 /// A bar's calibration.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct BarCalibration {
     /// Bar id.
     pub bar: String,
     /// The counter epoch the function is valid in.
-    pub(crate) epoch: usize,
+    pub epoch: usize,
     /// The calibration points fitted (those of `epoch`).
     pub points: Vec<CalibrationPoint>,
-    pub(crate) excluded: Vec<ExcludedPoint>,
+    /// The points of other counter epochs (re-zeroed: counts not comparable with `epoch`'s),
+    /// left out.
+    pub excluded: Vec<CalibrationPoint>,
     /// Every form tried, with its cross-validation score.
     pub forms: Vec<FormScore>,
     /// The function chosen by leave-one-point-out cross-validation.
@@ -592,16 +586,7 @@ pub fn calibrate_points(
 ) -> Result<BarCalibration, CalibrateError> {
     let epoch = main_epoch(&points);
     let (points, other): (Vec<_>, Vec<_>) = points.into_iter().partition(|p| p.epoch == epoch);
-    let excluded = other
-        .into_iter()
-        .map(|p| ExcludedPoint {
-            reason: format!(
-                "counter epoch {} (re-zeroed): counts not comparable with epoch {epoch}",
-                p.epoch
-            ),
-            point: p,
-        })
-        .collect();
+    let excluded = other;
     if points.len() < 3 {
         return Err(CalibrateError::TooFewPoints {
             bar: bar.to_string(),
@@ -801,13 +786,13 @@ mod tests {
     }
 
     #[test]
-    fn other_counter_epochs_are_excluded_with_a_reason() {
+    fn other_counter_epochs_are_excluded() {
         let mut pts = synthetic_points(&[250.0, 325.0, 400.0], &[60.0, 90.0], 0.5, 0.0);
         pts[0].epoch = 1;
         let cal = calibrate_points("S", pts).expect("calibrate");
         assert_eq!(cal.epoch, 0);
         assert_eq!(cal.excluded.len(), 1);
-        assert!(cal.excluded[0].reason.contains("re-zeroed"));
+        assert_eq!(cal.excluded[0].epoch, 1);
         assert!(cal.distance_mm(95.0, 60.0, 1).is_none());
     }
 

@@ -2,11 +2,9 @@
 //! ([`StageOutcome`]; one bad bar never stops the others), and the stages' timing log
 //! ([`timed`]).
 
-use serde::Serialize;
-
 /// A bar a stage could not process, and why: one bad bar never stops the others. Written as
 /// `{bar, error}` in every JSON output that lists failures.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BarFailure {
     /// The bar's id.
     pub bar: String,

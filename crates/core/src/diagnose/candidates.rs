@@ -6,14 +6,12 @@
 
 use super::bar::term_identity;
 use super::compare::{lr_p_value, prefer_named_effects, unidentifiable_pair};
-use super::explain;
 use super::refits::Refits;
 use super::screen::Screen;
 use super::screen::ScreenBase;
-use super::sensors;
-use super::summary::{fmt_um, summarise_candidate};
+use super::summary::summarise_candidate;
 use super::{
-    BarDiagnosis, Candidate, CandidateOnBar, Criteria, Verdict, CHANNEL_CANDIDATES,
+    BarDiagnosis, Candidate, CandidateOnBar, Criteria, Reason, Verdict, CHANNEL_CANDIDATES,
     COARSE_RIVAL_SHARE, HEAT_CANDIDATES, MAX_EXACT_RIVALS, NAMED_TIE_SHARE, RIVAL_SHARE,
     SCREEN_SHARE,
 };
@@ -24,7 +22,6 @@ use crate::model::Transform;
 use crate::model::CATALOGUE;
 use crate::series::BarSeries;
 use rayon::prelude::*;
-use serde::Serialize;
 use statrs::distribution::ChiSquared;
 use statrs::distribution::ContinuousCDF;
 use std::collections::HashMap;
@@ -70,22 +67,14 @@ pub(crate) fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) 
     out
 }
 
-/// Rewrite the channel candidates' explanations with what their sensors plausibly are.
-pub(crate) fn explain_candidates(
-    candidates: &mut [Candidate],
-    profiles: &[sensors::SensorProfile],
-) {
-    for c in candidates {
-        c.explanation = explain::explain_with(&c.effect, profiles);
-    }
-}
-
 /// A candidate that could not be fitted on any bar (e.g. `head_heating` without `head_power`
 /// events), with the first bar's reason.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Unavailable {
-    pub(crate) effect: Effect,
-    pub(crate) reason: String,
+    /// The candidate.
+    pub effect: Effect,
+    /// Why the first bar could not fit it.
+    pub reason: String,
 }
 
 /// Screen every candidate on every bar (`bases`: the bars' models linearised,
@@ -163,7 +152,7 @@ pub(super) fn evaluate_at_most(
         .filter(|(rank, (c, _, _))| max_refits.is_none_or(|most| *rank < most) || shift_only(*c))
         .map(|(_, (c, _, _))| *c)
         .collect();
-    let best_effect = screened.first().map(|(c, _, _)| candidates[*c].name());
+    let best_effect = screened.first().map(|(c, _, _)| candidates[*c].clone());
     let CoarseTier {
         kept: (mut refit, starts),
         deferred,
@@ -220,20 +209,19 @@ pub(super) fn evaluate_at_most(
                 && change >= SCREEN_SHARE * criteria.min_gain_um
                 && gain >= RIVAL_SHARE * best
             {
-                summary.reason = format!(
-                    "screened out: {} candidates of this step screened better and only so many are refitted here (the forward selection on the bars' coarse copies); the fleet RMS it removes is {} µm, screened",
-                    max_refits.unwrap_or_default(),
-                    fmt_um(gain)
-                );
+                summary.reason = Reason::RefitCap {
+                    refitted: max_refits.unwrap_or_default(),
+                    gain_um: gain,
+                };
             } else if summary.verdict == Verdict::ScreenedOut
                 && change >= SCREEN_SHARE * criteria.min_gain_um
             {
-                summary.reason = format!(
-                    "screened out: the fleet RMS it removes ({} µm, screened) is less than {RIVAL_SHARE} of the best candidate's ({}, {} µm); if real it is found once that one is in the model",
-                    fmt_um(gain),
-                    best_effect.as_deref().unwrap_or(""),
-                    fmt_um(best)
-                );
+                summary.reason = Reason::BelowRivalShare {
+                    gain_um: gain,
+                    share: RIVAL_SHARE,
+                    best: best_effect.clone(),
+                    best_um: best,
+                };
             }
             summary
         })
@@ -367,19 +355,26 @@ fn coarse_tier(
             kept.push(c);
             starts.push(start_of(k));
         } else {
-            let why = if removed[k] >= COARSE_RIVAL_SHARE * best {
-                format!("close to the best candidate's ({}, {} µm²), but {MAX_EXACT_RIVALS} candidates that remove more (or as much, with a name) are refitted exactly first; if it is an alias of the one proposed, it is gone once that one is in the model", candidates[refit[best_at]].name(), fmt_um(best))
+            let (removed_um2, removed_rms_um) = (removed[k], fleet_rms(removed[k]));
+            let best_effect = candidates[refit[best_at]].clone();
+            let reason = if removed[k] >= COARSE_RIVAL_SHARE * best {
+                Reason::CoarseBehindRivals {
+                    removed_um2,
+                    removed_rms_um,
+                    best: best_effect,
+                    best_um2: best,
+                    rivals: MAX_EXACT_RIVALS,
+                }
             } else {
-                format!("less than {COARSE_RIVAL_SHARE} of the best candidate's ({}, {} µm²); if real it is found once that one is in the model", candidates[refit[best_at]].name(), fmt_um(best))
+                Reason::CoarseBelowShare {
+                    removed_um2,
+                    removed_rms_um,
+                    share: COARSE_RIVAL_SHARE,
+                    best: best_effect,
+                    best_um2: best,
+                }
             };
-            reasons.insert(
-                c,
-                format!(
-                    "screened out: refitted on the bars' 300-s copies it removes {} µm² of the fleet RSS (an RMS of {} µm), {why}",
-                    fmt_um(removed[k]),
-                    fmt_um(fleet_rms(removed[k])),
-                ),
-            );
+            reasons.insert(c, reason);
         }
     }
     CoarseTier {
@@ -398,7 +393,7 @@ struct CoarseTier {
     /// batch at a time, only while no candidate refitted exactly is proposed.
     deferred: Vec<(usize, Vec<Option<BarModel>>)>,
     /// Why each candidate left out was left out.
-    reasons: HashMap<usize, String>,
+    reasons: HashMap<usize, Reason>,
 }
 
 /// Exact refits of the candidates `refit` (indices into `candidates`) on every bar where they

@@ -21,21 +21,22 @@ use crate::model::Effect;
 use crate::model::CATALOGUE;
 use crate::series::BarSeries;
 use rayon::prelude::*;
-use serde::Serialize;
 
 /// One step of forward selection.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LedgerStep {
     /// What this step added (written `"base"` for the starting model, else the effect's name).
     pub added: Added,
-    pub(crate) effects: Vec<Effect>,
+    /// The model's effects after this step.
+    pub effects: Vec<Effect>,
     /// Each bar's RMS residual after this step, µm.
     pub rms_um: Vec<(String, f64)>,
     /// Fleet RMS residual after this step, µm.
     pub fleet_rms_um: f64,
-    /// The added effect's ΔBIC and p-value (absent for the starting model).
-    pub(crate) delta_bic: Option<f64>,
-    pub(crate) p_value: Option<f64>,
+    /// The added effect's ΔBIC (absent for the starting model).
+    pub delta_bic: Option<f64>,
+    /// The added effect's p-value (absent for the starting model).
+    pub p_value: Option<f64>,
 }
 
 /// What a ledger step added to the model before it.
@@ -68,12 +69,6 @@ impl Added {
 impl std::fmt::Display for Added {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.pad(&self.name())
-    }
-}
-
-impl Serialize for Added {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.serialize_str(&self.name())
     }
 }
 
