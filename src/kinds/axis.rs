@@ -112,6 +112,7 @@ impl AxisPlan {
 pub(crate) fn run(plan: &AxisPlan) -> Result<Outcome> {
     let (out, target) = plan.base.claim_output(|dir| {
         let text = manifest_text(dir)?;
+        use dbbcal_io::manifest::TomlCampaign;
         let c = dbbcal_core::axis_campaign::AxisCampaign::from_toml_str(&text, "campaign.toml")?;
         Ok(c.id)
     })?;

@@ -13,7 +13,8 @@ mod plan;
 
 use std::path::{Path, PathBuf};
 
-use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind};
+use dbbcal_core::axis_campaign::CampaignKind;
+use dbbcal_io::manifest::campaign_kind;
 
 use plan::PipelineText;
 

@@ -638,6 +638,7 @@ fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
             }
         })?;
     let boxed = |e| PlanError::Campaign(Box::new(e));
+    use crate::io::manifest::TomlManifest;
     let manifest = crate::campaign::Manifest::from_toml_str(&text, &file).map_err(boxed)?;
     let campaign = Campaign::from_manifest_at(manifest, &file).map_err(boxed)?;
     Ok((campaign, file))

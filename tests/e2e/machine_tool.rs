@@ -17,10 +17,9 @@ use dbbcal::series::{CampaignTables, EncoderLog, Event, SensorLog};
 const START_NS: i64 = 1_700_000_000_000_000_000;
 const RESOLUTION_NM: f64 = 1.0;
 
-fn datetime(ns: i64) -> toml::value::Datetime {
-    let secs = ns.div_euclid(1_000_000_000);
-    let dt = chrono::DateTime::from_timestamp(secs, 0).unwrap();
-    dt.format("%Y-%m-%dT%H:%M:%SZ").to_string().parse().unwrap()
+/// The whole second at or before `ns`, as a mount's time.
+fn datetime(ns: i64) -> DeclaredTime {
+    DeclaredTime::at(ns.div_euclid(1_000_000_000) * 1_000_000_000)
 }
 
 /// Read `data.csv` into a campaign directory.

@@ -3,16 +3,12 @@
 //! diagonals read by a calibrated bar in re-seated segments (`docs/bar-diagonals.md`, our
 //! extension: `[bar_diagonal]` and `bar_diagonals/*.parquet`). Types only, no IO.
 //!
-//! [`VolumetricManifest`] mirrors its `campaign.toml` one to one (and is what the simulator
-//! writes); [`VolumetricCampaign`] is the validated form, every error one line naming the file
+//! [`VolumetricManifest`] is its `campaign.toml` as declared, one field a key (the TOML text is
+//! `dbbcal_io::manifest`'s); [`VolumetricCampaign`] is the validated form, every error one line naming the file
 //! and the key. The logs as plain data and the reader rules (order, direction, sub-move order)
 //! are in [`logs`].
 
-use serde::{Deserialize, Serialize};
-
-use crate::axis_campaign::{
-    syntax_error, CampaignKind, KindSection, LaserCompensation, MachineSensorDecl,
-};
+use crate::axis_campaign::{CampaignKind, KindSection, LaserCompensation, MachineSensorDecl};
 use crate::campaign::{check_campaign_id, display_number, limits, CampaignError};
 
 pub mod logs;
@@ -84,8 +80,7 @@ impl std::fmt::Display for DiagonalSign {
 }
 
 /// The laser's target (`[laser] target`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum LaserTarget {
     /// A flat mirror: lateral motion does not change the reading (needed by step diagonals).
     FlatMirror,
@@ -94,16 +89,14 @@ pub enum LaserTarget {
 }
 
 /// `[machine]` of a `volumetric` campaign.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct VolumetricMachineSection {
     /// Expansion of the machine's scales, ppm/K, for normalising to T0.
     pub cte_ppm_per_k: f64,
 }
 
 /// `[workspace]`: the corners are the diagonals' ends.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct WorkspaceSection {
     /// Minimum corner, mm.
     pub min_mm: [f64; 3],
@@ -112,15 +105,13 @@ pub struct WorkspaceSection {
 }
 
 /// `[laser]` of a `volumetric` campaign.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct VolumetricLaserSection {
     /// Vacuum wavelength, nm.
     pub wavelength_nm: f64,
     /// What the readings already include.
     pub compensation: LaserCompensation,
     /// Optics to reflector at the datum, mm.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dead_path_mm: Option<f64>,
     /// Flat mirror or retroreflector.
     pub target: LaserTarget,
@@ -128,8 +119,7 @@ pub struct VolumetricLaserSection {
 
 /// `[bar_diagonal]` (`docs/bar-diagonals.md`): the bar that read the body diagonals of
 /// `bar_diagonals/*.parquet` and what its calibration and set-up leave uncertain.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BarDiagonalSection {
     /// The bar's id (as in its calibration certificate).
     pub bar: String,
@@ -141,17 +131,13 @@ pub struct BarDiagonalSection {
 }
 
 /// `grid = { I, J, K, origin_mm, spacing_mm }`: the lattice of V2, V3 and the 3-D table.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GridSection {
     /// Nodes along x.
-    #[serde(rename = "I")]
     pub i: usize,
     /// Nodes along y.
-    #[serde(rename = "J")]
     pub j: usize,
     /// Nodes along z.
-    #[serde(rename = "K")]
     pub k: usize,
     /// Node (1, 1, 1), mm.
     pub origin_mm: [f64; 3],
@@ -160,8 +146,7 @@ pub struct GridSection {
 }
 
 /// What the 3-D table holds (`[table] values`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TableValues {
     /// −error.
     Correction,
@@ -170,8 +155,7 @@ pub enum TableValues {
 }
 
 /// `[table]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct TableSection {
     /// `"fanuc-3d"`, the only format of this version.
     pub format: String,
@@ -183,9 +167,8 @@ pub struct TableSection {
     pub values: TableValues,
 }
 
-/// `campaign.toml` of a `volumetric` campaign as written, not yet validated.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `campaign.toml` of a `volumetric` campaign as declared, not yet validated.
+#[derive(Debug, Clone, PartialEq)]
 pub struct VolumetricManifest {
     /// `[campaign]`.
     pub campaign: KindSection,
@@ -194,31 +177,15 @@ pub struct VolumetricManifest {
     /// `[workspace]`.
     pub workspace: WorkspaceSection,
     /// `[laser]`; required when `diagonals/` or `steps/` hold readings.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub laser: Option<VolumetricLaserSection>,
     /// `[bar_diagonal]`; required when `bar_diagonals/` holds readings.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bar_diagonal: Option<BarDiagonalSection>,
     /// `grid`.
     pub grid: GridSection,
     /// `[table]`; absent: fanuc-3d, n_base 100000, 1 µm, correction.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub table: Option<TableSection>,
     /// `[[sensor]]` of `temperatures/*.parquet`.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sensor: Vec<MachineSensorDecl>,
-}
-
-impl VolumetricManifest {
-    /// Parses `campaign.toml` text; `file` names it in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<VolumetricManifest, CampaignError> {
-        toml::from_str(text).map_err(|e| syntax_error(text, file, &e))
-    }
-
-    /// The manifest as TOML text (what the simulator writes).
-    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        toml::to_string(self)
-    }
 }
 
 /// A validated `volumetric` manifest.
@@ -252,11 +219,6 @@ const LENGTH_MM: f64 = 10_000.0;
 const MAX_NODES: usize = 1_000;
 
 impl VolumetricCampaign {
-    /// Parses and validates `campaign.toml` text, naming `file` in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<VolumetricCampaign, CampaignError> {
-        Self::from_manifest_at(VolumetricManifest::from_toml_str(text, file)?, file)
-    }
-
     /// The workspace's extent L = max − min, mm.
     pub fn lengths_mm(&self) -> [f64; 3] {
         [0, 1, 2].map(|k| self.max_mm[k] - self.min_mm[k])

@@ -13,6 +13,7 @@ mod guard;
 mod inputs;
 mod kind_read;
 mod kind_write;
+pub mod manifest;
 mod pq;
 mod probe;
 mod probe_write;

@@ -75,6 +75,8 @@
 //!   cut the scans (a re-export is decoded once per bar) at the price of holding every bar's
 //!   overlap at once.
 
+use crate::manifest::TomlManifest;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
