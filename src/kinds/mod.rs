@@ -61,10 +61,10 @@ pub fn plan_run(
 ) -> Result<KindPlan, PlanError> {
     let shown = pipeline.display().to_string();
     let text =
-        crate::io::read_small_text(pipeline, crate::io::MAX_PIPELINE_BYTES).map_err(|message| {
+        crate::io::read_small_text(pipeline, crate::io::MAX_PIPELINE_BYTES).map_err(|e| {
             PlanError::Pipeline {
                 path: shown.clone(),
-                message,
+                message: e.to_string(),
             }
         })?;
     let dir = campaign_dir(&text, campaign);

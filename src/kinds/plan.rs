@@ -235,8 +235,10 @@ impl PlanBase {
 
 /// The text of `dir/campaign.toml` (a kind whose reader has no manifest function).
 pub(crate) fn manifest_text(dir: &Path) -> Result<String> {
-    crate::io::read_small_text(&dir.join("campaign.toml"), crate::io::MAX_MANIFEST_BYTES)
-        .map_err(anyhow::Error::msg)
+    Ok(crate::io::read_small_text(
+        &dir.join("campaign.toml"),
+        crate::io::MAX_MANIFEST_BYTES,
+    )?)
 }
 
 /// The marker of a kind's output folder: campaign, its one stage, effects and inputs.

@@ -14,7 +14,7 @@ pub(crate) struct BarCalibrationRecord<'a> {
     pub(crate) epoch: usize,
     pub(crate) points: Vec<PointRecord<'a>>,
     pub(crate) excluded: Vec<ExcludedRecord<'a>>,
-    pub(crate) forms: Vec<FormScoreRecord<'a>>,
+    pub(crate) forms: Vec<FormScoreRecord>,
     pub(crate) chosen: DistanceFunctionRecord<'a>,
     pub(crate) cv_rms_um: f64,
 }
@@ -90,7 +90,7 @@ pub(crate) struct ExcludedRecord<'a> {
 
 /// One form's cross-validation.
 #[derive(Debug, Serialize)]
-pub(crate) struct FormScoreRecord<'a> {
+pub(crate) struct FormScoreRecord {
     /// The form's name, e.g. `quadratic+sag_cos2*length`.
     pub(crate) form: String,
     pub(crate) n_params: usize,
@@ -98,18 +98,18 @@ pub(crate) struct FormScoreRecord<'a> {
     pub(crate) cv_max_abs_um: Option<f64>,
     pub(crate) fit_rms_um: Option<f64>,
     /// Why the form could not be fitted or cross-validated.
-    pub(crate) note: Option<&'a str>,
+    pub(crate) note: Option<String>,
 }
 
-impl<'a> From<&'a FormScore> for FormScoreRecord<'a> {
-    fn from(f: &'a FormScore) -> Self {
+impl From<&FormScore> for FormScoreRecord {
+    fn from(f: &FormScore) -> Self {
         FormScoreRecord {
             form: f.form.name(),
             n_params: f.n_params,
             cv_rms_um: f.cv_rms_um,
             cv_max_abs_um: f.cv_max_abs_um,
             fit_rms_um: f.fit_rms_um,
-            note: f.note.as_deref(),
+            note: f.note.as_ref().map(ToString::to_string),
         }
     }
 }

@@ -29,7 +29,7 @@ pub(crate) struct DiagnosisRecord<'a> {
     /// its `reason`.
     pub(crate) candidates: Vec<CandidateRecord<'a>>,
     /// Candidates that could not be fitted on any bar, with the reason.
-    pub(crate) unavailable: Vec<UnavailableRecord<'a>>,
+    pub(crate) unavailable: Vec<UnavailableRecord>,
     /// Fleet-wide forward selection: one model for every bar.
     pub(crate) ledger: Vec<LedgerStepRecord<'a>>,
     /// Each bar's own forward selection.
@@ -103,7 +103,11 @@ pub(crate) fn diagnosis_record<'a>(
             .iter()
             .map(|u| UnavailableRecord {
                 effect: u.effect.name(),
-                reason: &u.reason,
+                reason: u
+                    .reason
+                    .as_ref()
+                    .map(ToString::to_string)
+                    .unwrap_or_default(),
             })
             .collect(),
         ledger: d.ledger.iter().map(LedgerStepRecord::from).collect(),
@@ -248,7 +252,7 @@ pub(crate) struct CandidateOnBarRecord<'a> {
     pub(crate) delta_bic: Option<f64>,
     pub(crate) p_value: Option<f64>,
     pub(crate) significant: bool,
-    pub(crate) error: Option<&'a str>,
+    pub(crate) error: Option<String>,
 }
 
 impl<'a> From<&'a CandidateOnBar> for CandidateOnBarRecord<'a> {
@@ -262,16 +266,16 @@ impl<'a> From<&'a CandidateOnBar> for CandidateOnBarRecord<'a> {
             delta_bic: c.delta_bic,
             p_value: c.p_value,
             significant: c.significant,
-            error: c.error.as_deref(),
+            error: c.error.as_ref().map(ToString::to_string),
         }
     }
 }
 
 /// A candidate no bar could fit, with the first bar's reason.
 #[derive(Debug, Serialize)]
-pub(crate) struct UnavailableRecord<'a> {
+pub(crate) struct UnavailableRecord {
     pub(crate) effect: String,
-    pub(crate) reason: &'a str,
+    pub(crate) reason: String,
 }
 
 /// One step of a forward selection.

@@ -630,13 +630,12 @@ fn shown(path: &Path) -> String {
 fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
     let path = dir.join("campaign.toml");
     let file = shown(&path);
-    let text =
-        crate::io::read_small_text(&path, crate::io::MAX_MANIFEST_BYTES).map_err(|message| {
-            PlanError::Pipeline {
-                path: file.clone(),
-                message,
-            }
-        })?;
+    let text = crate::io::read_small_text(&path, crate::io::MAX_MANIFEST_BYTES).map_err(|e| {
+        PlanError::Pipeline {
+            path: file.clone(),
+            message: e.to_string(),
+        }
+    })?;
     let boxed = |e| PlanError::Campaign(Box::new(e));
     use crate::io::manifest::TomlManifest;
     let manifest = crate::campaign::Manifest::from_toml_str(&text, &file).map_err(boxed)?;
@@ -684,7 +683,8 @@ impl RunPlan {
             path: shown(path),
             message,
         };
-        let text = crate::io::read_small_text(path, crate::io::MAX_PIPELINE_BYTES).map_err(perr)?;
+        let text = crate::io::read_small_text(path, crate::io::MAX_PIPELINE_BYTES)
+            .map_err(|e| perr(e.to_string()))?;
         let file: PipelineFile =
             toml::from_str(&text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
         if file.pipeline.stages.is_empty() {

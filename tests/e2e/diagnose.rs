@@ -78,10 +78,10 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
         .collect();
     eprintln!("{name}: {}", ranking.join("; "));
     for c in &diagnosis.candidates {
-        let errors: Vec<&str> = c
+        let errors: Vec<String> = c
             .per_bar
             .iter()
-            .filter_map(|b| b.error.as_deref())
+            .filter_map(|b| b.error.as_ref().map(ToString::to_string))
             .collect();
         eprintln!("  {}: {} {errors:?}", c.effect, reason(&c.reason));
     }

@@ -11,7 +11,8 @@
 //! derives from them (direction, row order under repeated times, the fixture row a reading
 //! takes) are in [`logs`]: pure functions, unit-tested there.
 
-use crate::campaign::{check_campaign_id, display_number, limits, CampaignError};
+use crate::campaign::{check_campaign_id, limits, CampaignError};
+use crate::limits::{check_point, OutOfRange, PointOutOfRange};
 
 pub mod logs;
 #[cfg(test)]
@@ -345,47 +346,47 @@ impl AxisCampaign {
 
     /// Validates a manifest, naming `file` in messages.
     pub fn from_manifest_at(m: AxisManifest, file: &str) -> Result<AxisCampaign, CampaignError> {
-        let invalid = |key: &str, problem: String| CampaignError::Invalid {
+        let invalid = |key: &str, problem: &dyn std::fmt::Display| CampaignError::Invalid {
             file: file.to_string(),
             key: key.to_string(),
-            problem,
+            problem: problem.to_string(),
         };
         if m.campaign.kind != CampaignKind::Axis {
             return Err(invalid(
                 "campaign.kind",
-                format!(
+                &format!(
                     "is {:?}, this manifest is read as \"axis\"",
                     m.campaign.kind.as_str()
                 ),
             ));
         }
-        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", &p))?;
         in_range(
             "campaign.reference_temperature_c",
             m.campaign.reference_temperature_c,
             limits::REFERENCE_TEMPERATURE_C,
         )
-        .map_err(|p| invalid("campaign.reference_temperature_c", p))?;
+        .map_err(|p| invalid("campaign.reference_temperature_c", &p))?;
         in_range(
             "machine.cte_ppm_per_k",
             m.machine.cte_ppm_per_k,
             limits::CTE_PPM_PER_K,
         )
-        .map_err(|p| invalid("machine.cte_ppm_per_k", p))?;
+        .map_err(|p| invalid("machine.cte_ppm_per_k", &p))?;
         in_range(
             "laser.wavelength_nm",
             m.laser.wavelength_nm,
             axis_limits::WAVELENGTH_NM,
         )
-        .map_err(|p| invalid("laser.wavelength_nm", p))?;
+        .map_err(|p| invalid("laser.wavelength_nm", &p))?;
         if let Some(d) = m.laser.dead_path_mm {
             in_range("laser.dead_path_mm", d, axis_limits::DEAD_PATH_MM)
-                .map_err(|p| invalid("laser.dead_path_mm", p))?;
+                .map_err(|p| invalid("laser.dead_path_mm", &p))?;
         }
         if m.line.is_empty() {
             return Err(invalid(
                 "line",
-                "declares no line: at least one interferometer set-up is needed".into(),
+                &"declares no line: at least one interferometer set-up is needed",
             ));
         }
         let mut seen = std::collections::BTreeMap::new();
@@ -399,15 +400,15 @@ impl AxisCampaign {
                     second: i,
                 });
             }
-            point(&l.reflector_mm).map_err(|p| invalid(&format!("line[{i}].reflector_mm"), p))?;
+            point(&l.reflector_mm).map_err(|p| invalid(&format!("line[{i}].reflector_mm"), &p))?;
         }
         let (fixture_u_um, report_point_mm) = match &m.fixture {
             None => (0.0, [0.0; 3]),
             Some(f) => {
                 in_range("fixture.u_um", f.u_um, limits::U_UM)
-                    .map_err(|p| invalid("fixture.u_um", p))?;
+                    .map_err(|p| invalid("fixture.u_um", &p))?;
                 let report = f.report_point_mm.unwrap_or([0.0; 3]);
-                point(&report).map_err(|p| invalid("fixture.report_point_mm", p))?;
+                point(&report).map_err(|p| invalid("fixture.report_point_mm", &p))?;
                 (f.u_um, report)
             }
         };
@@ -416,7 +417,7 @@ impl AxisCampaign {
             if s.id.trim().is_empty() || s.id.chars().any(char::is_control) {
                 return Err(invalid(
                     &format!("sensor[{i}]"),
-                    format!("id {:?} is empty or holds a control character", s.id),
+                    &format!("id {:?} is empty or holds a control character", s.id),
                 ));
             }
             if let Some(first) = sensor_ids.insert(s.id.as_str(), i) {
@@ -469,20 +470,13 @@ impl AxisCampaign {
     }
 }
 
-/// `value` finite and in `[lo, hi]`; the problem as words otherwise.
-fn in_range(name: &str, value: f64, limit: crate::limits::Limit) -> Result<(), String> {
+/// `value` within `limit`, named by the last part of `name`.
+fn in_range(name: &str, value: f64, limit: crate::limits::Limit) -> Result<(), OutOfRange> {
     let name = name.rsplit('.').next().unwrap_or(name);
-    limit.check(name, value).map_err(|e| e.to_string())
+    limit.check(name, value)
 }
 
 /// A point in mm: every coordinate finite and within ±10 m.
-fn point(p: &[f64; 3]) -> Result<(), String> {
-    let lim = axis_limits::LENGTH_MM;
-    match p.iter().find(|v| !(v.is_finite() && v.abs() <= lim)) {
-        None => Ok(()),
-        Some(v) => Err(format!(
-            "coordinate {} is out of range: each must be a finite number within ±{lim} mm",
-            display_number(*v)
-        )),
-    }
+fn point(p: &[f64; 3]) -> Result<(), PointOutOfRange> {
+    check_point(p, axis_limits::LENGTH_MM)
 }

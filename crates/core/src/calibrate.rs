@@ -221,7 +221,7 @@ pub struct FormScore {
     /// RMS of the residuals of the fit on all points, µm.
     pub fit_rms_um: Option<f64>,
     /// Why the form could not be fitted or cross-validated.
-    pub note: Option<String>,
+    pub note: Option<FormError>,
 }
 
 /// A bar's calibration.
@@ -267,12 +267,54 @@ pub enum CalibrateError {
         epoch: usize,
     },
     /// No form could be fitted.
-    #[error("bar {bar}: no form of the centre-distance function could be fitted ({reasons})")]
+    #[error("bar {bar}: no form of the centre-distance function could be fitted ({})", form_reasons(.forms))]
     NoForm {
         /// Bar id.
         bar: String,
-        /// Why each form failed.
-        reasons: String,
+        /// Every form tried, with why it failed.
+        forms: Vec<(Form, Option<FormError>)>,
+    },
+    /// The form chosen by cross-validation could not be fitted to all the points.
+    #[error("bar {bar}: no form of the centre-distance function could be fitted ({source})")]
+    ChosenForm {
+        /// Bar id.
+        bar: String,
+        /// Why.
+        source: FormError,
+    },
+}
+
+/// `FORM: why; FORM: why; …` (an empty why for a form that did not say).
+fn form_reasons(forms: &[(Form, Option<FormError>)]) -> String {
+    forms
+        .iter()
+        .map(|(form, why)| {
+            let why = why.as_ref().map(ToString::to_string).unwrap_or_default();
+            format!("{}: {why}", form.name())
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// Why a form of `D(n, A)` could not be fitted to a set of points or cross-validated.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum FormError {
+    /// No point to fit.
+    #[error("no points")]
+    NoPoints,
+    /// A table interpolates between points: one is not enough.
+    #[error("a table needs at least 2 points")]
+    TableNeedsTwoPoints,
+    /// The least-squares fit failed.
+    #[error(transparent)]
+    Fit(#[from] fit::FitError),
+    /// The fit without one point (leave-one-point-out) failed.
+    #[error("without point {point}: {source}")]
+    WithoutPoint {
+        /// The point left out (index in the points).
+        point: usize,
+        /// Why the fit without it failed.
+        source: Box<FormError>,
     },
 }
 
@@ -383,9 +425,9 @@ fn basis_row(form: Form, u: f64, tilt_deg: f64) -> Vec<f64> {
 pub(crate) fn fit_form(
     form: Form,
     points: &[CalibrationPoint],
-) -> Result<DistanceFunction, String> {
+) -> Result<DistanceFunction, FormError> {
     if points.is_empty() {
-        return Err("no points".into());
+        return Err(FormError::NoPoints);
     }
     let (lo, hi) = points
         .iter()
@@ -417,7 +459,7 @@ pub(crate) fn fit_form(
         hac_batch_len: Some(1),
         absorbed_params: 0,
     };
-    let f = fit::fit(&problem, &[], &options).map_err(|e| e.to_string())?;
+    let f = fit::fit(&problem, &[], &options)?;
     let coefficients: Vec<(String, f64)> =
         names.into_iter().zip(f.values.iter().copied()).collect();
     let patent_abc = (form != Form::Linear).then(|| patent_abc(&coefficients, centre, half));
@@ -449,9 +491,9 @@ fn fit_table(
     points: &[CalibrationPoint],
     centre: f64,
     half: f64,
-) -> Result<DistanceFunction, String> {
+) -> Result<DistanceFunction, FormError> {
     if points.len() < 2 {
-        return Err("a table needs at least 2 points".into());
+        return Err(FormError::TableNeedsTwoPoints);
     }
     let mut table: Vec<(f64, Vec<(f64, f64)>)> = Vec::new();
     for p in points {
@@ -521,7 +563,10 @@ fn table_correction_um(table: &[(f64, Vec<(f64, f64)>)], reading_mm: f64, tilt_d
 }
 
 /// Leave-one-point-out prediction errors (µm) of `form`.
-pub(crate) fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64>, String> {
+pub(crate) fn cross_validate(
+    form: Form,
+    points: &[CalibrationPoint],
+) -> Result<Vec<f64>, FormError> {
     (0..points.len())
         .map(|k| {
             let rest: Vec<CalibrationPoint> = points
@@ -530,7 +575,10 @@ pub(crate) fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<
                 .filter(|(i, _)| *i != k)
                 .map(|(_, p)| p.clone())
                 .collect();
-            let f = fit_form(form, &rest).map_err(|e| format!("without point {k}: {e}"))?;
+            let f = fit_form(form, &rest).map_err(|e| FormError::WithoutPoint {
+                point: k,
+                source: Box::new(e),
+            })?;
             let p = &points[k];
             Ok((f.distance_mm(p.reading_mm, p.tilt_deg) - p.length_mm) * 1e3)
         })
@@ -603,19 +651,14 @@ pub fn calibrate_points(
             _ => Some((f, cv)),
         });
     let Some((form, cv_rms_um)) = best else {
-        let reasons = forms
-            .iter()
-            .map(|s| format!("{}: {}", s.form.name(), s.note.clone().unwrap_or_default()))
-            .collect::<Vec<_>>()
-            .join("; ");
         return Err(CalibrateError::NoForm {
             bar: bar.to_string(),
-            reasons,
+            forms: forms.into_iter().map(|s| (s.form, s.note)).collect(),
         });
     };
-    let chosen = fit_form(form, &points).map_err(|e| CalibrateError::NoForm {
+    let chosen = fit_form(form, &points).map_err(|source| CalibrateError::ChosenForm {
         bar: bar.to_string(),
-        reasons: e,
+        source,
     })?;
     Ok(BarCalibration {
         bar: bar.to_string(),
@@ -631,11 +674,11 @@ pub fn calibrate_points(
 /// The calibrate stage: calibrate every identified bar, in parallel, in the fleet's order (a bar
 /// that cannot be calibrated is listed, and warned of, the others go on).
 pub fn calibrate_fleet(bars: &[BarOutcome], campaign: &Campaign) -> StageOutcome<BarCalibration> {
-    let outcomes: Vec<(String, Result<BarCalibration, String>)> = bars
+    let outcomes: Vec<(String, Result<BarCalibration, CalibrateError>)> = bars
         .par_iter()
         .map(|o| {
             let calibrated = calibrate_bar(&o.series, &o.model, campaign);
-            (o.model.bar.clone(), calibrated.map_err(|e| e.to_string()))
+            (o.model.bar.clone(), calibrated)
         })
         .collect();
     StageOutcome::from_results(outcomes).with_failures_warned()

@@ -458,31 +458,58 @@ impl Campaign {
 /// `campaign.id` names the default output folder (`reports/<id>`): non-empty, at most
 /// [`limits::ID_MAX_CHARS`] characters of `[A-Za-z0-9._-]`, not starting with a dot (no hidden
 /// folder, no `..`, no path separator).
-pub fn check_campaign_id(id: &str) -> Result<(), String> {
+pub fn check_campaign_id(id: &str) -> Result<(), IdError> {
     if id.is_empty() {
-        return Err("is empty".into());
+        return Err(IdError::Empty);
     }
-    if id.chars().count() > limits::ID_MAX_CHARS {
-        return Err(format!(
-            "is {} characters long; at most {} are allowed",
-            id.chars().count(),
-            limits::ID_MAX_CHARS
-        ));
+    let chars = id.chars().count();
+    if chars > limits::ID_MAX_CHARS {
+        return Err(IdError::TooLong { chars });
     }
     if let Some(c) = id
         .chars()
         .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-')))
     {
-        return Err(format!(
-            "{id:?} contains {c:?}: only letters A-Z a-z, digits, '.', '_' and '-' are allowed (it names the output folder reports/<id>)"
-        ));
+        return Err(IdError::Character {
+            id: id.to_string(),
+            character: c,
+        });
     }
     if id.starts_with('.') {
-        return Err(format!(
-            "{id:?} starts with a dot (it names the output folder reports/<id>)"
-        ));
+        return Err(IdError::LeadingDot { id: id.to_string() });
     }
     Ok(())
+}
+
+/// Why a campaign id cannot name the output folder `reports/<id>`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum IdError {
+    /// No characters.
+    #[error("is empty")]
+    Empty,
+    /// More than [`limits::ID_MAX_CHARS`] characters.
+    #[error(
+        "is {chars} characters long; at most {} are allowed",
+        limits::ID_MAX_CHARS
+    )]
+    TooLong {
+        /// Its length in characters.
+        chars: usize,
+    },
+    /// A character outside `[A-Za-z0-9._-]`.
+    #[error("{id:?} contains {character:?}: only letters A-Z a-z, digits, '.', '_' and '-' are allowed (it names the output folder reports/<id>)")]
+    Character {
+        /// The id.
+        id: String,
+        /// The first character not allowed.
+        character: char,
+    },
+    /// A leading dot (a hidden folder, `..`).
+    #[error("{id:?} starts with a dot (it names the output folder reports/<id>)")]
+    LeadingDot {
+        /// The id.
+        id: String,
+    },
 }
 
 /// Checks of one manifest; holds the file name for messages.
@@ -573,7 +600,8 @@ impl Validator<'_> {
         if c.id.trim().is_empty() {
             return Err(self.invalid("campaign.id", "is empty"));
         }
-        check_campaign_id(&c.id).map_err(|problem| self.invalid("campaign.id", problem))?;
+        check_campaign_id(&c.id)
+            .map_err(|problem| self.invalid("campaign.id", problem.to_string()))?;
         self.in_range(
             "campaign",
             "reference_temperature_c",

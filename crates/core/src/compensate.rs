@@ -23,7 +23,7 @@ use crate::calibrate::BarCalibration;
 use crate::campaign::{Campaign, Purpose};
 use crate::identify::{BarModel, BarOutcome};
 use crate::matching::ReferenceChoice;
-use crate::model::ThermalProblem;
+use crate::model::{ModelError, ThermalProblem};
 use crate::series::BarSeries;
 use crate::signal::interpolate;
 use crate::stage::StageOutcome;
@@ -215,13 +215,13 @@ pub(crate) enum CompensateError {
         /// Index of the mount in the bar's series.
         mount: usize,
     },
-    #[error("bar {bar}: {reason}")]
+    #[error("bar {bar}: {source}")]
     /// The thermal model cannot be evaluated on the mount.
     Model {
         /// Bar id.
         bar: String,
         /// What is wrong.
-        reason: String,
+        source: ModelError,
     },
 }
 
@@ -449,13 +449,13 @@ fn weights(refs: &[&RefTrack], d_mm: f64) -> Vec<f64> {
 
 /// The working bar's modelled thermal error with its travel set for `mount` (needed on a
 /// device, where the series has no known `I_p`).
-fn model_thermal_at(b: &CompBar, mount: usize, i_p_mm: f64) -> Result<Vec<f64>, String> {
+fn model_thermal_at(b: &CompBar, mount: usize, i_p_mm: f64) -> Result<Vec<f64>, ModelError> {
     if (b.series.mounts[mount].i_p_mm - i_p_mm).abs() < 1e-9 {
         return Ok(b.model.thermal_um.clone());
     }
     let mut s = b.series.clone();
     s.mounts[mount].i_p_mm = i_p_mm;
-    let problem = ThermalProblem::new(&s, &b.model.effects).map_err(|e| e.to_string())?;
+    let problem = ThermalProblem::new(&s, &b.model.effects)?;
     let columns = problem.full_columns(&b.model.theta);
     let mut out = vec![0.0; s.t_s.len()];
     for (col, g) in columns.iter().zip(&b.model.gains) {
@@ -501,10 +501,10 @@ fn compensate_mount(
         .map(|(&i, a)| cal.chosen.distance_mm(s.reading_um(i) * 1e-3, *a))
         .collect();
     let d_p = span.length_mm.unwrap_or_else(|| median(&uncompensated_mm));
-    let own = model_thermal_at(b, m, d_p - s.bar.fixed_length_mm).map_err(|reason| {
+    let own = model_thermal_at(b, m, d_p - s.bar.fixed_length_mm).map_err(|source| {
         CompensateError::Model {
             bar: bar.clone(),
-            reason,
+            source,
         }
     })?;
     let refs = choose_references(tracks, &bar, span.from_s, span.to_s, fleet_distance);

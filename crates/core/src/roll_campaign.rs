@@ -156,7 +156,7 @@ impl RollCampaign {
                 ),
             ));
         }
-        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p.to_string()))?;
         check(
             "campaign.reference_temperature_c",
             m.campaign.reference_temperature_c,

@@ -10,6 +10,7 @@
 
 use crate::axis_campaign::{CampaignKind, KindSection, LaserCompensation, MachineSensorDecl};
 use crate::campaign::{check_campaign_id, display_number, limits, CampaignError};
+use crate::limits::{check_point, PointOutOfRange};
 
 pub mod logs;
 #[cfg(test)]
@@ -243,7 +244,7 @@ impl VolumetricCampaign {
                 ),
             ));
         }
-        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p.to_string()))?;
         let check = |key: &str, v: f64, limit: crate::limits::Limit| {
             let name = key.rsplit('.').next().unwrap_or(key);
             limit
@@ -297,7 +298,7 @@ impl VolumetricCampaign {
             ("workspace.min_mm", &w.min_mm),
             ("workspace.max_mm", &w.max_mm),
         ] {
-            point(p).map_err(|e| invalid(key, e))?;
+            point(p).map_err(|e| invalid(key, e.to_string()))?;
         }
         if let Some(k) = (0..3).find(|&k| w.max_mm[k] <= w.min_mm[k]) {
             return Err(invalid(
@@ -309,7 +310,7 @@ impl VolumetricCampaign {
                 ),
             ));
         }
-        check_grid(&m.grid, w).map_err(|(key, p)| invalid(&key, p))?;
+        check_grid(&m.grid, w, file)?;
         let table = m.table.unwrap_or(TableSection {
             format: "fanuc-3d".into(),
             n_base: 100_000,
@@ -416,44 +417,47 @@ impl VolumetricCampaign {
 }
 
 /// A point in mm: finite, within ±10 m.
-fn point(p: &[f64; 3]) -> Result<(), String> {
-    match p.iter().find(|v| !(v.is_finite() && v.abs() <= LENGTH_MM)) {
-        None => Ok(()),
-        Some(v) => Err(format!(
-            "coordinate {} is out of range: each must be a finite number within ±{LENGTH_MM} mm",
-            display_number(*v)
-        )),
-    }
+fn point(p: &[f64; 3]) -> Result<(), PointOutOfRange> {
+    check_point(p, LENGTH_MM)
 }
 
-/// Grid nodes must lie inside the workspace (`machine-formats.md`).
-fn check_grid(g: &GridSection, w: &WorkspaceSection) -> Result<(), (String, String)> {
+/// Grid nodes must lie inside the workspace (`machine-formats.md`); `file` names the manifest.
+fn check_grid(g: &GridSection, w: &WorkspaceSection, file: &str) -> Result<(), CampaignError> {
+    let invalid = |key: &str, problem: String| {
+        Err(CampaignError::Invalid {
+            file: file.to_string(),
+            key: key.to_string(),
+            problem,
+        })
+    };
     let counts = [g.i, g.j, g.k];
     for (k, name) in ["I", "J", "K"].iter().enumerate() {
         if !(1..=MAX_NODES).contains(&counts[k]) {
-            return Err((
-                format!("grid.{name}"),
+            return invalid(
+                &format!("grid.{name}"),
                 format!("is {}: each count is 1 … {MAX_NODES}", counts[k]),
-            ));
+            );
         }
     }
-    point(&g.origin_mm).map_err(|p| ("grid.origin_mm".to_string(), p))?;
+    if let Err(p) = point(&g.origin_mm) {
+        return invalid("grid.origin_mm", p.to_string());
+    }
     for k in 0..3 {
         let s = g.spacing_mm[k];
         if !(s.is_finite() && s > 0.0 && s <= LENGTH_MM) {
-            return Err((
-                "grid.spacing_mm".into(),
+            return invalid(
+                "grid.spacing_mm",
                 format!(
                     "spacing_mm[{k}] = {} is not a finite number in (0, {LENGTH_MM}] mm",
                     display_number(s)
                 ),
-            ));
+            );
         }
         let last = g.origin_mm[k] + (counts[k] - 1) as f64 * s;
         let tol = 1e-6;
         if g.origin_mm[k] < w.min_mm[k] - tol || last > w.max_mm[k] + tol {
-            return Err((
-                "grid".into(),
+            return invalid(
+                "grid",
                 format!(
                     "nodes along {} run from {} to {} mm, outside the workspace {} … {} mm: grid nodes must lie inside it",
                     ["x", "y", "z"][k],
@@ -462,7 +466,7 @@ fn check_grid(g: &GridSection, w: &WorkspaceSection) -> Result<(), (String, Stri
                     display_number(w.min_mm[k]),
                     display_number(w.max_mm[k])
                 ),
-            ));
+            );
         }
     }
     Ok(())

@@ -11,9 +11,9 @@ use super::screen::Screen;
 use super::screen::ScreenBase;
 use super::summary::summarise_candidate;
 use super::{
-    BarDiagnosis, Candidate, CandidateOnBar, Criteria, Reason, Verdict, CHANNEL_CANDIDATES,
-    COARSE_RIVAL_SHARE, HEAT_CANDIDATES, MAX_EXACT_RIVALS, NAMED_TIE_SHARE, RIVAL_SHARE,
-    SCREEN_SHARE,
+    BarDiagnosis, Candidate, CandidateError, CandidateOnBar, Criteria, Reason, Verdict,
+    CHANNEL_CANDIDATES, COARSE_RIVAL_SHARE, HEAT_CANDIDATES, MAX_EXACT_RIVALS, NAMED_TIE_SHARE,
+    RIVAL_SHARE, SCREEN_SHARE,
 };
 use crate::identify::BarModel;
 use crate::model::channels;
@@ -73,8 +73,8 @@ pub(crate) fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) 
 pub struct Unavailable {
     /// The candidate.
     pub effect: Effect,
-    /// Why the first bar could not fit it.
-    pub reason: String,
+    /// Why the first bar could not fit it (`None` without bars).
+    pub reason: Option<CandidateError>,
 }
 
 /// Screen every candidate on every bar (`bases`: the bars' models linearised,
@@ -104,14 +104,14 @@ pub(super) fn evaluate_at_most(
     max_refits: Option<usize>,
 ) -> (Vec<Candidate>, Vec<Unavailable>) {
     let threshold = criteria.alpha / candidates.len().max(1) as f64;
-    let screens: Vec<Vec<Result<Screen, String>>> = candidates
+    let screens: Vec<Vec<Result<Screen, CandidateError>>> = candidates
         .par_iter()
         .map(|effect| {
             bases
                 .iter()
                 .map(|b| match b {
                     Some(b) => b.screen(effect),
-                    None => Err("the model could not be linearised on this bar".into()),
+                    None => Err(CandidateError::NotLinearised),
                 })
                 .collect()
         })
@@ -129,10 +129,7 @@ pub(super) fn evaluate_at_most(
         } else {
             unavailable.push(Unavailable {
                 effect: candidates[c].clone(),
-                reason: per_bar
-                    .iter()
-                    .find_map(|s| s.as_ref().err().cloned())
-                    .unwrap_or_default(),
+                reason: per_bar.iter().find_map(|s| s.as_ref().err().cloned()),
             });
         }
     }
@@ -245,7 +242,7 @@ pub(super) fn evaluate_at_most(
 /// statistics summed), as screened; `None` if it could be built on no bar.
 fn screened_change(
     bars: &[(&BarSeries, &BarModel)],
-    per_bar: &[Result<Screen, String>],
+    per_bar: &[Result<Screen, CandidateError>],
 ) -> Option<(f64, f64, f64)> {
     let (mut before, mut after, mut shift, mut n) = (0.0, 0.0, 0.0, 0usize);
     let (mut score, mut dof) = (0.0, 0usize);
@@ -406,7 +403,7 @@ pub(super) fn exact_refits(
     refit: &[usize],
     starts: &[Vec<Option<BarModel>>],
     candidates: &[Effect],
-    screens: &[Vec<Result<Screen, String>>],
+    screens: &[Vec<Result<Screen, CandidateError>>],
     threshold: f64,
     refits: &Refits,
 ) -> Vec<Vec<CandidateOnBar>> {
@@ -447,7 +444,7 @@ pub(super) fn exact_refits(
 /// A candidate's per-bar results when it was screened out (no refit).
 fn screened_only(
     bars: &[(&BarSeries, &BarModel)],
-    screens: &[Result<Screen, String>],
+    screens: &[Result<Screen, CandidateError>],
 ) -> Vec<CandidateOnBar> {
     bars.iter()
         .zip(screens)
@@ -468,7 +465,7 @@ fn screened_only(
         .collect()
 }
 
-fn unfit_on_bar(base: &BarModel, error: String) -> CandidateOnBar {
+fn unfit_on_bar(base: &BarModel, error: CandidateError) -> CandidateOnBar {
     CandidateOnBar {
         bar: base.bar.clone(),
         rms_before_um: base.rms_um,
@@ -497,10 +494,14 @@ fn candidate_on_bar(
         Ok(m) => m,
         Err(e) => return unfit_on_bar(base, e.clone()),
     };
-    if let Some((a, b, r)) = unidentifiable_pair(base, extended) {
+    if let Some((first, second, correlation)) = unidentifiable_pair(base, extended) {
         return unfit_on_bar(
             base,
-            format!("not identifiable on this bar: {a} and {b} correlate at {r:.4}"),
+            CandidateError::NotIdentifiable {
+                first,
+                second,
+                correlation,
+            },
         );
     }
     let added = extended.n_params.saturating_sub(base.n_params).max(1);

@@ -88,6 +88,7 @@ mod bar;
 mod bar_selection;
 mod candidates;
 mod compare;
+mod error;
 mod fleet;
 pub(crate) mod noise;
 mod reason;
@@ -111,6 +112,7 @@ pub(crate) use bar_selection::{
 };
 pub use candidates::Unavailable;
 pub(crate) use candidates::{candidate_effects, evaluate_candidates};
+pub use error::CandidateError;
 pub use fleet::{diagnose_fleet, DiagnoseOptions, Diagnosis};
 pub use reason::Reason;
 pub(crate) use refits::Refits;
@@ -310,7 +312,7 @@ pub struct CandidateOnBar {
     /// Significant on this bar alone (its own test at the family-wise threshold, ΔBIC < 0).
     pub significant: bool,
     /// Why it could not be fitted on this bar, if so.
-    pub error: Option<String>,
+    pub error: Option<CandidateError>,
 }
 
 /// What the diagnosis concludes of a candidate.

@@ -12,8 +12,8 @@ use super::refits::Refits;
 use super::screen::Screen;
 use super::summary::summarise_candidate;
 use super::{
-    BarDiagnosis, Candidate, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS, HEAT_CANDIDATES,
-    PATH_TIE_SHARE,
+    BarDiagnosis, Candidate, CandidateError, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS,
+    HEAT_CANDIDATES, PATH_TIE_SHARE,
 };
 use crate::identify::identify_from;
 use crate::identify::BarModel;
@@ -517,11 +517,11 @@ fn exact_candidate(
     // effect was chosen on the coarse copies of these same readings.
     let threshold =
         criteria.alpha / (CATALOGUE.len() + CHANNEL_CANDIDATES + HEAT_CANDIDATES) as f64;
-    let screens: Vec<Vec<Result<Screen, String>>> = vec![bases
+    let screens: Vec<Vec<Result<Screen, CandidateError>>> = vec![bases
         .iter()
         .map(|b| match b {
             Some(b) => b.screen(effect),
-            None => Err("the model could not be linearised on this bar".into()),
+            None => Err(CandidateError::NotLinearised),
         })
         .collect()];
     let starts = vec![starts.to_vec()];
