@@ -386,8 +386,8 @@ fn execute(
             other => {
                 if !model.effects.is_empty() || model.bin_s.is_some() {
                     anyhow::bail!(dbbcal::pipeline::PlanError::NotInCampaign(
-                            "--effects and --bin-s are for ballbar campaigns; this campaign's kind takes --add-effect".into()
-                        ));
+                        dbbcal::pipeline::PlanProblem::BallbarOptions
+                    ));
                 }
                 return dbbcal::kinds::run(&other).map(Some);
             }

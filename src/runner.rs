@@ -514,7 +514,7 @@ fn device_stage(plan: &RunPlan, results: &mut RunResults) -> Result<()> {
     })
     .map_err(|problem| io::IngestError::UnusableCampaign {
         path: plan.campaign_dir.join("campaign.toml"),
-        problem,
+        problem: problem.to_string(),
     })?;
     results.inputs.extend(files);
     results.inputs.sort_by(|a, b| a.path.cmp(&b.path));

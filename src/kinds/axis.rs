@@ -95,7 +95,7 @@ impl AxisPlan {
         let a = &file.axis;
         pt.check_selection(FORWARD_STEPS, a.forward_steps, a.min_bic_gain)?;
         let effects = pt.effects(&a.effects)?;
-        let tables = tables_plan(&file.tables).map_err(|m| pt.error(m))?;
+        let tables = tables_plan(&file.tables).map_err(|e| pt.error(e.to_string()))?;
         Ok(AxisPlan {
             tables,
             base: pt.base(&file.pipeline),
