@@ -337,7 +337,7 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
             a.rms_um,
             a.u_k2_um,
             decision.replace(' ', "-"),
-            escape(&decision),
+            escape(decision),
         );
     }
     h.push_str("</tbody></table>\n");

@@ -372,7 +372,7 @@ pub enum PlanError {
     /// The plan names something the campaign's manifest does not declare (one line, naming the
     /// key).
     #[error("{0}")]
-    NotInCampaign(PlanProblem),
+    NotInCampaign(Box<PlanProblem>),
 }
 
 /// A value of a pipeline file or a command-line option that cannot be used: one line naming the
@@ -418,7 +418,7 @@ pub enum PlanProblem {
     )]
     BallbarOptions,
     /// An effect's channel the campaign cannot provide.
-    #[error("{key}: {effect:?}: no channel {channel:?} in {manifest} (sensors: {sensors}; or a difference A-B of two, event:KIND, {built_in})")]
+    #[error("{key}: {effect:?}: no channel {channel:?} in {manifest} (sensors: {sensors}; or a difference A-B of two, event:KIND, {})", BUILT_IN_CHANNELS.join(", "))]
     UnknownChannel {
         /// Where the effect was named.
         key: String,
@@ -430,8 +430,6 @@ pub enum PlanProblem {
         manifest: String,
         /// Its sensors, comma-separated (`none`).
         sensors: String,
-        /// The channels every campaign has, comma-separated.
-        built_in: String,
     },
 }
 
@@ -670,7 +668,6 @@ fn check_against_campaign(
                     channel: channel.clone(),
                     manifest: manifest_path.to_string(),
                     sensors: listed(campaign.sensors.iter().map(|s| s.id.as_str()).collect()),
-                    built_in: BUILT_IN_CHANNELS.join(", "),
                 });
             }
         }
@@ -992,7 +989,7 @@ fn validated_effects(
     let (campaign, manifest_path) = read_campaign_manifest(campaign_dir)?;
     let pipeline_path = source.map_or("plan".to_string(), |(p, _)| shown(p));
     check_against_campaign(&campaign, &manifest_path, &keyed, matching, &pipeline_path)
-        .map_err(PlanError::NotInCampaign)?;
+        .map_err(|p| PlanError::NotInCampaign(Box::new(p)))?;
     Ok(keyed.into_iter().map(|(e, _)| e).collect())
 }
 
