@@ -385,9 +385,9 @@ fn execute(
             KindPlan::Ballbar(plan) => with_model_overrides(*plan, &model)?,
             other => {
                 if !model.effects.is_empty() || model.bin_s.is_some() {
-                    anyhow::bail!(dbbcal::pipeline::PlanError::NotInCampaign(
-                            "--effects and --bin-s are for ballbar campaigns; this campaign's kind takes --add-effect".into()
-                        ));
+                    anyhow::bail!(dbbcal::pipeline::PlanError::NotInCampaign(Box::new(
+                        dbbcal::pipeline::PlanProblem::BallbarOptions
+                    )));
                 }
                 return dbbcal::kinds::run(&other).map(Some);
             }

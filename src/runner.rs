@@ -89,7 +89,7 @@ pub fn run(plan: &RunPlan) -> Result<Outcome> {
         &results.campaign.id,
         serde_json::to_value(&plan.stages)?,
         serde_json::to_value(plan.effects.iter().map(|e| e.name()).collect::<Vec<_>>())?,
-        serde_json::to_value(&results.inputs)?,
+        serde_json::to_value(output::inputs::input_records(&results.inputs))?,
     );
     let out = target.path().to_path_buf();
     pipeline::timed("write outputs", || {
@@ -333,7 +333,10 @@ fn write_outputs(
         &dir.join("summary.json"),
         &crate::output::summary::summary(plan, results),
     )?;
-    write_json(&dir.join("inputs.json"), &results.inputs)?;
+    write_json(
+        &dir.join("inputs.json"),
+        &output::inputs::input_records(&results.inputs),
+    )?;
     if plan.runs(Stage::Identify) {
         write_table(plan, &dir.join("models.parquet"), &models_table(results))?;
     }
@@ -344,10 +347,16 @@ fn write_outputs(
         )?;
     }
     if let Some(ba) = &results.before_after {
-        write_json(&dir.join("before_after.json"), ba)?;
+        write_json(
+            &dir.join("before_after.json"),
+            &output::before_after::BeforeAfterRecord::from(ba),
+        )?;
     }
     if let Some(study) = &results.study {
-        write_json(&dir.join("match_study.json"), study)?;
+        write_json(
+            &dir.join("match_study.json"),
+            &output::match_study::MatchStudyRecord::from(study),
+        )?;
     }
     write_calibration_outputs(plan, results, dir)?;
     let figures = if plan.runs(Stage::Report) {
@@ -430,10 +439,12 @@ fn write_calibration_outputs(plan: &RunPlan, results: &RunResults, dir: &Path) -
             &dir.join("compensation.json"),
             &serde_json::to_value(&record)?,
         )?;
+    }
+    if let Some(c) = &results.compensation {
         write_table(
             plan,
             &dir.join("compensated.parquet"),
-            &compensated_table(results, record.working),
+            &compensated_table(results, &c.ok),
         )?;
     }
     if let Some(record) = records::acceptance_record(plan, results) {
@@ -503,7 +514,7 @@ fn device_stage(plan: &RunPlan, results: &mut RunResults) -> Result<()> {
     })
     .map_err(|problem| io::IngestError::UnusableCampaign {
         path: plan.campaign_dir.join("campaign.toml"),
-        problem,
+        problem: problem.to_string(),
     })?;
     results.inputs.extend(files);
     results.inputs.sort_by(|a, b| a.path.cmp(&b.path));

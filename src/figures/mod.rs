@@ -8,8 +8,9 @@ mod six_errors;
 
 pub(crate) use six_errors::render_axis;
 
-use crate::diagnose::sensors::{channel_sensor_summaries, SensorProfile};
+use crate::diagnose::sensors::SensorProfile;
 use crate::diagnose::{BarDiagnosis, LedgerStep};
+use crate::narrative::sensors::channel_sensor_summaries;
 use crate::pipeline::{BarOutcome, RunPlan, RunResults, Stage};
 use crate::report::{self, NamedSeries, ReportError};
 
@@ -214,7 +215,8 @@ fn acceptance_sheet(a: &crate::acceptance::BarAcceptance) -> report::SeriesPanel
         .map(|t| {
             format!(
                 "{} {:.3}",
-                t.name
+                t.source
+                    .name()
                     .replace("thermal_model_", "thermal_")
                     .replace("_measurement", ""),
                 t.u_um
@@ -230,7 +232,7 @@ fn acceptance_sheet(a: &crate::acceptance::BarAcceptance) -> report::SeriesPanel
         title: format!("Acceptance — bar {} on {} ({:.4} mm): {}", a.bar, a.length_id, a.length_mm, a.decision.as_str().to_uppercase()),
         subtitle: format!(
             "Mode {} (references: {refs}). Compensated: max|e| {:.3} µm, PV {:.3}, RMS {:.3}; without: max|e| {:.3}, PV {:.3}, RMS {:.3}.\nu (µm, k=1): {}. U(k=2) = {:.3} µm.\n{}",
-            a.mode, a.max_abs_error_um, a.pv_um, a.rms_um, a.before.max_abs_um, a.before.pv_um, a.before.rms_um, budget.join(", "), a.u_k2_um, crate::acceptance::DECISION_RULE_SHORT
+            a.mode, a.max_abs_error_um, a.pv_um, a.rms_um, a.before.max_abs_um, a.before.pv_um, a.before.rms_um, budget.join(", "), a.u_k2_um, crate::narrative::acceptance::DECISION_RULE_SHORT
         ),
         x_axis: report::XAxis::TimeSeconds,
         panels: vec![
@@ -276,7 +278,7 @@ fn acceptance_fleet(acc: &[crate::acceptance::BarAcceptance]) -> report::SeriesP
         title: format!("Fleet acceptance — {} pass, {} fail, {} no decision (tolerance ±{tol} µm)", f.n_pass, f.n_fail, f.n_no_decision),
         subtitle: format!(
             "Modes: {}. Max|e| {:.3} µm compensated, {:.3} µm without; RMS {:.3} vs {:.3} µm; largest U(k=2) {:.3} µm.\n{}",
-            f.modes.iter().map(|m| m.name()).collect::<Vec<_>>().join(", "), f.max_abs_error_um, f.max_abs_error_before_um, f.rms_um, f.rms_before_um, f.max_u_k2_um, crate::acceptance::DECISION_RULE_SHORT
+            f.modes.iter().map(|m| m.name()).collect::<Vec<_>>().join(", "), f.max_abs_error_um, f.max_abs_error_before_um, f.rms_um, f.rms_before_um, f.max_u_k2_um, crate::narrative::acceptance::DECISION_RULE_SHORT
         ),
         x_axis: report::XAxis::TimeSeconds,
         panels: vec![
@@ -419,7 +421,7 @@ fn bar_notes(o: &BarOutcome) -> Vec<String> {
         .map(|n| format!("Not identifiable: {}.", n.params.join(", ")))
         .chain(o.model.not_identifiable.iter().flat_map(|n| {
             // The reason is long: wrap it at its clauses.
-            n.reason
+            crate::narrative::model::not_identifiable_reason(&n.reason)
                 .split("; ")
                 .map(|part| format!("{part};"))
                 .collect::<Vec<_>>()

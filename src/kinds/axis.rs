@@ -95,7 +95,7 @@ impl AxisPlan {
         let a = &file.axis;
         pt.check_selection(FORWARD_STEPS, a.forward_steps, a.min_bic_gain)?;
         let effects = pt.effects(&a.effects)?;
-        let tables = tables_plan(&file.tables).map_err(|m| pt.error(m))?;
+        let tables = tables_plan(&file.tables).map_err(|e| pt.error(e.to_string()))?;
         Ok(AxisPlan {
             tables,
             base: pt.base(&file.pipeline),
@@ -112,6 +112,7 @@ impl AxisPlan {
 pub(crate) fn run(plan: &AxisPlan) -> Result<Outcome> {
     let (out, target) = plan.base.claim_output(|dir| {
         let text = manifest_text(dir)?;
+        use dbbcal_io::manifest::TomlCampaign;
         let c = dbbcal_core::axis_campaign::AxisCampaign::from_toml_str(&text, "campaign.toml")?;
         Ok(c.id)
     })?;

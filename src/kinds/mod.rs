@@ -13,7 +13,8 @@ mod plan;
 
 use std::path::{Path, PathBuf};
 
-use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind};
+use dbbcal_core::axis_campaign::CampaignKind;
+use dbbcal_io::manifest::campaign_kind;
 
 use plan::PipelineText;
 
@@ -60,10 +61,10 @@ pub fn plan_run(
 ) -> Result<KindPlan, PlanError> {
     let shown = pipeline.display().to_string();
     let text =
-        crate::io::read_small_text(pipeline, crate::io::MAX_PIPELINE_BYTES).map_err(|message| {
+        crate::io::read_small_text(pipeline, crate::io::MAX_PIPELINE_BYTES).map_err(|e| {
             PlanError::Pipeline {
                 path: shown.clone(),
-                message,
+                message: e.to_string(),
             }
         })?;
     let dir = campaign_dir(&text, campaign);

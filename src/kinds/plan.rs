@@ -235,8 +235,10 @@ impl PlanBase {
 
 /// The text of `dir/campaign.toml` (a kind whose reader has no manifest function).
 pub(crate) fn manifest_text(dir: &Path) -> Result<String> {
-    crate::io::read_small_text(&dir.join("campaign.toml"), crate::io::MAX_MANIFEST_BYTES)
-        .map_err(anyhow::Error::msg)
+    Ok(crate::io::read_small_text(
+        &dir.join("campaign.toml"),
+        crate::io::MAX_MANIFEST_BYTES,
+    )?)
 }
 
 /// The marker of a kind's output folder: campaign, its one stage, effects and inputs.
@@ -244,13 +246,13 @@ pub(crate) fn marker<E: KindEffect>(
     campaign_id: &str,
     kind: Kind,
     effects: &[E],
-    inputs: &impl Serialize,
+    inputs: &[crate::series::InputFile],
 ) -> Result<Marker> {
     Ok(Marker::new(
         campaign_id,
         serde_json::json!([kind.stage]),
         serde_json::to_value(effects.iter().map(|e| e.name()).collect::<Vec<_>>())?,
-        serde_json::to_value(inputs)?,
+        serde_json::to_value(crate::output::inputs::input_records(inputs))?,
     ))
 }
 

@@ -5,13 +5,13 @@
 
 use std::fmt::Write;
 
-use dbbcal_machine::device_study::{DeviceEffect, DeviceStudy};
+use dbbcal_machine::device_study::{DeviceEffect, DeviceStudy, DeviceStudyError};
 
 use super::page::escape;
 use super::shell_word;
 use crate::pipeline::{RunPlan, RunResults};
 
-fn study(results: &RunResults) -> Option<&Result<DeviceStudy, String>> {
+fn study(results: &RunResults) -> Option<&Result<DeviceStudy, DeviceStudyError>> {
     results.device.as_ref()?.study.as_ref()
 }
 
@@ -175,7 +175,7 @@ pub(crate) fn html(h: &mut String, results: &RunResults) {
     h.push_str("<h3>The loop: the legs across repeated dwells</h3>\n");
     let s = match s {
         Err(e) => {
-            let _ = writeln!(h, "<p>Not run: {}</p>", escape(e));
+            let _ = writeln!(h, "<p>Not run: {}</p>", escape(&e.to_string()));
             return;
         }
         Ok(s) => s,

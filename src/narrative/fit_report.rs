@@ -271,7 +271,7 @@ pub(crate) fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
     for n in &m.not_identifiable {
         out.push(Warning::NotIdentifiable {
             params: n.params.clone(),
-            reason: n.reason.clone(),
+            reason: super::model::not_identifiable_reason(&n.reason),
         });
     }
     out
@@ -311,10 +311,7 @@ pub(crate) fn short_flags(warnings: &[Warning]) -> Vec<String> {
 pub(crate) fn quality_line(q: &crate::series::quality::ChannelQuality) -> Option<String> {
     let mut kinds: Vec<(String, usize)> = Vec::new();
     for f in &q.flags {
-        let kind = serde_json::to_value(f.kind)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
+        let kind = crate::output::quality::flag_kind_word(f.kind).to_string();
         match kinds.iter_mut().find(|(k, _)| *k == kind) {
             Some((_, n)) => *n += 1,
             None => kinds.push((kind, 1)),

@@ -4,13 +4,19 @@
 //!
 //! Plain data in, text out: no IO, no pixels.
 
+pub(crate) mod acceptance;
 pub(crate) mod axis;
+pub(crate) mod calibration;
 pub(crate) mod device;
 pub(crate) mod device_loop;
+pub mod diagnosis;
+pub mod effects;
 pub(crate) mod fit_report;
+pub mod model;
 pub(crate) mod page;
 pub(crate) mod probe;
 pub(crate) mod roll;
+pub mod sensors;
 pub(crate) mod volumetric;
 mod words;
 

@@ -211,8 +211,8 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
             c.rms_after_um.unwrap_or(c.screened_rms_after_um),
             c.delta_bic.map_or("—".into(), |b| format!("{b:.1}")),
             c.p_value.map_or("—".into(), p_text),
-            escape(&c.explanation),
-            escape(&c.reason),
+            escape(&super::effects::explain_with(&c.effect, &d.sensors)),
+            escape(&super::diagnosis::reason(&c.reason)),
         );
     }
     h.push_str("</tbody></table>\n");
@@ -231,7 +231,7 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
                 escape(&c.effect.name()),
                 c.rms_before_um,
                 c.screened_rms_after_um,
-                escape(&c.reason)
+                escape(&super::diagnosis::reason(&c.reason))
             );
         }
         h.push_str("</tbody></table></details>\n");
@@ -313,7 +313,7 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
     let _ = writeln!(
         h,
         "<p>Decision rule: {} (tolerance {:.3} µm, temperature uncertainty {:.3} K).</p>",
-        escape(crate::acceptance::DECISION_RULE),
+        escape(super::acceptance::DECISION_RULE),
         plan.acceptance.tolerance_um,
         plan.acceptance.u_temperature_k
     );
@@ -322,10 +322,7 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
          <th>PV µm</th><th>RMS µm</th><th>U (k = 2) µm</th><th>decision</th></tr></thead><tbody>\n",
     );
     for a in acc {
-        let decision = serde_json::to_value(a.decision)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
+        let decision = a.decision.as_str();
         let _ = writeln!(
             h,
             "<tr><td>{}</td><td>{} ({:.3} mm)</td><td>{}</td><td class=\"num\">{:.3}</td>\
@@ -340,7 +337,7 @@ fn acceptance(h: &mut String, plan: &RunPlan, results: &RunResults, figures: &[F
             a.rms_um,
             a.u_k2_um,
             decision.replace(' ', "-"),
-            escape(&decision),
+            escape(decision),
         );
     }
     h.push_str("</tbody></table>\n");

@@ -91,18 +91,39 @@ fn default_siemens_axis() -> String {
     "X1".into()
 }
 
+/// Why `[tables]` cannot be used: one line naming the key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum TablesError {
+    /// A format no controller table has.
+    #[error("tables.formats[{index}]: {name:?} is not a controller table format (known: {})", AxisTableFormat::ALL.map(|f| f.name()).join(", "))]
+    UnknownFormat { index: usize, name: String },
+    /// A format listed twice.
+    #[error("tables.formats[{index}]: {name:?} is listed twice")]
+    Twice { index: usize, name: String },
+    /// A sign that is neither `error` nor `correction`.
+    #[error("tables.sign = {sign:?}: \"error\" (the value is measured − commanded) or \"correction\" (−error)")]
+    UnknownSign { sign: String },
+    /// Tables asked for without a sign.
+    #[error("tables.sign is missing: say whether the tables hold the error (\"error\") or the correction (\"correction\"); the controls listed in docs/controller-tables.md want the error")]
+    NoSign,
+    /// A Siemens axis name that is not 1 to 16 letters, digits or `_`.
+    #[error("tables.siemens_axis = {name:?}: 1 to 16 letters, digits or _")]
+    SiemensAxis { name: String },
+}
+
 /// `[tables]` validated: known formats, each once, and a sign whenever a table is asked for.
-pub(crate) fn tables_plan(t: &TablesSection) -> Result<AxisTablesPlan, String> {
+pub(crate) fn tables_plan(t: &TablesSection) -> Result<AxisTablesPlan, TablesError> {
     let mut formats = Vec::new();
-    for (i, name) in t.formats.iter().enumerate() {
-        let f = AxisTableFormat::parse(name).ok_or_else(|| {
-            format!(
-                "tables.formats[{i}]: {name:?} is not a controller table format (known: {})",
-                AxisTableFormat::ALL.map(|f| f.name()).join(", ")
-            )
+    for (index, name) in t.formats.iter().enumerate() {
+        let f = AxisTableFormat::parse(name).ok_or_else(|| TablesError::UnknownFormat {
+            index,
+            name: name.clone(),
         })?;
         if formats.contains(&f) {
-            return Err(format!("tables.formats[{i}]: {name:?} is listed twice"));
+            return Err(TablesError::Twice {
+                index,
+                name: name.clone(),
+            });
         }
         formats.push(f);
     }
@@ -110,14 +131,12 @@ pub(crate) fn tables_plan(t: &TablesSection) -> Result<AxisTablesPlan, String> {
         (Some("error"), _) => TableSign::Error,
         (Some("correction"), _) => TableSign::Correction,
         (Some(other), _) => {
-            return Err(format!(
-                "tables.sign = {other:?}: \"error\" (the value is measured − commanded) or \"correction\" (−error)"
-            ))
+            return Err(TablesError::UnknownSign {
+                sign: other.to_string(),
+            })
         }
         (None, true) => TableSign::Error,
-        (None, false) => {
-            return Err("tables.sign is missing: say whether the tables hold the error (\"error\") or the correction (\"correction\"); the controls listed in docs/controller-tables.md want the error".into())
-        }
+        (None, false) => return Err(TablesError::NoSign),
     };
     let name_ok = !t.siemens_axis.is_empty()
         && t.siemens_axis.len() <= 16
@@ -125,10 +144,9 @@ pub(crate) fn tables_plan(t: &TablesSection) -> Result<AxisTablesPlan, String> {
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '_');
     if !name_ok {
-        return Err(format!(
-            "tables.siemens_axis = {:?}: 1 to 16 letters, digits or _",
-            t.siemens_axis
-        ));
+        return Err(TablesError::SiemensAxis {
+            name: t.siemens_axis.clone(),
+        });
     }
     Ok(AxisTablesPlan {
         formats,

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use crate::io;
 use crate::pipeline::{DeviceStage, RunResults};
-use crate::series::InputFile;
+use dbbcal_machine::iso230_2::{Iso230Error, Iso230_2};
 
 /// One error component at a dwell.
 #[derive(Debug, Serialize)]
@@ -62,7 +62,7 @@ pub(crate) struct DeviceRecord<'a> {
     /// The straightness lines removed: error name, intercept µm, slope µm/mm.
     pub(crate) straightness_lines: Vec<(String, f64, f64)>,
     pub(crate) dwells: Vec<DwellRecord>,
-    pub(crate) not_evaluated: Option<&'a str>,
+    pub(crate) not_evaluated: Option<String>,
     /// ISO 230-2 on the positioning error over the runs, or why not.
     pub(crate) iso230_2: Option<super::axis::IsoRecord>,
     pub(crate) iso230_2_missing: Option<String>,
@@ -71,7 +71,7 @@ pub(crate) struct DeviceRecord<'a> {
     pub(crate) device_loop: Option<LoopRecord>,
     /// The controller tables asked for (`[tables]`): written (file, sign, unit) or refused (why).
     pub(crate) tables: &'a [super::axis_tables::TableRecord],
-    pub(crate) inputs: &'a [InputFile],
+    pub(crate) inputs: Vec<super::inputs::InputRecord>,
 }
 
 /// The device's loop in `device.json`.
@@ -107,16 +107,10 @@ pub(crate) struct LoopCandidate {
 }
 
 /// ISO 230-2 on the positioning error (its name and the statistics), or why not.
-pub(crate) fn positioning_iso(
-    s: &DeviceStage,
-) -> Option<Result<(String, dbbcal_machine::iso230_2::Iso230_2), String>> {
+pub(crate) fn positioning_iso(s: &DeviceStage) -> Option<Result<(String, Iso230_2), Iso230Error>> {
     let t = s.outcome.as_ref().ok()?;
     let name = t.names[t.axis?.index()].clone();
-    Some(
-        dbbcal_machine::device_test::positioning_iso230_2(t)?
-            .map(|i| (name, i))
-            .map_err(|e| e.to_string()),
-    )
+    Some(dbbcal_machine::device_test::positioning_iso230_2(t)?.map(|i| (name, i)))
 }
 
 fn loop_record(s: &DeviceStage) -> Option<LoopRecord> {
@@ -132,7 +126,7 @@ fn loop_record(s: &DeviceStage) -> Option<LoopRecord> {
         not_identifiable: Vec::new(),
     };
     Some(match s.study.as_ref()? {
-        Err(e) => empty(e.clone()),
+        Err(e) => empty(e.to_string()),
         Ok(st) => LoopRecord {
             not_run: None,
             rms_um: Some(st.rms_um),
@@ -218,15 +212,15 @@ pub(crate) fn device_record<'a>(results: &'a RunResults) -> Option<DeviceRecord<
         model: MODEL.to_vec(),
         straightness_lines: lines,
         dwells,
-        not_evaluated: s.outcome.as_ref().err().map(String::as_str),
+        not_evaluated: s.outcome.as_ref().err().map(ToString::to_string),
         iso230_2: iso
             .as_ref()
             .and_then(|i| i.as_ref().ok())
             .map(|(n, i)| super::axis::IsoRecord::new(n, i)),
-        iso230_2_missing: iso.and_then(|i| i.err()),
+        iso230_2_missing: iso.and_then(|i| i.err()).map(|e| e.to_string()),
         device_loop: loop_record(s),
         tables: &s.tables,
-        inputs: &results.inputs,
+        inputs: super::inputs::input_records(&results.inputs),
     })
 }
 

@@ -6,6 +6,8 @@ use serde::Serialize;
 
 use dbbcal_core::series::InputFile;
 
+use super::inputs::{input_records, InputRecord};
+
 /// Tool version, kind, campaign, pipeline (name and sha256) and every input file.
 #[derive(Debug, Serialize)]
 pub(crate) struct KindRecordHead {
@@ -14,7 +16,7 @@ pub(crate) struct KindRecordHead {
     campaign: String,
     pipeline: String,
     pipeline_sha256: String,
-    inputs: Vec<InputFile>,
+    inputs: Vec<InputRecord>,
 }
 
 impl KindRecordHead {
@@ -31,7 +33,7 @@ impl KindRecordHead {
             campaign: campaign.to_string(),
             pipeline: pipeline.0.to_string(),
             pipeline_sha256: pipeline.1.to_string(),
-            inputs: inputs.to_vec(),
+            inputs: input_records(inputs),
         }
     }
 }

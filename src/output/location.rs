@@ -57,14 +57,11 @@ pub(super) fn check_replaceable(path: &Path, what: &str) -> Result<(), OutputErr
     if empty {
         return Ok(());
     }
-    dbbcal_output(path).map_err(|why| {
-        if why.starts_with("holds files") {
-            refused(&format!(
-                "the folder exists and {why}; choose a new or empty folder"
-            ))
-        } else {
-            refused(&format!("the folder {why}"))
-        }
+    dbbcal_output(path).map_err(|why| match why {
+        Refusal::NoMarker => refused(&format!(
+            "the folder exists and {why}; choose a new or empty folder"
+        )),
+        why => refused(&format!("the folder {why}")),
     })
 }
 
@@ -82,17 +79,16 @@ pub(super) fn check_overlap(
     parent: &Path,
     name: &str,
     campaign: &Path,
-) -> Result<(), String> {
+) -> Result<(), Refusal> {
     let Ok(campaign) = resolve(campaign) else {
         return Ok(()); // ingest names a missing campaign itself
     };
-    let c = shown(&campaign);
     if out == campaign {
-        return Err(format!("it is the campaign folder {c}"));
+        return Err(Refusal::IsCampaign { campaign });
     } else if out.starts_with(&campaign) {
-        return Err(format!("it is inside the campaign folder {c}"));
+        return Err(Refusal::InsideCampaign { campaign });
     } else if campaign.starts_with(out) {
-        return Err(format!("it holds the campaign folder {c}"));
+        return Err(Refusal::HoldsCampaign { campaign });
     }
     let Some(campaign_id) = identity(&campaign) else {
         return Ok(());
@@ -101,10 +97,10 @@ pub(super) fn check_overlap(
     let mut ancestor = out.parent();
     while let Some(a) = ancestor {
         if identity(a) == Some(campaign_id) {
-            return Err(format!(
-                "it is inside the campaign folder {c} (the same folder as {}, e.g. through a mount)",
-                shown(a)
-            ));
+            return Err(Refusal::InsideCampaignThrough {
+                campaign,
+                same: a.to_path_buf(),
+            });
         }
         ancestor = a.parent();
     }
@@ -126,10 +122,10 @@ pub(super) fn check_overlap(
     }
     for r in &removable[1..] {
         if campaign == *r || campaign.starts_with(r) {
-            return Err(format!(
-                "{} (which the run would replace or remove) holds the campaign folder {c}",
-                shown(r)
-            ));
+            return Err(Refusal::RemovableHoldsCampaign {
+                removable: r.clone(),
+                campaign,
+            });
         }
     }
     // The campaign folder and its files (links followed), by identity.
@@ -164,12 +160,8 @@ pub(super) fn check_overlap(
                 }
             }
         }
-        if let Some((p, what)) = found {
-            return Err(format!(
-                "{} (which the run would replace or remove) holds {} of the campaign (the same file or folder)",
-                shown(&p),
-                shown(&what)
-            ));
+        if let Some((path, part)) = found {
+            return Err(Refusal::RemovableHoldsCampaignPart { path, part });
         }
     }
     Ok(())

@@ -30,16 +30,24 @@
 //! (`calibration.json`, `compensation.json`, `acceptance.json`), `device_record` (`device.json`,
 //! `device_errors.parquet`).
 
+pub(crate) mod acceptance;
 pub(crate) mod axis;
 pub(crate) mod axis_tables;
+pub(crate) mod before_after;
+pub(crate) mod calibration;
+pub(crate) mod compensation;
 pub mod controller;
 pub(crate) mod device_record;
 pub(crate) mod diagnosis;
 pub(crate) mod fault;
+pub(crate) mod inputs;
 pub(crate) mod kind_record;
 mod location;
 mod lock;
+pub(crate) mod match_study;
 pub(crate) mod probe;
+pub(crate) mod quality;
+mod refusal;
 pub(crate) mod roll;
 pub(crate) mod stage_records;
 pub(crate) mod summary;
@@ -47,6 +55,7 @@ pub(crate) mod volumetric;
 use location::*;
 pub use lock::install_signal_handlers;
 use lock::*;
+use refusal::Refusal;
 
 use std::fs::File;
 use std::path::{Component, Path, PathBuf};
@@ -202,14 +211,14 @@ fn tree_entries(dir: &Path, limit: usize) -> std::io::Result<Option<Vec<String>>
 
 /// Whether `dir` is wholly dbbcal's: it holds the marker, and nothing but what the marker lists
 /// (or, for a marker without a list, the names an output may hold). `Err` says why not.
-fn dbbcal_output(dir: &Path) -> Result<(), String> {
+fn dbbcal_output(dir: &Path) -> Result<(), Refusal> {
     let Some(marker) = read_marker(dir) else {
-        return Err(format!("holds files dbbcal did not write (no {MARKER})"));
+        return Err(Refusal::NoMarker);
     };
     let entries = match tree_entries(dir, 100_000) {
         Ok(Some(e)) => e,
-        Ok(None) => return Err("holds more files than any dbbcal output".into()),
-        Err(e) => return Err(format!("cannot list it: {e}")),
+        Ok(None) => return Err(Refusal::TooManyFiles),
+        Err(e) => return Err(Refusal::Unlistable(e)),
     };
     let listed = |rel: &str| match &marker.files {
         Some(files) => rel == MARKER || files.binary_search_by(|f| f.as_str().cmp(rel)).is_ok(),
@@ -222,10 +231,7 @@ fn dbbcal_output(dir: &Path) -> Result<(), String> {
     };
     match entries.iter().find(|rel| !listed(rel)) {
         None => Ok(()),
-        Some(rel) => Err(format!(
-            "holds {}, which dbbcal did not write (it replaces only the files it wrote: move that elsewhere, or choose another folder)",
-            escape(rel.trim_end_matches('/'))
-        )),
+        Some(rel) => Err(Refusal::NotWritten { file: rel.clone() }),
     }
 }
 
@@ -327,7 +333,7 @@ impl OutputTarget {
             return Err(refused("that is the home folder".into()));
         }
         let parent = parent_of(out);
-        check_overlap(&resolved, &parent, &name, campaign).map_err(refused)?;
+        check_overlap(&resolved, &parent, &name, campaign).map_err(|r| refused(r.to_string()))?;
         check_replaceable(out, "")?;
         let prev = sibling(out, &format!("{name}.prev"));
         check_replaceable(&prev, " (the previous output, kept as OUT.prev)").map_err(
@@ -336,7 +342,7 @@ impl OutputTarget {
                 other => other,
             },
         )?;
-        check_mount_point(&resolved).map_err(refused)?;
+        check_mount_point(&resolved).map_err(|r| refused(r.to_string()))?;
         let partial = own_partial(&parent, &name);
         if std::fs::symlink_metadata(&partial).is_ok() && !dbbcal_partial(&partial) {
             return Err(refused(format!(
@@ -355,7 +361,7 @@ impl OutputTarget {
             e
         };
         check_writable(&parent)
-            .map_err(refused)
+            .map_err(|r| refused(r.to_string()))
             .map_err(undo_parents)?;
         let lock_path = lock_file(&parent, &name);
         crate::supervise::note(crate::supervise::Note::Output(out));
@@ -599,25 +605,24 @@ fn remove_created(created: &[PathBuf]) {
 
 /// The folder that will hold `OUT` must take new entries (a read-only folder or file system is
 /// refused before any work, not found at the end).
-fn check_writable(parent: &Path) -> Result<(), String> {
+fn check_writable(parent: &Path) -> Result<(), Refusal> {
     use std::os::unix::ffi::OsStrExt;
-    let c = std::ffi::CString::new(parent.as_os_str().as_bytes()).map_err(|e| e.to_string())?;
+    let c = std::ffi::CString::new(parent.as_os_str().as_bytes()).map_err(Refusal::NulInPath)?;
     // SAFETY: a valid NUL-terminated path.
     let rc = unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) };
     if rc == 0 {
         Ok(())
     } else {
-        Err(format!(
-            "cannot write in {}: {}",
-            shown(parent),
-            std::io::Error::last_os_error()
-        ))
+        Err(Refusal::NotWritable {
+            parent: parent.to_path_buf(),
+            error: std::io::Error::last_os_error(),
+        })
     }
 }
 
 /// `OUT` a mount point (its own file system or a bind mount): it cannot be renamed, so it is
 /// refused before any work.
-fn check_mount_point(resolved: &Path) -> Result<(), String> {
+fn check_mount_point(resolved: &Path) -> Result<(), Refusal> {
     let Ok(meta) = std::fs::symlink_metadata(resolved) else {
         return Ok(());
     };
@@ -635,7 +640,7 @@ fn check_mount_point(resolved: &Path) -> Result<(), String> {
         })
     });
     if own_fs || listed {
-        Err("it is a mount point (dbbcal replaces an output by renaming it, which a mount point does not allow); give a folder inside it".into())
+        Err(Refusal::MountPoint)
     } else {
         Ok(())
     }

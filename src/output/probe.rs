@@ -203,7 +203,7 @@ impl ProbeRecord {
             head: KindRecordHead::new("probe", campaign, pipeline, inputs),
             touches: study.touches,
             mpe_um: options.mpe_um,
-            decision_rule: dbbcal_core::acceptance::DECISION_RULE,
+            decision_rule: crate::narrative::acceptance::DECISION_RULE,
             setups: study.setups.iter().map(setup_record).collect(),
             size: study
                 .size

@@ -5,23 +5,27 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use crate::identify::Estimate;
-use crate::model::Effect;
-use crate::pipeline::{BarFailure, RunPlan, RunResults, Stage};
-use crate::series::InputFile;
+use crate::model::{Effect, NotIdentifiable};
+use crate::narrative::model::not_identifiable_reason;
+use crate::pipeline::{RunPlan, RunResults, Stage};
+
+use super::inputs::{input_records, InputRecord};
+use super::quality::QualityRecord;
+use super::stage_records::{failure_records, FailureRecord};
 
 /// `summary.json`: the stable contract for cron jobs and dashboards.
 #[derive(Debug, Serialize)]
-pub(crate) struct Summary {
+pub(crate) struct Summary<'a> {
     pub(crate) dbbcal_version: String,
     pub(crate) campaign: String,
     pub(crate) pipeline: PipelineRecord,
-    pub(crate) inputs: Vec<InputFile>,
+    pub(crate) inputs: Vec<InputRecord>,
     pub(crate) model: ModelRecord,
     pub(crate) bars: Vec<BarSummary>,
-    pub(crate) failed_bars: Vec<BarFailure>,
+    pub(crate) failed_bars: Vec<FailureRecord<'a>>,
     pub(crate) reference: Option<ReferenceSummary>,
     /// What ingest dropped, counted and flagged, per bar, sensor, events and files.
-    pub(crate) quality: crate::series::Quality,
+    pub(crate) quality: QualityRecord<'a>,
 }
 
 #[derive(Debug, Serialize)]
@@ -67,7 +71,28 @@ pub(crate) struct BarSummary {
     pub(crate) initial_state: BTreeMap<String, ParamValue>,
     /// Parameters of the model's effects that this bar's data cannot determine (left out of its
     /// fit), with the reason: e.g. `beta_ppm_per_k` and `tau_s_s` of a bar mounted on one length.
-    pub(crate) not_identifiable: Vec<crate::model::NotIdentifiable>,
+    pub(crate) not_identifiable: Vec<NotIdentifiableRecord>,
+}
+
+/// Parameters a bar's data cannot determine, and why in words.
+#[derive(Debug, Serialize)]
+pub(crate) struct NotIdentifiableRecord {
+    pub(crate) params: Vec<String>,
+    pub(crate) reason: String,
+}
+
+impl From<&NotIdentifiable> for NotIdentifiableRecord {
+    fn from(n: &NotIdentifiable) -> Self {
+        NotIdentifiableRecord {
+            params: n.params.clone(),
+            reason: not_identifiable_reason(&n.reason),
+        }
+    }
+}
+
+/// The effects' names, as `--add-effect` accepts them.
+pub(crate) fn effect_names(effects: &[Effect]) -> Vec<String> {
+    effects.iter().map(Effect::name).collect()
 }
 
 #[derive(Debug, Serialize)]
@@ -97,7 +122,7 @@ fn param_value(e: &Estimate) -> ParamValue {
     }
 }
 
-pub(crate) fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
+pub(crate) fn summary<'a>(plan: &RunPlan, r: &'a RunResults) -> Summary<'a> {
     let bars = r
         .bars
         .iter()
@@ -124,7 +149,12 @@ pub(crate) fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
                 .iter()
                 .map(|p| (p.name.clone(), param_value(p)))
                 .collect(),
-            not_identifiable: o.model.not_identifiable.clone(),
+            not_identifiable: o
+                .model
+                .not_identifiable
+                .iter()
+                .map(NotIdentifiableRecord::from)
+                .collect(),
         })
         .collect();
     let reference = r.reference.as_ref().map(|rr| ReferenceSummary {
@@ -152,14 +182,14 @@ pub(crate) fn summary(plan: &RunPlan, r: &RunResults) -> Summary {
             sha256: plan.pipeline_source.as_ref().map(|(_, h)| h.clone()),
             stages: plan.stages.clone(),
         },
-        inputs: r.inputs.clone(),
+        inputs: input_records(&r.inputs),
         model: ModelRecord {
-            effects: plan.effects.iter().map(Effect::name).collect(),
+            effects: effect_names(&plan.effects),
             bin_s: plan.bin_s,
         },
         bars,
-        failed_bars: r.failed.clone(),
+        failed_bars: failure_records(&r.failed),
         reference,
-        quality: r.quality.clone(),
+        quality: QualityRecord::from(&r.quality),
     }
 }

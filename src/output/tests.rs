@@ -36,6 +36,7 @@ fn overlap_is_found_in_each_direction() {
     std::fs::hard_link(c.join("a.parquet"), prev.join("a.parquet")).unwrap();
     assert!(check(&c.with_file_name("x"))
         .unwrap_err()
+        .to_string()
         .contains("a.parquet"));
     let camp2 = prev.join("c2");
     std::fs::create_dir(&camp2).unwrap();
@@ -43,6 +44,7 @@ fn overlap_is_found_in_each_direction() {
     assert!(
         check_overlap(&c.with_file_name(name), c.parent().unwrap(), name, &camp2)
             .unwrap_err()
+            .to_string()
             .contains("x.prev")
     );
 }
@@ -115,6 +117,7 @@ fn an_output_is_dbbcal_s_only_while_it_holds_nothing_its_marker_does_not_list() 
     std::fs::write(d.join("figures/signed.pdf"), "pdf").unwrap();
     assert!(dbbcal_output(&d)
         .unwrap_err()
+        .to_string()
         .contains("figures/signed.pdf"));
     std::fs::remove_file(d.join("figures/signed.pdf")).unwrap();
     // With the list: exactly what it lists.

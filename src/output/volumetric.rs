@@ -420,7 +420,7 @@ impl VolumetricRecord {
                     mean_range_m_um: i.and_then(|i| i.mean_range_m_um),
                     e_um: c.e_um,
                     undefined: i.map(|i| i.undefined.clone()).unwrap_or_default(),
-                    not_evaluated: c.iso.as_ref().err().cloned(),
+                    not_evaluated: c.iso.as_ref().err().map(ToString::to_string),
                 }
             })
             .collect();
@@ -452,7 +452,7 @@ impl VolumetricRecord {
                 Err(e) => NaiveRecord {
                     squareness_urad: None,
                     scale_um_per_m: None,
-                    not_available: Some(e.clone()),
+                    not_available: Some(e.to_string()),
                 },
             },
             fourth_pattern_rms_um: s.fourth_rms_um,

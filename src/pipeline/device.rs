@@ -16,8 +16,8 @@
 use dbbcal_core::campaign::{Device, Place};
 use dbbcal_core::positions::{self, Dwell, PositionsLog, STATION_TOLERANCE_DEG};
 use dbbcal_core::series::InputFile;
-use dbbcal_machine::device_study::{self, DeviceStudy, DwellLegs};
-use dbbcal_machine::device_test::{self, DeviceTestResult, DwellInput};
+use dbbcal_machine::device_study::{self, DeviceStudy, DeviceStudyError, DwellLegs};
+use dbbcal_machine::device_test::{self, DeviceTestError, DeviceTestResult, DwellInput};
 use dbbcal_machine::hexapod::Hexapod;
 use dbbcal_machine::pose::Pose;
 
@@ -36,14 +36,39 @@ pub struct DeviceStage {
     pub samples: Vec<[usize; 6]>,
     /// The test, or why it could not be evaluated at all; with the model's effects removed
     /// from the legs when `[device] effects` names any.
-    pub outcome: Result<DeviceTestResult, String>,
+    pub outcome: Result<DeviceTestResult, DeviceError>,
     /// The device's loop on the legs across repeated dwells, or why it cannot run.
-    pub study: Option<Result<DeviceStudy, String>>,
+    pub study: Option<Result<DeviceStudy, DeviceStudyError>>,
     /// The `positions` files read, with their hashes.
     pub positions_files: Vec<InputFile>,
     /// The controller tables `[tables]` asks for, from the six errors at each station (the
     /// same formats as an axis run's: `output::axis_tables::device_tables`).
     pub(crate) tables: Vec<crate::output::axis_tables::TableRecord>,
+}
+
+/// Why the device test cannot be evaluated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DeviceError {
+    /// The campaign declares no device.
+    #[error("campaign.toml has no [[device]] table: the device stage needs one")]
+    NoDevice,
+    /// No dwell at the declared datum.
+    #[error("no dwell of device {device:?} in positions is at reference_mm = {reference_mm:?}")]
+    NoDwellAtReference {
+        /// The device's id.
+        device: String,
+        /// Its `reference_mm`.
+        reference_mm: [f64; 3],
+    },
+    /// No dwell of the device at all.
+    #[error("positions has no dwell of device {device:?}")]
+    NoDwell {
+        /// The device's id.
+        device: String,
+    },
+    /// The test could not be evaluated.
+    #[error(transparent)]
+    Test(#[from] DeviceTestError),
 }
 
 /// The logs of the sensors the devices name (`[[device]] sensor`), for their rings' temperature.
@@ -104,7 +129,7 @@ pub fn run_device(
     results: &mut RunResults,
     log: &PositionsLog,
     positions_files: Vec<InputFile>,
-) -> Result<(), String> {
+) -> Result<(), DeviceError> {
     let named = log.devices();
     let device = results
         .campaign
@@ -113,7 +138,7 @@ pub fn run_device(
         .find(|d| named.contains(&d.id))
         .or_else(|| results.campaign.devices.first())
         .cloned()
-        .ok_or("campaign.toml has no [[device]] table: the device stage needs one")?;
+        .ok_or(DeviceError::NoDevice)?;
     let dwells = log.dwells(&device.id);
     let mut stage = evaluate_device(plan, results, device, dwells, positions_files);
     if let Ok(test) = &stage.outcome {
@@ -205,17 +230,18 @@ fn evaluate_device(
         .iter()
         .map(|legs| std::array::from_fn(|i| legs[i].len()))
         .collect();
-    let outcome = (|| {
-        let datum =
-            positions::datum_index(&dwells, device.reference_mm).ok_or_else(|| {
-                match device.reference_mm {
-                    Some(c) => format!(
-                        "no dwell of device {:?} in positions is at reference_mm = {c:?}",
-                        device.id
-                    ),
-                    None => format!("positions has no dwell of device {:?}", device.id),
-                }
-            })?;
+    let device_reference_mm = device.reference_mm;
+    let outcome = (|| -> Result<_, DeviceError> {
+        let datum = positions::datum_index(&dwells, device.reference_mm).ok_or_else(|| {
+            let device = device.id.clone();
+            match device_reference_mm {
+                Some(reference_mm) => DeviceError::NoDwellAtReference {
+                    device,
+                    reference_mm,
+                },
+                None => DeviceError::NoDwell { device },
+            }
+        })?;
         let datum_rotary = dwells[datum].rotary_deg;
         let ring_sensor = device
             .sensor
@@ -281,14 +307,12 @@ fn evaluate_device(
             }
             Some(out)
         };
-        let first = device_test::evaluate(&hexapod, t_ref, &inputs, datum, leg_means)
-            .map_err(|e| e.to_string())?;
+        let first = device_test::evaluate(&hexapod, t_ref, &inputs, datum, leg_means)?;
         let legs = study_inputs(&hexapod, t_ref, &dwells, &first);
         let study = device_study::study(
             &legs.iter().map(|(_, d)| d.clone()).collect::<Vec<_>>(),
             &plan.device,
-        )
-        .map_err(|e| e.to_string());
+        );
         let corrections: Vec<[f64; 6]> = match &study {
             Ok(s) if !s.effects.is_empty() => {
                 let mut c = vec![[0.0; 6]; dwells.len()];
@@ -302,8 +326,7 @@ fn evaluate_device(
         let corrected = device_test::evaluate(&hexapod, t_ref, &inputs, datum, |k, tilts| {
             let l = leg_means(k, tilts)?;
             Some(std::array::from_fn(|i| l[i] - corrections[k][i] * 1e-3))
-        })
-        .map_err(|e| e.to_string())?;
+        })?;
         Ok((corrected, Some(study)))
     })();
     let (outcome, study) = match outcome {

@@ -265,15 +265,36 @@ pub(crate) struct ModelSection {
 #[serde(deny_unknown_fields)]
 pub(crate) struct GenericTerm {
     pub(crate) channel: String,
-    pub(crate) transform: crate::model::Transform,
+    pub(crate) transform: TransformWord,
     #[serde(default)]
     pub(crate) tau_s: Option<f64>,
+}
+
+/// `[[model.term]] transform`: how a generic channel enters the model (`model::Transform`).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub(crate) enum TransformWord {
+    Lag,
+    Rate,
+    Level,
+    Heat,
+}
+
+impl From<TransformWord> for crate::model::Transform {
+    fn from(w: TransformWord) -> Self {
+        match w {
+            TransformWord::Lag => crate::model::Transform::Lag,
+            TransformWord::Rate => crate::model::Transform::Rate,
+            TransformWord::Level => crate::model::Transform::Level,
+            TransformWord::Heat => crate::model::Transform::Heat,
+        }
+    }
 }
 
 impl GenericTerm {
     fn effect(&self) -> Effect {
         Effect::Channel {
-            transform: self.transform,
+            transform: self.transform.into(),
             channel: self.channel.clone(),
             tau0_s: self.tau_s,
         }
@@ -351,7 +372,65 @@ pub enum PlanError {
     /// The plan names something the campaign's manifest does not declare (one line, naming the
     /// key).
     #[error("{0}")]
-    NotInCampaign(String),
+    NotInCampaign(Box<PlanProblem>),
+}
+
+/// A value of a pipeline file or a command-line option that cannot be used: one line naming the
+/// key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanProblem {
+    /// A number outside its range ([`limits`]).
+    #[error(transparent)]
+    OutOfRange(#[from] dbbcal_core::limits::OutOfRange),
+    /// A bin above 0 but shorter than [`MIN_BIN_S`].
+    #[error("{key} = {} is out of range: it must be 0 (every reading) or from {MIN_BIN_S} to {} s (a shorter bin compresses nothing and costs memory by the time span)", crate::campaign::display_number(*.bin_s), crate::series::MAX_BIN_S)]
+    BinTooShort {
+        /// The key (`model.bin_s`, `--bin-s`).
+        key: String,
+        /// The bin given, s.
+        bin_s: f64,
+    },
+    /// More refit rounds than [`MAX_SELECTION_ROUNDS`].
+    #[error("diagnose.forward_steps × diagnose.beam = {forward_steps} × {beam} is out of range: the product must be at most {MAX_SELECTION_ROUNDS} (each step refits every path of the beam)")]
+    TooManyRounds {
+        /// `[diagnose] forward_steps`.
+        forward_steps: usize,
+        /// `[diagnose] beam`.
+        beam: usize,
+    },
+    /// `[match] at_length` is not a plate length of the campaign.
+    #[error(
+        "{pipeline}: match.at_length = {id:?} is not a plate length of {manifest} (known: {known})"
+    )]
+    UnknownLength {
+        /// The pipeline file.
+        pipeline: String,
+        /// The length named.
+        id: String,
+        /// The campaign's manifest.
+        manifest: String,
+        /// Its plate lengths, comma-separated (`none`).
+        known: String,
+    },
+    /// `--effects` or `--bin-s` given for a machine kind's campaign.
+    #[error(
+        "--effects and --bin-s are for ballbar campaigns; this campaign's kind takes --add-effect"
+    )]
+    BallbarOptions,
+    /// An effect's channel the campaign cannot provide.
+    #[error("{key}: {effect:?}: no channel {channel:?} in {manifest} (sensors: {sensors}; or a difference A-B of two, event:KIND, {})", BUILT_IN_CHANNELS.join(", "))]
+    UnknownChannel {
+        /// Where the effect was named.
+        key: String,
+        /// The effect's name.
+        effect: String,
+        /// The channel.
+        channel: String,
+        /// The campaign's manifest.
+        manifest: String,
+        /// Its sensors, comma-separated (`none`).
+        sensors: String,
+    },
 }
 
 /// The allowed range of every number a pipeline file (or a command-line option) sets, checked
@@ -420,17 +499,18 @@ pub fn limits_table() -> String {
 }
 
 /// `value` within `limit`, or the one-line message that names `key` and the range.
-fn check_range(key: &str, value: f64, limit: Limit) -> Result<(), String> {
-    limit.check(key, value).map_err(|e| e.to_string())
+fn check_range(key: &str, value: f64, limit: Limit) -> Result<(), PlanProblem> {
+    Ok(limit.check(key, value)?)
 }
 
-fn check_count(key: &str, value: usize, limit: CountLimit) -> Result<(), String> {
-    limit.check(key, value).map_err(|e| e.to_string())
+/// `value` within `limit`, or the one-line message that names `key` and the range.
+fn check_count(key: &str, value: usize, limit: CountLimit) -> Result<(), PlanProblem> {
+    Ok(limit.check(key, value)?)
 }
 
 impl PipelineFile {
     /// Every number of the file in its range ([`limits`]); the message names the key.
-    pub(crate) fn check_numbers(&self) -> Result<(), String> {
+    pub(crate) fn check_numbers(&self) -> Result<(), PlanProblem> {
         use limits::*;
         let m = &self.matching;
         check_range("match.limit_um", m.limit_um, TOLERANCE_UM)?;
@@ -479,14 +559,13 @@ pub const DEFAULT_CAMPAIGN_DIR: &str = "data/sample";
 /// A bin length (`[model] bin_s`, `--bin-s`): 0 (every reading) to [`crate::series::MAX_BIN_S`].
 /// A bin shorter than [`MIN_BIN_S`] (but 0) is refused: it compresses no logger's readings and
 /// its cost grows with the campaign's time span divided by the bin.
-pub(crate) fn check_bin_s(key: &str, bin_s: f64) -> Result<(), String> {
+pub(crate) fn check_bin_s(key: &str, bin_s: f64) -> Result<(), PlanProblem> {
     check_range(key, bin_s, limits::BIN_S)?;
     if bin_s > 0.0 && bin_s < MIN_BIN_S {
-        return Err(format!(
-            "{key} = {} is out of range: it must be 0 (every reading) or from {MIN_BIN_S} to {} s (a shorter bin compresses nothing and costs memory by the time span)",
-            crate::campaign::display_number(bin_s),
-            crate::series::MAX_BIN_S
-        ));
+        return Err(PlanProblem::BinTooShort {
+            key: key.to_string(),
+            bin_s,
+        });
     }
     Ok(())
 }
@@ -498,18 +577,19 @@ pub(crate) const MIN_BIN_S: f64 = 1.0;
 /// diagnosis' cost is (`docs/guarantees.md`, "Configuration and fits").
 pub(crate) const MAX_SELECTION_ROUNDS: usize = 12;
 
-fn check_selection(forward_steps: usize, beam: usize) -> Result<(), String> {
+fn check_selection(forward_steps: usize, beam: usize) -> Result<(), PlanProblem> {
     if forward_steps.saturating_mul(beam) > MAX_SELECTION_ROUNDS {
-        Err(format!(
-            "diagnose.forward_steps × diagnose.beam = {forward_steps} × {beam} is out of range: the product must be at most {MAX_SELECTION_ROUNDS} (each step refits every path of the beam)"
-        ))
+        Err(PlanProblem::TooManyRounds {
+            forward_steps,
+            beam,
+        })
     } else {
         Ok(())
     }
 }
 
 /// An effect's starting time constant (`@TAU_S`) in [`limits::TAU_S`].
-fn check_effect(e: &Effect) -> Result<(), String> {
+fn check_effect(e: &Effect) -> Result<(), PlanProblem> {
     match e {
         Effect::Channel {
             tau0_s: Some(tau), ..
@@ -554,36 +634,41 @@ fn check_against_campaign(
     effects: &[(Effect, String)],
     matching: &MatchSection,
     pipeline_path: &str,
-) -> Result<(), String> {
+) -> Result<(), PlanProblem> {
+    let listed = |ids: Vec<&str>| {
+        if ids.is_empty() {
+            "none".to_string()
+        } else {
+            ids.join(", ")
+        }
+    };
     if let Some(id) = &matching.at_length {
         if !campaign.plate.lengths.iter().any(|l| &l.id == id) {
-            let known: Vec<&str> = campaign
-                .plate
-                .lengths
-                .iter()
-                .map(|l| l.id.as_str())
-                .collect();
-            return Err(format!(
-                "{pipeline_path}: match.at_length = {id:?} is not a plate length of {manifest_path} (known: {})",
-                if known.is_empty() { "none".to_string() } else { known.join(", ") }
-            ));
+            return Err(PlanProblem::UnknownLength {
+                pipeline: pipeline_path.to_string(),
+                id: id.clone(),
+                manifest: manifest_path.to_string(),
+                known: listed(
+                    campaign
+                        .plate
+                        .lengths
+                        .iter()
+                        .map(|l| l.id.as_str())
+                        .collect(),
+                ),
+            });
         }
     }
     for (e, key) in effects {
         if let Effect::Channel { channel, .. } = e {
             if !channel_declared(campaign, channel) {
-                let sensors: Vec<&str> = campaign.sensors.iter().map(|s| s.id.as_str()).collect();
-                return Err(format!(
-                    "{key}: {:?}: no channel {channel:?} in {manifest_path} (sensors: {}; \
-                     or a difference A-B of two, event:KIND, {})",
-                    e.name(),
-                    if sensors.is_empty() {
-                        "none".to_string()
-                    } else {
-                        sensors.join(", ")
-                    },
-                    BUILT_IN_CHANNELS.join(", ")
-                ));
+                return Err(PlanProblem::UnknownChannel {
+                    key: key.clone(),
+                    effect: e.name(),
+                    channel: channel.clone(),
+                    manifest: manifest_path.to_string(),
+                    sensors: listed(campaign.sensors.iter().map(|s| s.id.as_str()).collect()),
+                });
             }
         }
     }
@@ -609,14 +694,14 @@ fn shown(path: &Path) -> String {
 fn read_campaign_manifest(dir: &Path) -> Result<(Campaign, String), PlanError> {
     let path = dir.join("campaign.toml");
     let file = shown(&path);
-    let text =
-        crate::io::read_small_text(&path, crate::io::MAX_MANIFEST_BYTES).map_err(|message| {
-            PlanError::Pipeline {
-                path: file.clone(),
-                message,
-            }
-        })?;
+    let text = crate::io::read_small_text(&path, crate::io::MAX_MANIFEST_BYTES).map_err(|e| {
+        PlanError::Pipeline {
+            path: file.clone(),
+            message: e.to_string(),
+        }
+    })?;
     let boxed = |e| PlanError::Campaign(Box::new(e));
+    use crate::io::manifest::TomlManifest;
     let manifest = crate::campaign::Manifest::from_toml_str(&text, &file).map_err(boxed)?;
     let campaign = Campaign::from_manifest_at(manifest, &file).map_err(boxed)?;
     Ok((campaign, file))
@@ -662,14 +747,15 @@ impl RunPlan {
             path: shown(path),
             message,
         };
-        let text = crate::io::read_small_text(path, crate::io::MAX_PIPELINE_BYTES).map_err(perr)?;
+        let text = crate::io::read_small_text(path, crate::io::MAX_PIPELINE_BYTES)
+            .map_err(|e| perr(e.to_string()))?;
         let file: PipelineFile =
             toml::from_str(&text).map_err(|e| perr(e.to_string().replace('\n', " ")))?;
         if file.pipeline.stages.is_empty() {
             return Err(perr("pipeline.stages is empty".into()));
         }
         // Every number first, before anything of the campaign is touched.
-        file.check_numbers().map_err(perr)?;
+        file.check_numbers().map_err(|p| perr(p.to_string()))?;
         let mut stages: Vec<Stage> = file
             .pipeline
             .stages
@@ -728,7 +814,8 @@ impl RunPlan {
             min_bic_gain: file.device.min_bic_gain,
             min_effect_um: file.device.min_effect_um,
         };
-        plan.tables = crate::output::axis_tables::tables_plan(&file.tables).map_err(perr)?;
+        plan.tables = crate::output::axis_tables::tables_plan(&file.tables)
+            .map_err(|e| perr(e.to_string()))?;
         Ok(plan)
     }
 
@@ -798,9 +885,9 @@ impl RunPlan {
     pub fn with_forward_steps(mut self, steps: usize) -> Result<RunPlan, PlanError> {
         check_count("diagnose.forward_steps", steps, limits::FORWARD_STEPS)
             .and_then(|()| check_selection(steps, self.diagnose.beam))
-            .map_err(|message| PlanError::Pipeline {
+            .map_err(|problem| PlanError::Pipeline {
                 path: "the plan".into(),
-                message,
+                message: problem.to_string(),
             })?;
         self.diagnose.forward_steps = steps;
         Ok(self)
@@ -819,9 +906,9 @@ impl RunPlan {
     /// The command line's `--bin-s`, range-checked like `[model] bin_s`; `None` keeps the plan's.
     pub fn with_bin_s(mut self, bin_s: Option<f64>) -> Result<RunPlan, PlanError> {
         if let Some(bin_s) = bin_s {
-            check_bin_s("--bin-s", bin_s).map_err(|message| PlanError::Pipeline {
+            check_bin_s("--bin-s", bin_s).map_err(|problem| PlanError::Pipeline {
                 path: "the command line".into(),
-                message,
+                message: problem.to_string(),
             })?;
             (self.bin_s, self.automatic_bins) = (bin_s, false);
         }
@@ -888,9 +975,9 @@ fn validated_effects(
             path: key.clone(),
             message: effect_parse_message(n, &err),
         })?;
-        check_effect(&e).map_err(|message| PlanError::Pipeline {
+        check_effect(&e).map_err(|problem| PlanError::Pipeline {
             path: key.clone(),
-            message,
+            message: problem.to_string(),
         })?;
         if !keyed.iter().any(|(k, _)| *k == e) {
             keyed.push((e, key.clone()));
@@ -902,7 +989,7 @@ fn validated_effects(
     let (campaign, manifest_path) = read_campaign_manifest(campaign_dir)?;
     let pipeline_path = source.map_or("plan".to_string(), |(p, _)| shown(p));
     check_against_campaign(&campaign, &manifest_path, &keyed, matching, &pipeline_path)
-        .map_err(PlanError::NotInCampaign)?;
+        .map_err(|p| PlanError::NotInCampaign(Box::new(p)))?;
     Ok(keyed.into_iter().map(|(e, _)| e).collect())
 }
 
@@ -919,7 +1006,7 @@ fn effect_parse_message(name: &str, err: &crate::model::UnknownEffect) -> String
             )
             .err()
         })
-        .unwrap_or_else(|| err.to_string())
+        .map_or_else(|| err.to_string(), |problem| problem.to_string())
 }
 
 /// `bin_s = 60` or `bin_s = "auto"` (= absent).

@@ -22,7 +22,7 @@ fn simulate_writes_an_axis_campaign_that_reads_back() {
     }
     let text = std::fs::read_to_string(out.join("campaign.toml")).unwrap();
     assert_eq!(
-        dbbcal::axis_campaign::campaign_kind(&text, "campaign.toml").unwrap(),
+        dbbcal::io::manifest::campaign_kind(&text, "campaign.toml").unwrap(),
         dbbcal::axis_campaign::CampaignKind::Axis
     );
     let logs = dbbcal::io::read_axis_campaign(&out).unwrap();

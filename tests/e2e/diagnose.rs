@@ -6,6 +6,7 @@
 
 use dbbcal::identify::identify;
 use dbbcal::model::Effect;
+use dbbcal::narrative::diagnosis::reason;
 use dbbcal::pipeline::{analyse, RunPlan, RunResults, Stage};
 use dbbcal::simulate::{FleetConfig, SimConfig, Truth};
 
@@ -42,12 +43,12 @@ fn ranked(name: &str, cfg: &SimConfig) -> (RunResults, Truth) {
 }
 
 /// Why each proposed candidate was proposed (empty: the model is adequate).
-fn proposed_reasons(diagnosis: &dbbcal::pipeline::Diagnosis) -> Vec<&str> {
+fn proposed_reasons(diagnosis: &dbbcal::pipeline::Diagnosis) -> Vec<String> {
     diagnosis
         .candidates
         .iter()
         .filter(|c| c.proposed())
-        .map(|c| c.reason.as_str())
+        .map(|c| reason(&c.reason))
         .collect()
 }
 
@@ -77,12 +78,12 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
         .collect();
     eprintln!("{name}: {}", ranking.join("; "));
     for c in &diagnosis.candidates {
-        let errors: Vec<&str> = c
+        let errors: Vec<String> = c
             .per_bar
             .iter()
-            .filter_map(|b| b.error.as_deref())
+            .filter_map(|b| b.error.as_ref().map(ToString::to_string))
             .collect();
-        eprintln!("  {}: {} {errors:?}", c.effect, c.reason);
+        eprintln!("  {}: {} {errors:?}", c.effect, reason(&c.reason));
     }
     let rank = diagnosis
         .candidates
@@ -149,7 +150,7 @@ fn check(name: &str, cfg: SimConfig, expected: &str) {
     assert!(
         first.proposed(),
         "{name}: the true effect is not proposed: {}",
-        first.reason
+        reason(&first.reason)
     );
     assert!(failures.is_empty(), "{name}: {failures:#?}");
 }
@@ -295,7 +296,7 @@ fn a_generic_channel_term_is_not_proposed_for_its_shift_alone() {
     let (results, truth) = ranked("weak-gradient", &cfg);
     let diagnosis = results.diagnosis.as_ref().unwrap();
     for c in &diagnosis.candidates {
-        eprintln!("{}: {:?}: {}", c.effect, c.verdict, c.reason);
+        eprintln!("{}: {:?}: {}", c.effect, c.verdict, reason(&c.reason));
     }
     let proposed = proposed_reasons(diagnosis);
     assert!(proposed.is_empty(), "proposed: {proposed:?}");
@@ -307,14 +308,12 @@ fn a_generic_channel_term_is_not_proposed_for_its_shift_alone() {
         .iter()
         .find(|c| c.effect.name() == "lag:T2")
         .unwrap();
-    assert!(!alias.proposed(), "{}", alias.reason);
-    assert!(alias.screened_shift_um >= min_gain, "{}", alias.reason);
+    let why = reason(&alias.reason);
+    assert!(!alias.proposed(), "{why}");
+    assert!(alias.screened_shift_um >= min_gain, "{why}");
     assert!(
-        alias
-            .reason
-            .contains("a channel term counts only for what it removes"),
-        "{}",
-        alias.reason
+        why.contains("a channel term counts only for what it removes"),
+        "{why}"
     );
     // Why it must not be proposed: added, it takes alpha far from the truth on every bar.
     let mut effects = dbbcal::model::base_effects();
@@ -370,8 +369,13 @@ fn a_refit_from_a_bent_base_is_as_good_as_the_fit_made_afresh() {
         let (results, _) = ranked("bent-base", &cfg);
         let diagnosis = results.diagnosis.as_ref().unwrap();
         let first = &diagnosis.candidates[0];
-        assert_eq!(first.effect.name(), "plate_expansion", "{}", first.reason);
-        assert!(first.proposed(), "{}", first.reason);
+        assert_eq!(
+            first.effect.name(),
+            "plate_expansion",
+            "{}",
+            reason(&first.reason)
+        );
+        assert!(first.proposed(), "{}", reason(&first.reason));
         let mut effects = dbbcal::model::base_effects();
         effects.push(Effect::PlateExpansion);
         for (o, refit) in results.bars.iter().zip(&first.per_bar) {

@@ -59,7 +59,13 @@ fn base_only_campaigns_raise_no_alarm_and_fit_to_the_noise() {
             .candidates
             .iter()
             .filter(|c| c.verdict == Verdict::Proposed)
-            .map(|c| format!("{}: {}", c.effect, c.reason))
+            .map(|c| {
+                format!(
+                    "{}: {}",
+                    c.effect,
+                    dbbcal::narrative::diagnosis::reason(&c.reason)
+                )
+            })
             .chain(
                 d.ledger
                     .iter()

@@ -10,16 +10,16 @@
 use std::path::Path;
 
 use dbbcal::campaign::*;
+use dbbcal::narrative::sensors::description;
 use dbbcal::pipeline::{analyse, RunPlan, Stage};
 use dbbcal::series::{CampaignTables, EncoderLog, Event, SensorLog};
 
 const START_NS: i64 = 1_700_000_000_000_000_000;
 const RESOLUTION_NM: f64 = 1.0;
 
-fn datetime(ns: i64) -> toml::value::Datetime {
-    let secs = ns.div_euclid(1_000_000_000);
-    let dt = chrono::DateTime::from_timestamp(secs, 0).unwrap();
-    dt.format("%Y-%m-%dT%H:%M:%SZ").to_string().parse().unwrap()
+/// The whole second at or before `ns`, as a mount's time.
+fn datetime(ns: i64) -> DeclaredTime {
+    DeclaredTime::at(ns.div_euclid(1_000_000_000) * 1_000_000_000)
 }
 
 /// Read `data.csv` into a campaign directory.
@@ -175,7 +175,7 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
             c.rms_after_um.unwrap_or(c.screened_rms_after_um),
             on3.rms_before_um,
             on3.rms_after_um.unwrap_or(on3.screened_rms_after_um),
-            c.explanation
+            dbbcal::narrative::effects::explain_with(&c.effect, &d.sensors)
         );
     }
     for s in &d.ledger {
@@ -191,23 +191,23 @@ fn machine_tool_run_base_fails_channel_terms_fix_it() {
     for p in &d.sensors {
         eprintln!(
             "  sensor {}: {} (fast {:.3} K)",
-            p.sensor, p.description, p.fast_fluctuation_k
+            p.sensor,
+            description(p),
+            p.fast_fluctuation_k
         );
     }
     let sensor = |s: &str| d.sensors.iter().find(|p| p.sensor == s).unwrap();
     assert!(
-        sensor("t5")
-            .description
-            .contains("heated by 'spindle' events"),
+        description(sensor("t5")).contains("heated by 'spindle' events"),
         "{:?}",
         sensor("t5")
     );
     assert!(
-        sensor("t4").description.contains("fast fluctuations"),
+        description(sensor("t4")).contains("fast fluctuations"),
         "{:?}",
         sensor("t4")
     );
-    assert!(sensor("t1").description.starts_with("air sensor"));
+    assert!(description(sensor("t1")).starts_with("air sensor"));
     assert!(
         base_rms > 5.0,
         "the base model should fail badly on ch3, RMS {base_rms:.2} µm"

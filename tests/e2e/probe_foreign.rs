@@ -10,6 +10,7 @@
 
 use std::path::Path;
 
+use dbbcal::io::manifest::TomlManifest;
 use dbbcal::probe_campaign::{approach_of, ProbeCampaignTables, ProbeManifest, ProbeTouch};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};

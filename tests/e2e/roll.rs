@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::support::{run_cli, simulate_ok};
+use dbbcal::io::manifest::TomlManifest;
 
 /// `pipelines/sim-roll.toml` with `edits` (whole-line replacements `from` → `to`), simulated
 /// into `root/name`.

@@ -13,6 +13,7 @@
 
 use std::path::Path;
 
+use dbbcal::io::manifest::TomlManifest;
 use dbbcal_core::roll_campaign::{ProbeSample, RollCampaignTables, RollManifest};
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};

@@ -409,11 +409,12 @@ fn two_bar_figures(root: &Path, case: &str, a: &str, b: &str) {
         "B02" => b.to_string(),
         other => other.to_string(),
     };
-    let text = toml::to_string(&sim.manifest).unwrap();
+    use dbbcal::io::manifest::TomlManifest;
+    let text = sim.manifest.to_toml_string().unwrap();
     let text = text
         .replace("\"B01\"", &format!("\"{a}\""))
         .replace("\"B02\"", &format!("\"{b}\""));
-    sim.manifest = toml::from_str(&text).unwrap();
+    sim.manifest = dbbcal::campaign::Manifest::from_toml_str(&text, "campaign.toml").unwrap();
     let encoders = std::mem::take(&mut sim.tables.encoders);
     sim.tables.encoders = encoders.into_iter().map(|(k, v)| (rename(&k), v)).collect();
     for e in &mut sim.tables.events {

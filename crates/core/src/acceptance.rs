@@ -5,20 +5,12 @@
 //!
 //! Pure computation: no IO.
 
-use serde::Serialize;
-
-use crate::calibrate::{u_from_lengths_um, BarCalibration};
+use crate::calibrate::{u_from_lengths_um, BarCalibration, Form};
 use crate::campaign::Campaign;
 use crate::compensate::{CompensationMode, WorkingSeries};
 
-/// The rule in one short line, for figures.
-pub const DECISION_RULE_SHORT: &str = "ISO 14253-1: pass only if max|e| + U ≤ tolerance, fail only if max|e| − U > tolerance, otherwise no decision.";
-
-/// The ISO 14253-1 decision rule, as printed in every output.
-pub const DECISION_RULE: &str = "ISO 14253-1: pass only when max|error| + U <= tolerance (conformance proven); fail only when max|error| - U > tolerance (non-conformance proven); otherwise no decision. U is the expanded uncertainty (k = 2).";
-
-#[derive(Debug, Clone, Serialize)]
 /// What acceptance judges against: the tolerance and the temperature uncertainty.
+#[derive(Debug, Clone)]
 pub struct AcceptanceOptions {
     /// Tolerance on the centre-distance error, ± µm (the patent's ±1 µm by default).
     pub tolerance_um: f64,
@@ -36,16 +28,13 @@ impl Default for AcceptanceOptions {
 }
 
 /// The ISO 14253-1 decision on a working bar: its worst error against the tolerance, with U.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Decision {
     /// Conformance proven: worst error + U is within the tolerance.
-    #[serde(rename = "pass")]
     Pass,
     /// Non-conformance proven: worst error − U exceeds the tolerance.
-    #[serde(rename = "fail")]
     Fail,
     /// Neither proven (the error is within U of the tolerance, or not finite).
-    #[serde(rename = "no decision")]
     NoDecision,
 }
 
@@ -61,7 +50,7 @@ impl Decision {
 }
 
 /// Max |e|, peak-to-valley and RMS of an error series, µm.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ErrorStats {
     /// Largest absolute error, µm.
     pub max_abs_um: f64,
@@ -94,18 +83,68 @@ impl ErrorStats {
     }
 }
 
-/// One term of the budget: a standard uncertainty (k = 1), µm.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+/// One term of the budget: a standard uncertainty (k = 1), µm, and what it is made of.
+#[derive(Debug, Clone, PartialEq)]
 pub struct BudgetTerm {
-    /// What the term is (e.g. "reference calibration", "temperature").
-    pub name: String,
     /// Standard uncertainty (k = 1), µm.
     pub u_um: f64,
-    pub(crate) note: String,
+    /// Which term it is, with the numbers it is made of.
+    pub source: BudgetSource,
+}
+
+/// What a budget term is, with the numbers it is made of.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BudgetSource {
+    /// The check length's uncertainty and the calibration lengths' propagated through
+    /// `D(n, A)`.
+    PlateLength {
+        /// The check length's standard uncertainty, µm.
+        check_u_um: f64,
+        /// The calibration lengths' through `D(n, A)`, µm.
+        calibration_u_um: f64,
+    },
+    /// One encoder count, rectangular.
+    Resolution {
+        /// The count, nm.
+        resolution_nm: f64,
+    },
+    /// The leave-one-point-out RMS of the chosen form of `D(n, A)`.
+    CalibrationFunction {
+        /// The form.
+        form: Form,
+    },
+    /// The thermal model's residual in the way the mount was compensated.
+    ThermalModelResidual {
+        /// How the mount was compensated.
+        mode: CompensationMode,
+    },
+    /// The parameters' uncertainties (HAC) times the temperature excursion.
+    ThermalModelParameters,
+    /// The temperature sensitivity times the temperature measurement's uncertainty.
+    TemperatureMeasurement {
+        /// Sensitivity of the compensated distance to the temperature, µm/K.
+        sensitivity_um_per_k: f64,
+        /// Standard uncertainty of the temperature measurement, K.
+        u_temperature_k: f64,
+    },
+}
+
+impl BudgetSource {
+    /// The term's name in every output, e.g. `plate_length`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            BudgetSource::PlateLength { .. } => "plate_length",
+            BudgetSource::Resolution { .. } => "resolution",
+            BudgetSource::CalibrationFunction { .. } => "calibration_function",
+            BudgetSource::ThermalModelResidual { .. } => "thermal_model_residual",
+            BudgetSource::ThermalModelParameters => "thermal_model_parameters",
+            BudgetSource::TemperatureMeasurement { .. } => "temperature_measurement",
+        }
+    }
 }
 
 /// One working bar's acceptance on one known length.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct BarAcceptance {
     /// Working bar id.
     pub bar: String,
@@ -118,7 +157,8 @@ pub struct BarAcceptance {
     pub mode: CompensationMode,
     /// Ids of the reference bars used.
     pub references: Vec<String>,
-    pub(crate) n_samples: usize,
+    /// Samples judged.
+    pub n_samples: usize,
     /// Largest absolute error after compensation, µm.
     pub max_abs_error_um: f64,
     /// Peak-to-valley of the error after compensation, µm.
@@ -129,7 +169,8 @@ pub struct BarAcceptance {
     pub before: ErrorStats,
     /// The uncertainty budget, term by term.
     pub budget: Vec<BudgetTerm>,
-    pub(crate) u_c_um: f64,
+    /// Combined standard uncertainty (k = 1), µm.
+    pub u_c_um: f64,
     /// Expanded uncertainty U (k = 2), µm.
     pub u_k2_um: f64,
     /// The tolerance judged against, ± µm.
@@ -137,12 +178,9 @@ pub struct BarAcceptance {
     /// The ISO 14253-1 decision against the tolerance.
     pub decision: Decision,
     /// Time (s since campaign start) and errors after / before compensation, µm.
-    #[serde(skip)]
     pub t_s: Vec<f64>,
-    #[serde(skip)]
     /// Error after compensation at `t_s`, µm.
     pub error_um: Vec<f64>,
-    #[serde(skip)]
     /// Error before compensation at `t_s`, µm.
     pub error_before_um: Vec<f64>,
 }
@@ -170,18 +208,38 @@ pub(crate) fn budget(
 ) -> Vec<BudgetTerm> {
     let x_mm = representative_reading_mm(w, cal);
     let u_cal_lengths = u_from_lengths_um(cal, x_mm, w.tilt_deg);
-    let term = |name: &str, u_um: f64, note: String| BudgetTerm {
-        name: name.into(),
-        u_um,
-        note,
-    };
+    let term = |u_um: f64, source: BudgetSource| BudgetTerm { u_um, source };
+    let sensitivity_um_per_k = w.temperature_sensitivity_um_per_k;
     vec![
-        term("plate_length", (w.u_length_um.powi(2) + u_cal_lengths.powi(2)).sqrt(), format!("check length {:.3} µm (k=1) and the calibration lengths propagated through D(n, A) ({:.3} µm)", w.u_length_um, u_cal_lengths)),
-        term("resolution", resolution_nm * 1e-3 / 12f64.sqrt(), format!("k = {resolution_nm} nm, rectangular")),
-        term("calibration_function", cal.cv_rms_um, format!("leave-one-point-out RMS of the form {}", cal.chosen.form.name())),
-        term("thermal_model_residual", w.u_thermal_residual_um, format!("mode {}", w.mode)),
-        term("thermal_model_parameters", w.u_thermal_params_um, "parameter uncertainties (HAC) times the temperature excursion".into()),
-        term("temperature_measurement", w.temperature_sensitivity_um_per_k * options.u_temperature_k, format!("{:.3} µm/K × {} K", w.temperature_sensitivity_um_per_k, options.u_temperature_k)),
+        term(
+            (w.u_length_um.powi(2) + u_cal_lengths.powi(2)).sqrt(),
+            BudgetSource::PlateLength {
+                check_u_um: w.u_length_um,
+                calibration_u_um: u_cal_lengths,
+            },
+        ),
+        term(
+            resolution_nm * 1e-3 / 12f64.sqrt(),
+            BudgetSource::Resolution { resolution_nm },
+        ),
+        term(
+            cal.cv_rms_um,
+            BudgetSource::CalibrationFunction {
+                form: cal.chosen.form,
+            },
+        ),
+        term(
+            w.u_thermal_residual_um,
+            BudgetSource::ThermalModelResidual { mode: w.mode },
+        ),
+        term(w.u_thermal_params_um, BudgetSource::ThermalModelParameters),
+        term(
+            sensitivity_um_per_k * options.u_temperature_k,
+            BudgetSource::TemperatureMeasurement {
+                sensitivity_um_per_k,
+                u_temperature_k: options.u_temperature_k,
+            },
+        ),
     ]
 }
 
@@ -265,9 +323,10 @@ pub(crate) fn accept(
 }
 
 /// The fleet's acceptance at a glance.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct FleetAcceptance {
-    pub(crate) n_bars: usize,
+    /// Bars judged.
+    pub n_bars: usize,
     /// Bars proven within tolerance.
     pub n_pass: usize,
     /// Bars proven out of tolerance.
@@ -329,10 +388,7 @@ mod tests {
         assert_eq!(decide(1.2, 0.4, 1.0), Decision::NoDecision);
         assert_eq!(decide(1.5, 0.4, 1.0), Decision::Fail);
         assert_eq!(decide(f64::NAN, 0.4, 1.0), Decision::NoDecision);
-        assert_eq!(
-            serde_json::to_string(&Decision::NoDecision).unwrap(),
-            "\"no decision\""
-        );
+        assert_eq!(Decision::NoDecision.as_str(), "no decision");
     }
 
     #[test]

@@ -1,19 +1,18 @@
 //! The `axis` campaign kind (`docs/spec/machine-formats.md`, "Kind axis"; seed 002): the six
 //! errors of one linear axis from interferometer lines. Types only, no IO.
 //!
-//! [`AxisManifest`] mirrors its `campaign.toml` one to one (and is what the simulator writes);
-//! [`AxisCampaign`] is the validated form ([`AxisCampaign::from_manifest_at`]), every error one
-//! line naming the file and the key, with the same [`CampaignError`] as the ballbar manifest.
-//! [`campaign_kind`] reads `[campaign] kind` from any manifest text (absent: `ballbar`), so the
-//! application can choose a reader before validating.
+//! [`AxisManifest`] is its `campaign.toml` as declared, one field a key (the TOML text is
+//! `dbbcal_io::manifest`'s, which also reads `[campaign] kind` from any manifest so that the
+//! application can choose a reader before validating); [`AxisCampaign`] is the validated form
+//! ([`AxisCampaign::from_manifest_at`]), every error one line naming the file and the key, with
+//! the same [`CampaignError`] as the ballbar manifest.
 //!
 //! The logs as plain data (readings, fixture and environment rows) and the rules every reader
 //! derives from them (direction, row order under repeated times, the fixture row a reading
 //! takes) are in [`logs`]: pure functions, unit-tested there.
 
-use serde::{Deserialize, Serialize};
-
-use crate::campaign::{check_campaign_id, display_number, limits, CampaignError};
+use crate::campaign::{check_campaign_id, limits, CampaignError};
+use crate::limits::{check_point, OutOfRange, PointOutOfRange};
 
 pub mod logs;
 #[cfg(test)]
@@ -27,8 +26,7 @@ pub use logs::{
 // ---------------------------------------------------------------- kinds
 
 /// What a campaign directory holds, by `[campaign] kind` (`docs/spec/machine-formats.md`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum CampaignKind {
     /// Double ballbars on a plate (`docs/spec/campaign-format.md`); a manifest without `kind`.
     Ballbar,
@@ -75,74 +73,10 @@ impl std::fmt::Display for CampaignKind {
     }
 }
 
-/// The kind of the campaign whose `campaign.toml` is `text` (`file` names it in messages):
-/// `[campaign] kind`, [`CampaignKind::Ballbar`] when the key (or `[campaign]`) is absent. Only
-/// that key is looked at: the rest is validated by the kind's own parser.
-pub fn campaign_kind(text: &str, file: &str) -> Result<CampaignKind, CampaignError> {
-    let table: toml::Table = toml::from_str(text).map_err(|e| syntax_error(text, file, &e))?;
-    let Some(campaign) = table.get("campaign") else {
-        return Ok(CampaignKind::Ballbar);
-    };
-    let Some(kind) = campaign.as_table().and_then(|c| c.get("kind")) else {
-        return Ok(CampaignKind::Ballbar);
-    };
-    let invalid = |problem: String| CampaignError::Invalid {
-        file: file.to_string(),
-        key: "campaign.kind".into(),
-        problem,
-    };
-    let Some(word) = kind.as_str() else {
-        return Err(invalid(format!(
-            "must be a string (one of {}), not {}",
-            known_kinds(),
-            kind.type_str()
-        )));
-    };
-    CampaignKind::parse(word).ok_or_else(|| CampaignError::Unknown {
-        file: file.to_string(),
-        key: "campaign".into(),
-        field: "kind",
-        value: word.to_string(),
-        what: "a campaign kind",
-        known: known_kinds().into(),
-    })
-}
+// ---------------------------------------------------------------- manifest, as declared
 
-fn known_kinds() -> String {
-    CampaignKind::ALL
-        .iter()
-        .map(|k| k.as_str())
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-pub(crate) fn syntax_error(text: &str, file: &str, e: &toml::de::Error) -> CampaignError {
-    let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
-    CampaignError::Syntax {
-        file: file.to_string(),
-        line,
-        column,
-        message: e.message().split_whitespace().collect::<Vec<_>>().join(" "),
-    }
-}
-
-/// 1-based line and column of byte `offset` in `text`.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let mut end = offset.min(text.len());
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    let before = &text[..end];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, column)
-}
-
-// ---------------------------------------------------------------- manifest, as written in TOML
-
-/// `campaign.toml` of an `axis` campaign as written, not yet validated.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `campaign.toml` of an `axis` campaign as declared, not yet validated.
+#[derive(Debug, Clone, PartialEq)]
 pub struct AxisManifest {
     /// `[campaign]`: kind, id, T0.
     pub campaign: KindSection,
@@ -153,16 +87,13 @@ pub struct AxisManifest {
     /// `line = [...]`: the interferometer set-ups.
     pub line: Vec<LineDecl>,
     /// `[fixture]`: the cross-slides' scales; absent: `u_um` 0, report point at F's origin.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fixture: Option<FixtureSection>,
     /// `[[sensor]]`: the sensors of `temperatures/*.parquet`, if that table is given.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sensor: Vec<MachineSensorDecl>,
 }
 
 /// `[campaign]` of a machine kind: kind, id and reference temperature.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct KindSection {
     /// The campaign kind (`"axis"` here).
     pub kind: CampaignKind,
@@ -196,7 +127,7 @@ impl std::fmt::Display for MachineAxis {
 }
 
 /// A linear axis of the machine frame M.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum MachineAxis {
     /// X.
     X,
@@ -265,8 +196,7 @@ impl MachineAxis {
 }
 
 /// `[machine]` of an `axis` campaign.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct AxisMachineSection {
     /// The linear axis under test.
     pub axis: MachineAxis,
@@ -275,16 +205,13 @@ pub struct AxisMachineSection {
 }
 
 /// What the laser's readings already include (`[laser] compensation`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum LaserCompensation {
     /// Counted in vacuum wavelengths: a true displacement L reads n L.
-    #[serde(rename = "none")]
     None,
     /// Divided by the air's refractive index: L reads L.
-    #[serde(rename = "air")]
     Air,
     /// Also normalised to T0: L reads L / (1 + α_m (T_m − T0)).
-    #[serde(rename = "air+material")]
     AirMaterial,
 }
 
@@ -305,21 +232,18 @@ impl LaserCompensation {
 }
 
 /// `[laser]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LaserSection {
     /// Vacuum wavelength, nm (HeNe: 632.990577).
     pub wavelength_nm: f64,
     /// What the readings already include.
     pub compensation: LaserCompensation,
     /// Optics to reflector at the datum, mm; absent: not stated.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dead_path_mm: Option<f64>,
 }
 
 /// One interferometer set-up (`line = [...]`).
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LineDecl {
     /// Line id (the `line` column of the logs).
     pub id: i64,
@@ -329,19 +253,16 @@ pub struct LineDecl {
 }
 
 /// `[fixture]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FixtureSection {
     /// Standard uncertainty of each reflector coordinate from the scales, µm.
     pub u_um: f64,
     /// Where translational errors are reported, in F, mm; absent: F's origin.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub report_point_mm: Option<[f64; 3]>,
 }
 
 /// What a machine-kind temperature sensor measures (`sensor[].kind`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum MachineSensorKind {
     /// Air near the beam.
     Air,
@@ -354,25 +275,12 @@ pub enum MachineSensorKind {
 }
 
 /// `[[sensor]]` of a machine kind.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct MachineSensorDecl {
     /// Sensor id (the `sensor` column of `temperatures/*.parquet`).
     pub id: String,
     /// What it measures.
     pub kind: MachineSensorKind,
-}
-
-impl AxisManifest {
-    /// Parses `campaign.toml` text; `file` is only used in error messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<AxisManifest, CampaignError> {
-        toml::from_str(text).map_err(|e| syntax_error(text, file, &e))
-    }
-
-    /// The manifest as TOML text (what the simulator writes).
-    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        toml::to_string(self)
-    }
 }
 
 // ---------------------------------------------------------------- validated
@@ -436,54 +344,49 @@ impl AxisCampaign {
         self.lines.iter().map(|l| l.id).collect()
     }
 
-    /// Parses and validates `campaign.toml` text, naming `file` in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<AxisCampaign, CampaignError> {
-        Self::from_manifest_at(AxisManifest::from_toml_str(text, file)?, file)
-    }
-
     /// Validates a manifest, naming `file` in messages.
     pub fn from_manifest_at(m: AxisManifest, file: &str) -> Result<AxisCampaign, CampaignError> {
-        let invalid = |key: &str, problem: String| CampaignError::Invalid {
+        let invalid = |key: &str, problem: &dyn std::fmt::Display| CampaignError::Invalid {
             file: file.to_string(),
             key: key.to_string(),
-            problem,
+            problem: problem.to_string(),
         };
         if m.campaign.kind != CampaignKind::Axis {
             return Err(invalid(
                 "campaign.kind",
-                format!(
+                &format!(
                     "is {:?}, this manifest is read as \"axis\"",
                     m.campaign.kind.as_str()
                 ),
             ));
         }
-        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", &p))?;
         in_range(
             "campaign.reference_temperature_c",
             m.campaign.reference_temperature_c,
             limits::REFERENCE_TEMPERATURE_C,
         )
-        .map_err(|p| invalid("campaign.reference_temperature_c", p))?;
+        .map_err(|p| invalid("campaign.reference_temperature_c", &p))?;
         in_range(
             "machine.cte_ppm_per_k",
             m.machine.cte_ppm_per_k,
             limits::CTE_PPM_PER_K,
         )
-        .map_err(|p| invalid("machine.cte_ppm_per_k", p))?;
+        .map_err(|p| invalid("machine.cte_ppm_per_k", &p))?;
         in_range(
             "laser.wavelength_nm",
             m.laser.wavelength_nm,
             axis_limits::WAVELENGTH_NM,
         )
-        .map_err(|p| invalid("laser.wavelength_nm", p))?;
+        .map_err(|p| invalid("laser.wavelength_nm", &p))?;
         if let Some(d) = m.laser.dead_path_mm {
             in_range("laser.dead_path_mm", d, axis_limits::DEAD_PATH_MM)
-                .map_err(|p| invalid("laser.dead_path_mm", p))?;
+                .map_err(|p| invalid("laser.dead_path_mm", &p))?;
         }
         if m.line.is_empty() {
             return Err(invalid(
                 "line",
-                "declares no line: at least one interferometer set-up is needed".into(),
+                &"declares no line: at least one interferometer set-up is needed",
             ));
         }
         let mut seen = std::collections::BTreeMap::new();
@@ -497,15 +400,15 @@ impl AxisCampaign {
                     second: i,
                 });
             }
-            point(&l.reflector_mm).map_err(|p| invalid(&format!("line[{i}].reflector_mm"), p))?;
+            point(&l.reflector_mm).map_err(|p| invalid(&format!("line[{i}].reflector_mm"), &p))?;
         }
         let (fixture_u_um, report_point_mm) = match &m.fixture {
             None => (0.0, [0.0; 3]),
             Some(f) => {
                 in_range("fixture.u_um", f.u_um, limits::U_UM)
-                    .map_err(|p| invalid("fixture.u_um", p))?;
+                    .map_err(|p| invalid("fixture.u_um", &p))?;
                 let report = f.report_point_mm.unwrap_or([0.0; 3]);
-                point(&report).map_err(|p| invalid("fixture.report_point_mm", p))?;
+                point(&report).map_err(|p| invalid("fixture.report_point_mm", &p))?;
                 (f.u_um, report)
             }
         };
@@ -514,7 +417,7 @@ impl AxisCampaign {
             if s.id.trim().is_empty() || s.id.chars().any(char::is_control) {
                 return Err(invalid(
                     &format!("sensor[{i}]"),
-                    format!("id {:?} is empty or holds a control character", s.id),
+                    &format!("id {:?} is empty or holds a control character", s.id),
                 ));
             }
             if let Some(first) = sensor_ids.insert(s.id.as_str(), i) {
@@ -567,20 +470,13 @@ impl AxisCampaign {
     }
 }
 
-/// `value` finite and in `[lo, hi]`; the problem as words otherwise.
-fn in_range(name: &str, value: f64, limit: crate::limits::Limit) -> Result<(), String> {
+/// `value` within `limit`, named by the last part of `name`.
+fn in_range(name: &str, value: f64, limit: crate::limits::Limit) -> Result<(), OutOfRange> {
     let name = name.rsplit('.').next().unwrap_or(name);
-    limit.check(name, value).map_err(|e| e.to_string())
+    limit.check(name, value)
 }
 
 /// A point in mm: every coordinate finite and within ±10 m.
-fn point(p: &[f64; 3]) -> Result<(), String> {
-    let lim = axis_limits::LENGTH_MM;
-    match p.iter().find(|v| !(v.is_finite() && v.abs() <= lim)) {
-        None => Ok(()),
-        Some(v) => Err(format!(
-            "coordinate {} is out of range: each must be a finite number within ±{lim} mm",
-            display_number(*v)
-        )),
-    }
+fn point(p: &[f64; 3]) -> Result<(), PointOutOfRange> {
+    check_point(p, axis_limits::LENGTH_MM)
 }

@@ -17,7 +17,6 @@
 
 use nalgebra::DMatrix;
 use rayon::prelude::*;
-use serde::Serialize;
 
 use crate::campaign::{Campaign, Purpose};
 use crate::fit::{self, FitOptions, Start};
@@ -27,27 +26,29 @@ use crate::signal::interpolate::{self, Beyond};
 use crate::stage::StageOutcome;
 
 /// One calibration point: a bar on a plate length at one tilt, within one counter epoch.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationPoint {
     /// Index into the bar's `BarSeries::mounts`.
-    pub(crate) mount: usize,
+    pub mount: usize,
     /// The plate length's id (`plate.length[].id`).
     pub length_id: String,
     /// True centre distance `D_i` (calibrated plate length), mm.
     pub length_mm: f64,
     /// Standard uncertainty of `D_i`, µm.
-    pub(crate) u_length_um: f64,
+    pub u_length_um: f64,
     /// Tilt of the bar from horizontal at this point, degrees.
     pub tilt_deg: f64,
     /// Indicated reading `k n` brought to the reference temperature, mm.
     pub reading_mm: f64,
     /// Standard uncertainty of the mean reading (scatter over the mount, autocorrelation
     /// accounted for), µm.
-    pub(crate) u_reading_um: f64,
+    pub u_reading_um: f64,
     /// Counter epoch: number of `rezero` events before the point.
-    pub(crate) epoch: usize,
-    pub(crate) purpose: Purpose,
-    pub(crate) n_samples: usize,
+    pub epoch: usize,
+    /// What the mount was for.
+    pub purpose: Purpose,
+    /// Readings averaged into the point.
+    pub n_samples: usize,
 }
 
 /// The tilt function of a gravity-sag term (`docs/spec/physics.md`: largest horizontal, zero vertical).
@@ -165,30 +166,26 @@ impl Form {
     }
 }
 
-impl Serialize for Form {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&self.name())
-    }
-}
-
 /// A fitted centre-distance function `D(k n, A)`.
 ///
 /// Parametric forms model the correction `D − k n` (µm) in the normalised reading
 /// `u = (k n − centre) / half_range`, which keeps the columns well conditioned.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct DistanceFunction {
     /// The form fitted.
     pub form: Form,
-    pub(crate) reading_centre_mm: f64,
-    pub(crate) reading_half_range_mm: f64,
+    /// Centre of the normalised reading `u`, mm.
+    pub reading_centre_mm: f64,
+    /// Half range of the normalised reading `u`, mm.
+    pub reading_half_range_mm: f64,
     /// Coefficient names and values (µm), parametric forms only.
-    pub(crate) coefficients: Vec<(String, f64)>,
+    pub coefficients: Vec<(String, f64)>,
     /// The patent's `a` (1/mm), `b` (1) and `c` (mm) of the tilt-free part, quadratic forms only.
-    pub(crate) patent_abc: Option<[f64; 3]>,
+    pub patent_abc: Option<[f64; 3]>,
     /// Table form: (tilt, [(reading mm, correction µm)] sorted by reading), sorted by tilt.
-    pub(crate) table: Vec<(f64, Vec<(f64, f64)>)>,
+    pub table: Vec<(f64, Vec<(f64, f64)>)>,
     /// RMS of the fit residuals at the points, µm.
-    pub(crate) fit_rms_um: f64,
+    pub fit_rms_um: f64,
 }
 
 impl DistanceFunction {
@@ -211,37 +208,34 @@ impl DistanceFunction {
 }
 
 /// One form's cross-validation result.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FormScore {
     /// The form scored.
     pub form: Form,
-    pub(crate) n_params: usize,
+    /// Its number of linear coefficients (0 for the table).
+    pub n_params: usize,
     /// RMS of the leave-one-point-out prediction errors, µm (`None`: the form cannot be fitted).
     pub cv_rms_um: Option<f64>,
-    pub(crate) cv_max_abs_um: Option<f64>,
+    /// Largest absolute leave-one-point-out prediction error, µm.
+    pub cv_max_abs_um: Option<f64>,
     /// RMS of the residuals of the fit on all points, µm.
-    pub(crate) fit_rms_um: Option<f64>,
+    pub fit_rms_um: Option<f64>,
     /// Why the form could not be fitted or cross-validated.
-    pub(crate) note: Option<String>,
-}
-
-/// A point left out of the calibration, and why.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub(crate) struct ExcludedPoint {
-    pub(crate) point: CalibrationPoint,
-    pub(crate) reason: String,
+    pub note: Option<FormError>,
 }
 
 /// A bar's calibration.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct BarCalibration {
     /// Bar id.
     pub bar: String,
     /// The counter epoch the function is valid in.
-    pub(crate) epoch: usize,
+    pub epoch: usize,
     /// The calibration points fitted (those of `epoch`).
     pub points: Vec<CalibrationPoint>,
-    pub(crate) excluded: Vec<ExcludedPoint>,
+    /// The points of other counter epochs (re-zeroed: counts not comparable with `epoch`'s),
+    /// left out.
+    pub excluded: Vec<CalibrationPoint>,
     /// Every form tried, with its cross-validation score.
     pub forms: Vec<FormScore>,
     /// The function chosen by leave-one-point-out cross-validation.
@@ -273,12 +267,54 @@ pub enum CalibrateError {
         epoch: usize,
     },
     /// No form could be fitted.
-    #[error("bar {bar}: no form of the centre-distance function could be fitted ({reasons})")]
+    #[error("bar {bar}: no form of the centre-distance function could be fitted ({})", form_reasons(.forms))]
     NoForm {
         /// Bar id.
         bar: String,
-        /// Why each form failed.
-        reasons: String,
+        /// Every form tried, with why it failed.
+        forms: Vec<(Form, Option<FormError>)>,
+    },
+    /// The form chosen by cross-validation could not be fitted to all the points.
+    #[error("bar {bar}: no form of the centre-distance function could be fitted ({source})")]
+    ChosenForm {
+        /// Bar id.
+        bar: String,
+        /// Why.
+        source: FormError,
+    },
+}
+
+/// `FORM: why; FORM: why; …` (an empty why for a form that did not say).
+fn form_reasons(forms: &[(Form, Option<FormError>)]) -> String {
+    forms
+        .iter()
+        .map(|(form, why)| {
+            let why = why.as_ref().map(ToString::to_string).unwrap_or_default();
+            format!("{}: {why}", form.name())
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// Why a form of `D(n, A)` could not be fitted to a set of points or cross-validated.
+#[derive(Debug, Clone, thiserror::Error, PartialEq)]
+pub enum FormError {
+    /// No point to fit.
+    #[error("no points")]
+    NoPoints,
+    /// A table interpolates between points: one is not enough.
+    #[error("a table needs at least 2 points")]
+    TableNeedsTwoPoints,
+    /// The least-squares fit failed.
+    #[error(transparent)]
+    Fit(#[from] fit::FitError),
+    /// The fit without one point (leave-one-point-out) failed.
+    #[error("without point {point}: {source}")]
+    WithoutPoint {
+        /// The point left out (index in the points).
+        point: usize,
+        /// Why the fit without it failed.
+        source: Box<FormError>,
     },
 }
 
@@ -389,9 +425,9 @@ fn basis_row(form: Form, u: f64, tilt_deg: f64) -> Vec<f64> {
 pub(crate) fn fit_form(
     form: Form,
     points: &[CalibrationPoint],
-) -> Result<DistanceFunction, String> {
+) -> Result<DistanceFunction, FormError> {
     if points.is_empty() {
-        return Err("no points".into());
+        return Err(FormError::NoPoints);
     }
     let (lo, hi) = points
         .iter()
@@ -424,7 +460,7 @@ pub(crate) fn fit_form(
         absorbed_params: 0,
         stop: fit::Stop::Numerical,
     };
-    let f = fit::fit(&problem, &[], &options).map_err(|e| e.to_string())?;
+    let f = fit::fit(&problem, &[], &options)?;
     let coefficients: Vec<(String, f64)> =
         names.into_iter().zip(f.values.iter().copied()).collect();
     let patent_abc = (form != Form::Linear).then(|| patent_abc(&coefficients, centre, half));
@@ -456,9 +492,9 @@ fn fit_table(
     points: &[CalibrationPoint],
     centre: f64,
     half: f64,
-) -> Result<DistanceFunction, String> {
+) -> Result<DistanceFunction, FormError> {
     if points.len() < 2 {
-        return Err("a table needs at least 2 points".into());
+        return Err(FormError::TableNeedsTwoPoints);
     }
     let mut table: Vec<(f64, Vec<(f64, f64)>)> = Vec::new();
     for p in points {
@@ -528,7 +564,10 @@ fn table_correction_um(table: &[(f64, Vec<(f64, f64)>)], reading_mm: f64, tilt_d
 }
 
 /// Leave-one-point-out prediction errors (µm) of `form`.
-pub(crate) fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<Vec<f64>, String> {
+pub(crate) fn cross_validate(
+    form: Form,
+    points: &[CalibrationPoint],
+) -> Result<Vec<f64>, FormError> {
     (0..points.len())
         .map(|k| {
             let rest: Vec<CalibrationPoint> = points
@@ -537,7 +576,10 @@ pub(crate) fn cross_validate(form: Form, points: &[CalibrationPoint]) -> Result<
                 .filter(|(i, _)| *i != k)
                 .map(|(_, p)| p.clone())
                 .collect();
-            let f = fit_form(form, &rest).map_err(|e| format!("without point {k}: {e}"))?;
+            let f = fit_form(form, &rest).map_err(|e| FormError::WithoutPoint {
+                point: k,
+                source: Box::new(e),
+            })?;
             let p = &points[k];
             Ok((f.distance_mm(p.reading_mm, p.tilt_deg) - p.length_mm) * 1e3)
         })
@@ -593,16 +635,7 @@ pub fn calibrate_points(
 ) -> Result<BarCalibration, CalibrateError> {
     let epoch = main_epoch(&points);
     let (points, other): (Vec<_>, Vec<_>) = points.into_iter().partition(|p| p.epoch == epoch);
-    let excluded = other
-        .into_iter()
-        .map(|p| ExcludedPoint {
-            reason: format!(
-                "counter epoch {} (re-zeroed): counts not comparable with epoch {epoch}",
-                p.epoch
-            ),
-            point: p,
-        })
-        .collect();
+    let excluded = other;
     if points.len() < 3 {
         return Err(CalibrateError::TooFewPoints {
             bar: bar.to_string(),
@@ -619,19 +652,14 @@ pub fn calibrate_points(
             _ => Some((f, cv)),
         });
     let Some((form, cv_rms_um)) = best else {
-        let reasons = forms
-            .iter()
-            .map(|s| format!("{}: {}", s.form.name(), s.note.clone().unwrap_or_default()))
-            .collect::<Vec<_>>()
-            .join("; ");
         return Err(CalibrateError::NoForm {
             bar: bar.to_string(),
-            reasons,
+            forms: forms.into_iter().map(|s| (s.form, s.note)).collect(),
         });
     };
-    let chosen = fit_form(form, &points).map_err(|e| CalibrateError::NoForm {
+    let chosen = fit_form(form, &points).map_err(|source| CalibrateError::ChosenForm {
         bar: bar.to_string(),
-        reasons: e,
+        source,
     })?;
     Ok(BarCalibration {
         bar: bar.to_string(),
@@ -647,11 +675,11 @@ pub fn calibrate_points(
 /// The calibrate stage: calibrate every identified bar, in parallel, in the fleet's order (a bar
 /// that cannot be calibrated is listed, and warned of, the others go on).
 pub fn calibrate_fleet(bars: &[BarOutcome], campaign: &Campaign) -> StageOutcome<BarCalibration> {
-    let outcomes: Vec<(String, Result<BarCalibration, String>)> = bars
+    let outcomes: Vec<(String, Result<BarCalibration, CalibrateError>)> = bars
         .par_iter()
         .map(|o| {
             let calibrated = calibrate_bar(&o.series, &o.model, campaign);
-            (o.model.bar.clone(), calibrated.map_err(|e| e.to_string()))
+            (o.model.bar.clone(), calibrated)
         })
         .collect();
     StageOutcome::from_results(outcomes).with_failures_warned()
@@ -802,13 +830,13 @@ mod tests {
     }
 
     #[test]
-    fn other_counter_epochs_are_excluded_with_a_reason() {
+    fn other_counter_epochs_are_excluded() {
         let mut pts = synthetic_points(&[250.0, 325.0, 400.0], &[60.0, 90.0], 0.5, 0.0);
         pts[0].epoch = 1;
         let cal = calibrate_points("S", pts).expect("calibrate");
         assert_eq!(cal.epoch, 0);
         assert_eq!(cal.excluded.len(), 1);
-        assert!(cal.excluded[0].reason.contains("re-zeroed"));
+        assert_eq!(cal.excluded[0].epoch, 1);
         assert!(cal.distance_mm(95.0, 60.0, 1).is_none());
     }
 

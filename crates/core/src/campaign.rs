@@ -1,12 +1,12 @@
 //! The campaign manifest (`campaign.toml`, see `docs/spec/campaign-format.md`) and its
 //! validated form.
 //!
-//! [`Manifest`] mirrors the TOML one to one (and is what `simulate` writes); [`Campaign`] is the
-//! validated, resolved form every later stage uses: mounts point at their plate length, times are
-//! integer nanoseconds since the Unix epoch (UTC), tilts are filled in from the plate.
-//! Validation lives in [`Campaign::from_manifest`]; every error names the key that is wrong.
-
-use serde::{Deserialize, Serialize};
+//! [`Manifest`] is the manifest as declared, one field a key, as plain data (the TOML text is
+//! `dbbcal_io::manifest`'s: it parses it into a `Manifest` and writes one out for `simulate`);
+//! [`Campaign`] is the validated, resolved form every later stage uses: mounts point at their
+//! plate length, times are integer nanoseconds since the Unix epoch (UTC), tilts are filled in
+//! from the plate. Validation lives in [`Campaign::from_manifest`]; every error names the key
+//! that is wrong.
 
 pub mod device;
 pub use device::{Device, DeviceDecl, DeviceKind, PerLeg};
@@ -14,33 +14,27 @@ pub use device::{Device, DeviceDecl, DeviceKind, PerLeg};
 /// Nanoseconds since 1970-01-01T00:00:00Z.
 pub(crate) type TimeNs = i64;
 
-// ---------------------------------------------------------------- manifest, as written in TOML
+// ---------------------------------------------------------------- manifest, as declared
 
-/// `campaign.toml` as written (`docs/spec/campaign-format.md`), not yet validated.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `campaign.toml` as declared (`docs/spec/campaign-format.md`), not yet validated.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Manifest {
     /// `[campaign]`.
     pub campaign: CampaignSection,
     /// `[plate]`.
     pub plate: PlateSection,
     /// `[[sensor]]`: the temperature sensors.
-    #[serde(default)]
     pub sensor: Vec<SensorDecl>,
     /// `[[bar]]`: the ballbars.
-    #[serde(default)]
     pub bar: Vec<BarDecl>,
     /// `[[mount]]`: where each bar sat, and when.
-    #[serde(default)]
     pub mount: Vec<MountDecl>,
     /// `[[device]]`: measuring devices whose legs are working bars (`docs/spec/device-format.md`).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub device: Vec<DeviceDecl>,
 }
 
 /// `[campaign]`: id and reference temperature.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CampaignSection {
     /// Campaign id (names the default output folder `reports/<id>`).
     pub id: String,
@@ -49,25 +43,20 @@ pub struct CampaignSection {
 }
 
 /// `[plate]`: the calibration plate.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PlateSection {
     /// Plate material (free text).
     pub material: String,
     /// Declared expansion coefficient of the plate, ppm/K; 0 when absent.
-    #[serde(default)]
     pub cte_ppm_per_k: f64,
     /// Plate tilt from horizontal, degrees; 0 when absent.
-    #[serde(default)]
     pub tilt_deg: f64,
     /// `[[plate.length]]`: the calibrated socket-pair distances.
-    #[serde(default)]
     pub length: Vec<PlateLength>,
 }
 
 /// One calibrated socket-pair distance on the plate.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PlateLength {
     /// Length id (what `mount[].length` names).
     pub id: String,
@@ -78,8 +67,7 @@ pub struct PlateLength {
 }
 
 /// What a temperature sensor measures (`sensor[].kind`).
-#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum SensorKind {
     /// Air near the bars.
     Air,
@@ -94,8 +82,7 @@ pub enum SensorKind {
 }
 
 /// `[[sensor]]`: one temperature sensor.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct SensorDecl {
     /// Sensor id (the `sensor` column of `temperatures/*.parquet`).
     pub id: String,
@@ -104,8 +91,7 @@ pub struct SensorDecl {
 }
 
 /// `[[bar]]`: one ballbar.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BarDecl {
     /// Bar id (the `bar` column of `encoders/*.parquet`).
     pub id: String,
@@ -114,15 +100,11 @@ pub struct BarDecl {
     /// `I_min` of `docs/spec/physics.md`: the part of the centre distance that is not scale travel, mm.
     pub fixed_length_mm: f64,
     /// The air sensor nearest the bar; absent: the mean of all air sensors.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor: Option<String>,
 }
 
 /// What a mount is for (`mount[].purpose`).
-#[derive(
-    Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash, Default,
-)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
 pub enum Purpose {
     /// A calibration point, and data for the thermal model (the default).
     #[default]
@@ -134,30 +116,74 @@ pub enum Purpose {
 }
 
 /// `[[mount]]`: one bar on a plate length or a device for a time span.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct MountDecl {
     /// Bar id.
     pub bar: String,
     /// Plate length id (on the plate); absent on a device.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length: Option<String>,
     /// Device name (on a target device, true distance unknown); absent on the plate.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub device: Option<String>,
     /// The leg (1–6) of a declared hexapod the bar sits in; only on such a device.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub leg: Option<u8>,
     /// Tilt of the bar from horizontal, degrees; absent: the plate's.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_deg: Option<f64>,
     /// What the mount is for; absent: calibration.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub purpose: Option<Purpose>,
     /// Start of the mount (UTC).
-    pub from: toml::value::Datetime,
+    pub from: DeclaredTime,
     /// End of the mount (UTC).
-    pub to: toml::value::Datetime,
+    pub to: DeclaredTime,
+}
+
+/// A mount's start or end as `campaign.toml` gives it: the date-time as written (quoted in
+/// messages) and the instant it names, or why it names none (a date alone, no such day).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeclaredTime {
+    /// As written, e.g. `2026-11-01T00:00:00Z` or `2026-11-04T01:00:00+01:00`.
+    pub text: String,
+    /// Nanoseconds since the epoch (UTC); a date-time without offset is UTC.
+    pub ns: Result<TimeNs, TimeError>,
+}
+
+impl DeclaredTime {
+    /// The instant `ns` (since the epoch, UTC), written as RFC 3339 with `Z`, seconds always,
+    /// a fraction only when there is one (`2026-11-01T00:00:00Z`, `…T00:00:00.25Z`).
+    pub fn at(ns: TimeNs) -> DeclaredTime {
+        use chrono::Timelike;
+        let t = chrono::DateTime::from_timestamp_nanos(ns);
+        let mut text = t.format("%Y-%m-%dT%H:%M:%S").to_string();
+        if t.nanosecond() != 0 {
+            let fraction = format!("{:09}", t.nanosecond());
+            text.push('.');
+            text.push_str(fraction.trim_end_matches('0'));
+        }
+        text.push('Z');
+        DeclaredTime { text, ns: Ok(ns) }
+    }
+}
+
+impl std::fmt::Display for DeclaredTime {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(&self.text)
+    }
+}
+
+/// Why a declared date-time names no instant (each message quotes it as written).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TimeError {
+    /// A date or a time of day alone.
+    #[error("{0} is not a date-time (need e.g. 2026-11-01T00:00:00Z)")]
+    NotDateTime(String),
+    /// A date the calendar does not have.
+    #[error("{0}: no such date")]
+    NoSuchDate(String),
+    /// A time of day the clock does not have.
+    #[error("{0}: no such time of day")]
+    NoSuchTime(String),
+    /// Beyond what nanoseconds since the epoch in an `i64` hold.
+    #[error("{0} is outside 1677..2262 (nanosecond range)")]
+    OutOfRange(String),
 }
 
 // ---------------------------------------------------------------- validated campaign
@@ -184,9 +210,12 @@ pub struct Campaign {
 #[derive(Debug, Clone, PartialEq)]
 /// The calibration plate: its material and its calibrated lengths.
 pub struct Plate {
-    pub(crate) material: String,
-    pub(crate) cte_ppm_per_k: f64,
-    pub(crate) tilt_deg: f64,
+    /// Its material (free text).
+    pub material: String,
+    /// Its declared expansion coefficient, ppm/K.
+    pub cte_ppm_per_k: f64,
+    /// Its tilt from horizontal, degrees.
+    pub tilt_deg: f64,
     /// The socket pairs of calibrated centre distance.
     pub lengths: Vec<PlateLength>,
 }
@@ -230,11 +259,12 @@ pub struct Mount {
     /// Where the bar sat: a plate length or a device.
     pub place: Place,
     /// Tilt from horizontal, degrees: the mount's, else the plate's.
-    pub(crate) tilt_deg: f64,
+    pub tilt_deg: f64,
     /// Whether the mount gave its own `tilt_deg` (it then wins over `tilt` events, see
     /// `BarSeries::tilt_at_deg`).
     pub(crate) tilt_explicit: bool,
-    pub(crate) purpose: Purpose,
+    /// What the mount is for.
+    pub purpose: Purpose,
     /// The leg of a declared device the bar sits in (1–6), if any.
     pub leg: Option<u8>,
     /// Start, ns since the epoch (UTC).
@@ -327,26 +357,26 @@ pub enum CampaignError {
 /// The allowed ranges of the manifest's numbers (both ends included; NaN and infinities are
 /// outside every range). Generous: they refuse what no real campaign holds (a typo, a unit
 /// mix-up, TOML's `nan`/`inf`), not unusual set-ups.
-pub(crate) mod limits {
+pub mod limits {
     /// `campaign.id`: at most this many characters of `[A-Za-z0-9._-]`, no leading dot (it names
     /// the default output folder `reports/<id>`).
-    pub(crate) const ID_MAX_CHARS: usize = 100;
+    pub const ID_MAX_CHARS: usize = 100;
     use crate::limits::Limit;
     /// `campaign.reference_temperature_c`.
-    pub(crate) const REFERENCE_TEMPERATURE_C: Limit = Limit::closed(-100.0, 200.0, "°C");
+    pub const REFERENCE_TEMPERATURE_C: Limit = Limit::closed(-100.0, 200.0, "°C");
     /// `plate.cte_ppm_per_k` (Zerodur ~0, steel ~12, aluminium ~23).
-    pub(crate) const CTE_PPM_PER_K: Limit = Limit::closed(-100.0, 100.0, "ppm/K");
+    pub const CTE_PPM_PER_K: Limit = Limit::closed(-100.0, 100.0, "ppm/K");
     /// `plate.tilt_deg`, `mount[].tilt_deg`: from horizontal.
-    pub(crate) const TILT_DEG: Limit = Limit::closed(-90.0, 90.0, "degrees");
+    pub const TILT_DEG: Limit = Limit::closed(-90.0, 90.0, "degrees");
     /// `plate.length[].mm`, `bar[].fixed_length_mm`: above 0, at most 10 m.
-    pub(crate) const LENGTH_MM: Limit = Limit::above(0.0, 10_000.0, "mm");
+    pub const LENGTH_MM: Limit = Limit::above(0.0, 10_000.0, "mm");
     /// `plate.length[].u_um`: 0 to 1 mm.
-    pub(crate) const U_UM: Limit = Limit::closed(0.0, 1_000.0, "µm");
+    pub const U_UM: Limit = Limit::closed(0.0, 1_000.0, "µm");
     /// `bar[].resolution_nm`: above 0, at most 1 mm a count.
-    pub(crate) const RESOLUTION_NM: Limit = Limit::above(0.0, 1e6, "nm");
+    pub const RESOLUTION_NM: Limit = Limit::above(0.0, 1e6, "nm");
     /// `mount[].from`, `mount[].to`: from 1970-01-01T00:00:00Z (included) to
     /// 2200-01-01T00:00:00Z (excluded), ns since the epoch.
-    pub(crate) const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
+    pub const MOUNT_TIME_NS: (i64, i64) = (0, 7_258_118_400 * 1_000_000_000);
 }
 
 pub use crate::limits::display_number;
@@ -376,102 +406,6 @@ use crate::limits::Limit;
 
 /// The file name used in messages when the caller does not give one.
 const MANIFEST_FILE: &str = "campaign.toml";
-
-impl Manifest {
-    /// Parses `campaign.toml` text; `file` is only used in error messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<Manifest, CampaignError> {
-        toml::from_str(text).map_err(|e| {
-            let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
-            CampaignError::Syntax {
-                file: file.to_string(),
-                line,
-                column,
-                message: one_line(e.message()),
-            }
-        })
-    }
-
-    /// The manifest as TOML text (what `simulate` writes).
-    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        toml::to_string(self)
-    }
-}
-
-/// 1-based line and column of byte `offset` in `text`.
-fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let mut end = offset.min(text.len());
-    while !text.is_char_boundary(end) {
-        end -= 1;
-    }
-    let before = &text[..end];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, column)
-}
-
-fn one_line(s: &str) -> String {
-    s.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Converts a TOML datetime to nanoseconds since the epoch. A datetime without offset is UTC;
-/// a date or time alone is an error (the string says why).
-pub(crate) fn toml_datetime_to_ns(dt: &toml::value::Datetime) -> Result<TimeNs, String> {
-    let (Some(d), Some(t)) = (dt.date, dt.time) else {
-        return Err(format!(
-            "{dt} is not a date-time (need e.g. 2026-11-01T00:00:00Z)"
-        ));
-    };
-    let date =
-        chrono::NaiveDate::from_ymd_opt(i32::from(d.year), u32::from(d.month), u32::from(d.day))
-            .ok_or_else(|| format!("{dt}: no such date"))?;
-    // Leap seconds (second = 60) are folded into the next second by chrono's nanosecond field.
-    let (second, extra_ns) = if t.second == 60 {
-        (59, 1_000_000_000)
-    } else {
-        (t.second, 0)
-    };
-    let time = chrono::NaiveTime::from_hms_nano_opt(
-        u32::from(t.hour),
-        u32::from(t.minute),
-        u32::from(second),
-        t.nanosecond + extra_ns,
-    )
-    .ok_or_else(|| format!("{dt}: no such time of day"))?;
-    let local_ns = date
-        .and_time(time)
-        .and_utc()
-        .timestamp_nanos_opt()
-        .ok_or_else(|| format!("{dt} is outside 1677..2262 (nanosecond range)"))?;
-    let offset_minutes = match dt.offset {
-        None | Some(toml::value::Offset::Z) => 0,
-        Some(toml::value::Offset::Custom { minutes }) => i64::from(minutes),
-    };
-    local_ns
-        .checked_sub(offset_minutes * 60 * 1_000_000_000)
-        .ok_or_else(|| format!("{dt} is outside 1677..2262 (nanosecond range)"))
-}
-
-/// Converts nanoseconds since the epoch to a UTC TOML datetime (`...Z`), the inverse of
-/// `toml_datetime_to_ns`.
-pub fn ns_to_toml_datetime(ns: TimeNs) -> toml::value::Datetime {
-    let t = chrono::DateTime::from_timestamp_nanos(ns);
-    use chrono::{Datelike, Timelike};
-    toml::value::Datetime {
-        date: Some(toml::value::Date {
-            // Years outside u16 cannot occur: i64 nanoseconds span 1677..2262.
-            year: u16::try_from(t.year()).unwrap_or(0),
-            month: t.month() as u8,
-            day: t.day() as u8,
-        }),
-        time: Some(toml::value::Time {
-            hour: t.hour() as u8,
-            minute: t.minute() as u8,
-            second: t.second() as u8,
-            nanosecond: t.nanosecond(),
-        }),
-        offset: Some(toml::value::Offset::Z),
-    }
-}
 
 impl Campaign {
     /// Validates and resolves a manifest; messages name the file `campaign.toml`.
@@ -524,31 +458,58 @@ impl Campaign {
 /// `campaign.id` names the default output folder (`reports/<id>`): non-empty, at most
 /// [`limits::ID_MAX_CHARS`] characters of `[A-Za-z0-9._-]`, not starting with a dot (no hidden
 /// folder, no `..`, no path separator).
-pub(crate) fn check_campaign_id(id: &str) -> Result<(), String> {
+pub fn check_campaign_id(id: &str) -> Result<(), IdError> {
     if id.is_empty() {
-        return Err("is empty".into());
+        return Err(IdError::Empty);
     }
-    if id.chars().count() > limits::ID_MAX_CHARS {
-        return Err(format!(
-            "is {} characters long; at most {} are allowed",
-            id.chars().count(),
-            limits::ID_MAX_CHARS
-        ));
+    let chars = id.chars().count();
+    if chars > limits::ID_MAX_CHARS {
+        return Err(IdError::TooLong { chars });
     }
     if let Some(c) = id
         .chars()
         .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '-')))
     {
-        return Err(format!(
-            "{id:?} contains {c:?}: only letters A-Z a-z, digits, '.', '_' and '-' are allowed (it names the output folder reports/<id>)"
-        ));
+        return Err(IdError::Character {
+            id: id.to_string(),
+            character: c,
+        });
     }
     if id.starts_with('.') {
-        return Err(format!(
-            "{id:?} starts with a dot (it names the output folder reports/<id>)"
-        ));
+        return Err(IdError::LeadingDot { id: id.to_string() });
     }
     Ok(())
+}
+
+/// Why a campaign id cannot name the output folder `reports/<id>`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum IdError {
+    /// No characters.
+    #[error("is empty")]
+    Empty,
+    /// More than [`limits::ID_MAX_CHARS`] characters.
+    #[error(
+        "is {chars} characters long; at most {} are allowed",
+        limits::ID_MAX_CHARS
+    )]
+    TooLong {
+        /// Its length in characters.
+        chars: usize,
+    },
+    /// A character outside `[A-Za-z0-9._-]`.
+    #[error("{id:?} contains {character:?}: only letters A-Z a-z, digits, '.', '_' and '-' are allowed (it names the output folder reports/<id>)")]
+    Character {
+        /// The id.
+        id: String,
+        /// The first character not allowed.
+        character: char,
+    },
+    /// A leading dot (a hidden folder, `..`).
+    #[error("{id:?} starts with a dot (it names the output folder reports/<id>)")]
+    LeadingDot {
+        /// The id.
+        id: String,
+    },
 }
 
 /// Checks of one manifest; holds the file name for messages.
@@ -639,7 +600,8 @@ impl Validator<'_> {
         if c.id.trim().is_empty() {
             return Err(self.invalid("campaign.id", "is empty"));
         }
-        check_campaign_id(&c.id).map_err(|problem| self.invalid("campaign.id", problem))?;
+        check_campaign_id(&c.id)
+            .map_err(|problem| self.invalid("campaign.id", problem.to_string()))?;
         self.in_range(
             "campaign",
             "reference_temperature_c",
@@ -736,8 +698,10 @@ impl Validator<'_> {
         let leg = self.leg(&key, d.leg, d.device.as_deref(), m)?;
         let tilt_deg = d.tilt_deg.unwrap_or(m.plate.tilt_deg);
         self.in_range(&key, "tilt_deg", tilt_deg, limits::TILT_DEG)?;
-        let time = |name: &str, dt: &toml::value::Datetime| {
-            let ns = toml_datetime_to_ns(dt)
+        let time = |name: &str, dt: &DeclaredTime| {
+            let ns = dt
+                .ns
+                .clone()
                 .map_err(|e| self.invalid(key.clone(), format!("{name}: {e}")))?;
             let (lo, hi) = limits::MOUNT_TIME_NS;
             if !(lo..hi).contains(&ns) {
@@ -815,9 +779,3 @@ impl Validator<'_> {
         }
     }
 }
-
-#[cfg(test)]
-pub(crate) mod tests;
-
-#[cfg(test)]
-pub(crate) mod prop_tests;

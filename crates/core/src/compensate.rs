@@ -19,13 +19,11 @@
 
 use std::collections::BTreeMap;
 
-use serde::Serialize;
-
 use crate::calibrate::BarCalibration;
 use crate::campaign::{Campaign, Purpose};
 use crate::identify::{BarModel, BarOutcome};
 use crate::matching::ReferenceChoice;
-use crate::model::ThermalProblem;
+use crate::model::{ModelError, ThermalProblem};
 use crate::series::BarSeries;
 use crate::signal::interpolate;
 use crate::stage::StageOutcome;
@@ -41,7 +39,7 @@ pub(crate) struct CompBar<'a> {
     pub(crate) calibration: Option<&'a BarCalibration>,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 /// How working bars are compensated.
 pub struct CompensateOptions {
     /// Also compensate the modelled reference-to-working difference.
@@ -60,8 +58,7 @@ impl Default for CompensateOptions {
 }
 
 /// Where a working bar's thermal error came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub(crate) enum Mode {
     /// Interpolated between the two reference bars nearest in length (patent).
     TwoReferences,
@@ -120,64 +117,63 @@ impl std::fmt::Display for CompensationMode {
     }
 }
 
-impl Serialize for CompensationMode {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.serialize_str(&self.name())
-    }
-}
-
 /// A reference used for one working mount.
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub(crate) struct ReferenceUse {
-    pub(crate) bar: String,
-    pub(crate) length_id: String,
-    pub(crate) length_mm: f64,
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReferenceUse {
+    /// The reference bar's id.
+    pub bar: String,
+    /// The plate length it sat on.
+    pub length_id: String,
+    /// That length's calibrated centre distance, mm.
+    pub length_mm: f64,
     /// Interpolation weight at the working bar's distance.
-    pub(crate) weight: f64,
+    pub weight: f64,
 }
 
 /// One working mount, compensated.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct WorkingSeries {
     /// Working bar id.
     pub bar: String,
     /// Index into the bar's `BarSeries::mounts`.
     pub mount: usize,
-    pub(crate) length_id: Option<String>,
+    /// The plate length it sat on (a check length), if on the plate.
+    pub length_id: Option<String>,
     /// Known true distance (plate length), mm.
     pub length_mm: Option<f64>,
-    pub(crate) u_length_um: f64,
-    pub(crate) device: Option<String>,
+    /// Standard uncertainty of the known distance, µm (0 without one).
+    pub u_length_um: f64,
+    /// The device it sat in, if any.
+    pub device: Option<String>,
     /// How it was compensated.
     pub mode: CompensationMode,
-    pub(crate) references: Vec<ReferenceUse>,
+    /// The references used, with their weights.
+    pub references: Vec<ReferenceUse>,
     /// Distance used for the interpolation between references, mm.
-    pub(crate) distance_for_weights_mm: f64,
-    pub(crate) tilt_deg: f64,
-    #[serde(skip)]
+    pub distance_for_weights_mm: f64,
+    /// Tilt of the bar from horizontal, degrees.
+    pub tilt_deg: f64,
     /// Sample times, s since the campaign's time origin.
     pub t_s: Vec<f64>,
     /// Compensated centre distance, mm.
-    #[serde(skip)]
     pub distance_mm: Vec<f64>,
     /// `D(n, A)` without thermal compensation, mm.
-    #[serde(skip)]
     pub uncompensated_mm: Vec<f64>,
     /// Thermal error removed, µm.
-    #[serde(skip)]
     pub thermal_um: Vec<f64>,
     /// The reading with the thermal error removed, `k n − e`, mm: what `D(·, A)` takes, so that a
     /// device can evaluate it at a leg's own tilt.
-    #[serde(skip)]
     pub compensated_reading_mm: Vec<f64>,
     /// Samples without a reference reading near them (compensated by the model instead).
-    pub(crate) n_model_fallback: usize,
+    pub n_model_fallback: usize,
     /// Samples of another counter epoch than the calibration's (not converted).
-    pub(crate) n_other_epoch: usize,
-    /// Thermal terms of the uncertainty budget (k = 1), µm, and the temperature sensitivity.
-    pub(crate) u_thermal_residual_um: f64,
-    pub(crate) u_thermal_params_um: f64,
-    pub(crate) temperature_sensitivity_um_per_k: f64,
+    pub n_other_epoch: usize,
+    /// Thermal model residual term of the uncertainty budget (k = 1), µm.
+    pub u_thermal_residual_um: f64,
+    /// Thermal model parameters' term of the uncertainty budget (k = 1), µm.
+    pub u_thermal_params_um: f64,
+    /// Sensitivity of the compensated distance to the temperature, µm/K.
+    pub temperature_sensitivity_um_per_k: f64,
 }
 
 impl WorkingSeries {
@@ -219,13 +215,13 @@ pub(crate) enum CompensateError {
         /// Index of the mount in the bar's series.
         mount: usize,
     },
-    #[error("bar {bar}: {reason}")]
+    #[error("bar {bar}: {source}")]
     /// The thermal model cannot be evaluated on the mount.
     Model {
         /// Bar id.
         bar: String,
         /// What is wrong.
-        reason: String,
+        source: ModelError,
     },
 }
 
@@ -453,13 +449,13 @@ fn weights(refs: &[&RefTrack], d_mm: f64) -> Vec<f64> {
 
 /// The working bar's modelled thermal error with its travel set for `mount` (needed on a
 /// device, where the series has no known `I_p`).
-fn model_thermal_at(b: &CompBar, mount: usize, i_p_mm: f64) -> Result<Vec<f64>, String> {
+fn model_thermal_at(b: &CompBar, mount: usize, i_p_mm: f64) -> Result<Vec<f64>, ModelError> {
     if (b.series.mounts[mount].i_p_mm - i_p_mm).abs() < 1e-9 {
         return Ok(b.model.thermal_um.clone());
     }
     let mut s = b.series.clone();
     s.mounts[mount].i_p_mm = i_p_mm;
-    let problem = ThermalProblem::new(&s, &b.model.effects).map_err(|e| e.to_string())?;
+    let problem = ThermalProblem::new(&s, &b.model.effects)?;
     let columns = problem.full_columns(&b.model.theta);
     let mut out = vec![0.0; s.t_s.len()];
     for (col, g) in columns.iter().zip(&b.model.gains) {
@@ -505,10 +501,10 @@ fn compensate_mount(
         .map(|(&i, a)| cal.chosen.distance_mm(s.reading_um(i) * 1e-3, *a))
         .collect();
     let d_p = span.length_mm.unwrap_or_else(|| median(&uncompensated_mm));
-    let own = model_thermal_at(b, m, d_p - s.bar.fixed_length_mm).map_err(|reason| {
+    let own = model_thermal_at(b, m, d_p - s.bar.fixed_length_mm).map_err(|source| {
         CompensateError::Model {
             bar: bar.clone(),
-            reason,
+            source,
         }
     })?;
     let refs = choose_references(tracks, &bar, span.from_s, span.to_s, fleet_distance);

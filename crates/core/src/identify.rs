@@ -25,8 +25,6 @@
 //!   fine fit ended more than `COARSE_BASIN_LN_TAU` in `ln tau` away (then the coarse copy is
 //!   refitted from the fine optimum); the constants are in `identify/start.rs`.
 
-use serde::Serialize;
-
 use crate::fit::{self, Fit, FitError, FitOptions, Start};
 use crate::model::{base_effects, Effect, ModelError, NotIdentifiable, ThermalProblem};
 use crate::series::BarSeries;
@@ -44,7 +42,7 @@ pub(crate) use start::{coarse_copy, COARSE_START_MIN_SAMPLES};
 use start::{defaults_basin, start_fit, warm_start, SearchNew};
 
 /// One estimated parameter.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Estimate {
     /// Physical parameter name (e.g. `alpha_ppm_per_k`), unit in the name.
     pub name: String,

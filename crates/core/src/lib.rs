@@ -7,11 +7,14 @@
 //! ([`identify::identify_fleet`], [`matching::match_fleet`], [`diagnose::diagnose_fleet`],
 //! [`calibrate::calibrate_fleet`], [`compensate::compensate_fleet`],
 //! [`acceptance::accept_fleet`]); a per-bar stage returns a [`stage::StageOutcome`].
-//! The `axis` machine kind's format types and reader rules are in [`axis_campaign`].
+//! The `axis` machine kind's declared manifest and reader rules are in [`axis_campaign`].
 //!
-//! INVARIANT (enforced by this crate's dependencies): no parquet/arrow, no plotters, no file IO but
-//! the text of a `campaign.toml` handed in by the caller. Ingest (`dbbcal-io`) gives this crate
-//! [`series::CampaignLogs`]; the application writes what it returns. See ARCHITECTURE.md.
+//! INVARIANT (enforced by this crate's dependencies): no parquet/arrow, no plotters, no file IO,
+//! no file format (no serde, no TOML: `dbbcal-io` parses and writes `campaign.toml`, the
+//! application writes every output record) and no sentence for users (results are numbers and
+//! enums; the application's `narrative` words them; error messages are the errors' own). Ingest
+//! (`dbbcal-io`) gives this crate [`series::CampaignLogs`]; the application writes what it
+//! returns. See ARCHITECTURE.md.
 pub mod acceptance;
 pub mod axis_campaign;
 pub mod calibrate;

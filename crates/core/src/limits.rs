@@ -22,6 +22,27 @@ pub struct OutOfRange {
     pub allowed: String,
 }
 
+/// A point (mm) with a coordinate that is not a finite number within `±limit_mm`.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("coordinate {} is out of range: each must be a finite number within ±{limit_mm} mm", display_number(*.coordinate))]
+pub struct PointOutOfRange {
+    /// The first coordinate out of range, mm.
+    pub coordinate: f64,
+    /// The largest |coordinate| allowed, mm.
+    pub limit_mm: f64,
+}
+
+/// `Ok` when every coordinate of `p` (mm) is finite and within `±limit_mm`.
+pub(crate) fn check_point(p: &[f64; 3], limit_mm: f64) -> Result<(), PointOutOfRange> {
+    match p.iter().find(|v| !(v.is_finite() && v.abs() <= limit_mm)) {
+        None => Ok(()),
+        Some(&coordinate) => Err(PointOutOfRange {
+            coordinate,
+            limit_mm,
+        }),
+    }
+}
+
 /// Whether the low end of a real range is allowed itself.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Low {

@@ -12,8 +12,6 @@
 //! [`match_fleet`] runs the three on a fleet's identified bars (`fleet`); the history the models
 //! are compared on is the campaign's mean air ([`air_history`], `history`).
 
-use serde::Serialize;
-
 use crate::signal::lag::lag;
 
 mod fleet;
@@ -47,7 +45,7 @@ pub(crate) struct MatchInput {
 }
 
 /// The reference bar: the one nearest the fleet mean.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ReferenceChoice {
     /// Its id.
     pub bar: String,
@@ -133,7 +131,7 @@ pub(crate) fn predicted_error_um(
 }
 
 /// How far one bar's thermal error is from the reference's.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Mismatch {
     /// Bar id.
     pub bar: String,
@@ -175,7 +173,7 @@ pub(crate) fn predicted_mismatch(
 
 /// The matching study's result: `matrix[r][w]` = max |measured drift of w - of r| over the
 /// times both were measured (µm); NaN where they never overlap, and on the diagonal.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct MatchStudy {
     /// The bars, in the matrix's row and column order.
     pub bars: Vec<String>,

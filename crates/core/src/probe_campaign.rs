@@ -1,15 +1,14 @@
 //! The `probe` campaign kind (`docs/spec/machine-formats.md`, "Kind `probe`"; seed 003):
 //! touch-trigger probe touches on a ring or a sphere. Types only, no IO.
 //!
-//! [`ProbeManifest`] mirrors `campaign.toml` one to one (what the simulator writes);
+//! [`ProbeManifest`] is its `campaign.toml` as declared, one field a key (the TOML text is
+//! `dbbcal_io::manifest`'s);
 //! [`ProbeCampaign`] is its validated form, every error one line naming the file and the key.
 //! [`ProbeTouch`] is one row of `touches/*.parquet` as plain data; [`derive_directions`] is the
 //! reader rule every reader applies, in `seq` order: when a touch *changes direction* and its
 //! number within the direction (touch 1 is the first touch after a change).
 
-use serde::{Deserialize, Serialize};
-
-use crate::axis_campaign::{syntax_error, CampaignKind, KindSection, MachineSensorKind};
+use crate::axis_campaign::{CampaignKind, KindSection, MachineSensorKind};
 use crate::campaign::{check_campaign_id, limits, CampaignError};
 use crate::limits::display_number;
 use crate::limits::Limit;
@@ -31,9 +30,8 @@ pub mod probe_limits {
     pub const CENTRE_MM: Limit = Limit::closed(-10_000.0, 10_000.0, "mm");
 }
 
-/// `campaign.toml` of a `probe` campaign as written, not yet validated.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `campaign.toml` of a `probe` campaign as declared, not yet validated.
+#[derive(Debug, Clone, PartialEq)]
 pub struct ProbeManifest {
     /// `[campaign]`: kind, id, T0.
     pub campaign: KindSection,
@@ -45,13 +43,11 @@ pub struct ProbeManifest {
     pub artefact: Vec<ArtefactDecl>,
     /// `[[sensor]]`: sensors of `temperatures/*.parquet`, if given (not analysed by this
     /// version).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sensor: Vec<ProbeSensorDecl>,
 }
 
 /// A temperature sensor of a `probe` campaign.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ProbeSensorDecl {
     /// Sensor id.
     pub id: String,
@@ -60,37 +56,27 @@ pub struct ProbeSensorDecl {
 }
 
 /// `[probe]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ProbeSection {
     /// The probe's model (informative, e.g. `TP2-5`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model: Option<String>,
     /// Approach vectors within this angle are the same direction, degrees (default 1).
-    #[serde(default = "default_same_direction_deg")]
     pub same_direction_deg: f64,
 }
 
-fn default_same_direction_deg() -> f64 {
-    1.0
-}
-
 /// `[[stylus]]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StylusDecl {
     /// Stylus id (the `stylus` column).
     pub id: String,
     /// Nominal tip-ball diameter, mm.
     pub tip_diameter_mm: f64,
     /// Stylus length, mm (informative).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub length_mm: Option<f64>,
 }
 
 /// What the artefact is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ArtefactKind {
     /// A ring gauge, axis along Z, probed from inside.
     Ring,
@@ -109,8 +95,7 @@ impl ArtefactKind {
 }
 
 /// `[[artefact]]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ArtefactDecl {
     /// Artefact id (the `artefact` column).
     pub id: String,
@@ -121,23 +106,9 @@ pub struct ArtefactDecl {
     /// Standard uncertainty (k = 1) of the diameter, µm.
     pub u_um: f64,
     /// Certified form deviation, µm.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub form_um: Option<f64>,
     /// Known centre, mm; absent: fitted.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub centre_mm: Option<[f64; 3]>,
-}
-
-impl ProbeManifest {
-    /// Parses `campaign.toml` text (syntax and shape only), naming `file` in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<ProbeManifest, CampaignError> {
-        toml::from_str(text).map_err(|e| syntax_error(text, file, &e))
-    }
-
-    /// The manifest as TOML text.
-    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        toml::to_string_pretty(self)
-    }
 }
 
 /// A validated `probe` campaign manifest.
@@ -158,11 +129,6 @@ pub struct ProbeCampaign {
 }
 
 impl ProbeCampaign {
-    /// Parses and validates `campaign.toml` text, naming `file` in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<ProbeCampaign, CampaignError> {
-        Self::from_manifest_at(ProbeManifest::from_toml_str(text, file)?, file)
-    }
-
     /// The stylus `id`, if declared.
     pub fn stylus(&self, id: &str) -> Option<&StylusDecl> {
         self.styli.iter().find(|s| s.id == id)
@@ -194,7 +160,7 @@ impl ProbeCampaign {
                 ),
             ));
         }
-        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p.to_string()))?;
         check(
             "campaign.reference_temperature_c",
             m.campaign.reference_temperature_c,
@@ -421,29 +387,5 @@ mod tests {
         derive_directions(&mut t, 1.0);
         let numbers: Vec<(i64, u32)> = t.iter().map(|t| (t.seq, t.touch_in_direction)).collect();
         assert_eq!(numbers, [(1, 1), (2, 2), (3, 3), (5, 1), (7, 2), (9, 1)]);
-    }
-
-    #[test]
-    fn a_manifest_with_a_bad_tip_names_the_key() {
-        let text = r#"
-campaign = { kind = "probe", id = "p", reference_temperature_c = 20.0 }
-probe = { model = "TP2-5" }
-[[stylus]]
-id = "S1"
-tip_diameter_mm = -6.0
-[[artefact]]
-id = "ring"
-kind = "ring"
-diameter_mm = 50.0
-u_um = 0.15
-"#;
-        let e = ProbeCampaign::from_toml_str(text, "campaign.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("stylus[0].tip_diameter_mm"), "{e}");
-        let good = text.replace("-6.0", "6.0");
-        let c = ProbeCampaign::from_toml_str(&good, "campaign.toml").unwrap();
-        assert_eq!(c.same_direction_deg, 1.0);
-        assert_eq!(c.artefacts[0].kind, ArtefactKind::Ring);
     }
 }

@@ -2,13 +2,12 @@
 //! probes A, B, C, D in a fixture above a sensing surface that rides on the stage. Types only,
 //! no IO.
 //!
-//! [`RollManifest`] mirrors `campaign.toml` one to one (and is what the simulator writes);
+//! [`RollManifest`] is its `campaign.toml` as declared, one field a key (the TOML text is
+//! `dbbcal_io::manifest`'s);
 //! [`RollCampaign`] is the validated form ([`RollCampaign::from_manifest_at`]), every error one
 //! line naming the file and the key. The logs as plain data ([`ProbeSample`], [`LevelRow`],
 //! [`RollCampaignLogs`]) are handed over by `dbbcal_io::read_roll_campaign`; what the analysis
 //! derives from them (dwells, stations, passes) is in `dbbcal_machine::roll`.
-
-use serde::{Deserialize, Serialize};
 
 use crate::axis_campaign::{CampaignKind, KindSection, MachineAxis};
 use crate::campaign::{check_campaign_id, limits, CampaignError, TimeNs};
@@ -18,9 +17,8 @@ use crate::series::InputFile;
 /// The probes, in the order of the spec (and of the `m_a` … `m_d` columns).
 pub const PROBES: [&str; 4] = ["A", "B", "C", "D"];
 
-/// `campaign.toml` of a `roll` campaign as written, not yet validated.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `campaign.toml` of a `roll` campaign as declared, not yet validated.
+#[derive(Debug, Clone, PartialEq)]
 pub struct RollManifest {
     /// `[campaign]`: kind, id, T0.
     pub campaign: KindSection,
@@ -29,24 +27,20 @@ pub struct RollManifest {
 }
 
 /// The unit of the probe readings (`[roll] unit`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ReadingUnit {
     /// Micrometres of surface rise.
-    #[serde(rename = "um")]
     Um,
     /// Volts, times each probe's `um_per_v`.
-    #[serde(rename = "V")]
     Volt,
 }
 
 /// `[roll]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RollSection {
     /// The machine axis the stage moves along.
     pub axis: MachineAxis,
     /// Across: A–C and B–D, mm.
-    #[serde(rename = "L_mm")]
     pub l_mm: f64,
     /// Along: A–B and C–D, mm.
     pub d_mm: f64,
@@ -65,8 +59,7 @@ pub struct RollSection {
 }
 
 /// `[[roll.probe]]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ProbeDecl {
     /// `A`, `B`, `C` or `D`.
     pub id: String,
@@ -75,29 +68,7 @@ pub struct ProbeDecl {
     /// Signed surface rise per volt, µm/V (used when `unit = "V"`).
     pub um_per_v: f64,
     /// Measured position in R, mm; absent: the nominal one.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub xy_mm: Option<[f64; 2]>,
-}
-
-impl RollManifest {
-    /// Parses `campaign.toml` text; `file` is only used in error messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<RollManifest, CampaignError> {
-        toml::from_str(text).map_err(|e| CampaignError::Syntax {
-            file: file.to_string(),
-            line: 0,
-            column: 0,
-            message: e
-                .to_string()
-                .split_whitespace()
-                .collect::<Vec<_>>()
-                .join(" "),
-        })
-    }
-
-    /// The manifest as TOML text (what the simulator writes).
-    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        toml::to_string(self)
-    }
 }
 
 /// One validated probe.
@@ -158,11 +129,6 @@ pub mod roll_limits {
 }
 
 impl RollCampaign {
-    /// Parses and validates `campaign.toml` text, naming `file` in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<RollCampaign, CampaignError> {
-        Self::from_manifest_at(RollManifest::from_toml_str(text, file)?, file)
-    }
-
     /// The nominal centre of probe `k` (A, B, C, D) in R, mm.
     pub(crate) fn nominal_xy_mm(k: usize, l_mm: f64, d_mm: f64) -> [f64; 2] {
         [[0.0, 0.0], [d_mm, 0.0], [0.0, l_mm], [d_mm, l_mm]][k]
@@ -190,7 +156,7 @@ impl RollCampaign {
                 ),
             ));
         }
-        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p.to_string()))?;
         check(
             "campaign.reference_temperature_c",
             m.campaign.reference_temperature_c,
@@ -358,87 +324,4 @@ pub struct RollCampaignTables {
     pub write_pass: bool,
     /// `levels/*.parquet` rows (none: no levels folder).
     pub levels: Vec<LevelRow>,
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    pub(crate) const SEED_MANIFEST: &str = r#"
-campaign = { kind = "roll", id = "xstage-roll-2027-03", reference_temperature_c = 20.0 }
-
-[roll]
-axis = "X"
-L_mm = 80.0
-d_mm = 40.0
-s_mm = 40.0
-b_to_a = -1
-unit = "V"
-dwell_min_s = 2.0
-dwell_tol_um = 2.0
-
-[[roll.probe]]
-id = "A"
-u_xy_um = 50.0
-um_per_v = -10.0
-[[roll.probe]]
-id = "B"
-u_xy_um = 50.0
-um_per_v = -10.0
-[[roll.probe]]
-id = "C"
-u_xy_um = 50.0
-um_per_v = -10.0
-[[roll.probe]]
-id = "D"
-u_xy_um = 50.0
-um_per_v = -10.0
-xy_mm = [40.0, 80.05]
-"#;
-
-    #[test]
-    fn the_spec_example_reads_and_round_trips() {
-        let c = RollCampaign::from_toml_str(SEED_MANIFEST, "campaign.toml").unwrap();
-        assert_eq!(c.b_to_a, -1);
-        assert_eq!(c.probes[0].um_per_unit, -10.0);
-        assert_eq!(c.probes[3].xy_mm, [40.0, 80.05]);
-        assert!(!c.probes[2].measured && c.probes[3].measured);
-        let m = RollManifest::from_toml_str(SEED_MANIFEST, "x").unwrap();
-        let again = RollManifest::from_toml_str(&m.to_toml_string().unwrap(), "x").unwrap();
-        assert_eq!(m, again);
-    }
-
-    #[test]
-    fn s_unequal_d_is_refused_naming_the_key() {
-        let text = SEED_MANIFEST.replace("s_mm = 40.0", "s_mm = 40.5");
-        let e = RollCampaign::from_toml_str(&text, "c.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("c.toml") && e.contains("roll.s_mm") && e.contains("d_mm"),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn a_missing_or_repeated_probe_and_a_bad_sign_are_named() {
-        let text = SEED_MANIFEST.replace("id = \"D\"", "id = \"C\"");
-        let e = RollCampaign::from_toml_str(&text, "c.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("roll.probe") && e.contains("\"C\""), "{e}");
-        let text = SEED_MANIFEST.replace("b_to_a = -1", "b_to_a = 2");
-        let e = RollCampaign::from_toml_str(&text, "c.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("roll.b_to_a"), "{e}");
-        let text = SEED_MANIFEST.replace(
-            "um_per_v = -10.0\n[[roll.probe]]\nid = \"B\"",
-            "um_per_v = 0.0\n[[roll.probe]]\nid = \"B\"",
-        );
-        let e = RollCampaign::from_toml_str(&text, "c.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("roll.probe[0].um_per_v"), "{e}");
-    }
 }

@@ -25,7 +25,7 @@ pub(crate) use temperatures::knot_logs;
 pub use temperatures::{campaign_origin_ns, interpolate_temperatures, sensor_knots};
 
 /// One input file the run read, with its hash, for the output's provenance record.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct InputFile {
     /// Path relative to the campaign directory, `/`-separated.
     pub path: String,
@@ -34,7 +34,6 @@ pub struct InputFile {
     /// Its size in bytes.
     pub bytes: u64,
     /// Another input file with the same bytes (same sha256): this one was not read again.
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub duplicate_of: Option<String>,
 }
 

@@ -2,11 +2,9 @@
 //! ([`StageOutcome`]; one bad bar never stops the others), and the stages' timing log
 //! ([`timed`]).
 
-use serde::Serialize;
-
 /// A bar a stage could not process, and why: one bad bar never stops the others. Written as
 /// `{bar, error}` in every JSON output that lists failures.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BarFailure {
     /// The bar's id.
     pub bar: String,
@@ -24,9 +22,10 @@ pub struct StageOutcome<T> {
 }
 
 impl<T> StageOutcome<T> {
-    /// Per-bar results, in their order, split into the processed and the failed.
-    pub(crate) fn from_results(
-        results: impl IntoIterator<Item = (String, Result<T, String>)>,
+    /// Per-bar results, in their order, split into the processed and the failed (each error
+    /// kept as its one-line message).
+    pub(crate) fn from_results<E: std::fmt::Display>(
+        results: impl IntoIterator<Item = (String, Result<T, E>)>,
     ) -> Self {
         let mut outcome = StageOutcome {
             ok: Vec::new(),
@@ -35,7 +34,10 @@ impl<T> StageOutcome<T> {
         for (bar, result) in results {
             match result {
                 Ok(t) => outcome.ok.push(t),
-                Err(error) => outcome.failed.push(BarFailure { bar, error }),
+                Err(error) => outcome.failed.push(BarFailure {
+                    bar,
+                    error: error.to_string(),
+                }),
             }
         }
         outcome

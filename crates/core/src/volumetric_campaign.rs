@@ -3,17 +3,14 @@
 //! diagonals read by a calibrated bar in re-seated segments (`docs/bar-diagonals.md`, our
 //! extension: `[bar_diagonal]` and `bar_diagonals/*.parquet`). Types only, no IO.
 //!
-//! [`VolumetricManifest`] mirrors its `campaign.toml` one to one (and is what the simulator
-//! writes); [`VolumetricCampaign`] is the validated form, every error one line naming the file
+//! [`VolumetricManifest`] is its `campaign.toml` as declared, one field a key (the TOML text is
+//! `dbbcal_io::manifest`'s); [`VolumetricCampaign`] is the validated form, every error one line naming the file
 //! and the key. The logs as plain data and the reader rules (order, direction, sub-move order)
 //! are in [`logs`].
 
-use serde::{Deserialize, Serialize};
-
-use crate::axis_campaign::{
-    syntax_error, CampaignKind, KindSection, LaserCompensation, MachineSensorDecl,
-};
+use crate::axis_campaign::{CampaignKind, KindSection, LaserCompensation, MachineSensorDecl};
 use crate::campaign::{check_campaign_id, display_number, limits, CampaignError};
+use crate::limits::{check_point, PointOutOfRange};
 
 pub mod logs;
 #[cfg(test)]
@@ -84,8 +81,7 @@ impl std::fmt::Display for DiagonalSign {
 }
 
 /// The laser's target (`[laser] target`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum LaserTarget {
     /// A flat mirror: lateral motion does not change the reading (needed by step diagonals).
     FlatMirror,
@@ -94,16 +90,14 @@ pub enum LaserTarget {
 }
 
 /// `[machine]` of a `volumetric` campaign.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct VolumetricMachineSection {
     /// Expansion of the machine's scales, ppm/K, for normalising to T0.
     pub cte_ppm_per_k: f64,
 }
 
 /// `[workspace]`: the corners are the diagonals' ends.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct WorkspaceSection {
     /// Minimum corner, mm.
     pub min_mm: [f64; 3],
@@ -112,15 +106,13 @@ pub struct WorkspaceSection {
 }
 
 /// `[laser]` of a `volumetric` campaign.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct VolumetricLaserSection {
     /// Vacuum wavelength, nm.
     pub wavelength_nm: f64,
     /// What the readings already include.
     pub compensation: LaserCompensation,
     /// Optics to reflector at the datum, mm.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dead_path_mm: Option<f64>,
     /// Flat mirror or retroreflector.
     pub target: LaserTarget,
@@ -128,8 +120,7 @@ pub struct VolumetricLaserSection {
 
 /// `[bar_diagonal]` (`docs/bar-diagonals.md`): the bar that read the body diagonals of
 /// `bar_diagonals/*.parquet` and what its calibration and set-up leave uncertain.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BarDiagonalSection {
     /// The bar's id (as in its calibration certificate).
     pub bar: String,
@@ -141,17 +132,13 @@ pub struct BarDiagonalSection {
 }
 
 /// `grid = { I, J, K, origin_mm, spacing_mm }`: the lattice of V2, V3 and the 3-D table.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GridSection {
     /// Nodes along x.
-    #[serde(rename = "I")]
     pub i: usize,
     /// Nodes along y.
-    #[serde(rename = "J")]
     pub j: usize,
     /// Nodes along z.
-    #[serde(rename = "K")]
     pub k: usize,
     /// Node (1, 1, 1), mm.
     pub origin_mm: [f64; 3],
@@ -160,8 +147,7 @@ pub struct GridSection {
 }
 
 /// What the 3-D table holds (`[table] values`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TableValues {
     /// −error.
     Correction,
@@ -170,8 +156,7 @@ pub enum TableValues {
 }
 
 /// `[table]`.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct TableSection {
     /// `"fanuc-3d"`, the only format of this version.
     pub format: String,
@@ -183,9 +168,8 @@ pub struct TableSection {
     pub values: TableValues,
 }
 
-/// `campaign.toml` of a `volumetric` campaign as written, not yet validated.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `campaign.toml` of a `volumetric` campaign as declared, not yet validated.
+#[derive(Debug, Clone, PartialEq)]
 pub struct VolumetricManifest {
     /// `[campaign]`.
     pub campaign: KindSection,
@@ -194,31 +178,15 @@ pub struct VolumetricManifest {
     /// `[workspace]`.
     pub workspace: WorkspaceSection,
     /// `[laser]`; required when `diagonals/` or `steps/` hold readings.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub laser: Option<VolumetricLaserSection>,
     /// `[bar_diagonal]`; required when `bar_diagonals/` holds readings.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bar_diagonal: Option<BarDiagonalSection>,
     /// `grid`.
     pub grid: GridSection,
     /// `[table]`; absent: fanuc-3d, n_base 100000, 1 µm, correction.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub table: Option<TableSection>,
     /// `[[sensor]]` of `temperatures/*.parquet`.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sensor: Vec<MachineSensorDecl>,
-}
-
-impl VolumetricManifest {
-    /// Parses `campaign.toml` text; `file` names it in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<VolumetricManifest, CampaignError> {
-        toml::from_str(text).map_err(|e| syntax_error(text, file, &e))
-    }
-
-    /// The manifest as TOML text (what the simulator writes).
-    pub fn to_toml_string(&self) -> Result<String, toml::ser::Error> {
-        toml::to_string(self)
-    }
 }
 
 /// A validated `volumetric` manifest.
@@ -252,11 +220,6 @@ const LENGTH_MM: f64 = 10_000.0;
 const MAX_NODES: usize = 1_000;
 
 impl VolumetricCampaign {
-    /// Parses and validates `campaign.toml` text, naming `file` in messages.
-    pub fn from_toml_str(text: &str, file: &str) -> Result<VolumetricCampaign, CampaignError> {
-        Self::from_manifest_at(VolumetricManifest::from_toml_str(text, file)?, file)
-    }
-
     /// The workspace's extent L = max − min, mm.
     pub fn lengths_mm(&self) -> [f64; 3] {
         [0, 1, 2].map(|k| self.max_mm[k] - self.min_mm[k])
@@ -281,7 +244,7 @@ impl VolumetricCampaign {
                 ),
             ));
         }
-        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p))?;
+        check_campaign_id(&m.campaign.id).map_err(|p| invalid("campaign.id", p.to_string()))?;
         let check = |key: &str, v: f64, limit: crate::limits::Limit| {
             let name = key.rsplit('.').next().unwrap_or(key);
             limit
@@ -335,7 +298,7 @@ impl VolumetricCampaign {
             ("workspace.min_mm", &w.min_mm),
             ("workspace.max_mm", &w.max_mm),
         ] {
-            point(p).map_err(|e| invalid(key, e))?;
+            point(p).map_err(|e| invalid(key, e.to_string()))?;
         }
         if let Some(k) = (0..3).find(|&k| w.max_mm[k] <= w.min_mm[k]) {
             return Err(invalid(
@@ -347,7 +310,7 @@ impl VolumetricCampaign {
                 ),
             ));
         }
-        check_grid(&m.grid, w).map_err(|(key, p)| invalid(&key, p))?;
+        check_grid(&m.grid, w, file)?;
         let table = m.table.unwrap_or(TableSection {
             format: "fanuc-3d".into(),
             n_base: 100_000,
@@ -454,44 +417,47 @@ impl VolumetricCampaign {
 }
 
 /// A point in mm: finite, within ±10 m.
-fn point(p: &[f64; 3]) -> Result<(), String> {
-    match p.iter().find(|v| !(v.is_finite() && v.abs() <= LENGTH_MM)) {
-        None => Ok(()),
-        Some(v) => Err(format!(
-            "coordinate {} is out of range: each must be a finite number within ±{LENGTH_MM} mm",
-            display_number(*v)
-        )),
-    }
+fn point(p: &[f64; 3]) -> Result<(), PointOutOfRange> {
+    check_point(p, LENGTH_MM)
 }
 
-/// Grid nodes must lie inside the workspace (`machine-formats.md`).
-fn check_grid(g: &GridSection, w: &WorkspaceSection) -> Result<(), (String, String)> {
+/// Grid nodes must lie inside the workspace (`machine-formats.md`); `file` names the manifest.
+fn check_grid(g: &GridSection, w: &WorkspaceSection, file: &str) -> Result<(), CampaignError> {
+    let invalid = |key: &str, problem: String| {
+        Err(CampaignError::Invalid {
+            file: file.to_string(),
+            key: key.to_string(),
+            problem,
+        })
+    };
     let counts = [g.i, g.j, g.k];
     for (k, name) in ["I", "J", "K"].iter().enumerate() {
         if !(1..=MAX_NODES).contains(&counts[k]) {
-            return Err((
-                format!("grid.{name}"),
+            return invalid(
+                &format!("grid.{name}"),
                 format!("is {}: each count is 1 … {MAX_NODES}", counts[k]),
-            ));
+            );
         }
     }
-    point(&g.origin_mm).map_err(|p| ("grid.origin_mm".to_string(), p))?;
+    if let Err(p) = point(&g.origin_mm) {
+        return invalid("grid.origin_mm", p.to_string());
+    }
     for k in 0..3 {
         let s = g.spacing_mm[k];
         if !(s.is_finite() && s > 0.0 && s <= LENGTH_MM) {
-            return Err((
-                "grid.spacing_mm".into(),
+            return invalid(
+                "grid.spacing_mm",
                 format!(
                     "spacing_mm[{k}] = {} is not a finite number in (0, {LENGTH_MM}] mm",
                     display_number(s)
                 ),
-            ));
+            );
         }
         let last = g.origin_mm[k] + (counts[k] - 1) as f64 * s;
         let tol = 1e-6;
         if g.origin_mm[k] < w.min_mm[k] - tol || last > w.max_mm[k] + tol {
-            return Err((
-                "grid".into(),
+            return invalid(
+                "grid",
                 format!(
                     "nodes along {} run from {} to {} mm, outside the workspace {} … {} mm: grid nodes must lie inside it",
                     ["x", "y", "z"][k],
@@ -500,7 +466,7 @@ fn check_grid(g: &GridSection, w: &WorkspaceSection) -> Result<(), (String, Stri
                     display_number(w.min_mm[k]),
                     display_number(w.max_mm[k])
                 ),
-            ));
+            );
         }
     }
     Ok(())

@@ -30,6 +30,7 @@ use super::guard::guarded;
 use super::inputs::{check_unchanged, parquet_files};
 use super::kind_read::{kind_manifest_text, required_table, snapshot};
 use super::IngestError;
+use crate::manifest::TomlCampaign;
 use dbbcal_core::axis_campaign::{
     derive_order, AxisCampaign, AxisCampaignLogs, AxisReading, CampaignKind, Channel,
     EnvironmentRow, ExtraColumn, FixtureRow, ReadingKey,

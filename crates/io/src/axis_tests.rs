@@ -1,6 +1,8 @@
 //! Tests of the `axis` reader and writer: small parquet files written with the parquet crate directly, in
 //! the forms the reader rules allow and in the broken forms it must name.
 
+use crate::manifest::TomlManifest;
+
 use std::path::Path;
 
 use crate::test_frames::{col, df, dict_col, raw_time_col, write_df, Col, Unit};

@@ -2,6 +2,8 @@
 //! exercise the reader's tolerance: readings split by line, coarser time units, shuffled rows,
 //! dictionary channels, no `direction` column.
 
+use crate::manifest::TomlManifest;
+
 use std::path::Path;
 
 use rand::seq::SliceRandom;

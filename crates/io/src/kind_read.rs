@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use super::inputs::{hash_inputs, parquet_files, stamps, Stamp};
 use super::IngestError;
-use dbbcal_core::axis_campaign::{campaign_kind, CampaignKind};
+use crate::manifest::campaign_kind;
+use dbbcal_core::axis_campaign::CampaignKind;
 use dbbcal_core::series::InputFile;
 
 /// The shown path and text of `dir/campaign.toml`, refused unless its `[campaign] kind` is

@@ -13,6 +13,7 @@ mod guard;
 mod inputs;
 mod kind_read;
 mod kind_write;
+pub mod manifest;
 mod pq;
 mod probe;
 mod probe_write;
@@ -314,29 +315,59 @@ pub fn automatic_bin_s(dir: &Path) -> Result<f64, IngestError> {
 
 /// The text of a small configuration file (`campaign.toml`, a pipeline file): a regular file
 /// (links followed) of at most `max_bytes`, read with that bound whatever it claims to be (a link
-/// to `/dev/urandom` or a FIFO is refused, never read until killed). `Err` is the reason, for a
-/// message that names the file.
-pub fn read_small_text(path: &Path, max_bytes: u64) -> Result<String, String> {
+/// to `/dev/urandom` or a FIFO is refused, never read until killed). The error is the reason,
+/// for a message that names the file.
+pub fn read_small_text(path: &Path, max_bytes: u64) -> Result<String, SmallTextError> {
     use std::io::Read;
-    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    let fail = |why| SmallTextError { why };
+    let meta = std::fs::metadata(path).map_err(|e| fail(Unreadable::Io(e)))?;
     if !meta.is_file() {
-        return Err(if meta.is_dir() {
-            "cannot read: it is a folder".into()
+        return Err(fail(if meta.is_dir() {
+            Unreadable::Folder
         } else {
-            "cannot read: it is not a regular file (a FIFO or device)".into()
-        });
+            Unreadable::NotRegular
+        }));
     }
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    let file = std::fs::File::open(path).map_err(|e| fail(Unreadable::Io(e)))?;
     let mut bytes = Vec::new();
     file.take(max_bytes + 1)
         .read_to_end(&mut bytes)
-        .map_err(|e| format!("cannot read: {e}"))?;
+        .map_err(|e| fail(Unreadable::Io(e)))?;
     if bytes.len() as u64 > max_bytes {
-        return Err(format!(
-            "cannot read: larger than {max_bytes} bytes, more than any such file holds"
-        ));
+        return Err(fail(Unreadable::TooLarge { max_bytes }));
     }
-    String::from_utf8(bytes).map_err(|e| format!("cannot read: not UTF-8 text ({e})"))
+    String::from_utf8(bytes).map_err(|e| fail(Unreadable::NotUtf8(e)))
+}
+
+/// A small configuration file that could not be read: `cannot read: WHY`.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot read: {why}")]
+pub struct SmallTextError {
+    /// Why.
+    pub why: Unreadable,
+}
+
+/// Why a small configuration file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum Unreadable {
+    /// The OS refused (no such file, no permission, …).
+    #[error("{0}")]
+    Io(std::io::Error),
+    /// The path is a folder.
+    #[error("it is a folder")]
+    Folder,
+    /// The path is a FIFO or a device.
+    #[error("it is not a regular file (a FIFO or device)")]
+    NotRegular,
+    /// Larger than the bound.
+    #[error("larger than {max_bytes} bytes, more than any such file holds")]
+    TooLarge {
+        /// The bound, bytes.
+        max_bytes: u64,
+    },
+    /// Not UTF-8.
+    #[error("not UTF-8 text ({0})")]
+    NotUtf8(std::string::FromUtf8Error),
 }
 
 /// The largest `campaign.toml` read (bytes).

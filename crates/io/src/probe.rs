@@ -19,6 +19,7 @@ use super::axis::{check_rows, finite, required, Decoded};
 use super::inputs::check_unchanged;
 use super::kind_read::{kind_manifest_text, required_table, snapshot};
 use super::IngestError;
+use crate::manifest::TomlCampaign;
 use dbbcal_core::axis_campaign::CampaignKind;
 use dbbcal_core::probe_campaign::{
     approach_of, derive_directions, ProbeCampaign, ProbeCampaignLogs, ProbeTouch,

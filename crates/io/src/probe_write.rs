@@ -2,6 +2,8 @@
 //! `campaign.toml` and `touches/*.parquet`, split across files and shuffled as asked, the
 //! approach as i, j, k or as φ, θ.
 
+use crate::manifest::TomlManifest;
+
 use std::path::Path;
 
 use rand::seq::SliceRandom;

@@ -220,6 +220,7 @@ mod tests {
     #[test]
     fn a_bar_logging_at_1_hz_in_a_fleet_logging_once_a_minute_keeps_a_slot_a_reading() {
         // B01: 4 h of mounts, checked over 52 h; the fleet's mean: one reading a minute.
+        use crate::manifest::TomlManifest;
         let manifest = Manifest::from_toml_str(dbbcal_testkit::ONE_BAR_MANIFEST, "m").unwrap();
         let c = Campaign::from_manifest(manifest).unwrap();
         let mut s = RepeatSketch::new(&c, "B01", 52 * 60).unwrap();

@@ -17,6 +17,7 @@ use super::axis::{check_rows, finite, required, Decoded};
 use super::inputs::{check_unchanged, parquet_files};
 use super::kind_read::{kind_manifest_text, required_table, snapshot};
 use super::IngestError;
+use crate::manifest::TomlCampaign;
 use dbbcal_core::axis_campaign::CampaignKind;
 use dbbcal_core::roll_campaign::{LevelRow, ProbeSample, RollCampaign, RollCampaignLogs};
 

@@ -2,6 +2,8 @@
 //! exercise the reader's tolerance: probes split by pass, coarser time units, shuffled rows,
 //! int32 `station`/`pass` columns.
 
+use crate::manifest::TomlManifest;
+
 use std::path::Path;
 
 use rand::seq::SliceRandom;

@@ -1,6 +1,8 @@
 //! Tests of the io module: small parquet files written with the parquet crate directly, in every form the
 //! spec allows and in every broken form the reader must name.
 
+use crate::manifest::TomlManifest;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 

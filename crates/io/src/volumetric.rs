@@ -15,6 +15,7 @@ use super::axis::{
 use super::inputs::{check_unchanged, parquet_files};
 use super::kind_read::{kind_manifest_text, snapshot};
 use super::IngestError;
+use crate::manifest::TomlCampaign;
 use dbbcal_core::axis_campaign::{CampaignKind, MachineAxis};
 use dbbcal_core::volumetric_campaign::{
     logs::diagonal_of_index, order_bar_readings, order_diagonal_readings, order_step_readings,

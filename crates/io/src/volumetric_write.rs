@@ -1,6 +1,8 @@
 //! Writing a `volumetric` campaign directory (what the simulator produces): readings split by
 //! diagonal or not, rows shuffled or not, `direction` written or not.
 
+use crate::manifest::TomlManifest;
+
 use std::path::Path;
 
 use rand::seq::SliceRandom;

@@ -1,6 +1,7 @@
 //! Writing a campaign directory (what `simulate` produces), with options that exercise the
 //! reader's tolerance: files split by day, coarser time units, shuffled rows, dictionary ids.
 
+use crate::manifest::TomlManifest;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -148,10 +149,12 @@ fn create_dir(dir: &Path) -> Result<(), WriteError> {
 }
 
 fn write_manifest(path: &Path, manifest: &Manifest) -> Result<(), WriteError> {
-    let text = toml::to_string(manifest).map_err(|e| WriteError::Manifest {
-        path: path.to_path_buf(),
-        message: one_line(e),
-    })?;
+    let text = manifest
+        .to_toml_string()
+        .map_err(|e| WriteError::Manifest {
+            path: path.to_path_buf(),
+            message: one_line(e),
+        })?;
     std::fs::write(path, text).map_err(|e| WriteError::Io {
         path: path.to_path_buf(),
         message: e.to_string(),

@@ -94,19 +94,33 @@ pub enum DeviceTestError {
     #[error("no dwell at the datum")]
     NoDatum,
     /// The datum's pose could not be found.
-    #[error("the datum dwell (station {station}) has no pose: {reason}")]
+    #[error("the datum dwell (station {station}) has no pose: {source}")]
     DatumPose {
         /// The datum's station.
         station: i64,
         /// Why.
-        reason: String,
+        source: PoseError,
     },
+}
+
+/// Why a dwell has no pose.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PoseError {
+    /// A leg has no compensated reading in the dwell.
+    #[error("a leg has no compensated reading in the dwell")]
+    NoReading,
+    /// The pose is near a singularity of the kinematics.
+    #[error("not evaluated: {0}")]
+    NearSingular(HexapodError),
+    /// The forward kinematics failed.
+    #[error(transparent)]
+    Forward(HexapodError),
 }
 
 /// What [`measure`] found: the forward solution (or why not), the lengths and tilts used, and
 /// the forward solutions done.
 type Measured = (
-    Result<crate::hexapod::ForwardSolution, String>,
+    Result<crate::hexapod::ForwardSolution, PoseError>,
     Option<[f64; 6]>,
     Option<[f64; 6]>,
     usize,
@@ -115,12 +129,7 @@ type Measured = (
 fn measure(device: &Hexapod, mut lengths: impl FnMut(&[f64; 6]) -> Option<[f64; 6]>) -> Measured {
     let mut tilts = device.leg_tilts_deg(&device.nominal_pose);
     let Some(mut l) = lengths(&tilts) else {
-        return (
-            Err("a leg has no compensated reading in the dwell".into()),
-            None,
-            None,
-            0,
-        );
+        return (Err(PoseError::NoReading), None, None, 0);
     };
     let mut passes = 0;
     loop {
@@ -129,13 +138,13 @@ fn measure(device: &Hexapod, mut lengths: impl FnMut(&[f64; 6]) -> Option<[f64; 
             Ok(s) => s,
             Err(e @ HexapodError::NearSingular { .. }) => {
                 return (
-                    Err(format!("not evaluated: {e}")),
+                    Err(PoseError::NearSingular(e)),
                     Some(l),
                     Some(tilts),
                     passes,
                 )
             }
-            Err(e) => return (Err(e.to_string()), Some(l), Some(tilts), passes),
+            Err(e) => return (Err(PoseError::Forward(e)), Some(l), Some(tilts), passes),
         };
         let new_tilts = device.leg_tilts_deg(&sol.pose);
         let Some(new_l) = lengths(&new_tilts) else {
@@ -148,7 +157,7 @@ fn measure(device: &Hexapod, mut lengths: impl FnMut(&[f64; 6]) -> Option<[f64; 
             let sol = if moved <= TILT_LENGTH_TOLERANCE_MM {
                 Ok(sol)
             } else {
-                device.forward(&l).map_err(|e| e.to_string())
+                device.forward(&l).map_err(PoseError::Forward)
             };
             return (sol, Some(l), Some(tilts), passes);
         }
@@ -169,9 +178,9 @@ pub fn evaluate(
     let dev0 = at(d0);
     let (sol0, ..) = measure(&dev0, |t| lengths(datum, t));
     let datum_pose = sol0
-        .map_err(|reason| DeviceTestError::DatumPose {
+        .map_err(|source| DeviceTestError::DatumPose {
             station: d0.station,
-            reason,
+            source,
         })?
         .pose;
     let u0 = d0.leg_u_k2_um;
@@ -194,7 +203,7 @@ pub fn evaluate(
             flag: None,
         };
         match sol {
-            Err(reason) => r.flag = Some(reason),
+            Err(reason) => r.flag = Some(reason.to_string()),
             Ok(s) => {
                 r.pose = Some(s.pose);
                 r.condition = Some(s.condition);

@@ -8,6 +8,7 @@ use super::data::rms;
 use super::legend::Mark;
 use super::panel::{y_area_width, Panel};
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{check_series, same_len, validated, NamedSeries, ReportError};
 
 /// One bar over the campaign: measured thermal error against the fitted model (top),
@@ -34,7 +35,7 @@ pub struct BarFitFigure {
 }
 
 impl BarFitFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         same_len(
             "time_s/measured_um",
             self.time_s.len(),

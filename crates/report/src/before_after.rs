@@ -7,6 +7,7 @@ use super::canvas::{header, render_with, Area, DrawError};
 use super::legend::Mark;
 use super::panel::Panel;
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{same_len, validated, ReportError};
 
 /// Per-bar RMS before and after, with optional fleet totals as a last group.
@@ -33,7 +34,7 @@ pub struct BeforeAfterFigure {
 }
 
 impl BeforeAfterFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         same_len(
             "before_um/bar_names",
             self.before_um.len(),

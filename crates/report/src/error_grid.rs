@@ -13,6 +13,7 @@ use super::data::finite_minmax;
 use super::legend::Mark;
 use super::panel::{y_area_width, Panel};
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{same_len, validated, ReportError};
 
 /// One curve of a panel: values at positions, each with its expanded uncertainty.
@@ -55,9 +56,9 @@ pub struct ErrorGridFigure {
 }
 
 impl ErrorGridFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         if self.columns == 0 {
-            return Err("columns must be at least 1".into());
+            return Err(SpecError::NoColumns);
         }
         self.panels.iter().try_for_each(|p| {
             p.curves.iter().try_for_each(|c| {

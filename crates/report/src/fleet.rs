@@ -8,6 +8,7 @@ use super::canvas::{header, render_with, split_grid, Area, DrawError};
 use super::legend::{self, LegendEntry, Mark};
 use super::panel::Panel;
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{same_len, validated, ReportError};
 
 /// One fitted parameter across the fleet.
@@ -46,7 +47,7 @@ pub struct FleetFigure {
 }
 
 impl FleetFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         let n = self.bar_names.len();
         for p in &self.parameters {
             same_len(&format!("{} values/bar_names", p.name), p.values.len(), n)?;
@@ -56,7 +57,7 @@ impl FleetFigure {
             same_len("mismatch_um/bar_names", self.mismatch_um.len(), n)?;
         }
         match self.reference {
-            Some(r) if r >= n => Err(format!("reference index {r} out of range ({n} bars)")),
+            Some(index) if index >= n => Err(SpecError::ReferenceOutOfRange { index, bars: n }),
             _ => Ok(()),
         }
     }

@@ -12,6 +12,7 @@ use super::data::finite_minmax;
 use super::legend::{self, LegendEntry, Mark};
 use super::panel::{x_area_height, Panel};
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{same_len, validated, ReportError};
 
 /// A row and/or column to outline, with its legend label.
@@ -49,7 +50,7 @@ pub struct HeatMapFigure {
 }
 
 impl HeatMapFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         same_len(
             "values rows/row_labels",
             self.values.len(),
@@ -67,7 +68,9 @@ impl HeatMapFigure {
                 || h.col.is_some_and(|c| c >= self.col_labels.len())
         });
         bad.map_or(Ok(()), |h| {
-            Err(format!("highlight '{}' is outside the matrix", h.label))
+            Err(SpecError::HighlightOutside {
+                label: h.label.clone(),
+            })
         })
     }
 }

@@ -8,6 +8,7 @@ use super::canvas::{header, render_with, Area, DrawError};
 use super::legend::Mark;
 use super::panel::Panel;
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{same_len, validated, NamedValues, ReportError};
 
 /// RMS after each model step.
@@ -30,7 +31,7 @@ pub struct LedgerFigure {
 }
 
 impl LedgerFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         let n = self.steps.len();
         for b in &self.bars {
             same_len(&format!("bar '{}' values/steps", b.name), b.values.len(), n)?;

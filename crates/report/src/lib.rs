@@ -81,7 +81,7 @@ pub enum ReportError {
         /// The figure's file.
         path: PathBuf,
         /// What is inconsistent.
-        reason: String,
+        reason: SpecError,
     },
     /// The embedded font could not be registered (a build defect).
     #[error("figure {path}: the embedded font could not be registered")]
@@ -115,24 +115,60 @@ pub enum ReportError {
     },
 }
 
+/// What is inconsistent in a figure spec.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SpecError {
+    /// Two arrays that must match in length do not.
+    #[error("{what}: lengths differ ({a} vs {b})")]
+    LengthsDiffer {
+        /// The arrays, named (`time_s/measured_um`).
+        what: String,
+        /// The first one's length.
+        a: usize,
+        /// The second one's length.
+        b: usize,
+    },
+    /// The fleet figure's reference is not one of its bars.
+    #[error("reference index {index} out of range ({bars} bars)")]
+    ReferenceOutOfRange {
+        /// The index given.
+        index: usize,
+        /// How many bars the figure has.
+        bars: usize,
+    },
+    /// A heat map's highlight is not a cell, row or column of the matrix.
+    #[error("highlight '{label}' is outside the matrix")]
+    HighlightOutside {
+        /// The highlight's label.
+        label: String,
+    },
+    /// A grid of panels without columns.
+    #[error("columns must be at least 1")]
+    NoColumns,
+}
+
 /// Checks that `a` and `b` have the same length, naming them in the error text.
-fn same_len(what: &str, a: usize, b: usize) -> Result<(), String> {
+fn same_len(what: &str, a: usize, b: usize) -> Result<(), SpecError> {
     if a == b {
         Ok(())
     } else {
-        Err(format!("{what}: lengths differ ({a} vs {b})"))
+        Err(SpecError::LengthsDiffer {
+            what: what.to_string(),
+            a,
+            b,
+        })
     }
 }
 
 /// Checks every series has as many x as y values.
-fn check_series(what: &str, series: &[NamedSeries]) -> Result<(), String> {
+fn check_series(what: &str, series: &[NamedSeries]) -> Result<(), SpecError> {
     series
         .iter()
         .try_for_each(|s| same_len(&format!("{what} '{}' x/y", s.name), s.x.len(), s.y.len()))
 }
 
 /// Runs a spec check and wraps its message with the output path.
-fn validated(path: &std::path::Path, check: Result<(), String>) -> Result<(), ReportError> {
+fn validated(path: &std::path::Path, check: Result<(), SpecError>) -> Result<(), ReportError> {
     check.map_err(|reason| ReportError::InvalidSpec {
         path: path.to_path_buf(),
         reason,

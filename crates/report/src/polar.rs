@@ -10,6 +10,7 @@ use plotters::style::text_anchor::{HPos, VPos};
 use super::axis::{format_significant, Axis};
 use super::canvas::{header, render_with, Area, DrawError};
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{same_len, validated, ReportError};
 
 /// One series of a polar figure.
@@ -39,7 +40,7 @@ pub struct PolarFigure {
 }
 
 impl PolarFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         for s in &self.series {
             same_len(
                 &format!("series '{}' angle_deg/value", s.name),

@@ -10,6 +10,7 @@ use super::canvas::{header, render_with, split_grid, Area, DrawError};
 use super::legend::Mark;
 use super::panel::Panel;
 use super::style::{self, FIGURE_SIZE, TEXT};
+use super::SpecError;
 use super::{same_len, validated, ReportError};
 
 /// Residual diagnostics for one bar.
@@ -36,7 +37,7 @@ pub struct ResidualDiagnosticsFigure {
 }
 
 impl ResidualDiagnosticsFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         same_len(
             "cpgram_freq_hz/cpgram",
             self.cpgram_freq_hz.len(),

@@ -9,6 +9,7 @@ use super::data::finite_minmax;
 use super::legend::Mark;
 use super::panel::{y_area_width, Panel};
 use super::style::{self, FIGURE_SIZE};
+use super::SpecError;
 use super::{check_series, validated, NamedSeries, RefLine, ReportError};
 
 /// What the shared x values are.
@@ -52,7 +53,7 @@ pub struct SeriesPanelsFigure {
 }
 
 impl SeriesPanelsFigure {
-    fn check(&self) -> Result<(), String> {
+    fn check(&self) -> Result<(), SpecError> {
         self.panels
             .iter()
             .try_for_each(|p| check_series(&p.title, &p.series))

@@ -6,6 +6,7 @@ use std::collections::BTreeSet;
 
 use super::*;
 use dbbcal_core::campaign::Purpose;
+use dbbcal_io::manifest::TomlManifest;
 
 /// A constant room at `mean_c`, no noise, 3 bars, a calibration phase over 3 lengths × `tilts`.
 fn calibrating(mean_c: f64, tilts: &[f64]) -> SimConfig {

@@ -109,6 +109,7 @@ pub struct PlateConfig {
     /// Time constant of the plate temperature behind the air (T1), seconds.
     pub(crate) thermal_tau_s: f64,
     /// Calibrated socket-pair distances, as in `campaign.toml`.
+    #[serde(with = "dbbcal_io::manifest::as_written::plate_lengths")]
     pub(crate) length: Vec<PlateLength>,
 }
 
@@ -244,6 +245,7 @@ pub struct WorkingLayout {
     pub(crate) length: String,
     /// `check` (known length used only to verify; the default) or `calibration`.
     #[serde(default = "check_purpose")]
+    #[serde(with = "dbbcal_io::manifest::as_written::purpose")]
     pub(crate) purpose: dbbcal_core::campaign::Purpose,
     /// Bars on a target device instead of the plate.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -49,7 +49,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use dbbcal_core::campaign::{
-    BarDecl, CampaignSection, Manifest, MountDecl, PlateSection, SensorDecl, SensorKind,
+    BarDecl, CampaignSection, DeclaredTime, Manifest, MountDecl, PlateSection, SensorDecl,
+    SensorKind,
 };
 use dbbcal_core::series::{CampaignTables, Event, EventKind};
 
@@ -461,10 +462,6 @@ fn rfc3339(t_ns: i64) -> String {
         .to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true)
 }
 
-fn toml_datetime(t_ns: i64) -> Result<toml::value::Datetime, SimError> {
-    rfc3339(t_ns).parse().map_err(|_| SimError::Time(t_ns))
-}
-
 fn build_manifest(
     cfg: &SimConfig,
     bars: &[BarTruth],
@@ -485,8 +482,8 @@ fn build_manifest(
                 tilt_deg: (explicit_tilts || m.tilt_deg != cfg.plate.tilt_deg)
                     .then_some(m.tilt_deg),
                 purpose: Some(m.purpose),
-                from: toml_datetime(start_ns + m.from_ns)?,
-                to: toml_datetime(start_ns + m.to_ns)?,
+                from: DeclaredTime::at(start_ns + m.from_ns),
+                to: DeclaredTime::at(start_ns + m.to_ns),
             });
         }
     }

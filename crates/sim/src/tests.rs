@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use super::*;
 use dbbcal_core::campaign::Manifest;
+use dbbcal_io::manifest::TomlManifest;
 
 /// A small campaign in a constant room at `mean_c` (no noise), recording the true error.
 fn quiet(mean_c: f64) -> SimConfig {

@@ -172,6 +172,7 @@ pub struct MountTruth {
     #[serde(default)]
     pub(crate) tilt_deg: f64,
     /// What the mount is for.
+    #[serde(with = "dbbcal_io::manifest::as_written::purpose")]
     pub purpose: Purpose,
     /// RFC 3339, UTC (the manifest's `from`/`to`).
     pub from: String,

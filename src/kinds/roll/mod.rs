@@ -150,6 +150,7 @@ impl RollPlan {
 pub(crate) fn run(plan: &RollPlan) -> Result<Outcome> {
     let (out, target) = plan.base.claim_output(|dir| {
         let text = manifest_text(dir)?;
+        use dbbcal_io::manifest::TomlCampaign;
         let c = dbbcal_core::roll_campaign::RollCampaign::from_toml_str(&text, "campaign.toml")?;
         Ok(c.id)
     })?;

@@ -1,19 +1,16 @@
 //! `[[device]]` tables of `campaign.toml` and the legs of their mounts
 //! (`docs/spec/device-format.md`, "campaign.toml: `[[device]]`").
 //!
-//! [`DeviceDecl`] mirrors the TOML; [`Device`] is its validated form (six joints per ring,
+//! [`DeviceDecl`] is the table as declared; [`Device`] is its validated form (six joints per ring,
 //! uncertainties per leg, defaults filled in). A mount on a declared hexapod names its `leg`
 //! (1–6): required there, not allowed with `length` or on an undeclared device; at any time a leg
 //! carries at most one bar (a bar sits in at most one place at a time already, as its mounts may
 //! not overlap). Every message is one line naming the key, as the rest of the manifest's.
 
-use serde::{Deserialize, Serialize};
-
 use super::{display_number, limits, CampaignError, Manifest, Mount, Validator};
 
 /// The kind of a device (`device[].kind`).
-#[derive(Debug, Clone, Copy, Serialize, Deserialize, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum DeviceKind {
     /// A six-link parallel mechanism: six legs numbered 1–6.
     Hexapod,
@@ -23,8 +20,7 @@ pub enum DeviceKind {
 pub(crate) const HEXAPOD_LEGS: usize = 6;
 
 /// A value for every leg: one for all, or one per leg (`u_base_um`, `u_platform_um`).
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(untagged)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum PerLeg {
     /// The same value for every leg.
     All(f64),
@@ -32,9 +28,8 @@ pub enum PerLeg {
     Each(Vec<f64>),
 }
 
-/// `[[device]]` as written (`docs/spec/device-format.md`), not yet validated.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `[[device]]` as declared (`docs/spec/device-format.md`), not yet validated.
+#[derive(Debug, Clone, PartialEq)]
 pub struct DeviceDecl {
     /// Device id, as in mounts and `positions`.
     pub id: String,
@@ -51,23 +46,17 @@ pub struct DeviceDecl {
     /// Pose of P in B at the datum: [x, y, z] mm, [rx, ry, rz] degrees.
     pub nominal_pose: [f64; 6],
     /// The point of P whose translational errors are reported, mm; default P's origin.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tool_point_mm: Option<[f64; 3]>,
     /// Orientation of B in M, degrees; default [0, 0, 0].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_orientation_deg: Option<[f64; 3]>,
     /// The upward vertical in B; default [0, 0, 1].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub up: Option<[f64; 3]>,
     /// The commanded machine position whose first dwell is the datum, mm; default the first
     /// dwell in `positions`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference_mm: Option<[f64; 3]>,
     /// Expansion of the base and platform bodies, ppm/K; default 0.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cte_ppm_per_k: Option<f64>,
     /// Temperature sensor of those bodies; default the mean of the air sensors.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor: Option<String>,
 }
 
@@ -303,158 +292,5 @@ impl Validator<'_> {
             }
         }
         Ok(())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::super::{Campaign, Manifest};
-
-    /// The spec's example device with two bars in legs 1 and 2 (others unused).
-    fn manifest(extra_mount: &str, device_extra: &str) -> String {
-        format!(
-            r#"
-[campaign]
-id = "dev"
-reference_temperature_c = 20.0
-[plate]
-material = "zerodur"
-tilt_deg = 60.0
-[[plate.length]]
-id = "min"
-mm = 250.0
-u_um = 0.15
-[[sensor]]
-id = "T1"
-kind = "air"
-[[bar]]
-id = "B01"
-resolution_nm = 5.0
-fixed_length_mm = 230.0
-[[bar]]
-id = "B02"
-resolution_nm = 5.0
-fixed_length_mm = 230.0
-[[device]]
-id = "hexapod-1"
-kind = "hexapod"
-base_mm = [[196.962, -34.730, 0.0], [196.962, 34.730, 0.0], [-68.404, 187.939, 0.0],
-           [-128.558, 153.209, 0.0], [-128.558, -153.209, 0.0], [-68.404, -187.939, 0.0]]
-platform_mm = [[64.279, -76.604, 0.0], [64.279, 76.604, 0.0], [34.202, 93.969, 0.0],
-               [-98.481, 17.365, 0.0], [-98.481, -17.365, 0.0], [34.202, -93.969, 0.0]]
-u_base_um = 2.0
-u_platform_um = [1.0, 1.0, 1.0, 1.0, 1.0, 2.0]
-nominal_pose = [0.0, 0.0, 260.0, 0.0, 0.0, 0.0]
-reference_mm = [400.0, 300.0, -200.0]
-cte_ppm_per_k = 11.5
-sensor = "T1"
-{device_extra}
-[[mount]]
-bar = "B01"
-device = "hexapod-1"
-leg = 1
-from = 2026-11-04T01:00:00Z
-to   = 2026-11-06T00:00:00Z
-{extra_mount}
-"#
-        )
-    }
-
-    fn check(text: &str) -> Result<Campaign, String> {
-        let m = Manifest::from_toml_str(text, "campaign.toml").map_err(|e| e.to_string())?;
-        Campaign::from_manifest(m).map_err(|e| e.to_string())
-    }
-
-    fn refused(text: &str, words: &[&str]) {
-        let e = check(text).expect_err("refused");
-        assert!(!e.contains('\n'), "{e}");
-        for w in words {
-            assert!(e.contains(w), "{e:?} lacks {w:?}");
-        }
-    }
-
-    #[test]
-    fn the_specs_example_device_is_read_with_its_defaults() {
-        let c = check(&manifest("", "")).unwrap();
-        let d = &c.devices[0];
-        assert_eq!(d.id, "hexapod-1");
-        assert_eq!(d.u_base_um, [2.0; 6]);
-        assert_eq!(d.u_platform_um[5], 2.0);
-        assert_eq!(d.tool_point_mm, [0.0; 3]);
-        assert_eq!(d.up, [0.0, 0.0, 1.0]);
-        assert_eq!(d.reference_mm, Some([400.0, 300.0, -200.0]));
-        assert_eq!(c.mounts[0].leg, Some(1));
-        // Written back and read again: the same campaign.
-        let m = Manifest::from_toml_str(&manifest("", ""), "x").unwrap();
-        let again = check(&m.to_toml_string().unwrap()).unwrap();
-        assert_eq!(again, c);
-    }
-
-    #[test]
-    fn leg_mounts_and_device_tables_are_checked_with_one_line_naming_the_key() {
-        let second = |leg: &str, from: &str, place: &str| {
-            format!(
-                "[[mount]]\nbar = \"B02\"\n{place}\n{leg}\nfrom = {from}\nto = 2026-11-07T00:00:00Z\n"
-            )
-        };
-        let dev = "device = \"hexapod-1\"";
-        refused(
-            &manifest(&second("", "2026-11-04T01:00:00Z", dev), ""),
-            &["mount[1]", "leg (1–6) is required"],
-        );
-        refused(
-            &manifest(&second("leg = 7", "2026-11-04T01:00:00Z", dev), ""),
-            &["mount[1]", "leg = 7"],
-        );
-        refused(
-            &manifest(
-                &second("leg = 2", "2026-11-04T01:00:00Z", "length = \"min\""),
-                "",
-            ),
-            &["mount[1]", "leg with length"],
-        );
-        refused(
-            &manifest(
-                &second("leg = 2", "2026-11-04T01:00:00Z", "device = \"other\""),
-                "",
-            ),
-            &["mount[1]", "no [[device]] table"],
-        );
-        refused(
-            &manifest(&second("leg = 1", "2026-11-05T00:00:00Z", dev), ""),
-            &["mount[1]", "leg 1", "already carries bar \"B01\""],
-        );
-        // After the first bar left leg 1, another may take it.
-        check(&manifest(
-            &second("leg = 1", "2026-11-06T00:00:00Z", dev),
-            "",
-        ))
-        .unwrap();
-        // An undeclared device keeps the old meaning: no leg.
-        check(&manifest(
-            &second("", "2026-11-04T01:00:00Z", "device = \"other\""),
-            "",
-        ))
-        .unwrap();
-        let bad_ring =
-            manifest("", "").replace("[-68.404, -187.939, 0.0]]\nplatform", "]\nplatform");
-        let bad_ring = bad_ring.replace(", ]", "]");
-        refused(&bad_ring, &["device[0]", "base_mm has 5 joint centres"]);
-        refused(
-            &manifest("", "").replace("u_base_um = 2.0", "u_base_um = [2.0, 2.0]"),
-            &["device[0]", "u_base_um has 2 values"],
-        );
-        refused(
-            &manifest("", "").replace("sensor = \"T1\"\n", "sensor = \"T9\"\n"),
-            &["device[0]", "sensor", "T9"],
-        );
-        refused(
-            &manifest("", "").replace("kind = \"hexapod\"", "kind = \"tripod\""),
-            &["campaign.toml", "tripod"],
-        );
-        refused(
-            &manifest("", "").replace("cte_ppm_per_k = 11.5", "cte_ppm_per_k = 1e9"),
-            &["device[0]", "cte_ppm_per_k"],
-        );
     }
 }

@@ -11,10 +11,9 @@ use super::{BarDiagnosis, Criteria};
 use crate::identify::BarModel;
 use crate::model::Effect;
 use crate::series::BarSeries;
-use serde::Serialize;
 
 /// One bar's own forward selection.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BarLedger {
     /// Bar id.
     pub bar: String,
@@ -23,7 +22,7 @@ pub struct BarLedger {
     /// The bar was not searched on its own: the fleet's selection already brings it within the
     /// materiality threshold of its reading-noise floor ([`needs_own_selection`]), and its
     /// steps are the fleet's, on this bar.
-    pub(crate) from_fleet: bool,
+    pub from_fleet: bool,
 }
 
 /// Whether a bar needs a forward selection of its own: the fleet's selected model for it

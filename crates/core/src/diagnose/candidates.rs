@@ -6,16 +6,14 @@
 
 use super::bar::term_identity;
 use super::compare::{lr_p_value, prefer_named_effects, unidentifiable_pair};
-use super::explain;
 use super::refits::Refits;
 use super::screen::Screen;
 use super::screen::ScreenBase;
-use super::sensors;
-use super::summary::{fmt_um, summarise_candidate};
+use super::summary::summarise_candidate;
 use super::{
-    BarDiagnosis, Candidate, CandidateOnBar, Criteria, Verdict, CHANNEL_CANDIDATES,
-    COARSE_RIVAL_SHARE, HEAT_CANDIDATES, MAX_EXACT_RIVALS, NAMED_TIE_SHARE, RIVAL_SHARE,
-    SCREEN_SHARE,
+    BarDiagnosis, Candidate, CandidateError, CandidateOnBar, Criteria, Reason, Verdict,
+    CHANNEL_CANDIDATES, COARSE_RIVAL_SHARE, HEAT_CANDIDATES, MAX_EXACT_RIVALS, NAMED_TIE_SHARE,
+    RIVAL_SHARE, SCREEN_SHARE,
 };
 use crate::identify::BarModel;
 use crate::model::channels;
@@ -24,7 +22,6 @@ use crate::model::Transform;
 use crate::model::CATALOGUE;
 use crate::series::BarSeries;
 use rayon::prelude::*;
-use serde::Serialize;
 use statrs::distribution::ChiSquared;
 use statrs::distribution::ContinuousCDF;
 use std::collections::HashMap;
@@ -70,22 +67,14 @@ pub(crate) fn candidate_effects(effects: &[Effect], diagnoses: &[BarDiagnosis]) 
     out
 }
 
-/// Rewrite the channel candidates' explanations with what their sensors plausibly are.
-pub(crate) fn explain_candidates(
-    candidates: &mut [Candidate],
-    profiles: &[sensors::SensorProfile],
-) {
-    for c in candidates {
-        c.explanation = explain::explain_with(&c.effect, profiles);
-    }
-}
-
 /// A candidate that could not be fitted on any bar (e.g. `head_heating` without `head_power`
 /// events), with the first bar's reason.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Unavailable {
-    pub(crate) effect: Effect,
-    pub(crate) reason: String,
+    /// The candidate.
+    pub effect: Effect,
+    /// Why the first bar could not fit it (`None` without bars).
+    pub reason: Option<CandidateError>,
 }
 
 /// Screen every candidate on every bar (`bases`: the bars' models linearised,
@@ -115,14 +104,14 @@ pub(super) fn evaluate_at_most(
     max_refits: Option<usize>,
 ) -> (Vec<Candidate>, Vec<Unavailable>) {
     let threshold = criteria.alpha / candidates.len().max(1) as f64;
-    let screens: Vec<Vec<Result<Screen, String>>> = candidates
+    let screens: Vec<Vec<Result<Screen, CandidateError>>> = candidates
         .par_iter()
         .map(|effect| {
             bases
                 .iter()
                 .map(|b| match b {
                     Some(b) => b.screen(effect),
-                    None => Err("the model could not be linearised on this bar".into()),
+                    None => Err(CandidateError::NotLinearised),
                 })
                 .collect()
         })
@@ -140,10 +129,7 @@ pub(super) fn evaluate_at_most(
         } else {
             unavailable.push(Unavailable {
                 effect: candidates[c].clone(),
-                reason: per_bar
-                    .iter()
-                    .find_map(|s| s.as_ref().err().cloned())
-                    .unwrap_or_default(),
+                reason: per_bar.iter().find_map(|s| s.as_ref().err().cloned()),
             });
         }
     }
@@ -163,7 +149,7 @@ pub(super) fn evaluate_at_most(
         .filter(|(rank, (c, _, _))| max_refits.is_none_or(|most| *rank < most) || shift_only(*c))
         .map(|(_, (c, _, _))| *c)
         .collect();
-    let best_effect = screened.first().map(|(c, _, _)| candidates[*c].name());
+    let best_effect = screened.first().map(|(c, _, _)| candidates[*c].clone());
     let CoarseTier {
         kept: (mut refit, starts),
         deferred,
@@ -220,20 +206,19 @@ pub(super) fn evaluate_at_most(
                 && change >= SCREEN_SHARE * criteria.min_gain_um
                 && gain >= RIVAL_SHARE * best
             {
-                summary.reason = format!(
-                    "screened out: {} candidates of this step screened better and only so many are refitted here (the forward selection on the bars' coarse copies); the fleet RMS it removes is {} µm, screened",
-                    max_refits.unwrap_or_default(),
-                    fmt_um(gain)
-                );
+                summary.reason = Reason::RefitCap {
+                    refitted: max_refits.unwrap_or_default(),
+                    gain_um: gain,
+                };
             } else if summary.verdict == Verdict::ScreenedOut
                 && change >= SCREEN_SHARE * criteria.min_gain_um
             {
-                summary.reason = format!(
-                    "screened out: the fleet RMS it removes ({} µm, screened) is less than {RIVAL_SHARE} of the best candidate's ({}, {} µm); if real it is found once that one is in the model",
-                    fmt_um(gain),
-                    best_effect.as_deref().unwrap_or(""),
-                    fmt_um(best)
-                );
+                summary.reason = Reason::BelowRivalShare {
+                    gain_um: gain,
+                    share: RIVAL_SHARE,
+                    best: best_effect.clone(),
+                    best_um: best,
+                };
             }
             summary
         })
@@ -257,7 +242,7 @@ pub(super) fn evaluate_at_most(
 /// statistics summed), as screened; `None` if it could be built on no bar.
 fn screened_change(
     bars: &[(&BarSeries, &BarModel)],
-    per_bar: &[Result<Screen, String>],
+    per_bar: &[Result<Screen, CandidateError>],
 ) -> Option<(f64, f64, f64)> {
     let (mut before, mut after, mut shift, mut n) = (0.0, 0.0, 0.0, 0usize);
     let (mut score, mut dof) = (0.0, 0usize);
@@ -369,19 +354,26 @@ fn coarse_tier(
             kept.push(c);
             starts.push(start_of(k));
         } else {
-            let why = if removed[k] >= COARSE_RIVAL_SHARE * best {
-                format!("close to the best candidate's ({}, {} µm²), but {MAX_EXACT_RIVALS} candidates that remove more (or as much, with a name) are refitted exactly first; if it is an alias of the one proposed, it is gone once that one is in the model", candidates[refit[best_at]].name(), fmt_um(best))
+            let (removed_um2, removed_rms_um) = (removed[k], fleet_rms(removed[k]));
+            let best_effect = candidates[refit[best_at]].clone();
+            let reason = if removed[k] >= COARSE_RIVAL_SHARE * best {
+                Reason::CoarseBehindRivals {
+                    removed_um2,
+                    removed_rms_um,
+                    best: best_effect,
+                    best_um2: best,
+                    rivals: MAX_EXACT_RIVALS,
+                }
             } else {
-                format!("less than {COARSE_RIVAL_SHARE} of the best candidate's ({}, {} µm²); if real it is found once that one is in the model", candidates[refit[best_at]].name(), fmt_um(best))
+                Reason::CoarseBelowShare {
+                    removed_um2,
+                    removed_rms_um,
+                    share: COARSE_RIVAL_SHARE,
+                    best: best_effect,
+                    best_um2: best,
+                }
             };
-            reasons.insert(
-                c,
-                format!(
-                    "screened out: refitted on the bars' 300-s copies it removes {} µm² of the fleet RSS (an RMS of {} µm), {why}",
-                    fmt_um(removed[k]),
-                    fmt_um(fleet_rms(removed[k])),
-                ),
-            );
+            reasons.insert(c, reason);
         }
     }
     CoarseTier {
@@ -400,7 +392,7 @@ struct CoarseTier {
     /// batch at a time, only while no candidate refitted exactly is proposed.
     deferred: Vec<(usize, Vec<Option<BarModel>>)>,
     /// Why each candidate left out was left out.
-    reasons: HashMap<usize, String>,
+    reasons: HashMap<usize, Reason>,
 }
 
 /// Exact refits of the candidates `refit` (indices into `candidates`) on every bar where they
@@ -413,7 +405,7 @@ pub(super) fn exact_refits(
     refit: &[usize],
     starts: &[Vec<Option<BarModel>>],
     candidates: &[Effect],
-    screens: &[Vec<Result<Screen, String>>],
+    screens: &[Vec<Result<Screen, CandidateError>>],
     threshold: f64,
     refits: &Refits,
 ) -> Vec<Vec<CandidateOnBar>> {
@@ -454,7 +446,7 @@ pub(super) fn exact_refits(
 /// A candidate's per-bar results when it was screened out (no refit).
 fn screened_only(
     bars: &[(&BarSeries, &BarModel)],
-    screens: &[Result<Screen, String>],
+    screens: &[Result<Screen, CandidateError>],
 ) -> Vec<CandidateOnBar> {
     bars.iter()
         .zip(screens)
@@ -475,7 +467,7 @@ fn screened_only(
         .collect()
 }
 
-fn unfit_on_bar(base: &BarModel, error: String) -> CandidateOnBar {
+fn unfit_on_bar(base: &BarModel, error: CandidateError) -> CandidateOnBar {
     CandidateOnBar {
         bar: base.bar.clone(),
         rms_before_um: base.rms_um,
@@ -510,10 +502,14 @@ fn candidate_on_bar(
         Ok(m) => m,
         Err(e) => return unfit_on_bar(base, e.clone()),
     };
-    if let Some((a, b, r)) = unidentifiable_pair(base, extended) {
+    if let Some((first, second, correlation)) = unidentifiable_pair(base, extended) {
         return unfit_on_bar(
             base,
-            format!("not identifiable on this bar: {a} and {b} correlate at {r:.4}"),
+            CandidateError::NotIdentifiable {
+                first,
+                second,
+                correlation,
+            },
         );
     }
     let added = extended.n_params.saturating_sub(base.n_params).max(1);

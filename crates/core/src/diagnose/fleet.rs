@@ -2,7 +2,6 @@
 //! the log (`DBBCAL_LOG=info`).
 
 use rayon::prelude::*;
-use serde::Serialize;
 
 use crate::identify::{BarModel, BarOutcome};
 use crate::model::Effect;
@@ -11,10 +10,9 @@ use crate::stage::timed;
 
 use super::sensors::{sensor_profiles, SensorProfile};
 use super::{
-    bar_ledger_from_fleet, candidate_effects, diagnose_bar, evaluate_candidates,
-    explain_candidates, forward_selection, forward_selection_of_bar, needs_own_selection,
-    screen_bases, BarDiagnosis, BarLedger, Candidate, Criteria, LedgerStep, Refits, Search,
-    Unavailable,
+    bar_ledger_from_fleet, candidate_effects, diagnose_bar, evaluate_candidates, forward_selection,
+    forward_selection_of_bar, needs_own_selection, screen_bases, BarDiagnosis, BarLedger,
+    Candidate, Criteria, LedgerStep, Refits, Search, Unavailable,
 };
 
 /// How the fleet is diagnosed.
@@ -31,7 +29,7 @@ pub struct DiagnoseOptions {
 }
 
 /// The diagnose stage's result.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct Diagnosis {
     /// Per bar: where its model fails (residual statistics, channels).
     pub bars: Vec<BarDiagnosis>,
@@ -52,9 +50,9 @@ pub struct Diagnosis {
 
 /// Diagnose the fleet's identified bars: linearise each model, rank every bar's channels (in
 /// parallel; `on_bar_done` is called once per bar, a progress bar), set the noise floor and the
-/// criteria, screen and refit the candidate effects, profile the sensors and explain the
-/// candidates, run forward selection fleet-wide, and per bar where the fleet's model leaves a bar
-/// short (`needs_own_selection`).
+/// criteria, screen and refit the candidate effects, profile the sensors, run forward
+/// selection fleet-wide, and per bar where the fleet's model leaves a bar short
+/// (`needs_own_selection`).
 pub fn diagnose_fleet(
     bars: &[BarOutcome],
     options: &DiagnoseOptions,
@@ -77,7 +75,7 @@ pub fn diagnose_fleet(
         Criteria::for_fleet(&bases, options.tolerance_um)
     });
     let refits = Refits::default();
-    let (mut candidates, unavailable) = timed("diagnose: candidates", || {
+    let (candidates, unavailable) = timed("diagnose: candidates", || {
         evaluate_candidates(
             &pairs,
             &bases,
@@ -91,7 +89,6 @@ pub fn diagnose_fleet(
         .first()
         .map(|o| sensor_profiles(&o.series))
         .unwrap_or_default();
-    explain_candidates(&mut candidates, &sensors);
     let series: Vec<&BarSeries> = bars.iter().map(|o| &o.series).collect();
     let models: Vec<BarModel> = bars.iter().map(|o| o.model.clone()).collect();
     let (ledger, fleet_models) = timed("diagnose: fleet forward selection", || {

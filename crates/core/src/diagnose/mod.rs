@@ -88,9 +88,10 @@ mod bar;
 mod bar_selection;
 mod candidates;
 mod compare;
-pub mod explain;
+mod error;
 mod fleet;
 pub(crate) mod noise;
+mod reason;
 mod refits;
 pub(crate) mod residual;
 pub(crate) mod screen;
@@ -99,7 +100,6 @@ pub mod sensors;
 mod summary;
 
 use rayon::prelude::*;
-use serde::Serialize;
 
 use crate::model::Effect;
 use residual::ResidualStats;
@@ -111,8 +111,10 @@ pub(crate) use bar_selection::{
     bar_ledger_from_fleet, forward_selection_of_bar, needs_own_selection, Search,
 };
 pub use candidates::Unavailable;
-pub(crate) use candidates::{candidate_effects, evaluate_candidates, explain_candidates};
+pub(crate) use candidates::{candidate_effects, evaluate_candidates};
+pub use error::CandidateError;
 pub use fleet::{diagnose_fleet, DiagnoseOptions, Diagnosis};
+pub use reason::Reason;
 pub(crate) use refits::Refits;
 pub(crate) use selection::forward_selection;
 pub use selection::{Added, LedgerStep};
@@ -196,12 +198,8 @@ pub(crate) fn may_be_proposed_for_its_shift(effect: &Effect) -> bool {
     !matches!(effect, Effect::Channel { .. })
 }
 
-/// Why a channel term's shift is not counted, in a candidate's `reason`.
-const CHANNEL_SHIFT: &str = "a channel term counts only for what it removes (traded against the \
-     base paths, its gain moves them with hardly any change to the fit)";
-
 /// When a candidate is worth proposing.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Criteria {
     /// Reading-noise floor of the fleet (µm): the quadratic mean over bars of the white-noise
     /// standard deviation under each residual (`ScreenBase::white_noise_variance`).
@@ -265,7 +263,7 @@ impl Criteria {
 }
 
 /// How much of a bar's residual one channel's first-order response explains.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ChannelScore {
     /// Channel name.
     pub channel: String,
@@ -277,7 +275,7 @@ pub struct ChannelScore {
 }
 
 /// One bar's diagnosis: its residual and its channel ranking.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct BarDiagnosis {
     /// Bar id.
     pub bar: String,
@@ -294,7 +292,7 @@ pub struct BarDiagnosis {
 }
 
 /// One candidate effect's result on one bar.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CandidateOnBar {
     /// Bar id.
     pub bar: String,
@@ -304,20 +302,21 @@ pub struct CandidateOnBar {
     pub screened_rms_after_um: f64,
     /// How much adding it moves the model's own terms' prediction, RMS (µm, screened:
     /// [`Screen::shift_rms_um`]).
-    pub(crate) screened_shift_um: f64,
+    pub screened_shift_um: f64,
     /// Exact refit (absent when the candidate was screened out).
     pub rms_after_um: Option<f64>,
-    pub(crate) delta_bic: Option<f64>,
-    pub(crate) p_value: Option<f64>,
+    /// ΔBIC of adding it on this bar (absent when screened out).
+    pub delta_bic: Option<f64>,
+    /// p-value of its likelihood-ratio test on this bar (absent when screened out).
+    pub p_value: Option<f64>,
     /// Significant on this bar alone (its own test at the family-wise threshold, ΔBIC < 0).
-    pub(crate) significant: bool,
+    pub significant: bool,
     /// Why it could not be fitted on this bar, if so.
-    pub error: Option<String>,
+    pub error: Option<CandidateError>,
 }
 
 /// What the diagnosis concludes of a candidate.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq, PartialOrd, Ord)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Verdict {
     /// Significant and material: the diagnosis proposes adding it.
     Proposed,
@@ -331,14 +330,14 @@ pub enum Verdict {
 }
 
 /// One candidate effect fleet-wide: screen, exact refits, tests and verdict.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {
     /// Written as its name, accepted verbatim by `--add-effect`.
     pub effect: Effect,
     /// What the diagnosis concludes.
     pub verdict: Verdict,
-    /// The verdict in words, with the numbers it rests on.
-    pub reason: String,
+    /// Why: the rule that decided the verdict, with the numbers it rests on.
+    pub reason: Reason,
     /// Fleet RMS (quadratic mean over the bars that could fit it) before adding it.
     pub rms_before_um: f64,
     /// Fleet RMS after adding it as the screen predicts it.
@@ -355,12 +354,10 @@ pub struct Candidate {
     /// Bars on which it is significant on their own.
     pub bars_improved: usize,
     /// Statistically significant (5 % family-wise).
-    pub(crate) significant: bool,
+    pub significant: bool,
     /// Its RMS reduction, or how much it moves the model's own terms, reaches
     /// [`Criteria::min_gain_um`].
-    pub(crate) material: bool,
-    /// What the effect is, in words.
-    pub explanation: String,
+    pub material: bool,
     /// Its result on each bar.
     pub per_bar: Vec<CandidateOnBar>,
 }

@@ -5,6 +5,7 @@
 //! once-computed fits); the rest of the module is pure functions over it.
 
 use super::noise;
+use super::CandidateError;
 use crate::identify::identify_from;
 use crate::identify::identify_from_coarse_optimum;
 use crate::identify::BarModel;
@@ -48,7 +49,7 @@ fn key(bar: &str, effects: &[Effect]) -> (String, Vec<String>) {
 /// One exact refit, and the log-likelihood of its residual under its own noise model (fitted
 /// when a test first asks for it).
 pub(crate) struct Refit {
-    pub(crate) model: Result<BarModel, String>,
+    pub(crate) model: Result<BarModel, CandidateError>,
     noise_log_likelihood: OnceLock<f64>,
 }
 
@@ -89,7 +90,7 @@ impl Refits {
         let fitted = Arc::new(Refit {
             model: model
                 .map(BarModel::without_curves)
-                .map_err(|e| e.to_string()),
+                .map_err(CandidateError::from),
             noise_log_likelihood: OnceLock::new(),
         });
         tracing::debug!(bar = %key.0, effects = ?key.1, samples = series.fit_index.len(), ms = started.elapsed().as_millis(), "diagnose: refit");

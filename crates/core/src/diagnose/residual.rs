@@ -4,12 +4,11 @@
 //! residual autocorrelation (as in System Identification's `resid`); the cumulative periodogram
 //! with its Kolmogorov-Smirnov band is Box & Jenkins' test for periodic structure.
 
-use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 use crate::fit::autocorrelation;
 
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ResidualStats {
     pub rms_um: f64,
     pub peak_to_valley_um: f64,

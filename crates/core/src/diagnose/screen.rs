@@ -22,6 +22,7 @@ use nalgebra::DMatrix;
 use nalgebra::DVector;
 
 use super::noise::{self, NoiseFit};
+use super::CandidateError;
 use crate::fit::{self, Separable};
 use crate::identify::{coarse_copy, BarModel};
 use crate::model::{Effect, ThermalProblem};
@@ -142,10 +143,10 @@ impl ScreenBase {
 
     /// Screen `effect` added to the model: the RSS its linearised refit removes. `Err` names why
     /// the term cannot be built for this bar (e.g. no events of its kind).
-    pub(crate) fn screen(&self, effect: &Effect) -> Result<Screen, String> {
+    pub(crate) fn screen(&self, effect: &Effect) -> Result<Screen, CandidateError> {
         let mut effects = self.effects.clone();
         effects.push(effect.clone());
-        let problem = ThermalProblem::new(&self.series, &effects).map_err(|e| e.to_string())?;
+        let problem = ThermalProblem::new(&self.series, &effects)?;
         let terms = AddedTerms {
             problem: &problem,
             base_theta: &self.theta,
@@ -154,7 +155,9 @@ impl ScreenBase {
             residuals: &self.residuals,
         };
         if terms.n_gains <= terms.first_gain {
-            return Err(format!("{} adds no term to this model", effect.name()));
+            return Err(CandidateError::NoTerm {
+                effect: effect.clone(),
+            });
         }
         let theta0 = problem.theta0()[self.theta.len()..].to_vec();
         let (removed, theta) = match &self.directions {
@@ -164,7 +167,9 @@ impl ScreenBase {
             ),
             None => removed_rss(&terms, &theta0),
         }
-        .ok_or_else(|| format!("{} cannot be separated from the model", effect.name()))?;
+        .ok_or_else(|| CandidateError::NotSeparable {
+            effect: effect.clone(),
+        })?;
         let delta_rss_um2 = removed.clamp(0.0, self.rss_um2);
         let (shift_rss_um2, score) = match &self.directions {
             Some(q) => {
@@ -214,14 +219,14 @@ impl ScreenBase {
         &self,
         model: &BarModel,
         effect: &Effect,
-    ) -> Option<Result<(f64, BarModel), String>> {
+    ) -> Option<Result<(f64, BarModel), CandidateError>> {
         if !self.coarse {
             return None;
         }
         let mut effects = self.effects.clone();
         effects.push(effect.clone());
         let refit = crate::identify::identify_from(&self.series, &effects, Some(model));
-        Some(refit.map_err(|e| e.to_string()).map(|m| {
+        Some(refit.map_err(CandidateError::from).map(|m| {
             let after: f64 = self
                 .series
                 .weighted_residuals(&m.residuals_um)

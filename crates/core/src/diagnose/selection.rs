@@ -12,8 +12,8 @@ use super::refits::Refits;
 use super::screen::Screen;
 use super::summary::summarise_candidate;
 use super::{
-    BarDiagnosis, Candidate, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS, HEAT_CANDIDATES,
-    PATH_TIE_SHARE,
+    BarDiagnosis, Candidate, CandidateError, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS,
+    HEAT_CANDIDATES, PATH_TIE_SHARE,
 };
 use crate::identify::identify_from;
 use crate::identify::BarModel;
@@ -21,21 +21,22 @@ use crate::model::Effect;
 use crate::model::CATALOGUE;
 use crate::series::BarSeries;
 use rayon::prelude::*;
-use serde::Serialize;
 
 /// One step of forward selection.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LedgerStep {
     /// What this step added (written `"base"` for the starting model, else the effect's name).
     pub added: Added,
-    pub(crate) effects: Vec<Effect>,
+    /// The model's effects after this step.
+    pub effects: Vec<Effect>,
     /// Each bar's RMS residual after this step, µm.
     pub rms_um: Vec<(String, f64)>,
     /// Fleet RMS residual after this step, µm.
     pub fleet_rms_um: f64,
-    /// The added effect's ΔBIC and p-value (absent for the starting model).
-    pub(crate) delta_bic: Option<f64>,
-    pub(crate) p_value: Option<f64>,
+    /// The added effect's ΔBIC (absent for the starting model).
+    pub delta_bic: Option<f64>,
+    /// The added effect's p-value (absent for the starting model).
+    pub p_value: Option<f64>,
 }
 
 /// What a ledger step added to the model before it.
@@ -68,12 +69,6 @@ impl Added {
 impl std::fmt::Display for Added {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.pad(&self.name())
-    }
-}
-
-impl Serialize for Added {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.serialize_str(&self.name())
     }
 }
 
@@ -522,11 +517,11 @@ fn exact_candidate(
     // effect was chosen on the coarse copies of these same readings.
     let threshold =
         criteria.alpha / (CATALOGUE.len() + CHANNEL_CANDIDATES + HEAT_CANDIDATES) as f64;
-    let screens: Vec<Vec<Result<Screen, String>>> = vec![bases
+    let screens: Vec<Vec<Result<Screen, CandidateError>>> = vec![bases
         .iter()
         .map(|b| match b {
             Some(b) => b.screen(effect),
-            None => Err("the model could not be linearised on this bar".into()),
+            None => Err(CandidateError::NotLinearised),
         })
         .collect()];
     let starts = vec![starts.to_vec()];

@@ -6,10 +6,8 @@
 //! bar's air (the share of its variance the best time constant explains, on a grid of time
 //! constants), then what the air leaves by a first-order response to each event kind (beside
 //! the air), and by its fast fluctuations (what a 10-min zero-phase smoothing removes). The
-//! drivers name it:
-//! "follows the air …; heated by 'spindle' events (92 % of what the air leaves, tau 16 min)".
-
-use serde::Serialize;
+//! drivers name it; the application words them (`src/narrative/sensors.rs`: "follows the air …;
+//! heated by 'spindle' events (92 % of what the air leaves, tau 16 min)").
 
 use crate::campaign::SensorKind;
 use crate::model::channels;
@@ -22,38 +20,61 @@ const MAX_SAMPLES: usize = 20_000;
 const TAU_GRID_S: [f64; 8] = [120.0, 240.0, 480.0, 960.0, 1920.0, 3840.0, 7680.0, 15360.0];
 /// A driver "explains" a sensor when its best response removes at least this share of the
 /// sensor's variance.
-const DRIVEN_SHARE: f64 = 0.5;
+pub const DRIVEN_SHARE: f64 = 0.5;
 /// Zero-phase smoothing that separates fast fluctuations (air-conditioning, draughts) from the
 /// slow signal, s.
 const FAST_SMOOTHING_S: f64 = 600.0;
 
 /// One sensor's profile.
-#[derive(Debug, Clone, Serialize, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct SensorProfile {
     /// Sensor id.
     pub sensor: String,
     /// `air`, `plate` or `other`: the bar's air sensor(s) and the plate sensor as
     /// `campaign.toml` declares them, every other sensor `other`.
-    pub(crate) declared_kind: SensorKind,
+    pub declared_kind: SensorKind,
     /// Max − min over the bar's log, K.
-    pub(crate) range_k: f64,
+    pub range_k: f64,
     /// RMS of what a 10-min zero-phase smoothing removes (fluctuations faster than about an
     /// hour), K.
     pub fast_fluctuation_k: f64,
     /// Share of the sensor's variance its best first-order response to the air explains
     /// (`None` for the air sensors themselves).
-    pub(crate) air_share: Option<f64>,
-    pub(crate) air_tau_s: f64,
+    pub air_share: Option<f64>,
+    /// The time constant of that response, s.
+    pub air_tau_s: f64,
     /// The event kind whose first-order response explains most of what the air leaves; `KIND
     /// (on/off)` when the on/off state of valued events explains more than their value.
-    pub(crate) event: Option<String>,
-    pub(crate) event_tau_s: f64,
+    pub event: Option<String>,
+    /// The time constant of that response, s.
+    pub event_tau_s: f64,
     /// Share of what the air leaves (of the whole variance for air sensors) that it explains.
-    pub(crate) event_share: f64,
-    /// In words, for reports and explanations.
-    pub description: String,
-    /// The same in a few words, for figure captions.
-    pub(crate) summary: String,
+    pub event_share: f64,
+}
+
+impl SensorProfile {
+    /// The air explains it: its response removes at least [`DRIVEN_SHARE`] of its variance.
+    pub fn follows_air(&self) -> bool {
+        self.air_share.is_some_and(|s| s >= DRIVEN_SHARE)
+    }
+
+    /// The event kind that explains it (at least [`DRIVEN_SHARE`] of what the air leaves).
+    pub fn heated_by(&self) -> Option<&str> {
+        self.event
+            .as_deref()
+            .filter(|_| self.event_share >= DRIVEN_SHARE)
+    }
+
+    /// A fast response that explains most of what the air leaves: the sensor sits near the
+    /// source.
+    pub fn near_source(&self) -> bool {
+        self.event_share >= 0.7 && self.event_tau_s <= 3600.0
+    }
+
+    /// Its fast fluctuations matter: above 0.1 K RMS and 3 % of its range.
+    pub fn fluctuates_fast(&self) -> bool {
+        self.fast_fluctuation_k > 0.1 && self.fast_fluctuation_k > 0.03 * self.range_k
+    }
 }
 
 /// Profiles of every sensor of `series`' campaign, by sensor name.
@@ -194,7 +215,7 @@ fn profile(
         Some((k, tau, share)) => (Some(k), tau, share),
         None => (None, f64::NAN, 0.0),
     };
-    let mut p = SensorProfile {
+    SensorProfile {
         sensor: name.to_string(),
         declared_kind,
         range_k: hi - lo,
@@ -204,69 +225,6 @@ fn profile(
         event,
         event_tau_s,
         event_share,
-        description: String::new(),
-        summary: String::new(),
-    };
-    p.description = describe(&p);
-    p.summary = summarise(&p);
-    p
-}
-
-/// A fast response that explains most of what the air leaves: the sensor sits near the source.
-fn is_near_source(p: &SensorProfile) -> bool {
-    p.event_share >= 0.7 && p.event_tau_s <= 3600.0
-}
-
-/// The profile in a few words: "follows the air (16 min), heated by 'spindle' (on/off, 32 min)".
-fn summarise(p: &SensorProfile) -> String {
-    let mut parts = Vec::new();
-    match p.declared_kind {
-        SensorKind::Air => parts.push("air sensor".to_string()),
-        SensorKind::Plate => parts.push("plate sensor".to_string()),
-        _ => {}
-    }
-    if p.air_share.is_some_and(|s| s >= DRIVEN_SHARE) {
-        parts.push(format!("follows the air ({:.0} min)", p.air_tau_s / 60.0));
-    }
-    if let Some(kind) = p.event.as_deref().filter(|_| p.event_share >= DRIVEN_SHARE) {
-        let near = if is_near_source(p) {
-            ", near the source"
-        } else {
-            ""
-        };
-        parts.push(format!(
-            "heated by {} ({:.0} min{near})",
-            event_words(kind),
-            p.event_tau_s / 60.0
-        ));
-    }
-    if parts.is_empty() {
-        parts.push("moves on its own".into());
-    }
-    if p.fast_fluctuation_k > 0.1 && p.fast_fluctuation_k > 0.03 * p.range_k {
-        parts.push(format!("fast ±{:.1} K", 2.0 * p.fast_fluctuation_k));
-    }
-    format!("{}: {}", p.sensor, parts.join(", "))
-}
-
-/// The sensors a channel term reads, in a few words each (empty for other channels).
-pub fn channel_sensor_summaries(channel: &str, profiles: &[SensorProfile]) -> Vec<String> {
-    let names: Vec<&str> = match channel.split_once('-') {
-        Some((a, b)) => vec![a, b],
-        None => vec![channel],
-    };
-    names
-        .into_iter()
-        .filter_map(|n| profiles.iter().find(|p| p.sensor == n))
-        .map(|p| p.summary.clone())
-        .collect()
-}
-
-/// `spindle` → `'spindle' events`, `spindle (on/off)` → `'spindle' events (on/off)`.
-fn event_words(label: &str) -> String {
-    match label.strip_suffix(" (on/off)") {
-        Some(kind) => format!("'{kind}' events (on/off)"),
-        None => format!("'{label}' events"),
     }
 }
 
@@ -292,60 +250,6 @@ fn least_squares_rss(x: &[f64], columns: &[&Vec<f64>]) -> f64 {
         }
         None => centred_ss(x),
     }
-}
-
-/// The profile in words.
-fn describe(p: &SensorProfile) -> String {
-    let mut parts = vec![match p.declared_kind {
-        SensorKind::Air => format!("air sensor, range {:.1} K", p.range_k),
-        SensorKind::Plate => format!("plate sensor, range {:.1} K", p.range_k),
-        _ => format!("range {:.1} K", p.range_k),
-    }];
-    let follows_air = p.air_share.is_some_and(|s| s >= DRIVEN_SHARE);
-    if let Some(share) = p.air_share.filter(|_| follows_air) {
-        let minutes = p.air_tau_s / 60.0;
-        let place = if minutes <= 10.0 {
-            "in the air or on a light part"
-        } else {
-            "on a part that follows the room slowly"
-        };
-        parts.push(format!(
-            "follows the air ({:.0} % of its variation, tau {minutes:.0} min): probably {place}",
-            100.0 * share
-        ));
-    }
-    match p.event.as_deref() {
-        Some(kind) if p.event_share >= DRIVEN_SHARE => {
-            let minutes = p.event_tau_s / 60.0;
-            let place = if is_near_source(p) {
-                "near the heat source those events switch (a motor, bearing or head)"
-            } else {
-                "in the structure that source heats"
-            };
-            let of = if p.air_share.is_some() {
-                "of what the air leaves"
-            } else {
-                "of its variation"
-            };
-            parts.push(format!(
-                "heated by {} ({:.0} % {of}, tau {minutes:.0} min): probably {place}",
-                event_words(kind),
-                100.0 * p.event_share
-            ));
-        }
-        _ if !follows_air && p.declared_kind != SensorKind::Air => parts.push(
-            "moves mostly on its own: a slow part of the structure or a heat source nobody logs"
-                .into(),
-        ),
-        _ => {}
-    }
-    if p.fast_fluctuation_k > 0.1 && p.fast_fluctuation_k > 0.03 * p.range_k {
-        parts.push(format!(
-            "fast fluctuations of ±{:.1} K (air-conditioning or draughts)",
-            2.0 * p.fast_fluctuation_k
-        ));
-    }
-    parts.join("; ")
 }
 
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
@@ -387,11 +291,8 @@ mod tests {
         assert_eq!(p.event.as_deref(), Some("spindle"), "{p:?}");
         assert_eq!(p.event_tau_s, 960.0);
         assert!(p.event_share > 0.99, "{p:?}");
-        assert!(
-            p.description.contains("heated by 'spindle' events"),
-            "{}",
-            p.description
-        );
+        assert_eq!(p.heated_by(), Some("spindle"), "{p:?}");
+        assert!(p.near_source(), "{p:?}");
 
         // A sensor in the air: follows it, nothing left for the events.
         let p = profile(
@@ -402,11 +303,7 @@ mod tests {
             Some(&air_channel),
             &events,
         );
-        assert!(
-            p.description.contains("follows the air"),
-            "{}",
-            p.description
-        );
-        assert!(!p.description.contains("heated"), "{}", p.description);
+        assert!(p.follows_air(), "{p:?}");
+        assert_eq!(p.heated_by(), None, "{p:?}");
     }
 }

@@ -1,11 +1,10 @@
 //! A candidate's summary over the fleet: its verdict (proposed, immaterial, not significant,
-//! screened out) and the one-line reason the report prints.
+//! screened out) and the reason, as the numbers it rests on.
 //!
-//! Separate because it turns the per-bar numbers into the verdict and words users read.
+//! Separate because it turns the per-bar numbers into the verdict users read.
 
-use super::explain;
 use super::{
-    may_be_proposed_for_its_shift, Candidate, CandidateOnBar, Criteria, Verdict, CHANNEL_SHIFT,
+    may_be_proposed_for_its_shift, Candidate, CandidateOnBar, Criteria, Reason, Verdict,
     SCREEN_SHARE,
 };
 use crate::model::Effect;
@@ -29,10 +28,27 @@ pub(super) fn summarise_candidate(
     let screened_rms_after_um = fleet_rms(&|c| c.screened_rms_after_um);
     let screened_shift_um = fleet_rms(&|c| c.screened_shift_um);
     let refitted = !fitted.is_empty() && fitted.iter().all(|c| c.rms_after_um.is_some());
-    let mut candidate = Candidate {
+    let gain = rms_before_um - screened_rms_after_um;
+    let screened_reason = if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um {
+        Reason::ScreenedOutShiftIgnored {
+            gain_um: gain,
+            share: SCREEN_SHARE,
+            min_gain_um: criteria.min_gain_um,
+            shift_um: screened_shift_um,
+            channel_term: !may_be_proposed_for_its_shift(effect),
+        }
+    } else {
+        Reason::ScreenedOut {
+            gain_um: gain,
+            shift_um: screened_shift_um,
+            share: SCREEN_SHARE,
+            min_gain_um: criteria.min_gain_um,
+        }
+    };
+    let candidate = Candidate {
         effect: effect.clone(),
         verdict: Verdict::ScreenedOut,
-        reason: String::new(),
+        reason: screened_reason,
         rms_before_um,
         screened_rms_after_um,
         screened_shift_um,
@@ -42,35 +58,13 @@ pub(super) fn summarise_candidate(
         bars_improved: 0,
         significant: false,
         material: false,
-        explanation: explain::explain(effect),
         per_bar: Vec::new(),
     };
     if !refitted {
-        let gain = rms_before_um - screened_rms_after_um;
-        candidate.reason = if screened_shift_um >= SCREEN_SHARE * criteria.min_gain_um {
-            let why_not = if may_be_proposed_for_its_shift(effect) {
-                "its score test does not find the term or it leaves no trace in the fit (a reparametrisation the data do not determine)"
-            } else {
-                CHANNEL_SHIFT
-            };
-            format!(
-                "screened out: the linearised refit removes {} µm of the fleet RMS, below {} of the materiality threshold {} µm; it would move the model's own terms by {} µm, but {why_not}",
-                fmt_um(gain),
-                SCREEN_SHARE,
-                fmt_um(criteria.min_gain_um),
-                fmt_um(screened_shift_um)
-            )
-        } else {
-            format!(
-                "screened out: the linearised refit removes {} µm of the fleet RMS and moves the model's own terms by {} µm, both below {} of the materiality threshold {} µm",
-                fmt_um(gain),
-                fmt_um(screened_shift_um),
-                SCREEN_SHARE,
-                fmt_um(criteria.min_gain_um)
-            )
+        return Candidate {
+            per_bar,
+            ..candidate
         };
-        candidate.per_bar = per_bar;
-        return candidate;
     }
     let rms_after_um = fleet_rms(&|c| c.rms_after_um.unwrap_or(c.rms_before_um));
     let delta_bic: f64 = fitted.iter().filter_map(|c| c.delta_bic).sum();
@@ -89,12 +83,13 @@ pub(super) fn summarise_candidate(
     let (verdict, reason) = match (significant, material) {
         (true, true) => (
             Verdict::Proposed,
-            format!(
-                "significant (p = {p_value:.1e} < {threshold:.1e}) and material: removes {} µm of the fleet RMS and moves the model's own terms by {} µm (threshold {} µm)",
-                fmt_um(gain),
-                fmt_um(screened_shift_um),
-                fmt_um(criteria.min_gain_um)
-            ),
+            Reason::Proposed {
+                p_value,
+                threshold,
+                gain_um: gain,
+                shift_um: screened_shift_um,
+                min_gain_um: criteria.min_gain_um,
+            },
         ),
         (true, false)
             if screened_shift_um >= criteria.min_gain_um
@@ -102,28 +97,30 @@ pub(super) fn summarise_candidate(
         {
             (
                 Verdict::Immaterial,
-                format!(
-                    "detectable but immaterial: significant (p = {p_value:.1e}), but it removes only {} µm of the fleet RMS, below the materiality threshold {} µm; it would move the model's own terms by {} µm, but {CHANNEL_SHIFT}",
-                    fmt_um(gain),
-                    fmt_um(criteria.min_gain_um),
-                    fmt_um(screened_shift_um)
-                ),
+                Reason::ImmaterialShiftIgnored {
+                    p_value,
+                    gain_um: gain,
+                    min_gain_um: criteria.min_gain_um,
+                    shift_um: screened_shift_um,
+                },
             )
         }
         (true, false) => (
             Verdict::Immaterial,
-            format!(
-                "detectable but immaterial: significant (p = {p_value:.1e}), but it removes only {} µm of the fleet RMS and moves the model's own terms by {} µm, below the materiality threshold {} µm",
-                fmt_um(gain),
-                fmt_um(screened_shift_um),
-                fmt_um(criteria.min_gain_um)
-            ),
+            Reason::Immaterial {
+                p_value,
+                gain_um: gain,
+                shift_um: screened_shift_um,
+                min_gain_um: criteria.min_gain_um,
+            },
         ),
         (false, _) => (
             Verdict::NotSignificant,
-            format!(
-                "not significant: p = {p_value:.1e} against {threshold:.1e} (5 % family-wise), ΔBIC {delta_bic:.1}"
-            ),
+            Reason::NotSignificant {
+                p_value,
+                threshold,
+                delta_bic,
+            },
         ),
     };
     Candidate {
@@ -138,11 +135,4 @@ pub(super) fn summarise_candidate(
         per_bar,
         ..candidate
     }
-}
-
-/// A length in µm with four significant digits (a reason's numbers).
-pub(super) fn fmt_um(v: f64) -> String {
-    format!("{v:.3e}")
-        .parse::<f64>()
-        .map_or_else(|_| format!("{v}"), |x| format!("{x}"))
 }

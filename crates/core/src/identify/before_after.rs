@@ -4,7 +4,6 @@
 use std::collections::BTreeMap;
 
 use rayon::prelude::*;
-use serde::Serialize;
 
 use crate::matching::MATCH_PARAMS;
 use crate::model::{base_effects, Effect};
@@ -13,7 +12,7 @@ use super::{identify_from, BarModel, BarOutcome};
 
 /// The fleet's models beside the base model's refits (when the model has more than the base
 /// effects).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct BeforeAfter {
     /// The base model's effects.
     pub before_effects: Vec<String>,
@@ -28,7 +27,7 @@ pub struct BeforeAfter {
 }
 
 /// One bar, with the base model and with the model.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct BarBeforeAfter {
     /// The bar's id.
     pub bar: String,
@@ -37,9 +36,9 @@ pub struct BarBeforeAfter {
     /// RMS residual of the model, µm.
     pub rms_after_um: f64,
     /// Base parameters before and after: how much adding the effects moved them.
-    pub(crate) params_before: BTreeMap<String, f64>,
+    pub params_before: BTreeMap<String, f64>,
     /// The same parameters in the model.
-    pub(crate) params_after: BTreeMap<String, f64>,
+    pub params_after: BTreeMap<String, f64>,
 }
 
 /// Refit each bar with the base model (in parallel) to show what the added effects bought; a

@@ -10,10 +10,11 @@ use crate::campaign::{Campaign, TimeNs};
 use crate::model::Effect;
 use crate::series::{
     knot_logs, sensor_knots, BarBins, BarLog, BarSeries, Event, FleetContext, Quality, SensorLog,
+    SeriesError,
 };
 use crate::stage::StageOutcome;
 
-use super::{identify, BarModel};
+use super::{identify, BarModel, IdentifyError};
 
 /// One identified bar: the series it was fitted on and its model.
 #[derive(Debug, Clone)]
@@ -82,7 +83,7 @@ pub fn identify_fleet(
         t0_ns: logs.t0_ns,
     };
     let FleetReadings { bars, mut bins } = readings;
-    let outcomes: Vec<(String, Result<BarOutcome, String>)> = bars
+    let outcomes: Vec<(String, Result<BarOutcome, BarError>)> = bars
         .into_iter()
         .map(|(id, log)| {
             let binned = bins.remove(&id);
@@ -103,6 +104,21 @@ pub fn identify_fleet(
     identified
 }
 
+/// Why one bar of the fleet could not be identified (each message one line naming the bar).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub(crate) enum BarError {
+    /// Ingest found no usable signal in the bar (a dead encoder): the reason `summary.json`'s
+    /// quality gives.
+    #[error("{0}")]
+    Unusable(String),
+    /// Its series could not be built.
+    #[error(transparent)]
+    Series(#[from] SeriesError),
+    /// Its model could not be fitted.
+    #[error(transparent)]
+    Identify(#[from] IdentifyError),
+}
+
 /// One bar: its series, its model; why not, in one line.
 fn identify_one(
     fleet: &FleetContext<'_>,
@@ -111,17 +127,16 @@ fn identify_one(
     log: BarLog,
     binned: Option<BarBins>,
     options: &IdentifyOptions,
-) -> Result<BarOutcome, String> {
+) -> Result<BarOutcome, BarError> {
     // A bar ingest found no usable signal in (a dead encoder) fails alone.
     if let Some(why) = quality.unusable(id) {
-        return Err(why.to_string());
+        return Err(BarError::Unusable(why.to_string()));
     }
     let series = match binned {
         Some(b) => BarSeries::from_bins(fleet, id, &b),
         None => BarSeries::build_binned(fleet, id, log, options.bin_s),
-    }
-    .map_err(|e| e.to_string())?;
-    let model = identify(&series, &options.effects).map_err(|e| e.to_string())?;
+    }?;
+    let model = identify(&series, &options.effects)?;
     let series = if options.keep_samples {
         series
     } else {

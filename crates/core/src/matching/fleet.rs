@@ -2,8 +2,6 @@
 //! reference nearest the fleet mean, every other bar's predicted mismatch against it at the
 //! comparison distance, and (on request) the measured-mismatch study.
 
-use serde::Serialize;
-
 use crate::campaign::{Campaign, Place};
 use crate::identify::BarOutcome;
 
@@ -24,7 +22,7 @@ pub struct MatchOptions {
 }
 
 /// The reference bar and the mismatches against it.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone)]
 pub struct ReferenceReport {
     /// The reference bar, nearest the fleet mean, and every bar's distance to that mean.
     pub choice: ReferenceChoice,

@@ -5,15 +5,26 @@
 
 use super::{Effect, Transform};
 use crate::series::BarSeries;
-use serde::Serialize;
 
 /// A group of parameters of the effects asked for that one bar's data cannot determine, and why.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct NotIdentifiable {
     /// The parameters' names.
     pub params: Vec<String>,
     /// Why the data cannot determine them.
-    pub reason: String,
+    pub reason: WhyNotIdentifiable,
+}
+
+/// Why a bar's data cannot determine some parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WhyNotIdentifiable {
+    /// Every fitted mount of the bar is at one length: the scale's expansion (beta, tau_S)
+    /// cannot be told from the fixed part's; alpha and tau_R describe the whole bar at this
+    /// length (alpha + beta I_p / I_min when the time constants are close).
+    OneLength {
+        /// The one scale travel, mm.
+        i_p_mm: f64,
+    },
 }
 
 /// Travel spread (mm) below which a bar's fitted mounts are taken as one length.
@@ -66,12 +77,7 @@ pub(crate) fn identifiable_effects(
             params.push(e.gain_names()[1].clone());
         }
     }
-    let reason = format!(
-        "every fitted mount of the bar is at one length (I_p = {lo:.3} mm): the scale's \
-         expansion (beta, tau_S) cannot be told from the fixed part's with one length; \
-         alpha_ppm_per_k and tau_r_s describe the whole bar at this length (alpha + beta I_p / \
-         I_min when the time constants are close); mount the bar on two lengths to separate them"
-    );
+    let reason = WhyNotIdentifiable::OneLength { i_p_mm: lo };
     let kept = effects
         .iter()
         .filter(|e| **e != Effect::Scale)

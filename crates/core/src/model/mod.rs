@@ -66,14 +66,11 @@ mod identifiable;
 mod problem;
 mod separable;
 
-use serde::{Deserialize, Serialize};
-
-pub use identifiable::NotIdentifiable;
+pub use identifiable::{NotIdentifiable, WhyNotIdentifiable};
 pub use problem::{ModelError, ThermalProblem};
 
 /// How a generic channel enters the model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Transform {
     /// First-order response (gain, tau).
     Lag,
@@ -135,14 +132,6 @@ pub enum Effect {
         /// Starting time constant given after `@` in the name, s; `None`: the default start.
         tau0_s: Option<f64>,
     },
-}
-
-/// An effect is written as its name (`diagnosis.json`, `summary.json`), the form `--add-effect`
-/// and `[model] effects` accept.
-impl serde::Serialize for Effect {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.serialize_str(&self.name())
-    }
 }
 
 impl std::fmt::Display for Effect {

@@ -28,8 +28,6 @@
 
 use std::collections::BTreeMap;
 
-use serde::Serialize;
-
 use super::bins::Segments;
 use super::{BarBins, BarLog, Event, Region, SensorLog};
 use crate::campaign::{Campaign, SensorKind, TimeNs};
@@ -75,7 +73,7 @@ pub(crate) fn gap_threshold_ns(median_interval_ns: f64) -> TimeNs {
 }
 
 /// Everything ingest found, per bar, sensor, the events and the files.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Quality {
     /// Per bar.
     pub bars: BTreeMap<String, ChannelQuality>,
@@ -95,7 +93,7 @@ impl Quality {
 }
 
 /// Counts of one bar's, sensor's or the events' rows, and the flags raised on them.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ChannelQuality {
     /// Rows read (before anything was dropped).
     pub rows: u64,
@@ -103,7 +101,8 @@ pub struct ChannelQuality {
     pub null: u64,
     /// Rows whose value was NaN (dropped).
     pub nan: u64,
-    pub(crate) inf: u64,
+    /// Rows whose value was ±infinite (dropped).
+    pub inf: u64,
     /// Exact copies of another row (same time and value; counted once, the copies dropped).
     pub duplicate_rows: u64,
     /// Readings of a frozen encoder or of a mount left out for a counter wrap (dropped).
@@ -113,32 +112,29 @@ pub struct ChannelQuality {
     /// The flags raised, in time order.
     pub flags: Vec<Flag>,
     /// Set when no usable reading is left: the bar fails alone with this reason.
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub unusable: Option<String>,
 }
 
 /// What was found, where and how big.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Flag {
     /// What was found.
     pub kind: FlagKind,
-    /// RFC 3339 UTC, first and last affected reading (absent for file-level flags).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub(crate) from: Option<String>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub(crate) to: Option<String>,
+    /// RFC 3339 UTC, first affected reading (absent for file-level flags).
+    pub from: Option<String>,
+    /// RFC 3339 UTC, last affected reading (absent for file-level flags).
+    pub to: Option<String>,
     /// Rows (or readings) concerned.
-    pub(crate) rows: u64,
-    /// Signed size of a jump or wrap, counts and µm.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub(crate) size_counts: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub(crate) size_um: Option<f64>,
-    pub(crate) note: String,
+    pub rows: u64,
+    /// Signed size of a jump or wrap, counts.
+    pub size_counts: Option<f64>,
+    /// The same, µm.
+    pub size_um: Option<f64>,
+    /// What was found, in words (file, column and rows for `unusable_rows`).
+    pub note: String,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 /// The kinds of [`Flag`] (their names in `summary.json`: snake case).
 pub enum FlagKind {
     /// Null, NaN or infinite values dropped.

@@ -3,17 +3,65 @@ use std::collections::BTreeMap;
 use super::build::assign_mounts;
 use super::coarse::bin_groups;
 use super::*;
-use crate::campaign::{Manifest, Purpose};
+use crate::campaign::{
+    BarDecl, CampaignSection, DeclaredTime, Manifest, MountDecl, PlateLength, PlateSection,
+    Purpose, SensorDecl, SensorKind,
+};
 
 const S: i64 = 1_000_000_000;
 /// 2026-11-01T00:00:00Z in ns.
 const T0: i64 = 1_793_491_200 * S;
 
-/// One bar, B01, mounted on 2026-11-01 from 00:00 to 04:00, UTC (min, max, a hexapod)
-/// ([`dbbcal_testkit::ONE_BAR_MANIFEST`]). Shared with other modules' tests.
+/// One bar, B01, mounted on 2026-11-01 from 00:00 to 04:00, UTC (min, max, a hexapod): the
+/// campaign of [`dbbcal_testkit::ONE_BAR_MANIFEST`], declared here. Shared with other modules'
+/// tests.
 pub(crate) fn campaign() -> Campaign {
-    let text = dbbcal_testkit::ONE_BAR_MANIFEST;
-    Campaign::from_manifest(Manifest::from_toml_str(text, "m").expect("toml")).expect("valid")
+    let length = |id: &str, mm: f64, u_um: f64| PlateLength {
+        id: id.into(),
+        mm,
+        u_um,
+    };
+    let air = |id: &str| SensorDecl {
+        id: id.into(),
+        kind: SensorKind::Air,
+    };
+    let minute = 60 * S;
+    let mount = |length: Option<&str>, device: Option<&str>, from: i64, to: i64| MountDecl {
+        bar: "B01".into(),
+        length: length.map(Into::into),
+        device: device.map(Into::into),
+        leg: None,
+        tilt_deg: None,
+        purpose: None,
+        from: DeclaredTime::at(T0 + from * minute),
+        to: DeclaredTime::at(T0 + to * minute),
+    };
+    let manifest = Manifest {
+        campaign: CampaignSection {
+            id: "series".into(),
+            reference_temperature_c: 20.0,
+        },
+        plate: PlateSection {
+            material: "zerodur".into(),
+            cte_ppm_per_k: 0.0,
+            tilt_deg: 60.0,
+            length: vec![length("min", 250.0, 0.1), length("max", 400.0, 0.2)],
+        },
+        sensor: vec![air("T1"), air("T2")],
+        bar: vec![BarDecl {
+            id: "B01".into(),
+            resolution_nm: 5.0,
+            fixed_length_mm: 230.0,
+            sensor: None,
+        }],
+        mount: vec![
+            mount(Some("min"), None, 0, 60),
+            mount(Some("max"), None, 70, 180),
+            mount(None, Some("hexapod"), 180, 240),
+        ],
+        device: Vec::new(),
+    };
+    Campaign::from_manifest(manifest).expect("valid")
 }
 
 /// A 1 Hz log over 4 h 10 min with a 7-s hole, a doubled reading and 0.3-s jitter in the last

@@ -75,6 +75,8 @@
 //!   cut the scans (a re-export is decoded once per bar) at the price of holding every bar's
 //!   overlap at once.
 
+use crate::manifest::TomlManifest;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
@@ -124,15 +126,11 @@ pub(crate) fn read_manifest_text(dir: &Path) -> Result<(PathBuf, String), Ingest
             dir: dir.to_path_buf(),
         });
     }
-    let text = crate::read_small_text(&path, crate::MAX_MANIFEST_BYTES).map_err(|message| {
-        IngestError::Io {
+    let text =
+        crate::read_small_text(&path, crate::MAX_MANIFEST_BYTES).map_err(|e| IngestError::Io {
             path: path.clone(),
-            message: message
-                .strip_prefix("cannot read: ")
-                .unwrap_or(&message)
-                .to_string(),
-        }
-    })?;
+            message: e.why.to_string(),
+        })?;
     Ok((path, text))
 }
 

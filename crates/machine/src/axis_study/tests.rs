@@ -5,21 +5,44 @@
 use std::collections::BTreeMap;
 
 use dbbcal_core::axis_campaign::{
-    AxisCampaign, AxisCampaignLogs, AxisReading as LogReading, Channel as LogChannel,
+    AxisCampaign, AxisCampaignLogs, AxisMachineSection, AxisManifest, AxisReading as LogReading,
+    CampaignKind, Channel as LogChannel, KindSection, LaserCompensation, LaserSection, LineDecl,
+    MachineAxis,
 };
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
 use super::*;
 
-const MANIFEST: &str = r#"
-campaign = { kind = "axis", id = "t", reference_temperature_c = 20.0 }
-machine = { axis = "X", cte_ppm_per_k = 11.5 }
-laser = { wavelength_nm = 632.990577, compensation = "air+material" }
-line = [ { id = 1, reflector_mm = [0.0, 0.0, 0.0] },
-         { id = 2, reflector_mm = [0.0, 0.0, 100.0] },
-         { id = 3, reflector_mm = [0.0, 100.0, 100.0] } ]
-"#;
+/// Axis X, three lines: `{id 1 at [0, 0, 0]}`, `{2 at [0, 0, 100]}`, `{3 at [0, 100, 100]}` (mm),
+/// readings with air and material compensation.
+fn axis_campaign() -> AxisCampaign {
+    let line = |id, reflector_mm| LineDecl { id, reflector_mm };
+    let manifest = AxisManifest {
+        campaign: KindSection {
+            kind: CampaignKind::Axis,
+            id: "t".into(),
+            reference_temperature_c: 20.0,
+        },
+        machine: AxisMachineSection {
+            axis: MachineAxis::X,
+            cte_ppm_per_k: 11.5,
+        },
+        laser: LaserSection {
+            wavelength_nm: 632.990577,
+            compensation: LaserCompensation::AirMaterial,
+            dead_path_mm: None,
+        },
+        line: vec![
+            line(1, [0.0, 0.0, 0.0]),
+            line(2, [0.0, 0.0, 100.0]),
+            line(3, [0.0, 100.0, 100.0]),
+        ],
+        fixture: None,
+        sensor: Vec::new(),
+    };
+    AxisCampaign::from_manifest_at(manifest, "campaign.toml").unwrap()
+}
 
 /// True errors at x (mm): δ µm, ε µrad, zero at x = 0.
 fn truth(x: f64) -> [f64; 6] {
@@ -36,7 +59,7 @@ fn truth(x: f64) -> [f64; 6] {
 
 /// Readings Δ = δ + 10⁻³ ε × p, plus `drift_um_per_h` on every channel, plus noise.
 fn campaign(drift_um_per_h: f64, seed: u64) -> AxisCampaignLogs {
-    let campaign = AxisCampaign::from_toml_str(MANIFEST, "campaign.toml").unwrap();
+    let campaign = axis_campaign();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let along = Normal::new(0.0, 0.02).unwrap();
     let lateral = Normal::new(0.0, 0.2).unwrap();

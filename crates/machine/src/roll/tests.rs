@@ -6,38 +6,43 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
-use dbbcal_core::roll_campaign::{LevelRow, ProbeSample, RollCampaign, RollCampaignLogs};
+use dbbcal_core::axis_campaign::{CampaignKind, KindSection, MachineAxis};
+use dbbcal_core::roll_campaign::{
+    LevelRow, ProbeDecl, ProbeSample, ReadingUnit, RollCampaign, RollCampaignLogs, RollManifest,
+    RollSection,
+};
 
 use super::*;
 
-const MANIFEST: &str = r#"
-campaign = { kind = "roll", id = "t", reference_temperature_c = 20.0 }
-[roll]
-axis = "X"
-L_mm = 80.0
-d_mm = 40.0
-s_mm = 40.0
-b_to_a = -1
-unit = "um"
-dwell_min_s = 2.0
-dwell_tol_um = 2.0
-[[roll.probe]]
-id = "A"
-u_xy_um = 50.0
-um_per_v = 1.0
-[[roll.probe]]
-id = "B"
-u_xy_um = 50.0
-um_per_v = 1.0
-[[roll.probe]]
-id = "C"
-u_xy_um = 50.0
-um_per_v = 1.0
-[[roll.probe]]
-id = "D"
-u_xy_um = 50.0
-um_per_v = 1.0
-"#;
+/// A rig along X: L 80 mm, d = s = 40 mm, B to A at decreasing x, readings in µm, probes A … D
+/// at their nominal places (u 50 µm).
+fn roll_campaign() -> RollCampaign {
+    let probe = |id: &str| ProbeDecl {
+        id: id.into(),
+        u_xy_um: 50.0,
+        um_per_v: 1.0,
+        xy_mm: None,
+    };
+    let manifest = RollManifest {
+        campaign: KindSection {
+            kind: CampaignKind::Roll,
+            id: "t".into(),
+            reference_temperature_c: 20.0,
+        },
+        roll: RollSection {
+            axis: MachineAxis::X,
+            l_mm: 80.0,
+            d_mm: 40.0,
+            s_mm: 40.0,
+            b_to_a: -1,
+            unit: ReadingUnit::Um,
+            dwell_min_s: 2.0,
+            dwell_tol_um: 2.0,
+            probe: ["A", "B", "C", "D"].map(probe).to_vec(),
+        },
+    };
+    RollCampaign::from_manifest_at(manifest, "campaign.toml").unwrap()
+}
 
 /// One true stage and rig.
 #[derive(Clone)]
@@ -151,7 +156,7 @@ fn sample(t: &Truth, order: &[usize], rng: &mut ChaCha8Rng) -> Vec<ProbeSample> 
 
 fn logs(samples: Vec<ProbeSample>, levels: Vec<LevelRow>) -> RollCampaignLogs {
     RollCampaignLogs {
-        campaign: RollCampaign::from_toml_str(MANIFEST, "campaign.toml").unwrap(),
+        campaign: roll_campaign(),
         inputs: Vec::new(),
         probe_files: vec!["probes/p.parquet".into()],
         level_files: vec!["levels/l.parquet".into()],

@@ -316,6 +316,48 @@ impl JointFit {
     }
 }
 
+/// Why the step diagonals give no series, or no naive inversion.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// No step diagonal in the layout.
+    #[error("no step diagonals")]
+    NoSteps,
+    /// No step diagonal measured: the naive inversion has nothing to invert.
+    #[error("no step diagonals: the naive inversion needs the four step diagonals")]
+    NoStepsToInvert,
+    /// A sub-move ends off the nodes.
+    #[error("diagonal {diagonal} run {run}: {axis} = {position_mm} mm is not a step node")]
+    OffNode {
+        /// The diagonal.
+        diagonal: DiagonalSign,
+        /// The run.
+        run: i64,
+        /// The axis of the sub-move.
+        axis: &'static str,
+        /// Where it ended, mm.
+        position_mm: f64,
+    },
+    /// A node was not visited.
+    #[error("diagonal {diagonal} run {run}: not every step node of {axis} was reached")]
+    NodeMissed {
+        /// The diagonal.
+        diagonal: DiagonalSign,
+        /// The run.
+        run: i64,
+        /// The axis whose nodes were not all reached.
+        axis: &'static str,
+    },
+    /// Fewer than the four step diagonals.
+    #[error("the naive inversion needs the four step diagonals; {measured} measured")]
+    NotFour {
+        /// How many were measured.
+        measured: usize,
+    },
+    /// The fourth pattern needs the four diagonals.
+    #[error("four diagonals needed")]
+    NoFourthPattern,
+}
+
 /// The series F_dj of each step diagonal (mean over runs), at the nodes of axis j, zero at
 /// the axis's min: from the increments of `values` (one per reading of `obs`, in the logs'
 /// order) at each sub-move. `Err`: the layout is not the standard one (a sub-move off the
@@ -324,10 +366,10 @@ pub fn step_series(
     layout: &Layout,
     obs: &[Observation],
     values: &[f64],
-) -> Result<BTreeMap<DiagonalSign, [Vec<f64>; 3]>, String> {
+) -> Result<BTreeMap<DiagonalSign, [Vec<f64>; 3]>, StepError> {
     let n = layout.intervals;
     if n < 1 {
-        return Err("no step diagonals".into());
+        return Err(StepError::NoSteps);
     }
     let mut runs: BTreeMap<(DiagonalSign, i64), Vec<usize>> = BTreeMap::new();
     for (i, o) in obs.iter().enumerate() {
@@ -339,14 +381,16 @@ pub fn step_series(
     for ((d, run), rows) in &runs {
         let diag = layout.diagonal(*d);
         let h = [0, 1, 2].map(|j| layout.lengths_mm[j] / n as f64);
-        let node_of = |j: usize, q: f64| -> Result<usize, String> {
+        let node_of = |j: usize, q: f64| -> Result<usize, StepError> {
             let t = (q - layout.min_mm[j]) / h[j];
             let r = t.round();
             if (t - r).abs() > 1e-3 || r < 0.0 || r > n as f64 {
-                return Err(format!(
-                    "diagonal {d} run {run}: {} = {q} mm is not a step node",
-                    AXES[j]
-                ));
+                return Err(StepError::OffNode {
+                    diagonal: *d,
+                    run: *run,
+                    axis: AXES[j],
+                    position_mm: q,
+                });
             }
             Ok(r as usize)
         };
@@ -378,10 +422,11 @@ pub fn step_series(
             .or_insert_with(|| ([0, 1, 2].map(|_| vec![0.0; n + 1]), 0));
         for j in 0..3 {
             if f[j].iter().any(|v| v.is_nan()) {
-                return Err(format!(
-                    "diagonal {d} run {run}: not every step node of {} was reached",
-                    AXES[j]
-                ));
+                return Err(StepError::NodeMissed {
+                    diagonal: *d,
+                    run: *run,
+                    axis: AXES[j],
+                });
             }
             let base = f[j][0];
             for (s, v) in entry.0[j].iter_mut().zip(&f[j]) {
@@ -437,14 +482,13 @@ pub fn fourth_pattern(series: &BTreeMap<DiagonalSign, [Vec<f64>; 3]>) -> Option<
 }
 
 /// The naive closed-form inversion of the four step diagonals (β taken as zero).
-pub fn naive(layout: &Layout, obs: &[Observation]) -> Result<Naive, String> {
+pub fn naive(layout: &Layout, obs: &[Observation]) -> Result<Naive, StepError> {
     let values: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
     let series = step_series(layout, obs, &values)?;
     if series.len() != 4 {
-        return Err(format!(
-            "the naive inversion needs the four step diagonals; {} measured",
-            series.len()
-        ));
+        return Err(StepError::NotFour {
+            measured: series.len(),
+        });
     }
     let d_len = layout.diagonals[0].length_mm;
     let functions = [0, 1, 2].map(|j| {
@@ -470,7 +514,7 @@ pub fn naive(layout: &Layout, obs: &[Observation]) -> Result<Naive, String> {
             slope(0, 2) + slope(2, 0),
         ],
         scale_um_per_m: [slope(0, 0), slope(1, 1), slope(2, 2)],
-        fourth_um: fourth_pattern(&series).ok_or("four diagonals needed")?,
+        fourth_um: fourth_pattern(&series).ok_or(StepError::NoFourthPattern)?,
         functions,
     })
 }

@@ -14,6 +14,7 @@ use dbbcal_core::axis_campaign::{CampaignKind, Channel, LaserCompensation, Machi
 #[serde(deny_unknown_fields, default)]
 pub struct AxisSimConfig {
     /// Must be `"axis"` (what makes `dbbcal simulate` read this configuration).
+    #[serde(with = "dbbcal_io::manifest::as_written::campaign_kind")]
     pub kind: CampaignKind,
     /// Seed of every random draw.
     pub seed: u64,
@@ -23,6 +24,7 @@ pub struct AxisSimConfig {
     #[serde(with = "crate::config::start_time")]
     pub start: DateTime<Utc>,
     /// The axis under test.
+    #[serde(with = "dbbcal_io::manifest::as_written::machine_axis")]
     pub axis: MachineAxis,
     /// T0, °C.
     pub reference_temperature_c: f64,
@@ -78,6 +80,7 @@ pub struct AxisSimLaser {
     /// Vacuum wavelength, nm.
     pub wavelength_nm: f64,
     /// What the laser applies to its readings (written to the manifest).
+    #[serde(with = "dbbcal_io::manifest::as_written::laser_compensation")]
     pub compensation: LaserCompensation,
     /// Noise of the along-axis (linear) readings, µm (standard deviation).
     pub linear_noise_um: f64,

@@ -15,6 +15,7 @@ use crate::SimError;
 #[serde(deny_unknown_fields, default)]
 pub struct ProbeSimConfig {
     /// Must be `"probe"`.
+    #[serde(with = "dbbcal_io::manifest::as_written::campaign_kind")]
     pub kind: CampaignKind,
     /// Seed of every random draw.
     pub seed: u64,
@@ -64,6 +65,7 @@ pub struct ProbeSimArtefact {
     /// Id.
     pub id: String,
     /// Ring or sphere.
+    #[serde(with = "dbbcal_io::manifest::as_written::artefact_kind")]
     pub kind: ArtefactKind,
     /// Certified (and true) diameter, mm.
     pub diameter_mm: f64,

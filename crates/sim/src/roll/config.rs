@@ -16,6 +16,7 @@ use dbbcal_core::roll_campaign::ReadingUnit;
 #[serde(deny_unknown_fields, default)]
 pub struct RollSimConfig {
     /// Must be `"roll"`.
+    #[serde(with = "dbbcal_io::manifest::as_written::campaign_kind")]
     pub kind: CampaignKind,
     /// Seed of every random draw.
     pub seed: u64,
@@ -43,6 +44,7 @@ pub struct RollSimConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct RollRig {
     /// The axis the stage moves along.
+    #[serde(with = "dbbcal_io::manifest::as_written::machine_axis")]
     pub axis: MachineAxis,
     /// A–C and B–D, mm.
     #[serde(rename = "L_mm")]
@@ -52,6 +54,7 @@ pub struct RollRig {
     /// +1 or −1.
     pub b_to_a: i64,
     /// `um` or `V`.
+    #[serde(with = "dbbcal_io::manifest::as_written::reading_unit")]
     pub unit: ReadingUnit,
     /// µm/V of every probe (the manifest's; the true gain may differ: `[effects] gain`).
     pub um_per_v: f64,

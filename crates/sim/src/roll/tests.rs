@@ -3,6 +3,7 @@
 
 use super::*;
 use dbbcal_core::roll_campaign::{RollCampaign, RollCampaignLogs};
+use dbbcal_io::manifest::{TomlCampaign, TomlManifest};
 use dbbcal_machine::roll::{study, RollOptions};
 
 fn logs(sim: &RollSimulation, station: bool, pass: bool) -> RollCampaignLogs {

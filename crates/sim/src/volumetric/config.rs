@@ -184,6 +184,7 @@ pub struct LaserConfig {
     /// Vacuum wavelength, nm.
     pub wavelength_nm: f64,
     /// What the readings include.
+    #[serde(with = "dbbcal_io::manifest::as_written::laser_compensation")]
     pub compensation: LaserCompensation,
     /// White noise per reading, µm.
     pub noise_um: f64,

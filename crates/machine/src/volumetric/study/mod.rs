@@ -27,9 +27,9 @@ use dbbcal_core::volumetric_campaign::{DiagonalSign, VolumetricCampaignLogs};
 
 use super::grid::{self, Grid};
 use super::model::{Layout, Observation, Place, VolumetricEffect, AXES};
-use super::solve::{self, JointFit, Naive, Quantity, VolumetricError};
+use super::solve::{self, JointFit, Naive, Quantity, StepError, VolumetricError};
 use crate::edlen::{self, Air, Compensation, LaserSetup, ReadingConditions};
-use crate::iso230_2::{self, Iso230_2, TargetDeviations};
+use crate::iso230_2::{self, Iso230Error, Iso230_2, TargetDeviations};
 
 pub use bar::{BarCampaignError, BarCurve};
 pub use diagnosis::{Candidate, Diagnosis};
@@ -123,7 +123,7 @@ pub struct DiagonalCurve {
     /// D, mm.
     pub length_mm: f64,
     /// The evaluation, or why there is none.
-    pub iso: Result<Iso230_2, String>,
+    pub iso: Result<Iso230_2, Iso230Error>,
     /// E (bidirectional, else of the one direction), µm.
     pub e_um: Option<f64>,
 }
@@ -231,7 +231,7 @@ pub struct VolumetricStudy {
     /// Slopes `[j][k]`.
     pub slopes: [[Quantity; 3]; 3],
     /// The naive inversion, or why there is none.
-    pub naive: Result<Naive, String>,
+    pub naive: Result<Naive, StepError>,
     /// RMS of the fourth pattern of the readings and of the fit's residuals, µm (`None`
     /// without four standard step diagonals).
     pub fourth_rms_um: Option<(f64, f64)>,
@@ -475,7 +475,7 @@ pub fn analyse_readings(
     let naive = if n > 0 {
         solve::naive(&fit.layout, &obs)
     } else {
-        Err("no step diagonals: the naive inversion needs the four step diagonals".into())
+        Err(StepError::NoStepsToInvert)
     };
     let data: Vec<f64> = obs.iter().map(|o| o.deviation_um).collect();
     let fourth = |v: &[f64]| {
@@ -711,7 +711,7 @@ fn curves(
 
 /// ISO 230-2 of (d, run, direction, deviation) points: one value per run and direction at
 /// each target (repeated visits averaged).
-fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, String> {
+fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, Iso230Error> {
     let mut by: BTreeMap<i64, BTreeMap<(i8, i64), Vec<f64>>> = BTreeMap::new();
     for (d, run, dir, v) in points {
         by.entry((d * 1e3).round() as i64)
@@ -739,7 +739,7 @@ fn evaluate(points: &[(f64, i64, i8, f64)]) -> Result<Iso230_2, String> {
             }
         })
         .collect();
-    iso230_2::evaluate(&targets).map_err(|e| e.to_string())
+    iso230_2::evaluate(&targets)
 }
 
 /// A quantity's U with scale terms added (each a k = 1 contribution), where the readings see

@@ -1,20 +1,23 @@
 //! Property tests of the manifest parser (issue 14): arbitrary and mutated `campaign.toml` texts
 //! never panic; each is a validated campaign whose every number is in range, or one typed error
-//! on one line. `PROPTEST_CASES=20000 cargo test --release -p dbbcal-core prop_tests` for a longer run.
+//! on one line. `PROPTEST_CASES=20000 cargo test --release -p dbbcal-io campaign_prop_tests` for a longer run.
 
 use proptest::prelude::*;
 
-use super::*;
+use dbbcal_core::campaign::*;
+use dbbcal_core::limits::Limit;
 use dbbcal_testkit::{apply, cases, edit};
+
+use super::TomlManifest;
 
 /// The shipped sample's manifest and the unit tests' (devices, offsets, purposes).
 const SAMPLE: &str = include_str!("../../../../data/sample/campaign.toml");
-const OTHER: &str = super::tests::GOOD;
+const OTHER: &str = super::campaign_tests::GOOD;
 
 /// What a validated campaign promises.
 fn check_valid(c: &Campaign) {
     assert!(check_campaign_id(&c.id).is_ok(), "{:?}", c.id);
-    let within = |v: f64, limit: crate::limits::Limit| limit.contains(v);
+    let within = |v: f64, limit: Limit| limit.contains(v);
     assert!(within(
         c.reference_temperature_c,
         limits::REFERENCE_TEMPERATURE_C

@@ -1,12 +1,13 @@
 //! One line per effect, in physical words: what the effect means and what to check on the
 //! bench. These strings go verbatim into `diagnosis.json` and the reports.
 
-use super::sensors::SensorProfile;
+use super::sensors::description;
+use crate::diagnose::sensors::SensorProfile;
 use crate::model::{Effect, Transform};
 
 /// What an effect means physically and what to check; channel terms name what their sensors
 /// plausibly are (`profiles`, see [`super::sensors`]).
-pub(crate) fn explain_with(effect: &Effect, profiles: &[SensorProfile]) -> String {
+pub fn explain_with(effect: &Effect, profiles: &[SensorProfile]) -> String {
     match effect {
         Effect::Channel {
             transform, channel, ..
@@ -20,18 +21,22 @@ pub fn describe_channel_with(channel: &str, profiles: &[SensorProfile]) -> Strin
     let generic = describe_channel(channel);
     let of = |s: &str| profiles.iter().find(|p| p.sensor == s);
     if let Some(p) = of(channel) {
-        return format!("{generic} ({})", p.description);
+        return format!("{generic} ({})", description(p));
     }
     if let Some((a, b)) = channel.split_once('-') {
         if let (Some(pa), Some(pb)) = (of(a), of(b)) {
-            return format!("{generic}: {a} {}; {b} {}", pa.description, pb.description);
+            return format!(
+                "{generic}: {a} {}; {b} {}",
+                description(pa),
+                description(pb)
+            );
         }
     }
     generic
 }
 
 /// What an effect means physically and what to check.
-pub(crate) fn explain(effect: &Effect) -> String {
+pub fn explain(effect: &Effect) -> String {
     match effect {
         Effect::FixedPart => "Expansion of the fixed part (balls, bases, tubes) with its own time constant: the patent's alpha, tau_R.".into(),
         Effect::Scale => "Expansion of the scale between its start and the read head, growing with the travel I_p: the patent's beta, tau_S. Check: bars on different plate lengths drift differently.".into(),
@@ -59,7 +64,7 @@ fn channel_explanation(transform: Transform, what: &str) -> String {
 }
 
 /// A channel name in words.
-pub(crate) fn describe_channel(channel: &str) -> String {
+fn describe_channel(channel: &str) -> String {
     if let Some(kind) = channel.strip_prefix("event:") {
         return match kind {
             "head_power" => "read-head power (head_power events)".into(),

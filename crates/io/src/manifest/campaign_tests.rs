@@ -1,4 +1,9 @@
-use super::*;
+//! The ballbar manifest's parser, writer and validation: every message names the file and the key.
+
+use dbbcal_core::campaign::*;
+
+use super::campaign::{ns_to_toml_datetime, toml_datetime_to_ns};
+use super::TomlManifest;
 
 pub(super) const GOOD: &str = r#"
 [campaign]
@@ -102,8 +107,19 @@ fn manifest_round_trips_through_toml() {
 
 #[test]
 fn time_conversion_round_trips() {
-    for ns in [0, NOV1, NOV1 + 123_456_789, -5_000_000_001] {
+    for ns in [
+        0,
+        NOV1,
+        NOV1 + 123_456_789,
+        NOV1 + 500_000_000,
+        -5_000_000_001,
+    ] {
         assert_eq!(toml_datetime_to_ns(&ns_to_toml_datetime(ns)), Ok(ns));
+        // What the simulators declare is what TOML writes.
+        assert_eq!(
+            DeclaredTime::at(ns).text,
+            ns_to_toml_datetime(ns).to_string()
+        );
     }
 }
 
