@@ -491,10 +491,16 @@ fn candidate_on_bar(
     threshold: f64,
     refits: &Refits,
 ) -> CandidateOnBar {
-    if let Some((a, b, r)) = start.and_then(|coarse| unidentifiable_pair(base, coarse)) {
+    if let Some((first, second, correlation)) =
+        start.and_then(|coarse| unidentifiable_pair(base, coarse))
+    {
         return unfit_on_bar(
             base,
-            format!("not identifiable on this bar's 300-s copy: {a} and {b} correlate at {r:.4}"),
+            CandidateError::NotIdentifiableOnCopy {
+                first,
+                second,
+                correlation,
+            },
         );
     }
     let refit = refits.refit_from(series, base, effect, start);

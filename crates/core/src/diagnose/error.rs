@@ -39,4 +39,17 @@ pub enum CandidateError {
         /// Their correlation.
         correlation: f64,
     },
+    /// As [`CandidateError::NotIdentifiable`], on the bar's 300-s copy: the refit on the
+    /// readings, which would start there, is not made.
+    #[error(
+        "not identifiable on this bar's 300-s copy: {first} and {second} correlate at {correlation:.4}"
+    )]
+    NotIdentifiableOnCopy {
+        /// One parameter.
+        first: String,
+        /// The other.
+        second: String,
+        /// Their correlation.
+        correlation: f64,
+    },
 }
