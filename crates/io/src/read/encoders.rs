@@ -90,8 +90,17 @@ impl IdIndex {
             };
             of_value.push(self.by_string(id));
         }
+        let keys = ids.keys();
+        // Every key in range (a null row's key too, the usual batch): a plain look-up per row.
+        // A negative key is a large u32 and takes the checked path.
+        let largest = keys.iter().fold(0u32, |m, &k| m.max(k as u32));
+        if (largest as usize) < of_value.len() {
+            out.extend(keys.iter().map(|&k| of_value[k as u32 as usize]));
+            self.of_value = of_value;
+            return;
+        }
         let mut empty = None;
-        for &key in ids.keys() {
+        for &key in keys {
             let index = match usize::try_from(key).ok().and_then(|k| of_value.get(k)) {
                 Some(&index) => index,
                 None => *empty.get_or_insert_with(|| self.by_string("")),
@@ -249,7 +258,8 @@ impl EncoderSink {
                 .resize(self.ids.names.len(), (0, Missing::default()));
         }
         for &id in &ids {
-            self.read[id as usize].0 += 1;
+            let read = &mut self.read[id as usize].0;
+            *read = read.wrapping_add(1); // at most the rows of the campaign
         }
         let counts = batch.get("counts")?;
         let clean = counts
@@ -461,20 +471,27 @@ impl EncoderSink {
         let starts = &mut self.group_start;
         starts.clear();
         starts.resize(groups + 1, 0);
+        // Positions below the batch's rows: wrapping additions, no overflow check per row.
         for &id in ids {
-            starts[id as usize + 1] += 1;
+            let slot = &mut starts[id as usize + 1];
+            *slot = slot.wrapping_add(1);
         }
         for k in 0..groups {
-            starts[k + 1] += starts[k];
+            starts[k + 1] = starts[k + 1].wrapping_add(starts[k]);
         }
         let mut next: Vec<usize> = starts[..groups].to_vec();
-        self.grouped_time.resize(ids.len(), 0);
-        self.grouped_counts.resize(ids.len(), 0);
+        let n = ids.len().min(time.len()).min(counts.len());
+        self.grouped_time.resize(n, 0);
+        self.grouped_counts.resize(n, 0);
+        let (grouped_time, grouped_counts) = (
+            &mut self.grouped_time[..n],
+            &mut self.grouped_counts[..n],
+        );
         for ((&id, &t), &c) in ids.iter().zip(time).zip(counts) {
             let at = &mut next[id as usize];
-            self.grouped_time[*at] = t;
-            self.grouped_counts[*at] = c;
-            *at += 1;
+            grouped_time[*at] = t;
+            grouped_counts[*at] = c;
+            *at = at.wrapping_add(1);
         }
     }
 

@@ -115,6 +115,8 @@ mod stream;
 use stream::*;
 mod rows;
 use rows::*;
+mod sensors;
+use sensors::read_temperatures;
 mod positions;
 pub(crate) use positions::read_positions_files;
 
@@ -241,46 +243,12 @@ pub(crate) fn read_tables(
 
 /// Per sensor: its log and its quality record; and each temperature file's path and whether
 /// its times are zoned.
-type TemperatureTables = (
+pub(super) type TemperatureTables = (
     BTreeMap<String, SensorLog>,
     BTreeMap<String, ChannelQuality>,
     Vec<(PathBuf, bool)>,
     Vec<Flag>,
 );
-
-/// Every temperature file, checked (nulls, undeclared sensors), as one log per declared sensor.
-fn read_temperatures(
-    files: &CampaignFiles,
-    sensor_ids: &BTreeSet<&str>,
-) -> Result<TemperatureTables, IngestError> {
-    let clock = std::time::Instant::now();
-    let mut zones = Vec::new();
-    let mut dropped = Vec::new();
-    let temperatures = read_table(
-        &files.temperatures,
-        &TEMPERATURE_COLUMNS,
-        &mut zones,
-        &mut dropped,
-    )?;
-    let readings = temperatures.by_id("sensor", "celsius", sensor_ids);
-    let matched = readings.values().map(Vec::len).sum();
-    dropped.extend(unknown_rows(
-        &temperatures,
-        matched,
-        &files.temperatures,
-        "sensor",
-        sensor_ids,
-    )?);
-    drop(temperatures);
-    let mut sensors = BTreeMap::new();
-    let mut quality = BTreeMap::new();
-    for (id, rows) in &readings {
-        let q: &mut ChannelQuality = quality.entry(id.clone()).or_default();
-        sensors.insert(id.clone(), sensor_log(rows, q));
-    }
-    tracing::debug!(elapsed = ?clock.elapsed(), "temperatures read");
-    Ok((sensors, quality, zones, dropped))
-}
 
 /// The events and their quality record, the encoder table, and each of their files' path and
 /// whether its times are zoned.
@@ -390,32 +358,6 @@ fn flag_mixed_zones(zones: &[(PathBuf, bool)], quality: &mut Quality) {
         .push(Flag::file(FlagKind::MixedTimeZones, 0, note));
 }
 
-/// The rows of known ids were extracted (`matched` of them); if that is not every row, some ids
-/// are undeclared: their rows (dropped) as `unusable_rows` flags, by file and id. This keeps
-/// the costly per-file summary off the path of a good campaign.
-fn unknown_rows(
-    table: &TableRows,
-    matched: usize,
-    files: &[PathBuf],
-    id_column: &'static str,
-    known: &BTreeSet<&str>,
-) -> Result<Vec<Flag>, IngestError> {
-    if matched == table.height() {
-        return Ok(Vec::new());
-    }
-    let flags = unknown_id_flags(table, files, id_column, known);
-    if flags.is_empty() {
-        return Err(IngestError::Parquet {
-            context: id_column.to_string(),
-            message: format!(
-                "{matched} of {} rows have a declared id, but no undeclared id was found",
-                table.height()
-            ),
-        });
-    }
-    Ok(flags)
-}
-
 /// Rows of ids the manifest does not declare, per file and id (null ids are skipped).
 fn unknown_id_flags(
     table: &TableRows,
@@ -439,33 +381,6 @@ fn unknown_id_flags(
             )
         })
         .collect()
-}
-
-// ---------------------------------------------------------------- per sensor
-
-/// A sensor's log from its rows sorted by (time, value): null, NaN and ±inf readings dropped
-/// (a missing reading, not a temperature: one NaN would otherwise spread through every bar
-/// that interpolates the sensor) and exact duplicates counted once, both recorded in `q`.
-fn sensor_log(readings: &[(i64, Option<f64>)], q: &mut ChannelQuality) -> SensorLog {
-    let mut log = SensorLog::default();
-    let mut missing = Missing::default();
-    for &(t, c) in readings {
-        match c {
-            Some(c) if c.is_finite() => {
-                log.time_ns.push(t);
-                log.celsius.push(c);
-            }
-            other => missing.add(t, other),
-        }
-    }
-    q.rows = readings.len() as u64;
-    missing.record(q, "temperature readings");
-    // Sorted by time, ties by value: exact duplicates are neighbours (NaN, which would not
-    // compare equal, is gone).
-    let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
-    quality::record_duplicates(q, dups, range, "temperature readings");
-    quality::drop_implausible_temperatures(&mut log.time_ns, &mut log.celsius, q);
-    log
 }
 
 // ---------------------------------------------------------------- events

@@ -98,62 +98,6 @@ impl TableRows {
         }
         Ok(())
     }
-
-    /// Per id of column `key` that `known` holds (every one of them present): the rows' time and
-    /// value of column `value`, sorted by time, ties by value (nulls first), so that the order
-    /// never depends on how the rows were split into files.
-    pub(super) fn by_id(
-        &self,
-        key: &str,
-        value: &str,
-        known: &BTreeSet<&str>,
-    ) -> BTreeMap<String, Vec<(i64, Option<f64>)>> {
-        let mut out: BTreeMap<String, Vec<(i64, Option<f64>)>> = known
-            .iter()
-            .map(|id| (id.to_string(), Vec::new()))
-            .collect();
-        let (Some(ids), Some(values)) = (self.text(key), self.real(value)) else {
-            return out;
-        };
-        let mut wanted: Vec<Option<String>> = ids
-            .ids
-            .names
-            .iter()
-            .map(|n| known.contains(n.as_str()).then(|| n.clone()))
-            .collect();
-        let mut per_index: Vec<Vec<(i64, Option<f64>)>> = vec![Vec::new(); wanted.len()];
-        for (row, &index) in ids.index.iter().enumerate() {
-            if let Some(rows) = per_index.get_mut(index as usize) {
-                rows.push((self.time[row], values[row]));
-            }
-        }
-        for (index, rows) in per_index.into_iter().enumerate() {
-            if let Some(Some(id)) = wanted.get_mut(index).map(Option::take) {
-                out.insert(id, rows);
-            }
-        }
-        use rayon::prelude::*;
-        out.par_iter_mut()
-            .for_each(|(_, rows)| sort_by_time_then_value(rows));
-        out
-    }
-}
-
-/// Sorts `(time, value)` rows by time, ties by value (null first, then by `f64::total_cmp`).
-/// Already sorted rows (a logger's usual output) are only checked.
-fn sort_by_time_then_value(rows: &mut [(i64, Option<f64>)]) {
-    let order = |a: &(i64, Option<f64>), b: &(i64, Option<f64>)| {
-        a.0.cmp(&b.0).then_with(|| match (a.1, b.1) {
-            (None, None) => std::cmp::Ordering::Equal,
-            (None, Some(_)) => std::cmp::Ordering::Less,
-            (Some(_), None) => std::cmp::Ordering::Greater,
-            (Some(x), Some(y)) => x.total_cmp(&y),
-        })
-    };
-    if rows.windows(2).all(|w| order(&w[0], &w[1]).is_le()) {
-        return;
-    }
-    rows.sort_by(order);
 }
 
 /// Rows and time range per (file, id), sorted by file then id (null ids skipped).

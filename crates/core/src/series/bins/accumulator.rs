@@ -43,6 +43,16 @@ pub(super) struct Span {
     far: std::collections::HashMap<i64, u32>,
 }
 
+/// How [`BinAccumulator::add_by_bin`] numbers the bins of a batch's rows for one counting sort:
+/// span `first_span + g` has its bins from `keys[g].0` on, bin `k` of it at key
+/// `k + keys[g].1` (wrapping: the offset is the keys before the span less its first bin);
+/// `bins` keys in all.
+struct BinLayout {
+    first_span: usize,
+    keys: Vec<(u64, u64)>,
+    bins: u64,
+}
+
 /// The bin readings are being added to: its time range, and where its moments live.
 #[derive(Debug, Clone, Copy)]
 struct Current {
@@ -68,10 +78,8 @@ pub struct BinAccumulator {
     /// Division by `bin_ns` (a reading out of time order needs one).
     divide: Divide,
     /// Reused buffers of [`BinAccumulator::add_by_block`] and
-    /// [`BinAccumulator::add_span_by_bin`].
+    /// [`BinAccumulator::add_by_bin`].
     scratch: BlockScratch,
-    /// Reused buffers of [`BinAccumulator::add_by_bin`]'s split by span.
-    span_split: BlockScratch,
     /// Readings added so far (at most [`MAX_BAR_READINGS`]).
     readings: u64,
 }
@@ -104,7 +112,6 @@ impl BinAccumulator {
             last_span: 0,
             divide: Divide::new(grid.bin_ns as u64),
             scratch: BlockScratch::default(),
-            span_split: BlockScratch::default(),
             readings: 0,
         }
     }
@@ -155,99 +162,86 @@ impl BinAccumulator {
 
     /// Rows out of time order (a batch of a shuffled file) sorted by bin, each bin's rows then
     /// summed in one run ([`BinMoments::add_run`], in registers) instead of one moments update
-    /// in memory per row: the rows are split by span first (a counting sort over the few spans
-    /// they cover: a day file crosses a mount's end), then each span's rows by bin
-    /// ([`BinAccumulator::add_span_by_bin`]). Rows a sort would not pay for (over more than
-    /// [`MAX_SPLIT_SPANS`] spans, or a span's rows it declines) go to
+    /// in memory per row. One counting sort over every span the rows can fall in (a day file
+    /// crosses a mount's end): span `s` owns the keys of its bins between the batch's first
+    /// and last time ([`BinLayout`]). Rows a sort would not pay for (over more than
+    /// [`MAX_SPLIT_SPANS`] spans, before the first mount, or fewer than two rows a bin) go to
     /// [`BinAccumulator::add_by_block`]. The sums are integers, so the path taken changes no bit.
     fn add_by_bin(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
         let n = time_ns.len().min(counts.len());
         let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
-        let Some((first, last)) = time_range(time_ns) else {
-            return;
-        };
-        let (s0, s1) = (self.span_index(first), self.span_index(last));
-        if s1 - s0 >= MAX_SPLIT_SPANS {
+        let Some(layout) = self.bin_layout(time_ns) else {
             self.add_by_block(time_ns, counts);
             return;
-        }
-        if s0 == s1 {
-            // One span: no split needed.
-            if !self.add_span_by_bin(s0, time_ns, counts, (first, last)) {
-                self.add_by_block(time_ns, counts);
-            }
-            return;
-        }
-        let edges: Vec<TimeNs> = self.spans[s0 + 1..=s1].iter().map(|s| s.from).collect();
-        let mut split = std::mem::take(&mut self.span_split);
-        split.block.clear();
-        split.block.extend(
-            time_ns
-                .iter()
-                .map(|&t| edges.partition_point(|&e| e <= t) as u32),
-        );
-        split.sort_by_block(s1 - s0 + 1, time_ns, counts);
-        for g in 0..=s1 - s0 {
-            let rows = split.start[g]..split.start[g + 1];
-            let (t, c) = (&split.time[rows.clone()], &split.counts[rows]);
-            let Some(range) = time_range(t) else {
-                continue;
-            };
-            if !self.add_span_by_bin(s0 + g, t, c, range) {
-                self.add_by_block(t, c);
-            }
-        }
-        self.span_split = split;
-    }
-
-    /// Rows of span `s` (`range`: their first and last time) sorted by bin with a counting sort
-    /// and each bin summed in one run. Returns `false`, adding nothing, for rows before the
-    /// first mount (the epoch grid) or too sparse for the sort to pay (fewer than two rows a
-    /// bin).
-    fn add_span_by_bin(
-        &mut self,
-        s: usize,
-        time_ns: &[TimeNs],
-        counts: &[i64],
-        (first, last): (TimeNs, TimeNs),
-    ) -> bool {
-        let span = &self.spans[s];
-        if span.anchor > span.from || first < span.from || last >= span.to {
-            return false;
-        }
-        let anchor = span.anchor;
-        let divide = self.divide;
-        let k0 = divide.quotient((first - anchor) as u64);
-        let bins = divide.quotient((last - anchor) as u64) - k0 + 1;
-        if bins > (time_ns.len() as u64 / 2).min(MAX_SORT_BLOCKS * PAGE_BINS as u64) {
-            return false;
-        }
+        };
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.block.clear();
-        scratch.block.extend(
-            time_ns
-                .iter()
-                .map(|&t| (divide.quotient((t - anchor) as u64) - k0) as u32),
-        );
-        scratch.sort_by_block(bins as usize, time_ns, counts);
-        for b in 0..bins as usize {
-            let rows = scratch.start[b]..scratch.start[b + 1];
-            if rows.is_empty() {
-                continue;
+        let divide = self.divide;
+        let spans = &self.spans[layout.first_span..layout.first_span + layout.keys.len()];
+        let edges: Vec<TimeNs> = spans[1..].iter().map(|s| s.from).collect();
+        scratch.block.extend(time_ns.iter().map(|&t| {
+            // The span of `t`: the edges at or before it (few, sorted; no branch per edge).
+            let g = edges.iter().map(|&e| usize::from(e <= t)).sum::<usize>();
+            let (anchor, to_key) = (spans[g].anchor, layout.keys[g].1);
+            // `t` is in span `g`, at or after its anchor, within the batch's bins: no wrap.
+            divide
+                .quotient(t.wrapping_sub(anchor) as u64)
+                .wrapping_add(to_key) as u32
+        }));
+        scratch.sort_by_block(layout.bins as usize, time_ns, counts);
+        for (g, &(k0, to_key)) in layout.keys.iter().enumerate() {
+            let s = layout.first_span + g;
+            let next = layout.keys.get(g + 1).map_or(layout.bins, |k| k.0.wrapping_add(k.1));
+            for key in k0.wrapping_add(to_key)..next {
+                let rows = scratch.start[key as usize]..scratch.start[key as usize + 1];
+                if !rows.is_empty() {
+                    let k = key.wrapping_sub(to_key) as i64;
+                    self.add_bin_run(s, k, &scratch.time[rows.clone()], &scratch.counts[rows]);
+                }
             }
-            let k = (k0 + b as u64) as i64;
-            let page = self.page_of(s, k >> PAGE_SHIFT);
-            let start = anchor + k * self.bin_ns;
-            let index = (k & (PAGE_BINS as i64 - 1)) as usize;
-            self.pages[page as usize][index].add_run(
-                start,
-                &scratch.time[rows.clone()],
-                &scratch.counts[rows],
-            );
         }
         self.scratch = scratch;
         self.current = None;
-        true
+    }
+
+    /// Where each span's bins go in one counting sort of rows between `time_ns`' first and last
+    /// time, or `None` when a sort would not pay or cannot be made: rows over more than
+    /// [`MAX_SPLIT_SPANS`] spans, in a span before the first mount (the epoch grid: negative
+    /// offsets), or fewer than two rows a bin.
+    fn bin_layout(&self, time_ns: &[TimeNs]) -> Option<BinLayout> {
+        let (first, last) = time_range(time_ns)?;
+        let (s0, s1) = (self.span_index(first), self.span_index(last));
+        if s1 - s0 >= MAX_SPLIT_SPANS {
+            return None;
+        }
+        let mut keys = Vec::with_capacity(s1 - s0 + 1);
+        let mut bins = 0u64;
+        for span in &self.spans[s0..=s1] {
+            if span.anchor > span.from {
+                return None;
+            }
+            // The bins of the span the rows can fall in: between the later of the batch's
+            // first time and the span's start, and the earlier of its last and the span's end.
+            let (from, to) = (first.max(span.from), last.min(span.to - 1));
+            let k0 = self.divide.quotient((from - span.anchor) as u64);
+            let k1 = self.divide.quotient((to - span.anchor) as u64);
+            keys.push((k0, bins.wrapping_sub(k0)));
+            bins += k1 - k0 + 1;
+        }
+        let limit = (time_ns.len() as u64 / 2).min(MAX_SORT_BLOCKS * PAGE_BINS as u64);
+        (bins <= limit).then_some(BinLayout {
+            first_span: s0,
+            keys,
+            bins,
+        })
+    }
+
+    /// Adds the rows of bin `k` of span `s` (in any order) as one run.
+    fn add_bin_run(&mut self, s: usize, k: i64, time_ns: &[TimeNs], counts: &[i64]) {
+        let page = self.page_of(s, k >> PAGE_SHIFT);
+        let start = self.spans[s].anchor + k * self.bin_ns;
+        let index = (k & (PAGE_BINS as i64 - 1)) as usize;
+        self.pages[page as usize][index].add_run(start, time_ns, counts);
     }
 
     /// Rows out of time order, grouped first by blocks of [`PAGE_BINS`] bins (a stable counting

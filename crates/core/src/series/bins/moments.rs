@@ -45,14 +45,27 @@ impl Products {
     /// ([`BinAccumulator::add_all`]) and again here in debug builds.
     #[inline]
     fn of(u: i64, c: i64) -> Self {
-        debug_assert!((0..1 << 32).contains(&u) && c.unsigned_abs() <= MAX_ABS_COUNTS as u64);
-        let uu = (u as u64 as u128).wrapping_mul(u as u64 as u128);
-        Products {
-            uu: uu as i128,
-            uuu: (uu as i128).wrapping_mul(u as i128),
-            uc: (u as i128).wrapping_mul(c as i128),
-            cc: (c as i128).wrapping_mul(c as i128),
-        }
+        let (uu, uuu) = Self::time_powers(u);
+        let (uc, cc) = Self::count_products(u, c);
+        Products { uu, uuu, uc, cc }
+    }
+
+    /// `u²` and `u³` (the bounds of [`Products::of`]).
+    #[inline]
+    fn time_powers(u: i64) -> (i128, i128) {
+        debug_assert!((0..1 << 32).contains(&u));
+        let uu = (u as u64 as u128).wrapping_mul(u as u64 as u128) as i128;
+        (uu, uu.wrapping_mul(u as i128))
+    }
+
+    /// `u·c` and `c²` (the bounds of [`Products::of`]).
+    #[inline]
+    fn count_products(u: i64, c: i64) -> (i128, i128) {
+        debug_assert!(c.unsigned_abs() <= MAX_ABS_COUNTS as u64);
+        (
+            (u as i128).wrapping_mul(c as i128),
+            (c as i128).wrapping_mul(c as i128),
+        )
     }
 }
 
@@ -69,28 +82,61 @@ pub(crate) struct Node {
 
 impl BinMoments {
     /// Add readings of this bin (times in ns, the bin starting at `start_ns`).
+    ///
+    /// Ingest adds every reading of a campaign here, so the loop is kept lean: two passes, the
+    /// times' sums and then the counts' (one loop of twelve 64-bit halves of sums and four
+    /// extremes spills registers on every row); the times' sums in unsigned arithmetic (`u` is
+    /// never negative: `u²` is one 64-bit product, `u³` one 64×64→128); and wrapping additions
+    /// for the reason [`Products::of`] gives: no sum can wrap for accepted readings (at most
+    /// `MAX_BAR_READINGS` = 2³¹ a bar: `Σ u < 2⁶³`, `Σ u³ < 2¹²⁷`), where the overflow checks
+    /// our crates build with would be six 128-bit checked additions a reading.
     pub(crate) fn add_run(&mut self, start_ns: TimeNs, time_ns: &[TimeNs], counts: &[i64]) {
-        let mut run = BinMoments::default();
-        let (mut first, mut last) = (i64::MAX, i64::MIN);
-        let (mut low, mut high) = (i64::MAX, i64::MIN);
-        for (&t, &c) in time_ns.iter().zip(counts) {
-            let u = (t - start_ns) / NS_PER_US;
+        let n = time_ns.len().min(counts.len());
+        let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
+        // A reading of the bin is at or after its start (both accepted times: no wrap).
+        let us = |t: TimeNs| t.wrapping_sub(start_ns) as u64 / NS_PER_US as u64;
+        let mut run = BinMoments {
+            n: n as u64,
+            ..BinMoments::default()
+        };
+        let (mut first, mut last) = (u64::MAX, 0);
+        let (mut su, mut suu, mut suuu) = (0u64, 0u128, 0u128);
+        for &t in time_ns {
+            let u = us(t);
             first = first.min(u);
             last = last.max(u);
+            debug_assert!(u < 1 << 32);
+            let uu = u.wrapping_mul(u);
+            su = su.wrapping_add(u);
+            suu = suu.wrapping_add(uu as u128);
+            suuu = suuu.wrapping_add((uu as u128).wrapping_mul(u as u128));
+        }
+        (run.first_us, run.last_us) = (first as i64, last as i64);
+        (run.su, run.suu, run.suuu) = (su as i128, suu as i128, suuu as i128);
+        let (mut low, mut high) = (i64::MAX, i64::MIN);
+        for (&t, &c) in time_ns.iter().zip(counts) {
             low = low.min(c);
             high = high.max(c);
-            let p = Products::of(u, c);
-            run.su += u as i128;
-            run.suu += p.uu;
-            run.suuu += p.uuu;
-            run.sc += c as i128;
-            run.suc += p.uc;
-            run.scc += p.cc;
+            let (uc, cc) = Products::count_products(us(t) as i64, c);
+            run.sc = run.sc.wrapping_add(c as i128);
+            run.suc = run.suc.wrapping_add(uc);
+            run.scc = run.scc.wrapping_add(cc);
         }
-        run.n = time_ns.len().min(counts.len()) as u64;
-        (run.first_us, run.last_us) = (first, last);
         (run.min_counts, run.max_counts) = (low, high);
         self.merge(&run);
+    }
+
+    /// Adds one reading's powers and products to the sums (wrapping: see
+    /// [`BinMoments::add_run`]).
+    #[inline]
+    fn add_products(&mut self, u: i64, c: i64) {
+        let p = Products::of(u, c);
+        self.su = self.su.wrapping_add(u as i128);
+        self.suu = self.suu.wrapping_add(p.uu);
+        self.suuu = self.suuu.wrapping_add(p.uuu);
+        self.sc = self.sc.wrapping_add(c as i128);
+        self.suc = self.suc.wrapping_add(p.uc);
+        self.scc = self.scc.wrapping_add(p.cc);
     }
 
     /// Add one reading of this bin: [`BinMoments::add_run`] of one row, without a second sum
@@ -107,14 +153,8 @@ impl BinMoments {
             self.min_counts = self.min_counts.min(c);
             self.max_counts = self.max_counts.max(c);
         }
-        let p = Products::of(u, c);
         self.n += 1;
-        self.su += u as i128;
-        self.suu += p.uu;
-        self.suuu += p.uuu;
-        self.sc += c as i128;
-        self.suc += p.uc;
-        self.scc += p.cc;
+        self.add_products(u, c);
     }
 
     /// Take back one reading added with [`BinMoments::add_one`] or [`BinMoments::add_run`]:
@@ -156,13 +196,14 @@ impl BinMoments {
         self.last_us = self.last_us.max(other.last_us);
         self.min_counts = self.min_counts.min(other.min_counts);
         self.max_counts = self.max_counts.max(other.max_counts);
+        // Parts of one bar's readings: the sums stay within the bounds of `add_run`.
         self.n += other.n;
-        self.su += other.su;
-        self.suu += other.suu;
-        self.suuu += other.suuu;
-        self.sc += other.sc;
-        self.suc += other.suc;
-        self.scc += other.scc;
+        self.su = self.su.wrapping_add(other.su);
+        self.suu = self.suu.wrapping_add(other.suu);
+        self.suuu = self.suuu.wrapping_add(other.suuu);
+        self.sc = self.sc.wrapping_add(other.sc);
+        self.suc = self.suc.wrapping_add(other.suc);
+        self.scc = self.scc.wrapping_add(other.scc);
     }
 
     /// The bin's nodes (two; one when its readings share one time) and the scatter of its counts

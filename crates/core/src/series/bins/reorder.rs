@@ -37,7 +37,9 @@ pub(super) struct BlockScratch {
 
 impl BlockScratch {
     /// Stable counting sort of the rows `time_ns`/`counts` by their keys in `block` (each below
-    /// `groups`) into `time`/`counts`.
+    /// `groups`) into `time`/`counts`. The positions are counted with wrapping additions: they
+    /// are below the rows' number, and ingest sorts every shuffled row through here, where the
+    /// overflow checks our crates build with would be a branch per row and counter.
     pub(super) fn sort_by_block(&mut self, groups: usize, time_ns: &[TimeNs], counts: &[i64]) {
         let Self {
             block,
@@ -49,20 +51,23 @@ impl BlockScratch {
         start.clear();
         start.resize(groups + 1, 0);
         for &b in block.iter() {
-            start[b as usize + 1] += 1;
+            let slot = &mut start[b as usize + 1];
+            *slot = slot.wrapping_add(1);
         }
         for g in 0..groups {
-            start[g + 1] += start[g];
+            start[g + 1] = start[g + 1].wrapping_add(start[g]);
         }
         next.clear();
         next.extend_from_slice(&start[..groups]);
-        time.resize(block.len(), 0);
-        sorted_counts.resize(block.len(), 0);
+        let n = block.len().min(time_ns.len()).min(counts.len());
+        time.resize(n, 0);
+        sorted_counts.resize(n, 0);
+        let (time, sorted_counts) = (&mut time[..n], &mut sorted_counts[..n]);
         for ((&b, &t), &c) in block.iter().zip(time_ns).zip(counts) {
             let at = &mut next[b as usize];
             time[*at] = t;
             sorted_counts[*at] = c;
-            *at += 1;
+            *at = at.wrapping_add(1);
         }
     }
 }
@@ -84,11 +89,13 @@ impl Divide {
 
     #[inline]
     pub(super) fn quotient(&self, n: u64) -> u64 {
+        // q ≤ n / d, so q d ≤ n and nothing below can wrap (wrapping: no overflow check paid
+        // on every shuffled row).
         let mut q = ((n as u128 * self.m as u128) >> 64) as u64;
-        let mut r = n - q * self.d;
+        let mut r = n.wrapping_sub(q.wrapping_mul(self.d));
         while r >= self.d {
-            q += 1;
-            r -= self.d;
+            q = q.wrapping_add(1);
+            r = r.wrapping_sub(self.d);
         }
         q
     }
