@@ -379,10 +379,10 @@ pub enum PlanError {
 /// key.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PlanProblem {
-    /// A number outside its range ([`limits`]).
+    /// A number outside its range (`dbbcal_core::limits`).
     #[error(transparent)]
     OutOfRange(#[from] dbbcal_core::limits::OutOfRange),
-    /// A bin above 0 but shorter than [`MIN_BIN_S`].
+    /// A bin above 0 but shorter than `MIN_BIN_S`.
     #[error("{key} = {} is out of range: it must be 0 (every reading) or from {MIN_BIN_S} to {} s (a shorter bin compresses nothing and costs memory by the time span)", crate::campaign::display_number(*.bin_s), crate::series::MAX_BIN_S)]
     BinTooShort {
         /// The key (`model.bin_s`, `--bin-s`).
@@ -390,7 +390,7 @@ pub enum PlanProblem {
         /// The bin given, s.
         bin_s: f64,
     },
-    /// More refit rounds than [`MAX_SELECTION_ROUNDS`].
+    /// More refit rounds than `MAX_SELECTION_ROUNDS`.
     #[error("diagnose.forward_steps × diagnose.beam = {forward_steps} × {beam} is out of range: the product must be at most {MAX_SELECTION_ROUNDS} (each step refits every path of the beam)")]
     TooManyRounds {
         /// `[diagnose] forward_steps`.

@@ -87,7 +87,7 @@ pub trait Separable: Sync {
     }
     /// The interval the basis holds `θ_k` to (it clamps `θ_k` there, so beyond it the basis
     /// does not change), or `None` when it takes every value as it is. The minimisers start
-    /// inside it and see a `θ_k` beyond it as held ([`held_beyond_bounds`]).
+    /// inside it and see a `θ_k` beyond it as held (`held_beyond_bounds`).
     fn nonlinear_bounds(&self, _k: usize) -> Option<(f64, f64)> {
         None
     }
@@ -329,13 +329,13 @@ pub enum Start {
 }
 
 /// When the minimiser stops: a step that lowers the residual sum of squares by less than a
-/// share of it ([`Stop::relative_rss_tolerance`]) is no progress.
+/// share of it (`Stop::relative_rss_tolerance`) is no progress.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stop {
     /// A fixed share, 1e-10: the optimum to the digits a reference solution certifies (the
     /// NIST StRD problems of the tests, a handful of points each).
     Numerical,
-    /// [`STOP_CHI2`] noise variances: what a fit read as a statistic can resolve (the thermal
+    /// 0.01 noise variances (`STOP_CHI2`): what a fit read as a statistic can resolve (the thermal
     /// models' fits, which feed likelihood-ratio tests, BICs and uncertainties).
     Statistical,
 }

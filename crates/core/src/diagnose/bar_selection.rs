@@ -20,7 +20,7 @@ pub struct BarLedger {
     /// The steps, the starting model first.
     pub steps: Vec<LedgerStep>,
     /// The bar was not searched on its own: the fleet's selection already brings it within the
-    /// materiality threshold of its reading-noise floor ([`needs_own_selection`]), and its
+    /// materiality threshold of its reading-noise floor (`needs_own_selection`), and its
     /// steps are the fleet's, on this bar.
     pub from_fleet: bool,
 }

@@ -301,7 +301,7 @@ pub struct CandidateOnBar {
     /// The RMS after adding it, predicted by the screen (linearised refit).
     pub screened_rms_after_um: f64,
     /// How much adding it moves the model's own terms' prediction, RMS (µm, screened:
-    /// [`Screen::shift_rms_um`]).
+    /// `Screen::shift_rms_um`).
     pub screened_shift_um: f64,
     /// Exact refit (absent when the candidate was screened out).
     pub rms_after_um: Option<f64>,

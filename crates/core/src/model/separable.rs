@@ -74,7 +74,7 @@ impl Separable for ThermalProblem<'_> {
         Some((60f64.ln(), (30.0 * 86400f64).ln()))
     }
 
-    /// Every time constant is held to [`ln_tau_bounds`] (`ThermalProblem::tau_of`).
+    /// Every time constant is held to `ln_tau_bounds` (`ThermalProblem::tau_of`).
     fn nonlinear_bounds(&self, _k: usize) -> Option<(f64, f64)> {
         Some(ln_tau_bounds())
     }

@@ -483,10 +483,8 @@ impl EncoderSink {
         let n = ids.len().min(time.len()).min(counts.len());
         self.grouped_time.resize(n, 0);
         self.grouped_counts.resize(n, 0);
-        let (grouped_time, grouped_counts) = (
-            &mut self.grouped_time[..n],
-            &mut self.grouped_counts[..n],
-        );
+        let (grouped_time, grouped_counts) =
+            (&mut self.grouped_time[..n], &mut self.grouped_counts[..n]);
         for ((&id, &t), &c) in ids.iter().zip(time).zip(counts) {
             let at = &mut next[id as usize];
             grouped_time[*at] = t;

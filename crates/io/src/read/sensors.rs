@@ -28,7 +28,8 @@ impl FileProblems {
     fn flags(self, path: &Path) -> impl Iterator<Item = Flag> + '_ {
         [
             self.null_time.map(|b| b.flag(path, "time", NULL_PROBLEM)),
-            self.null_sensor.map(|b| b.flag(path, "sensor", NULL_PROBLEM)),
+            self.null_sensor
+                .map(|b| b.flag(path, "sensor", NULL_PROBLEM)),
             self.bad_time.map(|b| b.flag(path, "time", TIME_PROBLEM)),
         ]
         .into_iter()
@@ -239,8 +240,10 @@ fn sensor_log(rows: SensorRows) -> (SensorLog, ChannelQuality) {
         rows,
         missing,
     } = rows;
-    let mut q = ChannelQuality::default();
-    q.rows = rows;
+    let mut q = ChannelQuality {
+        rows,
+        ..ChannelQuality::default()
+    };
     missing.record(&mut q, "temperature readings");
     sort_by_time_then_value(&mut log);
     let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
@@ -312,7 +315,13 @@ mod tests {
         use rand::{seq::SliceRandom, Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let t0 = 1_793_491_200_000_000_000i64;
-        for (rows, spread_ns) in [(1, 1), (2, 0), (50, 3), (1000, 1_000_000_000), (5000, 1 << 40)] {
+        for (rows, spread_ns) in [
+            (1, 1),
+            (2, 0),
+            (50, 3),
+            (1000, 1_000_000_000),
+            (5000, 1 << 40),
+        ] {
             let mut pairs: Vec<(i64, f64)> = (0..rows)
                 .map(|_| {
                     let t = t0 + rng.gen_range(0..=spread_ns);

@@ -191,7 +191,10 @@ impl BinAccumulator {
         scratch.sort_by_block(layout.bins as usize, time_ns, counts);
         for (g, &(k0, to_key)) in layout.keys.iter().enumerate() {
             let s = layout.first_span + g;
-            let next = layout.keys.get(g + 1).map_or(layout.bins, |k| k.0.wrapping_add(k.1));
+            let next = layout
+                .keys
+                .get(g + 1)
+                .map_or(layout.bins, |k| k.0.wrapping_add(k.1));
             for key in k0.wrapping_add(to_key)..next {
                 let rows = scratch.start[key as usize]..scratch.start[key as usize + 1];
                 if !rows.is_empty() {
