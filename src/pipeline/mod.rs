@@ -7,12 +7,14 @@
 //! calibrate -> compensate -> acceptance -> outputs (JSON, parquet, figures, the page).
 
 mod device;
+mod file;
 mod plan;
 mod results;
 mod run;
 
 pub(crate) use device::hexapod_of;
 pub use device::{run_device, DeviceStage};
+pub use file::*;
 pub use plan::*;
 pub use results::*;
 pub use run::*;

@@ -39,7 +39,7 @@ pub use fleet::{identify_fleet, BarOutcome, FleetLogs, FleetReadings, IdentifyOp
 
 use profile::profile_tau_intervals;
 pub(crate) use start::{coarse_copy, COARSE_START_MIN_SAMPLES};
-use start::{defaults_basin, start_fit, warm_start, SearchNew};
+use start::{defaults_basin, nearer_start, start_fit, warm_start, SearchNew};
 
 /// One estimated parameter.
 #[derive(Debug, Clone, PartialEq)]
@@ -326,6 +326,9 @@ fn fit_from_start(
     if let Some(theta) = &coarse_theta {
         theta0 = theta.clone();
         options.start = Start::NearOptimum;
+        if let Some(nearer) = nearer_start(series, effects, &theta0) {
+            theta0 = nearer;
+        }
     }
     let searched = SearchNew {
         problem: &problem,
