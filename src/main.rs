@@ -164,7 +164,7 @@ struct ModelArgs {
     #[arg(long = "add-effect", value_name = "NAME")]
     add_effect: Vec<String>,
     /// Compress the readings into bins of this many seconds, two weighted nodes a bin (exact for
-    /// the fits; 0: every reading). Default: 60 when the bars log every 6 s or faster, else 0.
+    /// the fits; 0: every reading). Default: 60 when the bars log every 12 s or faster, else 0.
     #[arg(long = "bin-s", value_name = "SECONDS")]
     bin_s: Option<f64>,
 }

@@ -204,7 +204,7 @@ pub(crate) struct ModelSection {
     pub(crate) term: Vec<GenericTerm>,
     /// Compress each bar's readings into bins of this many seconds, two weighted nodes a bin,
     /// exact for the fits (`series::bins`; 0: every reading). At most an hour. Absent or
-    /// `"auto"`: chosen from the campaign (`series::automatic_bin_s`: 60 s for logs of 6 s or
+    /// `"auto"`: chosen from the campaign (`series::automatic_bin_s`: 60 s for logs of 12 s or
     /// faster) and checked against the fitted time constants (`runner`).
     #[serde(default, deserialize_with = "bin_s_or_auto")]
     pub(crate) bin_s: Option<f64>,

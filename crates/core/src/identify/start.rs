@@ -78,8 +78,8 @@ const NEARER_START_BIN_S: f64 = 60.0;
 /// Levenberg-Marquardt took 10-15 evaluations of the readings (0.6-0.8 s a refit). The 60-s
 /// copy's optimum lies within about 1 % of the readings' (the bin's bias is `(60 s/τ)²/24`),
 /// and the readings then take a polish or a few iterations: on the second simulator's
-/// three-effect campaign the diagnosis' 30 refits on the readings and identify took 12 % and
-/// 27 % less CPU, with the same ledger to every printed digit (`bench/README.md`).
+/// three-effect campaign (every reading) this spares about a tenth of the diagnosis' refits on
+/// the readings and a quarter of identify, with the same ledger to every printed digit.
 pub(super) fn nearer_start(
     series: &BarSeries,
     effects: &[Effect],

@@ -378,15 +378,17 @@ fn bin_means_are_means_of_the_samples() {
 /// The automatic bin length: the bar's mounts span 4 h (first start to last end, the handling
 /// gap and the device mount included), so 14 400 rows are one reading a second.
 #[test]
-fn automatic_bins_compress_logs_of_six_seconds_or_faster_only() {
+fn automatic_bins_compress_logs_of_twelve_seconds_or_faster_only() {
     let c = campaign();
     let span_s = 4 * 3600;
     for (interval_s, bin_s) in [
         (0.1, 60.0),
         (1.0, 60.0),
         (6.0, 60.0),
-        (6.5, 0.0),
-        (10.0, 0.0),
+        (10.0, 60.0),
+        (12.0, 60.0),
+        (12.5, 0.0),
+        (15.0, 0.0),
         (30.0, 0.0),
     ] {
         let rows = (span_s as f64 / interval_s).round() as u64;
