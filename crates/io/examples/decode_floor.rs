@@ -8,9 +8,13 @@
 //!   turn and decode them in batches (`time`, `bar` as a dictionary, `counts`), the batches
 //!   dropped on arrival.
 //!
+//! The process allocates as the `dbbcal` binary does: mimalloc, freed memory kept for reuse
+//! (`dbbcal_io::keep_freed_memory`). `bench/decode_floor.py` is the same measurement in Python
+//! polars.
+//!
 //! ```text
 //! cargo run --release -p dbbcal-io --features bench-tools --example decode_floor -- bench/out/campaign-full \
-//!     [--repeat 3] [--json FILE]
+//!     [--repeat 3] [--only collect|stream] [--json FILE]
 //! ```
 //!
 //! A benchmark tool (`bench/run.sh` runs it), built only with the `bench-tools` feature so that
@@ -171,8 +175,13 @@ fn stream(paths: &[PathBuf]) -> anyhow::Result<usize> {
     Ok(rows.load(Ordering::Relaxed))
 }
 
+/// The binary's allocator (`src/main.rs`), so that the floor is measured as ingest allocates.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// One line on failure (no backtrace), exit code 2.
 fn main() {
+    dbbcal_io::keep_freed_memory();
     if let Err(e) = run() {
         eprintln!("decode_floor: {e:#}");
         std::process::exit(2);
@@ -180,15 +189,17 @@ fn main() {
 }
 
 fn run() -> anyhow::Result<()> {
-    let usage = "usage: decode_floor CAMPAIGN_DIR [--repeat N] [--json FILE]";
+    let usage =
+        "usage: decode_floor CAMPAIGN_DIR [--repeat N] [--only collect|stream] [--json FILE]";
     let mut args = std::env::args().skip(1);
     let campaign = args.next().ok_or_else(|| anyhow::anyhow!(usage))?;
-    let (mut repeat, mut json) = (3, None);
+    let (mut repeat, mut json, mut only) = (3, None, None);
     while let Some(flag) = args.next() {
         let value = args.next().ok_or_else(|| anyhow::anyhow!(usage))?;
         match flag.as_str() {
             "--repeat" => repeat = value.parse()?,
             "--json" => json = Some(value),
+            "--only" if value == "collect" || value == "stream" => only = Some(value),
             _ => anyhow::bail!(usage),
         }
     }
@@ -201,6 +212,9 @@ fn run() -> anyhow::Result<()> {
         ),
         ("stream", stream),
     ] {
+        if only.as_ref().is_some_and(|o| o != name) {
+            continue;
+        }
         let mut runs = Vec::new();
         let mut rows = 0;
         for _ in 0..repeat.max(1) {
