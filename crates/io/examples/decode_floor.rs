@@ -8,8 +8,8 @@
 //!   turn and decode them in batches (`time`, `bar` as a dictionary, `counts`), the batches
 //!   dropped on arrival.
 //!
-//! The process allocates as the `dbbcal` binary does: mimalloc, freed memory kept for reuse
-//! (`dbbcal_io::keep_freed_memory`). `bench/decode_floor.py` is the same measurement in Python
+//! The process allocates as the `dbbcal` binary does: mimalloc, freed memory kept for reuse,
+//! no huge pages (`dbbcal_io::tune_memory`). `bench/decode_floor.py` is the same measurement in Python
 //! polars.
 //!
 //! ```text
@@ -181,7 +181,7 @@ static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// One line on failure (no backtrace), exit code 2.
 fn main() {
-    dbbcal_io::keep_freed_memory();
+    dbbcal_io::tune_memory();
     if let Err(e) = run() {
         eprintln!("decode_floor: {e:#}");
         std::process::exit(2);

@@ -47,7 +47,7 @@ use std::path::{Path, PathBuf};
 use dbbcal_core::campaign::CampaignError;
 use dbbcal_core::series::CampaignLogs;
 
-pub use alloc::keep_freed_memory;
+pub use alloc::tune_memory;
 pub use axis::{read_axis_campaign, read_axis_manifest};
 pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;
