@@ -21,7 +21,8 @@
 //!   touch of 2 MiB zeroes 2 MiB at once, used or not. Off for the process
 //!   (`PR_SET_THP_DISABLE`, what mimalloc's own `allow_thp = 0` does when read at its start;
 //!   inherited by the supervised child): `identify` on the shuffled 1 Hz layout, 1.1-1.6 s of
-//!   system time with them, 0.43-0.49 s without, the same user time and peak RSS.
+//!   system time with them, 0.43-0.63 s without (three runs each, load 2.4-2.9), the same user
+//!   time and peak RSS within the noise.
 //!
 //! Memory: what is kept is what was in use before, so the peak is unchanged up to
 //! fragmentation (`bench/README.md`, "The 1 Hz layouts", measures peak RSS). Nothing here
