@@ -9,8 +9,8 @@
 # 3. checks on the sample campaign that bench/python_equivalent.py and dbbcal agree (1e-3 relative);
 # 4. measures wall time and peak RSS (/usr/bin/time -v) of, per campaign size:
 #      dbbcal ingest, dbbcal identify (= ingest + identify), bench/bare_scan.py (best of 3),
-#    crates/io/examples/decode_floor.rs (dbbcal's polars decoding the encoder files and nothing else: the
-#    floor under ingest, best of 3), and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
+#    crates/io/examples/decode_floor.rs (dbbcal's parquet reader decoding the encoder files and nothing
+#    else: the floor under ingest, best of 3) and bench/decode_floor.py (the same in Python polars), and on the 30-day campaign bench/python_equivalent.py (dense lstsq, the yardstick) on
 #    PY_BARS bars, extrapolated to all 12 -- plus the --project-zeros variant on all bars;
 # 5. rewrites the 30-day campaign into the row orders a logger of many bars leaves (bench/layouts.py:
 #    day files holding all bars, sorted by bar / by time with the bars interleaved / shuffled) and
@@ -160,8 +160,10 @@ for size in $SIZES; do
     say "timing $size ($camp)"
     # The bare scan first: it also warms the page cache for everyone after it.
     measure "bare-scan-$size" "$size" python3 bench/bare_scan.py "$camp" --repeat 3 --json "$OUT/bare-scan-$size.json"
-    # The floor under ingest: dbbcal's own polars decoding the encoder files, nothing else.
+    # The floor under ingest: dbbcal's own parquet reader decoding the encoder files, nothing
+    # else; then Python polars decoding the same columns the same two ways.
     measure "decode-floor-$size" "$size" "$OUT/decode_floor" "$camp" --repeat 3 --json "$OUT/decode-floor-$size.json"
+    measure "decode-floor-py-$size" "$size" python3 bench/decode_floor.py "$camp" --repeat 3 --json "$OUT/decode-floor-py-$size.json"
     for r in $(seq 1 "$REPEAT"); do
         measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest" "${BIN_FLAG[@]}"
         if [ "$size" = full ] && [ "$DBBCAL_BARS" != all ]; then
@@ -185,6 +187,7 @@ for layout in $LAYOUTS; do
     say "timing row order $layout ($camp)"
     measure "bare-scan-$size" "$size" python3 bench/bare_scan.py "$camp" --repeat 3 --json "$OUT/bare-scan-$size.json"
     measure "decode-floor-$size" "$size" "$OUT/decode_floor" "$camp" --repeat 3 --json "$OUT/decode-floor-$size.json"
+    measure "decode-floor-py-$size" "$size" python3 bench/decode_floor.py "$camp" --repeat 3 --json "$OUT/decode-floor-py-$size.json"
     for r in $(seq 1 "$REPEAT"); do
         measure "dbbcal-ingest-$size-$r" "$size" "$BIN" ingest --campaign "$camp" --out "$OUT/res-$size-ingest"
         measure "dbbcal-identify-$size-$r" "$size" "$BIN" identify --campaign "$camp" --out "$OUT/res-$size-identify"

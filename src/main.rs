@@ -170,11 +170,14 @@ struct ModelArgs {
 }
 
 /// mimalloc: see Cargo.toml for why and what it measured. The wrapper changes nothing but the
-/// failure of an absurd allocation in a supervised child (`dbbcal::supervise`).
+/// failure of an absurd allocation in a supervised child (`dbbcal::supervise`). Freed memory
+/// stays in the process for reuse, without huge pages (`dbbcal::io::tune_memory`, first thing
+/// in `main`).
 #[global_allocator]
 static GLOBAL: SupervisedAlloc<mimalloc::MiMalloc> = SupervisedAlloc(mimalloc::MiMalloc);
 
 fn main() -> ExitCode {
+    dbbcal::io::tune_memory();
     let supervised = dbbcal::supervise::child_init();
     if let Some(file) = std::env::var_os(dbbcal::supervise::PROBE_ENV).filter(|_| supervised) {
         // A probe (`supervise::probe`): the answer is whether this process survives.

@@ -4,13 +4,17 @@
 //! Two ways, best of `--repeat` runs each:
 //! * `collect`: every file decoded into memory (its batches kept until the file is done), row
 //!   groups in parallel on every core, as `bench/bare_scan.py` does in Python;
-//! * `stream`: as ingest reads the encoder files: two threads each take the files' row groups in
-//!   turn and decode them in batches (`time`, `bar` as a dictionary, `counts`), the batches
-//!   dropped on arrival.
+//! * `stream`: as ingest reads the encoder files: two threads (`--threads N` to change it) each
+//!   take the files' row groups in turn and decode them in batches (`time`, `bar` as a
+//!   dictionary, `counts`), the batches dropped on arrival.
+//!
+//! The process allocates as the `dbbcal` binary does: mimalloc, freed memory kept for reuse,
+//! no huge pages (`dbbcal_io::tune_memory`). `bench/decode_floor.py` is the same measurement in Python
+//! polars.
 //!
 //! ```text
 //! cargo run --release -p dbbcal-io --features bench-tools --example decode_floor -- bench/out/campaign-full \
-//!     [--repeat 3] [--json FILE]
+//!     [--repeat 3] [--only collect|stream] [--threads 2] [--json FILE]
 //! ```
 //!
 //! A benchmark tool (`bench/run.sh` runs it), built only with the `bench-tools` feature so that
@@ -120,8 +124,9 @@ fn tasks(files: &[Opened]) -> Vec<(usize, usize)> {
         .collect()
 }
 
-/// Rows decoded by collecting every file into memory, its row groups in parallel.
-fn collect(paths: &[PathBuf]) -> anyhow::Result<usize> {
+/// Rows decoded by collecting every file into memory, its row groups in parallel (rayon's
+/// threads: every core; `--threads` is the `stream` way's).
+fn collect(paths: &[PathBuf], _threads: usize) -> anyhow::Result<usize> {
     let mut rows = 0;
     for path in paths {
         let opened = [open(path)?];
@@ -142,8 +147,8 @@ fn collect(paths: &[PathBuf]) -> anyhow::Result<usize> {
     Ok(rows)
 }
 
-/// Rows decoded by streaming every file's row groups on two threads, batches dropped.
-fn stream(paths: &[PathBuf]) -> anyhow::Result<usize> {
+/// Rows decoded by streaming every file's row groups on `threads` threads, batches dropped.
+fn stream(paths: &[PathBuf], threads: usize) -> anyhow::Result<usize> {
     let files = paths
         .iter()
         .map(|p| open(p))
@@ -151,7 +156,7 @@ fn stream(paths: &[PathBuf]) -> anyhow::Result<usize> {
     let work = tasks(&files);
     let (next, rows) = (AtomicUsize::new(0), AtomicUsize::new(0));
     std::thread::scope(|scope| -> anyhow::Result<()> {
-        let threads: Vec<_> = (0..STREAM_THREADS)
+        let threads: Vec<_> = (0..threads.max(1))
             .map(|_| {
                 scope.spawn(|| -> anyhow::Result<()> {
                     while let Some(&(f, g)) = work.get(next.fetch_add(1, Ordering::Relaxed)) {
@@ -171,8 +176,13 @@ fn stream(paths: &[PathBuf]) -> anyhow::Result<usize> {
     Ok(rows.load(Ordering::Relaxed))
 }
 
+/// The binary's allocator (`src/main.rs`), so that the floor is measured as ingest allocates.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// One line on failure (no backtrace), exit code 2.
 fn main() {
+    dbbcal_io::tune_memory();
     if let Err(e) = run() {
         eprintln!("decode_floor: {e:#}");
         std::process::exit(2);
@@ -180,15 +190,18 @@ fn main() {
 }
 
 fn run() -> anyhow::Result<()> {
-    let usage = "usage: decode_floor CAMPAIGN_DIR [--repeat N] [--json FILE]";
+    let usage =
+        "usage: decode_floor CAMPAIGN_DIR [--repeat N] [--only collect|stream] [--threads N] [--json FILE]";
     let mut args = std::env::args().skip(1);
     let campaign = args.next().ok_or_else(|| anyhow::anyhow!(usage))?;
-    let (mut repeat, mut json) = (3, None);
+    let (mut repeat, mut json, mut only, mut threads) = (3, None, None, STREAM_THREADS);
     while let Some(flag) = args.next() {
         let value = args.next().ok_or_else(|| anyhow::anyhow!(usage))?;
         match flag.as_str() {
             "--repeat" => repeat = value.parse()?,
             "--json" => json = Some(value),
+            "--threads" => threads = value.parse()?,
+            "--only" if value == "collect" || value == "stream" => only = Some(value),
             _ => anyhow::bail!(usage),
         }
     }
@@ -197,15 +210,18 @@ fn run() -> anyhow::Result<()> {
     for (name, decode) in [
         (
             "collect",
-            collect as fn(&[PathBuf]) -> anyhow::Result<usize>,
+            collect as fn(&[PathBuf], usize) -> anyhow::Result<usize>,
         ),
         ("stream", stream),
     ] {
+        if only.as_ref().is_some_and(|o| o != name) {
+            continue;
+        }
         let mut runs = Vec::new();
         let mut rows = 0;
         for _ in 0..repeat.max(1) {
             let start = Instant::now();
-            rows = decode(&files)?;
+            rows = decode(&files, threads)?;
             runs.push(start.elapsed().as_secs_f64());
         }
         let best = runs.iter().copied().fold(f64::INFINITY, f64::min);
@@ -219,6 +235,7 @@ fn run() -> anyhow::Result<()> {
         record.insert(format!("{name}_runs_s"), runs.into());
         record.insert("encoder_rows".into(), rows.into());
     }
+    record.insert("stream_threads".into(), threads.into());
     if let Some(path) = json {
         std::fs::write(path, serde_json::to_string_pretty(&record)? + "\n")?;
     }

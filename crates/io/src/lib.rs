@@ -7,6 +7,7 @@
 //! public API speaks only in the crate's own types (`campaign`, `series`, [`Table`]), so a
 //! parquet/arrow upgrade touches `crates/io/` alone.
 
+mod alloc;
 mod axis;
 mod axis_write;
 mod guard;
@@ -46,6 +47,7 @@ use std::path::{Path, PathBuf};
 use dbbcal_core::campaign::CampaignError;
 use dbbcal_core::series::CampaignLogs;
 
+pub use alloc::tune_memory;
 pub use axis::{read_axis_campaign, read_axis_manifest};
 pub use axis_write::{write_axis_campaign, AxisWriteOptions};
 pub use guard::decode_whole_file;

@@ -514,11 +514,14 @@ impl EncoderSink {
             }
             Some(BarRows::Binned { bins, repeats }) => {
                 // Every row was checked in `push` (times and counts within the sums' range).
-                if let Err(e) = bins.add_all(time, counts) {
+                // The sketch marks the rows in the order the bins took them: grouped by bin when
+                // they came shuffled, so its bitmap is walked in order, not at random.
+                let added = match repeats {
+                    Some(repeats) => bins.add_all_then(time, counts, |rows| repeats.add(rows)),
+                    None => bins.add_all(time, counts),
+                };
+                if let Err(e) = added {
                     self.bin_error.get_or_insert(e.to_string());
-                }
-                if let Some(repeats) = repeats {
-                    repeats.add(time);
                 }
                 return;
             }

@@ -125,6 +125,20 @@ impl BinAccumulator {
     /// all): out of those bounds the bin arithmetic could wrap, so nothing of the call is added
     /// and the first offending value is returned.
     pub fn add_all(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> Result<(), BinError> {
+        self.add_all_then(time_ns, counts, |_| {})
+    }
+
+    /// [`BinAccumulator::add_all`], then `then` called with the same rows' times in the order
+    /// they were added: grouped by bin (or time block) when they came out of time order and
+    /// were sorted, else as given. A caller that looks at every row's time once more (ingest's
+    /// repeat sketch) then walks the bar's time line in order instead of jumping about it.
+    /// Not called when the rows are refused.
+    pub fn add_all_then(
+        &mut self,
+        time_ns: &[TimeNs],
+        counts: &[i64],
+        then: impl FnOnce(&[TimeNs]),
+    ) -> Result<(), BinError> {
         let n = time_ns.len().min(counts.len());
         let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
         check_readings(time_ns, counts)?;
@@ -133,10 +147,15 @@ impl BinAccumulator {
             .checked_add(n as u64)
             .filter(|&r| r <= MAX_BAR_READINGS)
             .ok_or(BinError::TooManyReadings)?;
-        if n >= MIN_BLOCK_SORT_ROWS && !time_ns.is_sorted() {
-            self.add_by_bin(time_ns, counts);
+        let sorted = if n >= MIN_BLOCK_SORT_ROWS && !time_ns.is_sorted() {
+            self.add_by_bin(time_ns, counts)
         } else {
             self.add_in_order(time_ns, counts);
+            false
+        };
+        match self.scratch.time.get(..n) {
+            Some(rows) if sorted => then(rows),
+            _ => then(time_ns),
         }
         Ok(())
     }
@@ -167,12 +186,12 @@ impl BinAccumulator {
     /// and last time ([`BinLayout`]). Rows a sort would not pay for (over more than
     /// [`MAX_SPLIT_SPANS`] spans, before the first mount, or fewer than two rows a bin) go to
     /// [`BinAccumulator::add_by_block`]. The sums are integers, so the path taken changes no bit.
-    fn add_by_bin(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
+    /// Returns whether the rows were sorted into `scratch` (else added as given).
+    fn add_by_bin(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> bool {
         let n = time_ns.len().min(counts.len());
         let (time_ns, counts) = (&time_ns[..n], &counts[..n]);
         let Some(layout) = self.bin_layout(time_ns) else {
-            self.add_by_block(time_ns, counts);
-            return;
+            return self.add_by_block(time_ns, counts);
         };
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.block.clear();
@@ -205,6 +224,7 @@ impl BinAccumulator {
         }
         self.scratch = scratch;
         self.current = None;
+        true
     }
 
     /// Where each span's bins go in one counting sort of rows between `time_ns`' first and last
@@ -251,18 +271,18 @@ impl BinAccumulator {
     /// sort): a bin's moments are then updated while its page is in the cache, not once per
     /// row at a random place among the bar's bins (a shuffled day of 1 440 one-minute bins is
     /// 184 kB a bar, 2.2 MB for twelve, more than a core's L2 cache). The sums are integers,
-    /// so the order changes no bit.
-    fn add_by_block(&mut self, time_ns: &[TimeNs], counts: &[i64]) {
+    /// so the order changes no bit. Returns whether the rows were sorted into `scratch`.
+    fn add_by_block(&mut self, time_ns: &[TimeNs], counts: &[i64]) -> bool {
         let n = time_ns.len();
         let Some((first, last)) = time_range(time_ns) else {
-            return;
+            return false;
         };
         let block_ns = (self.bin_ns as u64).saturating_mul(PAGE_BINS as u64);
         let blocks = (last.abs_diff(first) / block_ns).saturating_add(1);
         // Many blocks for few rows gain nothing (and cost their counters).
         if blocks > (n as u64 / 8).min(MAX_SORT_BLOCKS) {
             self.add_in_order(time_ns, counts);
-            return;
+            return false;
         }
         let divide = Divide::new(block_ns);
         let mut scratch = std::mem::take(&mut self.scratch);
@@ -275,6 +295,7 @@ impl BinAccumulator {
         scratch.sort_by_block(blocks as usize, time_ns, counts);
         self.add_scattered(&scratch.time, &scratch.counts);
         self.scratch = scratch;
+        true
     }
 
     /// Rows in no particular time order, one at a time: each row's bin by arithmetic within the

@@ -138,6 +138,46 @@ fn the_order_of_the_readings_does_not_change_the_bins() {
     assert!(sorted.bins.windows(2).all(|w| w[0].0 < w[1].0));
 }
 
+/// `add_all_then` hands over every row's time once, in the order the bins took them: as given
+/// when in time order, grouped by bin (each bin's times together, bins in time order) when a
+/// shuffled batch was sorted; and its bins are `add_all`'s.
+#[test]
+fn add_all_then_hands_over_the_rows_in_the_order_they_were_added() {
+    let (grid, time, counts) = five_hundred_readings();
+    let mut plain = BinAccumulator::new(grid.clone());
+    plain.add_all(&time, &counts).unwrap();
+    let mut seen = Vec::new();
+    let mut then = BinAccumulator::new(grid.clone());
+    then.add_all_then(&time, &counts, |rows| seen.extend_from_slice(rows))
+        .unwrap();
+    assert_eq!(seen, time, "rows in time order are handed over as given");
+    // The 300 rows inside the mount, shuffled (a fixed permutation: i * 7 mod 300).
+    let order: Vec<usize> = (0..300).map(|i| 100 + (i * 7) % 300).collect();
+    let (t2, c2): (Vec<_>, Vec<_>) = order.iter().map(|&i| (time[i], counts[i])).unzip();
+    let mut shuffled = BinAccumulator::new(grid.clone());
+    let mut handed = Vec::new();
+    shuffled
+        .add_all_then(&t2, &c2, |rows| handed.extend_from_slice(rows))
+        .unwrap();
+    assert_ne!(handed, t2, "a shuffled batch is sorted before it is added");
+    // Grouped by bin, bins in time order: never back by a bin's length or more.
+    assert!(handed.windows(2).all(|w| w[1] > w[0] - grid.bin_ns));
+    let mut sorted_handed = handed.clone();
+    sorted_handed.sort_unstable();
+    assert_eq!(sorted_handed, time[100..400], "every row once");
+    let mut inside = BinAccumulator::new(grid.clone());
+    inside.add_all(&time[100..400], &counts[100..400]).unwrap();
+    assert_eq!(shuffled.finish(), inside.finish());
+    assert_eq!(then.finish(), plain.finish());
+    // Refused rows: nothing added, `then` not called.
+    let mut refused = BinAccumulator::new(grid);
+    let mut called = false;
+    assert!(refused
+        .add_all_then(&[i64::MIN], &[0], |_| called = true)
+        .is_err());
+    assert!(!called);
+}
+
 #[test]
 fn accumulators_of_other_grids_are_not_merged() {
     let (grid, time, counts) = five_hundred_readings();
