@@ -114,9 +114,10 @@ pub fn run(plan: &RunPlan) -> Result<Outcome> {
 }
 
 /// Ingest and analyse. With no bin length set, the bins are chosen from the campaign's reading
-/// rate ([`io::automatic_bin_s`]) and then checked against the fitted time constants: when one
-/// spans fewer than [`crate::series::MIN_BINS_PER_TAU`] bins, the campaign is read again with
-/// bins that short time constant allows (at most twice; below 1 s, every reading).
+/// rate ([`io::automatic_bin_s`]) and then checked against the identified time constants: when
+/// one is too short for them ([`crate::series::too_short_for_bins`]), the campaign is read
+/// again with bins that short time constant allows (at most twice; below 1 s, every reading),
+/// before any later stage runs on the discarded pass.
 fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
     let automatic = plan.automatic_bins;
     let mut plan = if automatic {
@@ -128,11 +129,9 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
         let logs = pipeline::timed("ingest", || {
             io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
         })?;
-        let results = pipeline::analyse(&plan, logs);
-        let shortest = shortest_fitted_tau_s(&results);
-        let limit = crate::series::MIN_BINS_PER_TAU * plan.bin_s;
-        match shortest {
-            Some(tau) if automatic && plan.bin_s > 0.0 && tau < limit && pass < 2 => {
+        let mut results = pipeline::identify_stage(&plan, logs);
+        match shortest_too_short_tau_s(&results, plan.bin_s) {
+            Some(tau) if automatic && pass < 2 => {
                 let bin_s = (tau / crate::series::MIN_BINS_PER_TAU).floor();
                 let bin_s = if bin_s >= 1.0 { bin_s } else { 0.0 };
                 tracing::info!(
@@ -142,19 +141,26 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
                 );
                 plan = plan.with_chosen_bins(bin_s);
             }
-            _ => return Ok((plan, results)),
+            _ => {
+                if plan.runs(pipeline::Stage::Identify) {
+                    pipeline::run_later_stages(&plan, &mut results);
+                }
+                return Ok((plan, results));
+            }
         }
     }
     unreachable!("the loop returns by its third pass")
 }
 
-/// The shortest time constant fitted on any bar (s).
-fn shortest_fitted_tau_s(results: &RunResults) -> Option<f64> {
+/// The shortest time constant identified on any bar that is too short for bins of `bin_s` (s;
+/// [`crate::series::too_short_for_bins`]), if any.
+fn shortest_too_short_tau_s(results: &RunResults, bin_s: f64) -> Option<f64> {
     results
         .bars
         .iter()
         .flat_map(|o| o.model.params.iter())
         .filter(|p| p.name.starts_with("tau") && p.value.is_finite())
+        .filter(|p| crate::series::too_short_for_bins(p.value, p.ci95[1], bin_s))
         .map(|p| p.value)
         .min_by(f64::total_cmp)
 }

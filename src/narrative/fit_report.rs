@@ -204,8 +204,9 @@ pub(crate) enum Warning {
     FewBatches { param: String, dof: f64 },
     /// Parameters the bar's data cannot determine (left out of its fit).
     NotIdentifiable { params: Vec<String>, reason: String },
-    /// A fitted time constant shorter than [`BINS_PER_TAU`] compressed bins: the compression is
-    /// exact to O((bin / tau)²), more than 1 % here (`crates/core/src/series/bins.rs`).
+    /// A fitted time constant shorter than [`BINS_PER_TAU`] compressed bins, interval and all
+    /// (`series::too_short_for_bins`): the compression is exact to O((bin / tau)²), more than
+    /// 1 % here (`crates/core/src/series/bins.rs`).
     CoarseBins {
         param: String,
         tau_s: f64,
@@ -241,7 +242,7 @@ pub(crate) fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
     let m = &o.model;
     let mut out = Vec::new();
     for p in m.params.iter().filter(|p| p.name.starts_with("tau")) {
-        if bin_s > 0.0 && p.value < BINS_PER_TAU * bin_s {
+        if crate::series::too_short_for_bins(p.value, p.ci95[1], bin_s) {
             out.push(Warning::CoarseBins {
                 param: p.name.clone(),
                 tau_s: p.value,

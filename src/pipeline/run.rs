@@ -16,6 +16,17 @@ pub(crate) use dbbcal_core::stage::timed;
 
 /// Run the analysis stages on already-read logs (no output written).
 pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
+    let mut results = identify_stage(plan, logs);
+    if plan.runs(Stage::Identify) {
+        run_later_stages(plan, &mut results);
+    }
+    results
+}
+
+/// The stages up to identify on already-read logs: what [`analyse`] has before the later
+/// stages ([`run_later_stages`]), which the runner may skip when it reads the campaign again
+/// with shorter bins.
+pub fn identify_stage(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let t0_ns = crate::series::campaign_origin_ns(&logs);
     let CampaignLogs {
         campaign,
@@ -54,12 +65,11 @@ pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
         RunResults::before_stages(campaign, inputs, history, identified.ok, identified.failed);
     results.quality = quality;
     results.device_sensors = super::device::sensor_logs(&results.campaign, &sensors);
-    run_later_stages(plan, &mut results);
     results
 }
 
 /// The stages past identify, in order, each filling its part of `results`.
-fn run_later_stages(plan: &RunPlan, results: &mut RunResults) {
+pub fn run_later_stages(plan: &RunPlan, results: &mut RunResults) {
     if plan.runs(Stage::Match) {
         let options = match_options(plan);
         let matched = crate::matching::match_fleet(

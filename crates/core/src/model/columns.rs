@@ -139,17 +139,21 @@ impl ThermalProblem<'_> {
                 n_rows += 1;
             }
         }
-        let out = &mut out[..n_rows];
+        let runs = || {
+            self.zero_runs
+                .iter()
+                .map(move |(rows, zero)| (rows.start..rows.end.min(n_rows), *zero))
+                .take_while(|(rows, _)| !rows.is_empty())
+        };
         let mut sums = vec![0.0; self.n_zero_columns];
-        let rows = out
-            .iter_mut()
-            .zip(&self.series.fit_index)
-            .zip(&self.row_zero);
-        for (((o, &i), zero), w) in rows.zip(&self.sqrt_weight) {
-            let x = full[i];
-            *o = x;
+        for (rows, zero) in runs() {
+            let (o, w) = (&mut out[rows.clone()], &self.sqrt_weight[rows.clone()]);
+            for (o, &i) in o.iter_mut().zip(&self.series.fit_index[rows]) {
+                *o = full[i];
+            }
             if let Some(k) = zero {
-                sums[*k] += w * w * x;
+                // Row by row in order: the same sum, to the bit, as one pass over the rows.
+                sums[k] = o.iter().zip(w).fold(sums[k], |s, (x, w)| s + w * w * x);
             }
         }
         let means: Vec<f64> = sums
@@ -157,9 +161,15 @@ impl ThermalProblem<'_> {
             .zip(&self.zero_weight)
             .map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 })
             .collect();
-        for ((o, zero), w) in out.iter_mut().zip(&self.row_zero).zip(&self.sqrt_weight) {
-            let centred = zero.map_or(*o, |k| *o - means[k]);
-            *o = centred * w;
+        for (rows, zero) in runs() {
+            let (o, w) = (&mut out[rows.clone()], &self.sqrt_weight[rows]);
+            match zero {
+                Some(k) => {
+                    let mean = means[k];
+                    o.iter_mut().zip(w).for_each(|(o, w)| *o = (*o - mean) * w);
+                }
+                None => o.iter_mut().zip(w).for_each(|(o, w)| *o *= w),
+            }
         }
     }
 

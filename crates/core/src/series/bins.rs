@@ -178,8 +178,22 @@ pub(crate) const AUTOMATIC_MAX_INTERVAL_S: f64 = 12.0;
 
 /// A fitted time constant should span at least this many bins: the compression's straight line
 /// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
-/// length set, a run whose fit finds a shorter one reads the campaign again with shorter bins.
+/// length set, a run whose fit finds a shorter one ([`too_short_for_bins`]) reads the campaign
+/// again with shorter bins.
 pub const MIN_BINS_PER_TAU: f64 = 10.0;
+
+/// Whether a fitted time constant `tau_s`, whose 95 % interval ends at `ci95_upper_s`, is too
+/// short for bins of `bin_s` (0: every reading, never too short): it spans fewer than
+/// [`MIN_BINS_PER_TAU`] bins, and so does its interval's upper end, so the data rule out a
+/// time constant the bins would hold. A time constant the data do not determine (its interval
+/// reaching far beyond the bins, say a `tau_s` run to its 1-s search bound on a bar the base
+/// model misfits) is not: reading the campaign again with shorter bins, or every reading,
+/// would refit the same undetermined parameter at several times the cost. An interval not
+/// known (NaN) counts as short.
+pub fn too_short_for_bins(tau_s: f64, ci95_upper_s: f64, bin_s: f64) -> bool {
+    let limit = MIN_BINS_PER_TAU * bin_s;
+    bin_s > 0.0 && tau_s < limit && !(ci95_upper_s >= limit)
+}
 
 /// The bin length for a campaign of `encoder_rows` readings when none is set (`[model] bin_s`
 /// and `--bin-s` absent): `AUTOMATIC_BIN_S` when the bars' mean interval between readings is
