@@ -192,7 +192,8 @@ pub const MIN_BINS_PER_TAU: f64 = 10.0;
 /// known (NaN) counts as short.
 pub fn too_short_for_bins(tau_s: f64, ci95_upper_s: f64, bin_s: f64) -> bool {
     let limit = MIN_BINS_PER_TAU * bin_s;
-    bin_s > 0.0 && tau_s < limit && !(ci95_upper_s >= limit)
+    let interval_short = ci95_upper_s.is_nan() || ci95_upper_s < limit;
+    bin_s > 0.0 && tau_s < limit && interval_short
 }
 
 /// The bin length for a campaign of `encoder_rows` readings when none is set (`[model] bin_s`
