@@ -142,9 +142,7 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
                 plan = plan.with_chosen_bins(bin_s);
             }
             _ => {
-                if plan.runs(pipeline::Stage::Identify) {
-                    pipeline::run_later_stages(&plan, &mut results);
-                }
+                pipeline::run_later_stages(&plan, &mut results);
                 return Ok((plan, results));
             }
         }

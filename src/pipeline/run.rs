@@ -17,9 +17,7 @@ pub(crate) use dbbcal_core::stage::timed;
 /// Run the analysis stages on already-read logs (no output written).
 pub fn analyse(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     let mut results = identify_stage(plan, logs);
-    if plan.runs(Stage::Identify) {
-        run_later_stages(plan, &mut results);
-    }
+    run_later_stages(plan, &mut results);
     results
 }
 
@@ -68,8 +66,12 @@ pub fn identify_stage(plan: &RunPlan, logs: CampaignLogs) -> RunResults {
     results
 }
 
-/// The stages past identify, in order, each filling its part of `results`.
+/// The stages past identify, in order, each filling its part of `results` (none when the plan
+/// does not identify).
 pub fn run_later_stages(plan: &RunPlan, results: &mut RunResults) {
+    if !plan.runs(Stage::Identify) {
+        return;
+    }
     if plan.runs(Stage::Match) {
         let options = match_options(plan);
         let matched = crate::matching::match_fleet(
