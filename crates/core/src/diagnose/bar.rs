@@ -89,3 +89,17 @@ pub(super) fn term_identity(e: &Effect) -> String {
         other => other.name(),
     }
 }
+
+/// The family of terms one channel's response belongs to: `lag:CH` and `heat:CH` are one family
+/// (`heat:CH` nests `lag:CH`: with `I_p` constant over a bar's mounts the two are one term,
+/// `physics.md`'s first-order model); any other effect is its own ([`term_identity`]).
+pub(super) fn response_family(e: &Effect) -> String {
+    match e {
+        Effect::Channel {
+            transform: Transform::Lag | Transform::Heat,
+            channel,
+            ..
+        } => format!("response:{channel}"),
+        other => term_identity(other),
+    }
+}

@@ -4,7 +4,7 @@
 //! Separate because it repeats a diagnosis step by step; one step's evaluation is in
 //! `candidates`.
 
-use super::bar::{diagnose_bar, screen_bases, term_identity};
+use super::bar::{diagnose_bar, response_family, screen_bases, term_identity};
 use super::bar_selection::ledger_step;
 use super::candidates::{candidate_effects, evaluate_at_most, exact_refits};
 use super::compare::competing_delta_bic;
@@ -221,25 +221,15 @@ impl CoarseFleet {
             refits,
         )
         .into_iter()
-        .map(|path| {
-            let effects = path
-                .ledger
-                .iter()
-                .filter_map(|step| match &step.added {
-                    Added::Effect(e) => Some(e.clone()),
-                    Added::Base => None,
-                })
-                .collect();
-            (effects, path.delta_bic)
-        })
+        .map(|path| (added_effects(&path.ledger), path.delta_bic))
         .collect()
     }
 }
 
 /// The coarse paths whose total ΔBIC is within [`PATH_TIE_SHARE`] of the best's and that start
 /// with different effects, each confirmed on the readings ([`confirm_path`]); the one whose
-/// confirmed ledger ends at the lowest BIC (its steps' exact ΔBIC summed) is kept, the coarse
-/// order breaking ties.
+/// confirmed ledger ends at the lowest BIC (its steps' exact ΔBIC summed) is kept, then led by
+/// the ranking's best where the ranking prefers another first step ([`led_by_the_ranking`]).
 ///
 /// Why: the coarse copies decide near ties that the readings do not. On the second simulator's
 /// plate-expansion campaign (`bench/foreign_sim.py --effect plate_expansion --seed 1`, 10 bars,
@@ -247,6 +237,13 @@ impl CoarseFleet {
 /// `air_gradient`'s −125 729) while the coarse beam preferred `air_gradient`: the ledger named the
 /// wrong effect. A path's first step is usually refitted already (the ranking's exact tier), so
 /// confirming a tied rival costs only its later steps.
+///
+/// Tied paths are confirmed in the readings' ranking of their first steps, and of the paths that
+/// lead with one channel's response (`lag:CH` and `heat:CH`, [`response_family`]) only the first:
+/// the readings' ranking has already compared the two transforms exactly, and their later steps
+/// are the same terms. On our simulator's sensor-gradient + plate-expansion + hidden-channel
+/// campaign the three tied paths led with `lag:P1-H1`, `heat:P1-H1` and `heat:T1-H1`; the first
+/// two ended 0.001 % apart after 20 exact refits each.
 fn confirm_tied_paths(
     series: &[&BarSeries],
     start: Vec<BarModel>,
@@ -255,23 +252,8 @@ fn confirm_tied_paths(
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
-    let best_total = paths.first().map_or(0.0, |(_, total)| *total);
-    // One path per first step (the coarse best of those that share it): the first step names
-    // the effect the ledger leads with, and its exact refits are the ranking's already; paths
-    // that part later are aliases at a later step (on the three-effect campaign of our
-    // simulator, `air_gradient`, `heat:T2-T1` and `heat:T2` as the third step, within 0.01 % of
-    // each other on the readings), whose confirmation cost 9 s for no change.
-    let mut firsts: Vec<Option<&Effect>> = Vec::new();
-    let tied = paths.iter().filter(|(path, total)| {
-        (total - best_total).abs() <= PATH_TIE_SHARE * best_total.abs() && {
-            let first = path.first();
-            let new_first = !firsts.contains(&first);
-            firsts.push(first);
-            new_first
-        }
-    });
-    let mut kept: Option<(Vec<LedgerStep>, Vec<BarModel>, f64)> = None;
-    for (path, _) in tied {
+    let mut confirmed: Vec<ConfirmedPath> = Vec::new();
+    for path in tied_paths(paths, first_candidates) {
         let (ledger, models) = confirm_path(
             series,
             start.clone(),
@@ -282,38 +264,176 @@ fn confirm_tied_paths(
         );
         let total: f64 = ledger.iter().filter_map(|step| step.delta_bic).sum();
         tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total, "diagnose: a tied coarse path confirmed on the readings");
-        if kept.as_ref().is_none_or(|(_, _, best)| total < *best) {
-            kept = Some((ledger, models, total));
-        }
+        confirmed.push(ConfirmedPath {
+            first: path.first().cloned(),
+            ledger,
+            models,
+            total,
+        });
     }
-    match kept {
-        Some((ledger, models, total)) => led_by_the_ranking(
-            series,
-            start,
-            (ledger, models, total),
-            first_candidates,
-            (coarse, max_steps),
-            criteria,
-            refits,
-        ),
-        None => confirm_path(
+    if confirmed.is_empty() {
+        return confirm_path(
             series,
             start,
             first_candidates,
             (&[], coarse, max_steps),
             criteria,
             refits,
-        ),
+        );
     }
+    let (ledger, models) = led_by_the_ranking(
+        series,
+        start.clone(),
+        confirmed,
+        first_candidates,
+        (coarse, max_steps),
+        criteria,
+        refits,
+    );
+    in_readings_order(
+        series,
+        start,
+        (ledger, models),
+        first_candidates,
+        coarse,
+        criteria,
+        refits,
+    )
 }
 
-/// `kept` (a confirmed ledger, its models and its total ΔBIC) led by the ranking's best proposed
-/// candidate where it leads with another: that candidate first, then the ledger's other
-/// effects in their order, confirmed on the readings. The reordered ledger is kept when its
-/// total is lower than `kept`'s or within [`PATH_TIE_SHARE`] of it; otherwise `kept` stands (and
-/// the page says why the two differ). The reordered ledger can also stop earlier: on the second
-/// simulator's air-gradient campaign (seed 3) `air_gradient` alone (ΔBIC −179 021) beat the
-/// coarse path `second_path` → `air_gradient` (−143 375), `second_path` not significant after it.
+/// `chosen` (a confirmed ledger and its models) with its later steps in the order the readings
+/// rank them: at each step after the first, of the effects the ledger adds later, the one whose
+/// exact refit lowers the BIC most ([`confirmed_step`]). The ledger ends at the same model and
+/// total; only its order can change. `chosen` stands when a step of the walk is not proposed.
+///
+/// Why: a path's total ΔBIC does not depend on the order of its steps, so two coarse paths that
+/// add the same effects tie exactly, and the coarse order between them says nothing about the
+/// readings. On our simulator's plate-expansion + hidden-channel campaign the path kept read
+/// `heat:P1-H1` 33.0 → `second_path` 23.8 → `plate_expansion` 20.1 nm: the hidden effect named
+/// last, after a step that removes less. Cost: one exact refit a bar for each later step's
+/// rivals (the ledger's own refits are cached).
+fn in_readings_order(
+    series: &[&BarSeries],
+    start: Vec<BarModel>,
+    chosen: (Vec<LedgerStep>, Vec<BarModel>),
+    first_candidates: &[Candidate],
+    coarse: &CoarseFleet,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let path = added_effects(&chosen.0);
+    if path.len() < 3 {
+        return chosen;
+    }
+    let mut current = SelectionPath::starting_at(start);
+    let mut rest = path.clone();
+    let mut order = Vec::with_capacity(path.len());
+    for k in 0..path.len() {
+        let rivals = if k == 0 { &rest[..1] } else { &rest[..] };
+        let best = rivals
+            .iter()
+            .map(|e| {
+                confirmed_step(
+                    series,
+                    &current,
+                    (k, e),
+                    first_candidates,
+                    coarse,
+                    criteria,
+                    refits,
+                )
+            })
+            .filter(Candidate::proposed)
+            .min_by(|a, b| {
+                let bic = |c: &Candidate| c.delta_bic.unwrap_or(0.0);
+                bic(a).total_cmp(&bic(b))
+            });
+        let Some(best) = best else {
+            return chosen;
+        };
+        rest.retain(|e| *e != best.effect);
+        order.push(best.effect.clone());
+        let score = best.delta_bic.unwrap_or(0.0);
+        current = extend_path(series, &current, &best, score, refits);
+    }
+    if order == path {
+        return chosen;
+    }
+    tracing::debug!(path = ?order.iter().map(Effect::name).collect::<Vec<_>>(), "diagnose: the chosen ledger in the readings' order");
+    (current.ledger, current.models)
+}
+
+/// The effects `ledger` adds, in its order.
+fn added_effects(ledger: &[LedgerStep]) -> Vec<Effect> {
+    ledger
+        .iter()
+        .filter_map(|step| match &step.added {
+            Added::Effect(e) => Some(e.clone()),
+            Added::Base => None,
+        })
+        .collect()
+}
+
+/// A coarse path confirmed on the readings: the effect it leads with, its ledger and models, and
+/// the sum of its steps' exact ΔBIC.
+struct ConfirmedPath {
+    first: Option<Effect>,
+    ledger: Vec<LedgerStep>,
+    models: Vec<BarModel>,
+    total: f64,
+}
+
+/// The coarse paths [`confirm_tied_paths`] confirms, in the order it confirms them: within
+/// [`PATH_TIE_SHARE`] of the best total, one per first step (the coarse best of those that share
+/// it), ordered by the readings' rank of that first step (the coarse order between equals), and
+/// one per [`response_family`] of the first step.
+///
+/// One per first step: the first step names the effect the ledger leads with, and its exact
+/// refits are the ranking's already; paths that part later are aliases at a later step (on the
+/// three-effect campaign of our simulator, `air_gradient`, `heat:T2-T1` and `heat:T2` as the
+/// third step, within 0.01 % of each other on the readings), whose confirmation cost 9 s for no
+/// change.
+fn tied_paths<'a>(
+    paths: &'a [(Vec<Effect>, f64)],
+    first_candidates: &[Candidate],
+) -> Vec<&'a [Effect]> {
+    let best_total = paths.first().map_or(0.0, |(_, total)| *total);
+    let rank = |e: Option<&Effect>| {
+        e.and_then(|e| {
+            first_candidates
+                .iter()
+                .position(|c| term_identity(&c.effect) == term_identity(e))
+        })
+        .unwrap_or(usize::MAX)
+    };
+    let mut tied: Vec<&[Effect]> = Vec::new();
+    for (path, total) in paths {
+        let within = (total - best_total).abs() <= PATH_TIE_SHARE * best_total.abs();
+        if within && tied.iter().all(|p| p.first() != path.first()) {
+            tied.push(path);
+        }
+    }
+    // A stable sort: between first steps the ranking did not see, the coarse order stays.
+    tied.sort_by_key(|p| rank(p.first()));
+    let mut families: Vec<Option<String>> = Vec::new();
+    tied.retain(|p| {
+        let family = p.first().map(response_family);
+        let new = !families.contains(&family);
+        families.push(family);
+        new
+    });
+    tied
+}
+
+/// The best of the `confirmed` tied paths (the lowest total, the earlier between equals) led by
+/// the ranking's best proposed candidate where it leads with another: that candidate's own
+/// confirmed path when there is one, else that candidate first, then the ledger's other effects
+/// in their order (without the candidate's [`response_family`]), confirmed on the readings. The
+/// ledger led by the ranking's best is kept when its total is lower than the best's or within
+/// [`PATH_TIE_SHARE`] of it; otherwise the best stands (and the page says why the two differ).
+/// The reordered ledger can also stop earlier: on the second simulator's air-gradient campaign
+/// (seed 3) `air_gradient` alone (ΔBIC −179 021) beat the coarse path `second_path` →
+/// `air_gradient` (−143 375), `second_path` not significant after it.
 ///
 /// Why: the coarse beam ranks whole paths, so its first step can be a term that comes first
 /// only on the copies. On the second simulator's creep campaign (`bench/loop_check.py`, k = 1,
@@ -323,53 +443,74 @@ fn confirm_tied_paths(
 fn led_by_the_ranking(
     series: &[&BarSeries],
     start: Vec<BarModel>,
-    kept: (Vec<LedgerStep>, Vec<BarModel>, f64),
+    mut confirmed: Vec<ConfirmedPath>,
     first_candidates: &[Candidate],
     (coarse, max_steps): (&CoarseFleet, usize),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
-    let (ledger, models, total) = kept;
+    let kept_at = (0..confirmed.len())
+        .min_by(|&a, &b| confirmed[a].total.total_cmp(&confirmed[b].total))
+        .expect("at least one confirmed path");
+    let kept = confirmed.swap_remove(kept_at);
     let Some(best) = first_candidates.iter().find(|c| c.proposed()) else {
-        return (ledger, models);
+        return (kept.ledger, kept.models);
     };
-    let added: Vec<Effect> = ledger
-        .iter()
-        .filter_map(|step| match &step.added {
-            Added::Effect(e) => Some(e.clone()),
-            Added::Base => None,
-        })
-        .collect();
-    if added
-        .first()
-        .is_none_or(|e| term_identity(e) == term_identity(&best.effect))
+    let best_identity = term_identity(&best.effect);
+    if kept
+        .first
+        .as_ref()
+        .is_none_or(|e| term_identity(e) == best_identity)
     {
-        return (ledger, models);
+        return (kept.ledger, kept.models);
     }
-    let path: Vec<Effect> = std::iter::once(best.effect.clone())
+    let led = confirmed.into_iter().find(|p| {
+        p.first
+            .as_ref()
+            .is_some_and(|e| term_identity(e) == best_identity)
+    });
+    let (reordered, reordered_models, reordered_total) = match led {
+        Some(p) => (p.ledger, p.models, p.total),
+        None => {
+            let path = ranking_led_path(&best.effect, &kept.ledger);
+            let (ledger, models) = confirm_path(
+                series,
+                start,
+                first_candidates,
+                (&path, coarse, max_steps),
+                criteria,
+                refits,
+            );
+            let total: f64 = ledger.iter().filter_map(|step| step.delta_bic).sum();
+            tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total, "diagnose: the ledger led by the ranking's best, confirmed");
+            (ledger, models, total)
+        }
+    };
+    tracing::debug!(
+        reordered_total,
+        total = kept.total,
+        "diagnose: the ledger led by the ranking's best against the lowest"
+    );
+    if keeps_reordered(reordered_total, kept.total) {
+        (reordered, reordered_models)
+    } else {
+        (kept.ledger, kept.models)
+    }
+}
+
+/// `best` first, then the effects `ledger` added in their order, except those of `best`'s
+/// [`response_family`]; as many steps as the ledger has (at least one).
+fn ranking_led_path(best: &Effect, ledger: &[LedgerStep]) -> Vec<Effect> {
+    let added = added_effects(ledger);
+    std::iter::once(best.clone())
         .chain(
             added
                 .iter()
-                .filter(|e| term_identity(e) != term_identity(&best.effect))
+                .filter(|e| response_family(e) != response_family(best))
                 .cloned(),
         )
         .take(added.len().max(1))
-        .collect();
-    let (reordered, reordered_models) = confirm_path(
-        series,
-        start,
-        first_candidates,
-        (&path, coarse, max_steps),
-        criteria,
-        refits,
-    );
-    let reordered_total: f64 = reordered.iter().filter_map(|step| step.delta_bic).sum();
-    tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), reordered_total, total, "diagnose: the ledger led by the ranking's best, confirmed");
-    if keeps_reordered(reordered_total, total) {
-        (reordered, reordered_models)
-    } else {
-        (ledger, models)
-    }
+        .collect()
 }
 
 /// Whether a ledger led by the ranking's best, of total ΔBIC `reordered_total`, replaces the
@@ -600,19 +741,28 @@ fn beam_paths(
         extensions.sort_by(|(i, _, a), (j, _, b)| {
             (paths[*i].delta_bic + a).total_cmp(&(paths[*j].delta_bic + b))
         });
+        let set_of = |i: usize, c: &Candidate, identity: fn(&Effect) -> String| {
+            let mut set: Vec<String> = effects_of(&paths[i].models)
+                .iter()
+                .chain([&c.effect])
+                .map(identity)
+                .collect();
+            set.sort();
+            set
+        };
         let mut seen: std::collections::BTreeSet<Vec<String>> = Default::default();
+        let mut families: std::collections::BTreeSet<Vec<String>> = Default::default();
+        // The best `beam` extensions of distinct models; of those that differ only by a
+        // channel's transform (`lag:CH` against `heat:CH`, [`response_family`]) the better one
+        // alone. The beam then holds fewer paths rather than another alias: on our simulator's
+        // three-effect campaign (sensor gradient, plate expansion, hidden channel) its three
+        // first paths were `heat:P1-H1`, `lag:P1-H1` and `heat:T1-H1`, each ranked again at the
+        // next step on every bar.
         let chosen: Vec<(usize, Candidate, f64)> = extensions
             .into_iter()
-            .filter(|(i, c, _)| {
-                let mut set: Vec<String> = effects_of(&paths[*i].models)
-                    .iter()
-                    .chain([&c.effect])
-                    .map(term_identity)
-                    .collect();
-                set.sort();
-                seen.insert(set)
-            })
+            .filter(|(i, c, _)| seen.insert(set_of(*i, c, term_identity)))
             .take(beam)
+            .filter(|(i, c, _)| families.insert(set_of(*i, c, response_family)))
             .collect();
         let extended: Vec<SelectionPath> = chosen
             .into_par_iter()
