@@ -279,8 +279,8 @@ fn no_bar_succeeded(failed: &[dbbcal::pipeline::BarFailure]) -> String {
     let reasons: Vec<String> = failed
         .iter()
         .map(|f| {
-            let (bar, why) = (&f.bar, &f.error);
-            let why = why.strip_prefix(&format!("bar {bar}: ")).unwrap_or(why);
+            let (bar, why) = (&f.bar, dbbcal::narrative::quality::failure(f));
+            let why = why.strip_prefix(&format!("bar {bar}: ")).unwrap_or(&why);
             format!("{bar}: {why}")
         })
         .collect();

@@ -60,7 +60,7 @@ pub(crate) fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headli
     if !results.failed.is_empty() {
         let _ = writeln!(md, "## Failed bars\n");
         for f in &results.failed {
-            let _ = writeln!(md, "- **{}**: {}", f.bar, f.error);
+            let _ = writeln!(md, "- **{}**: {}", f.bar, super::quality::failure(f));
         }
         md.push('\n');
     }
@@ -312,7 +312,7 @@ pub(crate) fn short_flags(warnings: &[Warning]) -> Vec<String> {
 pub(crate) fn quality_line(q: &crate::series::quality::ChannelQuality) -> Option<String> {
     let mut kinds: Vec<(String, usize)> = Vec::new();
     for f in &q.flags {
-        let kind = crate::output::quality::flag_kind_word(f.kind).to_string();
+        let kind = crate::output::quality::flag_kind_word(f.kind()).to_string();
         match kinds.iter_mut().find(|(k, _)| *k == kind) {
             Some((_, n)) => *n += 1,
             None => kinds.push((kind, 1)),

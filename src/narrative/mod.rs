@@ -15,6 +15,7 @@ pub(crate) mod fit_report;
 pub mod model;
 pub(crate) mod page;
 pub(crate) mod probe;
+pub mod quality;
 pub(crate) mod roll;
 pub mod sensors;
 pub(crate) mod volumetric;
@@ -208,10 +209,10 @@ fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
         .quality
         .files
         .iter()
-        .filter(|f| f.kind == crate::series::quality::FlagKind::UnusableRows)
+        .filter(|f| f.kind() == crate::series::quality::FlagKind::UnusableRows)
         .collect();
     for f in unusable.iter().take(3) {
-        notes.push(format!("rows dropped: {}", f.note()));
+        notes.push(format!("rows dropped: {}", quality::note(f)));
     }
     if unusable.len() > 3 {
         notes.push(format!(
@@ -223,13 +224,18 @@ fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
         for f in &c.failed {
             notes.push(format!(
                 "no centre-distance function for {}: {}",
-                f.bar, f.error
+                f.bar,
+                quality::failure(f)
             ));
         }
     }
     if let Some(c) = &results.compensation {
         for f in &c.failed {
-            notes.push(format!("{} not compensated: {}", f.bar, f.error));
+            notes.push(format!(
+                "{} not compensated: {}",
+                f.bar,
+                quality::failure(f)
+            ));
         }
     }
     if plan.runs(Stage::Acceptance) && results.acceptance.as_ref().is_none_or(|a| a.is_empty()) {

@@ -156,7 +156,7 @@ fn bars(h: &mut String, plan: &RunPlan, results: &RunResults, headline: &Headlin
             "<tr class=\"failed\"><td>{}</td><td colspan=\"{}\">failed: {}</td></tr>",
             escape(&f.bar),
             names.len() + 3,
-            escape(&f.error)
+            escape(&super::quality::failure(f))
         );
     }
     h.push_str("</tbody></table></section>\n");

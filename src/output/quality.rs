@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use crate::narrative::quality::{note, unusable};
 use crate::series::quality::{ChannelQuality, Flag, FlagKind};
 use crate::series::Quality;
 
@@ -21,13 +22,13 @@ impl<'a> From<&'a Quality> for QualityRecord<'a> {
     fn from(q: &'a Quality) -> Self {
         let channels = |m: &'a BTreeMap<String, ChannelQuality>| {
             m.iter()
-                .map(|(k, v)| (k.as_str(), ChannelQualityRecord::from(v)))
+                .map(|(k, v)| (k.as_str(), ChannelQualityRecord::new(k, v)))
                 .collect()
         };
         QualityRecord {
             bars: channels(&q.bars),
             sensors: channels(&q.sensors),
-            events: ChannelQualityRecord::from(&q.events),
+            events: ChannelQualityRecord::new("events", &q.events),
             files: q.files.iter().map(FlagRecord::from).collect(),
         }
     }
@@ -44,13 +45,15 @@ pub(crate) struct ChannelQualityRecord<'a> {
     pub(crate) fault_rows: u64,
     pub(crate) dropped_rows: u64,
     pub(crate) flags: Vec<FlagRecord<'a>>,
-    /// Set when no usable reading is left: the bar fails alone with this reason.
+    /// Set when no usable reading is left: the bar fails alone for this reason.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub(crate) unusable: Option<&'a str>,
+    pub(crate) unusable: Option<String>,
 }
 
-impl<'a> From<&'a ChannelQuality> for ChannelQualityRecord<'a> {
-    fn from(q: &'a ChannelQuality) -> Self {
+impl<'a> ChannelQualityRecord<'a> {
+    /// The record of `q`, the quality of the bar, sensor or events `name` (a bar's `unusable`
+    /// names it).
+    fn new(name: &str, q: &'a ChannelQuality) -> Self {
         ChannelQualityRecord {
             rows: q.rows,
             null: q.null,
@@ -60,7 +63,7 @@ impl<'a> From<&'a ChannelQuality> for ChannelQualityRecord<'a> {
             fault_rows: q.fault_rows,
             dropped_rows: q.dropped_rows,
             flags: q.flags.iter().map(FlagRecord::from).collect(),
-            unusable: q.unusable.as_deref(),
+            unusable: q.unusable.map(|why| unusable(name, why)),
         }
     }
 }
@@ -80,19 +83,19 @@ pub(crate) struct FlagRecord<'a> {
     pub(crate) size_counts: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(crate) size_um: Option<f64>,
-    pub(crate) note: &'a str,
+    pub(crate) note: String,
 }
 
 impl<'a> From<&'a Flag> for FlagRecord<'a> {
     fn from(f: &'a Flag) -> Self {
         FlagRecord {
-            kind: flag_kind_word(f.kind),
+            kind: flag_kind_word(f.kind()),
             from: f.from.as_deref(),
             to: f.to.as_deref(),
             rows: f.rows,
             size_counts: f.size_counts,
             size_um: f.size_um,
-            note: &f.note,
+            note: note(f),
         }
     }
 }

@@ -4,6 +4,8 @@
 //! written with their keys sorted at every level (through a `serde_json::Value`, as they always
 //! were), so their fields are declared in that order here too.
 
+use std::borrow::Cow;
+
 use serde::Serialize;
 
 use crate::pipeline::{AcceptanceSection, BarFailure, RunPlan, RunResults};
@@ -17,7 +19,7 @@ use super::inputs::{input_records, InputRecord};
 #[derive(Debug, Serialize)]
 pub(crate) struct FailureRecord<'a> {
     pub(crate) bar: &'a str,
-    pub(crate) error: &'a str,
+    pub(crate) error: Cow<'a, str>,
 }
 
 /// The records of `failures`, in their order.
@@ -26,7 +28,7 @@ pub(crate) fn failure_records(failures: &[BarFailure]) -> Vec<FailureRecord<'_>>
         .iter()
         .map(|f| FailureRecord {
             bar: &f.bar,
-            error: &f.error,
+            error: crate::narrative::quality::failure(f),
         })
         .collect()
 }

@@ -11,7 +11,7 @@ use crate::series::InputFile;
 pub use dbbcal_core::diagnose::Diagnosis;
 pub use dbbcal_core::identify::{BarBeforeAfter, BarOutcome, BeforeAfter};
 pub use dbbcal_core::matching::ReferenceReport;
-pub use dbbcal_core::stage::{BarFailure, StageOutcome};
+pub use dbbcal_core::stage::{BarFailure, FailureReason, StageOutcome};
 
 /// Everything a run produced, as plain data.
 #[derive(Debug, Clone)]

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use super::IngestError;
-use dbbcal_core::series::quality::{Flag, FlagKind};
+use dbbcal_core::series::quality::{Flag, FlagNote};
 use dbbcal_core::series::{InputFile, Quality};
 
 pub(crate) const MANIFEST: &str = "campaign.toml";
@@ -261,11 +261,11 @@ pub(crate) fn skip_duplicate_files(
                     if let Some(f) = inputs.iter_mut().find(|f| f.path == rel) {
                         f.duplicate_of = Some(first.clone());
                     }
-                    let note =
-                        format!("{rel} is byte-identical to {first} (same sha256): read once");
-                    quality
-                        .files
-                        .push(Flag::file(FlagKind::DuplicateFile, 0, note));
+                    let note = FlagNote::DuplicateFile {
+                        file: rel,
+                        same_as: first.clone(),
+                    };
+                    quality.files.push(Flag::file(note, 0));
                 }
                 None => {
                     seen.push((hash, rel));

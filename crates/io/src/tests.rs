@@ -16,6 +16,7 @@ use super::{
     read_campaign, write_campaign, write_table, Column, IngestError, Table, TimeUnit, WriteOptions,
 };
 use dbbcal_core::campaign::{Campaign, Manifest};
+use dbbcal_core::series::quality::{FlagKind, FlagNote, RowProblem};
 use dbbcal_core::series::{CampaignTables, EncoderLog, Event, SensorLog};
 
 const S: i64 = 1_000_000_000;
@@ -96,22 +97,77 @@ fn encoders(times: &[i64], bars: &[&str], counts: &[i64]) -> RecordBatch {
     ])
 }
 
-/// The campaign is read (rows that cannot be used are dropped, issue 27): the notes of its
-/// `unusable_rows` flags, one line each.
-fn read_dropped(dir: &Path) -> String {
+/// Rows of one file dropped, as an `unusable_rows` flag says them (the words are the
+/// application's): the file's name, the column, rows, first and last row (or time), the problem
+/// (or the undeclared id) and the first value.
+#[derive(Debug, Clone, PartialEq)]
+struct Dropped {
+    file: String,
+    column: String,
+    rows: u64,
+    first: String,
+    last: String,
+    what: String,
+}
+
+/// The campaign is read (rows that cannot be used are dropped, issue 27): its `unusable_rows`
+/// flags.
+fn read_dropped(dir: &Path) -> Vec<Dropped> {
     let logs = read_campaign(dir).unwrap_or_else(|e| panic!("refused: {e}"));
-    let notes: Vec<&str> = logs
+    let name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
+    let dropped: Vec<Dropped> = logs
         .quality
         .files
         .iter()
-        .filter(|f| f.kind == dbbcal_core::series::quality::FlagKind::UnusableRows)
-        .map(|f| f.note())
+        .filter(|f| f.kind() == FlagKind::UnusableRows)
+        .map(|f| match &f.note {
+            FlagNote::UnusableRows {
+                file,
+                column,
+                problem,
+                first_row,
+                last_row,
+                first_value,
+            } => Dropped {
+                file: name(file),
+                column: column.clone(),
+                rows: f.rows,
+                first: first_row.to_string(),
+                last: last_row.to_string(),
+                what: format!("{problem:?} {first_value}"),
+            },
+            FlagNote::UndeclaredId {
+                file,
+                column,
+                id,
+                first_ns,
+                last_ns,
+                declared,
+            } => Dropped {
+                file: name(file),
+                column: column.clone(),
+                rows: f.rows,
+                first: crate::format_ns(*first_ns),
+                last: crate::format_ns(*last_ns),
+                what: format!("{id} of {}", declared.join(", ")),
+            },
+            other => panic!("not a note of unusable rows: {other:?}"),
+        })
         .collect();
-    assert!(!notes.is_empty(), "nothing dropped");
-    for n in &notes {
-        assert!(!n.contains('\n'), "note is not one line: {n}");
+    assert!(!dropped.is_empty(), "nothing dropped");
+    dropped
+}
+
+/// `Dropped` from its parts.
+fn dropped(file: &str, column: &str, rows: u64, first: &str, last: &str, what: &str) -> Dropped {
+    Dropped {
+        file: file.into(),
+        column: column.into(),
+        rows,
+        first: first.into(),
+        last: last.into(),
+        what: what.into(),
     }
-    notes.join("\n")
 }
 
 fn read_err(dir: &Path) -> String {
@@ -356,11 +412,16 @@ fn bad_rows_over_many_batches_are_one_range_of_the_files_rows() {
         &d.join("encoders/a.parquet"),
         encoders(&times, &bars, &counts),
     );
-    let msg = read_dropped(d);
-    assert!(
-        msg.contains("a.parquet") && msg.contains("3 rows") && msg.contains("rows 5 .. 350000"),
-        "{msg}"
+    let found = read_dropped(d);
+    let expected = dropped(
+        "a.parquet",
+        "counts",
+        3,
+        "5",
+        "350000",
+        &format!("{:?} {}", RowProblem::CountsBeyondRange, 1i64 << 50),
     );
+    assert_eq!(found, vec![expected]);
 }
 
 // ---------------------------------------------------------------- bad input
@@ -453,11 +514,9 @@ fn wrong_column_types_are_named() {
         ]),
     );
     // Float counts are accepted when whole; a fraction is refused with file, column and row.
-    let msg = read_dropped(dir.path());
-    assert!(
-        msg.contains("float.parquet: column `counts`: 1 rows (rows 0 .. 0, counting from 0) hold counts that are not whole numbers (first: 1.5)"),
-        "{msg}"
-    );
+    let found = read_dropped(dir.path());
+    let expected = dropped("float.parquet", "counts", 1, "0", "0", "CountsNotWhole 1.5");
+    assert_eq!(found, vec![expected]);
     write_df(
         &dir.path().join("encoders/float.parquet"),
         df(vec![
@@ -503,14 +562,16 @@ fn unknown_bar_is_named_with_file_rows_and_times() {
             &[1, 2, 3],
         ),
     );
-    let msg = read_dropped(dir.path());
-    assert!(
-        msg.contains(
-            "b.parquet: 2 rows (2026-11-01T00:00:01Z .. 2026-11-01T00:00:02Z) have bar \"B99\""
-        ),
-        "{msg}"
+    let found = read_dropped(dir.path());
+    let expected = dropped(
+        "b.parquet",
+        "bar",
+        2,
+        "2026-11-01T00:00:01Z",
+        "2026-11-01T00:00:02Z",
+        "B99 of B01, B02",
     );
-    assert!(msg.contains("known: B01, B02"), "{msg}");
+    assert_eq!(found, vec![expected]);
 }
 
 #[test]
@@ -528,10 +589,12 @@ fn unknown_sensor_is_named() {
             col("celsius", [20.0f64]),
         ]),
     );
-    let msg = read_dropped(dir.path());
+    let found = read_dropped(dir.path());
     assert!(
-        msg.contains("t.parquet: 1 rows") && msg.contains("have sensor \"T9\""),
-        "{msg}"
+        found
+            .iter()
+            .any(|d| d.file == "t.parquet" && d.rows == 1 && d.what.starts_with("T9 of ")),
+        "{found:?}"
     );
 }
 
@@ -554,13 +617,9 @@ fn null_times_and_counts_are_named() {
             col("counts", [1i64, 2]),
         ]),
     );
-    let msg = read_dropped(dir.path());
-    assert!(
-        msg.contains(
-            "nulltime.parquet: column `time`: 1 rows (rows 1 .. 1, counting from 0) are null"
-        ),
-        "{msg}"
-    );
+    let found = read_dropped(dir.path());
+    let expected = dropped("nulltime.parquet", "time", 1, "1", "1", "Null null");
+    assert!(found.contains(&expected), "{found:?}");
 
     std::fs::remove_file(dir.path().join("encoders/nulltime.parquet")).expect("rm");
     write_df(
@@ -576,10 +635,7 @@ fn null_times_and_counts_are_named() {
     assert_eq!(logs.bars["B01"].counts, vec![1, 0]);
     let q = &logs.quality.bars["B01"];
     assert_eq!((q.rows, q.null, q.dropped_rows), (3, 1, 1));
-    assert_eq!(
-        q.flags[0].kind,
-        dbbcal_core::series::quality::FlagKind::MissingValues
-    );
+    assert_eq!(q.flags[0].kind(), FlagKind::MissingValues);
 }
 
 // ---------------------------------------------------------------- writing
@@ -879,17 +935,14 @@ fn null_kinds_and_ids_are_dropped_and_named_by_rows() {
             col("celsius", [20.0f64, 20.1]),
         ]),
     );
-    let msg = read_dropped(d);
-    assert!(
-        msg.contains("ev.parquet: column `kind`: 1 rows (rows 1 .. 1, counting from 0) are null"),
-        "{msg}"
-    );
-    assert!(
-        msg.contains(
-            "nullid.parquet: column `sensor`: 1 rows (rows 0 .. 0, counting from 0) are null"
-        ),
-        "{msg}"
-    );
+    let found = read_dropped(d);
+    let expected = [
+        dropped("ev.parquet", "kind", 1, "1", "1", "Null null"),
+        dropped("nullid.parquet", "sensor", 1, "0", "0", "Null null"),
+    ];
+    for e in &expected {
+        assert!(found.contains(e), "{e:?} not in {found:?}");
+    }
     let logs = read_campaign(d).expect("read");
     assert_eq!(logs.events.len(), 2);
 }

@@ -12,7 +12,7 @@ use crate::series::{
     knot_logs, sensor_knots, BarBins, BarLog, BarSeries, Event, FleetContext, Quality, SensorLog,
     SeriesError,
 };
-use crate::stage::StageOutcome;
+use crate::stage::{FailureReason, StageOutcome};
 
 use super::{identify, BarModel, IdentifyError};
 
@@ -83,7 +83,7 @@ pub fn identify_fleet(
         t0_ns: logs.t0_ns,
     };
     let FleetReadings { bars, mut bins } = readings;
-    let outcomes: Vec<(String, Result<BarOutcome, BarError>)> = bars
+    let outcomes: Vec<(String, Result<BarOutcome, FailureReason>)> = bars
         .into_iter()
         .map(|(id, log)| {
             let binned = bins.remove(&id);
@@ -97,20 +97,20 @@ pub fn identify_fleet(
             (id, outcome)
         })
         .collect();
-    let identified = StageOutcome::from_results(outcomes);
+    let identified = StageOutcome::from_reasons(outcomes);
+    // In failed_bars and the final line.
     for f in &identified.failed {
-        tracing::info!("{}", f.error); // in failed_bars and the final line
+        match &f.reason {
+            FailureReason::Error(message) => tracing::info!("{message}"),
+            FailureReason::Unusable(why) => tracing::info!(bar = %f.bar, unusable = ?why),
+        }
     }
     identified
 }
 
-/// Why one bar of the fleet could not be identified (each message one line naming the bar).
+/// Why one bar of the fleet could not be fitted (each message one line naming the bar).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub(crate) enum BarError {
-    /// Ingest found no usable signal in the bar (a dead encoder): the reason `summary.json`'s
-    /// quality gives.
-    #[error("{0}")]
-    Unusable(String),
     /// Its series could not be built.
     #[error(transparent)]
     Series(#[from] SeriesError),
@@ -119,7 +119,7 @@ pub(crate) enum BarError {
     Identify(#[from] IdentifyError),
 }
 
-/// One bar: its series, its model; why not, in one line.
+/// One bar: its series, its model; why not: no usable signal, or an error in one line.
 fn identify_one(
     fleet: &FleetContext<'_>,
     quality: &Quality,
@@ -127,11 +127,22 @@ fn identify_one(
     log: BarLog,
     binned: Option<BarBins>,
     options: &IdentifyOptions,
-) -> Result<BarOutcome, BarError> {
+) -> Result<BarOutcome, FailureReason> {
     // A bar ingest found no usable signal in (a dead encoder) fails alone.
     if let Some(why) = quality.unusable(id) {
-        return Err(BarError::Unusable(why.to_string()));
+        return Err(FailureReason::Unusable(why));
     }
+    fit_one(fleet, id, log, binned, options).map_err(|e| FailureReason::Error(e.to_string()))
+}
+
+/// One usable bar: its series, its model.
+fn fit_one(
+    fleet: &FleetContext<'_>,
+    id: &str,
+    log: BarLog,
+    binned: Option<BarBins>,
+    options: &IdentifyOptions,
+) -> Result<BarOutcome, BarError> {
     let series = match binned {
         Some(b) => BarSeries::from_bins(fleet, id, &b),
         None => BarSeries::build_binned(fleet, id, log, options.bin_s),

@@ -25,8 +25,11 @@
 //!   (readings left out), readings far outside the mounts. A bar with nothing left is marked
 //!   `unusable`; `pipeline::analyse` fails it alone with that reason.
 //! - `summary.json` → `quality` is `series::Quality`, carried by `CampaignLogs` and `RunResults`.
+//!   Findings are data (`FlagNote`, `Unusable`); their words are the application's
+//!   (`src/narrative/quality.rs`).
 
 use std::collections::BTreeMap;
+use std::path::PathBuf;
 
 use super::bins::Segments;
 use super::{BarBins, BarLog, Event, Region, SensorLog};
@@ -44,7 +47,7 @@ pub(crate) const JUMP_FLOOR_UM: f64 = 1.0;
 /// segment's median bin spread (and [`JUMP_FLOOR_UM`]).
 pub(crate) const BIN_SPREAD_FACTOR: f64 = 4.0;
 /// The period of a 32-bit counter, counts.
-pub(crate) const WRAP_COUNTS: i64 = 1 << 32;
+pub const WRAP_COUNTS: i64 = 1 << 32;
 /// A jump of at least half a 32-bit counter's period is a counter wrap (no bar moves by
 /// 2³¹ counts, 10.7 m at 5 nm, within a mount): the mount is left out of the fits.
 pub(crate) const WRAP_MIN_JUMP_COUNTS: i64 = 1 << 31;
@@ -63,9 +66,9 @@ pub const FAR_OUTSIDE_MOUNTS_S: f64 = 86_400.0;
 
 /// A gap inside a mount is flagged when no reading comes for longer than this many times the
 /// bar's median interval between readings ...
-pub(crate) const GAP_INTERVAL_FACTOR: f64 = 10.0;
+pub const GAP_INTERVAL_FACTOR: f64 = 10.0;
 /// ... and at least this long (s).
-pub(crate) const GAP_MIN_S: f64 = 600.0;
+pub const GAP_MIN_S: f64 = 600.0;
 
 /// The gap threshold for a bar whose median interval between readings is `median_interval_ns`.
 pub(crate) fn gap_threshold_ns(median_interval_ns: f64) -> TimeNs {
@@ -87,8 +90,8 @@ pub struct Quality {
 
 impl Quality {
     /// Why bar `bar` has no usable signal, if it has none (it then fails alone).
-    pub fn unusable(&self, bar: &str) -> Option<&str> {
-        self.bars.get(bar).and_then(|q| q.unusable.as_deref())
+    pub fn unusable(&self, bar: &str) -> Option<Unusable> {
+        self.bars.get(bar).and_then(|q| q.unusable)
     }
 }
 
@@ -111,15 +114,24 @@ pub struct ChannelQuality {
     pub dropped_rows: u64,
     /// The flags raised, in time order.
     pub flags: Vec<Flag>,
-    /// Set when no usable reading is left: the bar fails alone with this reason.
-    pub unusable: Option<String>,
+    /// Set when no usable reading is left: the bar fails alone for this reason.
+    pub unusable: Option<Unusable>,
+}
+
+/// Why a bar has no usable signal: every mounted reading was left out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unusable {
+    /// The encoder is dead: counts frozen in every mount.
+    EncoderDead,
+    /// Every mount holds a counter wrap.
+    EveryMountWrapped,
+    /// Every mounted reading is frozen or in a mount with a counter wrap.
+    FrozenOrWrapped,
 }
 
 /// What was found, where and how big.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Flag {
-    /// What was found.
-    pub kind: FlagKind,
     /// RFC 3339 UTC, first affected reading (absent for file-level flags).
     pub from: Option<String>,
     /// RFC 3339 UTC, last affected reading (absent for file-level flags).
@@ -130,8 +142,202 @@ pub struct Flag {
     pub size_counts: Option<f64>,
     /// The same, µm.
     pub size_um: Option<f64>,
-    /// What was found, in words (file, column and rows for `unusable_rows`).
-    pub note: String,
+    /// What was found, as data: its kind ([`FlagNote::kind`]) and the numbers and names that
+    /// say it (the words are the application's).
+    pub note: FlagNote,
+}
+
+/// What a [`Flag`] found, one variant per finding, with what it takes to say it besides the
+/// flag's time range and `rows` (the readings, rows or files concerned).
+#[derive(Debug, Clone, PartialEq)]
+pub enum FlagNote {
+    /// `missing_values`: null, NaN or ±infinite values of `table` dropped (`rows`: all of them).
+    MissingValues {
+        /// The table of the rows.
+        table: LogTable,
+        /// Null values.
+        null: u64,
+        /// NaN values.
+        nan: u64,
+        /// ±infinite values.
+        inf: u64,
+    },
+    /// `duplicate_rows`: exact copies of rows of `table` (same time and value) counted once.
+    DuplicateRows {
+        /// The table of the rows.
+        table: LogTable,
+        /// The copies were taken out of the bins ingest compressed the bar into.
+        out_of_bins: bool,
+    },
+    /// `duplicate_file`: a file byte-identical to another of its table (same sha256), read once.
+    DuplicateFile {
+        /// The file not read, relative to the campaign (`/`-separated).
+        file: String,
+        /// The file read in its place, relative to the campaign.
+        same_as: String,
+    },
+    /// `mixed_time_zones`: files with naive (UTC) times and files with zoned ones.
+    MixedTimeZones {
+        /// Files with naive times.
+        naive_files: usize,
+        /// Files with zoned times.
+        zoned_files: usize,
+        /// The name of the first file with naive times.
+        naive_example: String,
+    },
+    /// `stuck`: counts frozen while the air moved; the readings are left out of the fits.
+    Stuck {
+        /// The frozen value, counts.
+        counts: i64,
+        /// From the run's first reading to its last, ns.
+        duration_ns: TimeNs,
+    },
+    /// `jump`: a jump far beyond the noise and the thermal drift; not removed.
+    Jump {
+        /// Between two pieces or inside one bin.
+        place: JumpPlace,
+    },
+    /// `counter_wrap`: a jump of at least 2^31 counts (half [`WRAP_COUNTS`]); the mount is left
+    /// out of the fits.
+    CounterWrap {
+        /// Between two pieces or inside one bin.
+        place: JumpPlace,
+        /// Signed size of the jump, counts (as the flag's `size_counts`).
+        size_counts: f64,
+    },
+    /// `far_outside_mounts`: readings more than [`FAR_OUTSIDE_MOUNTS_S`] before the bar's first
+    /// mount or after its last; never fitted.
+    FarOutsideMounts,
+    /// `overlapping_files`: readings of `bar` that more than one file holds with the same time
+    /// and counts, counted once.
+    OverlappingFiles {
+        /// The bar.
+        bar: String,
+        /// The files' names, in the order ingest read them.
+        files: Vec<String>,
+        /// The copies were taken out of the bins (else: exact duplicates, in `duplicate_rows`).
+        out_of_bins: bool,
+    },
+    /// `conflicting_readings`: readings of a bar's full-rate rows at one time with different
+    /// counts; all kept.
+    ConflictingRows,
+    /// `conflicting_readings`: readings of `bar` at one time with different counts, found
+    /// across its files while they streamed; all kept.
+    ConflictingInFiles {
+        /// The bar.
+        bar: String,
+        /// The names of the files that hold them.
+        files: Vec<String>,
+    },
+    /// `gap`: no reading for longer than the bar's gap threshold inside a mount.
+    Gap {
+        /// From the reading before the gap to the one after, ns.
+        gap_ns: TimeNs,
+        /// The bar's threshold: [`GAP_INTERVAL_FACTOR`] × the median interval, at least
+        /// [`GAP_MIN_S`]; ns.
+        threshold_ns: TimeNs,
+        /// The bar's median interval between readings, ns.
+        median_interval_ns: f64,
+    },
+    /// `implausible_temperature`: temperatures outside [`PLAUSIBLE_MIN_C`] ..
+    /// [`PLAUSIBLE_MAX_C`], or steps beyond [`PLAUSIBLE_STEP_K`] + [`PLAUSIBLE_STEP_K_PER_S`] ×
+    /// the time since the last kept reading, dropped (`rows`: all of them).
+    ImplausibleTemperatures {
+        /// Those outside the plausible range (the others are steps).
+        outside_range: u64,
+        /// The lowest value dropped, °C.
+        lowest_c: f64,
+        /// The highest value dropped, °C.
+        highest_c: f64,
+    },
+    /// `unusable_rows`: rows of one file with one problem in one column, dropped.
+    UnusableRows {
+        /// The file.
+        file: PathBuf,
+        /// The column.
+        column: String,
+        /// What is wrong with the rows' values in it.
+        problem: RowProblem,
+        /// The first row, counting from 0.
+        first_row: u64,
+        /// The last row, counting from 0.
+        last_row: u64,
+        /// The first row's value as stored (with its time unit for a time).
+        first_value: String,
+    },
+    /// `unusable_rows`: rows of one file whose id `campaign.toml` does not declare, dropped.
+    UndeclaredId {
+        /// The file.
+        file: PathBuf,
+        /// The id column (`bar`, `sensor`).
+        column: String,
+        /// The id, as stored.
+        id: String,
+        /// The rows' first time, ns.
+        first_ns: TimeNs,
+        /// Their last time, ns.
+        last_ns: TimeNs,
+        /// The ids `campaign.toml` declares, in order.
+        declared: Vec<String>,
+    },
+}
+
+impl FlagNote {
+    /// The kind of flag this finding raises.
+    pub fn kind(&self) -> FlagKind {
+        match self {
+            FlagNote::MissingValues { .. } => FlagKind::MissingValues,
+            FlagNote::DuplicateRows { .. } => FlagKind::DuplicateRows,
+            FlagNote::DuplicateFile { .. } => FlagKind::DuplicateFile,
+            FlagNote::MixedTimeZones { .. } => FlagKind::MixedTimeZones,
+            FlagNote::Stuck { .. } => FlagKind::Stuck,
+            FlagNote::Jump { .. } => FlagKind::Jump,
+            FlagNote::CounterWrap { .. } => FlagKind::CounterWrap,
+            FlagNote::FarOutsideMounts => FlagKind::FarOutsideMounts,
+            FlagNote::OverlappingFiles { .. } => FlagKind::OverlappingFiles,
+            FlagNote::ConflictingRows | FlagNote::ConflictingInFiles { .. } => {
+                FlagKind::ConflictingReadings
+            }
+            FlagNote::Gap { .. } => FlagKind::Gap,
+            FlagNote::ImplausibleTemperatures { .. } => FlagKind::ImplausibleTemperature,
+            FlagNote::UnusableRows { .. } | FlagNote::UndeclaredId { .. } => FlagKind::UnusableRows,
+        }
+    }
+}
+
+/// The table a flag's rows come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogTable {
+    /// The encoder readings.
+    Encoders,
+    /// The temperature readings.
+    Temperatures,
+    /// The events.
+    Events,
+}
+
+/// Where a jump (or a counter wrap) was seen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JumpPlace {
+    /// Inside one bin: its smallest and largest counts differ by the jump.
+    InsideOneBin,
+    /// Between two consecutive readings (or bins).
+    BetweenTwoReadings,
+}
+
+/// What is wrong with rows of an `unusable_rows` flag. The flags of one file and column come
+/// in this order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum RowProblem {
+    /// Null where the spec wants a value.
+    Null,
+    /// Counts beyond ±2^48.
+    CountsBeyondRange,
+    /// Counts that are not whole numbers.
+    CountsNotWhole,
+    /// Times outside 1980-01-01 .. 2200-01-01 (NaT, a clock reset, a far future, or a unit
+    /// whose ns value overflows).
+    TimeOutOfBounds,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -172,13 +378,17 @@ pub enum FlagKind {
 
 /// The lowest temperature a sensor of a measuring room may read, °C (absolute zero is
 /// −273.15; a logger's error codes sit far below, e.g. −999).
-pub(crate) const PLAUSIBLE_MIN_C: f64 = -60.0;
+pub const PLAUSIBLE_MIN_C: f64 = -60.0;
 /// The highest, °C (a heated head stays far below).
-pub(crate) const PLAUSIBLE_MAX_C: f64 = 150.0;
+pub const PLAUSIBLE_MAX_C: f64 = 150.0;
+/// The largest step air (or a sensor in it) makes between two readings at once, K ...
+pub const PLAUSIBLE_STEP_K: f64 = 5.0;
+/// ... plus this much a second between them, K/s.
+pub const PLAUSIBLE_STEP_K_PER_S: f64 = 0.05;
 /// The largest step between two readings `dt_s` apart that air (or a sensor in it) makes:
-/// 5 K at once, plus 0.05 K a second.
+/// [`PLAUSIBLE_STEP_K`] at once, plus [`PLAUSIBLE_STEP_K_PER_S`] a second.
 pub(crate) fn plausible_step_k(dt_s: f64) -> f64 {
-    5.0 + 0.05 * dt_s.max(0.0)
+    PLAUSIBLE_STEP_K + PLAUSIBLE_STEP_K_PER_S * dt_s.max(0.0)
 }
 
 /// Drops temperature readings (sorted by time) outside the plausible range, then those whose
@@ -239,17 +449,13 @@ pub fn drop_implausible_temperatures(
         lo = lo.min(celsius[i]);
         hi = hi.max(celsius[i]);
     }
-    let note = format!(
-        "{dropped} temperature readings dropped ({out_of_range} outside {PLAUSIBLE_MIN_C} .. {PLAUSIBLE_MAX_C} °C, {} a step no air makes: more than 5 K + 0.05 K/s); values {lo} .. {hi} °C",
-        dropped - out_of_range
-    );
-    q.flags.push(Flag::at(
-        FlagKind::ImplausibleTemperature,
-        time_ns[first],
-        time_ns[last],
-        dropped,
-        note,
-    ));
+    let note = FlagNote::ImplausibleTemperatures {
+        outside_range: out_of_range,
+        lowest_c: lo,
+        highest_c: hi,
+    };
+    q.flags
+        .push(Flag::at(note, time_ns[first], time_ns[last], dropped));
     q.fault_rows += dropped;
     q.dropped_rows += dropped;
     let mut k = 0;
@@ -271,9 +477,8 @@ pub fn format_ns(ns: TimeNs) -> String {
 
 impl Flag {
     /// A flag over the readings from `from_ns` to `to_ns`.
-    pub fn at(kind: FlagKind, from_ns: TimeNs, to_ns: TimeNs, rows: u64, note: String) -> Flag {
+    pub fn at(note: FlagNote, from_ns: TimeNs, to_ns: TimeNs, rows: u64) -> Flag {
         Flag {
-            kind,
             from: Some(format_ns(from_ns)),
             to: Some(format_ns(to_ns)),
             rows,
@@ -283,15 +488,14 @@ impl Flag {
         }
     }
 
-    /// What was found, in words (file, column and rows for `unusable_rows`).
-    pub fn note(&self) -> &str {
-        &self.note
+    /// What was found.
+    pub fn kind(&self) -> FlagKind {
+        self.note.kind()
     }
 
     /// A flag on files, with no time range.
-    pub fn file(kind: FlagKind, rows: u64, note: String) -> Flag {
+    pub fn file(note: FlagNote, rows: u64) -> Flag {
         Flag {
-            kind,
             from: None,
             to: None,
             rows,
@@ -344,22 +548,20 @@ impl Missing {
         };
     }
 
-    /// Adds the counts and, when any, a `missing_values` flag to `q`.
-    pub fn record(&self, q: &mut ChannelQuality, what: &str) {
+    /// Adds the counts and, when any, a `missing_values` flag to `q` (rows of `table`).
+    pub fn record(&self, q: &mut ChannelQuality, table: LogTable) {
         q.null += self.null;
         q.nan += self.nan;
         q.inf += self.inf;
         q.dropped_rows += self.total();
         if let Some((a, b)) = self.range {
-            let note = format!(
-                "{} {what} dropped as missing readings ({} null, {} NaN, {} infinite)",
-                self.total(),
-                self.null,
-                self.nan,
-                self.inf
-            );
-            q.flags
-                .push(Flag::at(FlagKind::MissingValues, a, b, self.total(), note));
+            let note = FlagNote::MissingValues {
+                table,
+                null: self.null,
+                nan: self.nan,
+                inf: self.inf,
+            };
+            q.flags.push(Flag::at(note, a, b, self.total()));
         }
     }
 }
@@ -388,25 +590,27 @@ pub fn dedup_sorted<V: PartialEq + Copy>(
     (dropped, range)
 }
 
-/// Records `dropped` duplicates (range `range`) in `q`.
+/// Records `dropped` duplicates of rows of `table` (range `range`) in `q`.
 pub fn record_duplicates(
     q: &mut ChannelQuality,
     dropped: u64,
     range: Option<(TimeNs, TimeNs)>,
-    what: &str,
+    table: LogTable,
 ) {
     q.duplicate_rows += dropped;
     q.dropped_rows += dropped;
     if let Some((a, b)) = range {
-        let note = format!("{dropped} exact duplicate {what} (same time and value) counted once");
-        q.flags
-            .push(Flag::at(FlagKind::DuplicateRows, a, b, dropped, note));
+        let note = FlagNote::DuplicateRows {
+            table,
+            out_of_bins: false,
+        };
+        q.flags.push(Flag::at(note, a, b, dropped));
     }
 }
 
 /// Readings of one bar at one time with different counts, in rows sorted by (time, counts)
 /// without exact duplicates: a `conflicting_readings` flag (range, rows concerned), or `None`.
-pub(crate) fn conflicting_sorted(time_ns: &[TimeNs], counts: &[i64], note: &str) -> Option<Flag> {
+pub(crate) fn conflicting_sorted(time_ns: &[TimeNs], counts: &[i64]) -> Option<Flag> {
     let n = time_ns.len().min(counts.len());
     let (mut rows, mut range) = (0u64, None::<(TimeNs, TimeNs)>);
     let mut i = 0;
@@ -423,17 +627,7 @@ pub(crate) fn conflicting_sorted(time_ns: &[TimeNs], counts: &[i64], note: &str)
         i = end;
     }
     let (from, to) = range?;
-    let note = format!(
-        "{rows} readings share their time with a reading of other counts ({note}): \
-         a logger clock set back, or two loggers; all kept"
-    );
-    Some(Flag::at(
-        FlagKind::ConflictingReadings,
-        from,
-        to,
-        rows,
-        note,
-    ))
+    Some(Flag::at(FlagNote::ConflictingRows, from, to, rows))
 }
 
 /// `gap` flags: within each mount, consecutive pieces (readings or bins) more than
@@ -448,15 +642,12 @@ fn gap_flags(pieces: &[(Region, Piece)], median_interval_ns: f64) -> Vec<Flag> {
         };
         let (from, to) = (w[0].1.last_ns, w[1].1.first_ns);
         if a == b && to - from > limit {
-            let note = format!(
-                "no reading for {:.2} h inside a mount (threshold {:.0} s: max({GAP_INTERVAL_FACTOR} \
-                 × the median interval {:.1} s, {GAP_MIN_S} s)): a logger down or its clock \
-                 jumped forward; the fits go on",
-                (to - from) as f64 / 3.6e12,
-                limit as f64 * 1e-9,
-                median_interval_ns * 1e-9
-            );
-            flags.push(Flag::at(FlagKind::Gap, from, to, 0, note));
+            let note = FlagNote::Gap {
+                gap_ns: to - from,
+                threshold_ns: limit,
+                median_interval_ns,
+            };
+            flags.push(Flag::at(note, from, to, 0));
         }
     }
     flags
@@ -615,7 +806,7 @@ fn check_segment(pieces: &[Piece], resolution_nm: f64, air: &[&SensorLog]) -> Fi
                 p.n,
                 spread,
                 resolution_nm,
-                "inside one bin",
+                JumpPlace::InsideOneBin,
             ));
         }
         if i == 0 {
@@ -633,7 +824,7 @@ fn check_segment(pieces: &[Piece], resolution_nm: f64, air: &[&SensorLog]) -> Fi
                 2,
                 step,
                 resolution_nm,
-                "between two readings",
+                JumpPlace::BetweenTwoReadings,
             ));
         }
     }
@@ -648,24 +839,17 @@ fn jump_flag(
     rows: u64,
     size: f64,
     resolution_nm: f64,
-    where_: &str,
+    place: JumpPlace,
 ) -> Flag {
-    let (kind, note) = if wrap {
-        let periods = size / WRAP_COUNTS as f64;
-        (
-            FlagKind::CounterWrap,
-            format!(
-                "counter wrap {where_}: a jump of {size:+.0} counts ({periods:+.3} × 2^32); \
-                 the mount is left out of the fits"
-            ),
-        )
+    let note = if wrap {
+        FlagNote::CounterWrap {
+            place,
+            size_counts: size,
+        }
     } else {
-        (
-            FlagKind::Jump,
-            format!("jump {where_}, far beyond the noise and the thermal drift; not removed"),
-        )
+        FlagNote::Jump { place }
     };
-    Flag::at(kind, from, to, rows, note).sized(size, resolution_nm)
+    Flag::at(note, from, to, rows).sized(size, resolution_nm)
 }
 
 /// Runs of constant pieces of one value, long enough and while the air moved.
@@ -688,14 +872,11 @@ fn stuck_runs(pieces: &[Piece], air: &[&SensorLog], found: &mut Findings) {
         let long = (to - from) as f64 * 1e-9 >= STUCK_MIN_S;
         let moved = air_change_k(air, from, to).is_none_or(|k| k >= STUCK_MIN_AIR_CHANGE_K);
         if long && readings >= STUCK_MIN_READINGS && moved {
-            let hours = (to - from) as f64 / 3.6e12;
-            let note = format!(
-                "counts frozen at {value} for {hours:.2} h while the air moved: \
-                 readings left out of the fits"
-            );
-            found
-                .flags
-                .push(Flag::at(FlagKind::Stuck, from, to, readings, note));
+            let note = FlagNote::Stuck {
+                counts: value,
+                duration_ns: to - from,
+            };
+            found.flags.push(Flag::at(note, from, to, readings));
             found.stuck.push(start..end);
         }
         start = end;
@@ -717,12 +898,7 @@ fn far_outside_flag(segments: &Segments, pieces: &[(Region, Piece)]) -> Option<F
     let rows: u64 = far.iter().map(|p| p.n).sum();
     let from = far.iter().map(|p| p.first_ns).min()?;
     let to = far.iter().map(|p| p.last_ns).max()?;
-    let note = format!(
-        "{rows} readings more than {:.0} h before the bar's first mount or after its last \
-         (a clock reset?); handling time, not fitted",
-        FAR_OUTSIDE_MOUNTS_S / 3600.0
-    );
-    Some(Flag::at(FlagKind::FarOutsideMounts, from, to, rows, note))
+    Some(Flag::at(FlagNote::FarOutsideMounts, from, to, rows))
 }
 
 /// What to leave out of one bar after the checks: mounts (wrap) and time ranges (frozen runs).
@@ -783,15 +959,14 @@ fn check_pieces(
 }
 
 /// Why nothing usable is left of a bar whose mounted readings were all left out.
-fn unusable_reason(q: &ChannelQuality, bar: &str) -> String {
-    let stuck = q.flags.iter().any(|f| f.kind == FlagKind::Stuck);
-    let wrap = q.flags.iter().any(|f| f.kind == FlagKind::CounterWrap);
-    let why = match (stuck, wrap) {
-        (true, false) => "the encoder is dead (counts frozen in every mount)",
-        (false, true) => "every mount holds a counter wrap",
-        _ => "every mounted reading is frozen or in a mount with a counter wrap",
-    };
-    format!("bar {bar}: no usable signal: {why} (see quality.bars.{bar}.flags)")
+fn unusable_reason(q: &ChannelQuality) -> Unusable {
+    let stuck = q.flags.iter().any(|f| f.kind() == FlagKind::Stuck);
+    let wrap = q.flags.iter().any(|f| f.kind() == FlagKind::CounterWrap);
+    match (stuck, wrap) {
+        (true, false) => Unusable::EncoderDead,
+        (false, true) => Unusable::EveryMountWrapped,
+        _ => Unusable::FrozenOrWrapped,
+    }
 }
 
 /// Checks a bar's sorted full-rate log: drops exact duplicates, flags jumps, wraps and frozen
@@ -805,12 +980,9 @@ pub fn check_log(
     q: &mut ChannelQuality,
 ) {
     let (dups, range) = dedup_sorted(&mut log.time_ns, &mut log.counts);
-    record_duplicates(q, dups, range, "encoder rows");
-    q.flags.extend(conflicting_sorted(
-        &log.time_ns,
-        &log.counts,
-        "full-rate rows",
-    ));
+    record_duplicates(q, dups, range, LogTable::Encoders);
+    q.flags
+        .extend(conflicting_sorted(&log.time_ns, &log.counts));
     let segments = Segments::new(campaign, events, bar);
     let pieces: Vec<(Region, Piece)> = log
         .time_ns
@@ -849,7 +1021,6 @@ pub fn check_log(
         .count();
     finish(
         q,
-        bar,
         (before - k) as u64,
         mounted_before > 0 && mounted_after == 0,
     );
@@ -911,7 +1082,6 @@ pub fn check_bins(
     let mounted_after = bins.bins.iter().any(|(k, _)| k.region != Region::Outside);
     finish(
         q,
-        bar,
         before - bins.n_readings(),
         mounted_before && !mounted_after,
     );
@@ -925,11 +1095,11 @@ fn resolution(campaign: &Campaign, bar: &str) -> f64 {
         .map_or(1.0, |b| b.resolution_nm)
 }
 
-fn finish(q: &mut ChannelQuality, bar: &str, left_out: u64, nothing_left: bool) {
+fn finish(q: &mut ChannelQuality, left_out: u64, nothing_left: bool) {
     q.fault_rows += left_out;
     q.dropped_rows += left_out;
     if nothing_left {
-        q.unusable = Some(unusable_reason(q, bar));
+        q.unusable = Some(unusable_reason(q));
     }
 }
 

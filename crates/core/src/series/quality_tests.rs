@@ -32,7 +32,7 @@ fn jumps_wraps_and_frozen_runs_are_flagged_with_time_and_size() {
     }
     let mut q = ChannelQuality::default();
     let leave = check_pieces(&pieces, &segments(), 5.0, &[], &mut q);
-    let kinds: Vec<FlagKind> = q.flags.iter().map(|f| f.kind).collect();
+    let kinds: Vec<FlagKind> = q.flags.iter().map(|f| f.kind()).collect();
     assert_eq!(
         kinds.iter().filter(|&&k| k == FlagKind::Jump).count(),
         2,
@@ -41,7 +41,7 @@ fn jumps_wraps_and_frozen_runs_are_flagged_with_time_and_size() {
     let stuck: Vec<&Flag> = q
         .flags
         .iter()
-        .filter(|f| f.kind == FlagKind::Stuck)
+        .filter(|f| f.kind() == FlagKind::Stuck)
         .collect();
     assert_eq!(stuck.len(), 1);
     assert_eq!(stuck[0].rows, 100);
@@ -51,7 +51,7 @@ fn jumps_wraps_and_frozen_runs_are_flagged_with_time_and_size() {
     );
     assert_eq!(leave.ranges, vec![(B + 300 * 60 * S, B + 399 * 60 * S)]);
     assert!(leave.mounts.is_empty());
-    let jump = q.flags.iter().find(|f| f.kind == FlagKind::Jump).unwrap();
+    let jump = q.flags.iter().find(|f| f.kind() == FlagKind::Jump).unwrap();
     assert!((jump.size_counts.unwrap() - 5000.0).abs() < 10.0);
     assert!((jump.size_um.unwrap() - 25.0).abs() < 0.1);
 
@@ -66,7 +66,7 @@ fn jumps_wraps_and_frozen_runs_are_flagged_with_time_and_size() {
     let wrap: Vec<&Flag> = q
         .flags
         .iter()
-        .filter(|f| f.kind == FlagKind::CounterWrap)
+        .filter(|f| f.kind() == FlagKind::CounterWrap)
         .collect();
     assert_eq!(wrap.len(), 1, "{q:?}");
     assert_eq!(
@@ -127,7 +127,7 @@ fn implausible_temperatures_are_dropped_and_a_real_step_is_followed_again() {
         "the new level is followed again"
     );
     assert_eq!(q.flags.len(), 1);
-    assert_eq!(q.flags[0].kind, FlagKind::ImplausibleTemperature);
+    assert_eq!(q.flags[0].kind(), FlagKind::ImplausibleTemperature);
     assert_eq!(q.flags[0].rows, 4);
     // Plausible readings are left alone.
     let mut t2: Vec<TimeNs> = (0..10).map(|i| B + i * S).collect();

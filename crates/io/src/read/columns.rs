@@ -155,11 +155,6 @@ impl TimeColumn {
     }
 }
 
-pub(super) const NULL_PROBLEM: &str = "are null";
-
-pub(super) const TIME_PROBLEM: &str =
-    "hold times outside 1980-01-01 .. 2200-01-01 (NaT, a clock reset, a far future, or a unit whose ns value overflows)";
-
 /// Rows of one file with one problem: how many, the first and last row, the first value.
 #[derive(Debug, Clone)]
 pub(super) struct BadRange {
@@ -204,15 +199,15 @@ impl BadRange {
     }
 
     /// The rows dropped, as an `unusable_rows` flag of the files (`quality.files`).
-    pub(super) fn flag(self, path: &Path, column: &str, problem: &str) -> Flag {
-        let note = format!(
-            "{}: column `{column}`: {} rows (rows {} .. {}, counting from 0) {problem} (first: {}): dropped",
-            path.display(),
-            self.rows,
-            self.first_row,
-            self.last_row,
-            self.example
-        );
-        Flag::file(FlagKind::UnusableRows, self.rows, note)
+    pub(super) fn flag(self, path: &Path, column: &str, problem: RowProblem) -> Flag {
+        let note = FlagNote::UnusableRows {
+            file: path.to_path_buf(),
+            column: column.to_string(),
+            problem,
+            first_row: self.first_row,
+            last_row: self.last_row,
+            first_value: self.example,
+        };
+        Flag::file(note, self.rows)
     }
 }

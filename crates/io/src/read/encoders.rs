@@ -136,7 +136,7 @@ pub(super) struct EncoderSink {
     pub(super) unknown: BTreeMap<(u32, String), FileRange>,
     /// (file, column, problem) -> rows that cannot be read (times out of range, counts that are
     /// not whole numbers or beyond ±2^48): the run is refused on them.
-    pub(super) bad: BTreeMap<(u32, &'static str, &'static str), BadRange>,
+    pub(super) bad: BTreeMap<(u32, &'static str, RowProblem), BadRange>,
     /// Per id index: rows read, and missing counts (null, NaN, ±inf) dropped.
     pub(super) read: Vec<(u64, Missing)>,
     /// A bin accumulator's refusal (cannot happen after `push`'s checks; reported if it does).
@@ -203,10 +203,10 @@ impl EncoderSink {
                 })
                 .collect();
             if let Some(b) = null_time {
-                self.merge_bad("time", NULL_PROBLEM, b);
+                self.merge_bad("time", RowProblem::Null, b);
             }
             if let Some(b) = null_bar {
-                self.merge_bad("bar", NULL_PROBLEM, b);
+                self.merge_bad("bar", RowProblem::Null, b);
             }
             let rows: Vec<u64> = (0..batch.rows)
                 .filter(|&i| keep.value(i))
@@ -360,13 +360,13 @@ impl EncoderSink {
         match bad {
             None => (ns, false),
             Some(b) => {
-                self.merge_bad("time", TIME_PROBLEM, b);
+                self.merge_bad("time", RowProblem::TimeOutOfBounds, b);
                 (ns, true)
             }
         }
     }
 
-    pub(super) fn merge_bad(&mut self, column: &'static str, problem: &'static str, b: BadRange) {
+    pub(super) fn merge_bad(&mut self, column: &'static str, problem: RowProblem, b: BadRange) {
         BadRange::merge_into(&mut self.bad, (self.file, column, problem), b);
     }
 
@@ -380,8 +380,6 @@ impl EncoderSink {
         counts: &ArrayRef,
         row_of: &dyn Fn(usize) -> u64,
     ) -> Result<KeptRows, ArrowError> {
-        const FRACTION: &str = "hold counts that are not whole numbers";
-        const RANGE: &str = "hold counts beyond ±2^48";
         let (values, ints): (Vec<Option<f64>>, Vec<Option<i64>>) =
             match counts.as_primitive_opt::<Float64Type>() {
                 Some(floats) => (floats.iter().collect(), vec![None; floats.len()]),
@@ -426,10 +424,10 @@ impl EncoderSink {
             kept.2.push(c);
         }
         if let Some(b) = fraction {
-            self.merge_bad("counts", FRACTION, b);
+            self.merge_bad("counts", RowProblem::CountsNotWhole, b);
         }
         if let Some(b) = range {
-            self.merge_bad("counts", RANGE, b);
+            self.merge_bad("counts", RowProblem::CountsBeyondRange, b);
         }
         Ok(kept)
     }
@@ -571,7 +569,7 @@ pub(super) fn read_encoders(
         .into_iter()
         .map(|((file, column, problem), b)| b.flag(&file_path(files, file), column, problem))
         .collect();
-    let known = bar_ids.iter().copied().collect::<Vec<_>>().join(", ");
+    let declared: Vec<String> = bar_ids.iter().map(|b| b.to_string()).collect();
     dropped.extend(sink.unknown.into_iter().map(|((file, id), u)| {
         unknown_id_flag(
             &file_path(files, file),
@@ -580,7 +578,7 @@ pub(super) fn read_encoders(
             u.rows,
             u.first_ns,
             u.last_ns,
-            &known,
+            &declared,
         )
     }));
     let rows: BTreeMap<String, (u64, Missing)> = bar_ids

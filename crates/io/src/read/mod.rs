@@ -96,7 +96,9 @@ use super::pq::{not_parquet, ParquetFile};
 use super::repeats::{RepeatSketch, RepeatWindows};
 use super::IngestError;
 use dbbcal_core::campaign::{Campaign, Manifest, SensorKind};
-use dbbcal_core::series::quality::{self, ChannelQuality, Flag, FlagKind, Missing};
+use dbbcal_core::series::quality::{
+    self, ChannelQuality, Flag, FlagNote, LogTable, Missing, RowProblem,
+};
 use dbbcal_core::series::{
     counts_ok, reading_time_ok, reading_times_ok, BarBins, BarLog, BinAccumulator, BinGrid, Event,
     EventKind, Quality, SensorLog, MAX_ABS_COUNTS,
@@ -224,7 +226,7 @@ pub(crate) fn read_tables(
     for (id, (rows, missing)) in encoders.rows {
         let q = quality.bars.entry(id).or_default();
         q.rows = rows;
-        missing.record(q, "encoder rows");
+        missing.record(q, LogTable::Encoders);
     }
     for (id, overlap) in encoders.overlaps {
         let q = quality.bars.entry(id).or_default();
@@ -348,14 +350,12 @@ fn flag_mixed_zones(zones: &[(PathBuf, bool)], quality: &mut Quality) {
         p.file_name()
             .map_or(String::new(), |n| n.to_string_lossy().into_owned())
     };
-    let note = format!(
-        "{} files have naive times (taken as UTC, e.g. {}) and {zoned} zoned ones: check the naive ones are not local time",
-        naive.len(),
-        name(naive[0])
-    );
-    quality
-        .files
-        .push(Flag::file(FlagKind::MixedTimeZones, 0, note));
+    let note = FlagNote::MixedTimeZones {
+        naive_files: naive.len(),
+        zoned_files: zoned,
+        naive_example: name(naive[0]),
+    };
+    quality.files.push(Flag::file(note, 0));
 }
 
 /// Rows of ids the manifest does not declare, per file and id (null ids are skipped).
@@ -365,7 +365,7 @@ fn unknown_id_flags(
     id_column: &'static str,
     known: &BTreeSet<&str>,
 ) -> Vec<Flag> {
-    let known_list = known.iter().copied().collect::<Vec<_>>().join(", ");
+    let declared: Vec<String> = known.iter().map(|k| k.to_string()).collect();
     id_summary(table, id_column)
         .into_iter()
         .filter(|row| !known.contains(row.id.as_str()))
@@ -377,7 +377,7 @@ fn unknown_id_flags(
                 row.rows,
                 row.first_ns,
                 row.last_ns,
-                &known_list,
+                &declared,
             )
         })
         .collect()
@@ -413,7 +413,7 @@ fn read_events(
             _ => true,
         })
         .collect();
-    missing.record(q, "event rows");
+    missing.record(q, LogTable::Events);
     Ok(kept)
 }
 
@@ -557,7 +557,7 @@ mod row_group_tests {
         };
         let sink = stream_encoders(&files, &bars, &kept, &mut Vec::new()).expect("read");
         let range = |file: u32| {
-            let b = &sink.bad[&(file, "bar", NULL_PROBLEM)];
+            let b = &sink.bad[&(file, "bar", RowProblem::Null)];
             (b.rows, b.first_row, b.last_row)
         };
         assert_eq!(range(0), (2, 5, 9));

@@ -123,45 +123,32 @@ pub(super) fn report_copies(
         set.iter()
             .map(|&f| file_name(&files[f as usize]))
             .collect::<Vec<_>>()
-            .join(", ")
     };
     if let Some((a, b, n)) = copies.across_files {
-        let how = if binned {
-            "counted once (the copies taken out of the bins)"
-        } else {
-            "counted once (exact duplicates, in duplicate_rows)"
+        let note = FlagNote::OverlappingFiles {
+            bar: id.to_string(),
+            files: names(&copies.duplicate_files),
+            out_of_bins: binned,
         };
-        let note = format!(
-            "{n} readings of bar {id} held by more than one file ({}) with the same time and \
-             counts: {how}",
-            names(&copies.duplicate_files)
-        );
-        report
-            .flags
-            .push(Flag::at(FlagKind::OverlappingFiles, a, b, n, note));
+        report.flags.push(Flag::at(note, a, b, n));
     }
     if !binned {
         return;
     }
     if let Some((a, b)) = copies.removed_range {
         let n = copies.removed.0.len() as u64;
-        let note = format!(
-            "{n} exact duplicate encoder rows (same time and value) counted once (the copies \
-             taken out of the bins)"
-        );
-        report
-            .flags
-            .push(Flag::at(FlagKind::DuplicateRows, a, b, n, note));
+        let note = FlagNote::DuplicateRows {
+            table: LogTable::Encoders,
+            out_of_bins: true,
+        };
+        report.flags.push(Flag::at(note, a, b, n));
     }
     if let Some((a, b, n)) = copies.conflicts {
-        let note = format!(
-            "{n} readings of bar {id} share their time with a reading of other counts ({}): a \
-             logger clock set back, or two loggers; all kept",
-            names(&copies.conflict_files)
-        );
-        report
-            .flags
-            .push(Flag::at(FlagKind::ConflictingReadings, a, b, n, note));
+        let note = FlagNote::ConflictingInFiles {
+            bar: id.to_string(),
+            files: names(&copies.conflict_files),
+        };
+        report.flags.push(Flag::at(note, a, b, n));
     }
 }
 

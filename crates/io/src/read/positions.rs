@@ -11,6 +11,10 @@
 use super::*;
 use dbbcal_core::positions::{PositionRow, PositionsLog};
 
+/// Position rows with a time out of range refuse the campaign (an error, in words).
+const TIME_PROBLEM: &str =
+    "hold times outside 1980-01-01 .. 2200-01-01 (NaT, a clock reset, a far future, or a unit whose ns value overflows)";
+
 const REQUIRED: [ColumnSpec; 6] = [
     spec("time", Kind::Time, false),
     spec("device", Kind::Text, false),

@@ -292,7 +292,7 @@ pub(super) fn read_file(
             }
         }
         if let Some(b) = bad {
-            dropped.push(b.flag(path, spec.name, NULL_PROBLEM));
+            dropped.push(b.flag(path, spec.name, RowProblem::Null));
         }
     }
     let raw = rows.i64("time").map_err(|e| not_parquet(path, e))?;
@@ -337,7 +337,7 @@ fn times_ns(
         })
         .collect();
     if let Some(b) = bad {
-        dropped.push(b.flag(path, "time", TIME_PROBLEM));
+        dropped.push(b.flag(path, "time", RowProblem::TimeOutOfBounds));
     }
     ns
 }

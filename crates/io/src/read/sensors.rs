@@ -27,10 +27,12 @@ impl FileProblems {
     /// The flags of the rows dropped, in the order the spec lists the columns.
     fn flags(self, path: &Path) -> impl Iterator<Item = Flag> + '_ {
         [
-            self.null_time.map(|b| b.flag(path, "time", NULL_PROBLEM)),
+            self.null_time
+                .map(|b| b.flag(path, "time", RowProblem::Null)),
             self.null_sensor
-                .map(|b| b.flag(path, "sensor", NULL_PROBLEM)),
-            self.bad_time.map(|b| b.flag(path, "time", TIME_PROBLEM)),
+                .map(|b| b.flag(path, "sensor", RowProblem::Null)),
+            self.bad_time
+                .map(|b| b.flag(path, "time", RowProblem::TimeOutOfBounds)),
         ]
         .into_iter()
         .flatten()
@@ -201,7 +203,7 @@ pub(super) fn read_temperatures(
         let time = guarded(path, || stream_file(path, index, &mut sink, &mut dropped))?;
         zones.push((path.clone(), time.zoned));
     }
-    let known = sensor_ids.iter().copied().collect::<Vec<_>>().join(", ");
+    let declared: Vec<String> = sensor_ids.iter().map(|s| s.to_string()).collect();
     dropped.extend(sink.unknown.iter().map(|((file, id), u)| {
         unknown_id_flag(
             &file_path(paths, *file),
@@ -210,7 +212,7 @@ pub(super) fn read_temperatures(
             u.rows,
             u.first_ns,
             u.last_ns,
-            &known,
+            &declared,
         )
     }));
     use rayon::prelude::*;
@@ -244,10 +246,10 @@ fn sensor_log(rows: SensorRows) -> (SensorLog, ChannelQuality) {
         rows,
         ..ChannelQuality::default()
     };
-    missing.record(&mut q, "temperature readings");
+    missing.record(&mut q, LogTable::Temperatures);
     sort_by_time_then_value(&mut log);
     let (dups, range) = quality::dedup_sorted(&mut log.time_ns, &mut log.celsius);
-    quality::record_duplicates(&mut q, dups, range, "temperature readings");
+    quality::record_duplicates(&mut q, dups, range, LogTable::Temperatures);
     quality::drop_implausible_temperatures(&mut log.time_ns, &mut log.celsius, &mut q);
     (log, q)
 }

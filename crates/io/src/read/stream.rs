@@ -173,16 +173,17 @@ pub(super) fn unknown_id_flag(
     rows: u64,
     first_ns: i64,
     last_ns: i64,
-    known: &str,
+    declared: &[String],
 ) -> Flag {
-    let note = format!(
-        "{}: {rows} rows ({} .. {}) have {column} {:?}, which campaign.toml does not declare (known: {known}): dropped",
-        path.display(),
-        crate::format_ns(first_ns),
-        crate::format_ns(last_ns),
-        id
-    );
-    Flag::file(FlagKind::UnusableRows, rows, note)
+    let note = FlagNote::UndeclaredId {
+        file: path.to_path_buf(),
+        column: column.to_string(),
+        id: id.to_string(),
+        first_ns,
+        last_ns,
+        declared: declared.to_vec(),
+    };
+    Flag::file(note, rows)
 }
 
 pub(super) fn file_path(files: &[PathBuf], index: u32) -> PathBuf {
