@@ -3,8 +3,8 @@
 //! hold the graph itself, transitively, from `Cargo.lock` (which lists every package's
 //! dependencies, dev-dependencies included: a dev-dependency that pulled parquet into core's
 //! tests would fail here too, as it would make core's tests link parquet). What the graph cannot
-//! say, they read from core's own `Cargo.lock` entry and its code: no file format in core, and
-//! one-way data flow inside it.
+//! say, they read from the crates' own `Cargo.lock` entries and code: no file format in core or
+//! dbbcal-machine, and one-way data flow inside core.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -165,19 +165,17 @@ fn code_lines(path: &str) -> Vec<(String, String)> {
     lines
 }
 
-/// Core knows no file format (ARCHITECTURE.md, Invariants): `campaign.toml`'s is
-/// `dbbcal_io::manifest`'s and every output record the application's. The closure checks above
-/// cannot hold this: serde is in core's closure through its numeric dependencies (argmin,
-/// chrono). So this looks at core's own dependencies, its `[[package]]` entry in `Cargo.lock`
-/// (every table of its manifest: normal, dev, build, per target; a renamed dependency under its
-/// package's name), and at its code: no line of `crates/core/src/` outside a comment names
-/// `Serialize`, `Deserialize` or `serde::` (a comment may, in prose).
+/// Core and the machine kinds' crate know no file format (ARCHITECTURE.md, Invariants):
+/// `campaign.toml`'s is `dbbcal_io::manifest`'s and every output record the application's. The
+/// closure checks above cannot hold this: serde is in core's closure through its numeric
+/// dependencies (argmin, chrono). So this looks at each crate's own dependencies, its
+/// `[[package]]` entry in `Cargo.lock` (every table of its manifest: normal, dev, build, per
+/// target; a renamed dependency under its package's name), and at its code: no line of its
+/// `src/` outside a comment names `Serialize`, `Deserialize` or `serde::` (a comment may, in
+/// prose).
 #[test]
-fn the_analysis_crate_knows_no_file_format_by_dependency_or_by_derive() {
+fn the_analysis_crates_know_no_file_format_by_dependency_or_by_derive() {
     let graph = lock_graph();
-    let own = graph
-        .get("dbbcal-core")
-        .expect("dbbcal-core is in Cargo.lock");
     let forbidden = [
         "serde",
         "serde_derive",
@@ -190,24 +188,32 @@ fn the_analysis_crate_knows_no_file_format_by_dependency_or_by_derive() {
         "arrow-array",
         "plotters",
     ];
-    let deps: Vec<&str> = forbidden
-        .into_iter()
-        .filter(|f| own.iter().any(|d| d == f))
-        .collect();
-    let code: Vec<String> = code_lines("crates/core/src")
-        .into_iter()
-        .filter(|(_, code)| {
-            ["Serialize", "Deserialize", "serde::"]
-                .iter()
-                .any(|w| code.contains(w))
-        })
-        .map(|(at, code)| format!("{at}: {}", code.trim()))
-        .collect();
-    assert!(
-        deps.is_empty() && code.is_empty(),
-        "dbbcal-core knows a file format: its own dependencies {deps:?}; code:\n{}",
-        code.join("\n")
-    );
+    for (krate, src) in [
+        ("dbbcal-core", "crates/core/src"),
+        ("dbbcal-machine", "crates/machine/src"),
+    ] {
+        let own = graph
+            .get(krate)
+            .unwrap_or_else(|| panic!("{krate} is not in Cargo.lock"));
+        let deps: Vec<&str> = forbidden
+            .into_iter()
+            .filter(|f| own.iter().any(|d| d == f))
+            .collect();
+        let code: Vec<String> = code_lines(src)
+            .into_iter()
+            .filter(|(_, code)| {
+                ["Serialize", "Deserialize", "serde::"]
+                    .iter()
+                    .any(|w| code.contains(w))
+            })
+            .map(|(at, code)| format!("{at}: {}", code.trim()))
+            .collect();
+        assert!(
+            deps.is_empty() && code.is_empty(),
+            "{krate} knows a file format: its own dependencies {deps:?}; code:\n{}",
+            code.join("\n")
+        );
+    }
 }
 
 /// Inside core data flow one way, `signal` ← `series` ← `model` (ARCHITECTURE.md, Invariants):
