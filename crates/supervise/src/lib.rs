@@ -33,6 +33,8 @@
 //!   `supervise::SupervisedAlloc`, which only looks at a null result.
 //! - Supervision costs one fork/exec of the binary and, per file decoded, two small writes into a
 //!   pipe (measured in `bench/README.md`).
+//! - When a child dies while several files were being decoded, [`probe`] decodes each alone in a
+//!   supervised child of its own, so the line names the file that crashes.
 
 use std::alloc::{GlobalAlloc, Layout};
 use std::collections::BTreeMap;
