@@ -2,6 +2,13 @@
 //! prints and the report page opens with; `fit_report` is the lmfit-style report per bar
 //! (`report.md`).
 //!
+//! Every sentence the outputs hold about core's results is here, one module a subject: the
+//! diagnosis' reasons (`diagnosis`), the effects' and channels' explanations (`effects`), the
+//! sensors' profiles (`sensors`), the decision rule and the budget's notes (`acceptance`), what
+//! a bar cannot determine (`model`), excluded calibration points (`calibration`), the inputs'
+//! quality flags and a failed bar's reason (`quality`), `index.html` (`page`); each machine kind
+//! has its module, and what they all write the same way is `words`.
+//!
 //! Plain data in, text out: no IO, no pixels.
 
 pub(crate) mod acceptance;

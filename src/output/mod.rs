@@ -23,12 +23,18 @@
 //!    supervisor removes the partial folder and the lock ([`clean_up_after_dead_run`],
 //!    `crate::supervise`), else the next run does.
 //!
+//! `location` resolves where an output may go and what a run may replace, `refusal` says why a
+//! location is refused, `lock` holds the lock and the signal clean-up; stderr lines never panic.
 //! `fault` lets the crash tests kill the process or fail a write at every step.
 //!
-//! The JSON formats live here too, each converting typed results to text in one place:
-//! `summary` (`summary.json`), `diagnosis` (`diagnosis.json`), `stage_records`
-//! (`calibration.json`, `compensation.json`, `acceptance.json`), `device_record` (`device.json`,
-//! `device_errors.parquet`).
+//! The JSON formats live here too, each a typed record built from core's results (`From`, the
+//! same field names in the same order), converting them to text in one place: `summary`
+//! (`summary.json`; its `quality`: `quality`), `inputs` (`inputs.json` and every record's
+//! `inputs`), `diagnosis` (`diagnosis.json`), `before_after`, `match_study`, `stage_records`
+//! (`calibration.json`, `compensation.json`, `acceptance.json`, with `calibration`,
+//! `compensation`, `acceptance`), `device_record` (`device.json`, `device_errors.parquet`), the
+//! machine kinds' records (`kind_record`: their shared head; `axis`, `probe`, `roll`,
+//! `volumetric`), and the controller tables (`controller`, `axis_tables`).
 
 pub(crate) mod acceptance;
 pub(crate) mod axis;

@@ -7,7 +7,11 @@
 //! `D(n) = a (k n)^2 + b (k n) + c`; the tilt may be a second input (gravity sag, largest when
 //! horizontal), and a table with interpolation is equally allowed. Here every form is tried and
 //! the one with the smallest leave-one-point-out cross-validated error is kept; every form's
-//! error is reported so the user sees why.
+//! error is reported so the user sees why. The forms ([`Form`], simplest first, a tie to the
+//! simpler): linear, the patent's quadratic, quadratic plus gravity sag (`cos A` or `cos² A`
+//! times a polynomial in the reading, the sag growing with the bar's length), and a table. A
+//! point's tilt is its mount's `tilt_deg`, else the latest `tilt` event, else the plate's
+//! (`BarSeries::tilt_at_deg`).
 //!
 //! Counts are comparable only within one counter epoch (between `rezero` events,
 //! `docs/spec/campaign-format.md`): the calibration uses the epoch holding the most points and names the

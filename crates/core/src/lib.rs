@@ -9,12 +9,13 @@
 //! [`acceptance::accept_fleet`]); a per-bar stage returns a [`stage::StageOutcome`].
 //! The `axis` machine kind's declared manifest and reader rules are in [`axis_campaign`].
 //!
-//! INVARIANT (enforced by this crate's dependencies): no parquet/arrow, no plotters, no file IO,
-//! no file format (no serde, no TOML: `dbbcal-io` parses and writes `campaign.toml`, the
-//! application writes every output record) and no sentence for users (results are numbers and
-//! enums; the application's `narrative` words them; error messages are the errors' own). Ingest
-//! (`dbbcal-io`) gives this crate [`series::CampaignLogs`]; the application writes what it
-//! returns. See ARCHITECTURE.md.
+//! INVARIANT: no parquet/arrow, no plotters, no file IO, no file format (no serde, no TOML:
+//! `dbbcal-io` parses and writes `campaign.toml`, the application writes every output record)
+//! and no sentence for users (results are numbers and enums; the application's `narrative` words
+//! them; error messages are the errors' own). Held by this crate's dependencies, its
+//! `clippy.toml` (no `std::fs`) and `tests/e2e/architecture.rs` (its own dependencies and code).
+//! Ingest (`dbbcal-io`) gives this crate [`series::CampaignLogs`]; the application writes what
+//! it returns. See ARCHITECTURE.md.
 pub mod acceptance;
 pub mod axis_campaign;
 pub mod calibrate;

@@ -9,8 +9,8 @@
 //! `clear_page_erms` under huge-page faults was 30 % of the samples, the largest entry). Three
 //! settings:
 //! - mimalloc, the binary's global allocator (`src/main.rs`), purges freed pages after a delay
-//!   (`purge_delay`, 1 s in mimalloc 3); ingest and identify reuse them within that time and
-//!   faulted them in again. Its purge delay is set to "never".
+//!   (`purge_delay`, 1 s in mimalloc 3); ingest and identify would reuse them after that time
+//!   and fault them in again. Its purge delay is set to "never".
 //! - glibc's `malloc` serves the C libraries the parquet crate links: zstd's contexts are
 //!   created for every column chunk of every row group (`parquet::compression`'s codec, one per
 //!   column reader) and freed after it, and glibc maps large blocks afresh or trims them from

@@ -5,7 +5,7 @@
 //! 64 cases by default (a few seconds); a longer run:
 //! `PROPTEST_CASES=5000 cargo test --release -p dbbcal-io fuzz_tests`.
 //!
-//! A parquet decoder may panic on some corrupt files (polars did, e.g. "thrift bool field");
+//! A parquet decoder may panic on some corrupt files (polars' does, e.g. "thrift bool field");
 //! ingest catches those at the file boundary (`io::guard`) and names the file. So any panic that
 //! reaches the caller fails here, and so does a hang. `DBBCAL_FUZZ_STRICT=0` tolerates panics
 //! raised inside the parquet crate (to look at this crate's own panics alone).
@@ -284,13 +284,13 @@ fn check_in_child(dir: &Path) -> Result<Option<String>, String> {
     }
 }
 
-/// A page of the tiny base with four bytes set (the case `PROPTEST_RNG_SEED=14` found): polars
-/// asked for 2 305 843 009 213 693 936 bytes to decode its validity and aborted. The parquet
-/// crate refuses the page with an error: an ordinary corrupt case now, named in one line (the
-/// same file is in the e2e tests, `bad_input`). Read in a supervised child as every fuzz case:
-/// no crash.
+/// A page of the tiny base with four bytes set (the case `PROPTEST_RNG_SEED=14` found), on
+/// which polars' decoder asks for 2 305 843 009 213 693 936 bytes to decode its validity and
+/// aborts. The parquet crate refuses the page with an error: an ordinary corrupt case, named
+/// in one line (the same file is in the e2e tests, `bad_input`). Read in a supervised child as
+/// every fuzz case: no crash.
 #[test]
-fn a_page_that_aborted_the_old_decoder_is_refused_in_one_line_naming_the_file() {
+fn a_page_that_aborts_polars_decoder_is_refused_in_one_line_naming_the_file() {
     let bytes = std::fs::read(dbbcal_testkit::repo_path(
         "tests/data/page-validity-abort.parquet",
     ))

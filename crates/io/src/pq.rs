@@ -24,7 +24,8 @@ use super::{one_line, IngestError};
 /// L2 cache's neighbourhood (~1.5 MB).
 pub(crate) const BATCH_ROWS: usize = 64 * 1024;
 
-/// Rows of one written row group (polars' default, which the files written so far used).
+/// Rows of one written row group (polars' default, so our files' row groups are those of the
+/// campaigns polars writes).
 const ROW_GROUP_ROWS: usize = 512 * 512;
 
 /// `path` is no parquet file the reader can decode: its message, on one line.

@@ -43,8 +43,9 @@ pub enum DeviceEffect {
     MachineDrift,
     /// The drift levelling off during the test: a machine warming up towards its thermal
     /// steady state drifts like 1 − e^(−t/τ), which a constant rate leaves a curve of (the
-    /// second simulator's warm-up, `tests/e2e/device_foreign.rs`: 0.32 → 0.041 µm with
-    /// `machine_drift` alone, and `reseated_leg` then proposed to soak up the curve). τ is
+    /// second simulator's warm-up, `tests/e2e/device_foreign.rs`: `machine_drift` alone brings
+    /// 0.32 µm down to 0.041 µm only, and `reseated_leg` is then proposed to soak up the
+    /// curve). τ is
     /// searched: a quadratic in time followed a drift that levels off within the test (τ = 1 h
     /// over 4 h of our simulator's test) no better than to 0.038 µm.
     MachineWarmUp,

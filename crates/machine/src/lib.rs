@@ -15,8 +15,9 @@
 //! - [`device_test`]: a hexapod axis test on plain data, dwell by dwell (pose, errors, U).
 //! - [`warm_up`]: a machine warming up, the drift levelling off (device and axis loops).
 //!
-//! INVARIANT (enforced by this crate's dependencies and `tests/e2e/architecture.rs`): no file
-//! IO, no parquet/arrow, no plotters, no serialisation formats; the application owns those. The
+//! INVARIANT: no file IO, no parquet/arrow, no plotters, no serialisation formats; the
+//! application owns those. Held by this crate's dependencies, its `clippy.toml` (no `std::fs`)
+//! and `tests/e2e/architecture.rs` (its closure, its own dependencies and code). The
 //! formulas come from `docs/spec/machine-physics.md`, `docs/spec/machine-formats.md` and
 //! `docs/spec/device-format.md`; each module says which section.
 pub mod axis;

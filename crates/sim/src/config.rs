@@ -56,8 +56,8 @@ pub struct SimConfig {
     /// Bars made deliberately different from the fleet (none by default).
     pub mismatch: Vec<Mismatch>,
     /// How the truth is generated where the logs cannot tell (the air between two temperature
-    /// readings, the bars' state before logging): by default as the simulator always did, and
-    /// left out of `truth.json` then.
+    /// readings, the bars' state before logging): by default the room's own air and a steady
+    /// start, and left out of `truth.json` then.
     #[serde(skip_serializing_if = "GenerationConfig::is_default")]
     pub generation: GenerationConfig,
 }

@@ -1,5 +1,11 @@
 //! The true environment on the fine internal grid: air at bar height (T1) and above (T2), the
 //! plate temperature, and the hidden channel; plus the door events and the logged sensor readings.
+//!
+//! The room is a daily swing, an air-conditioning triangle, Poisson door openings and, for
+//! identification campaigns, programmed set-point steps. `[generation]` is applied here too: the
+//! room runs `prehistory_hours` before the logging starts, and the air between two temperature
+//! readings is the room's own, the last reading's held, or the readings' interpolated
+//! (`air_between_readings`).
 
 use std::collections::BTreeMap;
 use std::f64::consts::TAU;

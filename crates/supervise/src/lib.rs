@@ -1,7 +1,7 @@
 //! A crash in a dependency that no `catch_unwind` can catch (issue 14, "never lose a byte").
 //!
-//! A parquet decoder can be made to abort the process by a corrupt page (polars did: it asked for
-//! an allocation of ~2.3e18 bytes, and Rust's allocation-failure handler aborts, SIGABRT). Nothing
+//! A parquet decoder can be made to abort the process by a corrupt page (polars' decoder asks for
+//! an allocation of ~2.3e18 bytes on one, and Rust's allocation-failure handler aborts). Nothing
 //! inside the process can turn that into a line naming the file (`dbbcal-io`'s guard catches
 //! panics only). So the commands that read campaign parquet run in a supervised child:
 //!
@@ -33,6 +33,8 @@
 //!   `supervise::SupervisedAlloc`, which only looks at a null result.
 //! - Supervision costs one fork/exec of the binary and, per file decoded, two small writes into a
 //!   pipe (measured in `bench/README.md`).
+//! - When a child dies while several files were being decoded, [`probe`] decodes each alone in a
+//!   supervised child of its own, so the line names the file that crashes.
 
 use std::alloc::{GlobalAlloc, Layout};
 use std::collections::BTreeMap;

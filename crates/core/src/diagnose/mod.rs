@@ -23,6 +23,15 @@
 //!
 //! Everything here is computation on plain data; the pipeline writes and draws the results.
 //!
+//! Where each part lives: `fleet` (the nine steps over a fleet, [`diagnose_fleet`]), `bar`
+//! (one bar's statistics and channel ranking), `screen`, `candidates` (the ranking and its
+//! coarse tier, `coarse_tier`), `compare` (a named effect goes before a generic alias that fits
+//! within the materiality threshold: `prefer_named_effects` in the ranking,
+//! `competing_delta_bic` in the beam), `selection` (the beam, `CoarseFleet`, `confirm_path`),
+//! `bar_selection` (a bar's own search), `refits` (the refit cache), `noise`, `sensors`,
+//! `reason` (why each verdict: [`Reason`], the rule and its numbers) and `error` (why a
+//! candidate could not be fitted on a bar).
+//!
 //! # How it works
 //!
 //! - The diagnosis's noise floor (`ScreenBase::white_noise_variance`) is the successive-difference

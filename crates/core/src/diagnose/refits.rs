@@ -34,8 +34,8 @@ pub(crate) struct Refits {
 /// added in, so a path that adds A then B and one that adds B then A share their refit.
 ///
 /// Why: a forward selection confirms tied paths and the ranking's reordering of a path on the
-/// readings (`selection::led_by_the_ranking`); keyed by order, the second confirmation refitted
-/// every bar with the same effects again (7 s of a 44-s night on the second simulator's
+/// readings (`selection::led_by_the_ranking`); keyed by order, the second confirmation would
+/// refit every bar with the same effects again (7 s of a 44-s night on the second simulator's
 /// air-gradient campaign, 10 bars, 15 days, 10 s).
 type RefitCache = HashMap<(String, Vec<String>), Arc<Refit>>;
 

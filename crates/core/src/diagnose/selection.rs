@@ -233,9 +233,9 @@ impl CoarseFleet {
 ///
 /// Why: the coarse copies decide near ties that the readings do not. On the second simulator's
 /// plate-expansion campaign (`bench/foreign_sim.py --effect plate_expansion --seed 1`, 10 bars,
-/// 15 days, 10 s) the ranking on the readings put `plate_expansion` first (ΔBIC −128 669 against
-/// `air_gradient`'s −125 729) while the coarse beam preferred `air_gradient`: the ledger named the
-/// wrong effect. A path's first step is usually refitted already (the ranking's exact tier), so
+/// 15 days, 10 s) the ranking on the readings puts `plate_expansion` first (ΔBIC −128 669 against
+/// `air_gradient`'s −125 729) while the coarse beam prefers `air_gradient`: the coarse path alone
+/// would name the wrong effect. A path's first step is usually refitted already (the ranking's exact tier), so
 /// confirming a tied rival costs only its later steps.
 ///
 /// Tied paths are confirmed in the readings' ranking of their first steps, and of the paths that
@@ -437,9 +437,9 @@ fn tied_paths<'a>(
 ///
 /// Why: the coarse beam ranks whole paths, so its first step can be a term that comes first
 /// only on the copies. On the second simulator's creep campaign (`bench/loop_check.py`, k = 1,
-/// seed 2) the readings ranked `creep` first (ΔBIC −904 795 against `second_path`'s −891 332),
-/// while the ledger read `second_path` → `creep`: the same two terms, the hidden effect named
-/// second.
+/// seed 2) the readings rank `creep` first (ΔBIC −904 795 against `second_path`'s −891 332),
+/// while the coarse path's ledger reads `second_path` → `creep`: the same two terms, the hidden
+/// effect named second.
 fn led_by_the_ranking(
     series: &[&BarSeries],
     start: Vec<BarModel>,

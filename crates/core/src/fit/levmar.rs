@@ -69,7 +69,7 @@ impl<P: Separable> CostFunction for Profile1d<'_, P> {
 /// `∂r/∂θ_k = P_Φ d_k − d_k`, `d_k = ∂Φ/∂θ_k c` (as varpro computes it).
 ///
 /// Why not varpro's own solver: without LAPACK its only linear solver is a full SVD of the
-/// `n × m` basis with both singular factors at every evaluation, which took most of the
+/// `n × m` basis with both singular factors at every evaluation, which would take most of the
 /// diagnosis' refits on the 300-s copies (about 8 `n m²` against the column-scaled
 /// Householder QR's 2 `n m²`; the projections then cost `O(n m)` a column through the same
 /// factorisation).

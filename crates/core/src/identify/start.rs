@@ -75,7 +75,7 @@ const NEARER_START_BIN_S: f64 = 60.0;
 /// 10-25 min), so on a 10-s, 15-day bar (130 k readings) the coarse optimum can lie 10-15 % in
 /// `τ` from the readings' own. From there the Gauss-Newton polish overshoots wherever two time
 /// constants are nearly equal (the two paths of a bar whose `I_p` varies little), and
-/// Levenberg-Marquardt took 10-15 evaluations of the readings (0.6-0.8 s a refit). The 60-s
+/// Levenberg-Marquardt takes 10-15 evaluations of the readings (0.6-0.8 s a refit). The 60-s
 /// copy's optimum lies within about 1 % of the readings' (the bin's bias is `(60 s/τ)²/24`),
 /// and the readings then take a polish or a few iterations: on the second simulator's
 /// three-effect campaign (every reading) this spares about a tenth of the diagnosis' refits on
@@ -111,10 +111,10 @@ pub(super) fn nearer_start(
 /// 20.47 nm on bar F01, where a fresh fit reaches 20.03, and the diagnosis ranked
 /// `air_gradient` first (ΔBIC −12 329 against −11 973); with the defaults' basin too,
 /// `plate_expansion` comes first (−14 010) and reaches the noise. In the usual case (one basin)
-/// this costs a search on the coarse copy and one residual of the series: the nightly runs of
-/// that simulator's 25 hidden-effect campaigns took 5 % longer in all (and 4 % less once the
-/// bent starts' second full fit it made redundant was dropped), where a second full fit for
-/// every refit had cost 1.5-2.5 times the diagnosis.
+/// this costs a search on the coarse copy and one residual of the series, and it makes a second
+/// full fit from the bent start unnecessary: the nightly runs of that simulator's 25
+/// hidden-effect campaigns take 4 % less in all than with that second fit and no search, where
+/// a second full fit for every refit costs 1.5-2.5 times the diagnosis.
 pub(super) fn defaults_basin(
     series: &BarSeries,
     problem: &ThermalProblem,

@@ -81,7 +81,7 @@ pub struct ThermalProblem<'a> {
     pub(super) zero_rows: Vec<std::ops::Range<usize>>,
     /// The fitted rows as runs of one zero column each (`None`: rows without one), in row
     /// order: the basis is demeaned run by run (`write_row_column`), slices the compiler
-    /// vectorises; the per-row test of `row_zero` it replaces took about a tenth of the
+    /// vectorises; testing `row_zero` row by row instead costs about a tenth of the
     /// machine-tool log's nightly CPU.
     pub(super) zero_runs: Vec<(std::ops::Range<usize>, Option<usize>)>,
     /// The last column (and `ln tau` derivative) computed for each term with a time constant,

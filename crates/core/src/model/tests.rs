@@ -662,7 +662,7 @@ fn one_length_leaves_the_scale_out_and_says_why() {
 }
 
 #[test]
-fn every_effect_name_round_trips_through_parse_name_display_and_json() {
+fn every_effect_name_round_trips_through_parse_name_and_display() {
     let mut names: Vec<String> = CATALOGUE.iter().map(|n| n.to_string()).collect();
     for transform in ["lag", "rate", "level", "heat"] {
         for channel in ["T1", "event:head_power", "t4-t1", "length_mm", "a:b"] {

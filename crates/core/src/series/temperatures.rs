@@ -104,9 +104,10 @@ pub fn sensor_knots(sensors: &BTreeMap<String, SensorLog>) -> Vec<TimeNs> {
 ///
 /// Why: a compressed series keeps every sensor reading between close nodes as a sample
 /// ([`sensor_knots`]), so the lags see the interpolated temperature's every kink. A sensor
-/// logging at 1 Hz would put 30 samples between a 60-s bin's nodes: the series grew from 86 k
-/// to 2.6 M samples a bar on a 30-day 1 Hz campaign, and the campaign's identify from about
-/// 2 to 10 s and 0.5 to 2 GB, for nothing the lags can see: inside a block the mean's error
+/// logging at 1 Hz would put 30 samples between a 60-s bin's nodes: on a 30-day 1 Hz campaign a
+/// bar's series holds 86 k samples with block means and would hold 2.6 M with every sensor
+/// reading, and the campaign's identify takes about 2 s and 0.5 GB where it would take 10 s and
+/// 2 GB, for nothing the lags can see: inside a block the mean's error
 /// enters a lag of time constant `tau` weighted by `(t − t_mid)/tau` (`docs/spec/physics.md`:
 /// `tau` ≥ 15 min against 30-s blocks), so what the block means lose is of order `(block/tau)²`
 /// of the fluctuation, far below the readings' noise. Slower logs are unchanged, so their

@@ -196,8 +196,9 @@ pub(crate) fn fit(
 /// zero). Unchanged when the lobes are not determined there or the column adds no rank.
 ///
 /// Why: φ₀ is estimated like any other parameter and its uncertainty moves the gains. Over
-/// ten simulated campaigns the first-touch errors' RMS in units of U/2 went 1.045 → 1.040
-/// (221 → 222 of 240 within U): a small effect, within the scatter of 240 errors.
+/// ten simulated campaigns the first-touch errors' RMS in units of U/2 is 1.040 with φ₀
+/// counted and 1.045 without (222 and 221 of 240 within U): a small effect, within the
+/// scatter of 240 errors.
 fn with_phi0_counted(
     spec: &ModelSpec,
     touches: &[TouchInputs],

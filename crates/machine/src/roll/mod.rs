@@ -520,9 +520,9 @@ fn dwell_means(data: &Converted, dwells: &[Dwell], resolution: [f64; 4]) -> Vec<
 /// Why the differences: the estimator uses a dwell's readings only as C − A and D − B
 /// (`docs/spec/machine-physics.md`, "Kind roll": δz enters all four, εy both of B and D), so a
 /// stage that settles or vibrates during a dwell moves the four readings together and not their
-/// differences. Each probe's own Type A counted that motion four times over: on a second
+/// differences. Each probe's own Type A would count that motion four times over: on a second
 /// simulator whose readings follow the stage into its moves (`tests/e2e/roll_foreign.rs`), the
-/// first samples of a move inside the dwell band made U 30 times the error.
+/// first samples of a move inside the dwell band would make U 30 times the error.
 fn difference_u(readings: &[[f64; 4]], (i, j): (usize, usize), resolution: [f64; 4]) -> f64 {
     let v: Vec<f64> = readings.iter().map(|m| m[i] - m[j]).collect();
     let (_, u_a_um, _) = stations::mean_type_a(&v);

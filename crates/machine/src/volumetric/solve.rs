@@ -1,6 +1,6 @@
 //! Every reading of a `volumetric` campaign in one least-squares problem, the gauge of what it
-//! cannot see, and the naive closed-form inversion it replaces (`docs/spec/machine-physics.md`,
-//! "Kind volumetric").
+//! cannot see, and, for comparison, the naive closed-form inversion
+//! (`docs/spec/machine-physics.md`, "Kind volumetric").
 //!
 //! **Joint fit.** The rows of [`super::model::Layout::row`] go to [`crate::linear::solve`]: its
 //! rank and lost combinations (by name) say what the readings cannot see. With unknown pointing

@@ -55,8 +55,8 @@ pub(crate) const MAX_BIN_EDGES: usize = 1024;
 /// (the head's lag of its power, a lag of an event channel) has a kink at its event; over a bin
 /// that straddles one it is not the straight line the compression is exact for. Measured
 /// (a 1 Hz, 2-day head-heating campaign of `bench/foreign_check.py`, seed 10, 60-s bins): with
-/// bins straddling the switches the estimates moved by up to 0.094 u from the full-rate fit
-/// (`head_growth_um`) and the HAC u of `tau_head_s` shrank by 35 % (tau 663 s at 3.3 u from the
+/// bins straddling the switches the estimates move by up to 0.094 u from the full-rate fit
+/// (`head_growth_um`) and the HAC u of `tau_head_s` shrinks by 35 % (tau 663 s at 3.3 u from the
 /// truth); with these edges every estimate is within 0.003 u of the full-rate fit, that u 13 %
 /// below the full rate's.
 fn bin_edges(events: &[Event], bar: &str) -> Vec<TimeNs> {
