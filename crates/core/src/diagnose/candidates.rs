@@ -141,14 +141,23 @@ pub(super) fn evaluate_at_most(
             .any(|&(k, gain, change)| k == c && change > gain)
     };
     // In a ranking of the readings (uncapped), a term the score test finds and that would move
-    // the model's own terms materially is a rival whatever share of the best's RMS its screen
-    // removes: the linearised refit holds the time constants, and such a term moves them (the
-    // second simulator's plate expansion, seed 2, 10-s readings in 60-s bins: screened 0.06 nm,
-    // 0.08 of the best's, refitted 0.86 nm and the best of the step). Not in the coarse beam's
-    // steps (capped): there every such term of every path cost 50-90 % more refits on our
-    // simulator's two-effect campaigns for the same ledgers, and the readings confirm each step.
-    let rival =
-        |c: usize, gain: f64| gain >= RIVAL_SHARE * best || (max_refits.is_none() && shift_only(c));
+    // the model's own terms materially is refitted on the coarse copies whatever share of the
+    // best's RMS its screen removes, and exactly when it is a rival there: the linearised refit
+    // holds the time constants, and such a term moves them (the second simulator's plate
+    // expansion, seed 2, 10-s readings in 60-s bins: screened 0.06 nm, 0.08 of the best's,
+    // refitted 0.82 nm and the best of the step). Not in the coarse beam's steps (capped): there
+    // every such term of every path cost 50-90 % more refits on our simulator's two-effect
+    // campaigns for the same ledgers, and the readings confirm each step.
+    let above_share = |gain: f64| gain >= RIVAL_SHARE * best;
+    let rival = |c: usize, gain: f64| above_share(gain) || (max_refits.is_none() && shift_only(c));
+    // Only a term whose screen passed the rival share on its own is kept for its shift whatever
+    // its coarse refit removes (`coarse_tier`).
+    let kept_for_shift = |c: usize| {
+        shift_only(c)
+            && screened
+                .iter()
+                .any(|&(k, gain, _)| k == c && above_share(gain))
+    };
     let refit: Vec<usize> = screened
         .iter()
         .filter(|(c, gain, change)| {
@@ -163,7 +172,7 @@ pub(super) fn evaluate_at_most(
         kept: (mut refit, starts),
         deferred,
         reasons: mut coarse_reasons,
-    } = coarse_tier(bars, bases, refit, candidates, shift_only, refits);
+    } = coarse_tier(bars, bases, refit, candidates, kept_for_shift, refits);
     tracing::debug!(
         bars = bars.len(),
         refit = ?refit.iter().map(|&c| candidates[c].name()).collect::<Vec<_>>(),
