@@ -92,14 +92,12 @@ pub(super) fn term_identity(e: &Effect) -> String {
 
 /// The family of terms one channel's response belongs to: `lag:CH` and `heat:CH` are one family
 /// (`heat:CH` nests `lag:CH`: with `I_p` constant over a bar's mounts the two are one term,
-/// `physics.md`'s first-order model); any other effect is its own ([`term_identity`]).
+/// `physics.md`'s first-order model), and so is a catalogue effect that is one of them
+/// (`head_heating` is `lag:event:head_power`, [`term_identity`]); any other effect is its own.
 pub(super) fn response_family(e: &Effect) -> String {
-    match e {
-        Effect::Channel {
-            transform: Transform::Lag | Transform::Heat,
-            channel,
-            ..
-        } => format!("response:{channel}"),
-        other => term_identity(other),
+    let identity = term_identity(e);
+    match identity.split_once(':') {
+        Some(("lag" | "heat", channel)) => format!("response:{channel}"),
+        _ => identity,
     }
 }

@@ -146,8 +146,9 @@ pub(super) fn evaluate_at_most(
     // holds the time constants, and such a term moves them (the second simulator's plate
     // expansion, seed 2, 10-s readings in 60-s bins: screened 0.06 nm, 0.08 of the best's,
     // refitted 0.82 nm and the best of the step). Not in the coarse beam's steps (capped): there
-    // every such term of every path cost 50-90 % more refits on our simulator's two-effect
-    // campaigns for the same ledgers, and the readings confirm each step.
+    // every such term of every path cost 20-85 % more refits on the copies of `bench/loop.sh`'s
+    // slow two- and three-effect campaigns for the same ledgers, and the readings confirm each
+    // step.
     let above_share = |gain: f64| gain >= RIVAL_SHARE * best;
     let rival = |c: usize, gain: f64| above_share(gain) || (max_refits.is_none() && shift_only(c));
     // Only a term whose screen passed the rival share on its own is kept for its shift whatever

@@ -876,6 +876,19 @@ fn extend_path(
 #[cfg(test)]
 mod tests {
     use super::keeps_reordered;
+    use super::response_family;
+    use crate::model::Effect;
+
+    #[test]
+    fn a_channels_lag_and_heat_are_one_family_and_nothing_else_joins_them() {
+        let family = |name: &str| response_family(&Effect::parse(name).expect("an effect name"));
+        assert_eq!(family("lag:P1-H1"), family("heat:P1-H1"));
+        assert_eq!(family("lag:P1-H1@3600"), family("heat:P1-H1"));
+        assert_ne!(family("heat:P1-H1"), family("heat:T1-H1"));
+        assert_ne!(family("heat:P1"), family("rate:P1@600"));
+        assert_ne!(family("heat:T2-T1"), family("air_gradient"));
+        assert_eq!(family("head_heating"), family("lag:event:head_power"));
+    }
 
     #[test]
     fn the_ranking_led_ledger_is_kept_when_lower_or_tied_not_when_worse() {
