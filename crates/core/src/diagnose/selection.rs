@@ -262,16 +262,12 @@ fn confirm_tied_paths(
             criteria,
             refits,
         );
-        let total: f64 = ledger.iter().filter_map(|step| step.delta_bic).sum();
-        tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total, "diagnose: a tied coarse path confirmed on the readings");
-        confirmed.push(ConfirmedPath {
-            first: path.first().cloned(),
-            ledger,
-            models,
-            total,
-        });
+        tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total = ledger_total(&ledger), "diagnose: a tied coarse path confirmed on the readings");
+        confirmed.push(ConfirmedPath { ledger, models });
     }
-    if confirmed.is_empty() {
+    let lowest =
+        (0..confirmed.len()).min_by(|&a, &b| confirmed[a].total().total_cmp(&confirmed[b].total()));
+    let Some(lowest) = lowest else {
         return confirm_path(
             series,
             start,
@@ -280,11 +276,12 @@ fn confirm_tied_paths(
             criteria,
             refits,
         );
-    }
+    };
+    let kept = confirmed.swap_remove(lowest);
     let (ledger, models) = led_by_the_ranking(
         series,
         start.clone(),
-        confirmed,
+        (kept, confirmed),
         first_candidates,
         (coarse, max_steps),
         criteria,
@@ -353,6 +350,10 @@ fn in_readings_order(
         };
         rest.retain(|e| *e != best.effect);
         order.push(best.effect.clone());
+        // What is left is forced; in the chosen order it is the chosen ledger's own step.
+        if rest.len() <= 1 && path.starts_with(&order) {
+            return chosen;
+        }
         let score = best.delta_bic.unwrap_or(0.0);
         current = extend_path(series, &current, &best, score, refits);
     }
@@ -374,13 +375,29 @@ fn added_effects(ledger: &[LedgerStep]) -> Vec<Effect> {
         .collect()
 }
 
-/// A coarse path confirmed on the readings: the effect it leads with, its ledger and models, and
-/// the sum of its steps' exact ΔBIC.
+/// A coarse path confirmed on the readings: its ledger and models.
 struct ConfirmedPath {
-    first: Option<Effect>,
     ledger: Vec<LedgerStep>,
     models: Vec<BarModel>,
-    total: f64,
+}
+
+impl ConfirmedPath {
+    /// The sum of its steps' exact ΔBIC.
+    fn total(&self) -> f64 {
+        ledger_total(&self.ledger)
+    }
+
+    /// Whether its ledger's first step adds nothing or a term of `identity` ([`term_identity`]).
+    fn leads_with_nothing_or(&self, identity: &str) -> bool {
+        added_effects(&self.ledger)
+            .first()
+            .is_none_or(|e| term_identity(e) == identity)
+    }
+}
+
+/// The sum of a ledger's steps' ΔBIC: its final model's BIC less the base's.
+fn ledger_total(ledger: &[LedgerStep]) -> f64 {
+    ledger.iter().filter_map(|step| step.delta_bic).sum()
 }
 
 /// The coarse paths [`confirm_tied_paths`] confirms, in the order it confirms them: within
@@ -425,7 +442,7 @@ fn tied_paths<'a>(
     tied
 }
 
-/// The best of the `confirmed` tied paths (the lowest total, the earlier between equals) led by
+/// `kept`, the lowest of the confirmed tied paths (the earlier between equals), led by
 /// the ranking's best proposed candidate where it leads with another: that candidate's own
 /// confirmed path when there is one, else that candidate first, then the ledger's other effects
 /// in their order (without the candidate's [`response_family`]), confirmed on the readings. The
@@ -443,34 +460,27 @@ fn tied_paths<'a>(
 fn led_by_the_ranking(
     series: &[&BarSeries],
     start: Vec<BarModel>,
-    mut confirmed: Vec<ConfirmedPath>,
+    (kept, others): (ConfirmedPath, Vec<ConfirmedPath>),
     first_candidates: &[Candidate],
     (coarse, max_steps): (&CoarseFleet, usize),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
-    let kept_at = (0..confirmed.len())
-        .min_by(|&a, &b| confirmed[a].total.total_cmp(&confirmed[b].total))
-        .expect("at least one confirmed path");
-    let kept = confirmed.swap_remove(kept_at);
     let Some(best) = first_candidates.iter().find(|c| c.proposed()) else {
         return (kept.ledger, kept.models);
     };
     let best_identity = term_identity(&best.effect);
-    if kept
-        .first
-        .as_ref()
-        .is_none_or(|e| term_identity(e) == best_identity)
-    {
+    if kept.leads_with_nothing_or(&best_identity) {
         return (kept.ledger, kept.models);
     }
-    let led = confirmed.into_iter().find(|p| {
-        p.first
-            .as_ref()
-            .is_some_and(|e| term_identity(e) == best_identity)
-    });
+    let led = others
+        .into_iter()
+        .find(|p| !added_effects(&p.ledger).is_empty() && p.leads_with_nothing_or(&best_identity));
     let (reordered, reordered_models, reordered_total) = match led {
-        Some(p) => (p.ledger, p.models, p.total),
+        Some(p) => {
+            let total = p.total();
+            (p.ledger, p.models, total)
+        }
         None => {
             let path = ranking_led_path(&best.effect, &kept.ledger);
             let (ledger, models) = confirm_path(
@@ -481,17 +491,17 @@ fn led_by_the_ranking(
                 criteria,
                 refits,
             );
-            let total: f64 = ledger.iter().filter_map(|step| step.delta_bic).sum();
+            let total = ledger_total(&ledger);
             tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total, "diagnose: the ledger led by the ranking's best, confirmed");
             (ledger, models, total)
         }
     };
     tracing::debug!(
         reordered_total,
-        total = kept.total,
+        total = kept.total(),
         "diagnose: the ledger led by the ranking's best against the lowest"
     );
-    if keeps_reordered(reordered_total, kept.total) {
+    if keeps_reordered(reordered_total, kept.total()) {
         (reordered, reordered_models)
     } else {
         (kept.ledger, kept.models)
