@@ -35,9 +35,9 @@ pub(super) fn brent_start<P: Separable>(problem: &P, theta: &mut [f64]) {
         match result {
             Ok(res) => {
                 let state = res.state();
-                tracing::debug!(k, best = ?state.best_param, best_cost = state.best_cost, start_cost = best_now, "fit: Brent start");
+                tracing::debug!(k, iters = state.iter, lo, hi, best = ?state.best_param, best_cost = state.best_cost, start_cost = best_now, "fit: Brent start");
                 if let Some(best) = state.best_param {
-                    if state.best_cost < best_now {
+                    if state.best_cost < best_now.min(UNSOLVED_COST) {
                         theta[k] = best;
                     }
                 }
@@ -46,6 +46,16 @@ pub(super) fn brent_start<P: Separable>(problem: &P, theta: &mut [f64]) {
         }
     }
 }
+
+/// What [`Profile1d`] reports where the projected RSS is not finite (a singular basis): a
+/// finite stand-in above any real RSS.
+///
+/// Why: argmin's Brent fits a parabola through its three best points, and one infinite cost
+/// makes that parabola NaN; from then on every step is evaluated at a NaN parameter until
+/// the iteration cap. On our simulator's three-effect campaign (sensor gradient, plate
+/// expansion, hidden channel) 63 of 3 657 sweeps met a singular basis at Brent's first point
+/// and each spent its 60 iterations there, returning that first point.
+const UNSOLVED_COST: f64 = 1e150;
 
 /// The projected RSS as a function of one nonlinear parameter, the others held.
 struct Profile1d<'a, P> {
@@ -60,7 +70,8 @@ impl<P: Separable> CostFunction for Profile1d<'_, P> {
     fn cost(&self, x: &f64) -> Result<f64, argmin::core::Error> {
         let mut theta = self.theta.clone();
         theta[self.k] = *x;
-        Ok(projected_rss(self.problem, &theta))
+        let rss = projected_rss(self.problem, &theta);
+        Ok(if rss.is_finite() { rss } else { UNSOLVED_COST })
     }
 }
 
