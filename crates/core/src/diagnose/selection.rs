@@ -193,6 +193,48 @@ impl CoarseFleet {
         self.refits.get(bar, &all)?.model.clone().ok()
     }
 
+    /// `path` with the plate named ([`plate_split_path`]) where that path ends at a lower BIC
+    /// on the copies ([`CoarseFleet::final_bic`]); `None` where `path` reads the plate through
+    /// no generic term or the copies prefer it as it is.
+    ///
+    /// Why: the plate's temperature acts on a plate mount's calibrated length
+    /// (`plate_expansion`, `physics.md`), a heat source through the bar; a generic lag of their
+    /// difference carries much of both with one gain a bar, and the beam, which ranks one step
+    /// at a time, keeps it. On the second simulator's air-gradient + plate-expansion +
+    /// heat-source campaign (`bench/loop_check.py`, k = 3, seed 1) the ledger read
+    /// `heat:P1-C1` → `air_gradient` (20.04 nm) where `heat:C1`, `plate_expansion` and
+    /// `air_gradient` fit to 20.03 nm at a BIC lower by 833; on our simulator's sensor-gradient +
+    /// plate-expansion + hidden-channel campaign `heat:P1-H1` → `heat:T2-P1` → `air_gradient`
+    /// (20.09 nm) against 20.06 nm, 4 079 lower. Cost: the split path's refits on the copies
+    /// (its exact refits then start from them, as a coarse path's do).
+    fn with_the_plate_named(
+        &self,
+        path: &[Effect],
+        plate: &str,
+        max_steps: usize,
+    ) -> Option<Vec<Effect>> {
+        let split = plate_split_path(path, plate, max_steps)?;
+        let (split_bic, path_bic) = (self.final_bic(&split)?, self.final_bic(path)?);
+        tracing::debug!(path = ?split.iter().map(Effect::name).collect::<Vec<_>>(), split_bic, path_bic, "diagnose: the plate named on the copies");
+        (split_bic < path_bic).then_some(split)
+    }
+
+    /// The summed BIC over the bars of the copies' models with `path`'s effects added in its
+    /// order (each step a refit of the copies' cache, so its exact refits on the readings start
+    /// there: [`CoarseFleet::start_for`]); `None` when a bar's refit fails.
+    fn final_bic(&self, path: &[Effect]) -> Option<f64> {
+        let mut models = self.models.clone();
+        for effect in path {
+            models = self
+                .series
+                .par_iter()
+                .zip(models.par_iter())
+                .map(|(s, m)| self.refits.refit(s, m, effect).model.clone().ok())
+                .collect::<Option<Vec<BarModel>>>()?;
+        }
+        Some(models.iter().map(|m| m.bic).sum())
+    }
+
     /// The paths the beam search keeps on the coarse copies (the effects each adds, in order)
     /// with their total ΔBIC there, best first.
     fn select(
@@ -253,7 +295,10 @@ fn confirm_tied_paths(
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let mut confirmed: Vec<ConfirmedPath> = Vec::new();
+    let plate = plate_named_in(series, first_candidates);
     for path in tied_paths(paths, first_candidates) {
+        let named = plate.and_then(|plate| coarse.with_the_plate_named(path, plate, max_steps));
+        let path = named.as_deref().unwrap_or(path);
         let (ledger, models) = confirm_path(
             series,
             start.clone(),
@@ -296,6 +341,67 @@ fn confirm_tied_paths(
         criteria,
         refits,
     )
+}
+
+/// The fleet's plate sensor, where `plate_expansion` is among the ranking's candidates.
+fn plate_named_in<'a>(series: &[&'a BarSeries], first_candidates: &[Candidate]) -> Option<&'a str> {
+    let offered = first_candidates
+        .iter()
+        .any(|c| c.effect == Effect::PlateExpansion);
+    let plate = series.first()?.plate_sensor_id.as_deref()?;
+    offered.then_some(plate)
+}
+
+/// `path` with its first generic term that reads the plate sensor `plate` (the sensor alone or
+/// a difference with it) replaced by the same term of the other sensor, if any, then
+/// `plate_expansion`, and its later terms on the plate sensor dropped (the plate is in the
+/// model by then); at most `max_steps` steps. `None` when `path` names `plate_expansion` or
+/// reads the plate through no generic term.
+fn plate_split_path(path: &[Effect], plate: &str, max_steps: usize) -> Option<Vec<Effect>> {
+    if path.contains(&Effect::PlateExpansion) {
+        return None;
+    }
+    let mut split = Vec::with_capacity(path.len() + 1);
+    let mut named = false;
+    for effect in path {
+        match without_sensor(effect, plate) {
+            None => split.push(effect.clone()),
+            Some(_) if named => {}
+            Some(rest) => {
+                split.extend(rest);
+                split.push(Effect::PlateExpansion);
+                named = true;
+            }
+        }
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    split.retain(|e| seen.insert(term_identity(e)));
+    split.truncate(max_steps.max(1));
+    named.then_some(split)
+}
+
+/// For a generic term that reads `sensor` (the sensor alone, or a difference of two with it):
+/// the same term of the other sensor (`None` for the sensor alone). `None` for any other term.
+fn without_sensor(effect: &Effect, sensor: &str) -> Option<Option<Effect>> {
+    let Effect::Channel {
+        transform, channel, ..
+    } = effect
+    else {
+        return None;
+    };
+    if channel == sensor {
+        return Some(None);
+    }
+    let other = match channel.split_once('-')? {
+        (a, b) if a == sensor => b,
+        (a, b) if b == sensor => a,
+        _ => return None,
+    };
+    Some(Some(Effect::Channel {
+        transform: *transform,
+        channel: other.to_string(),
+        tau0_s: None,
+    }))
 }
 
 /// `chosen` (a confirmed ledger and its models) with its later steps in the order the readings
@@ -470,7 +576,14 @@ fn led_by_the_ranking(
         return (kept.ledger, kept.models);
     };
     let best_identity = term_identity(&best.effect);
-    if kept.leads_with_nothing_or(&best_identity) {
+    // A ledger led by the ranking's best with the plate split off it
+    // ([`CoarseFleet::with_the_plate_named`]) is led by the ranking's best.
+    let best_named = plate_named_in(series, first_candidates)
+        .and_then(|plate| without_sensor(&best.effect, plate).flatten())
+        .map(|rest| term_identity(&rest));
+    if kept.leads_with_nothing_or(&best_identity)
+        || best_named.is_some_and(|rest| kept.leads_with_nothing_or(&rest))
+    {
         return (kept.ledger, kept.models);
     }
     let led = others
@@ -886,8 +999,48 @@ fn extend_path(
 #[cfg(test)]
 mod tests {
     use super::keeps_reordered;
+    use super::plate_split_path;
     use super::response_family;
     use crate::model::Effect;
+
+    fn effects(names: &[&str]) -> Vec<Effect> {
+        names
+            .iter()
+            .map(|n| Effect::parse(n).expect("an effect name"))
+            .collect()
+    }
+
+    #[test]
+    fn a_generic_term_on_the_plate_sensor_splits_into_plate_expansion_and_its_other_sensor() {
+        let split = |path: &[&str], steps| {
+            plate_split_path(&effects(path), "P1", steps)
+                .map(|p| p.iter().map(Effect::name).collect::<Vec<_>>())
+        };
+        // The second simulator's k = 3 case: the difference with the cabinet's sensor.
+        assert_eq!(
+            split(&["heat:P1-C1", "air_gradient"], 3),
+            Some(vec!["heat:C1".into(), "plate_expansion".into(), "air_gradient".into()])
+        );
+        // The plate on either side of the difference; a later term on the plate is dropped.
+        assert_eq!(
+            split(&["heat:H1-P1", "heat:T2-P1", "air_gradient"], 3),
+            Some(vec!["heat:H1".into(), "plate_expansion".into(), "air_gradient".into()])
+        );
+        // The plate sensor alone leaves no term of its own; the transform is kept.
+        assert_eq!(
+            split(&["lag:P1", "creep"], 3),
+            Some(vec!["plate_expansion".into(), "creep".into()])
+        );
+        // No longer than the forward selection may go.
+        assert_eq!(
+            split(&["heat:P1-C1", "air_gradient", "creep"], 3),
+            Some(vec!["heat:C1".into(), "plate_expansion".into(), "air_gradient".into()])
+        );
+        // Nothing to split: the plate named already, or not read by a generic term.
+        assert_eq!(split(&["heat:P1-C1", "plate_expansion"], 3), None);
+        assert_eq!(split(&["heat:T1-C1", "air_gradient"], 3), None);
+        assert_eq!(split(&["heat:P10-C1"], 3), None);
+    }
 
     #[test]
     fn a_channels_lag_and_heat_are_one_family_and_nothing_else_joins_them() {
