@@ -19,6 +19,11 @@ pub fn reason(r: &Reason) -> String {
         | Reason::RefitCap { .. }
         | Reason::BelowRivalShare { .. } => screened_out(r),
         Reason::CoarseBehindRivals { .. } | Reason::CoarseBelowShare { .. } => coarse(r),
+        Reason::NotFittedOnAnyBar {
+            bars,
+            first_bar,
+            error,
+        } => format!("not fitted on any of the {bars} bars (on {first_bar}: {error})"),
         Reason::Proposed { .. }
         | Reason::ImmaterialShiftIgnored { .. }
         | Reason::Immaterial { .. }
@@ -184,6 +189,19 @@ mod tests {
                 delta_bic: 12.34
             }),
             "not significant: p = 3.1e-1 against 2.5e-3 (5 % family-wise), ΔBIC 12.3"
+        );
+        // A candidate every bar failed on says why, not that others screened better.
+        assert_eq!(
+            reason(&Reason::NotFittedOnAnyBar {
+                bars: 10,
+                first_bar: "F01".into(),
+                error: crate::diagnose::CandidateError::NotIdentifiableOnCopy {
+                    first: "settling_0_um".into(),
+                    second: "settling_1_um".into(),
+                    correlation: 1.0,
+                },
+            }),
+            "not fitted on any of the 10 bars (on F01: not identifiable on this bar's 300-s copy: settling_0_um and settling_1_um correlate at 1.0000)"
         );
         let coarse = reason(&Reason::CoarseBelowShare {
             removed_um2: 1.0,

@@ -219,6 +219,10 @@ pub(super) fn evaluate_at_most(
                 None => screened_only(bars, &screens[c]),
             };
             let mut summary = summarise_candidate(&candidates[c], per_bar, threshold, criteria);
+            // Why it failed on every bar says more than why it was not refitted.
+            if matches!(summary.reason, Reason::NotFittedOnAnyBar { .. }) {
+                return summary;
+            }
             if let Some(reason) = coarse_reasons.get(&c) {
                 summary.reason = reason.clone();
             } else if summary.verdict == Verdict::ScreenedOut

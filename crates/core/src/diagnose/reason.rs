@@ -121,6 +121,15 @@ pub enum Reason {
         /// The materiality threshold, µm.
         min_gain_um: f64,
     },
+    /// Fitted on no bar: every bar's screen or refit failed; `error` is the first bar's.
+    NotFittedOnAnyBar {
+        /// How many bars tried it.
+        bars: usize,
+        /// The first bar.
+        first_bar: String,
+        /// Why it failed there.
+        error: super::CandidateError,
+    },
     /// Refitted exactly, not significant.
     NotSignificant {
         /// Fleet p-value.

@@ -61,7 +61,19 @@ pub(super) fn summarise_candidate(
         per_bar: Vec::new(),
     };
     if !refitted {
+        let first_failure = per_bar
+            .iter()
+            .find_map(|c| Some((c.bar.clone(), c.error.clone()?)));
+        let reason = match first_failure {
+            Some((first_bar, error)) if fitted.is_empty() => Reason::NotFittedOnAnyBar {
+                bars: per_bar.len(),
+                first_bar,
+                error,
+            },
+            _ => candidate.reason.clone(),
+        };
         return Candidate {
+            reason,
             per_bar,
             ..candidate
         };
