@@ -11,8 +11,8 @@ use crate::stage::timed;
 use super::sensors::{sensor_profiles, SensorProfile};
 use super::{
     bar_ledger_from_fleet, candidate_effects, diagnose_bar, evaluate_candidates, forward_selection,
-    forward_selection_of_bar, needs_own_selection, screen_bases, BarDiagnosis, BarLedger,
-    Candidate, Criteria, LedgerStep, Refits, Search, Unavailable,
+    forward_selection_of_bar, needs_own_selection, screen_bases, with_the_ledgers_first_step,
+    Added, BarDiagnosis, BarLedger, Candidate, Criteria, LedgerStep, Refits, Search, Unavailable,
 };
 
 /// How the fleet is diagnosed.
@@ -102,6 +102,19 @@ pub fn diagnose_fleet(
             &refits,
         )
     });
+    let first_step = ledger.get(1).and_then(|step| match &step.added {
+        Added::Effect(e) => Some(e),
+        Added::Base => None,
+    });
+    let offered = candidates.len() + unavailable.len();
+    let candidates = with_the_ledgers_first_step(
+        &pairs,
+        &bases,
+        (candidates, offered),
+        first_step,
+        &criteria,
+        &refits,
+    );
     let search = Search {
         max_steps: options.forward_steps,
         beam: options.beam,

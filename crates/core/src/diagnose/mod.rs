@@ -120,7 +120,7 @@ pub(crate) use bar_selection::{
     bar_ledger_from_fleet, forward_selection_of_bar, needs_own_selection, Search,
 };
 pub use candidates::Unavailable;
-pub(crate) use candidates::{candidate_effects, evaluate_candidates};
+pub(crate) use candidates::{candidate_effects, evaluate_candidates, with_the_ledgers_first_step};
 pub use error::CandidateError;
 pub use fleet::{diagnose_fleet, DiagnoseOptions, Diagnosis};
 pub use reason::Reason;

@@ -1019,12 +1019,20 @@ mod tests {
         // The second simulator's k = 3 case: the difference with the cabinet's sensor.
         assert_eq!(
             split(&["heat:P1-C1", "air_gradient"], 3),
-            Some(vec!["heat:C1".into(), "plate_expansion".into(), "air_gradient".into()])
+            Some(vec![
+                "heat:C1".into(),
+                "plate_expansion".into(),
+                "air_gradient".into()
+            ])
         );
         // The plate on either side of the difference; a later term on the plate is dropped.
         assert_eq!(
             split(&["heat:H1-P1", "heat:T2-P1", "air_gradient"], 3),
-            Some(vec!["heat:H1".into(), "plate_expansion".into(), "air_gradient".into()])
+            Some(vec![
+                "heat:H1".into(),
+                "plate_expansion".into(),
+                "air_gradient".into()
+            ])
         );
         // The plate sensor alone leaves no term of its own; the transform is kept.
         assert_eq!(
@@ -1034,7 +1042,11 @@ mod tests {
         // No longer than the forward selection may go.
         assert_eq!(
             split(&["heat:P1-C1", "air_gradient", "creep"], 3),
-            Some(vec!["heat:C1".into(), "plate_expansion".into(), "air_gradient".into()])
+            Some(vec![
+                "heat:C1".into(),
+                "plate_expansion".into(),
+                "air_gradient".into()
+            ])
         );
         // Nothing to split: the plate named already, or not read by a generic term.
         assert_eq!(split(&["heat:P1-C1", "plate_expansion"], 3), None);
