@@ -62,7 +62,10 @@
 //!   copies is continued on the readings (`EXACT_CONTINUATION_MAX_SAMPLES`), and where the copies
 //!   offer no path at all the beam searches the readings with the coarse step's cap. On the
 //!   coarse copies a step refits at most `COARSE_BEAM_REFITS` of the candidates that pass the
-//!   screen, the best screened. A bar gets a
+//!   screen, the best screened. A tied path that reads the plate sensor through a generic term
+//!   is confirmed with the plate named where the copies prefer that
+//!   (`CoarseFleet::with_the_plate_named`), and the ranking refits the ledger's first step where
+//!   its screen left it out (`with_the_ledgers_first_step`). A bar gets a
 //!   search of its own only when the fleet's chosen model leaves it at least the materiality
 //!   threshold above its reading noise (`needs_own_selection`); the others carry the fleet's steps
 //!   (`bar_ledger_from_fleet`).
