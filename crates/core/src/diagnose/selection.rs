@@ -299,6 +299,18 @@ fn confirm_tied_paths(
     for path in tied_paths(paths, first_candidates) {
         let named = plate.and_then(|plate| coarse.with_the_plate_named(path, plate, max_steps));
         let path = named.as_deref().unwrap_or(path);
+        // One path per first step, as `tied_paths` keeps: a plate-named path can lead with the
+        // step of a later tied path (`heat:P1-C1` → `air_gradient` named as `heat:C1` →
+        // `plate_expansion` → `air_gradient`, then `heat:C1` → `air_gradient`), and where
+        // `plate_expansion` is not proposed on the readings its confirmation goes on with the
+        // readings' best step instead.
+        let lead = path.first().map(term_identity);
+        if confirmed
+            .iter()
+            .any(|p| added_effects(&p.ledger).first().map(term_identity) == lead)
+        {
+            continue;
+        }
         let (ledger, models) = confirm_path(
             series,
             start.clone(),
