@@ -28,7 +28,8 @@
 //! coarse tier, `coarse_tier`), `compare` (a named effect goes before a generic alias that fits
 //! within the materiality threshold: `prefer_named_effects` in the ranking,
 //! `competing_delta_bic` in the beam), `selection` (the beam, `CoarseFleet`, `confirm_path`),
-//! `bar_selection` (a bar's own search), `refits` (the refit cache), `noise`, `sensors`,
+//! `bar_selection` (a bar's own search), `plate` (the plate named where a generic term reads its
+//! sensor), `refits` (the refit cache), `noise`, `sensors`,
 //! `reason` (why each verdict: [`Reason`], the rule and its numbers) and `error` (why a
 //! candidate could not be fitted on a bar).
 //!
@@ -103,6 +104,7 @@ mod compare;
 mod error;
 mod fleet;
 pub(crate) mod noise;
+mod plate;
 mod reason;
 mod refits;
 pub(crate) mod residual;
