@@ -297,30 +297,43 @@ pub(crate) fn with_the_ledgers_first_step(
         return ranked;
     };
     let threshold = criteria.alpha / offered.max(1) as f64;
-    let effects = [first.clone()];
+    let starts = vec![None; bars.len()];
+    ranked[at] = refitted_candidate(bars, bases, first, &starts, threshold, criteria, refits);
+    rank(&mut ranked, criteria);
+    ranked
+}
+
+/// `effect` screened, refitted exactly on every bar (from `starts`, a bar's model where `None`)
+/// and tested at `threshold`: the candidate as the ranking reports one it refitted.
+pub(super) fn refitted_candidate(
+    bars: &[(&BarSeries, &BarModel)],
+    bases: &[Option<ScreenBase>],
+    effect: &Effect,
+    starts: &[Option<BarModel>],
+    threshold: f64,
+    criteria: &Criteria,
+    refits: &Refits,
+) -> Candidate {
     let screens: Vec<Vec<Result<Screen, CandidateError>>> = vec![bases
         .iter()
         .map(|b| match b {
-            Some(b) => b.screen(first),
+            Some(b) => b.screen(effect),
             None => Err(CandidateError::NotLinearised),
         })
         .collect()];
-    let starts = vec![vec![None; bars.len()]];
     let per_bar = exact_refits(
         bars,
         bases,
         &[0],
-        &starts,
-        &effects,
+        &[starts.to_vec()],
+        std::slice::from_ref(effect),
         &screens,
         threshold,
         refits,
     )
     .pop()
     .unwrap_or_default();
-    ranked[at] = summarise_candidate(first, per_bar, threshold, criteria);
-    rank(&mut ranked, criteria);
-    ranked
+    summarise_candidate(effect, per_bar, threshold, criteria)
 }
 
 /// The fleet RMS a candidate removes, how much it moves the model's own terms (quadratic means

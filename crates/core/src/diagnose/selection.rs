@@ -6,15 +6,13 @@
 
 use super::bar::{diagnose_bar, response_family, screen_bases, term_identity};
 use super::bar_selection::ledger_step;
-use super::candidates::{candidate_effects, evaluate_at_most, exact_refits};
+use super::candidates::{candidate_effects, evaluate_at_most, refitted_candidate};
 use super::compare::competing_delta_bic;
 use super::plate::{plate_named_in, plate_split_path, without_sensor};
 use super::refits::Refits;
-use super::screen::Screen;
-use super::summary::summarise_candidate;
 use super::{
-    BarDiagnosis, Candidate, CandidateError, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS,
-    HEAT_CANDIDATES, PATH_TIE_SHARE,
+    BarDiagnosis, Candidate, Criteria, CHANNEL_CANDIDATES, COARSE_BEAM_REFITS, HEAT_CANDIDATES,
+    PATH_TIE_SHARE,
 };
 use crate::identify::identify_from;
 use crate::identify::BarModel;
@@ -741,32 +739,11 @@ fn exact_candidate(
 ) -> Candidate {
     let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
     let bases = screen_bases(&pairs);
-    let candidates = [effect.clone()];
     // Tested as one of a step's candidates (Bonferroni over as many as a step offers): the
     // effect was chosen on the coarse copies of these same readings.
     let threshold =
         criteria.alpha / (CATALOGUE.len() + CHANNEL_CANDIDATES + HEAT_CANDIDATES) as f64;
-    let screens: Vec<Vec<Result<Screen, CandidateError>>> = vec![bases
-        .iter()
-        .map(|b| match b {
-            Some(b) => b.screen(effect),
-            None => Err(CandidateError::NotLinearised),
-        })
-        .collect()];
-    let starts = vec![starts.to_vec()];
-    let per_bar = exact_refits(
-        &pairs,
-        &bases,
-        &[0],
-        &starts,
-        &candidates,
-        &screens,
-        threshold,
-        refits,
-    )
-    .pop()
-    .unwrap_or_default();
-    summarise_candidate(effect, per_bar, threshold, criteria)
+    refitted_candidate(&pairs, &bases, effect, starts, threshold, criteria, refits)
 }
 
 /// The beam search of [`forward_selection`] on the series it is given: the best path's ledger
