@@ -80,6 +80,16 @@ pub trait Separable: Sync {
     fn basis_derivative_times(&self, theta: &[f64], k: usize, coef: &DVector<f64>) -> DVector<f64> {
         self.basis_derivative(theta, k) * coef
     }
+    /// The columns of `Φ` that depend on `θ_k`, or `None` when the problem does not say. Where
+    /// a problem says, the Brent start factorises the other columns once a sweep of `θ_k`
+    /// instead of the whole basis at every trial (`projection::HeldProjection`).
+    fn columns_on(&self, _k: usize) -> Option<Vec<usize>> {
+        None
+    }
+    /// Columns `columns` of `Φ(θ)`, in that order (`n × columns.len()`).
+    fn basis_columns_of(&self, theta: &[f64], columns: &[usize]) -> DMatrix<f64> {
+        self.basis(theta).select_columns(columns)
+    }
     /// Search interval for a coordinate-wise Brent start of `θ_k`, or `None` to start at the
     /// given value as it is.
     fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {

@@ -4,7 +4,7 @@
 //! Separate from the Gauss-Newton polish and from the uncertainties: it owns the adapters to the
 //! two solver crates and nothing else.
 
-use super::projection::{projected_rss, Factorised};
+use super::projection::{projected_rss, Factorised, HeldProjection};
 use super::{held_beyond_bounds, FitError, Separable, Stop};
 use argmin::core::CostFunction;
 use argmin::core::Executor;
@@ -22,11 +22,7 @@ pub(super) fn brent_start<P: Separable>(problem: &P, theta: &mut [f64]) {
         let Some((lo, hi)) = problem.start_search_interval(k) else {
             continue;
         };
-        let cost = Profile1d {
-            problem,
-            theta: theta.to_vec(),
-            k,
-        };
+        let cost = Profile1d::new(problem, theta, k);
         let best_now = projected_rss(problem, theta);
         let solver = BrentOpt::new(lo, hi).set_tolerance(1e-4, 1e-6);
         let result = Executor::new(cost, solver)
@@ -62,6 +58,30 @@ struct Profile1d<'a, P> {
     problem: &'a P,
     theta: Vec<f64>,
     k: usize,
+    /// The columns on `θ_k` and the other columns factorised once, where the problem names
+    /// them and those are of full rank; else every trial factorises the whole basis.
+    held: Option<(Vec<usize>, HeldProjection)>,
+}
+
+impl<'a, P: Separable> Profile1d<'a, P> {
+    fn new(problem: &'a P, theta: &[f64], k: usize) -> Profile1d<'a, P> {
+        let held = problem.columns_on(k).and_then(|moving| {
+            let others: Vec<usize> = (0..problem.linear_names().len())
+                .filter(|c| !moving.contains(c))
+                .collect();
+            let phi = problem.basis_columns_of(theta, &others);
+            if !phi.iter().all(|v| v.is_finite()) {
+                return None;
+            }
+            HeldProjection::new(&phi, problem.observations()).map(|held| (moving, held))
+        });
+        Profile1d {
+            problem,
+            theta: theta.to_vec(),
+            k,
+            held,
+        }
+    }
 }
 
 impl<P: Separable> CostFunction for Profile1d<'_, P> {
@@ -70,7 +90,17 @@ impl<P: Separable> CostFunction for Profile1d<'_, P> {
     fn cost(&self, x: &f64) -> Result<f64, argmin::core::Error> {
         let mut theta = self.theta.clone();
         theta[self.k] = *x;
-        let rss = projected_rss(self.problem, &theta);
+        let rss = match &self.held {
+            Some((moving, held)) => {
+                let phi = self.problem.basis_columns_of(&theta, moving);
+                phi.iter()
+                    .all(|v| v.is_finite())
+                    .then(|| held.residual_sum_of_squares(&phi))
+                    .flatten()
+                    .map_or(f64::INFINITY, |rss| rss + self.problem.unexplained_rss())
+            }
+            None => projected_rss(self.problem, &theta),
+        };
         Ok(if rss.is_finite() { rss } else { UNSOLVED_COST })
     }
 }

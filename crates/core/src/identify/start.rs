@@ -207,6 +207,12 @@ impl<P: fit::Separable> fit::Separable for SearchNew<'_, P> {
     fn nonlinear_bounds(&self, k: usize) -> Option<(f64, f64)> {
         self.problem.nonlinear_bounds(k)
     }
+    fn columns_on(&self, k: usize) -> Option<Vec<usize>> {
+        self.problem.columns_on(k)
+    }
+    fn basis_columns_of(&self, theta: &[f64], columns: &[usize]) -> nalgebra::DMatrix<f64> {
+        self.problem.basis_columns_of(theta, columns)
+    }
     fn start_search_interval(&self, k: usize) -> Option<(f64, f64)> {
         if self.reused.get(k).copied().unwrap_or(false) {
             None

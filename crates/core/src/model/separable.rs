@@ -70,6 +70,26 @@ impl Separable for ThermalProblem<'_> {
         sum
     }
 
+    /// The gain columns of every term on `θ_k`'s time constant (its owner and the terms
+    /// sharing it).
+    fn columns_on(&self, k: usize) -> Option<Vec<usize>> {
+        let owner = *self.tau_terms.get(k)?;
+        let columns = self
+            .gain_columns()
+            .into_iter()
+            .enumerate()
+            .filter(|(_, (term, _))| self.tau_source[*term] == Some(owner))
+            .map(|(c, _)| c)
+            .collect();
+        Some(columns)
+    }
+
+    /// Read from the memos where they hold `theta`'s columns, but not written to them: the
+    /// Brent start asks for these at trial values it will not visit again.
+    fn basis_columns_of(&self, theta: &[f64], columns: &[usize]) -> DMatrix<f64> {
+        self.columns_at(theta, columns, false)
+    }
+
     fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
         Some((60f64.ln(), (30.0 * 86400f64).ln()))
     }
@@ -100,17 +120,19 @@ impl ThermalProblem<'_> {
         theta: &[f64],
         columns: std::ops::Range<usize>,
     ) -> DMatrix<f64> {
+        self.columns_at(theta, &columns.collect::<Vec<usize>>(), true)
+    }
+
+    /// The basis' gain columns `columns`, in that order; `memoise`: keep the columns computed
+    /// (with their derivatives, which cost no extra exponential) for the next evaluation at the
+    /// same time constants, as a solver's residual and Jacobian at one point ask.
+    fn columns_at(&self, theta: &[f64], columns: &[usize], memoise: bool) -> DMatrix<f64> {
         let gains = self.gain_columns();
         let mut per_term: Vec<Option<Arc<Vec<f64>>>> = vec![None; self.terms.len()];
         let mut phi = DMatrix::zeros(self.y.len(), columns.len());
-        let first = columns.start;
-        let wanted = gains
-            .into_iter()
-            .enumerate()
-            .skip(first)
-            .take(columns.len());
-        for (c, (j, seg)) in wanted {
-            let mut out = phi.column_mut(c - first);
+        for (out_c, &c) in columns.iter().enumerate() {
+            let (j, seg) = gains[c];
+            let mut out = phi.column_mut(out_c);
             let out = out.as_mut_slice();
             // Masked columns (settling's, one per mount) are written over their mount alone:
             // cheap, and memoised they would hold a whole column each.
@@ -126,9 +148,15 @@ impl ThermalProblem<'_> {
                     }
                 }
             }
-            let full = per_term[j].get_or_insert_with(|| self.term_column(j, theta, false).0);
+            let full = per_term[j].get_or_insert_with(|| {
+                if memoise {
+                    self.term_column(j, theta, false).0
+                } else {
+                    self.term_column_once(j, theta)
+                }
+            });
             self.write_row_column(full, seg, out);
-            if let Some(key) = key {
+            if let Some(key) = key.filter(|_| memoise) {
                 let mut memo = self.row_memo.lock().unwrap_or_else(|p| p.into_inner());
                 if memo.len() <= c {
                     memo.resize_with(c + 1, || None);

@@ -698,3 +698,34 @@ fn every_effect_name_round_trips_through_parse_name_and_display() {
         assert!(Effect::parse(bad).is_err(), "{bad:?} parsed");
     }
 }
+
+/// `columns_on(k)` names exactly the columns that move with `θ_k` (the Brent start holds the
+/// others fixed through a sweep of `θ_k`): `air_gradient`'s two gains sit on the base paths'
+/// time constants, `settling` has a masked column a mount. Also `basis_columns_of` gives those
+/// columns as the whole basis has them.
+#[test]
+fn columns_on_a_time_constant_are_the_columns_that_move_with_it() {
+    let s = gradient_bar(0.5);
+    let p = ThermalProblem::new(
+        &s,
+        &effects(&["fixed_part", "scale", "air_gradient", "settling"]),
+    )
+    .unwrap();
+    let theta: Vec<f64> = [2500.0f64, 1800.0, 900.0].iter().map(|t| t.ln()).collect();
+    assert_eq!(p.nonlinear_names().len(), theta.len());
+    let phi = p.basis(&theta);
+    for k in 0..theta.len() {
+        let mut moved = theta.clone();
+        moved[k] += 0.3;
+        let other = p.basis(&moved);
+        let changed: Vec<usize> = (0..phi.ncols())
+            .filter(|&c| phi.column(c) != other.column(c))
+            .collect();
+        let named = p.columns_on(k).unwrap();
+        assert_eq!(named, changed, "theta {k} ({:?})", p.nonlinear_names()[k]);
+        assert_eq!(
+            p.basis_columns_of(&moved, &named),
+            other.select_columns(&named)
+        );
+    }
+}
