@@ -34,6 +34,9 @@
 //!   `JᵀJ` is a matrix product (`gram`). Against varpro's SVD at every evaluation this takes
 //!   20-36 % of the CPU off the nightly runs of 10-bar, 15-day, 10-s campaigns with a hidden
 //!   effect, with the same ledgers (ΔBIC equal to 12 digits; `bench/results-speed26b.md`).
+//!   A Brent sweep of one `θ_k` factorises the columns not on `θ_k` once
+//!   (`Separable::columns_on`, `projection::HeldProjection`) and orthogonalises only the moving
+//!   columns at each trial; a problem that does not name its columns is refactorised whole.
 //! - The HAC covariance needs the residual autocorrelation only up to its first non-positive lag:
 //!   direct sums, O(n) a lag, the FFT only past 32 lags (`fit::initial_autocorrelation`).
 
