@@ -59,7 +59,7 @@ struct Profile1d<'a, P> {
     theta: Vec<f64>,
     k: usize,
     /// The columns on `θ_k` and the other columns factorised once, where the problem names
-    /// them and those are of full rank; else every trial factorises the whole basis.
+    /// them and those are finite and of full rank; else every trial factorises the whole basis.
     held: Option<(Vec<usize>, HeldProjection)>,
 }
 
@@ -70,9 +70,6 @@ impl<'a, P: Separable> Profile1d<'a, P> {
                 .filter(|c| !moving.contains(c))
                 .collect();
             let phi = problem.basis_columns_of(theta, &others);
-            if !phi.iter().all(|v| v.is_finite()) {
-                return None;
-            }
             HeldProjection::new(&phi, problem.observations()).map(|held| (moving, held))
         });
         Profile1d {
@@ -91,14 +88,9 @@ impl<P: Separable> CostFunction for Profile1d<'_, P> {
         let mut theta = self.theta.clone();
         theta[self.k] = *x;
         let rss = match &self.held {
-            Some((moving, held)) => {
-                let phi = self.problem.basis_columns_of(&theta, moving);
-                phi.iter()
-                    .all(|v| v.is_finite())
-                    .then(|| held.residual_sum_of_squares(&phi))
-                    .flatten()
-                    .map_or(f64::INFINITY, |rss| rss + self.problem.unexplained_rss())
-            }
+            Some((moving, held)) => held
+                .residual_sum_of_squares(&self.problem.basis_columns_of(&theta, moving))
+                .map_or(f64::INFINITY, |rss| rss + self.problem.unexplained_rss()),
             None => projected_rss(self.problem, &theta),
         };
         Ok(if rss.is_finite() { rss } else { UNSOLVED_COST })

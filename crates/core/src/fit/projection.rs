@@ -219,8 +219,8 @@ impl HeldProjection {
     }
 
     /// The residual sum of squares of the observations on the held columns and `moving`
-    /// together; `None` where `moving` has a zero or non-finite column or makes the basis
-    /// singular ([`RANK_TOLERANCE`]).
+    /// together; `None` where `moving` has a zero or non-finite column (its norm is then not
+    /// finite) or makes the basis singular ([`RANK_TOLERANCE`]).
     pub(super) fn residual_sum_of_squares(&self, moving: &DMatrix<f64>) -> Option<f64> {
         let mut residual = self.y_rest.clone();
         let mut added: Vec<DVector<f64>> = Vec::with_capacity(moving.ncols());
@@ -331,5 +331,15 @@ mod tests {
         assert_eq!(projection.residual_sum_of_squares(&twice), None);
         let repeated = DMatrix::from_columns(&[phi.column(0), phi.column(1), phi.column(0)]);
         assert!(HeldProjection::new(&repeated, &y).is_none());
+        // A non-finite value anywhere in a column: no residual (the Brent trial then costs
+        // `UNSOLVED_COST`), held or moving.
+        for bad in [f64::NAN, f64::INFINITY] {
+            let mut broken = within.clone();
+            broken[(7, 0)] = bad;
+            assert_eq!(projection.residual_sum_of_squares(&broken), None);
+            let mut held_broken = held.clone();
+            held_broken[(7, 1)] = bad;
+            assert!(HeldProjection::new(&held_broken, &y).is_none());
+        }
     }
 }

@@ -84,23 +84,6 @@ impl ThermalProblem<'_> {
         out
     }
 
-    /// Column of term `j` without its derivative, from the memo where it holds this time
-    /// constant, else computed and not memoised.
-    pub(super) fn term_column_once(&self, j: usize, theta: &[f64]) -> Arc<Vec<f64>> {
-        let tau = self.tau_of(j, theta);
-        if let Some(bits) = tau.map(f64::to_bits) {
-            let memo = self.memo.lock().unwrap_or_else(|p| p.into_inner());
-            if let Some(m) = memo
-                .get(j)
-                .and_then(Option::as_ref)
-                .filter(|m| m.tau_bits == bits)
-            {
-                return m.x.clone();
-            }
-        }
-        Arc::new(self.compute_term_column(j, tau, false).0)
-    }
-
     fn compute_term_column(
         &self,
         j: usize,

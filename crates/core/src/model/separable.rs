@@ -84,10 +84,8 @@ impl Separable for ThermalProblem<'_> {
         Some(columns)
     }
 
-    /// Read from the memos where they hold `theta`'s columns, but not written to them: the
-    /// Brent start asks for these at trial values it will not visit again.
     fn basis_columns_of(&self, theta: &[f64], columns: &[usize]) -> DMatrix<f64> {
-        self.columns_at(theta, columns, false)
+        self.columns_at(theta, columns)
     }
 
     fn start_search_interval(&self, _k: usize) -> Option<(f64, f64)> {
@@ -120,13 +118,11 @@ impl ThermalProblem<'_> {
         theta: &[f64],
         columns: std::ops::Range<usize>,
     ) -> DMatrix<f64> {
-        self.columns_at(theta, &columns.collect::<Vec<usize>>(), true)
+        self.columns_at(theta, &columns.collect::<Vec<usize>>())
     }
 
-    /// The basis' gain columns `columns`, in that order; `memoise`: keep the columns computed
-    /// (with their derivatives, which cost no extra exponential) for the next evaluation at the
-    /// same time constants, as a solver's residual and Jacobian at one point ask.
-    fn columns_at(&self, theta: &[f64], columns: &[usize], memoise: bool) -> DMatrix<f64> {
+    /// The basis' gain columns `columns`, in that order.
+    fn columns_at(&self, theta: &[f64], columns: &[usize]) -> DMatrix<f64> {
         let gains = self.gain_columns();
         let mut per_term: Vec<Option<Arc<Vec<f64>>>> = vec![None; self.terms.len()];
         let mut phi = DMatrix::zeros(self.y.len(), columns.len());
@@ -148,15 +144,9 @@ impl ThermalProblem<'_> {
                     }
                 }
             }
-            let full = per_term[j].get_or_insert_with(|| {
-                if memoise {
-                    self.term_column(j, theta, false).0
-                } else {
-                    self.term_column_once(j, theta)
-                }
-            });
+            let full = per_term[j].get_or_insert_with(|| self.term_column(j, theta, false).0);
             self.write_row_column(full, seg, out);
-            if let Some(key) = key.filter(|_| memoise) {
+            if let Some(key) = key {
                 let mut memo = self.row_memo.lock().unwrap_or_else(|p| p.into_inner());
                 if memo.len() <= c {
                     memo.resize_with(c + 1, || None);
