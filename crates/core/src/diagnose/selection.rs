@@ -312,6 +312,19 @@ fn confirm_tied_paths(
         {
             continue;
         }
+        let adds_nothing = |p: &ConfirmedPath| {
+            adds_nothing_proposed(
+                series,
+                p,
+                path,
+                (first_candidates, coarse),
+                criteria,
+                refits,
+            )
+        };
+        if confirmed.iter().any(adds_nothing) {
+            continue;
+        }
         let (ledger, models) = confirm_path(
             series,
             start.clone(),
@@ -354,6 +367,62 @@ fn confirm_tied_paths(
         criteria,
         refits,
     )
+}
+
+/// Whether `path` adds every effect of the confirmed path `done` and others, none of which is
+/// proposed when added to `done`'s final model on the readings ([`confirmed_step`]): then
+/// [`confirm_tied_paths`] skips `path`, whose final model is `done`'s with terms its own
+/// criteria reject there.
+///
+/// Why: such a path costs a refit of every bar at each of its steps, most of them with no
+/// coarse start on the readings. On the second simulator's settling + plate-expansion campaign
+/// (`bench/loop_check.py`, k = 2, seed 2) `second_path` → `settling` → `plate_expansion` took
+/// 4.0 s to confirm after `settling` → `plate_expansion`, for a total 6 418 above it; `second_path`
+/// on the latter's model is one step, its start the copies' refit of the same three effects.
+fn adds_nothing_proposed(
+    series: &[&BarSeries],
+    done: &ConfirmedPath,
+    path: &[Effect],
+    (first_candidates, coarse): (&[Candidate], &CoarseFleet),
+    criteria: &Criteria,
+    refits: &Refits,
+) -> bool {
+    let done_terms: Vec<String> = added_effects(&done.ledger)
+        .iter()
+        .map(term_identity)
+        .collect();
+    let path_terms: Vec<String> = path.iter().map(term_identity).collect();
+    if done_terms.is_empty() || done_terms.iter().any(|t| !path_terms.contains(t)) {
+        return false;
+    }
+    let extras: Vec<&Effect> = path
+        .iter()
+        .filter(|e| !done_terms.contains(&term_identity(e)))
+        .collect();
+    let current = SelectionPath {
+        ledger: done.ledger.clone(),
+        models: done.models.clone(),
+        delta_bic: done.total(),
+        finished: false,
+    };
+    let k = done_terms.len();
+    let nothing = !extras.is_empty()
+        && extras.iter().all(|e| {
+            !confirmed_step(
+                series,
+                &current,
+                (k, e),
+                first_candidates,
+                coarse,
+                criteria,
+                refits,
+            )
+            .proposed()
+        });
+    if nothing {
+        tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), "diagnose: a tied coarse path adds nothing proposed to a confirmed one; skipped");
+    }
+    nothing
 }
 
 /// `chosen` (a confirmed ledger and its models) with its later steps in the order the readings
@@ -533,14 +602,24 @@ fn led_by_the_ranking(
     let best_named = plate_named_in(series, first_candidates)
         .and_then(|plate| without_sensor(&best.effect, plate).flatten())
         .map(|rest| term_identity(&rest));
-    if kept.leads_with_nothing_or(&best_identity)
-        || best_named.is_some_and(|rest| kept.leads_with_nothing_or(&rest))
-    {
+    let led_by_best = |p: &ConfirmedPath| {
+        p.leads_with_nothing_or(&best_identity)
+            || best_named
+                .as_ref()
+                .is_some_and(|rest| p.leads_with_nothing_or(rest))
+    };
+    if led_by_best(&kept) {
         return (kept.ledger, kept.models);
     }
+    // A confirmed rival led by the plate-named form of the best is the ledger led by the best
+    // too. On the second simulator's plate-expansion + heat-source campaign
+    // (`bench/loop_check.py`, k = 2, seed 3) the ranking's `heat:P1-C1` had been confirmed as
+    // `heat:C1` → `plate_expansion`; building `heat:P1-C1` → `heat:T1-C1` instead cost 4.8 s of
+    // exact refits (the second step is not proposed after the first, so the readings' whole
+    // ranking ran) for a total 867 above the kept ledger's.
     let led = others
         .into_iter()
-        .find(|p| !added_effects(&p.ledger).is_empty() && p.leads_with_nothing_or(&best_identity));
+        .find(|p| !added_effects(&p.ledger).is_empty() && led_by_best(p));
     let (reordered, reordered_models, reordered_total) = match led {
         Some(p) => {
             let total = p.total();
