@@ -312,8 +312,8 @@ fn confirm_tied_paths(
         {
             continue;
         }
-        let adds_nothing = |p: &ConfirmedPath| {
-            adds_nothing_proposed(
+        let adds_no_gain = |p: &ConfirmedPath| {
+            adds_only_what_raises_the_bic(
                 series,
                 p,
                 path,
@@ -322,7 +322,7 @@ fn confirm_tied_paths(
                 refits,
             )
         };
-        if confirmed.iter().any(adds_nothing) {
+        if confirmed.iter().any(adds_no_gain) {
             continue;
         }
         let (ledger, models) = confirm_path(
@@ -369,17 +369,22 @@ fn confirm_tied_paths(
     )
 }
 
-/// Whether `path` adds every effect of the confirmed path `done` and others, none of which is
-/// proposed when added to `done`'s final model on the readings ([`confirmed_step`]): then
-/// [`confirm_tied_paths`] skips `path`, whose final model is `done`'s with terms its own
-/// criteria reject there.
+/// Whether `path` adds every effect of the confirmed path `done` and others, and those others,
+/// added to `done`'s final model on the readings in `path`'s order ([`confirmed_step`]), raise
+/// its BIC: then [`confirm_tied_paths`] skips `path`. Its confirmed total, where each of its
+/// steps is proposed, is the BIC of the same final model less the base's (`done`'s total plus
+/// what the others change), so it cannot end lower than `done`, and the lowest total is kept.
+/// Where the others lower the BIC, even by an immaterial amount, `path` is confirmed: on the
+/// second simulator's air-gradient + plate-expansion campaign `plate_expansion` is not proposed
+/// after `air_gradient`, yet `plate_expansion` → `air_gradient` ends lower.
 ///
 /// Why: such a path costs a refit of every bar at each of its steps, most of them with no
 /// coarse start on the readings. On the second simulator's settling + plate-expansion campaign
 /// (`bench/loop_check.py`, k = 2, seed 2) `second_path` → `settling` → `plate_expansion` took
 /// 4.0 s to confirm after `settling` → `plate_expansion`, for a total 6 418 above it; `second_path`
-/// on the latter's model is one step, its start the copies' refit of the same three effects.
-fn adds_nothing_proposed(
+/// on the latter's model is one step, its start the copies' refit of the same three effects (and
+/// its refits are the last step's of `path` where it is confirmed after all).
+fn adds_only_what_raises_the_bic(
     series: &[&BarSeries],
     done: &ConfirmedPath,
     path: &[Effect],
@@ -395,34 +400,38 @@ fn adds_nothing_proposed(
     if done_terms.is_empty() || done_terms.iter().any(|t| !path_terms.contains(t)) {
         return false;
     }
-    let extras: Vec<&Effect> = path
+    let others: Vec<&Effect> = path
         .iter()
         .filter(|e| !done_terms.contains(&term_identity(e)))
         .collect();
-    let current = SelectionPath {
+    if others.is_empty() {
+        return false;
+    }
+    let mut current = SelectionPath {
         ledger: done.ledger.clone(),
         models: done.models.clone(),
-        delta_bic: done.total(),
+        delta_bic: 0.0,
         finished: false,
     };
-    let k = done_terms.len();
-    let nothing = !extras.is_empty()
-        && extras.iter().all(|e| {
-            !confirmed_step(
-                series,
-                &current,
-                (k, e),
-                first_candidates,
-                coarse,
-                criteria,
-                refits,
-            )
-            .proposed()
-        });
-    if nothing {
-        tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), "diagnose: a tied coarse path adds nothing proposed to a confirmed one; skipped");
+    for effect in others {
+        let k = current.ledger.len() - 1;
+        let candidate = confirmed_step(
+            series,
+            &current,
+            (k, effect),
+            first_candidates,
+            coarse,
+            criteria,
+            refits,
+        );
+        let Some(delta_bic) = candidate.delta_bic else {
+            return false;
+        };
+        current = extend_path(series, &current, &candidate, delta_bic, refits);
     }
-    nothing
+    let raises = current.delta_bic >= 0.0;
+    tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), delta_bic = current.delta_bic, skipped = raises, "diagnose: a tied coarse path's other terms on a confirmed path's model");
+    raises
 }
 
 /// `chosen` (a confirmed ledger and its models) with its later steps in the order the readings
