@@ -6,7 +6,7 @@
 
 use super::bar::{diagnose_bar, response_family, screen_bases, term_identity};
 use super::bar_selection::ledger_step;
-use super::candidates::{candidate_effects, evaluate_at_most, refitted_candidate};
+use super::candidates::{candidate_effects, evaluate_at_most, refitted_candidate, Refitted};
 use super::compare::competing_delta_bic;
 use super::plate::{plate_named_in, plate_split_path, without_sensor};
 use super::refits::Refits;
@@ -121,13 +121,16 @@ pub(crate) fn forward_selection(
     // Nothing proposed at the first step: nothing to search (the beam would stop there too).
     if max_steps > 0 && first_candidates.iter().any(Candidate::proposed) {
         if let Some(coarse) = CoarseFleet::new(series, &start, refits) {
-            let paths = coarse.select(max_steps, beam, first_candidates, criteria);
+            let (paths, pushed_out) = coarse.select(max_steps, beam, first_candidates, criteria);
+            for (path, total) in &paths {
+                tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total, "diagnose: a coarse path");
+            }
             if paths.first().is_some_and(|(path, _)| !path.is_empty()) {
                 return confirm_tied_paths(
                     series,
                     start,
                     first_candidates,
-                    (&paths, &coarse, max_steps),
+                    (&paths, pushed_out.as_ref(), &coarse, max_steps),
                     criteria,
                     refits,
                 );
@@ -235,17 +238,18 @@ impl CoarseFleet {
     }
 
     /// The paths the beam search keeps on the coarse copies (the effects each adds, in order)
-    /// with their total ΔBIC there, best first.
+    /// with their total ΔBIC there, best first; and the best finished path the longer ones
+    /// pushed out of the beam ([`BeamEnd`]).
     fn select(
         &self,
         max_steps: usize,
         beam: usize,
         first_candidates: &[Candidate],
         criteria: &Criteria,
-    ) -> Vec<(Vec<Effect>, f64)> {
+    ) -> (Vec<(Vec<Effect>, f64)>, Option<(Vec<Effect>, f64)>) {
         let refits = &self.refits;
         let series: Vec<&BarSeries> = self.series.iter().collect();
-        let cap = Some(COARSE_BEAM_REFITS);
+        let cap = Refitted::BestOfFirstStep(COARSE_BEAM_REFITS);
         // The readings' first candidates are offered on the copies too: a channel whose fast
         // fluctuations the copies' bins average away ranks low on them, though its lag is
         // what the readings need first (on the machine-tool log, `lag:t4-t11` on ch3).
@@ -253,17 +257,20 @@ impl CoarseFleet {
             first_candidates.iter().map(|c| c.effect.clone()).collect();
         let first =
             rank_candidates_with(&series, &self.models, &from_readings, criteria, refits, cap);
-        beam_paths(
+        let end = beam_paths(
             &series,
             self.models.clone(),
             &first,
-            (max_steps, beam, cap),
+            (max_steps, beam, Some(COARSE_BEAM_REFITS)),
             criteria,
             refits,
+        );
+        let effects_and_total =
+            |path: &SelectionPath| (added_effects(&path.ledger), path.delta_bic);
+        (
+            end.kept.iter().map(effects_and_total).collect(),
+            end.pushed_out.as_ref().map(effects_and_total),
         )
-        .into_iter()
-        .map(|path| (added_effects(&path.ledger), path.delta_bic))
-        .collect()
     }
 }
 
@@ -272,7 +279,10 @@ impl CoarseFleet {
 /// confirmed ledger ends at the lowest BIC (its steps' exact ΔBIC summed) is kept, then led by
 /// the ranking's best where the ranking prefers another first step ([`led_by_the_ranking`]).
 /// A tied path that reads the plate sensor through a generic term is confirmed with the plate
-/// named where the copies prefer that ([`CoarseFleet::with_the_plate_named`]).
+/// named where the copies prefer that ([`CoarseFleet::with_the_plate_named`]); one that only
+/// adds terms to a confirmed path is skipped where they raise its BIC
+/// ([`adds_only_what_raises_the_bic`]); and where the lowest was cut short on the readings, the
+/// finished path the beam pushed out is confirmed beside it ([`rival_of_a_cut_path`]).
 ///
 /// Why: the coarse copies decide near ties that the readings do not. On the second simulator's
 /// plate-expansion campaign (`bench/foreign_sim.py --effect plate_expansion --seed 1`, 10 bars,
@@ -291,7 +301,12 @@ fn confirm_tied_paths(
     series: &[&BarSeries],
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
-    (paths, coarse, max_steps): (&[(Vec<Effect>, f64)], &CoarseFleet, usize),
+    (paths, pushed_out, coarse, max_steps): (
+        &[(Vec<Effect>, f64)],
+        Option<&(Vec<Effect>, f64)>,
+        &CoarseFleet,
+        usize,
+    ),
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
@@ -334,10 +349,37 @@ fn confirm_tied_paths(
             refits,
         );
         tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total = ledger_total(&ledger), "diagnose: a tied coarse path confirmed on the readings");
-        confirmed.push(ConfirmedPath { ledger, models });
+        confirmed.push(ConfirmedPath {
+            ledger,
+            models,
+            coarse_steps: path.len(),
+        });
     }
-    let lowest =
-        (0..confirmed.len()).min_by(|&a, &b| confirmed[a].total().total_cmp(&confirmed[b].total()));
+    let lowest_of = |confirmed: &[ConfirmedPath]| {
+        (0..confirmed.len()).min_by(|&a, &b| confirmed[a].total().total_cmp(&confirmed[b].total()))
+    };
+    let mut lowest = lowest_of(&confirmed);
+    let rival = lowest.and_then(|at| {
+        let ledger = added_effects(&confirmed[at].ledger);
+        rival_of_a_cut_path((&ledger, confirmed[at].coarse_steps), paths, pushed_out)
+    });
+    if let Some(rival) = rival {
+        let (ledger, models) = confirm_path(
+            series,
+            start.clone(),
+            first_candidates,
+            (rival, coarse, max_steps),
+            criteria,
+            refits,
+        );
+        tracing::debug!(path = ?rival.iter().map(Effect::name).collect::<Vec<_>>(), total = ledger_total(&ledger), "diagnose: the rival of a path cut short confirmed on the readings");
+        confirmed.push(ConfirmedPath {
+            ledger,
+            models,
+            coarse_steps: rival.len(),
+        });
+        lowest = lowest_of(&confirmed);
+    }
     let Some(lowest) = lowest else {
         return confirm_path(
             series,
@@ -511,10 +553,12 @@ fn added_effects(ledger: &[LedgerStep]) -> Vec<Effect> {
         .collect()
 }
 
-/// A coarse path confirmed on the readings: its ledger and models.
+/// A coarse path confirmed on the readings: its ledger and models, and how many steps the
+/// coarse path had (the ledger has fewer where a step was not proposed on the readings).
 struct ConfirmedPath {
     ledger: Vec<LedgerStep>,
     models: Vec<BarModel>,
+    coarse_steps: usize,
 }
 
 impl ConfirmedPath {
@@ -529,6 +573,41 @@ impl ConfirmedPath {
             .first()
             .is_none_or(|e| term_identity(e) == identity)
     }
+}
+
+/// Where the lowest confirmed path was cut short on the readings (`ledger`, the effects it
+/// added, fewer than the `coarse_steps` of its coarse path): the best finished coarse path the
+/// beam pushed out (`pushed_out`, [`BeamEnd`]) when it is no longer than that ledger, within
+/// [`PATH_TIE_SHARE`] of the best coarse total (`paths`, best first) and not the ledger's own
+/// effects.
+///
+/// Why: the beam ranks paths by their totals on the copies, so a path whose third step adds a
+/// little there pushes out a two-step path that stops; on the readings that third step can fail,
+/// and the ledger is then the two-step prefix of a path the copies did not prefer over the
+/// pushed-out one. On the second simulator's head-heating + plate-expansion campaign
+/// (`bench/loop_check.py`, k = 2, seed 6) the beam kept `head_heating` → `air_gradient` →
+/// `settling` (total −7 429 793 on the copies) over the finished `head_heating` →
+/// `plate_expansion` (−7 421 327), though the copies rank `plate_expansion` first after
+/// `head_heating`; `settling` was not proposed on the readings, and the ledger read
+/// `head_heating` → `air_gradient` (20.11 nm) where the truth's two terms fit to 20.06 nm.
+fn rival_of_a_cut_path<'a>(
+    (steps, coarse_steps): (&[Effect], usize),
+    paths: &[(Vec<Effect>, f64)],
+    pushed_out: Option<&'a (Vec<Effect>, f64)>,
+) -> Option<&'a [Effect]> {
+    let (rival, total) = pushed_out?;
+    let best_total = paths.first().map_or(0.0, |(_, total)| *total);
+    let cut = steps.len() < coarse_steps;
+    let tied = (total - best_total).abs() <= PATH_TIE_SHARE * best_total.abs();
+    let same = |a: &[Effect], b: &[Effect]| {
+        let set = |p: &[Effect]| {
+            let mut ids: Vec<String> = p.iter().map(term_identity).collect();
+            ids.sort();
+            ids
+        };
+        set(a) == set(b)
+    };
+    (cut && tied && rival.len() <= steps.len() && !same(rival, steps)).then_some(rival.as_slice())
 }
 
 /// The sum of a ledger's steps' ΔBIC: its final model's BIC less the base's.
@@ -808,7 +887,14 @@ fn best_exact_step(
     let ranked = if k == 0 {
         first_candidates.to_vec()
     } else {
-        rank_candidates_with(series, &current.models, &[], criteria, refits, None)
+        rank_candidates_with(
+            series,
+            &current.models,
+            &[],
+            criteria,
+            refits,
+            Refitted::All,
+        )
     };
     let best = ranked.into_iter().find(Candidate::proposed);
     tracing::debug!(step = k, replaced_by = ?best.as_ref().map(|c| c.effect.name()), "diagnose: a coarse path's step is not proposed on the readings");
@@ -845,6 +931,7 @@ fn beam_search(
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let best = beam_paths(series, start, first_candidates, limits, criteria, refits)
+        .kept
         .into_iter()
         .next()
         .expect("forward selection keeps at least one path");
@@ -861,9 +948,10 @@ fn beam_paths(
     (max_steps, beam, max_refits): (usize, usize, Option<usize>),
     criteria: &Criteria,
     refits: &Refits,
-) -> Vec<SelectionPath> {
+) -> BeamEnd {
     let beam = beam.max(1);
     let mut paths = vec![SelectionPath::starting_at(start)];
+    let mut pushed_out: Option<SelectionPath> = None;
     for step in 0..max_steps {
         let mut next: Vec<SelectionPath> = paths.iter().filter(|p| p.finished).cloned().collect();
         let mut extensions: Vec<(usize, Candidate, f64)> = Vec::new();
@@ -871,7 +959,8 @@ fn beam_paths(
             let candidates = if step == 0 {
                 first_candidates.to_vec()
             } else {
-                rank_candidates_with(series, &path.models, &[], criteria, refits, max_refits)
+                let refitted = max_refits.map_or(Refitted::All, Refitted::Best);
+                rank_candidates_with(series, &path.models, &[], criteria, refits, refitted)
             };
             let proposed: Vec<Candidate> = candidates
                 .into_iter()
@@ -923,12 +1012,34 @@ fn beam_paths(
             .collect();
         next.extend(extended);
         next.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
-        next.truncate(beam);
+        for dropped in next.drain(beam.min(next.len())..) {
+            if dropped.finished
+                && pushed_out
+                    .as_ref()
+                    .is_none_or(|p| dropped.delta_bic < p.delta_bic)
+            {
+                pushed_out = Some(dropped);
+            }
+        }
         paths = next;
     }
     // A stable sort: between equal totals the earlier path (the ranking's order) stays first.
     paths.sort_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
-    paths
+    BeamEnd {
+        kept: paths,
+        pushed_out,
+    }
+}
+
+/// What [`beam_paths`] ends with: the paths it keeps, best (lowest total ΔBIC) first, and the
+/// best of the finished paths (no candidate proposed after their last step) that paths with
+/// more steps pushed out of the beam.
+///
+/// Why keep that one: a kept path's later steps can fail on the readings, and the ledger then
+/// ends shorter than the path whose total put it ahead ([`rival_of_a_cut_path`]).
+struct BeamEnd {
+    kept: Vec<SelectionPath>,
+    pushed_out: Option<SelectionPath>,
 }
 
 /// The effects of a fleet's models (one model for all bars).
@@ -947,7 +1058,7 @@ fn rank_candidates_with(
     offered: &[Effect],
     criteria: &Criteria,
     refits: &Refits,
-    max_refits: Option<usize>,
+    refitted: Refitted,
 ) -> Vec<Candidate> {
     let effects = effects_of(models);
     let pairs: Vec<(&BarSeries, &BarModel)> = series.iter().copied().zip(models.iter()).collect();
@@ -969,7 +1080,7 @@ fn rank_candidates_with(
             .filter(|e| taken.insert(term_identity(e)))
             .cloned(),
     );
-    evaluate_at_most(&pairs, &bases, &candidates, criteria, refits, max_refits).0
+    evaluate_at_most(&pairs, &bases, &candidates, criteria, refits, refitted).0
 }
 
 /// `path` with `candidate` added and every bar refitted; `score` is what the step adds to the
@@ -1019,7 +1130,55 @@ fn extend_path(
 mod tests {
     use super::keeps_reordered;
     use super::response_family;
+    use super::rival_of_a_cut_path;
     use crate::model::Effect;
+
+    fn effects(names: &[&str]) -> Vec<Effect> {
+        names
+            .iter()
+            .map(|n| Effect::parse(n).expect("an effect name"))
+            .collect()
+    }
+
+    #[test]
+    fn a_path_cut_short_on_the_readings_meets_the_finished_path_the_beam_pushed_out() {
+        // The second simulator's head-heating + plate-expansion campaign (k = 2, seed 6): the
+        // copies' totals, the readings' ledger cut after two of the three steps.
+        let paths = vec![
+            (
+                effects(&["head_heating", "air_gradient", "settling"]),
+                -7_429_793.4,
+            ),
+            (
+                effects(&["head_heating", "air_gradient", "second_path"]),
+                -7_423_572.5,
+            ),
+        ];
+        let pushed_out = (effects(&["head_heating", "plate_expansion"]), -7_421_327.2);
+        let cut = effects(&["head_heating", "air_gradient"]);
+        assert_eq!(
+            rival_of_a_cut_path((&cut, 3), &paths, Some(&pushed_out)),
+            Some(pushed_out.0.as_slice())
+        );
+        // Not cut: the ledger went as far as its coarse path.
+        let whole = effects(&["head_heating", "air_gradient", "settling"]);
+        assert_eq!(
+            rival_of_a_cut_path((&whole, 3), &paths, Some(&pushed_out)),
+            None
+        );
+        // Longer than the ledger, or its own effects in another order: no rival.
+        let one = effects(&["head_heating"]);
+        assert_eq!(
+            rival_of_a_cut_path((&one, 3), &paths, Some(&pushed_out)),
+            None
+        );
+        let same = (effects(&["air_gradient", "head_heating"]), -7_421_327.2);
+        assert_eq!(rival_of_a_cut_path((&cut, 3), &paths, Some(&same)), None);
+        // Outside the tie share of the best coarse total.
+        let far = (effects(&["head_heating", "plate_expansion"]), -6_000_000.0);
+        assert_eq!(rival_of_a_cut_path((&cut, 3), &paths, Some(&far)), None);
+        assert_eq!(rival_of_a_cut_path((&cut, 3), &paths, None), None);
+    }
 
     #[test]
     fn a_channels_lag_and_heat_are_one_family_and_nothing_else_joins_them() {
