@@ -159,6 +159,9 @@ pub(crate) fn forward_selection(
     )
 }
 
+/// A path of the coarse beam: the effects it adds, in order, and its total ΔBIC on the copies.
+type CoarsePath = (Vec<Effect>, f64);
+
 /// Every bar's coarse copy (`identify::coarse_copy`) and its model refitted there: where the
 /// forward selection searches its paths when every bar is long enough to have one.
 struct CoarseFleet {
@@ -246,7 +249,7 @@ impl CoarseFleet {
         beam: usize,
         first_candidates: &[Candidate],
         criteria: &Criteria,
-    ) -> (Vec<(Vec<Effect>, f64)>, Option<(Vec<Effect>, f64)>) {
+    ) -> (Vec<CoarsePath>, Option<CoarsePath>) {
         let refits = &self.refits;
         let series: Vec<&BarSeries> = self.series.iter().collect();
         let cap = Refitted::BestOfFirstStep(COARSE_BEAM_REFITS);
@@ -302,8 +305,8 @@ fn confirm_tied_paths(
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
     (paths, pushed_out, coarse, max_steps): (
-        &[(Vec<Effect>, f64)],
-        Option<&(Vec<Effect>, f64)>,
+        &[CoarsePath],
+        Option<&CoarsePath>,
         &CoarseFleet,
         usize,
     ),
@@ -592,8 +595,8 @@ impl ConfirmedPath {
 /// `head_heating` → `air_gradient` (20.11 nm) where the truth's two terms fit to 20.06 nm.
 fn rival_of_a_cut_path<'a>(
     (steps, coarse_steps): (&[Effect], usize),
-    paths: &[(Vec<Effect>, f64)],
-    pushed_out: Option<&'a (Vec<Effect>, f64)>,
+    paths: &[CoarsePath],
+    pushed_out: Option<&'a CoarsePath>,
 ) -> Option<&'a [Effect]> {
     let (rival, total) = pushed_out?;
     let best_total = paths.first().map_or(0.0, |(_, total)| *total);
