@@ -78,11 +78,12 @@ pub(super) fn without_sensor(effect: &Effect, sensor: &str) -> Option<Option<Eff
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::plate_split_path;
     use crate::model::Effect;
 
-    fn effects(names: &[&str]) -> Vec<Effect> {
+    /// The effects of these names (a test's paths).
+    pub(in crate::diagnose) fn effects(names: &[&str]) -> Vec<Effect> {
         names
             .iter()
             .map(|n| Effect::parse(n).expect("an effect name"))

@@ -314,6 +314,21 @@ fn confirm_tied_paths(
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
     let mut confirmed: Vec<ConfirmedPath> = Vec::new();
+    let confirm = |path: &[Effect]| {
+        let (ledger, models) = confirm_path(
+            series,
+            start.clone(),
+            first_candidates,
+            (path, coarse, max_steps),
+            criteria,
+            refits,
+        );
+        ConfirmedPath {
+            ledger,
+            models,
+            coarse_steps: path.len(),
+        }
+    };
     let plate = plate_named_in(series, first_candidates);
     for path in tied_paths(paths, first_candidates) {
         let named = plate.and_then(|plate| coarse.with_the_plate_named(path, plate, max_steps));
@@ -343,20 +358,8 @@ fn confirm_tied_paths(
         if confirmed.iter().any(adds_no_gain) {
             continue;
         }
-        let (ledger, models) = confirm_path(
-            series,
-            start.clone(),
-            first_candidates,
-            (path, coarse, max_steps),
-            criteria,
-            refits,
-        );
-        tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total = ledger_total(&ledger), "diagnose: a tied coarse path confirmed on the readings");
-        confirmed.push(ConfirmedPath {
-            ledger,
-            models,
-            coarse_steps: path.len(),
-        });
+        confirmed.push(confirm(path));
+        tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total = ?confirmed.last().map(ConfirmedPath::total), "diagnose: a tied coarse path confirmed on the readings");
     }
     let lowest_of = |confirmed: &[ConfirmedPath]| {
         (0..confirmed.len()).min_by(|&a, &b| confirmed[a].total().total_cmp(&confirmed[b].total()))
@@ -367,20 +370,8 @@ fn confirm_tied_paths(
         rival_of_a_cut_path((&ledger, confirmed[at].coarse_steps), paths, pushed_out)
     });
     if let Some(rival) = rival {
-        let (ledger, models) = confirm_path(
-            series,
-            start.clone(),
-            first_candidates,
-            (rival, coarse, max_steps),
-            criteria,
-            refits,
-        );
-        tracing::debug!(path = ?rival.iter().map(Effect::name).collect::<Vec<_>>(), total = ledger_total(&ledger), "diagnose: the rival of a path cut short confirmed on the readings");
-        confirmed.push(ConfirmedPath {
-            ledger,
-            models,
-            coarse_steps: rival.len(),
-        });
+        confirmed.push(confirm(rival));
+        tracing::debug!(path = ?rival.iter().map(Effect::name).collect::<Vec<_>>(), total = ?confirmed.last().map(ConfirmedPath::total), "diagnose: the rival of a path cut short confirmed on the readings");
         lowest = lowest_of(&confirmed);
     }
     let Some(lowest) = lowest else {
@@ -628,10 +619,7 @@ fn ledger_total(ledger: &[LedgerStep]) -> f64 {
 /// three-effect campaign of our simulator, `air_gradient`, `heat:T2-T1` and `heat:T2` as the
 /// third step, within 0.01 % of each other on the readings), whose confirmation cost 9 s for no
 /// change.
-fn tied_paths<'a>(
-    paths: &'a [(Vec<Effect>, f64)],
-    first_candidates: &[Candidate],
-) -> Vec<&'a [Effect]> {
+fn tied_paths<'a>(paths: &'a [CoarsePath], first_candidates: &[Candidate]) -> Vec<&'a [Effect]> {
     let best_total = paths.first().map_or(0.0, |(_, total)| *total);
     let rank = |e: Option<&Effect>| {
         e.and_then(|e| {
@@ -1134,14 +1122,8 @@ mod tests {
     use super::keeps_reordered;
     use super::response_family;
     use super::rival_of_a_cut_path;
+    use crate::diagnose::plate::tests::effects;
     use crate::model::Effect;
-
-    fn effects(names: &[&str]) -> Vec<Effect> {
-        names
-            .iter()
-            .map(|n| Effect::parse(n).expect("an effect name"))
-            .collect()
-    }
 
     #[test]
     fn a_path_cut_short_on_the_readings_meets_the_finished_path_the_beam_pushed_out() {
