@@ -197,8 +197,32 @@ pub(crate) fn identify_from(
     start: Option<&BarModel>,
 ) -> Result<BarModel, IdentifyError> {
     match start {
-        Some(start) => fit_from(series, effects, Some(start)),
+        Some(start) => or_from_defaults(series, effects, fit_from(series, effects, Some(start))),
         None => identify_afresh(series, effects),
+    }
+}
+
+/// `warm`, a fit started from another model, or, where it stopped at an optimum the data cannot
+/// determine, the fit of `effects` from their defaults (the original error if that fails too).
+///
+/// Why: a start carries the smaller model's time constants, and one the smaller model ran to a
+/// degenerate value can hold the larger fit there. On the loop matrix's air_gradient + creep +
+/// plate_expansion (seed 6) a bar's `second_path` model has `tau_r_s` near 9e5 s; `creep`
+/// started there makes that lag a straight line, collinear with the creep and the fixed part,
+/// and the refit failed as not identifiable, so the ledger kept the bar without `creep` (21.6
+/// nm where `dbbcal identify --add-effect` fits 20.2 nm). The defaults' basin is searched after
+/// a warm fit that succeeds (`defaults_basin`); this covers the one that fails.
+fn or_from_defaults(
+    series: &BarSeries,
+    effects: &[Effect],
+    warm: Result<BarModel, IdentifyError>,
+) -> Result<BarModel, IdentifyError> {
+    match warm {
+        Err(IdentifyError::Fit {
+            source: FitError::NotIdentifiable { .. },
+            ..
+        }) => fit_from(series, effects, None).or(warm),
+        warm => warm,
     }
 }
 
@@ -245,7 +269,11 @@ pub(crate) fn identify_from_coarse_optimum(
     {
         return identify_from(series, effects, Some(coarse));
     }
-    fit_from_start(series, effects, Some(coarse), true)
+    or_from_defaults(
+        series,
+        effects,
+        fit_from_start(series, effects, Some(coarse), true),
+    )
 }
 
 /// Whether `a` and `b` hold the same effects, in any order (a model's terms are a set; its

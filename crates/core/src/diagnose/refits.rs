@@ -93,7 +93,11 @@ impl Refits {
                 .map_err(CandidateError::from),
             noise_log_likelihood: OnceLock::new(),
         });
-        tracing::debug!(bar = %key.0, effects = ?key.1, samples = series.fit_index.len(), ms = started.elapsed().as_millis(), "diagnose: refit");
+        let outcome = match &fitted.model {
+            Ok(m) => format!("rms {:.5} um", m.rms_um),
+            Err(e) => format!("failed: {e}"),
+        };
+        tracing::debug!(bar = %key.0, effects = ?key.1, samples = series.fit_index.len(), ms = started.elapsed().as_millis(), %outcome, "diagnose: refit");
         self.lock().entry(key).or_insert(fitted).clone()
     }
 

@@ -351,3 +351,30 @@ fn hac_intervals_cover_the_truth_at_their_nominal_rate() {
         naive * 100.0
     );
 }
+
+/// A refit started from a model whose time constant ran to a degenerate value (here `tau_r_s`
+/// at 2.5e6 s, a straight line over the 8 days, as a smaller model's lag can end) with `creep`
+/// added: started there, the lag and the creep are the same straight line. The refit falls back
+/// to the defaults (`or_from_defaults`) and ends where the fit made afresh ends.
+#[test]
+fn a_refit_from_a_degenerate_start_falls_back_to_the_defaults() {
+    let series = synthetic_bar(7);
+    let base = crate::model::base_effects();
+    let mut start = identify_from(&series, &base, None).unwrap();
+    for p in start.params.iter_mut().filter(|p| p.name == "tau_r_s") {
+        p.value = 2.5e6;
+    }
+    let mut effects = base.clone();
+    effects.push(Effect::Creep);
+    let afresh = identify_from(&series, &effects, None).unwrap();
+    let refit = identify_from(&series, &effects, Some(&start))
+        .unwrap_or_else(|e| panic!("the refit from a degenerate start failed: {e}"));
+    assert!(
+        refit.rms_um <= afresh.rms_um * (1.0 + 1e-6),
+        "refit {} um, afresh {} um",
+        refit.rms_um,
+        afresh.rms_um
+    );
+    let tau = refit.value("tau_r_s").unwrap();
+    assert!((2000.0..4500.0).contains(&tau), "tau_r_s {tau} s");
+}
