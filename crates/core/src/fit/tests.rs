@@ -208,6 +208,63 @@ fn satterthwaite_dof_is_batches_minus_one_for_equal_batches_and_less_when_one_do
     assert!((nu_g[0] - nu[1]).abs() < 1e-9 * nu[1], "{nu_g:?} {nu:?}");
 }
 
+/// [`satterthwaite_dof`] against its definition, built densely on a small problem: `M = (I − H)
+/// A (I − H)`, `A = blockdiag(a_b a_bᵀ)`, `H` the projection on the Jacobian and the group
+/// indicators, `ν = (tr M)² / tr(M²)`. Uneven batches (the last one short), groups that span
+/// batches, and samples in no group.
+#[test]
+fn satterthwaite_dof_matches_its_definition_built_densely() {
+    let (n, p, batch) = (61, 3, 7);
+    let mut state = 11u64;
+    let mut uniform = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let groups: Vec<Option<usize>> = (0..n)
+        .map(|i| (i % 13 != 0).then_some(i / 17))
+        .collect();
+    let mut jac = DMatrix::from_fn(n, p, |i, j| uniform() + (i as f64 / 9.0).sin() * j as f64);
+    // The problem demeans the Jacobian within each group (`absorbed_groups`).
+    let n_groups = 1 + groups.iter().flatten().max().unwrap();
+    for j in 0..p {
+        for g in 0..n_groups {
+            let members: Vec<usize> = (0..n).filter(|&i| groups[i] == Some(g)).collect();
+            let mean = members.iter().map(|&i| jac[(i, j)]).sum::<f64>() / members.len() as f64;
+            for &i in &members {
+                jac[(i, j)] -= mean;
+            }
+        }
+    }
+    let k_inv = k_inv_of(&jac);
+    let mut z = DMatrix::<f64>::zeros(n, n_groups);
+    for (i, g) in groups.iter().enumerate() {
+        if let Some(g) = g {
+            z[(i, *g)] = 1.0;
+        }
+    }
+    let ztz_inv = (z.transpose() * &z).try_inverse().unwrap();
+    let h = &jac * &k_inv * jac.transpose() + &z * ztz_inv * z.transpose();
+    let i_h = DMatrix::<f64>::identity(n, n) - h;
+    let a_all = &jac * &k_inv;
+    let fast = satterthwaite_dof(&jac, &k_inv, batch, Some(&groups)).unwrap();
+    for (k, nu) in fast.iter().enumerate() {
+        let mut a = DMatrix::<f64>::zeros(n, n);
+        for b in (0..n).step_by(batch) {
+            let end = (b + batch).min(n);
+            for i in b..end {
+                for j in b..end {
+                    a[(i, j)] = a_all[(i, k)] * a_all[(j, k)];
+                }
+            }
+        }
+        let m = &i_h * a * &i_h;
+        let dense = (m.trace() * m.trace() / (&m * &m).trace()).max(1.0);
+        assert!((nu - dense).abs() < 1e-9 * dense, "k {k}: {nu} against {dense}");
+    }
+}
+
 #[test]
 fn profile_interval_matches_wald_when_nearly_linear_and_follows_the_rss() {
     // Exponential with small noise: the profile of b2 is close to quadratic, so the interval
