@@ -190,7 +190,8 @@ pub fn identify(series: &BarSeries, effects: &[Effect]) -> Result<BarModel, Iden
 /// can stop short of the fit made afresh. The search runs on the coarse copy, so it costs a few
 /// per cent of a nightly run; a full fresh fit for every refit would cost 1.5-2.5 times the
 /// diagnosis (both measured on the second simulator's hidden-effect campaigns, `docs/model.md`,
-/// "A second simulator").
+/// "A second simulator"). A warm fit that fails as not identifiable is made again from the
+/// defaults ([`or_from_defaults`]).
 pub(crate) fn identify_from(
     series: &BarSeries,
     effects: &[Effect],
