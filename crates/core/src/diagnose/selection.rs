@@ -1012,6 +1012,9 @@ fn beam_paths(
                 pushed_out = Some(dropped);
             }
         }
+        for path in &next {
+            tracing::trace!(step, path = ?added_effects(&path.ledger).iter().map(Effect::name).collect::<Vec<_>>(), total = path.delta_bic, finished = path.finished, "diagnose: the beam after a step");
+        }
         paths = next;
     }
     // A stable sort: between equal totals the earlier path (the ranking's order) stays first.

@@ -222,9 +222,7 @@ fn satterthwaite_dof_matches_its_definition_built_densely() {
             .wrapping_add(1442695040888963407);
         (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     };
-    let groups: Vec<Option<usize>> = (0..n)
-        .map(|i| (i % 13 != 0).then_some(i / 17))
-        .collect();
+    let groups: Vec<Option<usize>> = (0..n).map(|i| (i % 13 != 0).then_some(i / 17)).collect();
     let mut jac = DMatrix::from_fn(n, p, |i, j| uniform() + (i as f64 / 9.0).sin() * j as f64);
     // The problem demeans the Jacobian within each group (`absorbed_groups`).
     let n_groups = 1 + groups.iter().flatten().max().unwrap();
@@ -261,7 +259,10 @@ fn satterthwaite_dof_matches_its_definition_built_densely() {
         }
         let m = &i_h * a * &i_h;
         let dense = (m.trace() * m.trace() / (&m * &m).trace()).max(1.0);
-        assert!((nu - dense).abs() < 1e-9 * dense, "k {k}: {nu} against {dense}");
+        assert!(
+            (nu - dense).abs() < 1e-9 * dense,
+            "k {k}: {nu} against {dense}"
+        );
     }
 }
 
