@@ -93,11 +93,12 @@ impl Refits {
                 .map_err(CandidateError::from),
             noise_log_likelihood: OnceLock::new(),
         });
-        let outcome = match &fitted.model {
+        // The outcome is formatted only where the debug level is on (tracing evaluates a field
+        // inside its enabled check): a refit is on the diagnosis' hot path.
+        tracing::debug!(bar = %key.0, effects = ?key.1, samples = series.fit_index.len(), ms = started.elapsed().as_millis(), outcome = %match &fitted.model {
             Ok(m) => format!("rms {:.5} um", m.rms_um),
             Err(e) => format!("failed: {e}"),
-        };
-        tracing::debug!(bar = %key.0, effects = ?key.1, samples = series.fit_index.len(), ms = started.elapsed().as_millis(), %outcome, "diagnose: refit");
+        }, "diagnose: refit");
         self.lock().entry(key).or_insert(fitted).clone()
     }
 
