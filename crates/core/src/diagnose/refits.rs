@@ -78,17 +78,39 @@ impl Refits {
     ) -> Arc<Refit> {
         let mut effects = base.effects.clone();
         effects.push(effect.clone());
-        let key = key(&base.bar, &effects);
+        self.cached(series, &effects, || match start {
+            Some(coarse) => identify_from_coarse_optimum(series, &effects, coarse),
+            None => identify_from(series, &effects, Some(base)),
+        })
+    }
+
+    /// `series`' bar fitted with `effects` (in this order) from `coarse`, their refit on the
+    /// bar's coarse copy: the refit [`Refits::refit_from`] makes of the same set with that start.
+    pub(super) fn refit_at_coarse_optimum(
+        &self,
+        series: &BarSeries,
+        effects: &[Effect],
+        coarse: &BarModel,
+    ) -> Arc<Refit> {
+        self.cached(series, effects, || {
+            identify_from_coarse_optimum(series, effects, coarse)
+        })
+    }
+
+    /// The refit of `series`' bar with `effects` from the cache, or `fit` made and kept.
+    fn cached(
+        &self,
+        series: &BarSeries,
+        effects: &[Effect],
+        fit: impl FnOnce() -> Result<BarModel, crate::identify::IdentifyError>,
+    ) -> Arc<Refit> {
+        let key = key(&series.bar.id, effects);
         if let Some(hit) = self.lock().get(&key) {
             return hit.clone();
         }
         let started = std::time::Instant::now();
-        let model = match start {
-            Some(coarse) => identify_from_coarse_optimum(series, &effects, coarse),
-            None => identify_from(series, &effects, Some(base)),
-        };
         let fitted = Arc::new(Refit {
-            model: model
+            model: fit()
                 .map(BarModel::without_curves)
                 .map_err(CandidateError::from),
             noise_log_likelihood: OnceLock::new(),

@@ -358,6 +358,9 @@ fn confirm_tied_paths(
         if confirmed.iter().any(adds_no_gain) {
             continue;
         }
+        if ends_above_the_lowest(series, &start, path, &confirmed, coarse, refits) {
+            continue;
+        }
         confirmed.push(confirm(path));
         tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), total = ?confirmed.last().map(ConfirmedPath::total), "diagnose: a tied coarse path confirmed on the readings");
     }
@@ -468,6 +471,76 @@ fn adds_only_what_raises_the_bic(
     let raises = current.delta_bic >= 0.0;
     tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), delta_bic = current.delta_bic, skipped = raises, "diagnose: a tied coarse path's other terms on a confirmed path's model");
     raises
+}
+
+/// Whether `path`'s final model ends above the lowest of the `confirmed` paths: its BIC, every
+/// bar refitted once from the copies' fit of the same effects
+/// ([`Refits::refit_at_coarse_optimum`]), less `start`'s, is what its confirmed ledger would
+/// total where each of its steps is proposed on the readings, and [`confirm_tied_paths`] then
+/// skips it, as it could not be kept. Asked only where a confirmed path had every coarse step
+/// proposed on the readings: where the readings stop a path early, the final refit is no
+/// confirmation's and costs a refit of every bar for nothing (on the loop matrix's second_path
+/// + air_gradient + plate_expansion, seed 4, 4.5 CPU-s on 14-s bins).
+///
+/// Why: a tied path's last step's exact refits are these (the same set from the same start,
+/// cached), so a path confirmed after all costs nothing more; one skipped spares its middle
+/// steps. On the second simulator's settling + creep + heat-source campaign
+/// (`bench/loop_check.py`, k = 3, seed 5) the tied paths lead with `heat:C1`, `heat:T2-C1` and
+/// `heat:T1-C1`, each → `settling` → `creep`: the second's bound is its confirmed total to the
+/// last digit, 11 653 above the first's, and its confirmation took 2.6 s.
+fn ends_above_the_lowest(
+    series: &[&BarSeries],
+    start: &[BarModel],
+    path: &[Effect],
+    confirmed: &[ConfirmedPath],
+    coarse: &CoarseFleet,
+    refits: &Refits,
+) -> bool {
+    let complete = |p: &ConfirmedPath| added_effects(&p.ledger).len() == p.coarse_steps;
+    let Some(lowest) = confirmed.iter().map(ConfirmedPath::total).reduce(f64::min) else {
+        return false;
+    };
+    if !confirmed.iter().any(complete) {
+        return false;
+    }
+    let Some(bound) = final_total(series, start, path, coarse, refits) else {
+        return false;
+    };
+    tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), bound, lowest, skipped = bound > lowest, "diagnose: a tied coarse path's final model against the lowest confirmed");
+    bound > lowest
+}
+
+/// The BIC of `path`'s final model less `start`'s ([`ends_above_the_lowest`]); `None` where a
+/// bar has no start on the copies, a refit fails, or the path adds a term `start` holds.
+fn final_total(
+    series: &[&BarSeries],
+    start: &[BarModel],
+    path: &[Effect],
+    coarse: &CoarseFleet,
+    refits: &Refits,
+) -> Option<f64> {
+    let (last, before) = path.split_last()?;
+    let per_bar: Option<Vec<f64>> = series
+        .par_iter()
+        .zip(start.par_iter())
+        .map(|(s, m)| {
+            let held = |e: &Effect| {
+                m.effects
+                    .iter()
+                    .any(|h| term_identity(h) == term_identity(e))
+            };
+            if path.iter().any(held) {
+                return None;
+            }
+            let mut effects = m.effects.clone();
+            effects.extend(before.iter().cloned());
+            let coarse_start = coarse.start_for(&m.bar, &effects, last)?;
+            effects.push(last.clone());
+            let refit = refits.refit_at_coarse_optimum(s, &effects, &coarse_start);
+            refit.model.as_ref().ok().map(|f| f.bic - m.bic)
+        })
+        .collect();
+    Some(per_bar?.iter().sum())
 }
 
 /// `chosen` (a confirmed ledger and its models) with its later steps in the order the readings
@@ -950,7 +1023,9 @@ fn beam_paths(
             let candidates = if step == 0 {
                 first_candidates.to_vec()
             } else {
-                let refitted = max_refits.map_or(Refitted::All, Refitted::Best);
+                let refitted = max_refits.map_or(Refitted::All, |most| {
+                    Refitted::Best(last_step_refits(most, beam, step + 1 == max_steps))
+                });
                 rank_candidates_with(series, &path.models, &[], criteria, refits, refitted)
             };
             let proposed: Vec<Candidate> = candidates
@@ -1022,6 +1097,22 @@ fn beam_paths(
     BeamEnd {
         kept: paths,
         pushed_out,
+    }
+}
+
+/// How many of a step's candidates a capped beam refits (`most`, [`COARSE_BEAM_REFITS`]): at
+/// the last step no more than the `beam` extensions each path can keep.
+///
+/// Why: an earlier step refits twice the beam so that the paths kept are the best of more
+/// rivals, whose later steps are then ranked again; after the last step nothing is ranked
+/// again, and its refits carry the most time constants of the search. On the second
+/// simulator's settling + creep + heat-source campaign (`bench/loop_check.py`, k = 3, seed 5)
+/// the last step's 210 refits on the copies took 17.1 of the run's 48 CPU-s.
+fn last_step_refits(most: usize, beam: usize, last_step: bool) -> usize {
+    if last_step {
+        most.min(beam)
+    } else {
+        most
     }
 }
 
