@@ -67,6 +67,32 @@ pub(super) fn competing_delta_bic(proposed: &[Candidate], criteria: &Criteria) -
         .collect()
 }
 
+/// Per candidate of `proposed` (with its [`competing_delta_bic`], `competing`): whether an
+/// earlier candidate competes with its ΔBIC, having taken it for its own (a named effect before
+/// the generic term it fits equally well, or a term before an equally good alias). The beam
+/// extends a path by such a term only through the candidate that stands in for it
+/// (`selection::beam_extensions`), and the next candidate takes its place.
+///
+/// Why: both would enter the beam with the same total, one the other's reading. On the loop
+/// matrix's air_gradient + creep + plate_expansion campaign (`bench/loop_check.py`, k = 3,
+/// seed 6) the beam's first step held `second_path` and `lag:T2` at the same total (−1 164 203)
+/// beside `creep`; every path it kept then led with `second_path`, and the ledger read
+/// `second_path` → `creep` → `air_gradient` (20.067 nm) where the hidden effects' terms fit to
+/// 20.055 nm at a lower BIC.
+pub(super) fn stood_in_for(proposed: &[Candidate], competing: &[f64]) -> Vec<bool> {
+    proposed
+        .iter()
+        .enumerate()
+        .map(|(j, later)| {
+            later.delta_bic.is_some_and(|own| {
+                proposed[..j].iter().zip(competing).any(|(earlier, &took)| {
+                    took == own && earlier.delta_bic.is_some_and(|d| took < d)
+                })
+            })
+        })
+        .collect()
+}
+
 /// Correlation beyond which two estimates are taken as one combination the data cannot split
 /// (e.g. two equal time constants with huge, cancelling gains: a derivative in disguise).
 pub(crate) const MAX_PARAM_CORRELATION: f64 = 0.9999;
@@ -112,4 +138,58 @@ pub(crate) fn lr_p_value(
     ChiSquared::new(added_params as f64)
         .map(|d| 1.0 - d.cdf(lr))
         .unwrap_or(f64::NAN)
+}
+
+#[cfg(test)]
+pub(super) mod tests {
+    use super::{competing_delta_bic, stood_in_for};
+    use crate::diagnose::{Candidate, Criteria, Reason, Verdict};
+    use crate::model::Effect;
+
+    /// A proposed candidate `name` leaving the fleet RMS at `rms_after_um`, with `delta_bic`.
+    pub(in crate::diagnose) fn proposed(name: &str, rms_after_um: f64, delta_bic: f64) -> Candidate {
+        Candidate {
+            effect: Effect::parse(name).expect("a known effect"),
+            verdict: Verdict::Proposed,
+            reason: Reason::NotSignificant {
+                p_value: 0.0,
+                threshold: 0.0,
+                delta_bic,
+            },
+            rms_before_um: 0.0327,
+            screened_rms_after_um: rms_after_um,
+            screened_shift_um: 0.0,
+            rms_after_um: Some(rms_after_um),
+            delta_bic: Some(delta_bic),
+            p_value: Some(0.0),
+            bars_improved: 10,
+            significant: true,
+            material: true,
+            per_bar: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn only_the_term_whose_delta_bic_an_earlier_candidate_took_is_stood_in_for() {
+        // 20 nm noise at a ±1 µm tolerance: equally good within 5 nm of fleet RMS.
+        let criteria = Criteria::new(0.020, 1.0);
+        // `second_path` goes first (named) and fits as well as `lag:T2`, whose ΔBIC is lower:
+        // it takes that one. `creep` removes less, 10 nm away from both: it stands for itself.
+        // `heat:T1` fits as well as `creep` but with a higher ΔBIC: nothing is taken from it.
+        let ranked = [
+            proposed("second_path", 0.0225, -1_000_000.0),
+            proposed("lag:T2", 0.0224, -1_164_203.0),
+            proposed("creep", 0.0325, -736_660.0),
+            proposed("heat:T1", 0.0326, -700_000.0),
+        ];
+        let competing = competing_delta_bic(&ranked, &criteria);
+        assert_eq!(
+            competing[0], -1_164_203.0,
+            "second_path competes with lag:T2's ΔBIC"
+        );
+        assert_eq!(
+            stood_in_for(&ranked, &competing),
+            [false, true, false, false]
+        );
+    }
 }

@@ -48,8 +48,10 @@
 //!   significant. The fits stay least squares, which makes the statistic no larger than the noise
 //!   model's own: conservative (tested: 0.5 % rejections at 5 % for an irrelevant smooth regressor).
 //! - Forward selection keeps a beam of paths (`[diagnose] beam`, default 3): each path is extended
-//!   by its own best proposed candidates (significant and material), the `beam` best by total ΔBIC
-//!   are kept (their refits come from the ranking's cache), and the best path is reported.
+//!   by its own best proposed candidates (significant and material; a term whose ΔBIC an earlier,
+//!   equally good candidate takes is represented by that one, `compare::stood_in_for`), the `beam`
+//!   best by total ΔBIC are kept (their refits come from the ranking's cache), and the best path
+//!   is reported.
 //!   `beam = 1` is plain greedy selection. When every bar has a coarse copy
 //!   (`DIAGNOSE_COARSE_MIN_SAMPLES` fitted samples and a 300-s copy at most a quarter as long), the
 //!   beam searches its paths on the bars' coarse copies (`CoarseFleet`; its first step is also
@@ -63,7 +65,9 @@
 //!   copies is continued on the readings (`EXACT_CONTINUATION_MAX_SAMPLES`), and where the copies
 //!   offer no path at all the beam searches the readings with the coarse step's cap. On the
 //!   coarse copies a step refits at most `COARSE_BEAM_REFITS` of the candidates that pass the
-//!   screen, the best screened. A tied path that reads the plate sensor through a generic term
+//!   screen, the best screened (the last step no more than the beam, `last_step_refits`); a tied
+//!   path whose final model ends above the lowest confirmed is not confirmed
+//!   (`ends_above_the_lowest`). A tied path that reads the plate sensor through a generic term
 //!   is confirmed with the plate named where the copies prefer that
 //!   (`CoarseFleet::with_the_plate_named`), and the ranking refits the ledger's first step where
 //!   its screen left it out (`with_the_ledgers_first_step`). A bar gets a

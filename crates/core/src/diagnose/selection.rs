@@ -8,6 +8,7 @@ use super::bar::{diagnose_bar, response_family, screen_bases, term_identity};
 use super::bar_selection::ledger_step;
 use super::candidates::{candidate_effects, evaluate_at_most, refitted_candidate, Refitted};
 use super::compare::competing_delta_bic;
+use super::compare::stood_in_for;
 use super::plate::{plate_named_in, plate_split_path, without_sensor};
 use super::refits::Refits;
 use super::{
@@ -1028,18 +1029,15 @@ fn beam_paths(
                 });
                 rank_candidates_with(series, &path.models, &[], criteria, refits, refitted)
             };
-            let proposed: Vec<Candidate> = candidates
-                .into_iter()
-                .filter(Candidate::proposed)
-                .take(beam)
-                .collect();
+            let proposed: Vec<Candidate> =
+                candidates.into_iter().filter(Candidate::proposed).collect();
             if proposed.is_empty() {
                 let mut done = path.clone();
                 done.finished = true;
                 next.push(done);
             }
-            let competing = competing_delta_bic(&proposed, criteria);
-            extensions.extend(proposed.into_iter().zip(competing).map(|(c, d)| (i, c, d)));
+            let kept = beam_extensions(proposed, beam, criteria);
+            extensions.extend(kept.into_iter().map(|(c, d)| (i, c, d)));
         }
         if extensions.is_empty() {
             paths = next;
@@ -1097,6 +1095,33 @@ fn beam_paths(
     BeamEnd {
         kept: paths,
         pushed_out,
+    }
+}
+
+/// A path's best `beam` proposed candidates (`proposed`, in the ranking's order) with the ΔBIC
+/// each competes with ([`competing_delta_bic`], among the first candidates up to the last one
+/// kept), less those an earlier one stands in for ([`stood_in_for`]): the next candidates
+/// take their places.
+fn beam_extensions(
+    proposed: Vec<Candidate>,
+    beam: usize,
+    criteria: &Criteria,
+) -> Vec<(Candidate, f64)> {
+    let mut window = beam.min(proposed.len());
+    loop {
+        let competing = competing_delta_bic(&proposed[..window], criteria);
+        let stood_in = stood_in_for(&proposed[..window], &competing);
+        let kept = stood_in.iter().filter(|s| !**s).count();
+        if kept >= beam || window == proposed.len() {
+            return proposed
+                .into_iter()
+                .zip(competing)
+                .zip(stood_in)
+                .filter(|(_, stood_in)| !stood_in)
+                .map(|(kept, _)| kept)
+                .collect();
+        }
+        window = (window + beam - kept).min(proposed.len());
     }
 }
 
@@ -1213,10 +1238,13 @@ fn extend_path(
 
 #[cfg(test)]
 mod tests {
+    use super::beam_extensions;
     use super::keeps_reordered;
     use super::response_family;
     use super::rival_of_a_cut_path;
+    use crate::diagnose::compare::tests::proposed;
     use crate::diagnose::plate::tests::effects;
+    use crate::diagnose::Criteria;
     use crate::model::Effect;
 
     #[test]
@@ -1281,5 +1309,45 @@ mod tests {
         // the ranking-led `heat:C1` → `second_path` would replace `heat:T1-C1` → `creep`.
         assert!(!keeps_reordered(-2_855_020.6, -2_857_164.9));
         assert!(!keeps_reordered(-140_000.0, -143_375.9));
+    }
+
+    #[test]
+    fn a_candidate_stood_in_for_gives_its_place_in_the_beam_to_the_next() {
+        // 20 nm noise at a ±1 µm tolerance: equally good within 5 nm of fleet RMS.
+        let criteria = Criteria::new(0.020, 1.0);
+        let names = |kept: &[(crate::diagnose::Candidate, f64)]| -> Vec<(String, f64)> {
+            kept.iter().map(|(c, d)| (c.effect.name(), *d)).collect()
+        };
+        // 10 nm apart: none stands in for another, the first three keep their own ΔBIC.
+        let apart = vec![
+            proposed("creep", 0.030, -900.0),
+            proposed("settling", 0.040, -800.0),
+            proposed("second_path", 0.050, -700.0),
+            proposed("air_gradient", 0.060, -600.0),
+        ];
+        assert_eq!(
+            names(&beam_extensions(apart, 3, &criteria)),
+            [
+                ("creep".to_string(), -900.0),
+                ("settling".to_string(), -800.0),
+                ("second_path".to_string(), -700.0)
+            ]
+        );
+        // `second_path` takes `lag:T2`'s ΔBIC and stands in for it: `air_gradient` fills the
+        // third place.
+        let aliased = vec![
+            proposed("second_path", 0.0225, -1000.0),
+            proposed("lag:T2", 0.0224, -1200.0),
+            proposed("creep", 0.0325, -700.0),
+            proposed("air_gradient", 0.0425, -600.0),
+        ];
+        assert_eq!(
+            names(&beam_extensions(aliased, 3, &criteria)),
+            [
+                ("second_path".to_string(), -1200.0),
+                ("creep".to_string(), -700.0),
+                ("air_gradient".to_string(), -600.0)
+            ]
+        );
     }
 }
