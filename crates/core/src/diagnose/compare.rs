@@ -147,7 +147,11 @@ pub(super) mod tests {
     use crate::model::Effect;
 
     /// A proposed candidate `name` leaving the fleet RMS at `rms_after_um`, with `delta_bic`.
-    pub(in crate::diagnose) fn proposed(name: &str, rms_after_um: f64, delta_bic: f64) -> Candidate {
+    pub(in crate::diagnose) fn proposed(
+        name: &str,
+        rms_after_um: f64,
+        delta_bic: f64,
+    ) -> Candidate {
         Candidate {
             effect: Effect::parse(name).expect("a known effect"),
             verdict: Verdict::Proposed,
