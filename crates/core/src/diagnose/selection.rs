@@ -1315,39 +1315,48 @@ mod tests {
     fn a_candidate_stood_in_for_gives_its_place_in_the_beam_to_the_next() {
         // 20 nm noise at a ±1 µm tolerance: equally good within 5 nm of fleet RMS.
         let criteria = Criteria::new(0.020, 1.0);
-        let names = |kept: &[(crate::diagnose::Candidate, f64)]| -> Vec<(String, f64)> {
-            kept.iter().map(|(c, d)| (c.effect.name(), *d)).collect()
+        // Each case: the proposed candidates (name, fleet RMS after, ΔBIC), in ranking order,
+        // and the beam's three extensions (name, the ΔBIC it competes with).
+        let check = |ranked: &[(&str, f64, f64)], kept: &[(&str, f64)]| {
+            let ranked = ranked
+                .iter()
+                .map(|&(n, rms, d)| proposed(n, rms, d))
+                .collect();
+            let got: Vec<(String, f64)> = beam_extensions(ranked, 3, &criteria)
+                .iter()
+                .map(|(c, d)| (c.effect.name(), *d))
+                .collect();
+            let want: Vec<(String, f64)> = kept.iter().map(|&(n, d)| (n.to_string(), d)).collect();
+            assert_eq!(got, want);
         };
         // 10 nm apart: none stands in for another, the first three keep their own ΔBIC.
-        let apart = vec![
-            proposed("creep", 0.030, -900.0),
-            proposed("settling", 0.040, -800.0),
-            proposed("second_path", 0.050, -700.0),
-            proposed("air_gradient", 0.060, -600.0),
-        ];
-        assert_eq!(
-            names(&beam_extensions(apart, 3, &criteria)),
-            [
-                ("creep".to_string(), -900.0),
-                ("settling".to_string(), -800.0),
-                ("second_path".to_string(), -700.0)
-            ]
+        check(
+            &[
+                ("creep", 0.030, -900.0),
+                ("settling", 0.040, -800.0),
+                ("second_path", 0.050, -700.0),
+                ("air_gradient", 0.060, -600.0),
+            ],
+            &[
+                ("creep", -900.0),
+                ("settling", -800.0),
+                ("second_path", -700.0),
+            ],
         );
         // `second_path` takes `lag:T2`'s ΔBIC and stands in for it: `air_gradient` fills the
         // third place.
-        let aliased = vec![
-            proposed("second_path", 0.0225, -1000.0),
-            proposed("lag:T2", 0.0224, -1200.0),
-            proposed("creep", 0.0325, -700.0),
-            proposed("air_gradient", 0.0425, -600.0),
-        ];
-        assert_eq!(
-            names(&beam_extensions(aliased, 3, &criteria)),
-            [
-                ("second_path".to_string(), -1200.0),
-                ("creep".to_string(), -700.0),
-                ("air_gradient".to_string(), -600.0)
-            ]
+        check(
+            &[
+                ("second_path", 0.0225, -1000.0),
+                ("lag:T2", 0.0224, -1200.0),
+                ("creep", 0.0325, -700.0),
+                ("air_gradient", 0.0425, -600.0),
+            ],
+            &[
+                ("second_path", -1200.0),
+                ("creep", -700.0),
+                ("air_gradient", -600.0),
+            ],
         );
     }
 }
