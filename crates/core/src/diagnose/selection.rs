@@ -497,11 +497,10 @@ fn ends_above_the_lowest(
     coarse: &CoarseFleet,
     refits: &Refits,
 ) -> bool {
-    let complete = |p: &ConfirmedPath| added_effects(&p.ledger).len() == p.coarse_steps;
     let Some(lowest) = confirmed.iter().map(ConfirmedPath::total).reduce(f64::min) else {
         return false;
     };
-    if !confirmed.iter().any(complete) {
+    if !confirmed.iter().any(ConfirmedPath::completed) {
         return false;
     }
     let Some(bound) = final_total(series, start, path, coarse, refits) else {
@@ -525,12 +524,7 @@ fn final_total(
         .par_iter()
         .zip(start.par_iter())
         .map(|(s, m)| {
-            let held = |e: &Effect| {
-                m.effects
-                    .iter()
-                    .any(|h| term_identity(h) == term_identity(e))
-            };
-            if path.iter().any(held) {
+            if path.iter().any(|e| holds_term(&m.effects, e)) {
                 return None;
             }
             let mut effects = m.effects.clone();
@@ -635,6 +629,11 @@ impl ConfirmedPath {
         ledger_total(&self.ledger)
     }
 
+    /// Whether the readings proposed every step of its coarse path.
+    fn completed(&self) -> bool {
+        added_effects(&self.ledger).len() == self.coarse_steps
+    }
+
     /// Whether its ledger's first step adds nothing or a term of `identity` ([`term_identity`]).
     fn leads_with_nothing_or(&self, identity: &str) -> bool {
         added_effects(&self.ledger)
@@ -676,6 +675,13 @@ fn rival_of_a_cut_path<'a>(
         set(a) == set(b)
     };
     (cut && tied && rival.len() <= steps.len() && !same(rival, steps)).then_some(rival.as_slice())
+}
+
+/// Whether `effects` hold the term `effect` adds, under any of its names ([`term_identity`]).
+fn holds_term(effects: &[Effect], effect: &Effect) -> bool {
+    effects
+        .iter()
+        .any(|e| term_identity(e) == term_identity(effect))
 }
 
 /// The sum of a ledger's steps' ΔBIC: its final model's BIC less the base's.
@@ -853,9 +859,7 @@ fn confirm_path(
     let mut current = SelectionPath::starting_at(start);
     let mut stopped = false;
     for (k, effect) in path.iter().enumerate() {
-        let in_model = effects_of(&current.models)
-            .iter()
-            .any(|e| term_identity(e) == term_identity(effect));
+        let in_model = holds_term(&effects_of(&current.models), effect);
         let candidate = if in_model {
             None
         } else {
