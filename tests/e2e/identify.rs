@@ -272,3 +272,55 @@ fn automatic_bins_shorten_for_a_short_fitted_time_constant() {
         }
     }
 }
+
+/// A nightly run decides its bins on the models it ends with: the diagnosis's recommended
+/// model, where the identified one has a time constant too short for the bins
+/// (`runner::tau_too_short_for_the_bins`). A second thermal path (3 bars, 4 days, 10 s,
+/// seed 1): on 60-s bins the diagnosis adds `second_path` with a lag of ~200 s, so the campaign
+/// is read again with shorter bins; there the identified model still bends a time constant
+/// below 10 bins, while the recommended one holds none that short, and the bins are kept, with
+/// the fit report saying so.
+#[test]
+fn automatic_bins_follow_the_model_the_diagnosis_recommends() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut cfg: SimConfig = sim_config("pipelines/sim-sample.toml");
+    cfg.campaign_id = "second-path-bins".into();
+    cfg.seed = 1;
+    cfg.fleet = Some(FleetConfig {
+        n_bars: 3,
+        ..FleetConfig::default()
+    });
+    cfg.effects.second_path.enabled = true;
+    let (dir, _) = simulate_campaign(tmp.path(), "second-path-bins", &cfg);
+    let out = tmp.path().join("out");
+    let (code, _, stderr) = crate::support::run_cli(&[
+        "-q",
+        "run",
+        "pipelines/nightly.toml",
+        "--campaign",
+        dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let read = |f: &str| std::fs::read_to_string(out.join(f)).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&read("summary.json")).unwrap();
+    let diagnosis: serde_json::Value = serde_json::from_str(&read("diagnosis.json")).unwrap();
+    let bin_s = summary["model"]["bin_s"].as_f64().unwrap();
+    assert!(
+        bin_s > 0.0 && bin_s < 60.0,
+        "bins of {bin_s} s: not read again"
+    );
+    assert_eq!(
+        diagnosis["ledger"][1]["added"].as_str(),
+        Some("second_path"),
+        "{}",
+        diagnosis["ledger"]
+    );
+    let report = read("report.md");
+    assert!(
+        report.contains(&format!("bins of {bin_s:.0} s"))
+            && report.contains("the run kept these bins"),
+        "the report does not say why the bins of {bin_s} s were kept:\n{report}"
+    );
+}
