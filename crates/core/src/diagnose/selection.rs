@@ -4,9 +4,7 @@
 //! Separate because it repeats a diagnosis step by step; one step's evaluation is in
 //! `candidates`.
 
-use super::bar::{
-    air_references, diagnose_bar, response_family, screen_bases, source_family, term_identity,
-};
+use super::bar::{diagnose_bar, response_family, screen_bases, term_identity};
 use super::bar_selection::ledger_step;
 use super::candidates::{candidate_effects, evaluate_at_most, refitted_candidate, Refitted};
 use super::compare::competing_delta_bic;
@@ -263,16 +261,12 @@ impl CoarseFleet {
             first_candidates.iter().map(|c| c.effect.clone()).collect();
         let first =
             rank_candidates_with(&series, &self.models, &from_readings, criteria, refits, cap);
-        let air = series
-            .first()
-            .map(|s| air_references(s))
-            .unwrap_or_default();
         let end = beam_paths(
             &series,
             self.models.clone(),
             &first,
             (max_steps, beam, Some(COARSE_BEAM_REFITS)),
-            (criteria, &air),
+            criteria,
             refits,
         );
         let effects_and_total =
@@ -395,16 +389,6 @@ fn confirm_tied_paths(
         );
     };
     let kept = confirmed.swap_remove(lowest);
-    let (kept, replaced) = with_the_best_air_reference(
-        series,
-        &start,
-        kept,
-        first_candidates,
-        coarse,
-        &confirm,
-        refits,
-    );
-    confirmed.extend(replaced);
     let (ledger, models) = led_by_the_ranking(
         series,
         start.clone(),
@@ -423,68 +407,6 @@ fn confirm_tied_paths(
         criteria,
         refits,
     )
-}
-
-/// `kept` (the lowest confirmed path) with a heat source's term referred to each other air
-/// sensor the ranking proposes ([`source_family`]: `heat:T1-C1` for `heat:C1`, say), one term
-/// at a time, where that path's final model ends lower ([`final_total`]): the lowest of those
-/// is confirmed ([`confirm_path`]) and kept where its ledger then totals lower (else the next
-/// lowest). Returns the path kept and the one it replaced, if any.
-///
-/// Why: the coarse beam keeps one path per source ([`beam_paths`]), referred to the air sensor
-/// best at its step on the copies; which reference fits best is a question for the final model
-/// on the readings. On the second simulator's settling + creep + heat-source campaign
-/// (`bench/loop_check.py`, k = 3, seed 5) the beam led with `heat:C1`, and `heat:T1-C1` →
-/// `settling` → `creep` ends 1 670 BIC lower. Cost: the swapped path's refits on the copies,
-/// one refit a bar on the readings, and the confirmation of a path that ends lower.
-fn with_the_best_air_reference(
-    series: &[&BarSeries],
-    start: &[BarModel],
-    kept: ConfirmedPath,
-    first_candidates: &[Candidate],
-    coarse: &CoarseFleet,
-    confirm: &dyn Fn(&[Effect]) -> ConfirmedPath,
-    refits: &Refits,
-) -> (ConfirmedPath, Vec<ConfirmedPath>) {
-    let air = series
-        .first()
-        .map(|s| air_references(s))
-        .unwrap_or_default();
-    let path = added_effects(&kept.ledger);
-    let mut lower: Vec<(Vec<Effect>, f64)> = Vec::new();
-    for (at, effect) in path.iter().enumerate() {
-        let source = source_family(effect, &air);
-        if !source.starts_with("source:") {
-            continue;
-        }
-        let mut tried = vec![response_family(effect)];
-        for other in first_candidates.iter().filter(|c| c.proposed()) {
-            let family = response_family(&other.effect);
-            if source_family(&other.effect, &air) != source || tried.contains(&family) {
-                continue;
-            }
-            tried.push(family);
-            let mut swapped = path.clone();
-            swapped[at] = other.effect.clone();
-            if coarse.final_bic(&swapped).is_none() {
-                continue;
-            }
-            let bound = final_total(series, start, &swapped, coarse, refits);
-            tracing::debug!(path = ?swapped.iter().map(Effect::name).collect::<Vec<_>>(), ?bound, total = kept.total(), "diagnose: the confirmed path referred to another air sensor");
-            if let Some(bound) = bound.filter(|b| *b < kept.total()) {
-                lower.push((swapped, bound));
-            }
-        }
-    }
-    // The lowest final model first: one confirmation where several end lower.
-    lower.sort_by(|a, b| a.1.total_cmp(&b.1));
-    for (swapped, _) in lower {
-        let confirmed = confirm(&swapped);
-        if confirmed.total() < kept.total() {
-            return (confirmed, vec![kept]);
-        }
-    }
-    (kept, Vec::new())
 }
 
 /// Whether `path` adds every effect of the confirmed path `done` and others, and those others,
@@ -1077,18 +999,11 @@ fn beam_search(
     criteria: &Criteria,
     refits: &Refits,
 ) -> (Vec<LedgerStep>, Vec<BarModel>) {
-    let best = beam_paths(
-        series,
-        start,
-        first_candidates,
-        limits,
-        (criteria, &[]),
-        refits,
-    )
-    .kept
-    .into_iter()
-    .next()
-    .expect("forward selection keeps at least one path");
+    let best = beam_paths(series, start, first_candidates, limits, criteria, refits)
+        .kept
+        .into_iter()
+        .next()
+        .expect("forward selection keeps at least one path");
     (best.ledger, best.models)
 }
 
@@ -1100,7 +1015,7 @@ fn beam_paths(
     start: Vec<BarModel>,
     first_candidates: &[Candidate],
     (max_steps, beam, max_refits): (usize, usize, Option<usize>),
-    (criteria, air): (&Criteria, &[String]),
+    criteria: &Criteria,
     refits: &Refits,
 ) -> BeamEnd {
     let beam = beam.max(1);
@@ -1136,7 +1051,7 @@ fn beam_paths(
         extensions.sort_by(|(i, _, a), (j, _, b)| {
             (paths[*i].delta_bic + a).total_cmp(&(paths[*j].delta_bic + b))
         });
-        let set_of = |i: usize, c: &Candidate, identity: &dyn Fn(&Effect) -> String| {
+        let set_of = |i: usize, c: &Candidate, identity: fn(&Effect) -> String| {
             let mut set: Vec<String> = effects_of(&paths[i].models)
                 .iter()
                 .chain([&c.effect])
@@ -1147,20 +1062,17 @@ fn beam_paths(
         };
         let mut seen: std::collections::BTreeSet<Vec<String>> = Default::default();
         let mut families: std::collections::BTreeSet<Vec<String>> = Default::default();
-        let family = |e: &Effect| source_family(e, air);
         // The best `beam` extensions of distinct models; of those that differ only by a
-        // channel's transform (`lag:CH` against `heat:CH`, [`response_family`]) or, with `air`,
-        // by the air sensor a source is referred to ([`source_family`]), the better one alone.
-        // The beam then holds fewer paths rather than another alias: on our simulator's
+        // channel's transform (`lag:CH` against `heat:CH`, [`response_family`]) the better one
+        // alone. The beam then holds fewer paths rather than another alias: on our simulator's
         // three-effect campaign (sensor gradient, plate expansion, hidden channel) its three
         // first paths were `heat:P1-H1`, `lag:P1-H1` and `heat:T1-H1`, each ranked again at the
-        // next step on every bar. The other references are tried on the confirmed path
-        // ([`with_the_best_air_reference`]).
+        // next step on every bar.
         let chosen: Vec<(usize, Candidate, f64)> = extensions
             .into_iter()
-            .filter(|(i, c, _)| seen.insert(set_of(*i, c, &term_identity)))
+            .filter(|(i, c, _)| seen.insert(set_of(*i, c, term_identity)))
             .take(beam)
-            .filter(|(i, c, _)| families.insert(set_of(*i, c, &family)))
+            .filter(|(i, c, _)| families.insert(set_of(*i, c, response_family)))
             .collect();
         let extended: Vec<SelectionPath> = chosen
             .into_par_iter()
@@ -1334,7 +1246,6 @@ mod tests {
     use super::keeps_reordered;
     use super::response_family;
     use super::rival_of_a_cut_path;
-    use super::source_family;
     use crate::diagnose::compare::tests::proposed;
     use crate::diagnose::plate::tests::effects;
     use crate::diagnose::Criteria;
@@ -1389,32 +1300,6 @@ mod tests {
         assert_ne!(family("heat:P1"), family("rate:P1@600"));
         assert_ne!(family("heat:T2-T1"), family("air_gradient"));
         assert_eq!(family("head_heating"), family("lag:event:head_power"));
-    }
-
-    /// A source referred to any air sensor, or to none, is one family; the plate, two air
-    /// sensors, two sources and other transforms are not merged.
-    #[test]
-    fn a_source_referred_to_any_air_sensor_is_one_family() {
-        let air = ["T1".to_string(), "T2".to_string()];
-        let family =
-            |name: &str| source_family(&Effect::parse(name).expect("an effect name"), &air);
-        assert_eq!(family("heat:C1"), "source:C1");
-        assert_eq!(family("heat:T1-C1"), family("heat:C1"));
-        assert_eq!(family("lag:C1-T2@1800"), family("heat:C1"));
-        assert_ne!(
-            family("heat:P1-C1"),
-            family("heat:C1"),
-            "the plate is no air sensor"
-        );
-        assert_ne!(family("heat:T2-T1"), family("heat:T1"), "two air sensors");
-        assert_ne!(family("heat:C2-C1"), family("heat:C1"), "two sources");
-        assert_ne!(family("rate:C1@600"), family("heat:C1"));
-        assert_eq!(family("head_heating"), "response:event:head_power");
-        assert_eq!(
-            source_family(&Effect::parse("heat:T1-C1").unwrap(), &[]),
-            "response:T1-C1",
-            "without air sensors, the response family"
-        );
     }
 
     #[test]
