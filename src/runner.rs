@@ -167,7 +167,7 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
 /// (`bench/loop_check.py`, k = 3, seed 4; 10 bars, 15 days, 10-s readings) the base fits
 /// `tau_s_s` of 145-217 s on three bars (the truth's 1 412-2 014 s); the run read the campaign
 /// again with 14-s bins, every reading a node, and the diagnosis refitted 128 000 samples a bar
-/// instead of 42 000, for the same ledger to every digit (26.6 s and 1.03 GB against 13.7 s and
+/// instead of 42 000, for the same ledger to every digit (26.6 s and 1.03 GB against 15.5 s and
 /// 0.58 GB). The identified model is still reported on the coarser bins, with the fit report's
 /// warning that names the time constant (`narrative::fit_report::Warning::CoarseBins`).
 /// Where the diagnosis's models keep a short time constant, its pass on the coarse bins is the
