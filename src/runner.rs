@@ -114,11 +114,10 @@ pub fn run(plan: &RunPlan) -> Result<Outcome> {
 }
 
 /// Ingest and analyse. With no bin length set, the bins are chosen from the campaign's reading
-/// rate ([`io::automatic_bin_s`]) and then checked against the time constants of the models the
-/// run ends with ([`tau_too_short_for_the_bins`]): when one is too short for them
-/// ([`crate::series::too_short_for_bins`]), the campaign is read again with bins that short
-/// time constant allows (at most twice; below 1 s, every reading), before any later stage runs
-/// on the discarded pass.
+/// rate ([`io::automatic_bin_s`]) and then checked against the identified time constants: when
+/// one is too short for them ([`crate::series::too_short_for_bins`]), the campaign is read
+/// again with bins that short time constant allows (at most twice; below 1 s, every reading),
+/// before any later stage runs on the discarded pass.
 fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
     let automatic = plan.automatic_bins;
     let mut plan = if automatic {
@@ -131,13 +130,8 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
             io::read_campaign_binned(&plan.campaign_dir, plan.bin_s)
         })?;
         let mut results = pipeline::identify_stage(&plan, logs);
-        let too_short = if automatic && pass < 2 {
-            tau_too_short_for_the_bins(&plan, &mut results)
-        } else {
-            None
-        };
-        match too_short {
-            Some(tau) => {
+        match shortest_too_short_tau_s(&results, plan.bin_s) {
+            Some(tau) if automatic && pass < 2 => {
                 let bin_s = (tau / crate::series::MIN_BINS_PER_TAU).floor();
                 let bin_s = if bin_s >= 1.0 { bin_s } else { 0.0 };
                 tracing::info!(
@@ -147,7 +141,7 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
                 );
                 plan = plan.with_chosen_bins(bin_s);
             }
-            None => {
+            _ => {
                 pipeline::run_later_stages(&plan, &mut results);
                 return Ok((plan, results));
             }
@@ -156,48 +150,13 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
     unreachable!("the loop returns by its third pass")
 }
 
-/// The shortest time constant of the models the run ends with that is too short for the plan's
-/// bins, if any: the identified models', and where one of those is too short and the plan
-/// diagnoses, the models the diagnosis recommends instead (`Diagnosis::final_models`; the
-/// diagnosis runs here, on these bins, and is kept when they hold its models).
-///
-/// Why the diagnosis's models: a base model bends its time constants to mimic an effect it
-/// lacks, and such a bent one can be short where no model with the missing effects has a short
-/// one. On the loop matrix's second_path + air_gradient + plate_expansion campaign
-/// (`bench/loop_check.py`, k = 3, seed 4; 10 bars, 15 days, 10-s readings) the base fits
-/// `tau_s_s` of 145-217 s on three bars (the truth's 1 412-2 014 s); the run read the campaign
-/// again with 14-s bins, every reading a node, and the diagnosis refitted 128 000 samples a bar
-/// instead of 42 000, for the same ledger to every digit (26.6 s and 1.03 GB against 15.5 s and
-/// 0.58 GB). The identified model is still reported on the coarser bins, with the fit report's
-/// warning that names the time constant (`narrative::fit_report::Warning::CoarseBins`).
-/// Where the diagnosis's models keep a short time constant, its pass on the coarse bins is the
-/// price of the check.
-fn tau_too_short_for_the_bins(plan: &RunPlan, results: &mut RunResults) -> Option<f64> {
-    let identified = shortest_too_short_tau_s(results.bars.iter().map(|o| &o.model), plan.bin_s)?;
-    if !plan.runs(Stage::Diagnose) {
-        return Some(identified);
-    }
-    pipeline::diagnose_stage(plan, results);
-    let recommended = results.diagnosis.as_ref().map(|d| &d.final_models)?;
-    let too_short = shortest_too_short_tau_s(recommended.iter(), plan.bin_s);
-    if too_short.is_none() {
-        tracing::info!(
-            "an identified time constant of {identified:.0} s spans fewer than {} bins of {} s, but the models the diagnosis recommends hold none that short: the bins are kept",
-            crate::series::MIN_BINS_PER_TAU,
-            plan.bin_s
-        );
-    }
-    too_short
-}
-
-/// The shortest time constant of `models` that is too short for bins of `bin_s` (s;
+/// The shortest time constant identified on any bar that is too short for bins of `bin_s` (s;
 /// [`crate::series::too_short_for_bins`]), if any.
-fn shortest_too_short_tau_s<'a>(
-    models: impl Iterator<Item = &'a crate::identify::BarModel>,
-    bin_s: f64,
-) -> Option<f64> {
-    models
-        .flat_map(|m| m.params.iter())
+fn shortest_too_short_tau_s(results: &RunResults, bin_s: f64) -> Option<f64> {
+    results
+        .bars
+        .iter()
+        .flat_map(|o| o.model.params.iter())
         .filter(|p| p.name.starts_with("tau") && p.value.is_finite())
         .filter(|p| crate::series::too_short_for_bins(p.value, p.ci95[1], bin_s))
         .map(|p| p.value)

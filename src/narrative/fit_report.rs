@@ -5,8 +5,6 @@
 use std::fmt::Write;
 
 use super::Headline;
-use crate::diagnose::Diagnosis;
-use crate::identify::{BarModel, Estimate};
 use crate::pipeline::{BarOutcome, RunPlan, RunResults};
 use crate::series::MIN_BINS_PER_TAU as BINS_PER_TAU;
 
@@ -54,9 +52,7 @@ pub(crate) fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headli
             .bars
             .get(&o.model.bar)
             .and_then(quality_line);
-        let diagnosis = results.diagnosis.as_ref();
-        let context = (whiteness(&o.model.bar), plan.bin_s, diagnosis);
-        bar_section(&mut md, o, context, quality);
+        bar_section(&mut md, o, whiteness(&o.model.bar), plan.bin_s, quality);
     }
     if let Some(device) = super::device::markdown(results) {
         md.push_str(&device);
@@ -75,7 +71,8 @@ pub(crate) fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headli
 fn bar_section(
     md: &mut String,
     o: &BarOutcome,
-    (whiteness_p, bin_s, diagnosis): (Option<f64>, f64, Option<&Diagnosis>),
+    whiteness_p: Option<f64>,
+    bin_s: f64,
     quality: Option<String>,
 ) {
     let m = &o.model;
@@ -132,7 +129,7 @@ fn bar_section(
         }
     }
     md.push_str("```\n\n");
-    let warnings = warnings(o, bin_s, diagnosis);
+    let warnings = warnings(o, bin_s);
     if !warnings.is_empty() || quality.is_some() {
         md.push_str("Warnings:\n\n");
         if let Some(q) = quality {
@@ -214,9 +211,6 @@ pub(crate) enum Warning {
         param: String,
         tau_s: f64,
         bin_s: f64,
-        /// The model the diagnosis recommends for the bar holds no time constant too short for
-        /// the bins, which is why the run kept them (`runner::tau_too_short_for_the_bins`).
-        recommended_holds_none: bool,
     },
 }
 
@@ -235,41 +229,26 @@ impl Warning {
                 "not identifiable from this bar's data: {} ({reason})",
                 params.join(", ")
             ),
-            Warning::CoarseBins {
-                param,
-                tau_s,
-                bin_s,
-                recommended_holds_none,
-            } => format!(
-                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s: the compression's straight line within a bin is off by ~(bin/tau)² = {:.1} % of the term's curvature; rerun with --bin-s 0 (every reading) to be exact{}",
-                100.0 * (bin_s / tau_s).powi(2),
-                if *recommended_holds_none {
-                    " (the run kept these bins: the model the diagnosis recommends holds no time constant this short)"
-                } else {
-                    ""
-                }
+            Warning::CoarseBins { param, tau_s, bin_s } => format!(
+                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s: the compression's straight line within a bin is off by ~(bin/tau)² = {:.1} % of the term's curvature; rerun with --bin-s 0 (every reading) to be exact",
+                100.0 * (bin_s / tau_s).powi(2)
             ),
         }
     }
 }
 
-/// The bar's warnings; `bin_s`: the length of the compressed bins (0: every reading);
-/// `diagnosis`: the run's, if it diagnosed.
-pub(crate) fn warnings(o: &BarOutcome, bin_s: f64, diagnosis: Option<&Diagnosis>) -> Vec<Warning> {
+/// The bar's warnings; `bin_s`: the length of the compressed bins (0: every reading).
+pub(crate) fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
     let m = &o.model;
-    let too_short = |p: &&Estimate| {
-        p.name.starts_with("tau") && crate::series::too_short_for_bins(p.value, p.ci95[1], bin_s)
-    };
-    let recommended_holds_none = recommended_model(diagnosis, &m.bar)
-        .is_some_and(|r| !r.params.iter().any(|p| too_short(&p)));
     let mut out = Vec::new();
-    for p in m.params.iter().filter(too_short) {
-        out.push(Warning::CoarseBins {
-            param: p.name.clone(),
-            tau_s: p.value,
-            bin_s,
-            recommended_holds_none,
-        });
+    for p in m.params.iter().filter(|p| p.name.starts_with("tau")) {
+        if crate::series::too_short_for_bins(p.value, p.ci95[1], bin_s) {
+            out.push(Warning::CoarseBins {
+                param: p.name.clone(),
+                tau_s: p.value,
+                bin_s,
+            });
+        }
     }
     for p in &m.params {
         for (end, side) in [(0, "below"), (1, "above")] {
@@ -299,13 +278,6 @@ pub(crate) fn warnings(o: &BarOutcome, bin_s: f64, diagnosis: Option<&Diagnosis>
     out
 }
 
-/// The model the diagnosis recommends for `bar` (`Diagnosis::final_models`), where its ledger
-/// adds an effect to the identified one.
-fn recommended_model<'a>(diagnosis: Option<&'a Diagnosis>, bar: &str) -> Option<&'a BarModel> {
-    let diagnosis = diagnosis.filter(|d| d.ledger.len() > 1)?;
-    diagnosis.final_models.iter().find(|m| m.bar == bar)
-}
-
 /// The warnings as short tags (the page's table of bars), one per kind.
 pub(crate) fn short_flags(warnings: &[Warning]) -> Vec<String> {
     let mut unbounded = Vec::new();
@@ -318,15 +290,8 @@ pub(crate) fn short_flags(warnings: &[Warning]) -> Vec<String> {
             Warning::NotIdentifiable { params, .. } => {
                 flags.push(format!("not identifiable: {}", params.join(", ")))
             }
-            Warning::CoarseBins {
-                param,
-                recommended_holds_none: false,
-                ..
-            } => flags.push(format!(
-                "{param} < {BINS_PER_TAU} bins: rerun with --bin-s 0"
-            )),
             Warning::CoarseBins { param, .. } => flags.push(format!(
-                "{param} < {BINS_PER_TAU} bins; none in the diagnosis's model"
+                "{param} < {BINS_PER_TAU} bins: rerun with --bin-s 0"
             )),
         }
     }

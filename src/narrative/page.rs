@@ -129,11 +129,7 @@ fn bars(h: &mut String, plan: &RunPlan, results: &RunResults, headline: &Headlin
             .and_then(quality_line)
             .into_iter()
             .collect();
-        flags.extend(short_flags(&warnings(
-            o,
-            plan.bin_s,
-            results.diagnosis.as_ref(),
-        )));
+        flags.extend(short_flags(&warnings(o, plan.bin_s)));
         flags.extend(
             strong_correlations(o)
                 .into_iter()

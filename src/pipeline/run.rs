@@ -88,7 +88,16 @@ pub fn run_later_stages(plan: &RunPlan, results: &mut RunResults) {
     if plan.effects != crate::model::base_effects() {
         results.before_after = Some(crate::identify::compare_with_base(&results.bars));
     }
-    diagnose_stage(plan, results);
+    if plan.runs(Stage::Diagnose) {
+        let progress = crate::progress::bar(results.bars.len() as u64, "diagnose");
+        let diagnosis = timed("diagnose", || {
+            crate::diagnose::diagnose_fleet(&results.bars, &diagnose_options(plan), &|| {
+                progress.inc(1)
+            })
+        });
+        progress.finish_and_clear();
+        results.diagnosis = Some(diagnosis);
+    }
     if plan.runs(Stage::Calibrate) {
         results.calibration = Some(crate::calibrate::calibrate_fleet(
             &results.bars,
@@ -162,21 +171,6 @@ fn diagnose_options(plan: &RunPlan) -> DiagnoseOptions {
         forward_steps: plan.diagnose.forward_steps,
         beam: plan.diagnose.beam,
     }
-}
-
-/// The diagnose stage on `results`' identified bars, where the plan runs it and `results` holds
-/// no diagnosis yet (the runner may make it before the other later stages, to decide the bins:
-/// `runner::ingest_and_analyse`).
-pub fn diagnose_stage(plan: &RunPlan, results: &mut RunResults) {
-    if !plan.runs(Stage::Diagnose) || results.diagnosis.is_some() {
-        return;
-    }
-    let progress = crate::progress::bar(results.bars.len() as u64, "diagnose");
-    let diagnosis = timed("diagnose", || {
-        crate::diagnose::diagnose_fleet(&results.bars, &diagnose_options(plan), &|| progress.inc(1))
-    });
-    progress.finish_and_clear();
-    results.diagnosis = Some(diagnosis);
 }
 
 /// `[acceptance]`'s compensation settings.

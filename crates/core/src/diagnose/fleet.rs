@@ -46,11 +46,6 @@ pub struct Diagnosis {
     pub ledger: Vec<LedgerStep>,
     /// Each bar's own forward selection, same order as `bars`.
     pub bar_ledgers: Vec<BarLedger>,
-    /// Each bar's model at the end of the fleet-wide `ledger` (refitted with its effects; the
-    /// identified model where nothing was added or the refit failed), same order as `bars`,
-    /// without its curves over the timeline (`model_um`, `thermal_um` empty): the model the
-    /// diagnosis recommends, its time constants' intervals Wald's.
-    pub final_models: Vec<BarModel>,
 }
 
 /// Diagnose the fleet's identified bars: linearise each model, rank every bar's channels (in
@@ -153,9 +148,5 @@ pub fn diagnose_fleet(
         unavailable,
         ledger,
         bar_ledgers,
-        final_models: fleet_models
-            .into_iter()
-            .map(BarModel::without_curves)
-            .collect(),
     }
 }
