@@ -520,13 +520,14 @@ fn final_total(
     refits: &Refits,
 ) -> Option<f64> {
     let (last, before) = path.split_last()?;
+    let held = effects_of(start);
+    if path.iter().any(|e| holds_term(&held, e)) {
+        return None;
+    }
     let per_bar: Option<Vec<f64>> = series
         .par_iter()
         .zip(start.par_iter())
         .map(|(s, m)| {
-            if path.iter().any(|e| holds_term(&m.effects, e)) {
-                return None;
-            }
             let mut effects = m.effects.clone();
             effects.extend(before.iter().cloned());
             let coarse_start = coarse.start_for(&m.bar, &effects, last)?;
