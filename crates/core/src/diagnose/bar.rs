@@ -101,3 +101,39 @@ pub(super) fn response_family(e: &Effect) -> String {
         _ => identity,
     }
 }
+
+/// The source a channel's response reads, whatever air sensor it is referred to: with `air` the
+/// campaign's air sensors, `heat:C1`, `heat:T1-C1` and `lag:C1-T2` read one source, `source:C1`
+/// (`air` holds T1 and T2, not C1). A difference of two air sensors or of two other sensors, and
+/// any other effect, is its own [`response_family`].
+///
+/// Why: the base model already carries the air through each bar's own lags, so a heat source
+/// referred to one air sensor or another, or to none, is nearly the same term: what those lags
+/// take back. The beam lets one such reference go on once the others add the same next effect
+/// (`selection::beam_paths`).
+pub(super) fn source_family(e: &Effect, air: &[String]) -> String {
+    let family = response_family(e);
+    let Some(channel) = family.strip_prefix("response:") else {
+        return family;
+    };
+    let is_air = |s: &str| air.iter().any(|a| a == s);
+    let source = match channel.split_once('-') {
+        Some((a, b)) if is_air(a) && !is_air(b) => b,
+        Some((a, b)) if is_air(b) && !is_air(a) => a,
+        Some(_) => return family,
+        None if is_air(channel) || channel.starts_with("event:") => return family,
+        None => channel,
+    };
+    format!("source:{source}")
+}
+
+/// The campaign's air sensors (its plate sensor is not one: a term referred to the plate reads
+/// the plate, [`super::plate`]).
+pub(super) fn air_references(series: &BarSeries) -> Vec<String> {
+    series
+        .air_sensor_ids
+        .iter()
+        .filter(|s| series.plate_sensor_id.as_deref() != Some(s.as_str()))
+        .cloned()
+        .collect()
+}

@@ -4,7 +4,9 @@
 //! Separate because it repeats a diagnosis step by step; one step's evaluation is in
 //! `candidates`.
 
-use super::bar::{diagnose_bar, response_family, screen_bases, term_identity};
+use super::bar::{
+    air_references, diagnose_bar, response_family, screen_bases, source_family, term_identity,
+};
 use super::bar_selection::ledger_step;
 use super::candidates::{candidate_effects, evaluate_at_most, refitted_candidate, Refitted};
 use super::compare::competing_delta_bic;
@@ -786,7 +788,14 @@ fn led_by_the_ranking(
             (p.ledger, p.models, total)
         }
         None => {
-            let path = ranking_led_path(&best.effect, &kept.ledger);
+            let air = series
+                .first()
+                .map(|s| air_references(s))
+                .unwrap_or_default();
+            let path = ranking_led_path(&best.effect, &kept.ledger, &air);
+            if ends_above_the_kept(series, &start, &path, &kept, coarse, refits) {
+                return (kept.ledger, kept.models);
+            }
             let (ledger, models) = confirm_path(
                 series,
                 start,
@@ -812,19 +821,60 @@ fn led_by_the_ranking(
     }
 }
 
-/// `best` first, then the effects `ledger` added in their order, except those of `best`'s
-/// [`response_family`]; as many steps as the ledger has (at least one).
-fn ranking_led_path(best: &Effect, ledger: &[LedgerStep]) -> Vec<Effect> {
+/// `best` first, then the effects `ledger` added in their order, except those that read the
+/// same source as `best` ([`source_family`], with `air` the campaign's air sensors: `lag:C1`
+/// and `heat:T1-C1` for `heat:C1`); as many steps as the ledger has (at least one).
+///
+/// Why the source and not only the channel's [`response_family`]: where the ledger leads with
+/// the ranking's best referred to another air sensor, the path led by the best replaces that
+/// term; it does not add the same source twice. On the second simulator's air-gradient +
+/// settling + heat-source campaign (`bench/loop_check.py`, k = 3, seed 7) the ledger
+/// `heat:T1-C1` → `settling` → `air_gradient` was led by `heat:C1` as `heat:C1` → `heat:T1-C1`
+/// → `settling`, whose second step the readings do not propose.
+fn ranking_led_path(best: &Effect, ledger: &[LedgerStep], air: &[String]) -> Vec<Effect> {
     let added = added_effects(ledger);
+    let source = source_family(best, air);
     std::iter::once(best.clone())
         .chain(
             added
                 .iter()
-                .filter(|e| response_family(e) != response_family(best))
+                .filter(|e| source_family(e, air) != source)
                 .cloned(),
         )
         .take(added.len().max(1))
         .collect()
+}
+
+/// Whether the final model of `path` (the ledger led by the ranking's best,
+/// [`ranking_led_path`]) ends above what `kept` totals by more than [`LEDGER_TIE_BIC`]: its
+/// BIC less `start`'s ([`final_total`], every bar refitted once from the copies' fit of the
+/// same effects, [`CoarseFleet::final_bic`]) is what its confirmed ledger would total where
+/// each of its steps is proposed, so [`keeps_reordered`] could not keep it. Asked only where
+/// `kept` had every coarse step proposed on the readings, as [`ends_above_the_lowest`] is.
+///
+/// Why: where the ledger leads with the ranking's best referred to another air sensor (the
+/// beam lets one reference go on, [`beam_paths`]), the path led by the best has no refits on
+/// the readings beyond its first step, and its confirmation ranks the readings' candidates at
+/// each step. On the second simulator's air-gradient + settling + heat-source campaign
+/// (`bench/loop_check.py`, k = 3, seed 7) `heat:C1` → `settling` → `air_gradient` ends 115
+/// above `heat:T1-C1` → `settling` → `air_gradient`.
+fn ends_above_the_kept(
+    series: &[&BarSeries],
+    start: &[BarModel],
+    path: &[Effect],
+    kept: &ConfirmedPath,
+    coarse: &CoarseFleet,
+    refits: &Refits,
+) -> bool {
+    if !kept.completed() || coarse.final_bic(path).is_none() {
+        return false;
+    }
+    let Some(bound) = final_total(series, start, path, coarse, refits) else {
+        return false;
+    };
+    let above = !keeps_reordered(bound, kept.total());
+    tracing::debug!(path = ?path.iter().map(Effect::name).collect::<Vec<_>>(), bound, kept = kept.total(), skipped = above, "diagnose: the final model led by the ranking's best against the kept");
+    above
 }
 
 /// Whether a ledger led by the ranking's best, of total ΔBIC `reordered_total`, replaces the
@@ -1020,6 +1070,10 @@ fn beam_paths(
     refits: &Refits,
 ) -> BeamEnd {
     let beam = beam.max(1);
+    let air = series
+        .first()
+        .map(|s| air_references(s))
+        .unwrap_or_default();
     let mut paths = vec![SelectionPath::starting_at(start)];
     let mut pushed_out: Option<SelectionPath> = None;
     for step in 0..max_steps {
@@ -1052,7 +1106,7 @@ fn beam_paths(
         extensions.sort_by(|(i, _, a), (j, _, b)| {
             (paths[*i].delta_bic + a).total_cmp(&(paths[*j].delta_bic + b))
         });
-        let set_of = |i: usize, c: &Candidate, identity: fn(&Effect) -> String| {
+        let set_of = |i: usize, c: &Candidate, identity: &dyn Fn(&Effect) -> String| {
             let mut set: Vec<String> = effects_of(&paths[i].models)
                 .iter()
                 .chain([&c.effect])
@@ -1063,17 +1117,34 @@ fn beam_paths(
         };
         let mut seen: std::collections::BTreeSet<Vec<String>> = Default::default();
         let mut families: std::collections::BTreeSet<Vec<String>> = Default::default();
+        let mut agreeing: std::collections::BTreeSet<(Vec<String>, String)> = Default::default();
+        let last_step = step + 1 == max_steps;
         // The best `beam` extensions of distinct models; of those that differ only by a
         // channel's transform (`lag:CH` against `heat:CH`, [`response_family`]) the better one
         // alone. The beam then holds fewer paths rather than another alias: on our simulator's
         // three-effect campaign (sensor gradient, plate expansion, hidden channel) its three
         // first paths were `heat:P1-H1`, `lag:P1-H1` and `heat:T1-H1`, each ranked again at the
         // next step on every bar.
+        //
+        // Likewise, before the last step, of paths that read one heat source referred to
+        // different air sensors ([`source_family`]: `heat:C1`, `heat:T1-C1`) and add the same
+        // effect at this step, the better alone goes on: they agree on what comes next, and
+        // each would be extended and confirmed again. Where they add different effects (the
+        // reference decides the later step: on the second simulator's creep + heat-source
+        // campaign `second_path` follows `heat:C1`, `creep` follows `heat:T1-C1`) all go on,
+        // and at the last step the readings decide between references (`confirm_tied_paths`).
+        // On the settling + creep + heat-source campaign (`bench/loop_check.py`, k = 3, seed 5)
+        // the three references' paths each added `settling` at the second step and were each
+        // extended and two of them confirmed: 14 of 34 s.
+        let source = |e: &Effect| source_family(e, &air);
         let chosen: Vec<(usize, Candidate, f64)> = extensions
             .into_iter()
-            .filter(|(i, c, _)| seen.insert(set_of(*i, c, term_identity)))
+            .filter(|(i, c, _)| seen.insert(set_of(*i, c, &term_identity)))
             .take(beam)
-            .filter(|(i, c, _)| families.insert(set_of(*i, c, response_family)))
+            .filter(|(i, c, _)| families.insert(set_of(*i, c, &response_family)))
+            .filter(|(i, c, _)| {
+                last_step || agreeing.insert((set_of(*i, c, &source), term_identity(&c.effect)))
+            })
             .collect();
         let extended: Vec<SelectionPath> = chosen
             .into_par_iter()
