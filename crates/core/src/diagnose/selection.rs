@@ -1316,8 +1316,11 @@ fn extend_path(
 mod tests {
     use super::beam_extensions;
     use super::keeps_reordered;
+    use super::ranking_led_path;
     use super::response_family;
     use super::rival_of_a_cut_path;
+    use super::source_family;
+    use super::{Added, LedgerStep};
     use crate::diagnose::compare::tests::proposed;
     use crate::diagnose::plate::tests::effects;
     use crate::diagnose::Criteria;
@@ -1372,6 +1375,65 @@ mod tests {
         assert_ne!(family("heat:P1"), family("rate:P1@600"));
         assert_ne!(family("heat:T2-T1"), family("air_gradient"));
         assert_eq!(family("head_heating"), family("lag:event:head_power"));
+    }
+
+    #[test]
+    fn one_source_referred_to_any_air_sensor_is_one_family_and_nothing_else_joins_it() {
+        let air = ["T1".to_string(), "T2".to_string()];
+        let family =
+            |name: &str| source_family(&Effect::parse(name).expect("an effect name"), &air);
+        assert_eq!(family("heat:C1"), "source:C1");
+        for alias in ["heat:T1-C1", "heat:C1-T2", "lag:T2-C1", "lag:C1@3600"] {
+            assert_eq!(family(alias), family("heat:C1"), "{alias}");
+        }
+        // A difference of two air sensors, of two other sensors, an air sensor alone, an
+        // event and a catalogue effect: each its own channel's family.
+        assert_eq!(
+            family("heat:T2-T1"),
+            response_family(&effects(&["heat:T2-T1"])[0])
+        );
+        assert_ne!(family("heat:C1-P1"), family("heat:C1"));
+        assert_ne!(family("heat:T1"), family("heat:T2"));
+        assert_ne!(family("lag:event:head_power"), family("heat:C1"));
+        assert_eq!(family("air_gradient"), "air_gradient");
+        // Without air sensors nothing is referred to them.
+        let none = source_family(&effects(&["heat:T1-C1"])[0], &[]);
+        assert_ne!(none, family("heat:C1"));
+    }
+
+    #[test]
+    fn the_ledger_led_by_the_ranking_replaces_the_source_it_leads_with() {
+        let air = ["T1".to_string(), "T2".to_string()];
+        let ledger: Vec<LedgerStep> = std::iter::once(Added::Base)
+            .chain(
+                effects(&["heat:T1-C1", "settling", "air_gradient"])
+                    .into_iter()
+                    .map(Added::Effect),
+            )
+            .map(|added| LedgerStep {
+                added,
+                effects: Vec::new(),
+                rms_um: Vec::new(),
+                fleet_rms_um: 0.02,
+                delta_bic: None,
+                p_value: None,
+            })
+            .collect();
+        let led = |best: &str| {
+            ranking_led_path(&effects(&[best])[0], &ledger, &air)
+                .iter()
+                .map(Effect::name)
+                .collect::<Vec<_>>()
+        };
+        // The second simulator's air-gradient + settling + heat-source campaign (k = 3, seed 7).
+        assert_eq!(led("heat:C1"), ["heat:C1", "settling", "air_gradient"]);
+        assert_eq!(led("lag:T2-C1"), ["lag:T2-C1", "settling", "air_gradient"]);
+        // Another effect first: the ledger's own, cut to its length.
+        assert_eq!(led("creep"), ["creep", "heat:T1-C1", "settling"]);
+        assert_eq!(
+            led("air_gradient"),
+            ["air_gradient", "heat:T1-C1", "settling"]
+        );
     }
 
     #[test]
