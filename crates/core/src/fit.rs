@@ -505,6 +505,8 @@ pub fn fit<P: Separable>(
         return Err(FitError::NonFinite);
     }
     let jac = full_jacobian(problem, &theta, &phi, &coef);
+    // Not needed past the Jacobian: the uncertainties' copies of it are as large.
+    drop(phi);
     let mut names = problem.linear_names();
     names.extend(problem.nonlinear_names());
     if let Some((undetermined, ratio)) = undetermined_parameters(&jac) {

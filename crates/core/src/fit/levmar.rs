@@ -147,8 +147,11 @@ impl<P: Separable> LeastSquaresProblem<f64, Dyn, Dyn> for Projected<'_, P> {
     type JacobianStorage = Owned<f64, Dyn, Dyn>;
     type ParameterStorage = Owned<f64, Dyn>;
 
+    /// The previous point's basis and factorisation are dropped before the new ones are made:
+    /// held while the next are computed, a refit on the readings had two of each at once.
     fn set_params(&mut self, theta: &DVector<f64>) {
         self.theta.copy_from(theta);
+        self.solved = None;
         self.solved = self.solve(theta);
     }
 

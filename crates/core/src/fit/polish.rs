@@ -177,6 +177,9 @@ impl<P: Separable> Reduced<'_, P> {
                 return Ok(solved.clone());
             }
         }
+        // The last point's basis and factorisation go before the next are made (the caller
+        // holds what it needs of them): kept meanwhile, a refit's peak held two of each.
+        *self.last.borrow_mut() = None;
         let phi = self.problem.basis(theta.as_slice());
         if !phi.iter().all(|v| v.is_finite()) {
             return Err(argmin::core::Error::msg("the basis is not finite"));
