@@ -1134,8 +1134,8 @@ fn beam_paths(
         // campaign `second_path` follows `heat:C1`, `creep` follows `heat:T1-C1`) all go on,
         // and at the last step the readings decide between references (`confirm_tied_paths`).
         // On the settling + creep + heat-source campaign (`bench/loop_check.py`, k = 3, seed 5)
-        // the three references' paths each added `settling` at the second step and were each
-        // extended and two of them confirmed: 14 of 34 s.
+        // the three references' paths each added `settling` at the second step, and each was
+        // extended and two of them confirmed: the night took 34.3 s, with one path 22.9 s.
         let source = |e: &Effect| source_family(e, &air);
         let chosen: Vec<(usize, Candidate, f64)> = extensions
             .into_iter()
