@@ -127,9 +127,12 @@ pub(super) fn source_family(e: &Effect, air: &[String]) -> String {
     format!("source:{source}")
 }
 
-/// The campaign's air sensors (its plate sensor is not one: a term referred to the plate reads
-/// the plate, [`super::plate`]).
-pub(super) fn air_references(series: &BarSeries) -> Vec<String> {
+/// The campaign's air sensors, as the fleet's first bar reads them (its plate sensor is not
+/// one: a term referred to the plate reads the plate, [`super::plate`]); none for no bar.
+pub(super) fn air_references(fleet: &[&BarSeries]) -> Vec<String> {
+    let Some(series) = fleet.first() else {
+        return Vec::new();
+    };
     series
         .air_sensor_ids
         .iter()

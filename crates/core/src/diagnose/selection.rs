@@ -788,11 +788,7 @@ fn led_by_the_ranking(
             (p.ledger, p.models, total)
         }
         None => {
-            let air = series
-                .first()
-                .map(|s| air_references(s))
-                .unwrap_or_default();
-            let path = ranking_led_path(&best.effect, &kept.ledger, &air);
+            let path = ranking_led_path(&best.effect, &kept.ledger, &air_references(series));
             if ends_above_the_kept(series, &start, &path, &kept, coarse, refits) {
                 return (kept.ledger, kept.models);
             }
@@ -1070,10 +1066,7 @@ fn beam_paths(
     refits: &Refits,
 ) -> BeamEnd {
     let beam = beam.max(1);
-    let air = series
-        .first()
-        .map(|s| air_references(s))
-        .unwrap_or_default();
+    let air = air_references(series);
     let mut paths = vec![SelectionPath::starting_at(start)];
     let mut pushed_out: Option<SelectionPath> = None;
     for step in 0..max_steps {
