@@ -512,8 +512,10 @@ fn ends_above_the_lowest(
     bound > lowest
 }
 
-/// The BIC of `path`'s final model less `start`'s ([`ends_above_the_lowest`]); `None` where a
-/// bar has no start on the copies, a refit fails, or the path adds a term `start` holds.
+/// The BIC of `path`'s final model less `start`'s ([`ends_above_the_lowest`]), each bar refitted
+/// from the copies' fit of the same effects (made there first where the beam did not:
+/// [`CoarseFleet::final_bic`], cached); `None` where a refit fails on the copies or the
+/// readings, or the path adds a term `start` holds.
 fn final_total(
     series: &[&BarSeries],
     start: &[BarModel],
@@ -526,6 +528,7 @@ fn final_total(
     if path.iter().any(|e| holds_term(&held, e)) {
         return None;
     }
+    coarse.final_bic(path)?;
     let per_bar: Option<Vec<f64>> = series
         .par_iter()
         .zip(start.par_iter())
@@ -844,7 +847,7 @@ fn ranking_led_path(best: &Effect, ledger: &[LedgerStep], air: &[String]) -> Vec
 /// Whether the final model of `path` (the ledger led by the ranking's best,
 /// [`ranking_led_path`]) ends above what `kept` totals by more than [`LEDGER_TIE_BIC`]: its
 /// BIC less `start`'s ([`final_total`], every bar refitted once from the copies' fit of the
-/// same effects, [`CoarseFleet::final_bic`]) is what its confirmed ledger would total where
+/// same effects) is what its confirmed ledger would total where
 /// each of its steps is proposed, so [`keeps_reordered`] could not keep it. Asked only where
 /// `kept` had every coarse step proposed on the readings, as [`ends_above_the_lowest`] is.
 ///
@@ -862,7 +865,7 @@ fn ends_above_the_kept(
     coarse: &CoarseFleet,
     refits: &Refits,
 ) -> bool {
-    if !kept.completed() || coarse.final_bic(path).is_none() {
+    if !kept.completed() {
         return false;
     }
     let Some(bound) = final_total(series, start, path, coarse, refits) else {
