@@ -34,7 +34,7 @@ pub(crate) fn fit_report(plan: &RunPlan, results: &RunResults, headline: &Headli
     if let Some(text) = results
         .diagnosis
         .as_ref()
-        .and_then(super::page::ledger_text)
+        .and_then(|d| super::page::ledger_text(d, plan.bin_s))
     {
         let _ = writeln!(md, "- **Ledger**: {text}");
     }

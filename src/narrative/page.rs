@@ -45,7 +45,7 @@ pub(crate) fn page(
     );
     night(&mut h, headline);
     bars(&mut h, plan, results, headline);
-    the_loop(&mut h, results, headline, figures);
+    the_loop(&mut h, results, headline, figures, plan.bin_s);
     per_bar(&mut h, results, figures);
     acceptance(&mut h, plan, results, figures);
     super::device::html(&mut h, results, figures);
@@ -163,7 +163,14 @@ fn bars(h: &mut String, plan: &RunPlan, results: &RunResults, headline: &Headlin
 }
 
 /// 3. The loop: ranked candidates, the ledger, and the command that adds the top one.
-fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: &[FigureFile]) {
+/// `bin_s`: the length of the compressed bins the diagnosis ran on (0: every reading).
+fn the_loop(
+    h: &mut String,
+    results: &RunResults,
+    headline: &Headline,
+    figures: &[FigureFile],
+    bin_s: f64,
+) {
     let Some(d) = &results.diagnosis else {
         return;
     };
@@ -242,15 +249,16 @@ fn the_loop(h: &mut String, results: &RunResults, headline: &Headline, figures: 
     {
         figure(h, f);
     }
-    if let Some(text) = ledger_text(d) {
+    if let Some(text) = ledger_text(d, bin_s) {
         let _ = writeln!(h, "<p class=\"ledger\">{}</p>", escape(&text));
     }
     h.push_str("</section>\n");
 }
 
-/// The fleet ledger in words, and why its first step is not the top-ranked candidate when it
-/// is not (forward selection keeps the path whose steps together lower the BIC most).
-pub(crate) fn ledger_text(d: &crate::pipeline::Diagnosis) -> Option<String> {
+/// The fleet ledger in words, why its first step is not the top-ranked candidate when it is not
+/// (forward selection keeps the path whose steps together lower the BIC most), and where its
+/// last model holds a time constant too short for the bins (`bin_s`, [`ledger_bins_text`]).
+pub(crate) fn ledger_text(d: &crate::pipeline::Diagnosis, bin_s: f64) -> Option<String> {
     if d.ledger.len() < 2 {
         return None;
     }
@@ -269,7 +277,43 @@ pub(crate) fn ledger_text(d: &crate::pipeline::Diagnosis) -> Option<String> {
             ));
         }
     }
+    if let Some(bins) = ledger_bins_text(&d.ledger_time_constants, bin_s) {
+        text.push(' ');
+        text.push_str(&bins);
+    }
     Some(text)
+}
+
+/// Where a time constant the ledger's last model adds is too short for the bins the diagnosis
+/// ran on (`bin_s`; [`crate::series::too_short_for_bins`]), a sentence naming the shortest.
+///
+/// Why: the bins are chosen for the identified model's time constants (`runner`'s re-read), not
+/// for those of the model the ledger recommends; on the second simulator's second path + air
+/// gradient (`bench/loop_check.py`, k = 2, seed 8) its 215-s second path sat in 52-s bins, the
+/// ledger's figures for it carrying ~(52/215)² = 6 % of that term's curvature, and the page said
+/// nothing.
+fn ledger_bins_text(
+    constants: &[dbbcal_core::diagnose::LedgerTimeConstant],
+    bin_s: f64,
+) -> Option<String> {
+    let short: Vec<_> = constants
+        .iter()
+        .filter(|t| crate::series::too_short_for_bins(t.estimate.value, t.estimate.ci95[1], bin_s))
+        .collect();
+    let shortest = short
+        .iter()
+        .min_by(|a, b| a.estimate.value.total_cmp(&b.estimate.value))?;
+    let bars: std::collections::BTreeSet<&str> = short.iter().map(|t| t.bar.as_str()).collect();
+    let tau_s = shortest.estimate.value;
+    Some(format!(
+        "Its last model fits {} = {tau_s:.0} s on bar {} (the shortest; {} bar{} one this short), fewer than {} bins of {bin_s:.0} s: its figures for that term carry the compression's error, ~(bin/tau)² = {:.1} % of the term's curvature. A run that adds the effect reads the campaign again with shorter bins where the bins are chosen automatically; else rerun with --bin-s 0.",
+        shortest.estimate.name,
+        shortest.bar,
+        bars.len(),
+        if bars.len() == 1 { " has" } else { "s have" },
+        crate::series::MIN_BINS_PER_TAU,
+        100.0 * (bin_s / tau_s).powi(2)
+    ))
 }
 
 /// 4. Per bar: measured against model, diagnosis, its own ledger; the fleet's figures.
@@ -512,6 +556,45 @@ mod tests {
         assert_eq!(
             escape("<a href=\"x\">&'"),
             "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
+        );
+    }
+
+    /// A time constant of the ledger's last model, `[lo, hi]` its 95 % interval.
+    fn ledger_tau(bar: &str, tau_s: f64, hi: f64) -> dbbcal_core::diagnose::LedgerTimeConstant {
+        dbbcal_core::diagnose::LedgerTimeConstant {
+            bar: bar.into(),
+            estimate: dbbcal_core::identify::Estimate {
+                name: "tau_2_s".into(),
+                value: tau_s,
+                u: 10.0,
+                u_naive: 8.0,
+                ci95: [tau_s - 20.0, hi],
+                ci95_at_search_bound: [false; 2],
+            },
+        }
+    }
+
+    /// The ledger's sentence on the bins names the shortest time constant too short for them and
+    /// how many bars hold one; none where the bins are short enough, where the interval reaches
+    /// past them, or where every reading is fitted.
+    #[test]
+    fn the_ledger_says_when_its_last_model_is_too_short_for_the_bins() {
+        let constants = [
+            ledger_tau("F01", 260.0, 300.0),
+            ledger_tau("F03", 215.0, 240.0),
+            ledger_tau("F04", 900.0, 950.0),
+        ];
+        let text = ledger_bins_text(&constants, 52.0).expect("two are too short");
+        assert!(
+            text.contains("tau_2_s = 215 s on bar F03") && text.contains("2 bars have one"),
+            "{text}"
+        );
+        assert!(text.contains("5.8 %"), "{text}");
+        assert_eq!(ledger_bins_text(&constants, 20.0), None);
+        assert_eq!(ledger_bins_text(&constants, 0.0), None);
+        assert_eq!(
+            ledger_bins_text(&[ledger_tau("F01", 215.0, 900.0)], 52.0),
+            None
         );
     }
 }

@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use crate::identify::{BarModel, BarOutcome};
+use crate::identify::{BarModel, BarOutcome, Estimate};
 use crate::model::Effect;
 use crate::series::BarSeries;
 use crate::stage::timed;
@@ -46,6 +46,44 @@ pub struct Diagnosis {
     pub ledger: Vec<LedgerStep>,
     /// Each bar's own forward selection, same order as `bars`.
     pub bar_ledgers: Vec<BarLedger>,
+    /// The time constants the fleet ledger's last model adds to each bar's identified model
+    /// ([`ledger_time_constants`]).
+    pub ledger_time_constants: Vec<LedgerTimeConstant>,
+}
+
+/// A time constant that the model the fleet ledger ends on adds to a bar's identified model, as
+/// the ledger's refit estimates it (a Wald interval): a report checks it against the bins the
+/// diagnosis ran on, which were chosen for the identified model's time constants only.
+#[derive(Debug, Clone)]
+pub struct LedgerTimeConstant {
+    /// The bar.
+    pub bar: String,
+    /// The time constant (`tau_…_s`, seconds), its uncertainty and interval.
+    pub estimate: Estimate,
+}
+
+/// The time constants of `fleet_models` (the ledger's last model of each bar) that the bar's
+/// identified model does not hold; none when the ledger added nothing.
+fn ledger_time_constants(
+    bars: &[BarOutcome],
+    ledger: &[LedgerStep],
+    fleet_models: &[BarModel],
+) -> Vec<LedgerTimeConstant> {
+    if ledger.len() < 2 {
+        return Vec::new();
+    }
+    bars.iter()
+        .zip(fleet_models)
+        .flat_map(|(o, m)| {
+            m.params
+                .iter()
+                .filter(|p| p.name.starts_with("tau") && o.model.param(&p.name).is_none())
+                .map(|p| LedgerTimeConstant {
+                    bar: m.bar.clone(),
+                    estimate: p.clone(),
+                })
+        })
+        .collect()
 }
 
 /// Diagnose the fleet's identified bars: linearise each model, rank every bar's channels (in
@@ -140,6 +178,7 @@ pub fn diagnose_fleet(
             })
             .collect()
     });
+    let ledger_time_constants = ledger_time_constants(bars, &ledger, &fleet_models);
     Diagnosis {
         bars: diagnoses,
         sensors,
@@ -148,5 +187,6 @@ pub fn diagnose_fleet(
         unavailable,
         ledger,
         bar_ledgers,
+        ledger_time_constants,
     }
 }

@@ -131,7 +131,7 @@ pub(crate) use bar_selection::{
 pub use candidates::Unavailable;
 pub(crate) use candidates::{candidate_effects, evaluate_candidates, with_the_ledgers_first_step};
 pub use error::CandidateError;
-pub use fleet::{diagnose_fleet, DiagnoseOptions, Diagnosis};
+pub use fleet::{diagnose_fleet, DiagnoseOptions, Diagnosis, LedgerTimeConstant};
 pub use reason::Reason;
 pub(crate) use refits::Refits;
 pub(crate) use selection::forward_selection;
