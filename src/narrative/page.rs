@@ -163,6 +163,7 @@ fn bars(h: &mut String, plan: &RunPlan, results: &RunResults, headline: &Headlin
 }
 
 /// 3. The loop: ranked candidates, the ledger, and the command that adds the top one.
+///
 /// `bin_s`: the length of the compressed bins the diagnosis ran on (0: every reading).
 fn the_loop(
     h: &mut String,

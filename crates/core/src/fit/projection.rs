@@ -64,11 +64,17 @@ pub(super) struct Factorised {
     local: Vec<LocalColumn>,
     /// The basis columns the QR factorises, in order (all of them when `local` is empty).
     dense: Vec<usize>,
+    /// Their QR.
+    qr: BlockedQr,
+}
+
+/// The blocked QR of a basis' dense columns.
+struct BlockedQr {
     /// Each block's first row and QR.
     blocks: Vec<(usize, Qr)>,
     /// The QR of the blocks' stacked `R` factors, when there is more than one block.
     top: Option<Qr>,
-    /// The triangular factor `R` of the dense columns.
+    /// The triangular factor `R`.
     r: DMatrix<f64>,
 }
 
@@ -123,10 +129,7 @@ fn local_columns(phi: &DMatrix<f64>) -> Vec<(usize, std::ops::Range<usize>)> {
 
 /// The blocked QR of the rows of `unit` (columns already of unit norm, or divided by `scale`
 /// here) and its triangular factor; `None` for fewer rows than columns.
-fn factorise_blocks(
-    unit: &DMatrix<f64>,
-    scale: &[f64],
-) -> Option<(Vec<(usize, Qr)>, Option<Qr>, DMatrix<f64>)> {
+fn factorise_blocks(unit: &DMatrix<f64>, scale: &[f64]) -> Option<BlockedQr> {
     let (n, m) = unit.shape();
     if n < m {
         return None;
@@ -152,10 +155,18 @@ fn factorise_blocks(
         }
         let top = stacked.qr();
         let r = top.r();
-        Some((blocks, Some(top), r))
+        Some(BlockedQr {
+            blocks,
+            top: Some(top),
+            r,
+        })
     } else {
         let r = blocks[0].1.r();
-        Some((blocks, None, r))
+        Some(BlockedQr {
+            blocks,
+            top: None,
+            r,
+        })
     }
 }
 
@@ -169,18 +180,22 @@ impl Factorised {
             return None;
         }
         let runs = local_columns(phi);
-        let (local, dense, factors) = if runs.is_empty() {
+        let (local, dense, qr) = if runs.is_empty() {
             (Vec::new(), (0..m).collect(), factorise_blocks(phi, &scale)?)
         } else {
             let (local, dense, unit) = project_out_local(phi, &scale, runs);
-            let factors = if dense.is_empty() {
-                (Vec::new(), None, DMatrix::zeros(0, 0))
+            let qr = if dense.is_empty() {
+                BlockedQr {
+                    blocks: Vec::new(),
+                    top: None,
+                    r: DMatrix::zeros(0, 0),
+                }
             } else {
                 factorise_blocks(&unit, &vec![1.0; dense.len()])?
             };
-            (local, dense, factors)
+            (local, dense, qr)
         };
-        let (blocks, top, r) = factors;
+        let r = &qr.r;
         let diag_max = (0..r.nrows())
             .map(|i| r[(i, i)].abs())
             .fold(if local.is_empty() { 0.0 } else { 1.0 }, f64::max);
@@ -192,9 +207,7 @@ impl Factorised {
             scale,
             local,
             dense,
-            blocks,
-            top,
-            r,
+            qr,
         })
     }
 
@@ -207,16 +220,16 @@ impl Factorised {
         if m == 0 {
             return (DVector::zeros(0), y.iter().map(|v| v * v).sum());
         }
-        let mut heads = DVector::zeros(self.blocks.len() * m);
+        let mut heads = DVector::zeros(self.qr.blocks.len() * m);
         let mut tail = 0.0;
-        for (b, (start, qr)) in self.blocks.iter().enumerate() {
-            let end = self.blocks.get(b + 1).map_or(y.len(), |(s, _)| *s);
+        for (b, (start, qr)) in self.qr.blocks.iter().enumerate() {
+            let end = self.qr.blocks.get(b + 1).map_or(y.len(), |(s, _)| *s);
             let mut part = DVector::from_column_slice(&y[*start..end]);
             qr.q_tr_mul(&mut part);
             heads.rows_mut(b * m, m).copy_from(&part.rows(0, m));
             tail += part.rows(m, part.len() - m).norm_squared();
         }
-        if let Some(top) = &self.top {
+        if let Some(top) = &self.qr.top {
             top.q_tr_mul(&mut heads);
             tail += heads.rows(m, heads.len() - m).norm_squared();
             heads = heads.rows(0, m).into_owned();
@@ -260,7 +273,7 @@ impl Factorised {
         }
         let (rest, along_local) = self.without_local(y);
         let (head, _) = self.q_tr(&rest);
-        let dense = self.r.solve_upper_triangular(&head)?;
+        let dense = self.qr.r.solve_upper_triangular(&head)?;
         let mut c = DVector::zeros(self.scale.len());
         for (k, &j) in self.dense.iter().enumerate() {
             c[j] = dense[k];
