@@ -290,9 +290,9 @@ pub(crate) fn ledger_text(d: &crate::pipeline::Diagnosis, bin_s: f64) -> Option<
 ///
 /// Why: the bins are chosen for the identified model's time constants (`runner`'s re-read), not
 /// for those of the model the ledger recommends; on the second simulator's second path + air
-/// gradient (`bench/loop_check.py`, k = 2, seed 8) its 215-s second path sat in 52-s bins, the
-/// ledger's figures for it carrying ~(52/215)² = 6 % of that term's curvature, and the page said
-/// nothing.
+/// gradient (`bench/loop_check.py`, k = 2, seed 8) its second path (`tau_2_s` 411 s on F01, and
+/// on one other bar under 520 s) sat in 52-s bins, the ledger's figures for it carrying
+/// ~(52/411)² = 1.6 % of that term's curvature, and the page said nothing.
 fn ledger_bins_text(
     constants: &[dbbcal_core::diagnose::LedgerTimeConstant],
     bin_s: f64,
@@ -560,7 +560,7 @@ mod tests {
         );
     }
 
-    /// A time constant of the ledger's last model, `[lo, hi]` its 95 % interval.
+    /// A time constant of the ledger's last model whose 95 % interval ends at `hi`.
     fn ledger_tau(bar: &str, tau_s: f64, hi: f64) -> dbbcal_core::diagnose::LedgerTimeConstant {
         dbbcal_core::diagnose::LedgerTimeConstant {
             bar: bar.into(),
