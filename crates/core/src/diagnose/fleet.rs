@@ -47,7 +47,7 @@ pub struct Diagnosis {
     /// Each bar's own forward selection, same order as `bars`.
     pub bar_ledgers: Vec<BarLedger>,
     /// The time constants the fleet ledger's last model adds to each bar's identified model
-    /// ([`ledger_time_constants`]).
+    /// (none when the ledger added nothing).
     pub ledger_time_constants: Vec<LedgerTimeConstant>,
 }
 
