@@ -247,12 +247,7 @@ impl Factorised {
         let along = self
             .local
             .iter()
-            .map(|l| {
-                let part = &mut rest[l.rows.clone()];
-                let a: f64 = l.unit.iter().zip(part.iter()).map(|(u, v)| u * v).sum();
-                part.iter_mut().zip(&l.unit).for_each(|(v, u)| *v -= a * u);
-                a
-            })
+            .map(|l| project_out(&l.unit, &mut rest[l.rows.clone()]))
             .collect();
         (std::borrow::Cow::Owned(rest), along)
     }
@@ -325,10 +320,10 @@ fn project_out_local(
                 .collect();
             let along_dense = (0..dense.len())
                 .map(|k| {
-                    let part = &mut unit.as_mut_slice()[k * n + rows.start..k * n + rows.end];
-                    let a: f64 = u.iter().zip(part.iter()).map(|(u, v)| u * v).sum();
-                    part.iter_mut().zip(&u).for_each(|(v, u)| *v -= a * u);
-                    a
+                    project_out(
+                        &u,
+                        &mut unit.as_mut_slice()[k * n + rows.start..k * n + rows.end],
+                    )
                 })
                 .collect();
             LocalColumn {
@@ -340,6 +335,14 @@ fn project_out_local(
         })
         .collect();
     (local, dense, unit)
+}
+
+/// `part` less its component along the unit vector `unit` (both on a local column's rows); the
+/// component, `unitᵀ part`.
+fn project_out(unit: &[f64], part: &mut [f64]) -> f64 {
+    let along: f64 = unit.iter().zip(part.iter()).map(|(u, v)| u * v).sum();
+    part.iter_mut().zip(unit).for_each(|(v, u)| *v -= along * u);
+    along
 }
 
 /// The columns of a basis that a one-parameter sweep holds (those not on the swept `θ_k`,
