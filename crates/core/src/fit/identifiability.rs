@@ -4,6 +4,7 @@
 //! Separate because it is a question about the Jacobian alone, asked before a fit is trusted
 //! (`identify` leaves such parameters out and says why).
 
+use super::projection::triangular_factor;
 use nalgebra::DMatrix;
 
 /// Directions of the Jacobian, each column scaled to unit norm, whose singular value is below
@@ -39,18 +40,10 @@ pub(crate) fn undetermined_parameters(jac: &DMatrix<f64>) -> Option<(Vec<usize>,
     if !bad.is_empty() {
         return Some((bad, 0.0));
     }
-    let mut scaled = jac.clone();
-    for (mut c, n) in scaled.column_iter_mut().zip(&norms) {
-        c /= *n;
-    }
     // The right singular vectors and singular values of `J = QR` are those of `R` (`p × p`):
     // the SVD of the tall Jacobian itself cost twice the QR and dominated a refit's
-    // uncertainties.
-    let r = if scaled.nrows() > scaled.ncols() {
-        scaled.qr().r()
-    } else {
-        scaled
-    };
+    // uncertainties. `R` is formed by blocks of rows, without a scaled copy of `J`.
+    let r = triangular_factor(jac, &norms);
     let svd = r.svd(false, true);
     let v_t = svd.v_t?;
     let s = &svd.singular_values;
