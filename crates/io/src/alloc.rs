@@ -27,7 +27,7 @@
 //! Memory: what is kept is what was in use before, so the peak is unchanged up to
 //! fragmentation (`bench/README.md`, "The 1 Hz layouts", measures peak RSS). That can be much:
 //! on the diagnosis of a 10-s campaign read at every reading (the second simulator's k = 3,
-//! seed 4) the peak RSS was about 950 MB where the pages in use peaked at about 730 MB
+//! seed 4) the peak RSS was about 930 MiB where the pages in use peaked at about 730 MiB
 //! (`MIMALLOC_PURGE_DELAY=0`); returned after 1 s instead, the run took 10 % longer
 //! (`bench/README.md`, "The fifth session of the day"). Nothing here changes a result.
 
