@@ -32,13 +32,22 @@ pub(super) fn solve_linear(phi: &DMatrix<f64>, y: &[f64]) -> Option<DVector<f64>
 /// of before. Filled column by column into one vector: through `DMatrix::from_iterator` over a
 /// `flat_map` the same copy took 9 % (`b33115b`).
 fn unit_rows(phi: &DMatrix<f64>, scale: &[f64], rows: std::ops::Range<usize>) -> DMatrix<f64> {
-    let n = phi.nrows();
-    let mut unit = Vec::with_capacity(rows.len() * scale.len());
-    for (j, s) in scale.iter().enumerate() {
+    unit_columns(phi, scale.iter().copied().enumerate(), rows)
+}
+
+/// [`unit_rows`] of some columns only: each `(column, scale)` of `columns`, in that order.
+fn unit_columns(
+    phi: &DMatrix<f64>,
+    columns: impl ExactSizeIterator<Item = (usize, f64)>,
+    rows: std::ops::Range<usize>,
+) -> DMatrix<f64> {
+    let (n, m) = (phi.nrows(), columns.len());
+    let mut unit = Vec::with_capacity(rows.len() * m);
+    for (j, s) in columns {
         let column = &phi.as_slice()[j * n + rows.start..j * n + rows.end];
         unit.extend(column.iter().map(|v| v / s));
     }
-    DMatrix::from_vec(rows.len(), scale.len(), unit)
+    DMatrix::from_vec(rows.len(), m, unit)
 }
 
 /// A basis factorised once (column-scaled Householder QR) for several right-hand sides: the
@@ -338,14 +347,7 @@ fn project_out_local(
     let dense: Vec<usize> = (0..phi.ncols())
         .filter(|j| runs.iter().all(|(l, _)| l != j))
         .collect();
-    let dense_scale: Vec<f64> = dense.iter().map(|&j| scale[j]).collect();
-    let mut unit = DMatrix::from_vec(n, dense.len(), {
-        let mut v = Vec::with_capacity(n * dense.len());
-        for (&j, s) in dense.iter().zip(&dense_scale) {
-            v.extend(phi.as_slice()[j * n..(j + 1) * n].iter().map(|x| x / s));
-        }
-        v
-    });
+    let mut unit = unit_columns(phi, dense.iter().map(|&j| (j, scale[j])), 0..n);
     let local = runs
         .into_iter()
         .map(|(column, rows)| {
