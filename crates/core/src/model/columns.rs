@@ -93,7 +93,10 @@ impl ThermalProblem<'_> {
         let term = &self.terms[j];
         let t = &self.series.t_s;
         let (mut x, mut d) = match (term.kind, tau) {
-            (TermKind::Lag, Some(tau)) => term.input.lag(t, tau, with_derivative),
+            (TermKind::Lag, Some(tau)) => match self.lag_group[j] {
+                Some(first) => self.shared_lag(first, tau, with_derivative),
+                None => term.input.lag(t, tau, with_derivative),
+            },
             (TermKind::Rate, Some(tau)) => {
                 let (l, dl) = term.input.lag(t, tau, with_derivative);
                 let u = term.input.level(t.len());
@@ -116,6 +119,42 @@ impl ThermalProblem<'_> {
             }
         }
         (x, d)
+    }
+
+    /// The unscaled lag (and derivative, if asked) of the terms in `first`'s
+    /// [`ThermalProblem::lag_group`] at `tau`: computed once for the group, copied for each
+    /// term (the copy is scaled in place).
+    fn shared_lag(
+        &self,
+        first: usize,
+        tau: f64,
+        with_derivative: bool,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
+        let bits = tau.to_bits();
+        let copy = |m: &TermMemo| (m.x.to_vec(), with_derivative.then(|| m.d.to_vec()));
+        {
+            let memo = self.lag_memo.lock().unwrap_or_else(|p| p.into_inner());
+            if let Some(m) = memo
+                .get(first)
+                .and_then(Option::as_ref)
+                .filter(|m| m.tau_bits == bits)
+            {
+                return copy(m);
+            }
+        }
+        let (x, d) = self.terms[first].input.lag(&self.series.t_s, tau, true);
+        let memo_entry = TermMemo {
+            tau_bits: bits,
+            x: Arc::new(x),
+            d: Arc::new(d.unwrap_or_default()),
+        };
+        let out = copy(&memo_entry);
+        let mut memo = self.lag_memo.lock().unwrap_or_else(|p| p.into_inner());
+        if memo.len() <= first {
+            memo.resize_with(first + 1, || None);
+        }
+        memo[first] = Some(memo_entry);
+        out
     }
 
     /// A full-timeline column as the engine sees it, written into `out` (one row per fitted
@@ -201,23 +240,20 @@ pub(super) fn settling(
     tau: f64,
     with_derivative: bool,
 ) -> (Vec<f64>, Option<Vec<f64>>) {
-    let mut x = Vec::with_capacity(series.t_s.len());
-    let mut d = with_derivative.then(|| Vec::with_capacity(series.t_s.len()));
-    for (t, m) in series.t_s.iter().zip(&series.mount_of) {
-        let (v, dv) = match m {
-            Some(m) => {
-                let s = (t - series.mounts[*m as usize].from_s).max(0.0);
-                let e = (-s / tau).exp();
-                (e, e * s / tau)
+    let n = series.t_s.len();
+    let mut x = vec![0.0; n];
+    let mut d = vec![0.0; if with_derivative { n } else { 0 }];
+    for (k, (t, m)) in series.t_s.iter().zip(&series.mount_of).enumerate() {
+        if let Some(m) = m {
+            let s = (t - series.mounts[*m as usize].from_s).max(0.0);
+            let e = (-s / tau).exp();
+            x[k] = e;
+            if with_derivative {
+                d[k] = e * s / tau;
             }
-            None => (0.0, 0.0),
-        };
-        x.push(v);
-        if let Some(d) = d.as_mut() {
-            d.push(dv);
         }
     }
-    (x, d)
+    (x, with_derivative.then_some(d))
 }
 
 /// The decay of a lag's initial departure from steady state, `exp(-(t - t_ref)/tau)` for
@@ -248,11 +284,14 @@ pub(crate) fn decay(
     let mut slot = 0;
     let mut previous: Option<(f64, f64)> = None;
     for (k, &t) in t_s.iter().enumerate() {
+        if matches!(previous, Some((_, 0.0))) {
+            // Zero from here on (below), as `x` and `d` already are.
+            break;
+        }
         let e = if t <= t_ref {
             1.0
         } else {
             match previous {
-                Some((_, 0.0)) => 0.0,
                 Some((tp, ep)) if tp >= t_ref => {
                     let dt = t - tp;
                     let bits = dt.to_bits();

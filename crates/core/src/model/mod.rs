@@ -56,7 +56,8 @@
 //!   bin means) is only a coarse copy for starts and profile shapes.
 //! - `ThermalProblem` memoises each term's lag column and derivative by tau (shared `Arc`s, not
 //!   copies): a solver's basis and derivative calls at one `theta`, and a 1-D search along one tau,
-//!   reuse the other columns. Basis columns are gathered, masked, demeaned and weighted straight
+//!   reuse the other columns. Terms that lag one input on one time constant (`heat:`'s two
+//!   lengths) share one recursion (`ThermalProblem::lag_group`). Basis columns are gathered, masked, demeaned and weighted straight
 //!   into the matrix (`ThermalProblem::write_row_column`).
 
 mod bind;

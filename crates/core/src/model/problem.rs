@@ -95,6 +95,14 @@ pub struct ThermalProblem<'a> {
     /// columns stay put, and gathering, demeaning and weighing every column again at each
     /// evaluation was the largest single cost of the diagnosis's fits. Same bits.
     pub(super) row_memo: Mutex<Vec<Option<RowMemo>>>,
+    /// Per term: the first of the terms that lag the same input on the same time constant, when
+    /// there are two or more (`None` otherwise). `heat:` binds one such term per base path,
+    /// differing only in their scale: their common lag is computed once
+    /// ([`ThermalProblem::lag_memo`]), where the per-term memo would run its recursion twice.
+    pub(super) lag_group: Vec<Option<usize>>,
+    /// The unscaled lag and `ln tau` derivative of each [`ThermalProblem::lag_group`]'s first
+    /// term, keyed by the bits of its tau. Same bits as a lag of its own.
+    pub(super) lag_memo: Mutex<Vec<Option<TermMemo>>>,
 }
 
 /// One engine column of [`ThermalProblem::row_memo`].
@@ -112,6 +120,25 @@ pub(super) struct TermMemo {
 /// A term's column on the bar's whole timeline and its `ln tau` derivative, shared with the
 /// memo (a basis reads them, it does not copy them).
 pub(super) type TermColumn = (Arc<Vec<f64>>, Option<Arc<Vec<f64>>>);
+
+/// [`ThermalProblem::lag_group`] of `terms`: a lag term's first twin (same input, same time
+/// constant), for the terms that have one or are one.
+fn lag_groups(terms: &[BoundTerm], tau_source: &[Option<usize>]) -> Vec<Option<usize>> {
+    let twins = |i: usize, j: usize| {
+        i != j
+            && terms[i].kind == TermKind::Lag
+            && terms[j].kind == TermKind::Lag
+            && tau_source[i].is_some()
+            && tau_source[i] == tau_source[j]
+            && terms[i].input == terms[j].input
+    };
+    (0..terms.len())
+        .map(|j| {
+            let first = (0..j).find(|&i| twins(i, j)).unwrap_or(j);
+            (first != j || (j + 1..terms.len()).any(|k| twins(j, k))).then_some(first)
+        })
+        .collect()
+}
 
 /// A model that cannot be built for a bar.
 #[derive(Debug, Clone, thiserror::Error, PartialEq)]
@@ -155,7 +182,7 @@ impl<'a> ThermalProblem<'a> {
             .filter(|(_, t)| t.shares_tau_of.is_none() && t.effect.tau_name().is_some())
             .map(|(i, _)| i)
             .collect();
-        let tau_source = terms
+        let tau_source: Vec<Option<usize>> = terms
             .iter()
             .enumerate()
             .map(|(j, t)| match &t.shares_tau_of {
@@ -166,6 +193,7 @@ impl<'a> ThermalProblem<'a> {
                     .find(|&i| terms[i].effect == *owner),
             })
             .collect();
+        let lag_group = lag_groups(&terms, &tau_source);
         let y_raw: Vec<f64> = series.fit_index.iter().map(|&i| series.y_um[i]).collect();
         let mut fitted = vec![false; series.n_zero_segments];
         for &i in &series.fit_index {
@@ -209,6 +237,8 @@ impl<'a> ThermalProblem<'a> {
             zero_runs: Vec::new(),
             memo: Mutex::new(Vec::new()),
             row_memo: Mutex::new(Vec::new()),
+            lag_group,
+            lag_memo: Mutex::new(Vec::new()),
         };
         problem.zero_weight = problem.segment_weights();
         problem.zero_rows = problem.segment_rows();

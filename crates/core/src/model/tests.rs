@@ -209,6 +209,42 @@ fn heat_acts_through_both_lengths_with_one_time_constant() {
     ));
 }
 
+/// `heat:` binds two terms that lag the same input on one time constant: their lag is run once
+/// for both, and each column is still that lag times its own scale, bit for bit.
+#[test]
+fn a_heat_terms_lag_is_computed_once_for_both_lengths() {
+    let s = heated_bar(0.3, 0.2, 3600.0);
+    let mut model = base_effects();
+    model.push(Effect::parse("heat:C1-T1").unwrap());
+    let p = ThermalProblem::new(&s, &model).unwrap();
+    let pair: Vec<usize> = (0..p.terms.len())
+        .filter(|&j| p.lag_group[j].is_some())
+        .collect();
+    assert_eq!(pair.len(), 2, "groups {:?}", p.lag_group);
+    assert_eq!(p.lag_group[pair[0]], Some(pair[0]));
+    assert_eq!(p.lag_group[pair[1]], Some(pair[0]));
+    let theta = [2500f64.ln(), 1800f64.ln(), 3000f64.ln()];
+    let Channel::Sampled(input) = &p.terms[pair[0]].input else {
+        panic!("heat's input is sampled");
+    };
+    let (lag_x, lag_d) = lag::lag(&s.t_s, input, 3000f64.ln().exp(), true);
+    let lag_d = lag_d.unwrap();
+    for &j in &pair {
+        let (x, d) = p.term_column(j, &theta, true);
+        let scale = p.terms[j].scale.as_ref().unwrap();
+        let bits = |v: &mut dyn Iterator<Item = f64>| v.map(f64::to_bits).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&mut x.iter().copied()),
+            bits(&mut lag_x.iter().zip(scale).map(|(x, s)| x * s))
+        );
+        assert_eq!(
+            bits(&mut d.unwrap().iter().copied()),
+            bits(&mut lag_d.iter().zip(scale).map(|(d, s)| d * s))
+        );
+    }
+    assert_eq!(p.lag_memo.lock().unwrap().iter().flatten().count(), 1);
+}
+
 #[test]
 fn air_gradient_follows_the_base_paths_present() {
     let s = gradient_bar(0.5);

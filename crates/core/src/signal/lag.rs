@@ -27,32 +27,53 @@ pub(crate) fn lag(
     with_derivative: bool,
 ) -> (Vec<f64>, Option<Vec<f64>>) {
     let n = t_s.len().min(u.len());
-    let mut x = Vec::with_capacity(n);
-    let mut d = with_derivative.then(|| Vec::with_capacity(n));
-    if n == 0 {
+    if with_derivative {
+        let (x, d) = lag_steps::<true>(&t_s[..n], &u[..n], tau_s);
+        (x, Some(d))
+    } else {
+        (lag_steps::<false>(&t_s[..n], &u[..n], tau_s).0, None)
+    }
+}
+
+/// [`lag`]'s recursion, with the derivative when `DERIVATIVE` (else an empty one).
+///
+/// Why this shape: the outputs are written into zeroed vectors through iterators. Pushing
+/// each step kept the vectors' lengths in memory, a load and a store on every step's path,
+/// and made the recursion about 1.6 times slower (130 k steps: 1.15 against 0.71 ms).
+fn lag_steps<const DERIVATIVE: bool>(t_s: &[f64], u: &[f64], tau_s: f64) -> (Vec<f64>, Vec<f64>) {
+    let n = t_s.len();
+    let mut x = vec![0.0; n];
+    let mut d = vec![0.0; if DERIVATIVE { n } else { 0 }];
+    let Some(&u0) = u.first() else {
         return (x, d);
-    }
-    let (mut xs, mut ds) = (u[0], 0.0);
-    x.push(xs);
-    if let Some(d) = d.as_mut() {
-        d.push(0.0);
-    }
+    };
+    let (mut xs, mut ds) = (u0, 0.0);
+    x[0] = xs;
     let mut factors = StepFactorCache::new(tau_s);
-    for k in 1..n {
-        let dt = t_s[k] - t_s[k - 1];
-        if dt > 0.0 {
-            let StepFactors { r, a, hold, .. } = *factors.at(dt);
-            let du = u[k] - u[k - 1];
-            let x_next = a * xs + u[k] - a * u[k - 1] - du * hold;
-            if d.is_some() {
+    let steps = t_s.windows(2).zip(u.windows(2));
+    if DERIVATIVE {
+        for ((t, u), (x, d)) in steps.zip(x[1..].iter_mut().zip(&mut d[1..])) {
+            let dt = t[1] - t[0];
+            if dt > 0.0 {
+                let StepFactors { r, a, hold, .. } = *factors.at(dt);
+                let du = u[1] - u[0];
+                let x_next = a * xs + u[1] - a * u[0] - du * hold;
                 let b = a * r;
-                ds = a * ds + b * (xs - u[k - 1]) + du * (a - hold);
+                ds = a * ds + b * (xs - u[0]) + du * (a - hold);
+                xs = x_next;
             }
-            xs = x_next;
+            *x = xs;
+            *d = ds;
         }
-        x.push(xs);
-        if let Some(d) = d.as_mut() {
-            d.push(ds);
+    } else {
+        for ((t, u), x) in steps.zip(&mut x[1..]) {
+            let dt = t[1] - t[0];
+            if dt > 0.0 {
+                let StepFactors { a, hold, .. } = *factors.at(dt);
+                let du = u[1] - u[0];
+                xs = a * xs + u[1] - a * u[0] - du * hold;
+            }
+            *x = xs;
         }
     }
     (x, d)
@@ -273,6 +294,13 @@ mod tests {
             let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&x), bits(&x_ref), "tau {tau}");
             assert_eq!(bits(&d.unwrap()), bits(&d_ref), "tau {tau}");
+            let (x_alone, none) = lag(&t, &u, tau, false);
+            assert_eq!(
+                bits(&x_alone),
+                bits(&x_ref),
+                "tau {tau}, without the derivative"
+            );
+            assert!(none.is_none());
         }
     }
 
