@@ -57,8 +57,8 @@
 //! - `ThermalProblem` memoises each term's lag column and derivative by tau (shared `Arc`s, not
 //!   copies): a solver's basis and derivative calls at one `theta`, and a 1-D search along one tau,
 //!   reuse the other columns. Terms that lag one input on one time constant (`heat:`'s two
-//!   lengths) share one recursion (`ThermalProblem::lag_group`). Basis columns are gathered, masked, demeaned and weighted straight
-//!   into the matrix (`ThermalProblem::write_row_column`).
+//!   lengths) share one recursion (`ThermalProblem::lag_group`). Basis columns are gathered,
+//!   masked, demeaned and weighted straight into the matrix (`ThermalProblem::write_row_column`).
 
 mod bind;
 pub(crate) mod channels;
