@@ -1186,8 +1186,8 @@ fn within_reach_of_the_best(paths: &[SelectionPath]) -> usize {
 }
 
 /// A beam path whose total ΔBIC is less than this share of the best path's after the same step
-/// (in size: both are negative, gains) is dropped: the best path's effects already explain twice what it does, and its later steps
-/// would have to make up the difference.
+/// (in size: both are negative, gains) is dropped: the best path's effects already explain
+/// twice what it does, and its later steps would have to make up the difference.
 ///
 /// Why: each kept path is extended (its candidates refitted on every bar's copy) and may be
 /// confirmed on the readings. Over the second simulator's 27 matrix campaigns
