@@ -487,8 +487,16 @@ pub fn fit<P: Separable>(
     let (theta, iterations, solved) = match polished {
         Ok(done) => (done.theta, done.steps, done.solved),
         Err(start) => {
-            let (theta, iterations) =
-                minimise(problem, &start, options.start == Start::Brent, options.stop)?;
+            let (theta, iterations) = minimise(
+                problem,
+                &start,
+                if options.start == Start::Brent {
+                    StartSearch::Brent
+                } else {
+                    StartSearch::None
+                },
+                options.stop,
+            )?;
             (theta, iterations, None)
         }
     };
@@ -559,13 +567,28 @@ pub fn fit<P: Separable>(
     })
 }
 
-/// The least-squares time constants of `problem` from `theta0` (the Brent start first if
-/// `brent_start`), and the number of model evaluations: [`fit`] without its uncertainties, for
-/// starts and refits that need only the minimum.
+/// How [`minimise`] searches the time constants before Levenberg-Marquardt.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum StartSearch {
+    /// Levenberg-Marquardt from `theta0` itself.
+    None,
+    /// One sweep of 1-D Brent searches, each over the parameter's whole search interval.
+    Brent,
+    /// The same sweep, each Brent search within the bracket of the best point of a grid over
+    /// the interval: the lowest minimum, where Brent alone may settle in another. For the
+    /// screens, whose statistic is a supremum over the added term's time constant. With one
+    /// time constant that search is the minimisation (to 1e-3 of `ln tau`): Levenberg-Marquardt
+    /// is not run after it.
+    Global,
+}
+
+/// The least-squares time constants of `problem` from `theta0` (after the start `search`),
+/// and the number of model evaluations: [`fit`] without its uncertainties, for starts and
+/// refits that need only the minimum.
 pub(crate) fn minimise<P: Separable>(
     problem: &P,
     theta0: &[f64],
-    brent_start: bool,
+    search: StartSearch,
     stop: Stop,
 ) -> Result<(Vec<f64>, usize), FitError> {
     let y = problem.observations();
@@ -577,11 +600,14 @@ pub(crate) fn minimise<P: Separable>(
         return Err(FitError::NonFinite);
     }
     let mut theta = within_bounds(problem, theta0);
-    if brent_start {
-        self::brent_start(problem, &mut theta);
+    if search != StartSearch::None {
+        brent_start(problem, &mut theta, search);
     }
     tracing::debug!(?theta, "fit: nonlinear start after the Brent sweep");
-    let (theta, iterations) = if theta.is_empty() {
+    let searched_alone = search == StartSearch::Global
+        && theta.len() == 1
+        && problem.start_search_interval(0).is_some();
+    let (theta, iterations) = if theta.is_empty() || searched_alone {
         (theta, 0)
     } else {
         levenberg_marquardt(problem, &theta, stop)?

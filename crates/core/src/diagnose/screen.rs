@@ -70,7 +70,9 @@ pub(crate) struct Screen {
     /// term can remove little of the residual and still shift the model's parameters a lot
     /// (a second thermal path on `I_min` biases alpha while the RMS barely moves).
     pub(crate) shift_rms_um: f64,
-    /// The term's own time constant at the best screen (s), if it has one.
+    /// The term's own time constant at the best screen (s), if it has one: within the bounds
+    /// the term's column holds it to (`model::ln_tau_bounds`), which is the time constant the
+    /// screen's column was computed at.
     pub(crate) tau_s: Option<f64>,
     /// Score (Lagrange-multiplier) statistic of the term, robust to autocorrelated residuals:
     /// `sᵀ V⁻¹ s` with `s = X̃ᵀ r` and `V` its batch-means variance; about χ² with
@@ -190,7 +192,7 @@ impl ScreenBase {
             delta_rss_um2,
             rms_after_um: ((self.rss_um2 - delta_rss_um2) / n).sqrt(),
             shift_rms_um: (shift_rss_um2 / n).sqrt(),
-            tau_s: theta.first().map(|t| t.exp()),
+            tau_s: fit::within_bounds(&terms, &theta).first().map(|t| t.exp()),
         })
     }
 
@@ -292,7 +294,13 @@ fn absorbed_rss(x: &DMatrix<f64>, q: &DMatrix<f64>, r: &[f64]) -> f64 {
 
 /// The RSS of `problem`'s observations that its best fit removes, and its time constants there.
 fn removed_rss<P: Separable>(problem: &P, theta0: &[f64]) -> Option<(f64, Vec<f64>)> {
-    let (theta, _) = fit::minimise(problem, theta0, true, fit::Stop::Statistical).ok()?;
+    let (theta, _) = fit::minimise(
+        problem,
+        theta0,
+        fit::StartSearch::Global,
+        fit::Stop::Statistical,
+    )
+    .ok()?;
     let before: f64 = problem.observations().iter().map(|r| r * r).sum();
     let after = fit::projected_rss(problem, &theta);
     after.is_finite().then_some((before - after, theta))

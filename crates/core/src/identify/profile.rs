@@ -66,7 +66,12 @@ fn profile_on_coarse_copy(coarse: &BarSeries, model: &mut BarModel) {
     };
     let theta_c = match model.coarse_theta.clone().filter(near) {
         Some(theta_c) => theta_c,
-        None => match fit::minimise(&problem, &model.theta, false, fit::Stop::Statistical) {
+        None => match fit::minimise(
+            &problem,
+            &model.theta,
+            fit::StartSearch::None,
+            fit::Stop::Statistical,
+        ) {
             Ok((theta_c, _)) => theta_c,
             Err(_) => return,
         },

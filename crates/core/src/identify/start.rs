@@ -53,7 +53,13 @@ pub(super) fn start_fit<P: fit::Separable>(
     bar: &str,
     theta0: &[f64],
 ) -> Option<Vec<f64>> {
-    let (theta, _) = fit::minimise(problem, theta0, true, fit::Stop::Statistical).ok()?;
+    let (theta, _) = fit::minimise(
+        problem,
+        theta0,
+        fit::StartSearch::Brent,
+        fit::Stop::Statistical,
+    )
+    .ok()?;
     let n = fit::Separable::observations(problem).len();
     tracing::debug!(bar, ?theta, n, "identify: coarse start");
     theta.iter().all(|t| t.is_finite()).then_some(theta)
@@ -93,7 +99,13 @@ pub(super) fn nearer_start(
         return None;
     }
     let problem = ThermalProblem::new(&copy, effects).ok()?;
-    let (theta, _) = fit::minimise(&problem, theta0, false, fit::Stop::Statistical).ok()?;
+    let (theta, _) = fit::minimise(
+        &problem,
+        theta0,
+        fit::StartSearch::None,
+        fit::Stop::Statistical,
+    )
+    .ok()?;
     tracing::debug!(bar = %series.bar.id, ?theta, n = copy.fit_index.len(), "identify: nearer start");
     theta.iter().all(|t| t.is_finite()).then_some(theta)
 }
