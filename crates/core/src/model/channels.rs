@@ -57,6 +57,22 @@ impl Channel {
     }
 
     /// The channel's level (impulses: 1 at the first sample at or after each impulse).
+    /// Whether the channel holds one value over the whole timeline: its lag is then that value
+    /// too, a constant the mount zeros already hold.
+    pub(crate) fn is_constant(&self) -> bool {
+        fn all_equal<'v>(mut v: impl Iterator<Item = &'v f64>) -> bool {
+            let first = v.next().copied();
+            v.all(|x| Some(*x) == first)
+        }
+        match self {
+            Channel::Sampled(u) => all_equal(u.iter()),
+            Channel::Impulses(e) => e.is_empty(),
+            Channel::Held {
+                values, at_samples, ..
+            } => all_equal(values.iter().chain(at_samples)),
+        }
+    }
+
     pub(crate) fn level(&self, n: usize) -> Vec<f64> {
         match self {
             Channel::Sampled(u) => u.clone(),
@@ -325,8 +341,21 @@ pub(crate) fn plate_temperature(series: &BarSeries) -> Result<Vec<f64>, ChannelE
         .ok_or(ChannelError::NoPlateSensor)
 }
 
-/// Every channel the diagnosis can offer for this bar (names accepted by [`resolve`]).
+/// Every channel the diagnosis can offer for this bar (names accepted by [`resolve`]), but those
+/// constant over its timeline ([`Channel::is_constant`]).
+///
+/// Why: the lag of a constant channel is the same constant, which the mount zeros hold; the
+/// column the screen fits is then rounding noise, and fitted scale-free it "explained" up to a
+/// tenth of a residual at time constants a factor of 1.2 apart (`tilt_deg` on every bar of the
+/// loop matrix, whose plate has one tilt: `bench/README.md`).
 pub(crate) fn available(series: &BarSeries) -> Vec<String> {
+    let mut names = all_channels(series);
+    names.retain(|name| !resolve(series, name).is_ok_and(|c| c.is_constant()));
+    names
+}
+
+/// Every channel name of the bar, constant or not.
+fn all_channels(series: &BarSeries) -> Vec<String> {
     let mut names: Vec<String> = series.celsius.keys().cloned().collect();
     let sensors: Vec<String> = series.celsius.keys().cloned().collect();
     for (i, a) in sensors.iter().enumerate() {

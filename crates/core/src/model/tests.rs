@@ -415,7 +415,8 @@ fn daily_mounts(start_s: f64, end_trim_s: f64) -> Vec<MountSpan> {
 
 /// The `tilt_deg` channel holds the last mount's tilt between mounts (the first mount's before
 /// it): with every mount at one tilt it is constant (no step at each mount start for a lag of it
-/// to mimic settling with); a change of tilt shows where the next mount begins.
+/// to mimic settling with, and not offered to the diagnosis); a change of tilt shows where the
+/// next mount begins.
 #[test]
 fn the_tilt_channel_changes_only_where_the_tilt_does() {
     let mut s = gradient_bar(0.0);
@@ -445,8 +446,12 @@ fn the_tilt_channel_changes_only_where_the_tilt_does() {
         same.iter().all(|&v| v == mounts[0].tilt_deg),
         "one tilt: constant"
     );
+    // Constant, it is not offered: its lag is a constant the mount zeros hold.
+    let offered = |s: &BarSeries| channels::available(s).contains(&"tilt_deg".to_string());
+    assert!(!offered(&s), "{:?}", channels::available(&s));
     mounts[1].tilt_deg = 30.0;
     s.mounts = mounts.clone();
+    assert!(offered(&s), "{:?}", channels::available(&s));
     let changed = tilt(&s);
     let first_of_second = s.mount_of.iter().position(|m| *m == Some(1)).unwrap();
     assert_eq!(
