@@ -77,8 +77,8 @@ pub(super) fn brent_start<P: Separable>(problem: &P, theta: &mut [f64], search: 
 /// bracket `[g_{i-1}, g_{i+1}]` (within `[lo, hi]`) of the lowest point `g_i` of a grid of
 /// [`GLOBAL_GRID_POINTS`] evenly spaced over `[lo, hi]` (the first of equal ones), or a grid
 /// step either side of the start (`start`: its value and cost) where that is lower than every
-/// grid point. Brent's result is kept only where it is lower still: where the RSS is rough
-/// (the lag of `tilt_deg`, a step at each mount) Brent can end above the grid point.
+/// grid point. Brent's result is kept only where it is lower still: where the RSS is rough,
+/// Brent can end above the grid point.
 fn best_bracket<C: CostFunction<Param = f64, Output = f64>>(
     cost: &C,
     lo: f64,

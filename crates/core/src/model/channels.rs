@@ -56,7 +56,6 @@ impl Channel {
         }
     }
 
-    /// The channel's level (impulses: 1 at the first sample at or after each impulse).
     /// Whether the channel holds one value over the whole timeline: its lag is then that value
     /// too, a constant the mount zeros already hold.
     pub(crate) fn is_constant(&self) -> bool {
@@ -73,6 +72,7 @@ impl Channel {
         }
     }
 
+    /// The channel's level (impulses: 1 at the first sample at or after each impulse).
     pub(crate) fn level(&self, n: usize) -> Vec<f64> {
         match self {
             Channel::Sampled(u) => u.clone(),
