@@ -5,7 +5,7 @@
 //! of the fit, while `problem` only sets the problem up.
 
 use super::ln_tau_bounds;
-use super::problem::{TermColumn, TermKind, TermMemo, ThermalProblem};
+use super::problem::{TermColumn, TermKind, ThermalProblem};
 use crate::series::BarSeries;
 use std::sync::Arc;
 
@@ -56,32 +56,16 @@ impl ThermalProblem<'_> {
             return (Arc::new(x), d.map(Arc::new));
         };
         let bits = tau.to_bits();
-        {
-            let memo = self.memo.lock().unwrap_or_else(|p| p.into_inner());
-            if let Some(m) = memo
-                .get(j)
-                .and_then(Option::as_ref)
-                .filter(|m| m.tau_bits == bits)
-            {
-                return (m.x.clone(), with_derivative.then(|| m.d.clone()));
-            }
+        if let Some((x, d)) = self.memo.get(j, &bits) {
+            return (x, with_derivative.then_some(d));
         }
         let (x, d) = self.compute_term_column(j, Some(tau), true);
         let x = Arc::new(x);
         let Some(d) = d.map(Arc::new) else {
             return (x, None);
         };
-        let out = (x.clone(), with_derivative.then(|| d.clone()));
-        let mut memo = self.memo.lock().unwrap_or_else(|p| p.into_inner());
-        if memo.len() <= j {
-            memo.resize_with(j + 1, || None);
-        }
-        memo[j] = Some(TermMemo {
-            tau_bits: bits,
-            x,
-            d,
-        });
-        out
+        self.memo.put(j, bits, (x.clone(), d.clone()));
+        (x, with_derivative.then_some(d))
     }
 
     fn compute_term_column(
@@ -131,30 +115,13 @@ impl ThermalProblem<'_> {
         with_derivative: bool,
     ) -> (Vec<f64>, Option<Vec<f64>>) {
         let bits = tau.to_bits();
-        let copy = |m: &TermMemo| (m.x.to_vec(), with_derivative.then(|| m.d.to_vec()));
-        {
-            let memo = self.lag_memo.lock().unwrap_or_else(|p| p.into_inner());
-            if let Some(m) = memo
-                .get(first)
-                .and_then(Option::as_ref)
-                .filter(|m| m.tau_bits == bits)
-            {
-                return copy(m);
-            }
-        }
-        let (x, d) = self.terms[first].input.lag(&self.series.t_s, tau, true);
-        let memo_entry = TermMemo {
-            tau_bits: bits,
-            x: Arc::new(x),
-            d: Arc::new(d.unwrap_or_default()),
-        };
-        let out = copy(&memo_entry);
-        let mut memo = self.lag_memo.lock().unwrap_or_else(|p| p.into_inner());
-        if memo.len() <= first {
-            memo.resize_with(first + 1, || None);
-        }
-        memo[first] = Some(memo_entry);
-        out
+        let (x, d) = self.lag_memo.get(first, &bits).unwrap_or_else(|| {
+            let (x, d) = self.terms[first].input.lag(&self.series.t_s, tau, true);
+            let lag = (Arc::new(x), Arc::new(d.unwrap_or_default()));
+            self.lag_memo.put(first, bits, lag.clone());
+            lag
+        });
+        (x.to_vec(), with_derivative.then(|| d.to_vec()))
     }
 
     /// A full-timeline column as the engine sees it, written into `out` (one row per fitted

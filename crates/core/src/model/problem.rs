@@ -88,13 +88,13 @@ pub struct ThermalProblem<'a> {
     /// keyed by the bits of its tau: a solver asks for the basis and then its derivatives at the
     /// same `theta`, and a 1-D search moves one time constant while the others stay put, so
     /// most lag recursions (the cost of a fit) are repeats. Results are the same bits.
-    pub(super) memo: Mutex<Vec<Option<TermMemo>>>,
+    pub(super) memo: SlotMemo<u64, LagColumns>,
     /// The last engine column written for each unmasked gain column of the basis
     /// ([`ThermalProblem::write_row_column`]), keyed by the bits of its term's tau (`None`: a
     /// term without one): a 1-D search or a screen moves one time constant while the other
     /// columns stay put, and gathering, demeaning and weighing every column again at each
     /// evaluation was the largest single cost of the diagnosis's fits. Same bits.
-    pub(super) row_memo: Mutex<Vec<Option<RowMemo>>>,
+    pub(super) row_memo: SlotMemo<Option<u64>, Arc<Vec<f64>>>,
     /// Per term: the first of the terms that lag the same input on the same time constant, when
     /// there are two or more (`None` otherwise). `heat:` binds one such term per base path,
     /// differing only in their scale: their common lag is computed once
@@ -102,19 +102,44 @@ pub struct ThermalProblem<'a> {
     pub(super) lag_group: Vec<Option<usize>>,
     /// The unscaled lag and `ln tau` derivative of each [`ThermalProblem::lag_group`]'s first
     /// term, keyed by the bits of its tau. Same bits as a lag of its own.
-    pub(super) lag_memo: Mutex<Vec<Option<TermMemo>>>,
+    pub(super) lag_memo: SlotMemo<u64, LagColumns>,
 }
 
-/// One engine column of [`ThermalProblem::row_memo`].
-pub(super) struct RowMemo {
-    pub(super) tau_bits: Option<u64>,
-    pub(super) column: Arc<Vec<f64>>,
-}
+/// A column on the bar's whole timeline and its `ln tau` derivative, as memoised.
+pub(super) type LagColumns = (Arc<Vec<f64>>, Arc<Vec<f64>>);
 
-pub(super) struct TermMemo {
-    pub(super) tau_bits: u64,
-    pub(super) x: Arc<Vec<f64>>,
-    pub(super) d: Arc<Vec<f64>>,
+/// The last value computed at each index (a term, a gain column) and the key it was computed
+/// at (the bits of a time constant): [`ThermalProblem::memo`], [`ThermalProblem::lag_memo`] and
+/// [`ThermalProblem::row_memo`]. A poisoned lock is taken as it is: a slot is written whole.
+pub(super) struct SlotMemo<K, V>(Mutex<Vec<Option<(K, V)>>>);
+
+impl<K: PartialEq, V: Clone> SlotMemo<K, V> {
+    fn new() -> Self {
+        SlotMemo(Mutex::new(Vec::new()))
+    }
+
+    /// The value at `index`, if it was computed at `key`.
+    pub(super) fn get(&self, index: usize, key: &K) -> Option<V> {
+        let slots = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        let (k, v) = slots.get(index)?.as_ref()?;
+        (k == key).then(|| v.clone())
+    }
+
+    /// Keep `value`, computed at `key`, at `index`.
+    pub(super) fn put(&self, index: usize, key: K, value: V) {
+        let mut slots = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        if slots.len() <= index {
+            slots.resize_with(index + 1, || None);
+        }
+        slots[index] = Some((key, value));
+    }
+
+    /// How many indices hold a value.
+    #[cfg(test)]
+    pub(super) fn filled(&self) -> usize {
+        let slots = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        slots.iter().flatten().count()
+    }
 }
 
 /// A term's column on the bar's whole timeline and its `ln tau` derivative, shared with the
@@ -235,10 +260,10 @@ impl<'a> ThermalProblem<'a> {
             zero_weight: Vec::new(),
             zero_rows: Vec::new(),
             zero_runs: Vec::new(),
-            memo: Mutex::new(Vec::new()),
-            row_memo: Mutex::new(Vec::new()),
+            memo: SlotMemo::new(),
+            row_memo: SlotMemo::new(),
             lag_group,
-            lag_memo: Mutex::new(Vec::new()),
+            lag_memo: SlotMemo::new(),
         };
         problem.zero_weight = problem.segment_weights();
         problem.zero_rows = problem.segment_rows();

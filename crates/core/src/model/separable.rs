@@ -5,7 +5,7 @@
 //! implementation reads in one place.
 
 use super::ln_tau_bounds;
-use super::problem::{RowMemo, ThermalProblem};
+use super::problem::ThermalProblem;
 use crate::fit::Separable;
 use nalgebra::DMatrix;
 use nalgebra::DVector;
@@ -135,26 +135,17 @@ impl ThermalProblem<'_> {
             let key = seg
                 .is_none()
                 .then(|| self.tau_of(j, theta).map(f64::to_bits));
-            if let Some(key) = key {
-                let memo = self.row_memo.lock().unwrap_or_else(|p| p.into_inner());
-                if let Some(m) = memo.get(c).and_then(Option::as_ref) {
-                    if m.tau_bits == key && m.column.len() == out.len() {
-                        out.copy_from_slice(&m.column);
-                        continue;
-                    }
-                }
+            if let Some(column) = key
+                .and_then(|key| self.row_memo.get(c, &key))
+                .filter(|column| column.len() == out.len())
+            {
+                out.copy_from_slice(&column);
+                continue;
             }
             let full = per_term[j].get_or_insert_with(|| self.term_column(j, theta, false).0);
             self.write_row_column(full, seg, out);
             if let Some(key) = key {
-                let mut memo = self.row_memo.lock().unwrap_or_else(|p| p.into_inner());
-                if memo.len() <= c {
-                    memo.resize_with(c + 1, || None);
-                }
-                memo[c] = Some(RowMemo {
-                    tau_bits: key,
-                    column: Arc::new(out.to_vec()),
-                });
+                self.row_memo.put(c, key, Arc::new(out.to_vec()));
             }
         }
         phi

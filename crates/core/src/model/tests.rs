@@ -242,7 +242,7 @@ fn a_heat_terms_lag_is_computed_once_for_both_lengths() {
             bits(&mut lag_d.iter().zip(scale).map(|(d, s)| d * s))
         );
     }
-    assert_eq!(p.lag_memo.lock().unwrap().iter().flatten().count(), 1);
+    assert_eq!(p.lag_memo.filled(), 1);
 }
 
 #[test]
