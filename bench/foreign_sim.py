@@ -139,6 +139,8 @@ def main():
     ap.add_argument("--days", type=float, default=4.0)
     ap.add_argument("--sample-s", type=float, default=10.0)
     ap.add_argument("--temp-s", type=int, default=30)
+    ap.add_argument("--tau-s-range", type=float, nargs=2, default=[900.0, 2400.0],
+                    metavar=("LO", "HI"), help="the stems' time constants are drawn from LO..HI s")
     ap.add_argument("--files", choices=["bar", "day"], default="bar")
     ap.add_argument("--shuffle", action="store_true")
     args = ap.parse_args()
@@ -197,7 +199,7 @@ def main():
             "alpha_ppm_per_k": rng.uniform(1.5, 2.8),
             "beta_ppm_per_k": rng.uniform(0.3, 0.9),
             "tau_r_s": rng.uniform(1800, 4800),
-            "tau_s_s": rng.uniform(900, 2400),
+            "tau_s_s": rng.uniform(*args.tau_s_range),
         }
         fixed_mm = rng.uniform(200, 240)
         u, lag = felt(sensor)

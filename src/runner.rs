@@ -132,7 +132,7 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
         let mut results = pipeline::identify_stage(&plan, logs);
         match shortest_too_short_tau_s(&results, plan.bin_s) {
             Some(tau) if automatic && pass < 2 => {
-                let bin_s = (tau / crate::series::MIN_BINS_PER_TAU).floor();
+                let bin_s = (tau / crate::series::REREAD_BINS_PER_TAU).floor();
                 let bin_s = if bin_s >= 1.0 { bin_s } else { 0.0 };
                 tracing::info!(
                     "a fitted time constant of {tau:.0} s spans fewer than {} bins of {} s: reading again with bins of {bin_s} s",

@@ -205,8 +205,8 @@ pub(crate) enum Warning {
     /// Parameters the bar's data cannot determine (left out of its fit).
     NotIdentifiable { params: Vec<String>, reason: String },
     /// A fitted time constant shorter than [`BINS_PER_TAU`] compressed bins, interval and all
-    /// (`series::too_short_for_bins`): the compression is exact to O((bin / tau)²), more than
-    /// 1 % here (`crates/core/src/series/bins.rs`).
+    /// (`series::too_short_for_bins`): where the compression's bias, `O((bin / tau)⁴)`, was
+    /// measured at up to 0.25 u (`series::MIN_BINS_PER_TAU`).
     CoarseBins {
         param: String,
         tau_s: f64,
@@ -230,8 +230,7 @@ impl Warning {
                 params.join(", ")
             ),
             Warning::CoarseBins { param, tau_s, bin_s } => format!(
-                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s: the compression's straight line within a bin is off by ~(bin/tau)² = {:.1} % of the term's curvature; rerun with --bin-s 0 (every reading) to be exact",
-                100.0 * (bin_s / tau_s).powi(2)
+                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s: where the compression was measured to move estimates by up to a quarter of their uncertainty; rerun with --bin-s 0 (every reading) to be exact"
             ),
         }
     }

@@ -290,9 +290,9 @@ pub(crate) fn ledger_text(d: &crate::pipeline::Diagnosis, bin_s: f64) -> Option<
 ///
 /// Why: the bins are chosen for the identified model's time constants (`runner`'s re-read), not
 /// for those of the model the ledger recommends; on the second simulator's second path + air
-/// gradient (`bench/loop_check.py`, k = 2, seed 8) its second path (`tau_2_s` 411 s on F01, and
-/// on one other bar under 520 s) sat in 52-s bins, the ledger's figures for it carrying
-/// ~(52/411)² = 1.6 % of that term's curvature, and the page said nothing.
+/// gradient (`bench/loop_check.py`, k = 2, seed 8) its second path (`tau_2_s` 411 s on F01) sat
+/// in 52-s bins and the page said nothing. That one spans 8 bins, which the bins hold
+/// ([`crate::series::MIN_BINS_PER_TAU`]); one under 2 bins does not.
 fn ledger_bins_text(
     constants: &[dbbcal_core::diagnose::LedgerTimeConstant],
     bin_s: f64,
@@ -307,13 +307,12 @@ fn ledger_bins_text(
     let bars: std::collections::BTreeSet<&str> = short.iter().map(|t| t.bar.as_str()).collect();
     let tau_s = shortest.estimate.value;
     Some(format!(
-        "Its last model fits {} = {tau_s:.0} s on bar {} (the shortest; {} bar{} one this short), fewer than {} bins of {bin_s:.0} s: its figures for that term carry the compression's error, ~(bin/tau)² = {:.1} % of the term's curvature. A run that adds the effect reads the campaign again with shorter bins where the bins are chosen automatically; else rerun with --bin-s 0.",
+        "Its last model fits {} = {tau_s:.0} s on bar {} (the shortest; {} bar{} one this short), fewer than {} bins of {bin_s:.0} s: where the compression was measured to move estimates by up to a quarter of their uncertainty. A run that adds the effect reads the campaign again with shorter bins where the bins are chosen automatically; else rerun with --bin-s 0.",
         shortest.estimate.name,
         shortest.bar,
         bars.len(),
         if bars.len() == 1 { " has" } else { "s have" },
         crate::series::MIN_BINS_PER_TAU,
-        100.0 * (bin_s / tau_s).powi(2)
     ))
 }
 

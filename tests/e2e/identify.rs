@@ -215,11 +215,18 @@ fn compressed(dir: &std::path::Path, bin_s: f64, streamed: bool) -> dbbcal::pipe
     )
 }
 
-/// With no bin length set, a fitted time constant shorter than 10 bins of the automatic 60 s
-/// makes the run read the campaign again with bins it allows, and the result is the full-rate
-/// fit's (settling with tau 240 s, 2-s readings: 60-s bins, then 23-s bins).
+/// With no bin length set, a fitted time constant shorter than 2 bins of the automatic 60 s
+/// makes the run read the campaign again with bins a quarter of it, and one of 4 bins does not;
+/// either way the estimates are the full-rate fit's (settling with tau 50 s and 240 s, 2-s
+/// readings).
 #[test]
 fn automatic_bins_shorten_for_a_short_fitted_time_constant() {
+    for (tau_settling_s, reread) in [(50.0, true), (240.0, false)] {
+        check_automatic_bins_against_every_reading(tau_settling_s, reread);
+    }
+}
+
+fn check_automatic_bins_against_every_reading(tau_settling_s: f64, reread: bool) {
     let tmp = tempfile::tempdir().unwrap();
     let mut cfg: SimConfig = sim_config("pipelines/sim-sample.toml");
     cfg.campaign_id = "short-tau".into();
@@ -230,7 +237,7 @@ fn automatic_bins_shorten_for_a_short_fitted_time_constant() {
         ..FleetConfig::default()
     });
     cfg.effects.settling.enabled = true;
-    cfg.effects.settling.tau_s = 240.0;
+    cfg.effects.settling.tau_s = tau_settling_s;
     let (dir, _) = simulate_campaign(tmp.path(), "short-tau", &cfg);
     let summary = |bin: Option<&str>| {
         let out = tmp.path().join(format!("out-{bin:?}"));
@@ -255,7 +262,14 @@ fn automatic_bins_shorten_for_a_short_fitted_time_constant() {
     let auto = summary(None);
     let full = summary(Some("0"));
     let bin_s = auto["model"]["bin_s"].as_f64().unwrap();
-    assert!(bin_s > 0.0 && bin_s <= 24.0, "bins of {bin_s} s");
+    if reread {
+        assert!(
+            bin_s > 0.0 && bin_s <= tau_settling_s / 3.0,
+            "tau {tau_settling_s} s: bins of {bin_s} s"
+        );
+    } else {
+        assert_eq!(bin_s, 60.0, "tau {tau_settling_s} s: bins of {bin_s} s");
+    }
     for (a, f) in auto["bars"]
         .as_array()
         .unwrap()
@@ -268,7 +282,10 @@ fn automatic_bins_shorten_for_a_short_fitted_time_constant() {
                 f["params"][p]["value"].as_f64().unwrap(),
             );
             let u = f["params"][p]["u"].as_f64().unwrap();
-            assert!((va - vf).abs() < 0.1 * u, "{p}: {va} vs {vf} (u {u})");
+            assert!(
+                (va - vf).abs() < 0.1 * u,
+                "tau {tau_settling_s} s, {p}: {va} vs {vf} (u {u})"
+            );
         }
     }
 }

@@ -318,7 +318,8 @@ fn acceptance_with_nothing_to_accept_says_why() {
 #[test]
 fn the_fit_report_warns_when_bins_are_coarse_for_a_time_constant() {
     let tmp = tempfile::tempdir().unwrap();
-    for (bin_s, warned) in [("600", true), ("0", false)] {
+    // The sample's time constants, 1 100-3 400 s, span fewer than 2 bins of 1 800 s.
+    for (bin_s, warned) in [("1800", true), ("0", false)] {
         let out = tmp.path().join(format!("bins-{bin_s}"));
         let (code, _, stderr) = run_cli(&[
             "-q",
@@ -331,7 +332,7 @@ fn the_fit_report_warns_when_bins_are_coarse_for_a_time_constant() {
         assert_eq!(code, 0, "{stderr}");
         let report = read(&out.join("report.md"));
         assert_eq!(
-            report.contains("spans fewer than 10 bins of 600 s"),
+            report.contains("spans fewer than 2 bins of 1800 s"),
             warned,
             "--bin-s {bin_s}"
         );

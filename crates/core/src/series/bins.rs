@@ -2,7 +2,8 @@
 //!
 //! A 1 Hz log over 30 days is 2.6 M readings per bar, while the thermal model varies on time
 //! constants of 15 min to 2 h (`docs/spec/physics.md`): within a bin of a minute every regressor is a
-//! straight line to `O((bin/tau)²)`. For a model that is a straight line within each bin, the
+//! straight line to `O((bin/tau)²)`, and the fit on the nodes unbiased to `O((bin/tau)⁴)`
+//! ([`MIN_BINS_PER_TAU`]). For a model that is a straight line within each bin, the
 //! least-squares fit to the readings depends on them only through each bin's moments
 //! `Σ 1, Σ u, Σ u², Σ u³` (`u`: time in the bin) and `Σ c, Σ u c, Σ c²` (`c`: counts), and these
 //! are kept exactly:
@@ -179,11 +180,31 @@ pub(crate) const AUTOMATIC_BIN_S: f64 = 60.0;
 /// interval counts the handling time between mounts, so a 10-s logger reads a little over 10 s.
 pub(crate) const AUTOMATIC_MAX_INTERVAL_S: f64 = 12.0;
 
-/// A fitted time constant should span at least this many bins: the compression's straight line
-/// within a bin is then off by at most (1 / 10)² = 1 % of the term's curvature. With no bin
-/// length set, a run whose fit finds a shorter one ([`too_short_for_bins`]) reads the campaign
-/// again with shorter bins.
-pub const MIN_BINS_PER_TAU: f64 = 10.0;
+/// A fitted time constant should span at least this many bins. With no bin length set, a run
+/// whose fit finds a shorter one ([`too_short_for_bins`]) reads the campaign again with shorter
+/// bins ([`REREAD_BINS_PER_TAU`]).
+///
+/// Why 2: the two nodes of a bin are the Gauss quadrature of its sample times, the roots of their
+/// second orthogonal polynomial. What a term's bin line misses, its quadratic remainder within
+/// the bin, vanishes at both nodes, so a fit on the nodes is biased only at `O((bin/tau)⁴)`;
+/// what it gives up at `O((bin/tau)²)` is the readings' scatter along that remainder:
+/// information (a slightly wider interval, which the fit's uncertainty carries), not a bias.
+/// Measured against the fit to every reading, base model,
+/// stems' `tau_s` of 100-270 s drawn (`bench/foreign_sim.py --tau-s-range 100 300`, 6 bars,
+/// 6 days, 10-s readings, held and smooth air): 60-s bins (1.7-4.5 bins a time constant) within
+/// 0.036 u of every estimate, 30-s bins within 0.0075 u, 120-s bins (0.8-2.3 bins) 0.15-0.25 u.
+/// Bins longer than the automatic 60 s cost more than this rule sees: 240-s bins moved the
+/// default stems' estimates (900-2400 s, 4-10 bins) by 0.04-0.27 u.
+/// The fit's own stop resolves about 0.1 u (`fit::STOP_CHI2`). The rule was 10 bins; on the
+/// second simulator's second path + air gradient + plate expansion (`bench/loop_check.py`, k = 3,
+/// seed 4) a base model's `tau_s` of 145 s, a misfit, made the nightly read the 10-s log again in
+/// 14-s bins: 25 s against 15 s, the same ledger to 7 digits and every estimate within 0.013 u.
+pub const MIN_BINS_PER_TAU: f64 = 2.0;
+
+/// A campaign read again for a time constant too short for its bins ([`MIN_BINS_PER_TAU`]) gets
+/// bins this many times shorter than it: twice the minimum, so that the time constant refitted
+/// on the new bins, which moves by a fraction of its uncertainty, does not fall short again.
+pub const REREAD_BINS_PER_TAU: f64 = 4.0;
 
 /// Whether a fitted time constant `tau_s`, whose 95 % interval ends at `ci95_upper_s`, is too
 /// short for bins of `bin_s` (0: every reading, never too short): it spans fewer than

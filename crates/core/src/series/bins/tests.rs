@@ -557,22 +557,19 @@ mod properties {
 /// short, and its interval short too (`too_short_for_bins`).
 #[test]
 fn only_a_determined_short_time_constant_is_too_short_for_the_bins() {
-    // 60-s bins hold time constants from 600 s.
-    assert!(
-        too_short_for_bins(120.0, 300.0, 60.0),
-        "determined and short"
-    );
-    assert!(!too_short_for_bins(900.0, 1200.0, 60.0), "long enough");
+    // 60-s bins hold time constants from 120 s.
+    assert!(too_short_for_bins(100.0, 115.0, 60.0), "determined and short");
+    assert!(!too_short_for_bins(145.0, 194.0, 60.0), "2.4 bins: long enough");
     assert!(
         !too_short_for_bins(1.0, 3.0e8, 60.0),
         "run to its 1-s search bound, its interval reaching 3e8 s: not determined"
     );
     assert!(
-        !too_short_for_bins(300.0, 600.0, 60.0),
-        "its interval reaches 10 bins"
+        !too_short_for_bins(100.0, 150.0, 60.0),
+        "its interval reaches 2 bins"
     );
     assert!(
-        too_short_for_bins(300.0, f64::NAN, 60.0),
+        too_short_for_bins(100.0, f64::NAN, 60.0),
         "no interval: counted short"
     );
     assert!(
