@@ -558,8 +558,14 @@ mod properties {
 #[test]
 fn only_a_determined_short_time_constant_is_too_short_for_the_bins() {
     // 60-s bins hold time constants from 120 s.
-    assert!(too_short_for_bins(100.0, 115.0, 60.0), "determined and short");
-    assert!(!too_short_for_bins(145.0, 194.0, 60.0), "2.4 bins: long enough");
+    assert!(
+        too_short_for_bins(100.0, 115.0, 60.0),
+        "determined and short"
+    );
+    assert!(
+        !too_short_for_bins(145.0, 194.0, 60.0),
+        "2.4 bins: long enough"
+    );
     assert!(
         !too_short_for_bins(1.0, 3.0e8, 60.0),
         "run to its 1-s search bound, its interval reaching 3e8 s: not determined"
