@@ -983,7 +983,9 @@ fn confirmed_step(
             .iter()
             .map(|m| coarse.start_for(&m.bar, &m.effects, effect))
             .collect();
-        exact_candidate(series, &current.models, effect, &starts, criteria, refits)
+        let tested = exact_candidate(series, &current.models, effect, &starts, criteria, refits);
+        tracing::debug!(step = k, effect = %effect, reason = ?tested.reason, "diagnose: a coarse path's step tested on the readings");
+        tested
     })
 }
 
