@@ -142,8 +142,7 @@ pub(super) fn evaluate_at_most(
     for (c, per_bar) in screens.iter().enumerate() {
         if let Some((gain, shift, p)) = screened_change(bars, per_bar) {
             tracing::trace!(effect = %candidates[c].name(), gain, shift, p, "diagnose: screened");
-            let shift_counts =
-                p < threshold && criteria.screened_shift_counts(&candidates[c], gain);
+            let shift_counts = p < threshold && criteria.shift_counts(&candidates[c], gain);
             screened.push((c, gain, if shift_counts { gain.max(shift) } else { gain }));
         } else {
             unavailable.push(Unavailable {

@@ -195,26 +195,16 @@ pub(crate) const PATH_TIE_SHARE: f64 = 0.05;
 /// Two candidates whose coarse refits remove within this share of each other are a tie.
 pub(crate) const NAMED_TIE_SHARE: f64 = 0.02;
 /// The shift of the model's own terms counts toward materiality only for a term that removes at
-/// least this share of the materiality threshold from the fleet RMS (0.1 %: 0.005 nm at the
-/// patent's ±1 µm, whose threshold is 5 nm; an alias of the model's own lag, a
-/// reparametrisation the data do not determine, removed 0.0004 nm in the tests).
+/// least this share of the materiality threshold from the fleet RMS (1 %: 0.05 nm at the
+/// patent's ±1 µm; the hidden second thermal path of the tests removes 0.18 nm, an alias of the
+/// model's own lag 0.0004 nm).
 ///
-/// Why 0.1 % and not the 1 % it was: a hidden second thermal path can remove far less than a
-/// noise-level share and still move the model's own terms by more than the noise. On the
-/// second simulator's second path + air gradient (`bench/loop_check.py`, k = 2, seed 8) it
-/// removes 0.048 nm after `air_gradient` and moves the model by 277 nm; with 1 % whether it was
-/// named turned on the bins (proposed in 52-s bins, not in 60-s ones).
-pub(crate) const SHIFT_TRACE_SHARE: f64 = 0.001;
-
-/// [`SHIFT_TRACE_SHARE`] for a screen (the linearised refit, time constants held): a candidate
-/// whose screen removes less than this share of the threshold is not refitted exactly for its
-/// shift alone. It still reaches the exact test where the coarse beam's path or the rival share
-/// brings it there.
-///
-/// Why stricter than the exact test: screened at 0.1 % too, every catalogue effect that a
-/// screen finds to move the model was refitted on the readings at every step, and the
-/// three-effect matrix campaign (k = 3, seed 4) took 30.3 s against 13.4 s.
-pub(crate) const SCREEN_SHIFT_TRACE_SHARE: f64 = 0.01;
+/// 0.1 % was tried (for the exact test; the screens kept 1 %). It named the hidden second path
+/// of the second simulator's second path + air gradient (`bench/loop_check.py`, k = 2, seed 8:
+/// it removes 0.048 nm after `air_gradient` and moves the model by 277 nm), but put a false
+/// `air_gradient` step, tiny in RMS and material in shift, before the truth in two other
+/// campaigns of that matrix (k = 1, seed 8; k = 2, seed 5).
+pub(crate) const SHIFT_TRACE_SHARE: f64 = 0.01;
 
 /// Whether `effect` may be proposed for how much it moves the model's own terms, beyond the RMS
 /// it removes: the catalogue's effects may, a generic channel term (`lag:CH`, `rate:CH@…`) may
@@ -293,12 +283,6 @@ impl Criteria {
     /// do not determine, not a finding.
     pub(crate) fn shift_counts(&self, effect: &Effect, gain_um: f64) -> bool {
         may_be_proposed_for_its_shift(effect) && gain_um >= SHIFT_TRACE_SHARE * self.min_gain_um
-    }
-
-    /// [`Criteria::shift_counts`] for a screened gain ([`SCREEN_SHIFT_TRACE_SHARE`]).
-    pub(crate) fn screened_shift_counts(&self, effect: &Effect, gain_um: f64) -> bool {
-        may_be_proposed_for_its_shift(effect)
-            && gain_um >= SCREEN_SHIFT_TRACE_SHARE * self.min_gain_um
     }
 }
 
