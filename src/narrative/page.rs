@@ -579,21 +579,22 @@ mod tests {
     /// past them, or where every reading is fitted.
     #[test]
     fn the_ledger_says_when_its_last_model_is_too_short_for_the_bins() {
+        // 52-s bins hold time constants from 104 s.
         let constants = [
-            ledger_tau("F01", 260.0, 300.0),
-            ledger_tau("F03", 215.0, 240.0),
-            ledger_tau("F04", 900.0, 950.0),
+            ledger_tau("F01", 90.0, 100.0),
+            ledger_tau("F03", 80.0, 95.0),
+            ledger_tau("F04", 215.0, 240.0),
         ];
         let text = ledger_bins_text(&constants, 52.0).expect("two are too short");
         assert!(
-            text.contains("tau_2_s = 215 s on bar F03") && text.contains("2 bars have one"),
+            text.contains("tau_2_s = 80 s on bar F03") && text.contains("2 bars have one"),
             "{text}"
         );
-        assert!(text.contains("5.8 %"), "{text}");
+        assert!(text.contains("fewer than 2 bins of 52 s"), "{text}");
         assert_eq!(ledger_bins_text(&constants, 20.0), None);
         assert_eq!(ledger_bins_text(&constants, 0.0), None);
         assert_eq!(
-            ledger_bins_text(&[ledger_tau("F01", 215.0, 900.0)], 52.0),
+            ledger_bins_text(&[ledger_tau("F01", 80.0, 900.0)], 52.0),
             None
         );
     }
