@@ -205,7 +205,7 @@ pub(crate) enum Warning {
     /// Parameters the bar's data cannot determine (left out of its fit).
     NotIdentifiable { params: Vec<String>, reason: String },
     /// A fitted time constant shorter than [`BINS_PER_TAU`] compressed bins, interval and all
-    /// (`series::too_short_for_bins`): where the compression's bias, `O((bin / tau)⁴)`, was
+    /// (`series::too_short_for_bins`), where the compression's bias, `O((bin / tau)⁴)`, was
     /// measured at up to 0.25 u (`series::MIN_BINS_PER_TAU`).
     CoarseBins {
         param: String,
@@ -230,7 +230,7 @@ impl Warning {
                 params.join(", ")
             ),
             Warning::CoarseBins { param, tau_s, bin_s } => format!(
-                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s: where the compression was measured to move estimates by up to a quarter of their uncertainty; rerun with --bin-s 0 (every reading) to be exact"
+                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s, where the compression was measured to move estimates by up to a quarter of their uncertainty; rerun with --bin-s 0 (every reading) to be exact"
             ),
         }
     }

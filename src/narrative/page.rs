@@ -307,7 +307,7 @@ fn ledger_bins_text(
     let bars: std::collections::BTreeSet<&str> = short.iter().map(|t| t.bar.as_str()).collect();
     let tau_s = shortest.estimate.value;
     Some(format!(
-        "Its last model fits {} = {tau_s:.0} s on bar {} (the shortest; {} bar{} one this short), fewer than {} bins of {bin_s:.0} s: where the compression was measured to move estimates by up to a quarter of their uncertainty. A run that adds the effect reads the campaign again with shorter bins where the bins are chosen automatically; else rerun with --bin-s 0.",
+        "Its last model fits {} = {tau_s:.0} s on bar {} (the shortest; {} bar{} one this short), fewer than {} bins of {bin_s:.0} s, where the compression was measured to move estimates by up to a quarter of their uncertainty. A run that adds the effect reads the campaign again with shorter bins where the bins are chosen automatically; else rerun with --bin-s 0.",
         shortest.estimate.name,
         shortest.bar,
         bars.len(),

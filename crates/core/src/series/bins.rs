@@ -189,10 +189,10 @@ pub(crate) const AUTOMATIC_MAX_INTERVAL_S: f64 = 12.0;
 /// the bin, vanishes at both nodes, so a fit on the nodes is biased only at `O((bin/tau)⁴)`;
 /// what it gives up at `O((bin/tau)²)` is the readings' scatter along that remainder:
 /// information (a slightly wider interval, which the fit's uncertainty carries), not a bias.
-/// Measured against the fit to every reading, base model,
-/// stems' `tau_s` of 100-270 s drawn (`bench/foreign_sim.py --tau-s-range 100 300`, 6 bars,
-/// 6 days, 10-s readings, held and smooth air): 60-s bins (1.7-4.5 bins a time constant) within
-/// 0.036 u of every estimate, 30-s bins within 0.0075 u, 120-s bins (0.8-2.3 bins) 0.15-0.25 u.
+/// Measured against the fit to every reading (base model, stems' `tau_s` of 100-270 s drawn:
+/// `bench/foreign_sim.py --tau-s-range 100 300`, 6 bars, 6 days, 10-s readings, held and
+/// smooth air): 60-s bins (1.7-4.5 bins a time constant) within 0.036 u of every estimate,
+/// 30-s bins within 0.0075 u, 120-s bins (0.8-2.3 bins) 0.15-0.25 u.
 /// Bins longer than the automatic 60 s cost more than this rule sees: 240-s bins moved the
 /// default stems' estimates (900-2400 s, 4-10 bins) by 0.04-0.27 u.
 /// The fit's own stop resolves about 0.1 u (`fit::STOP_CHI2`). The rule was 10 bins; on the
