@@ -136,7 +136,7 @@ fn ingest_and_analyse(plan: &RunPlan) -> Result<(RunPlan, RunResults)> {
                 let bin_s = if bin_s >= 1.0 { bin_s } else { 0.0 };
                 tracing::info!(
                     "a fitted time constant of {tau:.0} s spans fewer than {} bins of {} s: reading again with bins of {bin_s} s",
-                    crate::series::MIN_BINS_PER_TAU,
+                    crate::series::min_bins_per_tau(plan.bin_s),
                     plan.bin_s
                 );
                 plan = plan.with_chosen_bins(bin_s);

@@ -6,7 +6,7 @@ use std::fmt::Write;
 
 use super::Headline;
 use crate::pipeline::{BarOutcome, RunPlan, RunResults};
-use crate::series::MIN_BINS_PER_TAU as BINS_PER_TAU;
+use crate::series::min_bins_per_tau;
 
 /// Correlations of parameters listed when |r| is above this (lmfit lists above 0.1 by default;
 /// a metrologist reading for trouble wants the near-collinear pairs only).
@@ -204,9 +204,9 @@ pub(crate) enum Warning {
     FewBatches { param: String, dof: f64 },
     /// Parameters the bar's data cannot determine (left out of its fit).
     NotIdentifiable { params: Vec<String>, reason: String },
-    /// A fitted time constant shorter than [`BINS_PER_TAU`] compressed bins, interval and all
-    /// (`series::too_short_for_bins`), where the compression's bias, `O((bin / tau)⁴)`, was
-    /// measured at up to 0.25 u (`series::MIN_BINS_PER_TAU`).
+    /// A fitted time constant shorter than [`min_bins_per_tau`] compressed bins, interval and
+    /// all (`series::too_short_for_bins`), where the compression was measured to move estimates
+    /// by up to 0.25 u (`series::MIN_BINS_PER_TAU`, `series::LONG_BINS_MIN_PER_TAU`).
     CoarseBins {
         param: String,
         tau_s: f64,
@@ -230,7 +230,8 @@ impl Warning {
                 params.join(", ")
             ),
             Warning::CoarseBins { param, tau_s, bin_s } => format!(
-                "{param} = {tau_s:.0} s spans fewer than {BINS_PER_TAU} bins of {bin_s:.0} s, where the compression was measured to move estimates by up to a quarter of their uncertainty; rerun with --bin-s 0 (every reading) to be exact"
+                "{param} = {tau_s:.0} s spans fewer than {} bins of {bin_s:.0} s, where the compression was measured to move estimates by up to a quarter of their uncertainty; rerun with --bin-s 0 (every reading) to be exact",
+                min_bins_per_tau(*bin_s)
             ),
         }
     }
@@ -289,8 +290,9 @@ pub(crate) fn short_flags(warnings: &[Warning]) -> Vec<String> {
             Warning::NotIdentifiable { params, .. } => {
                 flags.push(format!("not identifiable: {}", params.join(", ")))
             }
-            Warning::CoarseBins { param, .. } => flags.push(format!(
-                "{param} < {BINS_PER_TAU} bins: rerun with --bin-s 0"
+            Warning::CoarseBins { param, bin_s, .. } => flags.push(format!(
+                "{param} < {} bins: rerun with --bin-s 0",
+                min_bins_per_tau(*bin_s)
             )),
         }
     }

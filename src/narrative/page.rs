@@ -292,7 +292,7 @@ pub(crate) fn ledger_text(d: &crate::pipeline::Diagnosis, bin_s: f64) -> Option<
 /// for those of the model the ledger recommends; on the second simulator's second path + air
 /// gradient (`bench/loop_check.py`, k = 2, seed 8) its second path (`tau_2_s` 411 s on F01) sat
 /// in 52-s bins and the page said nothing. That one spans 8 bins, which the bins hold
-/// ([`crate::series::MIN_BINS_PER_TAU`]); one under 2 bins does not.
+/// ([`crate::series::min_bins_per_tau`]); one under 2 bins does not.
 fn ledger_bins_text(
     constants: &[dbbcal_core::diagnose::LedgerTimeConstant],
     bin_s: f64,
@@ -312,7 +312,7 @@ fn ledger_bins_text(
         shortest.bar,
         bars.len(),
         if bars.len() == 1 { " has" } else { "s have" },
-        crate::series::MIN_BINS_PER_TAU,
+        crate::series::min_bins_per_tau(bin_s),
     ))
 }
 

@@ -318,8 +318,9 @@ fn acceptance_with_nothing_to_accept_says_why() {
 #[test]
 fn the_fit_report_warns_when_bins_are_coarse_for_a_time_constant() {
     let tmp = tempfile::tempdir().unwrap();
-    // The sample's time constants, 1 100-3 400 s, span fewer than 2 bins of 1 800 s.
-    for (bin_s, warned) in [("1800", true), ("0", false)] {
+    // The sample's time constants, 1 100-3 400 s, span fewer than 10 bins of 600 s (bins longer
+    // than the automatic 60 s are held to 10), and at least 2 of 60 s.
+    for (bin_s, warned) in [("600", true), ("60", false), ("0", false)] {
         let out = tmp.path().join(format!("bins-{bin_s}"));
         let (code, _, stderr) = run_cli(&[
             "-q",
@@ -332,9 +333,15 @@ fn the_fit_report_warns_when_bins_are_coarse_for_a_time_constant() {
         assert_eq!(code, 0, "{stderr}");
         let report = read(&out.join("report.md"));
         assert_eq!(
-            report.contains("spans fewer than 2 bins of 1800 s"),
+            report.contains("spans fewer than"),
             warned,
             "--bin-s {bin_s}"
         );
+        if warned {
+            assert!(
+                report.contains(&format!("spans fewer than 10 bins of {bin_s} s")),
+                "--bin-s {bin_s}"
+            );
+        }
     }
 }

@@ -17,9 +17,9 @@ mod temperatures;
 pub(crate) use bins::Region;
 pub use bins::MAX_BIN_S;
 pub use bins::{
-    automatic_bin_s, counts_ok, reading_time_ok, reading_times_ok, too_short_for_bins, BarBins,
-    BinAccumulator, BinError, BinGrid, Readings, MAX_ABS_COUNTS, MIN_BINS_PER_TAU,
-    REREAD_BINS_PER_TAU,
+    automatic_bin_s, counts_ok, min_bins_per_tau, reading_time_ok, reading_times_ok,
+    too_short_for_bins, BarBins, BinAccumulator, BinError, BinGrid, Readings,
+    LONG_BINS_MIN_PER_TAU, MAX_ABS_COUNTS, MIN_BINS_PER_TAU, REREAD_BINS_PER_TAU,
 };
 pub use quality::Quality;
 pub(crate) use temperatures::knot_logs;

@@ -194,12 +194,29 @@ pub(crate) const AUTOMATIC_MAX_INTERVAL_S: f64 = 12.0;
 /// smooth air): 60-s bins (1.7-4.5 bins a time constant) within 0.036 u of every estimate,
 /// 30-s bins within 0.0075 u, 120-s bins (0.8-2.3 bins) 0.15-0.25 u.
 /// Bins longer than the automatic 60 s cost more than this rule sees: 240-s bins moved the
-/// default stems' estimates (900-2400 s, 4-10 bins) by 0.04-0.27 u.
+/// default stems' estimates (900-2400 s, 4-10 bins) by 0.04-0.27 u, so those are held to
+/// [`LONG_BINS_MIN_PER_TAU`] ([`min_bins_per_tau`]).
 /// The fit's own stop resolves about 0.1 u (`fit::STOP_CHI2`). The rule was 10 bins; on the
 /// second simulator's second path + air gradient + plate expansion (`bench/loop_check.py`, k = 3,
 /// seed 4) a base model's `tau_s` of 145 s, a misfit, made the nightly read the 10-s log again in
 /// 14-s bins: 25 s against 15 s, the same ledger to 7 digits and every estimate within 0.013 u.
 pub const MIN_BINS_PER_TAU: f64 = 2.0;
+
+/// [`MIN_BINS_PER_TAU`] for bins longer than the automatic 60 s, which only a user sets
+/// (`--bin-s`, `[model] bin_s`): the rule measured there is not the quadrature's alone (240-s
+/// bins moved estimates by 0.27 u at 4 bins a time constant), so the fit report keeps warning
+/// as the earlier, stricter rule did.
+pub const LONG_BINS_MIN_PER_TAU: f64 = 10.0;
+
+/// How many bins of `bin_s` a fitted time constant should span: [`MIN_BINS_PER_TAU`] up to the
+/// automatic 60 s, [`LONG_BINS_MIN_PER_TAU`] beyond.
+pub fn min_bins_per_tau(bin_s: f64) -> f64 {
+    if bin_s > AUTOMATIC_BIN_S {
+        LONG_BINS_MIN_PER_TAU
+    } else {
+        MIN_BINS_PER_TAU
+    }
+}
 
 /// A campaign read again for a time constant too short for its bins ([`MIN_BINS_PER_TAU`]) gets
 /// bins this many times shorter than it: twice the minimum, so that the time constant refitted
@@ -208,14 +225,14 @@ pub const REREAD_BINS_PER_TAU: f64 = 4.0;
 
 /// Whether a fitted time constant `tau_s`, whose 95 % interval ends at `ci95_upper_s`, is too
 /// short for bins of `bin_s` (0: every reading, never too short): it spans fewer than
-/// [`MIN_BINS_PER_TAU`] bins, and so does its interval's upper end, so the data rule out a
+/// [`min_bins_per_tau`] bins, and so does its interval's upper end, so the data rule out a
 /// time constant the bins would hold. A time constant the data do not determine (its interval
 /// reaching far beyond the bins, say a `tau_s` run to its 1-s search bound on a bar the base
 /// model misfits) is not: reading the campaign again with shorter bins, or every reading,
 /// would refit the same undetermined parameter at several times the cost. An interval not
 /// known (NaN) counts as short.
 pub fn too_short_for_bins(tau_s: f64, ci95_upper_s: f64, bin_s: f64) -> bool {
-    let limit = MIN_BINS_PER_TAU * bin_s;
+    let limit = min_bins_per_tau(bin_s) * bin_s;
     let interval_short = ci95_upper_s.is_nan() || ci95_upper_s < limit;
     bin_s > 0.0 && tau_s < limit && interval_short
 }

@@ -582,4 +582,7 @@ fn only_a_determined_short_time_constant_is_too_short_for_the_bins() {
         !too_short_for_bins(1.0, 2.0, 0.0),
         "every reading: never too short"
     );
+    // Bins longer than the automatic 60 s hold time constants from 10 of them.
+    assert!(too_short_for_bins(2000.0, 2300.0, 240.0), "8 bins of 240 s");
+    assert!(!too_short_for_bins(2000.0, 2300.0, 60.0), "33 bins of 60 s");
 }
