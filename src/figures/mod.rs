@@ -358,11 +358,8 @@ fn params_line(o: &BarOutcome) -> String {
         .params
         .iter()
         .map(|p| {
-            if p.name.ends_with("_s") {
-                format!("{} = {:.0} ± {:.0}", p.name, p.value, p.u)
-            } else {
-                format!("{} = {:.4} ± {:.4}", p.name, p.value, p.u)
-            }
+            let (value, u) = crate::narrative::fit_report::value_and_uncertainty(p.value, p.u);
+            format!("{} = {value} ± {u}", p.name)
         })
         .collect();
     format!("{}\nRMS {:.4} µm over {} samples (± are standard uncertainties, autocorrelation-consistent)", p.join("   "), o.model.rms_um, o.model.n_samples)

@@ -107,10 +107,10 @@ fn bar_section(
     md.push_str("[[Variables]]\n");
     let width = m.params.iter().map(|p| p.name.len()).max().unwrap_or(0);
     for p in &m.params {
-        let rel = if p.value != 0.0 {
-            format!(" ({:.2} %)", 100.0 * p.u / p.value.abs())
-        } else {
-            String::new()
+        let rel = match 100.0 * p.u / p.value.abs() {
+            r if !r.is_finite() => String::new(),
+            r if r >= 1e3 => format!(" ({r:.1e} %)"),
+            r => format!(" ({r:.2} %)"),
         };
         let (value, u) = value_and_uncertainty(p.value, p.u);
         let lo = value_and_uncertainty(p.ci95[0], p.u).0;
@@ -143,23 +143,33 @@ fn bar_section(
 }
 
 /// `value` and `u` as a metrologist writes them (GUM 7.2.6): `u` to two significant digits,
-/// `value` to the same decimal place.
+/// `value` to the same decimal place; both with an exponent, to two significant digits, where
+/// that place would round the value away or `u` reaches [`PLAIN_UNCERTAINTY_MAX`].
+///
+/// Why the exponent: a parameter the data do not determine (a time constant run to the model's
+/// limit, 1e9 s, with u 3e12 s) was written `0 ± 3000000000000`, and its gain `-0 ± 63000000`:
+/// the value read as zero where it is 1e9 and -2.1e4.
 pub(crate) fn value_and_uncertainty(value: f64, u: f64) -> (String, String) {
     if !(u.is_finite() && u > 0.0 && value.is_finite()) {
         return (sig(value), sig(u));
     }
     let decimals = 1 - u.log10().floor() as i32;
-    if (0..=12).contains(&decimals) {
+    let scale = 10f64.powi(-decimals);
+    if decimals < 0 && (u >= PLAIN_UNCERTAINTY_MAX || value.abs() < scale) {
+        (format!("{value:.1e}"), format!("{u:.1e}"))
+    } else if (0..=12).contains(&decimals) {
         let d = decimals as usize;
         (format!("{value:.d$}"), format!("{u:.d$}"))
     } else if decimals < 0 {
-        let scale = 10f64.powi(-decimals);
         let round = |v: f64| format!("{:.0}", (v / scale).round() * scale);
         (round(value), round(u))
     } else {
         (sig(value), sig(u))
     }
 }
+
+/// Uncertainties from this size on are written with an exponent ([`value_and_uncertainty`]).
+const PLAIN_UNCERTAINTY_MAX: f64 = 1e6;
 
 /// Four significant digits, plainly (no exponent between 1e-3 and 1e6).
 fn sig(v: f64) -> String {
@@ -241,7 +251,12 @@ impl Warning {
 pub(crate) fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
     let m = &o.model;
     let mut out = Vec::new();
-    for p in m.params.iter().filter(|p| p.name.starts_with("tau")) {
+    // A parameter the data cannot determine gets its one warning below, not these.
+    let determined = |p: &&crate::identify::Estimate| !m.undetermined(&p.name);
+    for p in m.params.iter().filter(determined) {
+        if !p.name.starts_with("tau") {
+            continue;
+        }
         if crate::series::too_short_for_bins(p.value, p.ci95[1], bin_s) {
             out.push(Warning::CoarseBins {
                 param: p.name.clone(),
@@ -250,7 +265,7 @@ pub(crate) fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
             });
         }
     }
-    for p in &m.params {
+    for p in m.params.iter().filter(determined) {
         for (end, side) in [(0, "below"), (1, "above")] {
             if p.ci95_at_search_bound[end] {
                 out.push(Warning::Unbounded {
@@ -262,7 +277,7 @@ pub(crate) fn warnings(o: &BarOutcome, bin_s: f64) -> Vec<Warning> {
         }
     }
     for (p, dof) in m.params.iter().zip(&m.dof) {
-        if *dof < FEW_BATCHES_DOF {
+        if *dof < FEW_BATCHES_DOF && !m.undetermined(&p.name) {
             out.push(Warning::FewBatches {
                 param: p.name.clone(),
                 dof: *dof,
@@ -367,6 +382,33 @@ mod tests {
         assert_eq!(
             value_and_uncertainty(123456.0, 1234.0),
             ("123500".into(), "1200".into())
+        );
+    }
+
+    /// A value its uncertainty's second digit would round to zero, and an uncertainty of a
+    /// million or more, are written with exponents (a base model's `beta` and `tau_S` bent to
+    /// the model's limit: `-0 ± 63000000` and `0 ± 3000000000000` before).
+    #[test]
+    fn undetermined_values_keep_their_size() {
+        assert_eq!(
+            value_and_uncertainty(-20550.4, 62_506_304.0),
+            ("-2.1e4".into(), "6.3e7".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(1e9, 3.04e12),
+            ("1.0e9".into(), "3.0e12".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(4.0, 120.0),
+            ("4.0e0".into(), "1.2e2".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(40.0, 120.0),
+            ("40".into(), "120".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(3.0e6, 2.5e6),
+            ("3.0e6".into(), "2.5e6".into())
         );
     }
 }

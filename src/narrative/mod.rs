@@ -245,12 +245,45 @@ fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
             ));
         }
     }
+    notes.extend(unmatched_bars(results));
     if plan.runs(Stage::Acceptance) && results.acceptance.as_ref().is_none_or(|a| a.is_empty()) {
         notes.push(
             "nothing to accept: the campaign has no working mounts; mark a mount with purpose = \"check\" (on a plate length) or give it a device in campaign.toml".into(),
         );
     }
     notes
+}
+
+/// The identified bars the match stage left out (`matching::matched_inputs`), with why: base
+/// parameters their data cannot determine, or none of the fleet's scale on a bar at one length.
+fn unmatched_bars(results: &RunResults) -> Vec<String> {
+    let Some(r) = &results.reference else {
+        return Vec::new();
+    };
+    let matched = |bar: &str| r.choice.bar == bar || r.mismatches.iter().any(|m| m.bar == bar);
+    let base = crate::matching::MATCH_PARAMS;
+    results
+        .bars
+        .iter()
+        .filter(|o| !matched(&o.model.bar))
+        .map(|o| {
+            let undetermined: Vec<&str> = base
+                .iter()
+                .copied()
+                .filter(|p| o.model.undetermined(p))
+                .collect();
+            let why = if undetermined.is_empty() {
+                "measured at one length, it has no beta_ppm_per_k to compare with the others'"
+                    .to_string()
+            } else {
+                format!(
+                    "its data do not determine {} (report.md → the bar's warnings)",
+                    undetermined.join(", ")
+                )
+            };
+            format!("{} left out of matching: {why}", o.model.bar)
+        })
+        .collect()
 }
 
 fn fleet_rms_um(results: &RunResults) -> Option<f64> {

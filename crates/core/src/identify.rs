@@ -26,7 +26,9 @@
 //!   refitted from the fine optimum); the constants are in `identify/start.rs`.
 
 use crate::fit::{self, Fit, FitError, FitOptions, Start};
-use crate::model::{base_effects, Effect, ModelError, NotIdentifiable, ThermalProblem};
+use crate::model::{
+    base_effects, Effect, ModelError, NotIdentifiable, ThermalProblem, WhyNotIdentifiable,
+};
 use crate::series::BarSeries;
 
 mod before_after;
@@ -157,6 +159,13 @@ impl BarModel {
         self.model_um = Vec::new();
         self.thermal_um = Vec::new();
         self
+    }
+    /// Whether the parameter `name` is one the bar's data cannot determine
+    /// ([`BarModel::not_identifiable`]).
+    pub fn undetermined(&self, name: &str) -> bool {
+        self.not_identifiable
+            .iter()
+            .any(|n| n.params.iter().any(|p| p == name))
     }
     /// The model's effects, by name.
     pub fn effect_names(&self) -> Vec<String> {
@@ -458,6 +467,20 @@ fn canonical_thermal_paths(model: &mut BarModel) {
         };
         model.dof.swap(i, j);
         model.theta_index.swap(i, j);
+        let (a, b) = (model.params[i].name.clone(), model.params[j].name.clone());
+        for n in &mut model.not_identifiable {
+            let tau = match &mut n.reason {
+                WhyNotIdentifiable::AtModelLimit { tau, .. } => Some(tau),
+                WhyNotIdentifiable::OneLength { .. } => None,
+            };
+            for name in n.params.iter_mut().chain(tau) {
+                if *name == a {
+                    *name = b.clone();
+                } else if *name == b {
+                    *name = a.clone();
+                }
+            }
+        }
         model.correlation.swap(i, j);
         for row in model.correlation.iter_mut() {
             row.swap(i, j);
@@ -541,7 +564,12 @@ fn to_bar_model(series: &BarSeries, problem: &ThermalProblem, fit: &Fit) -> BarM
         params,
         initial_state,
         gains: fit.values[..n_gains].to_vec(),
-        not_identifiable: problem.not_identifiable().to_vec(),
+        not_identifiable: problem
+            .not_identifiable()
+            .iter()
+            .cloned()
+            .chain(crate::model::at_model_limit(problem, &theta))
+            .collect(),
         zeros_um,
         correlation,
         rms_um: fit.rms(),

@@ -43,6 +43,9 @@ use crate::series::BarSeries;
 /// (`t² u_hac² / [(J_cᵀJ_c)⁻¹]_kk`, `u_hac` from the full series), and the interval is moved by
 /// the difference between the two estimates, so a linear model still gets exactly
 /// `x̂ ± t u_hac`. Checked against the full profile in this module's tests.
+///
+/// A time constant the fit ran to the model's limit ([`BarModel::undetermined`]) keeps its
+/// Wald interval: its profile is flat, and the bar's `not_identifiable` says why.
 pub(super) fn profile_tau_intervals(series: &BarSeries, model: &mut BarModel) {
     match coarse_copy(series, COARSE_PROFILE_MIN_SAMPLES) {
         Some(coarse) => profile_on_coarse_copy(&coarse, model),
@@ -91,6 +94,9 @@ fn profile_on_coarse_copy(coarse: &BarSeries, model: &mut BarModel) {
         let Some(k) = model.theta_index[p] else {
             continue;
         };
+        if model.undetermined(&model.params[p].name) {
+            continue;
+        }
         let est = &model.params[p];
         let curvature = jtj_inv[(n_lin + k, n_lin + k)];
         if !(est.u > 0.0 && curvature > 0.0) {
@@ -120,6 +126,9 @@ pub(super) fn profile_on_series(series: &BarSeries, model: &mut BarModel) {
         let Some(k) = model.theta_index[p] else {
             continue;
         };
+        if model.undetermined(&model.params[p].name) {
+            continue;
+        }
         let est = &model.params[p];
         if !(est.u > 0.0 && est.u_naive > 0.0) {
             continue;

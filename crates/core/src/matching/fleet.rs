@@ -72,11 +72,12 @@ pub fn match_fleet(
     })
 }
 
-/// What matching needs of an identified bar: `None` when its model lacks `alpha` or `tau_R`;
-/// `beta` and `tau_S` are NaN when its data cannot determine them (one length,
-/// `crate::model::identifiable_effects`). See [`matched_inputs`] for who is matched.
+/// What matching needs of an identified bar: `None` when its model lacks `alpha` or `tau_R`
+/// or cannot determine them; `beta` and `tau_S` are NaN when its data cannot determine them
+/// (one length, `crate::model::identifiable_effects`; a time constant run to the model's limit,
+/// `crate::model::at_model_limit`). See [`matched_inputs`] for who is matched.
 pub(crate) fn match_input(o: &BarOutcome) -> Option<MatchInput> {
-    let p = |name: &str| o.model.value(name);
+    let p = |name: &str| o.model.value(name).filter(|_| !o.model.undetermined(name));
     let q = |name: &str| p(name).unwrap_or(f64::NAN);
     let params = [
         p(MATCH_PARAMS[0])?,

@@ -1,9 +1,10 @@
-//! Which effects a bar's data can determine: terms left out of its fit, with the reason
-//! ([`NotIdentifiable`]), e.g. the scale's time constant on a bar measured at one length.
-//!
-//! Separate because it is decided from the series alone, before any term is bound.
+//! Which parameters a bar's data cannot determine, with the reason ([`NotIdentifiable`]): terms
+//! left out of its fit, decided from the series alone before any term is bound (the scale's
+//! time constant on a bar measured at one length, [`identifiable_effects`]), and time constants
+//! a fit ran to the end of the model's range ([`at_model_limit`]).
 
-use super::{Effect, Transform};
+use super::{ln_tau_bounds, Effect, ThermalProblem, Transform, MAX_TAU_S};
+use crate::fit::Separable;
 use crate::series::BarSeries;
 
 /// A group of parameters of the effects asked for that one bar's data cannot determine, and why.
@@ -25,6 +26,67 @@ pub enum WhyNotIdentifiable {
         /// The one scale travel, mm.
         i_p_mm: f64,
     },
+    /// The fit ran a time constant to the end of the range the model allows
+    /// ([`at_model_limit`]); the parameters stay in the fit, but their values mean nothing apart.
+    AtModelLimit {
+        /// The time constant's name.
+        tau: String,
+        /// The limit it ran to, s: `MAX_TAU_S` (the lag has become its input's running integral
+        /// over the campaign, so only the gains' ratio to `tau` is determined) or 1 s (the lag
+        /// follows its input within the readings' spacing: the gains are determined, `tau` not).
+        limit_s: f64,
+    },
+}
+
+/// How close (in `ln tau`) a fitted time constant must be to the model's limit
+/// ([`ln_tau_bounds`]) to count as run to it: the minimisers hold a time constant they push
+/// beyond the limit there, and one that ends that close was pushed.
+const AT_LIMIT_LN_TAU: f64 = 1e-6;
+
+/// The time constants of `problem` that a fit ending at `theta` ran to the model's limit, each
+/// with the parameters it leaves undetermined ([`WhyNotIdentifiable::AtModelLimit`]).
+///
+/// Why: a base model bends its terms to mimic an effect it lacks. On the second simulator's
+/// air-gradient campaign at 1-s readings (`bench/foreign_sim.py --effect air_gradient --seed 11
+/// --sample-s 1 --temp-s 30 --files day`) bar F05's `tau_s_s` ran to 1e9 s with `beta_ppm_per_k`
+/// at -2.1e4 ± 6.3e7: a lag that slow is the running integral of its input, and only
+/// `beta / tau_S` is determined (their correlation -1.000). Taken at face value those numbers
+/// predicted a 55-µm mismatch against the reference and moved the fleet mean it is chosen by.
+pub(crate) fn at_model_limit(problem: &ThermalProblem, theta: &[f64]) -> Vec<NotIdentifiable> {
+    let (lo, hi) = ln_tau_bounds();
+    let tau_names = problem.tau_names();
+    let gain_names = problem.gain_names();
+    let nuisance = problem.nuisance_gains();
+    let mut out = Vec::new();
+    for (k, &ln_tau) in theta.iter().enumerate() {
+        let upper = ln_tau >= hi - AT_LIMIT_LN_TAU;
+        if !upper && ln_tau > lo + AT_LIMIT_LN_TAU {
+            continue;
+        }
+        let Some(tau) = tau_names.get(k) else {
+            continue;
+        };
+        let mut params: Vec<String> = if upper {
+            problem
+                .columns_on(k)
+                .unwrap_or_default()
+                .into_iter()
+                .filter(|&c| !nuisance.get(c).copied().unwrap_or(true))
+                .filter_map(|c| gain_names.get(c).cloned())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        params.push(tau.clone());
+        out.push(NotIdentifiable {
+            params,
+            reason: WhyNotIdentifiable::AtModelLimit {
+                tau: tau.clone(),
+                limit_s: if upper { MAX_TAU_S } else { lo.exp() },
+            },
+        });
+    }
+    out
 }
 
 /// Travel spread (mm) below which a bar's fitted mounts are taken as one length.

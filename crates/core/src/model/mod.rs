@@ -67,6 +67,7 @@ mod identifiable;
 mod problem;
 mod separable;
 
+pub(crate) use identifiable::at_model_limit;
 pub use identifiable::{NotIdentifiable, WhyNotIdentifiable};
 pub use problem::{ModelError, ThermalProblem};
 

@@ -770,3 +770,37 @@ fn columns_on_a_time_constant_are_the_columns_that_move_with_it() {
         );
     }
 }
+
+/// A time constant at the model's upper limit leaves it and the gains on its columns
+/// undetermined (the scale's: `beta`, not the nuisance initial-state gain); at the lower limit
+/// only the time constant; one a step inside either limit, nothing.
+#[test]
+fn time_constants_at_the_model_limit_are_named_with_their_gains() {
+    let s = gradient_bar(0.5);
+    let p = ThermalProblem::new(&s, &effects(&["fixed_part", "scale"])).unwrap();
+    let (lo, hi) = ln_tau_bounds();
+    let names = |theta: &[f64]| -> Vec<Vec<String>> {
+        super::at_model_limit(&p, theta)
+            .into_iter()
+            .map(|n| n.params)
+            .collect()
+    };
+    assert_eq!(
+        names(&[2500f64.ln(), hi]),
+        vec![vec!["beta_ppm_per_k".to_string(), "tau_s_s".to_string()]]
+    );
+    assert_eq!(
+        names(&[hi + 3.0, 1800f64.ln()]),
+        vec![vec!["alpha_ppm_per_k".to_string(), "tau_r_s".to_string()]]
+    );
+    assert_eq!(names(&[lo, 1800f64.ln()]), vec![vec!["tau_r_s".to_string()]]);
+    assert!(names(&[hi - 1e-3, lo + 1e-3]).is_empty());
+    let reason = &super::at_model_limit(&p, &[2500f64.ln(), hi])[0].reason;
+    assert_eq!(
+        *reason,
+        WhyNotIdentifiable::AtModelLimit {
+            tau: "tau_s_s".into(),
+            limit_s: MAX_TAU_S
+        }
+    );
+}
