@@ -255,7 +255,8 @@ fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
 }
 
 /// The identified bars the match stage left out (`matching::matched_inputs`), with why: base
-/// parameters their data cannot determine, or none of the fleet's scale on a bar at one length.
+/// parameters their data cannot determine (`BarModel::not_identifiable`: one length, a time
+/// constant run to the model's limit), else base parameters their model lacks.
 fn unmatched_bars(results: &RunResults) -> Vec<String> {
     let Some(r) = &results.reference else {
         return Vec::new();
@@ -273,8 +274,7 @@ fn unmatched_bars(results: &RunResults) -> Vec<String> {
                 .filter(|p| o.model.undetermined(p))
                 .collect();
             let why = if undetermined.is_empty() {
-                "measured at one length, it has no beta_ppm_per_k to compare with the others'"
-                    .to_string()
+                "its model lacks base parameters the others have".to_string()
             } else {
                 format!(
                     "its data do not determine {} (report.md → the bar's warnings)",

@@ -21,7 +21,7 @@ pub fn not_identifiable_reason(why: &WhyNotIdentifiable) -> String {
         ),
         WhyNotIdentifiable::AtModelLimit { tau, limit_s } => format!(
             "the fit ran {tau} to the model's limit ({limit_s} s); the lag follows its input \
-             within the readings' spacing; the data do not determine {tau}, only its gains; a \
+             within the readings' spacing; the data determine its gains, not {tau}; a \
              model bends like this to mimic an effect it lacks (diagnosis.json → candidates)"
         ),
     }
@@ -44,7 +44,10 @@ mod tests {
             ),
             "{slow}"
         );
-        assert!(slow.contains("only the ratio of its gains to tau_s_s"), "{slow}");
+        assert!(
+            slow.contains("only the ratio of its gains to tau_s_s"),
+            "{slow}"
+        );
         let fast = not_identifiable_reason(&WhyNotIdentifiable::AtModelLimit {
             tau: "tau_r_s".into(),
             limit_s: 1.0,

@@ -441,3 +441,70 @@ fn a_refit_from_a_bent_base_is_as_good_as_the_fit_made_afresh() {
         }
     }
 }
+
+/// A base model that bends a time constant to the model's limit to mimic a missing effect names
+/// it, is left out of matching with a note, and is whole again once the effect is added: seed
+/// 34's settling drives bar B02's `tau_s_s` to 1e9 s (a lag that slow is the integral of the
+/// air; only `beta / tau_S` is determined), and with `settling` B02 is matched.
+#[test]
+fn a_time_constant_run_to_the_limit_is_named_and_the_bar_left_out_of_matching() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = config(34, |c| c.effects.settling.enabled = true);
+    let (dir, _) = simulate_campaign(tmp.path(), "settling-limit", &cfg);
+    let pipeline = crate::support::root().join("pipelines/reference-match.toml");
+    let run = |out: &str, extra: &[&str]| {
+        let out = tmp.path().join(out);
+        let (summary, said) = crate::support::run_record(
+            pipeline.to_str().unwrap(),
+            &dir,
+            &out,
+            extra,
+            "summary.json",
+        );
+        let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+        (summary, said, report)
+    };
+    let bar = |summary: &serde_json::Value, id: &str| {
+        summary["bars"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|b| b["bar"] == id)
+            .cloned()
+            .unwrap()
+    };
+    let (base, said, report) = run("base", &[]);
+    let b02 = bar(&base, "B02");
+    let named = &b02["not_identifiable"][0];
+    assert_eq!(
+        named["params"],
+        serde_json::json!(["beta_ppm_per_k", "tau_s_s"]),
+        "{b02}"
+    );
+    let reason = named["reason"].as_str().unwrap();
+    assert!(
+        reason.starts_with("the fit ran tau_s_s to the model's limit (1e9 s"),
+        "{reason}"
+    );
+    assert!(
+        b02["params"]["tau_s_s"]["value"].as_f64().unwrap() > 9.99e8,
+        "{b02}"
+    );
+    let mismatch = &base["reference"]["mismatch_um"];
+    assert!(
+        mismatch.get("B02").is_none() && base["reference"]["bar"] != "B02",
+        "{mismatch}"
+    );
+    let note = "B02 left out of matching: its data do not determine beta_ppm_per_k, tau_s_s";
+    assert!(said.contains(note), "{said}");
+    assert!(report.contains(note), "{report}");
+    assert!(report.contains("tau_s_s          1.0e9 ± "), "{report}");
+
+    let (fixed, said, _) = run("settling", &["--add-effect", "settling"]);
+    let b02 = bar(&fixed, "B02");
+    assert_eq!(b02["not_identifiable"], serde_json::json!([]), "{b02}");
+    let matched = fixed["reference"]["bar"] == "B02"
+        || fixed["reference"]["mismatch_um"].get("B02").is_some();
+    assert!(matched, "{}", fixed["reference"]);
+    assert!(!said.contains("left out of matching"), "{said}");
+}

@@ -24,8 +24,7 @@ pub use history::air_history;
 pub const AIR_HISTORY_STEP_S: f64 = 60.0;
 
 /// The four base parameters used for matching, in the order of `docs/spec/physics.md`.
-pub const MATCH_PARAMS: [&str; 4] =
-    ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
+pub const MATCH_PARAMS: [&str; 4] = ["alpha_ppm_per_k", "beta_ppm_per_k", "tau_r_s", "tau_s_s"];
 
 /// What matching needs of one identified bar.
 #[derive(Debug, Clone)]

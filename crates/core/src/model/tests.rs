@@ -793,7 +793,10 @@ fn time_constants_at_the_model_limit_are_named_with_their_gains() {
         names(&[hi + 3.0, 1800f64.ln()]),
         vec![vec!["alpha_ppm_per_k".to_string(), "tau_r_s".to_string()]]
     );
-    assert_eq!(names(&[lo, 1800f64.ln()]), vec![vec!["tau_r_s".to_string()]]);
+    assert_eq!(
+        names(&[lo, 1800f64.ln()]),
+        vec![vec!["tau_r_s".to_string()]]
+    );
     assert!(names(&[hi - 1e-3, lo + 1e-3]).is_empty());
     let reason = &super::at_model_limit(&p, &[2500f64.ln(), hi])[0].reason;
     assert_eq!(
