@@ -27,7 +27,7 @@ pub enum WhyNotIdentifiable {
         i_p_mm: f64,
     },
     /// The fit ran a time constant to the end of the range the model allows
-    /// ([`at_model_limit`]); the parameters stay in the fit, but their values mean nothing apart.
+    /// (`model::at_model_limit`); the parameters stay in the fit, but their values mean nothing apart.
     AtModelLimit {
         /// The time constant's name.
         tau: String,
