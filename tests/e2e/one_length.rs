@@ -131,12 +131,22 @@ fn one_length_campaign_is_fitted_with_what_it_determines() {
     let logs = dbbcal::io::read_campaign(&dir).unwrap();
     let plan = RunPlan::for_stage(Stage::Identify, dir.clone(), None, &[]).unwrap();
     let results = analyse(&plan, logs);
-    let figure = dbbcal::figures::bar_fit_figure(&results.bars[0]);
+    let figure = dbbcal::figures::bar_fit_figure(&results.bars[0], 0.0);
     assert!(
         figure.notes.iter().any(|n| n.contains("beta_ppm_per_k"))
             && figure.notes.iter().any(|n| n.contains("one length")),
         "{:?}",
         figure.notes
+    );
+    // Every reading fitted: the residual panel's points are the readings; in bins, it says so.
+    assert_eq!(figure.residual_points, "");
+    let binned = dbbcal::figures::bar_fit_figure(&results.bars[0], 60.0);
+    assert!(
+        binned
+            .residual_points
+            .starts_with("at the 60-s bins' two nodes"),
+        "{}",
+        binned.residual_points
     );
 }
 

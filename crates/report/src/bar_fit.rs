@@ -32,6 +32,10 @@ pub struct BarFitFigure {
     /// Warnings about the model shown under the subtitle in red, one line each (e.g. parameters
     /// the data cannot determine).
     pub notes: Vec<String>,
+    /// What the residual panel's points are when they are not the readings themselves, after
+    /// its title (e.g. "at the 60-s bins' two nodes, which scatter less than the readings");
+    /// empty for every reading.
+    pub residual_points: String,
 }
 
 impl BarFitFigure {
@@ -171,12 +175,16 @@ fn draw_residual_panel(
     residual: &[f64],
 ) -> Result<(), DrawError> {
     let r = rms(residual);
+    let points = match c.spec.residual_points.as_str() {
+        "" => String::new(),
+        words => format!(" {words}"),
+    };
     let caption = match r {
         Some(r) => format!(
-            "Residual (measured − model): RMS {} µm",
+            "Residual (measured − model){points}: RMS {} µm",
             format_significant(r)
         ),
-        None => "Residual (measured − model)".to_string(),
+        None => format!("Residual (measured − model){points}"),
     };
     let mut p = c.panel(area, &caption, x, y, false)?;
     if r.is_none() {

@@ -92,6 +92,7 @@ pub(super) fn bar_fit_spec(n: usize) -> BarFitFigure {
         mount_boundaries_s: vec![1.5 * 86_400.0, 3.2 * 86_400.0],
         time_s: t,
         notes: Vec::new(),
+        residual_points: String::new(),
     }
 }
 
