@@ -456,8 +456,12 @@ fn fleet(r: &RunResults) -> report::FleetFigure {
     let parameters = names
         .iter()
         .map(|name| {
-            let est: Vec<Option<&crate::identify::Estimate>> =
-                r.bars.iter().map(|o| o.model.param(name)).collect();
+            // A parameter the bar's data cannot determine is left out of the panel and its mean.
+            let est: Vec<Option<&crate::identify::Estimate>> = r
+                .bars
+                .iter()
+                .map(|o| o.model.param(name).filter(|_| !o.model.undetermined(name)))
+                .collect();
             report::ParameterPanel {
                 name: name.clone(),
                 unit: unit_of(name).into(),
@@ -480,11 +484,10 @@ fn fleet(r: &RunResults) -> report::FleetFigure {
     let mismatch_um = match &r.reference {
         Some(rr) => bar_names
             .iter()
-            .map(|b| {
-                rr.mismatches
-                    .iter()
-                    .find(|m| m.bar == *b)
-                    .map_or(0.0, |m| m.max_abs_um)
+            .map(|b| match rr.mismatches.iter().find(|m| m.bar == *b) {
+                Some(m) => m.max_abs_um,
+                None if *b == rr.choice.bar => 0.0,
+                None => f64::NAN,
             })
             .collect(),
         None => Vec::new(),

@@ -39,8 +39,9 @@ pub struct FleetFigure {
     pub parameters: Vec<ParameterPanel>,
     /// Index into `bar_names` of the reference bar (highlighted everywhere).
     pub reference: Option<usize>,
-    /// Predicted mismatch of each bar against the reference (µm), `bar_names` order; empty
-    /// leaves the panel with a "no data" note.
+    /// Predicted mismatch of each bar against the reference (µm), `bar_names` order (0 for the
+    /// reference, NaN for a bar left out of matching, labelled so); empty leaves the panel with
+    /// a "no data" note.
     pub mismatch_um: Vec<f64>,
     /// Acceptance limit (µm, e.g. 1.0): bars with |mismatch| above it are flagged.
     pub mismatch_limit_um: f64,
@@ -207,24 +208,25 @@ fn draw_mismatch(spec: &FleetFigure, area: &Area<'_>) -> Result<(), DrawError> {
 }
 
 /// One bar per finite mismatch, red beyond `limit`, labelled with its value (or as the
-/// reference).
+/// reference); a bar left out of matching (NaN) is labelled so, without a bar.
 fn draw_mismatch_bars(
     spec: &FleetFigure,
     panel: &mut Panel<'_, '_>,
     limit: f64,
 ) -> Result<(), DrawError> {
     let values = spec.mismatch_um.len() <= 24;
-    let reference = if spec.bar_names.len() > 12 {
-        "ref"
+    let (reference, unmatched) = if spec.bar_names.len() > 12 {
+        ("ref", "n/m")
     } else {
-        "reference"
+        ("reference", "not matched")
     };
-    for (i, v) in spec
-        .mismatch_um
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.is_finite())
-    {
+    for (i, v) in spec.mismatch_um.iter().enumerate() {
+        if !v.is_finite() {
+            if values {
+                panel.bar_label(i as f64, 0.0, unmatched)?;
+            }
+            continue;
+        }
         let colour = if v.abs() > limit {
             style::RED
         } else {

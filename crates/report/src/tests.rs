@@ -329,6 +329,15 @@ fn bar_fit_renders() {
 #[test]
 fn fleet_renders() {
     check("fleet", &fleet_spec(8), render_fleet);
+    // A bar left out of matching (NaN) and a parameter one bar's data cannot determine.
+    let mut unmatched = fleet_spec(8);
+    unmatched.mismatch_um[3] = f64::NAN;
+    unmatched.parameters[1].values[3] = f64::NAN;
+    check("fleet_unmatched", &unmatched, render_fleet);
+    let mut bins = bar_fit_spec(2_000);
+    bins.residual_points =
+        "at the 60-s bins' two nodes, which scatter less than the readings".into();
+    check("bar_fit_bins", &bins, render_bar_fit);
 }
 
 #[test]
