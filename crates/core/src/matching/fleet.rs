@@ -73,11 +73,17 @@ pub fn match_fleet(
 }
 
 /// What matching needs of an identified bar: `None` when its model lacks `alpha` or `tau_R`
-/// or cannot determine them; `beta` and `tau_S` are NaN when its data cannot determine them
-/// (one length, `crate::model::identifiable_effects`; a time constant run to the model's limit,
-/// `crate::model::at_model_limit`). See [`matched_inputs`] for who is matched.
+/// or its data leave them, and with them its response, undetermined; `beta` and `tau_S` are NaN
+/// when they are absent or so undetermined (one length, `crate::model::identifiable_effects`;
+/// a time constant run up to the model's limit, `crate::model::at_model_limit`). See
+/// [`matched_inputs`] for who is matched.
 pub(crate) fn match_input(o: &BarOutcome) -> Option<MatchInput> {
-    let p = |name: &str| o.model.value(name).filter(|_| !o.model.undetermined(name));
+    let undetermined = |name: &str| {
+        o.model.not_identifiable.iter().any(|n| {
+            n.reason.leaves_the_response_undetermined() && n.params.iter().any(|p| p == name)
+        })
+    };
+    let p = |name: &str| o.model.value(name).filter(|_| !undetermined(name));
     let q = |name: &str| p(name).unwrap_or(f64::NAN);
     let params = [
         p(MATCH_PARAMS[0])?,

@@ -38,6 +38,18 @@ pub enum WhyNotIdentifiable {
     },
 }
 
+impl WhyNotIdentifiable {
+    /// Whether the parameters named for this reason leave the bar's predicted response
+    /// undetermined: not for a time constant run down to 1 s, whose lag follows its input on any
+    /// grid the predictions use (`matching::AIR_HISTORY_STEP_S`) whatever its value.
+    pub fn leaves_the_response_undetermined(&self) -> bool {
+        match self {
+            WhyNotIdentifiable::OneLength { .. } => true,
+            WhyNotIdentifiable::AtModelLimit { limit_s, .. } => *limit_s > 1.0,
+        }
+    }
+}
+
 /// How close (in `ln tau`) a fitted time constant must be to the model's limit
 /// ([`ln_tau_bounds`]) to count as run to it: the minimisers hold a time constant they push
 /// beyond the limit there, and one that ends that close was pushed.
