@@ -798,6 +798,15 @@ fn time_constants_at_the_model_limit_are_named_with_their_gains() {
         vec![vec!["tau_r_s".to_string()]]
     );
     assert!(names(&[hi - 1e-3, lo + 1e-3]).is_empty());
+    // Run up to the limit, the lag is the air's integral: the predicted response is undetermined;
+    // run down to 1 s, it follows the air whatever the time constant.
+    let response = |theta: &[f64]| {
+        super::at_model_limit(&p, theta)[0]
+            .reason
+            .leaves_the_response_undetermined()
+    };
+    assert!(response(&[2500f64.ln(), hi]));
+    assert!(!response(&[lo, 1800f64.ln()]));
     let reason = &super::at_model_limit(&p, &[2500f64.ln(), hi])[0].reason;
     assert_eq!(
         *reason,
