@@ -547,7 +547,17 @@ fn final_total(
 /// `chosen` (a confirmed ledger and its models) with its later steps in the order the readings
 /// rank them: at each step after the first, of the effects the ledger adds later, the one whose
 /// exact refit lowers the BIC most ([`confirmed_step`]). The ledger ends at the same model and
-/// total; only its order can change. `chosen` stands when a step of the walk is not proposed.
+/// total; only its order can change. Where a step of the walk is not proposed, the walk's
+/// shorter ledger replaces `chosen` when its total is lower (the effects left out are not
+/// supported after the others), else `chosen` stands.
+///
+/// Why the shorter ledger: on the second simulator's head-heating + settling campaign
+/// (`bench/foreign_sim.py --head --effect settling --seed 22 --air linear --bars 6 --days 20
+/// --sample-s 30 --temp-s 60 --files day`) the coarse paths `head_heating` → `second_path` →
+/// `settling` and `head_heating` → `settling` tied within 3 of 2.8 M, and the first was kept:
+/// the readings rank `settling` first after `head_heating`, and `second_path` after both is not
+/// significant (ΔBIC +103), yet the ledger named it, 47.2 nm after two steps for the truth's
+/// 20.1.
 ///
 /// Why: a path's total ΔBIC does not depend on the order of its steps, so two coarse paths that
 /// add the same effects tie exactly, and the coarse order between them says nothing about the
@@ -592,7 +602,7 @@ fn in_readings_order(
                 bic(a).total_cmp(&bic(b))
             });
         let Some(best) = best else {
-            return chosen;
+            return lower_of(chosen, current);
         };
         rest.retain(|e| *e != best.effect);
         order.push(best.effect.clone());
@@ -608,6 +618,28 @@ fn in_readings_order(
     }
     tracing::debug!(path = ?order.iter().map(Effect::name).collect::<Vec<_>>(), "diagnose: the chosen ledger in the readings' order");
     (current.ledger, current.models)
+}
+
+/// `chosen`, or the shorter ledger of `walk` (which stopped where the readings propose none of
+/// `chosen`'s remaining effects) where its total is lower.
+fn lower_of(
+    chosen: (Vec<LedgerStep>, Vec<BarModel>),
+    walk: SelectionPath,
+) -> (Vec<LedgerStep>, Vec<BarModel>) {
+    let (walked, total) = (ledger_total(&walk.ledger), ledger_total(&chosen.0));
+    let shorter = walk.ledger.len() < chosen.0.len() && walked < total;
+    tracing::debug!(
+        walk = ?added_effects(&walk.ledger).iter().map(Effect::name).collect::<Vec<_>>(),
+        walked,
+        total,
+        shorter,
+        "diagnose: the readings' order stopped short of the chosen ledger"
+    );
+    if shorter {
+        (walk.ledger, walk.models)
+    } else {
+        chosen
+    }
 }
 
 /// The effects `ledger` adds, in its order.
