@@ -557,7 +557,9 @@ fn final_total(
 /// `settling` and `head_heating` → `settling` tied within 3 of 2.8 M, and the first was kept:
 /// the readings rank `settling` first after `head_heating`, and `second_path` after both is not
 /// significant (ΔBIC +103), yet the ledger named it, 47.2 nm after two steps for the truth's
-/// 20.1.
+/// 20.1. Our simulator's settling + second path (4 bars, 8 days, 30 s, seeds 1, 2, 4 and 7)
+/// put `lag:T2` or `heat:T2` between the two the same way
+/// (`tests/e2e/diagnose.rs::a_step_the_readings_do_not_support_after_the_others_is_left_out`).
 ///
 /// Why: a path's total ΔBIC does not depend on the order of its steps, so two coarse paths that
 /// add the same effects tie exactly, and the coarse order between them says nothing about the
