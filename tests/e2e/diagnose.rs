@@ -284,31 +284,42 @@ const HEAT_SOURCE: Named = ("a term of C1", |e| e.contains("C1"));
 /// and check the ledger: each `(what, is)` matched by an added effect's name, and the fleet RMS
 /// after the last step within 1.2 × the noise. Prints the ledger first.
 fn check_ledger(name: &str, cfg: &SimConfig, named: &[Named]) {
-    let tmp = tempfile::tempdir().unwrap();
-    let (dir, _) = simulate_campaign(tmp.path(), name, cfg);
-    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[])
-        .and_then(|p| p.with_forward_steps(named.len()))
-        .unwrap();
-    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
-    let ledger = &results.diagnosis.as_ref().unwrap().ledger;
-    let steps: Vec<String> = ledger
-        .iter()
-        .map(|s| format!("{} {:.4}", s.added, s.fleet_rms_um))
-        .collect();
+    let (steps, added, end) = fleet_ledger(name, cfg, Some(named.len()));
     eprintln!("{name}: {}", steps.join(" -> "));
-    let added: Vec<String> = ledger.iter().skip(1).map(|s| s.added.name()).collect();
     for (what, is) in named {
         assert!(
             added.iter().any(|a| is(a)),
             "{name}: {what} not named: {steps:?}"
         );
     }
-    let end = ledger.last().unwrap().fleet_rms_um;
     assert!(
         end <= 1.2 * cfg.noise_um,
         "{name}: stalled at {end:.4} µm ({:.2}x the noise): {steps:?}",
         end / cfg.noise_um
     );
+}
+
+/// Simulate `cfg` (as `name`) and run the diagnosis with `forward_steps` (the default when
+/// `None`): the fleet ledger's steps as "effect RMS", the effects it adds, and its last RMS (µm).
+fn fleet_ledger(
+    name: &str,
+    cfg: &SimConfig,
+    forward_steps: Option<usize>,
+) -> (Vec<String>, Vec<String>, f64) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (dir, _) = simulate_campaign(tmp.path(), name, cfg);
+    let mut plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[]).unwrap();
+    if let Some(steps) = forward_steps {
+        plan = plan.with_forward_steps(steps).unwrap();
+    }
+    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
+    let ledger = &results.diagnosis.as_ref().unwrap().ledger;
+    let steps = ledger
+        .iter()
+        .map(|s| format!("{} {:.4}", s.added, s.fleet_rms_um))
+        .collect();
+    let added = ledger.iter().skip(1).map(|s| s.added.name()).collect();
+    (steps, added, ledger.last().unwrap().fleet_rms_um)
 }
 
 #[test]
@@ -526,17 +537,7 @@ fn a_step_the_readings_do_not_support_after_the_others_is_left_out() {
     cfg.fleet.as_mut().unwrap().n_bars = 4;
     cfg.effects.second_path.enabled = true;
     cfg.effects.settling.enabled = true;
-    let tmp = tempfile::tempdir().unwrap();
-    let (dir, _) = simulate_campaign(tmp.path(), "settling-second-path", &cfg);
-    let plan = RunPlan::for_stage(Stage::Diagnose, dir.clone(), None, &[]).unwrap();
-    let results = analyse(&plan, dbbcal::io::read_campaign(&dir).unwrap());
-    let ledger = &results.diagnosis.as_ref().unwrap().ledger;
-    let steps: Vec<String> = ledger
-        .iter()
-        .map(|s| format!("{} {:.4}", s.added, s.fleet_rms_um))
-        .collect();
-    let added: Vec<String> = ledger.iter().skip(1).map(|s| s.added.name()).collect();
+    let (steps, added, end) = fleet_ledger("settling-second-path", &cfg, None);
     assert_eq!(added, ["settling", "second_path"], "{steps:?}");
-    let end = ledger.last().unwrap().fleet_rms_um;
     assert!(end <= 1.2 * cfg.noise_um, "{steps:?}");
 }
