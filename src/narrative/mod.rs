@@ -255,8 +255,9 @@ fn notes(plan: &RunPlan, results: &RunResults) -> Vec<String> {
 }
 
 /// The identified bars the match stage left out (`matching::matched_inputs`), with why: base
-/// parameters their data cannot determine (`BarModel::not_identifiable`: one length, a time
-/// constant run to the model's limit), else base parameters their model lacks.
+/// parameters whose data leave the bar's response undetermined
+/// (`BarModel::response_undetermined`: one length, a time constant run up to the model's limit),
+/// else base parameters their model lacks.
 fn unmatched_bars(results: &RunResults) -> Vec<String> {
     let Some(r) = &results.reference else {
         return Vec::new();
@@ -271,7 +272,7 @@ fn unmatched_bars(results: &RunResults) -> Vec<String> {
             let undetermined: Vec<&str> = base
                 .iter()
                 .copied()
-                .filter(|p| o.model.undetermined(p))
+                .filter(|p| o.model.response_undetermined(p))
                 .collect();
             let why = if undetermined.is_empty() {
                 "its model lacks base parameters the others have".to_string()

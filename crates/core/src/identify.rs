@@ -163,9 +163,18 @@ impl BarModel {
     /// Whether the parameter `name` is one the bar's data cannot determine
     /// ([`BarModel::not_identifiable`]).
     pub fn undetermined(&self, name: &str) -> bool {
+        self.undetermined_where(name, |_| true)
+    }
+    /// Whether the parameter `name` is undetermined in a way that leaves the bar's predicted
+    /// response undetermined too ([`WhyNotIdentifiable::leaves_the_response_undetermined`]):
+    /// what matching leaves a bar out for.
+    pub fn response_undetermined(&self, name: &str) -> bool {
+        self.undetermined_where(name, WhyNotIdentifiable::leaves_the_response_undetermined)
+    }
+    fn undetermined_where(&self, name: &str, why: impl Fn(&WhyNotIdentifiable) -> bool) -> bool {
         self.not_identifiable
             .iter()
-            .any(|n| n.params.iter().any(|p| p == name))
+            .any(|n| why(&n.reason) && n.params.iter().any(|p| p == name))
     }
     /// The model's effects, by name.
     pub fn effect_names(&self) -> Vec<String> {

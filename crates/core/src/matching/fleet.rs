@@ -78,12 +78,11 @@ pub fn match_fleet(
 /// a time constant run up to the model's limit, `crate::model::at_model_limit`). See
 /// [`matched_inputs`] for who is matched.
 pub(crate) fn match_input(o: &BarOutcome) -> Option<MatchInput> {
-    let undetermined = |name: &str| {
-        o.model.not_identifiable.iter().any(|n| {
-            n.reason.leaves_the_response_undetermined() && n.params.iter().any(|p| p == name)
-        })
+    let p = |name: &str| {
+        o.model
+            .value(name)
+            .filter(|_| !o.model.response_undetermined(name))
     };
-    let p = |name: &str| o.model.value(name).filter(|_| !undetermined(name));
     let q = |name: &str| p(name).unwrap_or(f64::NAN);
     let params = [
         p(MATCH_PARAMS[0])?,

@@ -66,15 +66,20 @@ const AT_LIMIT_LN_TAU: f64 = 1e-6;
 /// predicted a 55-µm mismatch against the reference and moved the fleet mean it is chosen by.
 pub(crate) fn at_model_limit(problem: &ThermalProblem, theta: &[f64]) -> Vec<NotIdentifiable> {
     let (lo, hi) = ln_tau_bounds();
+    let inside = |ln_tau: f64| ln_tau > lo + AT_LIMIT_LN_TAU && ln_tau < hi - AT_LIMIT_LN_TAU;
+    // Every refit of the diagnosis asks; the names are built only for a fit that ran off.
+    if theta.iter().all(|&t| inside(t)) {
+        return Vec::new();
+    }
     let tau_names = problem.tau_names();
     let gain_names = problem.gain_names();
     let nuisance = problem.nuisance_gains();
     let mut out = Vec::new();
     for (k, &ln_tau) in theta.iter().enumerate() {
-        let upper = ln_tau >= hi - AT_LIMIT_LN_TAU;
-        if !upper && ln_tau > lo + AT_LIMIT_LN_TAU {
+        if inside(ln_tau) {
             continue;
         }
+        let upper = ln_tau >= hi - AT_LIMIT_LN_TAU;
         let Some(tau) = tau_names.get(k) else {
             continue;
         };
